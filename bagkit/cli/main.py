@@ -1,0 +1,33 @@
+"""The ``bagkit`` command: one typer sub-app or command per module in this package."""
+
+from __future__ import annotations
+
+import typer
+
+from bagkit import __version__
+
+app = typer.Typer(
+    name="bagkit",
+    help="Record, replay, inspect and compare ROS 2 MCAP bags.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+
+def _version_callback(value: bool) -> None:
+    if value:
+        typer.echo(f"bagkit {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def main(
+    version: bool = typer.Option(
+        False, "--version", callback=_version_callback, is_eager=True, help="Print the version."
+    ),
+) -> None:
+    """Record, replay, inspect and compare ROS 2 MCAP bags."""
+
+
+# Command groups register themselves here, one module each (bagkit/cli/<group>.py).

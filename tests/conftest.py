@@ -1,0 +1,70 @@
+"""Session-wide test setup: keep every ROS process on this machine, on a domain of its own."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+# Set before anything creates a ROS context: rclpy reads these when a context initializes, and
+# every subprocess a test starts inherits them. The domain is derived from the pid so that two
+# test sessions running at once on this machine do not see each other.
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
+if "BAGKIT_TEST_DOMAIN_ID" not in os.environ:
+    os.environ["BAGKIT_TEST_DOMAIN_ID"] = str(100 + os.getpid() % 100)
+os.environ["ROS_DOMAIN_ID"] = os.environ["BAGKIT_TEST_DOMAIN_ID"]
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+INTEROP_DIR = REPO_ROOT.parent / "shared" / "interop" / "rosbag2_jazzy"
+
+
+@pytest.fixture(scope="session")
+def interop_dir() -> Path:
+    """The rosbag2 Jazzy test bags that ship beside the repository (``../shared/interop``)."""
+    if not INTEROP_DIR.is_dir():
+        pytest.fail(f"interop bags not found at {INTEROP_DIR}")
+    return INTEROP_DIR
+
+
+class ProcessGroup:
+    """Subprocesses started by one test, each in its own session, stopped by pid on teardown."""
+
+    def __init__(self) -> None:
+        self.procs: list[subprocess.Popen[bytes]] = []
+
+    def start(self, args: list[str], **kwargs: object) -> subprocess.Popen[bytes]:
+        """Start ``args`` (``bagkit``/``fusion``/``python`` resolve to this environment)."""
+        if args[0] in {"bagkit", "fusion"}:
+            args = [str(Path(sys.executable).with_name(args[0])), *args[1:]]
+        elif args[0] == "python":
+            args = [sys.executable, *args[1:]]
+        proc = subprocess.Popen(args, start_new_session=True, **kwargs)  # type: ignore[call-overload]
+        self.procs.append(proc)
+        return proc
+
+    def stop_all(self, timeout: float = 10.0) -> None:
+        for proc in self.procs:
+            if proc.poll() is None:
+                os.killpg(proc.pid, signal.SIGINT)
+        for proc in self.procs:
+            try:
+                proc.wait(timeout=timeout)
+            except subprocess.TimeoutExpired:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()
+
+
+@pytest.fixture
+def processes() -> Iterator[ProcessGroup]:
+    """Start subprocesses that are stopped (SIGINT, then SIGKILL) by their ids after the test."""
+    group = ProcessGroup()
+    try:
+        yield group
+    finally:
+        group.stop_all()
