@@ -1,0 +1,1 @@
+"""Reproducible benchmarks: each prints its figures as ratios against a peer in the same run."""
