@@ -35,7 +35,7 @@ class Divergence:
             return f"{where} {self.field}: {self.golden!r} -> {self.candidate!r}{error}"
         what = self.kind.replace("_", " ")
         if self.kind in {"missing_event", "extra_event"}:
-            return f"{where} {what} {self.field} {self.golden or self.candidate}"
+            return f"{where} {what} {self.field} {self.golden or self.candidate!s}"
         return f"{where} {what} {self.field}".rstrip()
 
 
