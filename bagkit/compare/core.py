@@ -7,7 +7,7 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-from bagkit.compare.options import CompareOptions
+from bagkit.compare.options import CompareOptions, Tolerance
 from bagkit.compare.result import Divergence, FieldResult, TopicResult, Value
 
 STAMP_FIELDS = ("header.stamp.sec", "header.stamp.nanosec")
@@ -47,8 +47,22 @@ class Event:
     message: str
 
 
-def _is_numeric(value: Value) -> bool:
+def _is_number(value: object) -> bool:
     return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def _elements(value: object) -> list[Value] | None:
+    """The elements of a sequence field (a list or numpy array); None for a scalar."""
+    if isinstance(value, str | bytes):
+        return None
+    tolist = getattr(value, "tolist", None)
+    if tolist is not None:
+        return list(tolist())
+    return list(value) if isinstance(value, list | tuple) else None
+
+
+# Integers are enums, levels, counts and stamps: equal or not.
+_EXACT = Tolerance()
 
 
 def _match_by_stamp(
@@ -130,15 +144,34 @@ class _TopicComparison:
                     Divergence("extra_field", topic, golden.time_ns, path, None, c_fields[path])
                 )
                 continue
-            self.compare_value(path, g_fields[path], c_fields[path], golden.time_ns)
+            g_value, c_value = g_fields[path], c_fields[path]
+            g_items, c_items = _elements(g_value), _elements(c_value)
+            if g_items is None and c_items is None:
+                self.compare_value(path, g_value, c_value, golden.time_ns)
+                continue
+            # A sequence field: its length, then element by element under the field's path.
+            g_items = [g_value] if g_items is None else g_items
+            c_items = [c_value] if c_items is None else c_items
+            if len(g_items) != len(c_items):
+                self.diverge(
+                    Divergence("length", topic, golden.time_ns, path, len(g_items), len(c_items))
+                )
+            for i, (g_item, c_item) in enumerate(zip(g_items, c_items, strict=False)):
+                self.compare_value(path, g_item, c_item, golden.time_ns, label=f"{path}#{i}")
 
-    def compare_value(self, path: str, golden: Value, candidate: Value, time_ns: int) -> None:
+    def compare_value(
+        self, path: str, golden: Value, candidate: Value, time_ns: int, *, label: str = ""
+    ) -> None:
+        """Compare one value: floats within tolerance, integers (enums, levels, counts) and
+        strings exactly. ``label`` names the element of a sequence field in divergences."""
         topic = self.result.topic
-        if _is_numeric(golden) and _is_numeric(candidate):
+        label = label or path
+        if _is_number(golden) and _is_number(candidate):
             assert isinstance(golden, int | float) and isinstance(candidate, int | float)
             stats = self.field_result(path, numeric=True)
             stats.compared += 1
-            tolerance = self.options.tolerance_for(topic, path)
+            exact = isinstance(golden, int) and isinstance(candidate, int)
+            tolerance = _EXACT if exact else self.options.tolerance_for(topic, path)
             g, c = float(golden), float(candidate)
             if math.isnan(g) or math.isnan(c) or math.isinf(g) or math.isinf(c):
                 abs_error = 0.0 if tolerance.accepts(g, c) else math.inf
@@ -151,14 +184,14 @@ class _TopicComparison:
             if not tolerance.accepts(g, c):
                 stats.failed += 1
                 self.diverge(
-                    Divergence("value", topic, time_ns, path, golden, candidate, abs_error)
+                    Divergence("value", topic, time_ns, label, golden, candidate, abs_error)
                 )
             return
         stats = self.field_result(path, numeric=False)
         stats.compared += 1
         if golden != candidate or type(golden) is not type(candidate):
             stats.failed += 1
-            self.diverge(Divergence("value", topic, time_ns, path, golden, candidate))
+            self.diverge(Divergence("value", topic, time_ns, label, golden, candidate))
 
     def finish(self) -> TopicResult:
         self.result.fields = sorted(self.fields.values(), key=lambda f: f.path)

@@ -6,7 +6,7 @@ import math
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-Value = float | int | str | bool | bytes | None
+Value = float | int | str | bool | bytes | list[Any] | None
 
 
 @dataclass(frozen=True, slots=True)

@@ -215,3 +215,26 @@ def test_options_from_spec_mapping() -> None:
     assert options.max_divergences == 4
     with pytest.raises(CompareError):
         options_from_mapping({"tolerance": 1})
+
+
+def test_integers_compare_exactly_whatever_the_tolerance() -> None:
+    golden = [stamped(0, level=2, x=1.0)]
+    candidate = [stamped(0, level=1, x=1.5)]
+    result = compare_samples(
+        "/t", "T", golden, candidate, CompareOptions(tolerance=Tolerance(atol=1.0))
+    )
+    assert [f.path for f in result.failed_fields] == ["level"]
+
+
+def test_sequence_fields_compare_length_and_elements() -> None:
+    golden = [stamped(0, **{"status[].name": ["baro", "gps"], "status[].level": [2, 1]})]
+    candidate = [
+        stamped(0, **{"status[].name": ["baro", "imu", "gps"], "status[].level": [2, 1, 1]})
+    ]
+    result = compare_samples("/t", "T", golden, candidate, CompareOptions())
+    found = sorted((d.kind, d.field, d.golden, d.candidate) for d in result.divergences)
+    assert found == [
+        ("length", "status[].level", 2, 3),
+        ("length", "status[].name", 2, 3),
+        ("value", "status[].name#1", "gps", "imu"),
+    ]
