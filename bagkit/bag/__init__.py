@@ -1,0 +1,42 @@
+"""The bag itself, without ROS: read and write rosbag2-compatible MCAP bags.
+
+See docs/architecture.md ("bagkit.bag") and docs/bag-format.md.
+"""
+
+from __future__ import annotations
+
+from bagkit.bag.definitions import message_definition, type_description_hash
+from bagkit.bag.errors import (
+    BagError,
+    BagExistsError,
+    BagNotFoundError,
+    BagWriteError,
+    CorruptBagError,
+    EmptyBagError,
+    NotABagError,
+    UnknownMessageTypeError,
+    UnsupportedStorageError,
+)
+from bagkit.bag.reader import BagReader
+from bagkit.bag.storage import BagChunk
+from bagkit.bag.types import BagMessage, TopicInfo
+from bagkit.bag.writer import BagWriter
+
+__all__ = [
+    "BagChunk",
+    "BagError",
+    "BagExistsError",
+    "BagMessage",
+    "BagNotFoundError",
+    "BagReader",
+    "BagWriteError",
+    "BagWriter",
+    "CorruptBagError",
+    "EmptyBagError",
+    "NotABagError",
+    "TopicInfo",
+    "UnknownMessageTypeError",
+    "UnsupportedStorageError",
+    "message_definition",
+    "type_description_hash",
+]

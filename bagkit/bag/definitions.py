@@ -1,0 +1,159 @@
+"""Message definitions and type hashes from the installed ROS 2 interface files.
+
+The ROS wheels install ``share/<pkg>/msg/<Name>.msg`` (the definition) and ``<Name>.json`` (the
+type description with its RIHS01 hashes) under ``sys.prefix``; a sourced ROS install lists its
+prefixes in ``AMENT_PREFIX_PATH``.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import os
+import re
+import sys
+from pathlib import Path
+
+from bagkit.bag.errors import UnknownMessageTypeError
+
+# rosbag2 separates the definitions of dependencies with this line (80 '=').
+DEFINITION_SEPARATOR = "=" * 80
+
+_PRIMITIVES = frozenset(
+    {
+        "bool",
+        "byte",
+        "char",
+        "float32",
+        "float64",
+        "int8",
+        "uint8",
+        "int16",
+        "uint16",
+        "int32",
+        "uint32",
+        "int64",
+        "uint64",
+        "string",
+        "wstring",
+    }
+)
+# The type token of a field or constant line: strip bounds and array suffixes.
+_TYPE_TOKEN = re.compile(r"^([A-Za-z_][A-Za-z0-9_/]*)")
+
+
+def canonical_type_name(type_name: str) -> str:
+    """Return ``pkg/msg/Name`` for ``pkg/Name`` (older writers) and leave other names alone."""
+    parts = type_name.split("/")
+    if len(parts) == 2 and all(parts):
+        return f"{parts[0]}/msg/{parts[1]}"
+    return type_name
+
+
+def _split_type_name(type_name: str) -> tuple[str, str, str]:
+    parts = canonical_type_name(type_name).split("/")
+    if len(parts) != 3 or not all(parts):
+        raise UnknownMessageTypeError(f"not a ROS 2 message type name: {type_name!r}")
+    return parts[0], parts[1], parts[2]
+
+
+def _share_dirs() -> list[Path]:
+    dirs = [Path(sys.prefix) / "share"]
+    for prefix in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
+        if prefix:
+            dirs.append(Path(prefix) / "share")
+    return dirs
+
+
+@functools.cache
+def _interface_file(package: str, kind: str, name: str, suffix: str) -> Path | None:
+    for share in _share_dirs():
+        candidate = share / package / kind / f"{name}{suffix}"
+        if candidate.is_file():
+            return candidate
+    return None
+
+
+@functools.cache
+def _msg_text(type_name: str) -> str:
+    package, kind, name = _split_type_name(type_name)
+    path = _interface_file(package, kind, name, ".msg")
+    if path is None:
+        raise UnknownMessageTypeError(
+            f"message type {canonical_type_name(type_name)} is not installed "
+            f"(no {package}/{kind}/{name}.msg under {', '.join(map(str, _share_dirs()))})"
+        )
+    return path.read_text(encoding="utf-8")
+
+
+def _dependencies(package: str, text: str) -> list[str]:
+    """Return the non-primitive types that the fields of a ``.msg`` text refer to, in order."""
+    found: list[str] = []
+    for raw_line in text.splitlines():
+        line = raw_line.split("#", 1)[0].strip()
+        if not line:
+            continue
+        match = _TYPE_TOKEN.match(line)
+        if match is None:
+            continue
+        token = match.group(1)
+        if token in _PRIMITIVES:
+            continue
+        if token == "Header":
+            dependency = "std_msgs/msg/Header"
+        elif "/" in token:
+            dependency = canonical_type_name(token)
+        else:
+            dependency = f"{package}/msg/{token}"
+        if dependency not in found:
+            found.append(dependency)
+    return found
+
+
+@functools.cache
+def message_definition(type_name: str) -> str:
+    """Return the full ``ros2msg`` definition of a message type, as rosbag2 stores it.
+
+    That is the type's ``.msg`` text followed, for each dependency (recursively, each once),
+    by a line of 80 ``=``, a line ``MSG: pkg/Name`` and the dependency's text.
+
+    Args:
+        type_name: ``pkg/msg/Name`` (``pkg/Name`` is accepted).
+
+    Raises:
+        UnknownMessageTypeError: the type or one of its dependencies is not installed.
+    """
+    root = canonical_type_name(type_name)
+    root_text = _msg_text(root)
+    parts = [root_text]
+    seen = {root}
+    queue = _dependencies(_split_type_name(root)[0], root_text)
+    while queue:
+        dependency = queue.pop(0)
+        if dependency in seen:
+            continue
+        seen.add(dependency)
+        text = _msg_text(dependency)
+        package, _, name = _split_type_name(dependency)
+        parts.append(f"{DEFINITION_SEPARATOR}\nMSG: {package}/{name}\n{text}")
+        queue.extend(d for d in _dependencies(package, text) if d not in seen)
+    return "\n".join(parts)
+
+
+@functools.cache
+def type_description_hash(type_name: str) -> str:
+    """Return the RIHS01 type hash of an installed message type (``RIHS01_<hex>``).
+
+    Raises:
+        UnknownMessageTypeError: the type's ``.json`` type description is not installed.
+    """
+    canonical = canonical_type_name(type_name)
+    package, kind, name = _split_type_name(canonical)
+    path = _interface_file(package, kind, name, ".json")
+    if path is None:
+        raise UnknownMessageTypeError(f"no type description installed for {canonical}")
+    description = json.loads(path.read_text(encoding="utf-8"))
+    for entry in description.get("type_hashes", []):
+        if entry.get("type_name") == canonical:
+            return str(entry["hash_string"])
+    raise UnknownMessageTypeError(f"{path} holds no hash for {canonical}")

@@ -1,0 +1,51 @@
+"""Errors of the bag layer: unusable input (exit code 2) and write failures."""
+
+from __future__ import annotations
+
+from bagkit.errors import BagkitError
+
+
+class BagError(BagkitError):
+    """A problem with a bag: reading it, writing it or finding what goes in it."""
+
+
+class BagNotFoundError(BagError):
+    """The path given as a bag does not exist."""
+
+
+class NotABagError(BagError):
+    """The path exists but is neither a rosbag2 bag directory nor a storage file we can read."""
+
+
+class CorruptBagError(BagError):
+    """A storage file is damaged beyond salvage (bad magic, unreadable header)."""
+
+
+class EmptyBagError(BagError):
+    """A bag that holds no topics and no messages."""
+
+
+class UnsupportedStorageError(BagError):
+    """A bag in a storage format bagkit does not read (only ``mcap`` and ``sqlite3``)."""
+
+
+class UnknownMessageTypeError(BagError):
+    """A message type whose ``.msg`` definition is not installed."""
+
+
+class BagExistsError(BagError):
+    """The output bag already exists: bagkit never overwrites a bag."""
+
+
+class BagWriteError(BagError):
+    """Writing failed (disk full, unwritable directory); what was flushed before stays readable.
+
+    Attributes:
+        messages_lost: messages that were accepted by ``write()`` but are not in the bag.
+    """
+
+    exit_code = 1
+
+    def __init__(self, message: str, *, messages_lost: int = 0) -> None:
+        super().__init__(message)
+        self.messages_lost = messages_lost

@@ -1,0 +1,204 @@
+"""BagReader: one logical bag from a bag directory, a split bag, or a single storage file."""
+
+from __future__ import annotations
+
+import heapq
+import re
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+from types import TracebackType
+
+from bagkit.bag.errors import (
+    BagNotFoundError,
+    EmptyBagError,
+    NotABagError,
+    UnsupportedStorageError,
+)
+from bagkit.bag.metadata import METADATA_FILENAME, BagMetadata, read_metadata
+from bagkit.bag.storage import BagChunk, McapFile, StorageFile, open_storage_file
+from bagkit.bag.types import BagMessage, TopicInfo
+
+STORAGE_SUFFIXES = (".mcap", ".db3")
+SUPPORTED_STORAGE = ("mcap", "sqlite3")
+
+
+def _natural_key(path: Path) -> list[int | str]:
+    return [int(part) if part.isdigit() else part for part in re.split(r"(\d+)", path.name)]
+
+
+def _resolve_files(path: Path) -> tuple[Path, list[Path], BagMetadata | None]:
+    """Return (bag directory, storage files, metadata) for a bag path."""
+    if not path.exists():
+        raise BagNotFoundError(f"{path}: no such file or directory")
+    if path.is_file() and path.name == METADATA_FILENAME:
+        path = path.parent
+    if path.is_file():
+        return path.parent, [path], None
+    metadata = read_metadata(path)
+    if metadata is not None:
+        if metadata.storage_identifier not in SUPPORTED_STORAGE:
+            raise UnsupportedStorageError(
+                f"{path}: storage {metadata.storage_identifier!r} is not supported "
+                f"(only {', '.join(SUPPORTED_STORAGE)})"
+            )
+        if metadata.compression_format:
+            raise UnsupportedStorageError(
+                f"{path}: rosbag2 {metadata.compression_mode or 'file'} compression "
+                f"{metadata.compression_format!r} is not supported"
+            )
+        listed = [path / name for name in metadata.relative_file_paths]
+        existing = [p for p in listed if p.is_file()]
+        if existing:
+            return path, existing, metadata
+    found = sorted(
+        (p for p in path.iterdir() if p.suffix in STORAGE_SUFFIXES and p.is_file()),
+        key=_natural_key,
+    )
+    if not found:
+        raise NotABagError(f"{path}: not a bag (no metadata.yaml, no .mcap or .db3 file)")
+    return path, found, metadata
+
+
+class BagReader:
+    """Read a bag: a rosbag2 bag directory (split or not, with or without ``metadata.yaml``), a
+    single ``.mcap`` file, or a single ``.db3`` file.
+
+    Topics, counts and times come from the storage files (MCAP summaries when present, a salvage
+    scan otherwise); ``metadata.yaml`` only fills in what the storage lacks (QoS, type hashes).
+
+    Args:
+        path: the bag.
+        allow_empty: accept a bag without messages (by default EmptyBagError).
+
+    Raises:
+        BagNotFoundError, NotABagError, CorruptBagError, UnsupportedStorageError, EmptyBagError.
+    """
+
+    def __init__(self, path: str | Path, *, allow_empty: bool = False) -> None:
+        self.path = Path(path)
+        self.directory, self.files, self.metadata = _resolve_files(self.path)
+        self._storage: list[StorageFile] = []
+        try:
+            for file in self.files:
+                self._storage.append(open_storage_file(file))
+        except BaseException:
+            self.close()
+            raise
+        self.storage = ",".join(dict.fromkeys(s.storage_identifier for s in self._storage))
+        self.topics: dict[str, TopicInfo] = {}
+        self.definitions: dict[str, str] = {}
+        self.topic_counts: dict[str, int] = {}
+        recorded = {t.name: t for t, _ in self.metadata.topics} if self.metadata else {}
+        for storage in self._storage:
+            for name, topic in storage.topics.items():
+                if name not in self.topics:
+                    self.topics[name] = _complete(topic, recorded.get(name))
+                self.topic_counts[name] = (
+                    self.topic_counts.get(name, 0) + storage.topic_counts[name]
+                )
+            for type_name, text in storage.definitions.items():
+                self.definitions.setdefault(type_name, text)
+        for name, topic in recorded.items():
+            if name not in self.topics:
+                self.topics[name] = topic
+                self.topic_counts[name] = 0
+        with_messages = [s for s in self._storage if any(s.topic_counts.values())]
+        self.start_ns = min((s.start_ns for s in with_messages), default=0)
+        self.end_ns = max((s.end_ns for s in with_messages), default=0)
+        if not allow_empty and self.message_count == 0:
+            self.close()
+            problems = "; ".join(self.problems)
+            raise EmptyBagError(
+                f"{self.path}: the bag holds no messages" + (f" ({problems})" if problems else "")
+            )
+
+    def __enter__(self) -> BagReader:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Close the storage files."""
+        for storage in self._storage:
+            storage.close()
+
+    @property
+    def message_count(self) -> int:
+        """Messages in the bag."""
+        return sum(self.topic_counts.values())
+
+    @property
+    def problems(self) -> list[str]:
+        """What could not be read (truncated files, unreadable chunks); grows while reading."""
+        return [p for s in self._storage for p in s.problems]
+
+    @property
+    def size_bytes(self) -> int:
+        """Total size of the storage files."""
+        return sum(f.stat().st_size for f in self.files)
+
+    @property
+    def compression(self) -> str:
+        """Chunk compressions used (``zstd``, ``lz4``, ``none``, comma-separated), or ``""``."""
+        kinds = {k for s in self._storage for k in s.compression.split(",") if k}
+        return ",".join(sorted(kinds))
+
+    @property
+    def compressed_size(self) -> int:
+        """Bytes of chunk data as stored."""
+        return sum(s.compressed_size for s in self._storage)
+
+    @property
+    def uncompressed_size(self) -> int:
+        """Bytes of chunk data once decompressed."""
+        return sum(s.uncompressed_size for s in self._storage)
+
+    def messages(
+        self,
+        topics: Iterable[str] | None = None,
+        start_ns: int | None = None,
+        end_ns: int | None = None,
+    ) -> Iterator[BagMessage]:
+        """Yield messages in log-time order across all files (ties keep file order).
+
+        Args:
+            topics: only these topics (all when None).
+            start_ns: only messages with ``log_time >= start_ns``.
+            end_ns: only messages with ``log_time < end_ns``.
+        """
+        wanted = set(topics) if topics is not None else None
+        streams = [s.messages(wanted, start_ns, end_ns) for s in self._storage]
+        if len(streams) == 1:
+            yield from streams[0]
+        else:
+            yield from heapq.merge(*streams, key=lambda m: m.log_time)
+
+    def chunks(self, topics: Iterable[str] | None = None) -> Iterator[BagChunk]:
+        """Yield the decompressed MCAP chunks holding ``topics``, file by file, in file order.
+
+        For bulk decoding: each :class:`BagChunk` carries the message-index entries per topic.
+        SQLite3 files have no chunks and are skipped.
+        """
+        wanted = set(topics) if topics is not None else None
+        for storage in self._storage:
+            if isinstance(storage, McapFile):
+                yield from storage.chunks(wanted)
+
+
+def _complete(topic: TopicInfo, recorded: TopicInfo | None) -> TopicInfo:
+    """Fill the QoS and type hash that the storage lacks from ``metadata.yaml``."""
+    if recorded is None:
+        return topic
+    return TopicInfo(
+        name=topic.name,
+        type=topic.type or recorded.type,
+        serialization_format=topic.serialization_format or recorded.serialization_format,
+        offered_qos_profiles=topic.offered_qos_profiles or recorded.offered_qos_profiles,
+        type_description_hash=topic.type_description_hash or recorded.type_description_hash,
+    )

@@ -1,0 +1,301 @@
+"""The storage files of a bag: one MCAP or SQLite3 file each, read in log-time order."""
+
+from __future__ import annotations
+
+import bisect
+import sqlite3
+import struct
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from bagkit.bag import mcap
+from bagkit.bag.definitions import canonical_type_name
+from bagkit.bag.errors import CorruptBagError, NotABagError, UnsupportedStorageError
+from bagkit.bag.types import BagMessage, TopicInfo
+
+SQLITE_MAGIC = b"SQLite format 3\x00"
+
+
+@dataclass(frozen=True, slots=True)
+class BagChunk:
+    """One MCAP chunk, decompressed, with the message-index entries of each of its topics.
+
+    ``message_index[topic]`` is a ``mcap.MESSAGE_INDEX_DTYPE`` array (``log_time``, ``offset``):
+    the Message record of each message starts at ``offset`` in ``records``; its payload starts at
+    ``offset + mcap.MESSAGE_DATA_OFFSET`` and is ``u64 at offset+1`` minus
+    ``mcap.MESSAGE_PREFIX.size`` bytes long.
+    """
+
+    file: Path
+    records: bytes
+    message_index: dict[str, np.ndarray]
+
+
+class StorageFile:
+    """What the reader needs from one storage file, whatever its format."""
+
+    path: Path
+    storage_identifier: str
+    topics: dict[str, TopicInfo]
+    definitions: dict[str, str]
+    topic_counts: dict[str, int]
+    start_ns: int
+    end_ns: int
+    problems: list[str]
+    compressed_size: int = 0
+    uncompressed_size: int = 0
+    compression: str = ""
+
+    def messages(
+        self, topics: set[str] | None, start_ns: int | None, end_ns: int | None
+    ) -> Iterator[BagMessage]:
+        """Yield the messages in log-time order (ties in storage order)."""
+        raise NotImplementedError
+
+    def close(self) -> None:
+        """Release the file."""
+
+
+class McapFile(StorageFile):
+    """An MCAP storage file (summary and indexes when present, salvage otherwise)."""
+
+    storage_identifier = "mcap"
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self._handle = open(path, "rb")  # noqa: SIM115 (closed in close())
+        try:
+            self.index = mcap.read_file_index(self._handle, name=path.name)
+        except BaseException:
+            self._handle.close()
+            raise
+        profile = self.index.header.profile
+        if profile not in ("ros2", ""):
+            self._handle.close()
+            raise UnsupportedStorageError(f"{path}: MCAP profile {profile!r} is not ROS 2")
+        self.problems = list(self.index.problems)
+        self._channel_topics: dict[int, str] = {}
+        self.topics = {}
+        self.definitions = {}
+        for channel in self.index.channels.values():
+            schema = self.index.schemas.get(channel.schema_id)
+            type_name = canonical_type_name(schema.name) if schema else ""
+            self._channel_topics[channel.id] = channel.topic
+            self.topics.setdefault(
+                channel.topic,
+                TopicInfo(
+                    name=channel.topic,
+                    type=type_name,
+                    serialization_format=channel.message_encoding,
+                    offered_qos_profiles=channel.metadata.get("offered_qos_profiles", ""),
+                    type_description_hash=channel.metadata.get("topic_type_hash", ""),
+                ),
+            )
+            if schema is not None and type_name not in self.definitions:
+                self.definitions[type_name] = schema.data.decode("utf-8", errors="replace")
+        self.topic_counts = dict.fromkeys(self.topics, 0)
+        for channel_id, count in self.index.channel_message_counts.items():
+            topic = self._channel_topics.get(channel_id)
+            if topic is not None:
+                self.topic_counts[topic] += count
+        self.start_ns = self.index.message_start_time
+        self.end_ns = self.index.message_end_time
+        chunks = self.index.chunk_indexes
+        self.compressed_size = sum(c.compressed_size for c in chunks)
+        self.uncompressed_size = sum(c.uncompressed_size for c in chunks)
+        self.compression = ",".join(sorted({c.compression or "none" for c in chunks}))
+
+    def close(self) -> None:
+        """Close the file."""
+        self._handle.close()
+
+    def _channel_ids(self, topics: set[str] | None) -> set[int]:
+        return {c for c, t in self._channel_topics.items() if topics is None or t in topics}
+
+    def _chunks(self, start_ns: int | None, end_ns: int | None) -> Iterator[mcap.ChunkIndex]:
+        for chunk_index in self.index.chunk_indexes:
+            if start_ns is not None and chunk_index.message_end_time < start_ns:
+                continue
+            if end_ns is not None and chunk_index.message_start_time >= end_ns:
+                continue
+            yield chunk_index
+
+    def _read_records(self, chunk_index: mcap.ChunkIndex) -> bytes | None:
+        raw = self._read_chunk_record(chunk_index)
+        if raw is None:
+            return None
+        try:
+            chunk = mcap.parse_chunk(memoryview(raw)[mcap.RECORD_HEADER.size :])
+            return mcap.decompress(chunk.compression, chunk.records, chunk.uncompressed_size)
+        except (CorruptBagError, struct.error, UnicodeDecodeError) as exc:
+            self._problem(chunk_index, str(exc))
+            return None
+
+    def _read_chunk_record(self, chunk_index: mcap.ChunkIndex) -> bytes | None:
+        self._handle.seek(chunk_index.chunk_start_offset)
+        raw = self._handle.read(chunk_index.chunk_length)
+        if len(raw) != chunk_index.chunk_length:
+            self._problem(chunk_index, "file ends inside the chunk")
+            return None
+        return raw
+
+    def _problem(self, chunk_index: mcap.ChunkIndex, what: str) -> None:
+        message = (
+            f"{self.path.name}: chunk at byte {chunk_index.chunk_start_offset} "
+            f"({chunk_index.chunk_length} bytes) unreadable: {what}"
+        )
+        if message not in self.problems:
+            self.problems.append(message)
+
+    def messages(
+        self, topics: set[str] | None, start_ns: int | None, end_ns: int | None
+    ) -> Iterator[BagMessage]:
+        """Yield the messages in log-time order (ties in storage order)."""
+        wanted = self._channel_ids(topics)
+        if not wanted:
+            return
+        channel_topics = self._channel_topics
+        lower = start_ns if start_ns is not None else 0
+        upper = end_ns if end_ns is not None else 1 << 64
+        # Chunks are sorted by start time; a chunk may overlap the next ones. Messages up to the
+        # next chunk's start time are final; the rest wait and are merged with that chunk.
+        pending: list[BagMessage] = []
+        for chunk_index in self._chunks(start_ns, end_ns):
+            if pending:
+                cut = bisect.bisect_left(
+                    pending, chunk_index.message_start_time, key=lambda m: m.log_time
+                )
+                yield from pending[:cut]
+                pending = pending[cut:]
+            records = self._read_records(chunk_index)
+            if records is None:
+                continue
+            batch = [
+                BagMessage(
+                    channel_topics[channel_id], records[begin:end], log_time, publish_time, seq
+                )
+                for channel_id, seq, log_time, publish_time, begin, end in (
+                    mcap.iter_chunk_messages(records)
+                )
+                if channel_id in wanted and lower <= log_time < upper
+            ]
+            pending.extend(batch)
+            pending.sort(key=lambda m: m.log_time)
+        yield from pending
+
+    def chunks(self, topics: set[str] | None) -> Iterator[BagChunk]:
+        """Yield the chunks holding messages of ``topics`` (all when None), in file order."""
+        wanted = self._channel_ids(topics)
+        for chunk_index in sorted(self.index.chunk_indexes, key=lambda c: c.chunk_start_offset):
+            if chunk_index.message_index_offsets and not (
+                wanted & chunk_index.message_index_offsets.keys()
+            ):
+                continue
+            try:
+                data = mcap.read_chunk(self._handle, chunk_index)
+            except (CorruptBagError, struct.error) as exc:
+                self._problem(chunk_index, str(exc))
+                continue
+            by_topic: dict[str, list[np.ndarray]] = {}
+            for channel_id, entries in data.message_index.items():
+                if channel_id in wanted:
+                    by_topic.setdefault(self._channel_topics[channel_id], []).append(entries)
+            if by_topic:
+                yield BagChunk(
+                    self.path,
+                    data.records,
+                    {
+                        topic: parts[0]
+                        if len(parts) == 1
+                        else np.sort(np.concatenate(parts), order="offset")
+                        for topic, parts in by_topic.items()
+                    },
+                )
+
+
+class Sqlite3File(StorageFile):
+    """A rosbag2 SQLite3 (``.db3``) storage file, opened read-only and immutable."""
+
+    storage_identifier = "sqlite3"
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.problems = []
+        # immutable=1: no -shm/-wal side files next to bags in read-only folders.
+        uri = f"file:{path.resolve()}?mode=ro&immutable=1"
+        try:
+            self._db = sqlite3.connect(uri, uri=True)
+            tables = {row[0] for row in self._db.execute("SELECT name FROM sqlite_master")}
+        except sqlite3.DatabaseError as exc:
+            raise NotABagError(f"{path}: not a SQLite3 database ({exc})") from exc
+        if not {"topics", "messages"} <= tables:
+            self._db.close()
+            raise NotABagError(f"{path}: SQLite3 file without rosbag2 tables")
+        columns = {row[1] for row in self._db.execute("PRAGMA table_info(topics)")}
+        hash_column = "type_description_hash" if "type_description_hash" in columns else "''"
+        qos_column = "offered_qos_profiles" if "offered_qos_profiles" in columns else "''"
+        self._topic_ids: dict[int, str] = {}
+        self.topics = {}
+        query = (
+            f"SELECT id, name, type, serialization_format, {qos_column}, {hash_column} FROM topics"
+        )
+        for topic_id, name, type_name, fmt, qos, type_hash in self._db.execute(query):
+            self._topic_ids[topic_id] = name
+            self.topics[name] = TopicInfo(name, canonical_type_name(type_name), fmt, qos, type_hash)
+        self.definitions = {}
+        if "message_definitions" in tables:
+            for type_name, encoding, text in self._db.execute(
+                "SELECT topic_type, encoding, encoded_message_definition FROM message_definitions"
+            ):
+                if encoding == "ros2msg" and text:
+                    self.definitions[canonical_type_name(type_name)] = text
+        self.topic_counts = dict.fromkeys(self.topics, 0)
+        for topic_id, count in self._db.execute(
+            "SELECT topic_id, COUNT(*) FROM messages GROUP BY topic_id"
+        ):
+            if topic_id in self._topic_ids:
+                self.topic_counts[self._topic_ids[topic_id]] += count
+        start, end = self._db.execute(
+            "SELECT MIN(timestamp), MAX(timestamp) FROM messages"
+        ).fetchone()
+        self.start_ns = int(start or 0)
+        self.end_ns = int(end or 0)
+
+    def close(self) -> None:
+        """Close the database."""
+        self._db.close()
+
+    def messages(
+        self, topics: set[str] | None, start_ns: int | None, end_ns: int | None
+    ) -> Iterator[BagMessage]:
+        """Yield the messages in timestamp order (ties by row id); no publish time in SQLite3."""
+        wanted = [i for i, t in self._topic_ids.items() if topics is None or t in topics]
+        if not wanted:
+            return
+        marks = ",".join("?" * len(wanted))
+        query = (
+            f"SELECT topic_id, timestamp, data FROM messages WHERE topic_id IN ({marks}) "
+            "AND timestamp >= ? AND timestamp < ? ORDER BY timestamp, id"
+        )
+        lower = start_ns if start_ns is not None else 0
+        upper = end_ns if end_ns is not None else (1 << 63) - 1
+        for topic_id, timestamp, data in self._db.execute(query, (*wanted, lower, upper)):
+            yield BagMessage(self._topic_ids[topic_id], bytes(data), timestamp, timestamp, 0)
+
+
+def open_storage_file(path: Path) -> StorageFile:
+    """Open one storage file by its content (MCAP or SQLite3 magic).
+
+    Raises:
+        NotABagError: neither MCAP nor SQLite3.
+    """
+    with open(path, "rb") as f:
+        head = f.read(len(SQLITE_MAGIC))
+    if head.startswith(mcap.MAGIC):
+        return McapFile(path)
+    if head == SQLITE_MAGIC:
+        return Sqlite3File(path)
+    raise NotABagError(f"{path}: neither an MCAP nor a SQLite3 file")

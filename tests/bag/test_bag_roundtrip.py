@@ -1,0 +1,190 @@
+"""Writer -> reader round trips, checked with bagkit, rosbags and the mcap library."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+import yaml
+from bag_samples import IMU, QOS_YAML, STRING, TYPESTORE, deserialize, imu_cdr
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+from rosbags.highlevel import AnyReader
+
+from bagkit.bag import (
+    BagExistsError,
+    BagReader,
+    BagWriter,
+    TopicInfo,
+    message_definition,
+    type_description_hash,
+)
+
+
+def test_round_trip_keeps_every_message(write_sample_bag: Callable[..., Path]) -> None:
+    bag_path = write_sample_bag(n_imu=300)
+    with BagReader(bag_path) as bag:
+        assert bag.files == [bag_path / "sample_0.mcap"]
+        assert bag.topic_counts == {"/imu/data": 300, "/text": 30}
+        assert bag.message_count == 330
+        assert bag.topics["/imu/data"].type == IMU
+        assert bag.topics["/imu/data"].offered_qos_profiles == QOS_YAML
+        assert bag.topics["/imu/data"].type_description_hash == type_description_hash(IMU)
+        assert bag.definitions[IMU] == message_definition(IMU)
+        assert bag.start_ns == 1_700_000_000_000_000_000
+        assert bag.end_ns == 1_700_000_000_000_000_000 + 299 * 10_000_000
+        messages = list(bag.messages())
+        assert bag.problems == []
+    assert len(messages) == 330
+    log_times = [m.log_time for m in messages]
+    assert log_times == sorted(log_times)
+    imu = [m for m in messages if m.topic == "/imu/data"]
+    for i, message in enumerate(imu):
+        assert message.data == imu_cdr(i)
+        assert message.sequence == i
+        assert message.publish_time == message.log_time - 1000
+    text = [deserialize(m.data, STRING).data for m in messages if m.topic == "/text"]
+    assert text == [f"message {i}" for i in range(0, 300, 10)]
+
+
+def test_filters_by_topic_and_time(write_sample_bag: Callable[..., Path]) -> None:
+    bag_path = write_sample_bag(n_imu=100)
+    start = 1_700_000_000_000_000_000 + 20 * 10_000_000
+    end = 1_700_000_000_000_000_000 + 50 * 10_000_000
+    with BagReader(bag_path) as bag:
+        selected = list(bag.messages(topics=["/imu/data"], start_ns=start, end_ns=end))
+    assert [m.sequence for m in selected] == list(range(20, 50))
+
+
+@pytest.mark.parametrize("compression", ["zstd", "lz4", "none"])
+def test_rosbags_and_mcap_read_every_message(
+    write_sample_bag: Callable[..., Path], compression: str
+) -> None:
+    bag_path = write_sample_bag(n_imu=200, compression=compression, chunk_size=4096)
+    with AnyReader([bag_path], default_typestore=TYPESTORE) as reader:
+        counts = {c.topic: c.msgcount for c in reader.connections}
+        decoded = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages()]
+    assert counts == {"/imu/data": 200, "/text": 20}
+    assert len(decoded) == 220
+    accel_x = [m.linear_acceleration.x for m in decoded if hasattr(m, "linear_acceleration")]
+    assert accel_x == pytest.approx([0.01 * i for i in range(200)])
+
+    with open(bag_path / "sample_0.mcap", "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        header = reader.get_header()
+        summary = reader.get_summary()
+        decoded_mcap = [m for _, _, _, m in reader.iter_decoded_messages()]
+    assert header.profile == "ros2"
+    assert header.library.startswith("bagkit")
+    assert summary is not None and summary.statistics is not None
+    assert summary.statistics.message_count == 220
+    assert len(summary.chunk_indexes) > 1
+    assert {c.compression for c in summary.chunk_indexes} == {
+        "" if compression == "none" else compression
+    }
+    assert {s.encoding for s in summary.schemas.values()} == {"ros2msg"}
+    channel = next(c for c in summary.channels.values() if c.topic == "/imu/data")
+    assert channel.message_encoding == "cdr"
+    assert channel.metadata == {
+        "offered_qos_profiles": QOS_YAML,
+        "topic_type_hash": type_description_hash(IMU),
+    }
+    assert len(decoded_mcap) == 220
+    frame_ids = [m.header.frame_id for m in decoded_mcap if hasattr(m, "linear_acceleration")]
+    assert frame_ids == ["imu" + "x" * (i % 3) for i in range(200)]
+
+
+def test_metadata_yaml_is_rosbag2_version_9(write_sample_bag: Callable[..., Path]) -> None:
+    bag_path = write_sample_bag(n_imu=50)
+    info = yaml.safe_load((bag_path / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert list(info) == [
+        "version",
+        "storage_identifier",
+        "duration",
+        "starting_time",
+        "message_count",
+        "topics_with_message_count",
+        "compression_format",
+        "compression_mode",
+        "relative_file_paths",
+        "files",
+        "custom_data",
+        "ros_distro",
+    ]
+    first = 1_700_000_000_000_000_000
+    last = first + 49 * 10_000_000
+    assert info["version"] == 9
+    assert info["storage_identifier"] == "mcap"
+    assert info["starting_time"] == {"nanoseconds_since_epoch": first}
+    assert info["duration"] == {"nanoseconds": last - first}
+    assert info["message_count"] == 55
+    topics = {t["topic_metadata"]["name"]: t for t in info["topics_with_message_count"]}
+    assert topics["/imu/data"]["message_count"] == 50
+    assert topics["/text"]["message_count"] == 5
+    assert topics["/imu/data"]["topic_metadata"] == {
+        "name": "/imu/data",
+        "type": IMU,
+        "serialization_format": "cdr",
+        "offered_qos_profiles": QOS_YAML,
+        "type_description_hash": type_description_hash(IMU),
+    }
+    assert info["relative_file_paths"] == ["sample_0.mcap"]
+    assert info["files"] == [
+        {
+            "path": "sample_0.mcap",
+            "starting_time": {"nanoseconds_since_epoch": first},
+            "duration": {"nanoseconds": last - first},
+            "message_count": 55,
+        }
+    ]
+    assert info["custom_data"] == {"lost./imu/data": "0"}
+    assert info["ros_distro"] == "jazzy"
+    assert info["compression_format"] == ""
+
+    # The same metadata is embedded in the MCAP file, as rosbag2 does.
+    with open(bag_path / "sample_0.mcap", "rb") as f:
+        records = list(make_reader(f).iter_metadata())
+    assert [r.name for r in records] == ["rosbag2"]
+    embedded = yaml.safe_load(records[0].metadata["serialized_metadata"])
+    assert embedded["message_count"] == 55
+
+
+def test_definition_has_dependencies_as_rosbag2_writes_them() -> None:
+    text = message_definition(IMU)
+    separator = "\n" + "=" * 80 + "\n"
+    sections = text.split(separator)
+    assert sections[0].startswith("# This is a message to hold data from an IMU")
+    names = [s.splitlines()[0] for s in sections[1:]]
+    assert sorted(names) == sorted(
+        [
+            "MSG: std_msgs/Header",
+            "MSG: builtin_interfaces/Time",
+            "MSG: geometry_msgs/Quaternion",
+            "MSG: geometry_msgs/Vector3",
+        ]
+    )
+    assert message_definition("sensor_msgs/Imu") == text
+    assert type_description_hash(IMU).startswith("RIHS01_")
+
+
+def test_existing_output_is_never_overwritten(tmp_path: Path) -> None:
+    target = tmp_path / "bag"
+    target.mkdir()
+    (target / "keep.txt").write_text("precious")
+    with pytest.raises(BagExistsError):
+        BagWriter(target)
+    assert (target / "keep.txt").read_text() == "precious"
+
+
+def test_unknown_type_without_definition_is_a_clear_error(tmp_path: Path) -> None:
+    from bagkit.bag import UnknownMessageTypeError
+
+    with BagWriter(tmp_path / "bag") as bag:
+        with pytest.raises(UnknownMessageTypeError, match="not_a_pkg/msg/Nope"):
+            bag.add_topic(TopicInfo("/x", "not_a_pkg/msg/Nope"))
+        bag.add_topic(TopicInfo("/x", "not_a_pkg/msg/Nope"), definition="int32 a\n")
+        bag.write("/x", b"\x00\x01\x00\x00\x05\x00\x00\x00", log_time=5)
+    with BagReader(tmp_path / "bag") as reader:
+        assert reader.definitions == {"not_a_pkg/msg/Nope": "int32 a\n"}
+        assert reader.topic_counts == {"/x": 1}
