@@ -1,0 +1,87 @@
+"""data_logger: running statistics of every numeric sensor field, summarised periodically."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+
+from fusion import topics
+from fusion.params import Params
+from fusion.processors.base import Output, ProcessorBase, Severity
+from fusion.processors.messages import numeric_fields, stamp, stamp_ns
+from fusion.stats import FieldStats
+
+PARAMETER_DESCRIPTIONS: dict[str, str] = {
+    "summary_period": "Seconds of node-clock time between two summaries on /logger/summary.",
+}
+
+STAT_NAMES = ("count", "nan", "min", "max", "mean", "std")
+
+
+def _format(value: float) -> str:
+    return f"{value:.6g}" if not math.isnan(value) else "nan"
+
+
+class DataLogger(ProcessorBase):
+    """Keeps count/min/max/mean/std per field of each sensor topic; publishes a summary."""
+
+    input_topics = topics.SENSOR_TOPICS
+    output_topics = (topics.LOGGER_SUMMARY,)
+
+    def __init__(self, params: Mapping[str, object] | None = None) -> None:
+        super().__init__()
+        p = Params("data_logger", params)
+        self.timer_period_ns = round(p.number("summary_period", positive=True) * 1e9)
+        self.stats = {topic: FieldStats() for topic in self.input_topics}
+
+    def on_message(self, topic: str, msg: Any, now_ns: int) -> list[Output]:
+        """Add the message's numeric fields to the topic's statistics."""
+        values = numeric_fields(msg)
+        self.stats[topic].add(values)
+        fields = " ".join(f"{name}={value:.6g}" for name, value in values.items())
+        self.log(Severity.DEBUG, f"{topic} stamp={stamp_ns(msg.header.stamp)} {fields}")
+        return []
+
+    def on_timer(self, now_ns: int) -> list[Output]:
+        """Publish the summary and log it as a table."""
+        summary = DiagnosticArray()
+        summary.header.stamp = stamp(now_ns)
+        for topic, field_stats in self.stats.items():
+            status = DiagnosticStatus()
+            status.name = f"data_logger: {topic}"
+            status.hardware_id = topic
+            if field_stats.messages:
+                status.level = DiagnosticStatus.OK
+                status.message = f"{field_stats.messages} messages"
+            else:
+                status.level = DiagnosticStatus.WARN
+                status.message = "no messages"
+            for name, stats in field_stats.fields.items():
+                row = (stats.count, stats.nan_count, stats.min, stats.max, stats.mean, stats.std)
+                status.values.extend(
+                    KeyValue(key=f"{name}.{stat}", value=_format(float(value)))
+                    for stat, value in zip(STAT_NAMES, row, strict=True)
+                )
+            summary.status.append(status)
+        self.log(Severity.INFO, self.table(now_ns))
+        return [(topics.LOGGER_SUMMARY, summary)]
+
+    def table(self, now_ns: int) -> str:
+        """The current statistics as a fixed-width text table."""
+        header = (
+            f"{'topic':<20} {'field':<24} {'count':>6} {'nan':>4} {'min':>11} {'max':>11} "
+            f"{'mean':>11} {'std':>10}"
+        )
+        lines = [f"summary at {now_ns / 1e9:.1f} s", header]
+        for topic, field_stats in self.stats.items():
+            if not field_stats.messages:
+                lines.append(f"{topic:<20} (no messages)")
+            for name, s in field_stats.fields.items():
+                lines.append(
+                    f"{topic:<20} {name:<24} {s.count:>6} {s.nan_count:>4} {s.min:>11.6g} "
+                    f"{s.max:>11.6g} {s.mean:>11.6g} {s.std:>10.4g}"
+                )
+        return "\n".join(lines)
