@@ -5,6 +5,8 @@ from __future__ import annotations
 import typer
 
 from bagkit import __version__
+from bagkit.cli import replay as _replay
+from bagkit.cli import compare as _compare
 
 app = typer.Typer(
     name="bagkit",
@@ -31,3 +33,5 @@ def main(
 
 
 # Command groups register themselves here, one module each (bagkit/cli/<group>.py).
+app.command("compare", help=_compare.HELP, no_args_is_help=True)(_compare.compare)
+app.add_typer(_replay.app)

@@ -6,6 +6,7 @@ import heapq
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 from bagkit.compare.options import CompareOptions, Tolerance
 from bagkit.compare.result import Divergence, FieldResult, TopicResult, Value
@@ -19,7 +20,7 @@ class Sample:
 
     log_time: int
     publish_time: int
-    fields: Mapping[str, Value]
+    fields: Mapping[str, Any]
 
     @property
     def stamp(self) -> int | None:

@@ -1,0 +1,158 @@
+"""``bagkit compare``: a candidate bag against a golden one, within tolerances."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import typer
+from rich import box
+from rich.table import Table
+
+from bagkit.cli.common import OutputFormat, console, err_console, handle_errors, print_json, warn
+from bagkit.compare import CompareOptions, CompareReport, Tolerance, compare_bags, replace_options
+
+HELP = (
+    "Compare CANDIDATE with GOLDEN, topic by topic, field by field.\n\n"
+    "Messages are matched by header stamp (by order where there is none). A float field passes "
+    "when |a - b| <= max(atol, rtol * max(|a|, |b|)); integers (enums, levels), strings and "
+    "booleans must be equal. Statuses on event topics (/alerts) are matched by (name, level) "
+    "within --event-window seconds. Receive and publish times are ignored unless "
+    "--include-times.\n\n"
+    "Exit status: 0 identical within tolerance, 1 different, 2 unusable input."
+)
+
+
+def _split(values: list[str] | None) -> tuple[str, ...] | None:
+    # Accept both `--topics /a --topics /b` and `--topics /a,/b`.
+    if not values:
+        return None
+    return tuple(v for value in values for v in value.split(",") if v)
+
+
+def _print_table(report: CompareReport, limit: int) -> None:
+    table = Table(title="golden vs candidate", title_justify="left", box=box.SIMPLE_HEAD)
+    table.add_column("topic", no_wrap=True)
+    table.add_column("match")
+    for column in ("golden", "cand.", "missing", "extra"):
+        table.add_column(column, justify="right")
+    table.add_column("result", no_wrap=True)
+    errors: list[str] = []
+    for topic in report.topics:
+        numeric = [f for f in topic.fields if f.numeric and f.compared]
+        worst = max(numeric, key=lambda f: (not f.passed, f.max_abs_error), default=None)
+        if topic.matched_by == "event":
+            errors.append(
+                f"  {topic.topic}: events shifted by up to {topic.max_event_shift_ns / 1e9:.3f} s"
+            )
+        elif worst is not None:
+            errors.append(
+                f"  {topic.topic}: {worst.path} |err| {worst.max_abs_error:.3g} "
+                f"(rel {worst.max_rel_error:.3g}; atol {worst.atol:g} rtol {worst.rtol:g})"
+            )
+        verdict = "[green]ok[/]" if topic.passed else f"[red]{topic.divergence_count} diff[/]"
+        counts = (topic.golden_count, topic.candidate_count, topic.missing, topic.extra)
+        table.add_row(topic.topic, topic.matched_by or "type", *map(str, counts), verdict)
+    console.print(table)
+    if errors:
+        console.print("largest errors:")
+        for line in errors:
+            console.print(line, highlight=False, markup=False, soft_wrap=True)
+    divergences = report.first_divergences(limit)
+    if divergences:
+        console.print("first divergences:")
+        for divergence in divergences:
+            console.print(
+                f"  {divergence.describe()}", highlight=False, markup=False, soft_wrap=True
+            )
+    if report.passed:
+        console.print("[bold green]PASS[/]: identical within tolerance")
+    else:
+        failed = [t.topic for t in report.topics if not t.passed]
+        console.print(f"[bold red]FAIL[/]: differences on {', '.join(failed)}")
+
+
+@handle_errors
+def compare(
+    golden: Path = typer.Argument(..., help="The reference bag (directory or .mcap)."),
+    candidate: Path = typer.Argument(..., help="The bag to check against it."),
+    *,
+    topics: list[str] | None = typer.Option(
+        None,
+        "--topics",
+        "-t",
+        help="Topics to compare (repeat or comma-separate); default: the topics both bags have.",
+        show_default=False,
+    ),
+    atol: float | None = typer.Option(None, help="Absolute tolerance of float fields [0]."),
+    rtol: float | None = typer.Option(None, help="Relative tolerance of float fields [0]."),
+    ignore_fields: list[str] | None = typer.Option(
+        None,
+        "--ignore-fields",
+        "-i",
+        help="Field glob to skip, e.g. 'pose.covariance*' or "
+        "'/logger/summary:*' for one topic (repeatable).",
+        show_default=False,
+    ),
+    spec: Path | None = typer.Option(
+        None,
+        help="Fixture spec (spec.yaml) whose outputs and tolerances to use; the options "
+        "given here override it.",
+    ),
+    live: bool = typer.Option(False, "--live", help="With --spec: its live tolerances."),
+    event_window: float | None = typer.Option(
+        None, help="Seconds within which alert events of equal (name, level) match [0.5]."
+    ),
+    match_window: float | None = typer.Option(
+        None, help="Seconds within which header stamps match [0: exactly]."
+    ),
+    include_times: bool = typer.Option(
+        False, "--include-times", help="Also compare receive and publish times."
+    ),
+    report: Path | None = typer.Option(None, help="Write the JSON verdict to this file."),
+    output_format: OutputFormat = typer.Option(
+        OutputFormat.TABLE, "--format", help="table, or json (the verdict on stdout)."
+    ),
+    show: int = typer.Option(10, help="How many divergences to print and keep per topic."),
+) -> None:
+    """Compare CANDIDATE with GOLDEN within tolerances (exit 0 same, 1 different, 2 bad input)."""
+    if output_format is OutputFormat.CSV:
+        raise typer.BadParameter("compare prints table or json", param_hint="--format")
+    if spec is not None:
+        from bagkit.regression.spec import load_spec
+
+        options = load_spec(spec).compare_options("live" if live else "lockstep")
+    else:
+        options = CompareOptions()
+    extra_ignores = _split(ignore_fields) or ()
+    tolerance = None
+    if atol is not None or rtol is not None:
+        tolerance = Tolerance(
+            atol if atol is not None else options.tolerance.atol,
+            rtol if rtol is not None else options.tolerance.rtol,
+        )
+    options = replace_options(
+        options,
+        topics=_split(topics),
+        tolerance=tolerance,
+        ignore_fields=options.ignore_fields + extra_ignores,
+        event_window_ns=None if event_window is None else round(event_window * 1e9),
+        match_window_ns=None if match_window is None else round(match_window * 1e9),
+        include_times=include_times or None,
+        max_divergences=show,
+    )
+    with err_console.status("comparing ...") as status:
+        result = compare_bags(
+            golden, candidate, options, progress=lambda t: status.update(f"comparing {t}")
+        )
+    for warning in result.warnings:
+        warn(warning)
+    if report is not None:
+        report.write_text(json.dumps(result.to_dict(), indent=2) + "\n")
+    if output_format is OutputFormat.JSON:
+        print_json(result.to_dict())
+    else:
+        _print_table(result, show)
+        if report is not None:
+            console.print(f"report: {report}", highlight=False)
+    raise typer.Exit(result.exit_code)
