@@ -5,8 +5,8 @@ from __future__ import annotations
 import typer
 
 from bagkit import __version__
-from bagkit.cli import replay as _replay
 from bagkit.cli import compare as _compare
+from bagkit.cli import replay as _replay
 
 app = typer.Typer(
     name="bagkit",
