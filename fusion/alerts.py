@@ -94,8 +94,10 @@ class AlertMonitor:
         *,
         stale_periods: float = 3.0,
         debounce_samples: int = 2,
+        startup_grace_ns: int = 0,
     ) -> None:
         self.stale_periods = stale_periods
+        self.startup_grace_ns = startup_grace_ns
         self._monitors = {
             name: _SensorMonitor(rules, max(1, debounce_samples)) for name, rules in sensors.items()
         }
@@ -153,9 +155,15 @@ class AlertMonitor:
         assert self._start_ns is not None
         changed = []
         for name, mon in self._monitors.items():
-            last = mon.last_seen_ns if mon.last_seen_ns is not None else self._start_ns
+            limit_ns = self.stale_periods * mon.rules.period_ns
+            if mon.last_seen_ns is None:
+                # Peers take a moment to be discovered: a sensor never heard from gets longer.
+                last = self._start_ns
+                limit_ns = max(limit_ns, self.startup_grace_ns)
+            else:
+                last = mon.last_seen_ns
             silent_ns = now_ns - last
-            if silent_ns > self.stale_periods * mon.rules.period_ns:
+            if silent_ns > limit_ns:
                 reason = (
                     f"no message for {silent_ns / 1e9:.1f} s"
                     if mon.last_seen_ns is not None

@@ -58,6 +58,7 @@ def _parameter_descriptions() -> dict[str, str]:
     descriptions = {
         "check_rate": "Rate (Hz) of the staleness check.",
         "stale_periods": "A sensor silent for more than this many of its periods is STALE.",
+        "startup_grace": "Seconds a sensor never heard from has before it is STALE.",
         "debounce_samples": "Consecutive samples a new level must persist to be published.",
         "imu.stuck_samples": "Identical consecutive IMU samples that mean a stuck IMU (ERROR).",
     }
@@ -107,6 +108,7 @@ class AlertSystem(ProcessorBase):
             rules,
             stale_periods=p.number("stale_periods", positive=True),
             debounce_samples=p.integer("debounce_samples", minimum=1),
+            startup_grace_ns=round(p.number("startup_grace", non_negative=True) * 1e9),
         )
 
     def on_message(self, topic: str, msg: Any, now_ns: int) -> list[Output]:

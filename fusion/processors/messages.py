@@ -44,12 +44,12 @@ def field_value(msg: Any, path: str) -> Any:
 def numeric_fields(msg: Any, prefix: str = "") -> dict[str, float]:
     """Every numeric scalar field of a message as dotted name -> float.
 
-    Headers, covariance matrices and other arrays are left out: they are bookkeeping, not
-    measurements.
+    Headers, (co)variances and their types, and arrays are left out: they describe the sensor,
+    not the measurement.
     """
     values: dict[str, float] = {}
     for name, type_name in msg.get_fields_and_field_types().items():
-        if name == "header" or name.endswith("covariance") or "[" in type_name:
+        if name == "header" or "variance" in name or "[" in type_name:
             continue
         if type_name.startswith("sequence") or type_name == "string":
             continue

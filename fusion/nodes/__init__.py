@@ -1,0 +1,1 @@
+"""rclpy nodes: one module per node, each a thin shell over its processor."""
