@@ -472,8 +472,13 @@ def _read_summary(f: BinaryIO, file_size: int, header: Header) -> FileIndex | No
         # Counts per channel are only in Statistics; without it the data section must be read.
         return None
     index.channel_message_counts = dict(statistics.channel_message_counts)
-    index.message_start_time = statistics.message_start_time
-    index.message_end_time = statistics.message_end_time
+    # Chunk indexes before Statistics: the Go writer's statistics skip log_time 0.
+    if index.chunk_indexes:
+        index.message_start_time = min(c.message_start_time for c in index.chunk_indexes)
+        index.message_end_time = max(c.message_end_time for c in index.chunk_indexes)
+    else:
+        index.message_start_time = statistics.message_start_time
+        index.message_end_time = statistics.message_end_time
     for entry in metadata_indexes:
         record = _read_exact(f, entry.offset, entry.length)
         index.metadata.append(parse_metadata(record[RECORD_HEADER.size :]))

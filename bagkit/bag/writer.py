@@ -220,14 +220,22 @@ class BagWriter:
 
         Raises:
             BagError: the topic was not added, or the writer is closed.
-            BagWriteError: closing a chunk failed (its messages are lost, see ``messages_lost``).
+            BagWriteError: writing to disk failed; ``messages_lost`` counts the messages that are
+                not in the bag, this call's included. Earlier chunks stay readable.
         """
         channel = self._channels.get(topic)
         if channel is None or self._closed:
             raise BagError(f"cannot write to {topic}: " + ("closed" if self._closed else "unknown"))
         with self._lock:
+            if self._file is None:
+                raise BagWriteError(
+                    f"{self.path}: no file open after an earlier error", messages_lost=1
+                )
             if (self._max_bag_size or self._max_bag_duration_ns) and self._split_due(log_time):
-                self._split()
+                try:
+                    self._split()
+                except BagWriteError as exc:
+                    raise BagWriteError(str(exc), messages_lost=exc.messages_lost + 1) from exc
             chunk = self._chunk
             offset = len(chunk)
             chunk += mcap.MESSAGE_RECORD_HEADER.pack(
@@ -370,7 +378,12 @@ class BagWriter:
             self._chunk_opened = time.monotonic()
             return
         storage = self._file
-        assert storage is not None
+        if storage is None:
+            lost = self._chunk_messages
+            self._reset_chunk()
+            raise BagWriteError(
+                f"{self.path}: no file open after an earlier error", messages_lost=lost
+            )
         records = bytes(self._chunk)
         start, end, messages = self._chunk_start, self._chunk_end, self._chunk_messages
         chunk_index = self._chunk_index
