@@ -11,3 +11,7 @@ class RosError(BagkitError):
 
 class UnknownMessageTypeError(RosError):
     """A message type whose Python package is not installed."""
+
+
+class QosProfileError(RosError):
+    """A QoS profile that cannot be read: bad offered_qos_profiles YAML or overrides file."""
