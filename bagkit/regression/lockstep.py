@@ -1,0 +1,215 @@
+"""Lockstep replay: a bag's inputs straight into the fusion processors, in-process, on bag time.
+
+No node, no executor, no DDS: each input message is deserialized with rclpy's type support,
+handed to every processor that subscribes to its topic with its log time as the clock, and the
+processors' timers fire every ``timer_period_ns`` of bag time, interleaved with the messages.
+What the processors return is serialized and written to a candidate bag with the bag time of
+the event that produced it as log and publish time. The same bag and parameters always give
+the same bytes.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from bagkit.bag import BagReader, BagWriter, TopicInfo, message_definition
+from bagkit.decode.types import MessageTypes
+from bagkit.regression.errors import RegressionError
+
+
+@dataclass(frozen=True, slots=True)
+class NodeUnderTest:
+    """A fusion node to run: its name (which selects the processor) and parameter overrides."""
+
+    name: str
+    params: Mapping[str, object] = field(default_factory=dict)
+
+
+@dataclass(frozen=True, slots=True)
+class LockstepResult:
+    """What a lockstep run did."""
+
+    output: Path
+    input_messages: int
+    output_counts: dict[str, int]
+    timer_calls: int
+    bag_duration_ns: int
+    wall_time_s: float
+
+    @property
+    def speedup(self) -> float:
+        """Bag time covered per second of wall time (how much faster than real time)."""
+        return self.bag_duration_ns / 1e9 / self.wall_time_s if self.wall_time_s > 0 else 0.0
+
+
+def _first_timer_ns(start_ns: int, period_ns: int) -> int:
+    # A node under use_sim_time creates its timer at sim time 0, so its ticks fall on the
+    # multiples of the period; lockstep puts them there too, from the first one in the bag.
+    return (start_ns // period_ns + 1) * period_ns
+
+
+class _OutputBag:
+    """The candidate bag: topics added on first use, a sequence number per topic."""
+
+    def __init__(self, writer: BagWriter, known: Mapping[str, TopicInfo]) -> None:
+        from bagkit.ros.types import message_type_name
+
+        self._type_name: Callable[[Any], str] = message_type_name
+        self.writer = writer
+        self.known = known
+        self.counts: dict[str, int] = {}
+        self.types: dict[str, str] = {}
+        self.codec = MessageTypes()
+
+    def add_topic(self, info: TopicInfo, definition: str | None = None) -> None:
+        self.writer.add_topic(info, definition=definition)
+        self.counts[info.name] = 0
+        self.types[info.name] = info.type
+        self.codec.add(info.type, definition or message_definition(info.type))
+
+    def canonical(self, topic: str, data: bytes) -> bytes:
+        """``data`` re-encoded with zeroed padding.
+
+        rclpy's serializer leaves the CDR alignment padding uninitialized (whatever was in
+        memory), so the same message serializes to different bytes from run to run.
+        """
+        type_name = self.codec.resolve(self.types[topic])
+        store = self.codec.typestore
+        return bytes(store.serialize_cdr(store.deserialize_cdr(data, type_name), type_name))
+
+    def write(self, topic: str, msg: Any, now_ns: int) -> None:
+        from rclpy.serialization import serialize_message
+
+        if topic not in self.counts:
+            golden = self.known.get(topic)
+            msg_type = self._type_name(msg)
+            qos = golden.offered_qos_profiles if golden and golden.type == msg_type else ""
+            self.add_topic(TopicInfo(topic, msg_type, offered_qos_profiles=qos))
+        self.counts[topic] += 1
+        self.writer.write(
+            topic,
+            self.canonical(topic, serialize_message(msg)),
+            log_time=now_ns,
+            publish_time=now_ns,
+            sequence=self.counts[topic],
+        )
+
+
+def run_lockstep(
+    golden: Path,
+    output: Path,
+    *,
+    nodes: Sequence[NodeUnderTest],
+    input_topics: Sequence[str] | None = None,
+    output_topics: Sequence[str] = (),
+    copy_inputs: bool = False,
+    progress: Callable[[int, int], None] | None = None,
+) -> LockstepResult:
+    """Run ``golden``'s inputs through the processors of ``nodes`` into the bag ``output``.
+
+    Args:
+        golden: the bag to read inputs from.
+        output: the candidate bag to write (must not exist).
+        nodes: the processors to run, created with ``fusion.processors.create_processor``.
+        input_topics: the topics fed to the processors (default: every topic a processor
+            subscribes to); each must be in the golden bag.
+        output_topics: topics created in the output even if nothing is published on them
+            (their type and QoS are taken from the golden bag).
+        copy_inputs: also copy the input messages, unchanged, into the output (this is how
+            a golden's expected outputs are rewritten).
+        progress: called with (messages done, messages total) now and then.
+
+    Raises:
+        RegressionError: an input topic is missing or a processor cannot be created.
+    """
+    from rclpy.serialization import deserialize_message
+
+    from bagkit.ros.types import import_message_type
+    from fusion.processors import create_processor
+
+    started = time.perf_counter()
+    try:
+        processors = [create_processor(node.name, dict(node.params)) for node in nodes]
+    except Exception as exc:
+        # Processors raise their own package's errors (bad parameters, unknown node).
+        raise RegressionError(f"cannot create the processors: {exc}") from exc
+    subscribed = {t for p in processors for t in p.input_topics}
+    wanted = list(input_topics) if input_topics is not None else sorted(subscribed)
+    with BagReader(golden) as reader:
+        missing = [t for t in wanted if t not in reader.topics]
+        if missing:
+            raise RegressionError(f"{golden}: no input topic(s) {', '.join(missing)}")
+        classes = {t: import_message_type(reader.topics[t].type) for t in wanted}
+        routes = {t: [p for p in processors if t in p.input_topics] for t in wanted}
+        start_ns, end_ns = reader.start_ns, reader.end_ns
+        total = sum(reader.topic_counts.get(t, 0) for t in wanted)
+        # (next tick, processor index): ties fire in node order, deterministically.
+        timers = [
+            (_first_timer_ns(start_ns, p.timer_period_ns), i)
+            for i, p in enumerate(processors)
+            if p.timer_period_ns
+        ]
+        heapq.heapify(timers)
+        timer_calls = 0
+        done = 0
+        # Chunks closed by size only (not by wall time) keep the file bytes reproducible.
+        with BagWriter(output, chunk_interval_s=math.inf) as writer:
+            out = _OutputBag(writer, reader.topics)
+            if copy_inputs:
+                for t in wanted:
+                    out.add_topic(reader.topics[t], reader.definitions.get(reader.topics[t].type))
+            for t in output_topics:
+                if t in reader.topics and t not in out.counts:
+                    info = reader.topics[t]
+                    out.add_topic(info, reader.definitions.get(info.type))
+
+            def fire_timers(until_ns: int) -> None:
+                nonlocal timer_calls
+                while timers and timers[0][0] < until_ns:
+                    tick, index = heapq.heappop(timers)
+                    processor = processors[index]
+                    for topic, msg in processor.on_timer(tick):
+                        out.write(topic, msg, tick)
+                    processor.drain_log()
+                    timer_calls += 1
+                    assert processor.timer_period_ns is not None
+                    heapq.heappush(timers, (tick + processor.timer_period_ns, index))
+
+            for bag_msg in reader.messages(topics=wanted):
+                # A tick at exactly a message's time fires before it, as a node that is
+                # spinning would see the timer become ready first.
+                fire_timers(bag_msg.log_time + 1)
+                if copy_inputs:
+                    out.writer.write(
+                        bag_msg.topic,
+                        bag_msg.data,
+                        log_time=bag_msg.log_time,
+                        publish_time=bag_msg.publish_time,
+                        sequence=bag_msg.sequence,
+                    )
+                msg = deserialize_message(bag_msg.data, classes[bag_msg.topic])
+                for processor in routes[bag_msg.topic]:
+                    for topic, reply in processor.on_message(bag_msg.topic, msg, bag_msg.log_time):
+                        out.write(topic, reply, bag_msg.log_time)
+                    processor.drain_log()
+                done += 1
+                if progress is not None and done % 2000 == 0:
+                    progress(done, total)
+            fire_timers(end_ns + 1)
+            counts = {t: n for t, n in out.counts.items() if t not in wanted}
+    if progress is not None:
+        progress(done, total)
+    return LockstepResult(
+        output=output,
+        input_messages=done,
+        output_counts=counts,
+        timer_calls=timer_calls,
+        bag_duration_ns=end_ns - start_ns,
+        wall_time_s=time.perf_counter() - started,
+    )

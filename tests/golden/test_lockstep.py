@@ -1,0 +1,86 @@
+"""Lockstep replay: determinism, bag-time timers, outputs on the time of their cause."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from bagkit.bag import BagReader
+from bagkit.regression.errors import RegressionError
+from bagkit.regression.lockstep import NodeUnderTest, run_lockstep
+
+NODES = (
+    NodeUnderTest("data_logger"),
+    NodeUnderTest("alert_system"),
+    NodeUnderTest("sensor_fusion"),
+)
+SENSORS = ("/imu/data", "/gps/fix", "/temperature", "/barometer/pressure")
+
+
+def test_two_runs_are_bit_identical(simulated_flight: Path, tmp_path: Path) -> None:
+    first = run_lockstep(simulated_flight, tmp_path / "a" / "out", nodes=NODES)
+    second = run_lockstep(simulated_flight, tmp_path / "b" / "out", nodes=NODES)
+    assert first.output_counts == second.output_counts
+    assert set(first.output_counts) == {
+        "/fusion/odometry",
+        "/fusion/baro_altitude",
+        "/logger/summary",
+        "/alerts",
+    }
+    for name in ("out_0.mcap", "metadata.yaml"):
+        assert (tmp_path / "a" / "out" / name).read_bytes() == (
+            tmp_path / "b" / "out" / name
+        ).read_bytes()
+
+
+def test_outputs_are_written_at_the_bag_time_of_their_cause(
+    simulated_flight: Path, tmp_path: Path
+) -> None:
+    result = run_lockstep(simulated_flight, tmp_path / "out", nodes=NODES)
+    with BagReader(simulated_flight) as inputs:
+        imu_times = [m.log_time for m in inputs.messages(topics=["/imu/data"])]
+        pressure_times = [m.log_time for m in inputs.messages(topics=["/barometer/pressure"])]
+        start, end = inputs.start_ns, inputs.end_ns
+    with BagReader(tmp_path / "out") as out:
+        odometry = [m.log_time for m in out.messages(topics=["/fusion/odometry"])]
+        altitude = [m.log_time for m in out.messages(topics=["/fusion/baro_altitude"])]
+        summaries = [m.log_time for m in out.messages(topics=["/logger/summary"])]
+    # the fusion node answers IMU and pressure samples at the time they were received
+    assert set(odometry) <= set(imu_times) and len(odometry) >= len(imu_times) - 2
+    assert set(altitude) <= set(pressure_times) and len(altitude) >= len(pressure_times) - 2
+    # the logger's timer ticks on the multiples of its 5 s period of bag time, start to end
+    period = 5_000_000_000
+    assert summaries == list(range((start // period + 1) * period, end + 1, period))
+    assert result.timer_calls >= len(summaries)
+    assert result.input_messages == sum(
+        1 for _ in BagReader(simulated_flight).messages(topics=list(SENSORS))
+    )
+
+
+def test_copy_inputs_keeps_them_byte_for_byte(simulated_flight: Path, tmp_path: Path) -> None:
+    run_lockstep(simulated_flight, tmp_path / "out", nodes=NODES, copy_inputs=True)
+    with BagReader(simulated_flight) as golden, BagReader(tmp_path / "out") as out:
+        assert list(golden.messages(topics=list(SENSORS))) == list(
+            out.messages(topics=list(SENSORS))
+        )
+        assert out.topics["/imu/data"] == golden.topics["/imu/data"]
+        assert "/sim/truth" not in out.topics
+
+
+def test_changed_parameter_changes_the_outputs(simulated_flight: Path, tmp_path: Path) -> None:
+    run_lockstep(simulated_flight, tmp_path / "a", nodes=NODES)
+    changed = (NodeUnderTest("sensor_fusion", {"qnh": 101425.0}),)
+    run_lockstep(simulated_flight, tmp_path / "b", nodes=changed)
+    with BagReader(tmp_path / "a") as a, BagReader(tmp_path / "b") as b:
+        base = list(a.messages(topics=["/fusion/baro_altitude"]))
+        other = list(b.messages(topics=["/fusion/baro_altitude"]))
+    assert len(base) == len(other)
+    assert all(x.data != y.data for x, y in zip(base, other, strict=True))
+
+
+def test_bad_input_is_a_regression_error(simulated_flight: Path, tmp_path: Path) -> None:
+    with pytest.raises(RegressionError, match="no input topic"):
+        run_lockstep(simulated_flight, tmp_path / "a", nodes=NODES, input_topics=["/lidar"])
+    with pytest.raises(RegressionError, match="processors"):
+        run_lockstep(simulated_flight, tmp_path / "b", nodes=(NodeUnderTest("no_such_node"),))
