@@ -17,6 +17,7 @@ from bagkit.bag.errors import (
     UnknownMessageTypeError,
     UnsupportedStorageError,
 )
+from bagkit.bag.info import BagInfo, TopicSummary, bag_info
 from bagkit.bag.reader import BagReader
 from bagkit.bag.storage import BagChunk
 from bagkit.bag.types import BagMessage, TopicInfo
@@ -26,6 +27,7 @@ __all__ = [
     "BagChunk",
     "BagError",
     "BagExistsError",
+    "BagInfo",
     "BagMessage",
     "BagNotFoundError",
     "BagReader",
@@ -35,8 +37,10 @@ __all__ = [
     "EmptyBagError",
     "NotABagError",
     "TopicInfo",
+    "TopicSummary",
     "UnknownMessageTypeError",
     "UnsupportedStorageError",
+    "bag_info",
     "message_definition",
     "type_description_hash",
 ]

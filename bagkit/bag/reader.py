@@ -139,6 +139,11 @@ class BagReader:
         return [p for s in self._storage for p in s.problems]
 
     @property
+    def has_summary(self) -> bool:
+        """True when every MCAP file was closed cleanly (its summary was used, no salvage)."""
+        return all(s.index.summary for s in self._storage if isinstance(s, McapFile))
+
+    @property
     def size_bytes(self) -> int:
         """Total size of the storage files."""
         return sum(f.stat().st_size for f in self.files)

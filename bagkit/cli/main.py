@@ -6,6 +6,7 @@ import typer
 
 from bagkit import __version__
 from bagkit.cli import compare as _compare
+from bagkit.cli import info as _info
 from bagkit.cli import replay as _replay
 
 app = typer.Typer(
@@ -34,4 +35,5 @@ def main(
 
 # Command groups register themselves here, one module each (bagkit/cli/<group>.py).
 app.command("compare", help=_compare.HELP, no_args_is_help=True)(_compare.compare)
+app.command("info", help=_info.HELP, no_args_is_help=True)(_info.info)
 app.add_typer(_replay.app)

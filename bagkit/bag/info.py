@@ -1,0 +1,87 @@
+"""``bagkit info``: what a bag holds, from summaries and indexes only (no message is read)."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+from bagkit.bag.reader import BagReader
+
+
+@dataclass(frozen=True, slots=True)
+class TopicSummary:
+    """One topic of :class:`BagInfo`; ``rate_hz`` is count / bag duration."""
+
+    topic: str
+    type: str
+    count: int
+    rate_hz: float
+    serialization_format: str
+    offered_qos_profiles: str
+
+
+@dataclass(frozen=True, slots=True)
+class BagInfo:
+    """What ``bagkit info`` reports; ``to_dict()`` is its JSON.
+
+    ``compression_ratio`` is uncompressed / compressed chunk bytes (1.0 without compression or
+    chunks); ``summary`` is False when a file had to be salvaged (no MCAP summary).
+    """
+
+    path: str
+    files: list[str]
+    storage: str
+    size_bytes: int
+    start_ns: int
+    end_ns: int
+    duration_s: float
+    message_count: int
+    topics: list[TopicSummary]
+    compression: str
+    compression_ratio: float
+    summary: bool
+    custom_data: dict[str, str]
+    problems: list[str]
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON form: the keys documented in docs/bag-format.md."""
+        return asdict(self)
+
+
+def bag_info(path: str | Path) -> BagInfo:
+    """Describe a bag (directory, split bag, single ``.mcap`` or ``.db3``) like ``ros2 bag info``.
+
+    Raises:
+        BagError: the path is missing, not a bag, empty, or in a foreign storage format.
+    """
+    with BagReader(path) as bag:
+        duration_s = (bag.end_ns - bag.start_ns) / 1e9
+        topics = [
+            TopicSummary(
+                topic=name,
+                type=topic.type,
+                count=bag.topic_counts[name],
+                rate_hz=bag.topic_counts[name] / duration_s if duration_s > 0 else 0.0,
+                serialization_format=topic.serialization_format,
+                offered_qos_profiles=topic.offered_qos_profiles,
+            )
+            for name, topic in sorted(bag.topics.items())
+        ]
+        compressed, uncompressed = bag.compressed_size, bag.uncompressed_size
+        return BagInfo(
+            path=str(bag.path),
+            files=[str(f) for f in bag.files],
+            storage=bag.storage,
+            size_bytes=bag.size_bytes,
+            start_ns=bag.start_ns,
+            end_ns=bag.end_ns,
+            duration_s=duration_s,
+            message_count=bag.message_count,
+            topics=topics,
+            compression=bag.compression,
+            compression_ratio=uncompressed / compressed if compressed else 1.0,
+            summary=bag.has_summary,
+            custom_data=dict(bag.metadata.custom_data) if bag.metadata else {},
+            problems=bag.problems,
+        )

@@ -1,0 +1,134 @@
+"""``bagkit info``: what a bag holds, like ``ros2 bag info``, from summaries and indexes only."""
+
+from __future__ import annotations
+
+import datetime
+from pathlib import Path
+
+import typer
+import yaml
+from rich.table import Table
+
+from bagkit.bag import BagInfo, bag_info
+from bagkit.cli.common import OutputFormat, console, err_console, handle_errors, print_json, warn
+
+HELP = """Show what a bag holds: files, size, storage, duration, start and end, message count,
+and per topic its type, count, rate, serialization format and offered QoS.
+
+BAG is a bag directory (split or not, with or without metadata.yaml), a single .mcap file or a
+single .db3 file. Only summaries and indexes are read, so this is instant on multi-GB bags; a
+crashed recording without a summary is salvaged and what could not be read is reported.
+"""
+
+# rosbag2 metadata versions < 9 store QoS policies as rmw enum integers.
+_POLICY_NAMES = {
+    "history": {0: "system_default", 1: "keep_last", 2: "keep_all", 3: "unknown"},
+    "reliability": {0: "system_default", 1: "reliable", 2: "best_effort", 3: "unknown"},
+    "durability": {0: "system_default", 1: "transient_local", 2: "volatile", 3: "unknown"},
+}
+
+
+def _qos_summary(offered: str) -> str:
+    """One line per offered profile: ``reliable, volatile, keep_last(10)``."""
+    try:
+        profiles = yaml.safe_load(offered) if offered else []
+    except yaml.YAMLError:
+        return "unparsable"
+    if not isinstance(profiles, list):
+        return "unparsable"
+    lines = []
+    for profile in profiles:
+        if not isinstance(profile, dict):
+            continue
+        names = {
+            key: _POLICY_NAMES[key].get(value, str(value)) if isinstance(value, int) else value
+            for key, value in profile.items()
+            if key in _POLICY_NAMES
+        }
+        history = names.get("history", "?")
+        if history == "keep_last":
+            history = f"keep_last({profile.get('depth', '?')})"
+        lines.append(f"{names.get('reliability', '?')}, {names.get('durability', '?')}, {history}")
+    unique = list(dict.fromkeys(lines))
+    return "\n".join(unique) if unique else "-"
+
+
+def _size(n: int) -> str:
+    value = float(n)
+    for unit in ("B", "KiB", "MiB", "GiB"):
+        if value < 1024 or unit == "GiB":
+            return f"{value:.1f} {unit}" if unit != "B" else f"{n} B"
+        value /= 1024
+    raise AssertionError("unreachable")
+
+
+def _time(ns: int) -> str:
+    stamp = datetime.datetime.fromtimestamp(ns / 1e9, tz=datetime.UTC)
+    return f"{stamp:%b %d %Y %H:%M:%S}.{ns % 1_000_000_000:09d} UTC ({ns / 1e9:.9f})"
+
+
+def _print_table(info: BagInfo) -> None:
+    directory = Path(info.path) if Path(info.path).is_dir() else None
+    files = [str(Path(f).relative_to(directory)) if directory else f for f in info.files]
+    rows = [
+        ("Files", "\n".join(files)),
+        ("Bag size", _size(info.size_bytes)),
+        ("Storage id", info.storage),
+        ("Duration", f"{info.duration_s:.9f}s"),
+        ("Start", _time(info.start_ns)),
+        ("End", _time(info.end_ns)),
+        ("Messages", f"{info.message_count:,}"),
+        (
+            "Compression",
+            f"{info.compression} (ratio {info.compression_ratio:.2f})"
+            if info.compression and info.compression != "none"
+            else "none",
+        ),
+    ]
+    if not info.summary:
+        rows.append(("Summary", "missing: the recording did not finish, salvaged"))
+    for key, value in info.custom_data.items():
+        rows.append((f"custom_data {key}", value))
+    overview = Table.grid(padding=(0, 2))
+    overview.add_column(style="bold")
+    overview.add_column()
+    for key, value in rows:
+        overview.add_row(f"{key}:", value)
+    console.print(overview)
+    topics = Table(title="Topics", title_justify="left")
+    topics.add_column("Topic", style="cyan", overflow="fold")
+    topics.add_column("Type", overflow="fold")
+    topics.add_column("Count", justify="right")
+    topics.add_column("Rate (Hz)", justify="right")
+    topics.add_column("Serialization")
+    topics.add_column("Offered QoS")
+    for topic in info.topics:
+        topics.add_row(
+            topic.topic,
+            topic.type,
+            f"{topic.count:,}",
+            f"{topic.rate_hz:.2f}",
+            topic.serialization_format,
+            _qos_summary(topic.offered_qos_profiles),
+        )
+    console.print(topics)
+
+
+@handle_errors
+def info(
+    bag: Path = typer.Argument(..., help="Bag directory, .mcap file or .db3 file."),
+    output_format: OutputFormat = typer.Option(
+        OutputFormat.TABLE, "--format", "-f", help="table (for people) or json (for scripts)."
+    ),
+) -> None:
+    """Show what a bag holds (like ros2 bag info)."""
+    if output_format == OutputFormat.CSV:
+        raise typer.BadParameter("csv is not available for info: use table or json")
+    with err_console.status(f"reading {bag}"):
+        result = bag_info(bag)
+    if output_format == OutputFormat.JSON:
+        print_json(result.to_dict())
+    else:
+        _print_table(result)
+    for problem in result.problems:
+        warn(problem)
