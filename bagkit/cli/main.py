@@ -8,6 +8,7 @@ from bagkit import __version__
 from bagkit.cli import compare as _compare
 from bagkit.cli import info as _info
 from bagkit.cli import replay as _replay
+from bagkit.cli import stats as _stats
 
 app = typer.Typer(
     name="bagkit",
@@ -37,3 +38,4 @@ def main(
 app.command("compare", help=_compare.HELP, no_args_is_help=True)(_compare.compare)
 app.command("info", help=_info.HELP, no_args_is_help=True)(_info.info)
 app.add_typer(_replay.app)
+app.add_typer(_stats.app)

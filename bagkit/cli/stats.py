@@ -1,0 +1,229 @@
+"""``bagkit stats summary``: per-topic counts and rates, exact statistics of every numeric field."""
+
+from __future__ import annotations
+
+import csv
+import math
+import sys
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import typer
+from rich.progress import BarColumn, Progress, TaskID, TextColumn, TimeRemainingColumn
+from rich.table import Table
+
+from bagkit.bag import BagReader
+from bagkit.cli.common import OutputFormat, console, err_console, handle_errors, print_json, warn
+
+if TYPE_CHECKING:
+    from bagkit.stats import Summary
+
+# Below this many seconds a summary finishes without a progress bar flashing by.
+PROGRESS_DELAY_S = 1.0
+
+app = typer.Typer(
+    name="stats",
+    help="Statistics of the numeric fields of bags, decoded without a ROS install.",
+    no_args_is_help=True,
+)
+
+
+class _DelayedProgress:
+    """A progress bar on stderr that only appears once the work has taken a second."""
+
+    def __init__(self) -> None:
+        self._started = time.monotonic()
+        self._bar: Progress | None = None
+        self._task: TaskID | None = None
+
+    def __call__(self, done: int, total: int) -> None:
+        if self._bar is None:
+            if time.monotonic() - self._started < PROGRESS_DELAY_S:
+                return
+            self._bar = Progress(
+                TextColumn("summarizing"),
+                BarColumn(),
+                TextColumn("{task.completed:,}/{task.total:,} messages"),
+                TimeRemainingColumn(),
+                console=err_console,
+                transient=True,
+            )
+            self._bar.start()
+            self._task = self._bar.add_task("summarize", total=total)
+        assert self._task is not None
+        self._bar.update(self._task, completed=done, total=total)
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.stop()
+
+
+def _offset_ns(bags: list[Path], seconds: float | None) -> int | None:
+    """``seconds`` after the first message of ``bags``, as an absolute log time."""
+    if seconds is None:
+        return None
+    first = []
+    for bag in bags:
+        with BagReader(bag, allow_empty=True) as reader:
+            if reader.message_count:
+                first.append(reader.start_ns)
+    return min(first, default=0) + round(seconds * 1e9)
+
+
+@app.command("summary", no_args_is_help=True)
+@handle_errors
+def summary(  # noqa: PLR0917 (typer maps parameters to options)
+    bags: list[Path] = typer.Argument(
+        ...,
+        help="Bag directories or single .mcap/.db3 files; several are pooled.",
+        show_default=False,
+    ),
+    topics: list[str] | None = typer.Option(
+        None, "--topics", "-t", help="Only these topics (repeat the option for several)."
+    ),
+    fields: list[str] | None = typer.Option(
+        None,
+        "--fields",
+        "-f",
+        help="Only fields matching these globs, e.g. 'linear_acceleration.*' "
+        "(* and ? are wildcards, brackets are literal: 'orientation_covariance[0]').",
+    ),
+    start: float | None = typer.Option(
+        None,
+        "--start",
+        help="Skip messages logged before SEC seconds after the first one.",
+        metavar="SEC",
+    ),
+    end: float | None = typer.Option(
+        None,
+        "--end",
+        help="Stop at SEC seconds after the first message (exclusive).",
+        metavar="SEC",
+    ),
+    output: OutputFormat = typer.Option(
+        OutputFormat.TABLE, "--format", help="table for people, json or csv for scripts."
+    ),
+) -> None:
+    """Count and rate per topic; count, NaN count, min, max, mean and std per numeric field.
+
+    Field names are dotted paths (linear_acceleration.x), fixed arrays by index
+    (orientation_covariance[0]), variable-length arrays pooled over their elements (ranges[]);
+    booleans count as 0/1 and strings are left out. std is the sample standard deviation
+    (ddof=1, as pandas). Messages are decoded from the definitions stored in the bag.
+    """
+    from bagkit.stats import summarize
+
+    progress = _DelayedProgress()
+    try:
+        result = summarize(
+            bags,
+            topics=topics or None,
+            fields=fields or None,
+            start_ns=_offset_ns(bags, start),
+            end_ns=_offset_ns(bags, end),
+            progress=progress,
+        )
+    finally:
+        progress.close()
+    for topic, reason in result.skipped.items():
+        warn(f"topic {topic} skipped: {reason}")
+    for problem in result.problems:
+        warn(problem)
+    if output is OutputFormat.JSON:
+        print_json(_json_safe(result.to_dict()))
+    elif output is OutputFormat.CSV:
+        _print_csv(result)
+    else:
+        _print_tables(result)
+
+
+def _json_safe(value: object) -> object:
+    """Replace non-finite floats by strings (``"NaN"``, ``"inf"``): JSON has no such numbers."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return str(value) if not math.isnan(value) else "NaN"
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_json_safe(v) for v in value]
+    return value
+
+
+def _number(value: float | int | None) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, int):
+        return str(value)
+    return f"{value:.6g}"
+
+
+def _print_tables(result: Summary) -> None:
+    console.print(
+        f"[bold]{', '.join(result.bags)}[/]: {result.duration_s:.3f} s "
+        f"({result.start_ns} .. {result.end_ns} ns), {len(result.topics)} topics",
+        highlight=False,
+        soft_wrap=True,
+    )
+    for topic in result.topics:
+        rate = f"{topic.rate_hz:.3f} Hz" if topic.rate_hz is not None else "- Hz"
+        console.print(
+            f"\n[bold]{topic.topic}[/]  {topic.type}  {topic.count} msgs  {rate}",
+            highlight=False,
+            soft_wrap=True,
+        )
+        if not topic.fields:
+            continue
+        table = Table(show_edge=False, box=None, header_style="dim")
+        for column in ("field", "count", "nan", "min", "max", "mean", "std"):
+            table.add_column(column, justify="left" if column == "field" else "right")
+        for f in topic.fields:
+            table.add_row(
+                f.field,
+                str(f.count),
+                str(f.nan_count),
+                _number(f.min),
+                _number(f.max),
+                _number(f.mean),
+                _number(f.std),
+            )
+        console.print(table)
+
+
+def _print_csv(result: Summary) -> None:
+    writer = csv.writer(sys.stdout, lineterminator="\n")
+    writer.writerow(
+        [
+            "topic",
+            "type",
+            "topic_count",
+            "rate_hz",
+            "field",
+            "count",
+            "nan_count",
+            "min",
+            "max",
+            "mean",
+            "std",
+        ]
+    )
+    for topic in result.topics:
+        head = [topic.topic, topic.type, topic.count, _csv(topic.rate_hz)]
+        if not topic.fields:
+            writer.writerow([*head, "", "", "", "", "", "", ""])
+        for f in topic.fields:
+            writer.writerow(
+                [
+                    *head,
+                    f.field,
+                    f.count,
+                    f.nan_count,
+                    _csv(f.min),
+                    _csv(f.max),
+                    _csv(f.mean),
+                    _csv(f.std),
+                ]
+            )
+
+
+def _csv(value: float | int | None) -> str:
+    return "" if value is None else repr(value)

@@ -1,0 +1,179 @@
+"""CDR byte layouts of message types, as numpy structured dtypes for bulk decoding.
+
+A ROS 2 CDR payload is a 4-byte encapsulation header followed by the fields in definition
+order, each primitive aligned to its own size (at most 8) relative to the end of that header.
+A type whose only variable parts are strings and sequences of primitives has a fixed layout once
+the length prefix of each of those parts is known: :meth:`CdrLayout.resolve` takes the lengths
+read so far and either asks for the next prefix or returns the dtype of the whole message.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from rosbags.interfaces import Nodetype
+from rosbags.typesys.store import Typestore
+
+ENCAPSULATION_SIZE = 4
+# Encapsulation header of little-endian plain CDR (what every ROS 2 middleware writes).
+CDR_LE = b"\x00\x01"
+
+_PRIMITIVES: dict[str, str] = {
+    "bool": "u1",
+    "byte": "u1",
+    "char": "u1",
+    "int8": "i1",
+    "uint8": "u1",
+    "int16": "<i2",
+    "uint16": "<u2",
+    "int32": "<i4",
+    "uint32": "<u4",
+    "int64": "<i8",
+    "uint64": "<u8",
+    "float32": "<f4",
+    "float64": "<f8",
+}
+
+
+@dataclass(frozen=True, slots=True)
+class Slot:
+    """A run of bytes in a message: one primitive, a fixed array, a string or a sequence.
+
+    Attributes:
+        path: leaf path (``orientation_covariance`` for the whole fixed array, ``ranges[]``).
+        base: ROS primitive type name (``string`` for strings).
+        count: elements of a fixed slot (1 for a scalar); ``None`` for a length-prefixed slot.
+        array: a fixed-size array (its leaves are ``path[i]``), as opposed to a scalar.
+    """
+
+    path: str
+    base: str
+    count: int | None
+    array: bool = False
+
+    @property
+    def numeric(self) -> bool:
+        """Whether the slot holds numbers (not a string)."""
+        return self.base != "string"
+
+
+@dataclass(frozen=True, slots=True)
+class ResolvedLayout:
+    """The layout of the messages whose length prefixes all have given values.
+
+    ``dtype`` has one field per numeric slot, named by the slot's index in ``CdrLayout.slots``
+    (``"3"``), at its byte offset from the start of the payload (encapsulation header included);
+    its ``itemsize`` is the exact payload size (CDR writers may add up to 3 bytes of padding).
+    """
+
+    dtype: np.dtype
+    slot_indexes: tuple[int, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class NeedLength:
+    """The offset in the payload of the next ``uint32`` length prefix to read."""
+
+    offset: int
+
+
+@dataclass(frozen=True, slots=True)
+class CdrLayout:
+    """The slots of a message type in CDR order."""
+
+    slots: tuple[Slot, ...]
+
+    @classmethod
+    def of(cls, typestore: Typestore, typename: str) -> CdrLayout | None:
+        """The layout of ``typename``, or None when it has parts bulk decoding cannot place.
+
+        Sequences of messages, sequences of strings and wide strings vary too freely to be
+        grouped by a few length prefixes; such types are decoded message by message.
+        """
+        slots: list[Slot] = []
+        for name, desc in typestore.fielddefs[typename][1]:
+            if not _collect(typestore, name, desc, slots):
+                return None
+        return cls(tuple(slots))
+
+    @property
+    def variable(self) -> int:
+        """How many length prefixes a message has."""
+        return sum(1 for slot in self.slots if slot.count is None)
+
+    def resolve(self, lengths: tuple[int, ...]) -> ResolvedLayout | NeedLength:
+        """The dtype for messages with these length prefixes, or where the next prefix is.
+
+        ``lengths`` are the values of the first prefixes in order (for strings: bytes including
+        the terminating NUL, as CDR stores them).
+        """
+        pos = 0
+        names: list[str] = []
+        formats: list[str | tuple[str, tuple[int, ...]]] = []
+        offsets: list[int] = []
+        indexes: list[int] = []
+        known = iter(lengths)
+        for index, slot in enumerate(self.slots):
+            if slot.count is None:
+                pos = _align(pos, 4)
+                length = next(known, None)
+                if length is None:
+                    return NeedLength(ENCAPSULATION_SIZE + pos)
+                pos += 4
+                count = length
+            else:
+                count = slot.count
+            if slot.base == "string":
+                pos += count
+                continue
+            fmt = _PRIMITIVES[slot.base]
+            size = np.dtype(fmt).itemsize
+            if count:
+                pos = _align(pos, size)
+            names.append(str(index))
+            formats.append(fmt if not slot.array and slot.count == 1 else (fmt, (count,)))
+            offsets.append(ENCAPSULATION_SIZE + pos)
+            indexes.append(index)
+            pos += size * count
+        dtype = np.dtype(
+            {
+                "names": names,
+                "formats": formats,
+                "offsets": offsets,
+                "itemsize": ENCAPSULATION_SIZE + pos,
+            }
+        )
+        return ResolvedLayout(dtype, tuple(indexes))
+
+
+def _align(pos: int, size: int) -> int:
+    return (pos + size - 1) // size * size
+
+
+def _collect(typestore: Typestore, path: str, desc: tuple, slots: list[Slot]) -> bool:
+    kind, rest = desc
+    if kind == Nodetype.BASE:
+        base = rest[0]
+        if base == "string":
+            slots.append(Slot(path, base, None))
+            return True
+        if base not in _PRIMITIVES:
+            return False
+        slots.append(Slot(path, base, 1))
+        return True
+    if kind == Nodetype.NAME:
+        return all(
+            _collect(typestore, f"{path}.{name}", sub, slots)
+            for name, sub in typestore.fielddefs[rest][1]
+        )
+    sub, length = rest
+    if kind == Nodetype.ARRAY:
+        if sub[0] == Nodetype.BASE and sub[1][0] in _PRIMITIVES:
+            slots.append(Slot(path, sub[1][0], length, array=True))
+            return True
+        return all(_collect(typestore, f"{path}[{i}]", sub, slots) for i in range(length))
+    if sub[0] == Nodetype.BASE and sub[1][0] in _PRIMITIVES:
+        slots.append(Slot(f"{path}[]", sub[1][0], None))
+        return True
+    return False

@@ -1,0 +1,17 @@
+"""Streaming, exact statistics of the numeric fields of bags (``bagkit stats summary``)."""
+
+from __future__ import annotations
+
+from bagkit.stats.errors import NothingToSummarizeError, StatsError, UnknownTopicError
+from bagkit.stats.summary import FieldStats, Summary, TopicStats, field_matcher, summarize
+
+__all__ = [
+    "FieldStats",
+    "NothingToSummarizeError",
+    "StatsError",
+    "Summary",
+    "TopicStats",
+    "UnknownTopicError",
+    "field_matcher",
+    "summarize",
+]

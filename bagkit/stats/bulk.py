@@ -1,0 +1,102 @@
+"""Bulk CDR decoding of many messages of one type at once with numpy structured dtypes.
+
+Messages are grouped by the values of their length prefixes (string lengths such as
+``header.frame_id``, sequence counts), which fixes every other field's offset; each group is
+then read with one structured dtype. Messages that do not fit (big-endian or XCDR2
+encapsulation, unexpected sizes, too many distinct layouts) are handed back for the general
+decoder, so bulk decoding never guesses.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+
+from bagkit.decode.layout import CdrLayout, NeedLength, ResolvedLayout
+
+# CDR writers pad a payload to a multiple of 4 bytes at most; rosbags accepts the same.
+MAX_TRAILING_PADDING = 3
+# Beyond this many distinct prefix values in one batch, per-message decoding is as fast.
+MAX_GROUPS = 256
+
+
+@dataclass(frozen=True, slots=True)
+class BulkGroup:
+    """Messages sharing one layout: ``values[i]`` is the message at ``indexes[i]`` of the batch."""
+
+    layout: ResolvedLayout
+    indexes: np.ndarray
+    values: np.ndarray
+
+
+def read_u32(buf: np.ndarray, positions: np.ndarray) -> np.ndarray:
+    """Little-endian ``uint32`` at each of ``positions`` in the byte array ``buf``."""
+    return sliding_window_view(buf, 4)[positions].view("<u4").ravel()
+
+
+def read_u64(buf: np.ndarray, positions: np.ndarray) -> np.ndarray:
+    """Little-endian ``uint64`` at each of ``positions`` in the byte array ``buf``."""
+    return sliding_window_view(buf, 8)[positions].view("<u8").ravel()
+
+
+def gather(buf: np.ndarray, starts: np.ndarray, dtype: np.dtype) -> np.ndarray:
+    """One record of ``dtype`` at each of ``starts`` in ``buf`` (zero-copy when evenly spaced)."""
+    size = dtype.itemsize
+    n = len(starts)
+    if n > 1:
+        steps = np.diff(starts)
+        if steps[0] >= size and (steps == steps[0]).all():
+            return np.ndarray(
+                (n,), dtype=dtype, buffer=buf, offset=int(starts[0]), strides=(int(steps[0]),)
+            )
+    return sliding_window_view(buf, size)[starts].view(dtype).ravel()
+
+
+def decode_bulk(
+    buf: np.ndarray, starts: np.ndarray, lengths: np.ndarray, layout: CdrLayout
+) -> tuple[list[BulkGroup], np.ndarray]:
+    """Decode the payloads ``buf[starts[i] : starts[i] + lengths[i]]`` of one message type.
+
+    Args:
+        buf: the bytes holding the payloads (a decompressed chunk), as ``uint8``.
+        starts: payload offsets in ``buf`` (int64).
+        lengths: payload sizes (int64).
+        layout: the type's CDR layout.
+
+    Returns:
+        The decoded groups, and the indexes of the messages left for the general decoder.
+    """
+    indexes = np.arange(len(starts))
+    plain = lengths >= 4
+    head = starts[plain]
+    plain[plain] = (buf[head] == 0) & (buf[head + 1] == 1)
+    leftover = [indexes[~plain]]
+    groups: list[BulkGroup] = []
+    pending: list[tuple[np.ndarray, tuple[int, ...]]] = [(indexes[plain], ())]
+    while pending:
+        members, prefixes = pending.pop()
+        if not len(members):
+            continue
+        step = layout.resolve(prefixes)
+        if isinstance(step, NeedLength):
+            fits = lengths[members] >= step.offset + 4
+            leftover.append(members[~fits])
+            members = members[fits]
+            values = read_u32(buf, starts[members] + step.offset)
+            distinct = np.unique(values)
+            if len(distinct) + len(groups) + len(pending) > MAX_GROUPS:
+                leftover.append(members)
+                continue
+            for value in distinct:
+                pending.append((members[values == value], (*prefixes, int(value))))
+            continue
+        size = step.dtype.itemsize
+        member_lengths = lengths[members]
+        fits = (member_lengths >= size) & (member_lengths <= size + MAX_TRAILING_PADDING)
+        leftover.append(members[~fits])
+        members = members[fits]
+        if len(members):
+            groups.append(BulkGroup(step, members, gather(buf, starts[members], step.dtype)))
+    return groups, np.sort(np.concatenate(leftover))

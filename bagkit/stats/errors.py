@@ -1,0 +1,17 @@
+"""Errors of ``bagkit stats``."""
+
+from __future__ import annotations
+
+from bagkit.errors import BagkitError
+
+
+class StatsError(BagkitError):
+    """A summary that cannot be computed from the given bags and options."""
+
+
+class NothingToSummarizeError(StatsError):
+    """No message of the selected topics in the selected time range (or an empty bag)."""
+
+
+class UnknownTopicError(StatsError):
+    """A topic asked for with ``topics=`` that none of the bags has."""
