@@ -24,6 +24,14 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 INTEROP_DIR = REPO_ROOT.parent / "shared" / "interop" / "rosbag2_jazzy"
 
 
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption(
+        "--update-golden",
+        action="store_true",
+        help="tests/golden: rewrite the fixtures' expected outputs (lockstep), do not compare",
+    )
+
+
 @pytest.fixture(scope="session")
 def interop_dir() -> Path:
     """The rosbag2 Jazzy test bags that ship beside the repository (``../shared/interop``)."""

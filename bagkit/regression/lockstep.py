@@ -108,7 +108,7 @@ def run_lockstep(
     nodes: Sequence[NodeUnderTest],
     input_topics: Sequence[str] | None = None,
     output_topics: Sequence[str] = (),
-    copy_inputs: bool = False,
+    copy_topics: Sequence[str] = (),
     progress: Callable[[int, int], None] | None = None,
 ) -> LockstepResult:
     """Run ``golden``'s inputs through the processors of ``nodes`` into the bag ``output``.
@@ -121,8 +121,8 @@ def run_lockstep(
             subscribes to); each must be in the golden bag.
         output_topics: topics created in the output even if nothing is published on them
             (their type and QoS are taken from the golden bag).
-        copy_inputs: also copy the input messages, unchanged, into the output (this is how
-            a golden's expected outputs are rewritten).
+        copy_topics: topics of the golden copied unchanged into the output, inputs or not
+            (this is how a golden is rewritten with new expected outputs).
         progress: called with (messages done, messages total) now and then.
 
     Raises:
@@ -161,9 +161,9 @@ def run_lockstep(
         # Chunks closed by size only (not by wall time) keep the file bytes reproducible.
         with BagWriter(output, chunk_interval_s=math.inf) as writer:
             out = _OutputBag(writer, reader.topics)
-            if copy_inputs:
-                for t in wanted:
-                    out.add_topic(reader.topics[t], reader.definitions.get(reader.topics[t].type))
+            copied = [t for t in copy_topics if t in reader.topics]
+            for t in copied:
+                out.add_topic(reader.topics[t], reader.definitions.get(reader.topics[t].type))
             for t in output_topics:
                 if t in reader.topics and t not in out.counts:
                     info = reader.topics[t]
@@ -181,11 +181,11 @@ def run_lockstep(
                     assert processor.timer_period_ns is not None
                     heapq.heappush(timers, (tick + processor.timer_period_ns, index))
 
-            for bag_msg in reader.messages(topics=wanted):
+            for bag_msg in reader.messages(topics=sorted({*wanted, *copied})):
                 # A tick at exactly a message's time fires before it, as a node that is
                 # spinning would see the timer become ready first.
                 fire_timers(bag_msg.log_time + 1)
-                if copy_inputs:
+                if bag_msg.topic in copied:
                     out.writer.write(
                         bag_msg.topic,
                         bag_msg.data,
@@ -193,6 +193,8 @@ def run_lockstep(
                         publish_time=bag_msg.publish_time,
                         sequence=bag_msg.sequence,
                     )
+                if bag_msg.topic not in classes:
+                    continue
                 msg = deserialize_message(bag_msg.data, classes[bag_msg.topic])
                 for processor in routes[bag_msg.topic]:
                     for topic, reply in processor.on_message(bag_msg.topic, msg, bag_msg.log_time):
@@ -202,7 +204,7 @@ def run_lockstep(
                 if progress is not None and done % 2000 == 0:
                     progress(done, total)
             fire_timers(end_ns + 1)
-            counts = {t: n for t, n in out.counts.items() if t not in wanted}
+            counts = {t: n for t, n in out.counts.items() if t not in copied}
     if progress is not None:
         progress(done, total)
     return LockstepResult(

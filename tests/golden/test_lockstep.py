@@ -58,14 +58,14 @@ def test_outputs_are_written_at_the_bag_time_of_their_cause(
     )
 
 
-def test_copy_inputs_keeps_them_byte_for_byte(simulated_flight: Path, tmp_path: Path) -> None:
-    run_lockstep(simulated_flight, tmp_path / "out", nodes=NODES, copy_inputs=True)
+def test_copied_topics_are_kept_byte_for_byte(simulated_flight: Path, tmp_path: Path) -> None:
+    copied = [*SENSORS, "/sim/truth"]
+    result = run_lockstep(simulated_flight, tmp_path / "out", nodes=NODES, copy_topics=copied)
     with BagReader(simulated_flight) as golden, BagReader(tmp_path / "out") as out:
-        assert list(golden.messages(topics=list(SENSORS))) == list(
-            out.messages(topics=list(SENSORS))
-        )
+        assert list(golden.messages(topics=copied)) == list(out.messages(topics=copied))
         assert out.topics["/imu/data"] == golden.topics["/imu/data"]
-        assert "/sim/truth" not in out.topics
+        assert out.topic_counts["/fusion/odometry"] == result.output_counts["/fusion/odometry"]
+    assert "/sim/truth" not in result.output_counts
 
 
 def test_changed_parameter_changes_the_outputs(simulated_flight: Path, tmp_path: Path) -> None:
