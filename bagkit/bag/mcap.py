@@ -9,6 +9,7 @@ Spec: https://mcap.dev/spec
 
 from __future__ import annotations
 
+import contextlib
 import enum
 import struct
 import zlib
@@ -485,17 +486,87 @@ def _read_summary(f: BinaryIO, file_size: int, header: Header) -> FileIndex | No
     return index
 
 
+def _chunk_index_from_record(f: BinaryIO, pos: int, length: int) -> ChunkIndex:
+    """Read a Chunk record's fixed fields (not its records) into a ChunkIndex without offsets."""
+    f.seek(pos + RECORD_HEADER.size)
+    prefix = f.read(min(length, _CHUNK_PREFIX.size + 4 + 256 + 8))
+    start, end, uncompressed_size, _ = _CHUNK_PREFIX.unpack_from(prefix)
+    cur = _Cursor(prefix, _CHUNK_PREFIX.size)
+    compression = cur.string()
+    compressed_size = cur.u64()
+    return ChunkIndex(
+        start,
+        end,
+        pos,
+        RECORD_HEADER.size + length,
+        {},
+        0,
+        compression,
+        compressed_size,
+        uncompressed_size,
+    )
+
+
+def _open_chunk(f: BinaryIO, chunk_index: ChunkIndex, index: FileIndex) -> dict[int, int]:
+    """Decompress a chunk, check its CRC, keep schemas/channels found inside; count messages."""
+    raw = _read_exact(f, chunk_index.chunk_start_offset, chunk_index.chunk_length)
+    chunk = parse_chunk(memoryview(raw)[RECORD_HEADER.size :])
+    records = decompress(chunk.compression, chunk.records, chunk.uncompressed_size)
+    if chunk.uncompressed_crc and zlib.crc32(records) != chunk.uncompressed_crc:
+        raise CorruptBagError("chunk CRC mismatch")
+    counts: dict[int, int] = {}
+    for _, opcode, content in iter_records(records):
+        if opcode == Opcode.MESSAGE:
+            channel_id = _U16.unpack_from(content)[0]
+            counts[channel_id] = counts.get(channel_id, 0) + 1
+        elif opcode == Opcode.SCHEMA:
+            schema = parse_schema(content)
+            index.schemas.setdefault(schema.id, schema)
+        elif opcode == Opcode.CHANNEL:
+            channel = parse_channel(content)
+            index.channels.setdefault(channel.id, channel)
+    return counts
+
+
 def _scan(f: BinaryIO, file_size: int, header: Header, name: str) -> FileIndex:
-    """Salvage scan: walk the data section record by record, keeping everything intact."""
+    """Salvage scan: walk the data section record by record, keeping everything intact.
+
+    A chunk followed by its Message Index records is counted from them without being read;
+    the last chunk before a cut, and chunks without indexes, are decompressed and checked.
+    """
     index = FileIndex(header=header, summary=False)
     pos = len(MAGIC)
-    last_chunk: ChunkIndex | None = None
     stopped_at: int | None = None
-    counts = index.channel_message_counts
-    starts: list[int] = []
-    ends: list[int] = []
-    f.seek(pos)
+    pending: ChunkIndex | None = None  # the last chunk, not yet counted
+    pending_counts: dict[int, int] = {}  # from the Message Index records after it
+
+    def settle(trust_indexes: bool) -> None:
+        nonlocal pending
+        if pending is None:
+            return
+        chunk_index, pending = pending, None
+        if trust_indexes and pending_counts:
+            counts = dict(pending_counts)
+        else:
+            chunk_index.message_index_offsets = {}
+            chunk_index.message_index_length = 0
+            try:
+                counts = _open_chunk(f, chunk_index, index)
+            except (CorruptBagError, struct.error, UnicodeDecodeError) as exc:
+                index.problems.append(
+                    f"{name}: chunk at byte {chunk_index.chunk_start_offset} "
+                    f"({chunk_index.chunk_length} bytes) unreadable ({exc}), skipped"
+                )
+                return
+        if not counts:
+            return
+        for channel_id, count in counts.items():
+            total = index.channel_message_counts.get(channel_id, 0) + count
+            index.channel_message_counts[channel_id] = total
+        index.chunk_indexes.append(chunk_index)
+
     while True:
+        f.seek(pos)
         record_header = f.read(RECORD_HEADER.size)
         if len(record_header) < RECORD_HEADER.size:
             if record_header:
@@ -505,72 +576,54 @@ def _scan(f: BinaryIO, file_size: int, header: Header, name: str) -> FileIndex:
         if pos + RECORD_HEADER.size + length > file_size:
             stopped_at = pos
             break
-        content = f.read(length)
         try:
-            if opcode == Opcode.SCHEMA:
-                schema = parse_schema(content)
-                index.schemas[schema.id] = schema
-            elif opcode == Opcode.CHANNEL:
-                channel = parse_channel(content)
-                index.channels[channel.id] = channel
-            elif opcode == Opcode.CHUNK:
-                chunk = parse_chunk(content)
-                records = decompress(chunk.compression, chunk.records, chunk.uncompressed_size)
-                if chunk.uncompressed_crc and zlib.crc32(records) != chunk.uncompressed_crc:
-                    raise CorruptBagError("chunk CRC mismatch")
-                last_chunk = ChunkIndex(
-                    chunk.message_start_time,
-                    chunk.message_end_time,
-                    pos,
-                    RECORD_HEADER.size + length,
-                    {},
-                    0,
-                    chunk.compression,
-                    len(chunk.records),
-                    chunk.uncompressed_size,
-                )
-                chunk_counts: dict[int, int] = {}
-                for _, inner_opcode, inner in iter_records(records):
-                    if inner_opcode == Opcode.MESSAGE:
-                        channel_id = _U16.unpack_from(inner)[0]
-                        chunk_counts[channel_id] = chunk_counts.get(channel_id, 0) + 1
-                    elif inner_opcode == Opcode.SCHEMA:
-                        schema = parse_schema(inner)
-                        index.schemas[schema.id] = schema
-                    elif inner_opcode == Opcode.CHANNEL:
-                        channel = parse_channel(inner)
-                        index.channels[channel.id] = channel
-                for channel_id, count in chunk_counts.items():
-                    counts[channel_id] = counts.get(channel_id, 0) + count
-                if chunk_counts:
-                    index.chunk_indexes.append(last_chunk)
-                    starts.append(chunk.message_start_time)
-                    ends.append(chunk.message_end_time)
-            elif opcode == Opcode.MESSAGE_INDEX and last_chunk is not None:
-                channel_id = _U16.unpack_from(content)[0]
-                last_chunk.message_index_offsets[channel_id] = pos
-                last_chunk.message_index_length += RECORD_HEADER.size + length
-            elif opcode == Opcode.METADATA:
-                index.metadata.append(parse_metadata(content))
-            elif opcode == Opcode.MESSAGE:
-                index.problems.append(
-                    f"{name}: messages outside chunks are not supported (byte {pos})"
-                )
-                stopped_at = pos
-                break
-            elif opcode in (Opcode.DATA_END, Opcode.FOOTER):
-                break
-        except (CorruptBagError, struct.error, UnicodeDecodeError) as exc:
+            if opcode == Opcode.MESSAGE_INDEX:
+                if pending is not None:
+                    content = f.read(length)
+                    channel_id, entries = parse_message_index(content)
+                    pending.message_index_offsets[channel_id] = pos
+                    pending.message_index_length += RECORD_HEADER.size + length
+                    pending_counts[channel_id] = len(entries)
+            else:
+                settle(trust_indexes=True)
+                if opcode == Opcode.CHUNK:
+                    pending = _chunk_index_from_record(f, pos, length)
+                    pending_counts = {}
+                elif opcode == Opcode.SCHEMA:
+                    schema = parse_schema(f.read(length))
+                    index.schemas[schema.id] = schema
+                elif opcode == Opcode.CHANNEL:
+                    channel = parse_channel(f.read(length))
+                    index.channels[channel.id] = channel
+                elif opcode == Opcode.METADATA:
+                    index.metadata.append(parse_metadata(f.read(length)))
+                elif opcode == Opcode.MESSAGE:
+                    index.problems.append(
+                        f"{name}: messages outside chunks are not supported (byte {pos})"
+                    )
+                    stopped_at = pos
+                    break
+                elif opcode in (Opcode.DATA_END, Opcode.FOOTER):
+                    break
+        except (CorruptBagError, struct.error, UnicodeDecodeError, ValueError) as exc:
             index.problems.append(f"{name}: unreadable record at byte {pos} ({exc}), skipped")
         pos += RECORD_HEADER.size + length
+    # After a cut, the last chunk's indexes may be incomplete: count it from its records.
+    settle(trust_indexes=stopped_at is None)
     if stopped_at is not None:
         index.problems.append(
             f"{name}: truncated at byte {stopped_at}: "
             f"{file_size - stopped_at} bytes could not be read"
         )
-    if starts:
-        index.message_start_time = min(starts)
-        index.message_end_time = max(ends)
+    # Writers that put Schema/Channel records inside chunks: find the ones still missing.
+    for chunk_index in index.chunk_indexes:
+        if index.channel_message_counts.keys() <= index.channels.keys():
+            break
+        with contextlib.suppress(CorruptBagError, struct.error, UnicodeDecodeError):
+            _open_chunk(f, chunk_index, index)
+    if index.chunk_indexes:
+        index.message_start_time = min(c.message_start_time for c in index.chunk_indexes)
+        index.message_end_time = max(c.message_end_time for c in index.chunk_indexes)
     return index
 
 

@@ -20,6 +20,7 @@ from mcap.records import Message
 from mcap.stream_reader import StreamReader
 
 from bagkit.bag import BagReader, BagWriteError, BagWriter, NotABagError, TopicInfo
+from bagkit.bag.mcap import MESSAGE_DATA_OFFSET
 
 
 def _intact_messages_before(data: bytes) -> int:
@@ -187,3 +188,30 @@ def test_chunks_close_once_per_second_and_on_flush(tmp_path: Path) -> None:
     with BagReader(copy) as salvaged:
         assert [m.log_time for m in salvaged.messages()] == [1, 2, 3]
         assert salvaged.problems == []
+
+
+def _payloads_from_chunks(bag: BagReader, topic: str) -> list[bytes]:
+    """Payloads located through the chunk-level API (message-index offsets)."""
+    out = []
+    for chunk in bag.chunks(topics=[topic]):
+        for offset in chunk.message_index[topic]["offset"]:
+            start = int(offset)
+            length = int.from_bytes(chunk.records[start + 1 : start + 9], "little")
+            out.append(chunk.records[start + MESSAGE_DATA_OFFSET : start + 9 + length])
+    return out
+
+
+@pytest.mark.parametrize("cut_fraction", [1.0, 0.6])
+def test_chunk_access_finds_the_same_messages(
+    write_sample_bag: Callable[..., Path], tmp_path: Path, cut_fraction: float
+) -> None:
+    bag_path = write_sample_bag(n_imu=300, chunk_size=5_000)
+    data = (bag_path / "sample_0.mcap").read_bytes()
+    target = tmp_path / "cut"
+    target.mkdir()
+    (target / "cut_0.mcap").write_bytes(data[: int(len(data) * cut_fraction)])
+    with BagReader(target) as bag:
+        for topic in ("/imu/data", "/text"):
+            expected = [m.data for m in bag.messages(topics=[topic])]
+            assert expected
+            assert _payloads_from_chunks(bag, topic) == expected
