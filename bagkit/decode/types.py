@@ -63,7 +63,8 @@ class MessageTypes:
             detail = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
             self.problems[name] = f"definition of {name} cannot be parsed ({detail})"
         except KeyError as exc:
-            self.problems[name] = f"definition of {name} is incomplete (no definition of {exc})"
+            missing = exc.args[0] if exc.args else exc
+            self.problems[name] = f"definition of {name} is incomplete (no definition of {missing})"
 
     def _register(self, parsed: dict[str, Any]) -> None:
         """Register ``parsed`` plus the dependencies it names but does not define."""

@@ -1,0 +1,158 @@
+"""``bagkit stats summary`` as a subprocess: table, JSON and CSV output; bad input."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rosbags.typesys import Stores, get_typestore
+
+from bagkit.bag import BagWriter, TopicInfo
+from bagkit.stats import summarize
+
+BAGKIT = str(Path(sys.executable).with_name("bagkit"))
+TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+T0 = 1_750_000_000_000_000_000
+
+
+def _run(*args: str | Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [BAGKIT, "stats", "summary", *map(str, args)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+
+
+@pytest.fixture(scope="module")
+def temperatures() -> np.ndarray:
+    values = np.random.default_rng(7).normal(21.5, 0.3, 400)
+    values[[5, 77]] = np.nan
+    return values
+
+
+@pytest.fixture(scope="module")
+def bag(tmp_path_factory: pytest.TempPathFactory, temperatures: np.ndarray) -> Path:
+    """A bag written by bagkit's writer: /temperature at 2 Hz, /pressure at 1 Hz."""
+    path = tmp_path_factory.mktemp("cli") / "drive"
+    temperature = TYPESTORE.types["sensor_msgs/msg/Temperature"]
+    pressure = TYPESTORE.types["sensor_msgs/msg/FluidPressure"]
+    header = TYPESTORE.types["std_msgs/msg/Header"]
+    stamp = TYPESTORE.types["builtin_interfaces/msg/Time"]
+    with BagWriter(path) as writer:
+        writer.add_topic(TopicInfo("/temperature", "sensor_msgs/msg/Temperature"))
+        writer.add_topic(TopicInfo("/pressure", "sensor_msgs/msg/FluidPressure"))
+        for i, value in enumerate(temperatures):
+            t = T0 + i * 500_000_000
+            msg = temperature(
+                header=header(stamp=stamp(sec=t // 10**9, nanosec=t % 10**9), frame_id="thermo"),
+                temperature=float(value),
+                variance=0.0,
+            )
+            writer.write(
+                "/temperature", bytes(TYPESTORE.serialize_cdr(msg, msg.__msgtype__)), log_time=t
+            )
+            if i % 2 == 0:
+                msg = pressure(
+                    header=header(stamp=stamp(sec=t // 10**9, nanosec=0), frame_id="baro"),
+                    fluid_pressure=101325.0 - i,
+                    variance=4.0,
+                )
+                writer.write(
+                    "/pressure",
+                    bytes(TYPESTORE.serialize_cdr(msg, msg.__msgtype__)),
+                    log_time=t + 1000,
+                )
+    return path
+
+
+def test_json_output_is_the_library_result(bag: Path, temperatures: np.ndarray) -> None:
+    proc = _run(bag, "--format", "json")
+    assert proc.returncode == 0, proc.stderr
+    document = json.loads(proc.stdout)
+    assert document == json.loads(json.dumps(summarize([bag]).to_dict()))
+    topics = {t["topic"]: t for t in document["topics"]}
+    assert topics["/temperature"]["count"] == len(temperatures)
+    assert topics["/temperature"]["rate_hz"] == pytest.approx(2.0)
+    assert topics["/pressure"]["rate_hz"] == pytest.approx(1.0)
+    fields = {f["field"]: f for f in topics["/temperature"]["fields"]}
+    value = fields["temperature"]
+    assert value["nan_count"] == 2
+    assert value["mean"] == pytest.approx(np.nanmean(temperatures), rel=1e-9)
+    assert value["std"] == pytest.approx(np.nanstd(temperatures, ddof=1), rel=1e-9)
+    assert "header.frame_id" not in fields  # strings are not numeric
+
+
+def test_csv_output_has_a_row_per_field(bag: Path) -> None:
+    proc = _run(bag, "--format", "csv", "--topics", "/pressure")
+    assert proc.returncode == 0, proc.stderr
+    rows = list(csv.DictReader(io.StringIO(proc.stdout)))
+    assert [r["field"] for r in rows] == [
+        "header.stamp.sec",
+        "header.stamp.nanosec",
+        "fluid_pressure",
+        "variance",
+    ]
+    pressure = next(r for r in rows if r["field"] == "fluid_pressure")
+    assert pressure["topic"] == "/pressure" and int(pressure["topic_count"]) == 200
+    assert float(pressure["max"]) == 101325.0 and float(pressure["min"]) == 101325.0 - 398
+
+
+def test_table_output_and_window(bag: Path, temperatures: np.ndarray) -> None:
+    proc = _run(bag, "--start", "10", "--end", "20", "--fields", "temperature")
+    assert proc.returncode == 0, proc.stderr
+    assert "/temperature" in proc.stdout and "temperature" in proc.stdout
+    assert "/pressure" not in proc.stdout  # no field of /pressure matches
+    document = json.loads(
+        _run(bag, "--start", "10", "--end", "20", "--format", "json", "-f", "temperature").stdout
+    )
+    (topic,) = document["topics"]
+    window = temperatures[20:40]  # 2 Hz: [10 s, 20 s) after the first message
+    assert topic["count"] == 20
+    assert topic["fields"][0]["mean"] == pytest.approx(np.nanmean(window), rel=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["/definitely/not/here"], "no such file"),
+        (["--topics", "/nope"], "/nope"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(bag: Path, args: list[str], message: str) -> None:
+    full = args if args[0].startswith("/") else [str(bag), *args]
+    proc = _run(*full)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:") and message in lines[0]
+    assert "Traceback" not in proc.stderr
+
+
+def test_not_a_bag(tmp_path: Path) -> None:
+    junk = tmp_path / "junk.mcap"
+    junk.write_text("hello")
+    proc = _run(junk)
+    assert proc.returncode == 2 and proc.stderr.startswith("error:")
+
+
+def test_undecodable_topics_are_named(interop_dir: Path) -> None:
+    wrong = _run(interop_dir / "rosbag2_tests/resources/mcap/wrong_rmw_test")
+    assert wrong.returncode == 2
+    assert "wrong_format" in wrong.stderr and len(wrong.stderr.strip().splitlines()) == 1
+
+    partial = _run(
+        interop_dir / "rosbag2_tests/resources/sqlite3/bag_with_topics_and_service_events",
+        "--format",
+        "json",
+    )
+    assert partial.returncode == 0, partial.stderr
+    assert "warning: topic /test_service1/_service_event skipped" in partial.stderr
+    topics = {t["topic"]: t["count"] for t in json.loads(partial.stdout)["topics"]}
+    assert topics == {"/events/write_split": 0, "/test_topic1": 1, "/test_topic2": 1}
