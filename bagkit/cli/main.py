@@ -7,6 +7,7 @@ import typer
 from bagkit import __version__
 from bagkit.cli import compare as _compare
 from bagkit.cli import info as _info
+from bagkit.cli import record as _record
 from bagkit.cli import replay as _replay
 from bagkit.cli import stats as _stats
 
@@ -37,5 +38,6 @@ def main(
 # Command groups register themselves here, one module each (bagkit/cli/<group>.py).
 app.command("compare", help=_compare.HELP, no_args_is_help=True)(_compare.compare)
 app.command("info", help=_info.HELP, no_args_is_help=True)(_info.info)
+app.command("record", help=_record.HELP, no_args_is_help=True)(_record.record)
 app.add_typer(_replay.app)
 app.add_typer(_stats.app)

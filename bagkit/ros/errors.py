@@ -15,3 +15,13 @@ class UnknownMessageTypeError(RosError):
 
 class QosProfileError(RosError):
     """A QoS profile that cannot be read: bad offered_qos_profiles YAML or overrides file."""
+
+
+class RecorderOptionsError(RosError):
+    """A recording that cannot start: nothing selected, a bad option, an existing output."""
+
+
+class RecordingFailedError(RosError):
+    """A recording that stopped on an error (disk full); the bag keeps what was written."""
+
+    exit_code = 1

@@ -147,7 +147,8 @@ def dump_offered_qos_profiles(
     items = [profile_to_dict(p, version=version) for p in profiles]
     if not items:
         return ""
-    return yaml.safe_dump(items, sort_keys=False, default_flow_style=False)
+    # rosbag2 (yaml-cpp) writes no trailing newline.
+    return yaml.safe_dump(items, sort_keys=False, default_flow_style=False).rstrip("\n")
 
 
 def parse_offered_qos_profiles(text: str) -> list[QoSProfile]:
