@@ -41,6 +41,8 @@ _CHUNK_INDEX_PREFIX = struct.Struct("<QQQQ")
 _STATISTICS_PREFIX = struct.Struct("<QHIIIIQQ")
 _FOOTER = struct.Struct("<QQI")
 _SUMMARY_OFFSET = struct.Struct("<BQQ")
+# Loose messages are grouped into runs of at most this many bytes, read like chunks.
+_MAX_RUN_BYTES = 1 << 20
 
 
 class Opcode(enum.IntEnum):
@@ -171,6 +173,16 @@ class MetadataIndex:
     name: str
 
 
+@dataclass(frozen=True, slots=True)
+class MessageRun:
+    """Consecutive Message records outside any chunk (unchunked files), found by scanning."""
+
+    offset: int
+    length: int
+    message_start_time: int
+    message_end_time: int
+
+
 @dataclass(slots=True)
 class FileIndex:
     """What one MCAP file holds, from its summary or, when it has none, from a salvage scan.
@@ -185,6 +197,7 @@ class FileIndex:
     schemas: dict[int, Schema] = field(default_factory=dict)
     channels: dict[int, Channel] = field(default_factory=dict)
     chunk_indexes: list[ChunkIndex] = field(default_factory=list)
+    message_runs: list[MessageRun] = field(default_factory=list)
     channel_message_counts: dict[int, int] = field(default_factory=dict)
     message_start_time: int = 0
     message_end_time: int = 0
@@ -469,8 +482,9 @@ def _read_summary(f: BinaryIO, file_size: int, header: Header) -> FileIndex | No
             statistics = parse_statistics(content)
         elif opcode == Opcode.METADATA_INDEX:
             metadata_indexes.append(parse_metadata_index(content))
-    if statistics is None:
-        # Counts per channel are only in Statistics; without it the data section must be read.
+    if statistics is None or (statistics.message_count and not index.chunk_indexes):
+        # Counts are only in Statistics, and messages are found through chunk indexes: without
+        # them (or in an unchunked file) the data section must be read.
         return None
     index.channel_message_counts = dict(statistics.channel_message_counts)
     # Chunk indexes before Statistics: the Go writer's statistics skip log_time 0.
@@ -509,11 +523,7 @@ def _chunk_index_from_record(f: BinaryIO, pos: int, length: int) -> ChunkIndex:
 
 def _open_chunk(f: BinaryIO, chunk_index: ChunkIndex, index: FileIndex) -> dict[int, int]:
     """Decompress a chunk, check its CRC, keep schemas/channels found inside; count messages."""
-    raw = _read_exact(f, chunk_index.chunk_start_offset, chunk_index.chunk_length)
-    chunk = parse_chunk(memoryview(raw)[RECORD_HEADER.size :])
-    records = decompress(chunk.compression, chunk.records, chunk.uncompressed_size)
-    if chunk.uncompressed_crc and zlib.crc32(records) != chunk.uncompressed_crc:
-        raise CorruptBagError("chunk CRC mismatch")
+    records = read_block_records(f, chunk_index, verify_crc=True)
     counts: dict[int, int] = {}
     for _, opcode, content in iter_records(records):
         if opcode == Opcode.MESSAGE:
@@ -539,6 +549,7 @@ def _scan(f: BinaryIO, file_size: int, header: Header, name: str) -> FileIndex:
     stopped_at: int | None = None
     pending: ChunkIndex | None = None  # the last chunk, not yet counted
     pending_counts: dict[int, int] = {}  # from the Message Index records after it
+    run: tuple[int, int, int, int] | None = None  # loose messages: start, end, first/last time
 
     def settle(trust_indexes: bool) -> None:
         nonlocal pending
@@ -598,11 +609,16 @@ def _scan(f: BinaryIO, file_size: int, header: Header, name: str) -> FileIndex:
                 elif opcode == Opcode.METADATA:
                     index.metadata.append(parse_metadata(f.read(length)))
                 elif opcode == Opcode.MESSAGE:
-                    index.problems.append(
-                        f"{name}: messages outside chunks are not supported (byte {pos})"
-                    )
-                    stopped_at = pos
-                    break
+                    channel_id, _, log_time, _ = MESSAGE_PREFIX.unpack(f.read(MESSAGE_PREFIX.size))
+                    counts = index.channel_message_counts
+                    counts[channel_id] = counts.get(channel_id, 0) + 1
+                    record_end = pos + RECORD_HEADER.size + length
+                    if run is not None and run[1] == pos and run[1] - run[0] < _MAX_RUN_BYTES:
+                        run = (run[0], record_end, min(run[2], log_time), max(run[3], log_time))
+                    else:
+                        if run is not None:
+                            index.message_runs.append(MessageRun(run[0], run[1] - run[0], *run[2:]))
+                        run = (pos, record_end, log_time, log_time)
                 elif opcode in (Opcode.DATA_END, Opcode.FOOTER):
                     break
         except (CorruptBagError, struct.error, UnicodeDecodeError, ValueError) as exc:
@@ -610,6 +626,8 @@ def _scan(f: BinaryIO, file_size: int, header: Header, name: str) -> FileIndex:
         pos += RECORD_HEADER.size + length
     # After a cut, the last chunk's indexes may be incomplete: count it from its records.
     settle(trust_indexes=stopped_at is None)
+    if run is not None:
+        index.message_runs.append(MessageRun(run[0], run[1] - run[0], run[2], run[3]))
     if stopped_at is not None:
         index.problems.append(
             f"{name}: truncated at byte {stopped_at}: "
@@ -621,9 +639,10 @@ def _scan(f: BinaryIO, file_size: int, header: Header, name: str) -> FileIndex:
             break
         with contextlib.suppress(CorruptBagError, struct.error, UnicodeDecodeError):
             _open_chunk(f, chunk_index, index)
-    if index.chunk_indexes:
-        index.message_start_time = min(c.message_start_time for c in index.chunk_indexes)
-        index.message_end_time = max(c.message_end_time for c in index.chunk_indexes)
+    blocks: list[ChunkIndex | MessageRun] = [*index.chunk_indexes, *index.message_runs]
+    if blocks:
+        index.message_start_time = min(b.message_start_time for b in blocks)
+        index.message_end_time = max(b.message_end_time for b in blocks)
     return index
 
 
@@ -651,22 +670,38 @@ def read_file_index(f: BinaryIO, *, name: str = "") -> FileIndex:
     return index
 
 
-def read_chunk(f: BinaryIO, chunk_index: ChunkIndex, *, verify_crc: bool = False) -> ChunkData:
-    """Read and decompress one chunk, with the message-index offsets of each of its channels.
-
-    Uses the Message Index records that follow the chunk when there are any; otherwise the
-    offsets are found by walking the chunk's records.
+def read_block_records(
+    f: BinaryIO, block: ChunkIndex | MessageRun, *, verify_crc: bool = False
+) -> bytes:
+    """Return the records of a chunk (decompressed) or of a run of loose messages.
 
     Raises:
         CorruptBagError: the chunk does not decompress or its CRC does not match.
     """
-    raw = _read_exact(f, chunk_index.chunk_start_offset, chunk_index.chunk_length)
+    if isinstance(block, MessageRun):
+        return _read_exact(f, block.offset, block.length)
+    raw = _read_exact(f, block.chunk_start_offset, block.chunk_length)
     chunk = parse_chunk(memoryview(raw)[RECORD_HEADER.size :])
     records = decompress(chunk.compression, chunk.records, chunk.uncompressed_size)
     if verify_crc and chunk.uncompressed_crc and zlib.crc32(records) != chunk.uncompressed_crc:
-        raise CorruptBagError(f"chunk at byte {chunk_index.chunk_start_offset}: CRC mismatch")
+        raise CorruptBagError(f"chunk at byte {block.chunk_start_offset}: CRC mismatch")
+    return records
+
+
+def read_chunk(
+    f: BinaryIO, chunk_index: ChunkIndex | MessageRun, *, verify_crc: bool = False
+) -> ChunkData:
+    """Read and decompress one chunk, with the message-index offsets of each of its channels.
+
+    Uses the Message Index records that follow the chunk when there are any; otherwise (and for
+    a run of loose messages) the offsets are found by walking the records.
+
+    Raises:
+        CorruptBagError: the chunk does not decompress or its CRC does not match.
+    """
+    records = read_block_records(f, chunk_index, verify_crc=verify_crc)
     message_index: dict[int, np.ndarray] = {}
-    if chunk_index.message_index_offsets:
+    if isinstance(chunk_index, ChunkIndex) and chunk_index.message_index_offsets:
         first = min(chunk_index.message_index_offsets.values())
         last = max(chunk_index.message_index_offsets.values())
         f.seek(last)

@@ -34,6 +34,13 @@ class BagChunk:
     message_index: dict[str, np.ndarray]
 
 
+def _extent(block: mcap.ChunkIndex | mcap.MessageRun) -> tuple[int, int]:
+    """(offset, length) of a chunk record or a run of loose messages in its file."""
+    if isinstance(block, mcap.MessageRun):
+        return block.offset, block.length
+    return block.chunk_start_offset, block.chunk_length
+
+
 class StorageFile:
     """What the reader needs from one storage file, whatever its format."""
 
@@ -104,6 +111,10 @@ class McapFile(StorageFile):
         self.start_ns = self.index.message_start_time
         self.end_ns = self.index.message_end_time
         chunks = self.index.chunk_indexes
+        self._sorted_blocks: list[mcap.ChunkIndex | mcap.MessageRun] = sorted(
+            [*chunks, *self.index.message_runs],
+            key=lambda b: (b.message_start_time, _extent(b)[0]),
+        )
         self.compressed_size = sum(c.compressed_size for c in chunks)
         self.uncompressed_size = sum(c.uncompressed_size for c in chunks)
         self.compression = ",".join(sorted({c.compression or "none" for c in chunks}))
@@ -115,38 +126,27 @@ class McapFile(StorageFile):
     def _channel_ids(self, topics: set[str] | None) -> set[int]:
         return {c for c, t in self._channel_topics.items() if topics is None or t in topics}
 
-    def _chunks(self, start_ns: int | None, end_ns: int | None) -> Iterator[mcap.ChunkIndex]:
-        for chunk_index in self.index.chunk_indexes:
-            if start_ns is not None and chunk_index.message_end_time < start_ns:
+    def _blocks(
+        self, start_ns: int | None, end_ns: int | None
+    ) -> Iterator[mcap.ChunkIndex | mcap.MessageRun]:
+        """Chunks (and runs of loose messages) that may hold messages in the time range."""
+        for block in self._sorted_blocks:
+            if start_ns is not None and block.message_end_time < start_ns:
                 continue
-            if end_ns is not None and chunk_index.message_start_time >= end_ns:
+            if end_ns is not None and block.message_start_time >= end_ns:
                 continue
-            yield chunk_index
+            yield block
 
-    def _read_records(self, chunk_index: mcap.ChunkIndex) -> bytes | None:
-        raw = self._read_chunk_record(chunk_index)
-        if raw is None:
-            return None
+    def _read_records(self, block: mcap.ChunkIndex | mcap.MessageRun) -> bytes | None:
         try:
-            chunk = mcap.parse_chunk(memoryview(raw)[mcap.RECORD_HEADER.size :])
-            return mcap.decompress(chunk.compression, chunk.records, chunk.uncompressed_size)
+            return mcap.read_block_records(self._handle, block)
         except (CorruptBagError, struct.error, UnicodeDecodeError) as exc:
-            self._problem(chunk_index, str(exc))
+            self._problem(block, str(exc))
             return None
 
-    def _read_chunk_record(self, chunk_index: mcap.ChunkIndex) -> bytes | None:
-        self._handle.seek(chunk_index.chunk_start_offset)
-        raw = self._handle.read(chunk_index.chunk_length)
-        if len(raw) != chunk_index.chunk_length:
-            self._problem(chunk_index, "file ends inside the chunk")
-            return None
-        return raw
-
-    def _problem(self, chunk_index: mcap.ChunkIndex, what: str) -> None:
-        message = (
-            f"{self.path.name}: chunk at byte {chunk_index.chunk_start_offset} "
-            f"({chunk_index.chunk_length} bytes) unreadable: {what}"
-        )
+    def _problem(self, block: mcap.ChunkIndex | mcap.MessageRun, what: str) -> None:
+        offset, length = _extent(block)
+        message = f"{self.path.name}: chunk at byte {offset} ({length} bytes) unreadable: {what}"
         if message not in self.problems:
             self.problems.append(message)
 
@@ -163,14 +163,14 @@ class McapFile(StorageFile):
         # Chunks are sorted by start time; a chunk may overlap the next ones. Messages up to the
         # next chunk's start time are final; the rest wait and are merged with that chunk.
         pending: list[BagMessage] = []
-        for chunk_index in self._chunks(start_ns, end_ns):
+        for block in self._blocks(start_ns, end_ns):
             if pending:
                 cut = bisect.bisect_left(
-                    pending, chunk_index.message_start_time, key=lambda m: m.log_time
+                    pending, block.message_start_time, key=lambda m: m.log_time
                 )
                 yield from pending[:cut]
                 pending = pending[cut:]
-            records = self._read_records(chunk_index)
+            records = self._read_records(block)
             if records is None:
                 continue
             batch = [
@@ -189,15 +189,17 @@ class McapFile(StorageFile):
     def chunks(self, topics: set[str] | None) -> Iterator[BagChunk]:
         """Yield the chunks holding messages of ``topics`` (all when None), in file order."""
         wanted = self._channel_ids(topics)
-        for chunk_index in sorted(self.index.chunk_indexes, key=lambda c: c.chunk_start_offset):
-            if chunk_index.message_index_offsets and not (
-                wanted & chunk_index.message_index_offsets.keys()
+        for block in sorted(self._sorted_blocks, key=_extent):
+            if (
+                isinstance(block, mcap.ChunkIndex)
+                and block.message_index_offsets
+                and not (wanted & block.message_index_offsets.keys())
             ):
                 continue
             try:
-                data = mcap.read_chunk(self._handle, chunk_index)
+                data = mcap.read_chunk(self._handle, block)
             except (CorruptBagError, struct.error) as exc:
-                self._problem(chunk_index, str(exc))
+                self._problem(block, str(exc))
                 continue
             by_topic: dict[str, list[np.ndarray]] = {}
             for channel_id, entries in data.message_index.items():
