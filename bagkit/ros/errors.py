@@ -13,6 +13,16 @@ class UnknownMessageTypeError(RosError):
     """A message type whose Python package is not installed."""
 
 
+class PlayerError(RosError):
+    """A replay that cannot start: bad options, nothing to replay."""
+
+
+class SubscriberTimeoutError(PlayerError):
+    """Subscribers known to the graph did not match the player's publishers in time."""
+
+    exit_code = 1
+
+
 class QosProfileError(RosError):
     """A QoS profile that cannot be read: bad offered_qos_profiles YAML or overrides file."""
 

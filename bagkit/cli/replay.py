@@ -1,0 +1,228 @@
+"""``bagkit replay``: publish a bag's messages over ROS 2 with their recorded timing."""
+
+from __future__ import annotations
+
+import re
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import typer
+from rich.table import Table
+from typer.core import TyperCommand
+
+from bagkit.cli.common import (
+    EXIT_INTERRUPTED,
+    OutputFormat,
+    console,
+    handle_errors,
+    print_json,
+    warn,
+)
+from bagkit.ros.timing import DEFAULT_CLOCK_HZ, DEFAULT_DISCOVERY_TIME_S, LATE_THRESHOLD_NS
+
+if TYPE_CHECKING:
+    # The player imports rclpy: only `bagkit replay` itself pays for that import.
+    from bagkit.ros.player import PlayProgress, PlayReport
+
+_NUMBER = re.compile(r"[0-9]*\.?[0-9]+([eE][-+]?[0-9]+)?")
+
+
+class _ReplayCommand(TyperCommand):
+    """Lets ``--clock`` take an optional value: a bare ``--clock`` means 100 Hz.
+
+    Typer options either always or never take a value, so a bare ``--clock`` (followed by
+    nothing, an option or the bag path) is rewritten to ``--clock=100`` before parsing.
+    """
+
+    def parse_args(self, ctx: Any, args: list[str]) -> list[str]:
+        following = [*args[1:], ""]
+        rewritten = [
+            f"--clock={DEFAULT_CLOCK_HZ:g}"
+            if arg == "--clock" and not _NUMBER.fullmatch(after)
+            else arg
+            for arg, after in zip(args, following, strict=True)
+        ]
+        return list(super().parse_args(ctx, rewritten))
+
+
+app = typer.Typer()
+
+
+@app.command("replay", cls=_ReplayCommand, no_args_is_help=True)
+@handle_errors
+def replay(  # noqa: PLR0917 (typer maps parameters to options)
+    bag: Path = typer.Argument(..., help="Bag directory or .mcap file.", show_default=False),
+    rate: float = typer.Option(
+        1.0, "--rate", "-r", help="Playback speed factor (2 = twice as fast)."
+    ),
+    topics: list[str] = typer.Option(
+        [],
+        "--topics",
+        help="Replay only these topics; repeat the option or separate names by commas/spaces.",
+    ),
+    regex: str | None = typer.Option(
+        None, "--regex", "-e", help="Replay topics whose name matches this regex (re.search)."
+    ),
+    exclude: str | None = typer.Option(
+        None, "--exclude", "-x", help="Do not replay topics whose name matches this regex."
+    ),
+    start_offset: float = typer.Option(
+        0.0, "--start-offset", help="Start this many seconds after the bag's first message."
+    ),
+    duration: float | None = typer.Option(
+        None, "--duration", help="Replay only this many seconds of bag time."
+    ),
+    loop: bool = typer.Option(False, "--loop", "-l", help="Replay again and again until Ctrl-C."),
+    delay: float = typer.Option(
+        0.0, "--delay", "-d", help="Sleep this many seconds before each pass."
+    ),
+    clock: float | None = typer.Option(
+        None,
+        "--clock",
+        metavar="[HZ]",
+        help=(
+            "Publish rosgraph_msgs/Clock on /clock at HZ (100 when given without a value) and "
+            "before each message; a /clock topic in the bag is then not replayed."
+        ),
+        show_default=False,
+    ),
+    remap: list[str] = typer.Option(
+        [], "--remap", "-m", help="Publish topic OLD as NEW (OLD:=NEW); repeatable."
+    ),
+    wait_for_subscribers: bool = typer.Option(
+        True,
+        "--wait-for-subscribers/--no-wait-for-subscribers",
+        help=(
+            "Before the first message, wait until every subscription the ROS graph shows on a "
+            "replayed topic (and /clock) has matched."
+        ),
+    ),
+    wait_for: list[str] = typer.Option(
+        [],
+        "--wait-for",
+        help="Also wait until this topic (published name) has a subscriber; repeatable.",
+    ),
+    wait_timeout: float = typer.Option(
+        10.0, "--wait-timeout", help="Seconds to wait for subscribers before giving up."
+    ),
+    discovery_time: float = typer.Option(
+        DEFAULT_DISCOVERY_TIME_S,
+        "--discovery-time",
+        help=(
+            "Seconds to watch the ROS graph for subscribers that already exist (Fast DDS "
+            "announces participants every 3 s); 0 with --wait-for when the consumers are known."
+        ),
+    ),
+    qos_overrides: Path | None = typer.Option(
+        None,
+        "--qos-overrides",
+        help="rosbag2 QoS overrides file (YAML: topic -> reliability, durability, history, depth).",
+    ),
+    output_format: OutputFormat = typer.Option(
+        OutputFormat.TABLE, "--format", "-f", help="Final report as a table or as JSON."
+    ),
+) -> None:
+    """Replay BAG over ROS 2 with its recorded timing, scaled by --rate.
+
+    Each message's stored bytes are published when the monotonic clock reaches
+    start + (log time - bag start) / rate. Topics whose type is not installed are skipped.
+    Progress goes to stderr; the per-topic counts and the timing error (how late messages
+    were published: p50/p99/max) go to stdout at the end.
+    """
+    from bagkit.ros.player import Player, parse_remaps
+
+    interactive = sys.stderr.isatty()
+    progress = _ProgressLine(interactive=interactive)
+    with Player(
+        bag,
+        rate=rate,
+        topics=[name for value in topics for name in re.split(r"[,\s]+", value) if name] or None,
+        regex=regex,
+        exclude=exclude,
+        start_offset=start_offset,
+        duration=duration,
+        loops=0 if loop else 1,
+        delay=delay,
+        clock_hz=clock,
+        remap=parse_remaps(remap),
+        wait_for_subscribers=wait_for_subscribers,
+        wait_for=wait_for,
+        wait_timeout=wait_timeout,
+        discovery_time=discovery_time,
+        qos_overrides=qos_overrides,
+        on_progress=progress.update,
+        progress_period=0.25 if interactive else 5.0,
+    ) as player:
+        if player.skipped_types:
+            listed = ", ".join(f"{t} ({ty})" for t, ty in sorted(player.skipped_types.items()))
+            warn(f"not replaying topics whose message type is not installed: {listed}")
+        if player.missing_topics:
+            warn(f"topics not in the bag: {', '.join(player.missing_topics)}")
+        report = player.play()
+    progress.finish()
+
+    if output_format is OutputFormat.JSON:
+        print_json(report.to_dict())
+    else:
+        _print_report(report)
+    if report.problems:
+        warn(
+            f"the bag is damaged: replayed the {report.messages} messages that could be read; "
+            + "; ".join(report.problems)
+        )
+    if report.interrupted:
+        raise typer.Exit(EXIT_INTERRUPTED)
+
+
+class _ProgressLine:
+    """The live progress line on stderr: rewritten in place on a terminal, one line otherwise."""
+
+    def __init__(self, *, interactive: bool) -> None:
+        self.interactive = interactive
+        self.shown = False
+
+    def update(self, progress: PlayProgress) -> None:
+        line = (
+            f"bag {progress.bag_time_s:8.2f} s  wall {progress.wall_time_s:8.2f} s  "
+            f"rate {progress.effective_rate:6.2f}x  {progress.messages} msgs  "
+            f"{progress.late} late" + (f"  loop {progress.loop + 1}" if progress.loop else "")
+        )
+        # Plain writes: a rich render costs about a millisecond, which would delay messages.
+        sys.stderr.write(f"\r{line}\x1b[K" if self.interactive else f"{line}\n")
+        sys.stderr.flush()
+        self.shown = True
+
+    def finish(self) -> None:
+        if self.interactive and self.shown:
+            sys.stderr.write("\n")
+
+
+def _print_report(report: PlayReport) -> None:
+    table = Table(title=None, box=None, header_style="bold")
+    table.add_column("topic")
+    table.add_column("published as")
+    table.add_column("type")
+    table.add_column("messages", justify="right")
+    for topic in report.topics:
+        table.add_row(
+            topic.topic,
+            "" if topic.published_as == topic.topic else topic.published_as,
+            topic.type,
+            str(topic.messages),
+        )
+    console.print(table)
+    lateness = report.lateness
+    console.print(
+        f"{report.messages} messages in {report.wall_duration_s:.3f} s "
+        f"({report.bag_duration_s:.3f} s of bag time, rate {report.rate:g}"
+        + (f", {report.loops} passes" if report.loops > 1 else "")
+        + ")",
+        highlight=False,
+    )
+    console.print(
+        f"timing error: p50 {lateness.p50_ms:.3f} ms, p99 {lateness.p99_ms:.3f} ms, "
+        f"max {lateness.max_ms:.3f} ms, {lateness.late} messages late "
+        f"(> {LATE_THRESHOLD_NS / 1e6:g} ms)",
+        highlight=False,
+    )
