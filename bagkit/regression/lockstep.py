@@ -48,10 +48,11 @@ class LockstepResult:
         return self.bag_duration_ns / 1e9 / self.wall_time_s if self.wall_time_s > 0 else 0.0
 
 
-def _first_timer_ns(start_ns: int, period_ns: int) -> int:
+def _next_tick_ns(after_ns: int, period_ns: int) -> int:
     # A node under use_sim_time creates its timer at sim time 0, so its ticks fall on the
-    # multiples of the period; lockstep puts them there too, from the first one in the bag.
-    return (start_ns // period_ns + 1) * period_ns
+    # multiples of the period; and when the clock first jumps to the bag's start, the overdue
+    # timer fires at once. Lockstep ticks at the first input, then on those multiples.
+    return (after_ns // period_ns + 1) * period_ns
 
 
 class _OutputBag:
@@ -147,15 +148,11 @@ def run_lockstep(
             raise RegressionError(f"{golden}: no input topic(s) {', '.join(missing)}")
         classes = {t: import_message_type(reader.topics[t].type) for t in wanted}
         routes = {t: [p for p in processors if t in p.input_topics] for t in wanted}
-        start_ns, end_ns = reader.start_ns, reader.end_ns
         total = sum(reader.topic_counts.get(t, 0) for t in wanted)
-        # (next tick, processor index): ties fire in node order, deterministically.
-        timers = [
-            (_first_timer_ns(start_ns, p.timer_period_ns), i)
-            for i, p in enumerate(processors)
-            if p.timer_period_ns
-        ]
-        heapq.heapify(timers)
+        # (next tick, processor index): ties fire in node order, deterministically. Timers
+        # start with the first input and stop with the last one, as bag time does.
+        timers: list[tuple[int, int]] = []
+        start_ns = end_ns = 0
         timer_calls = 0
         done = 0
         # Chunks closed by size only (not by wall time) keep the file bytes reproducible.
@@ -179,12 +176,9 @@ def run_lockstep(
                     processor.drain_log()
                     timer_calls += 1
                     assert processor.timer_period_ns is not None
-                    heapq.heappush(timers, (tick + processor.timer_period_ns, index))
+                    heapq.heappush(timers, (_next_tick_ns(tick, processor.timer_period_ns), index))
 
             for bag_msg in reader.messages(topics=sorted({*wanted, *copied})):
-                # A tick at exactly a message's time fires before it, as a node that is
-                # spinning would see the timer become ready first.
-                fire_timers(bag_msg.log_time + 1)
                 if bag_msg.topic in copied:
                     out.writer.write(
                         bag_msg.topic,
@@ -195,6 +189,13 @@ def run_lockstep(
                     )
                 if bag_msg.topic not in classes:
                     continue
+                if not done:
+                    start_ns = bag_msg.log_time
+                    timers = [(start_ns, i) for i, p in enumerate(processors) if p.timer_period_ns]
+                end_ns = bag_msg.log_time
+                # A tick at exactly a message's time fires before it, as a node that is
+                # spinning would see the timer become ready first.
+                fire_timers(bag_msg.log_time + 1)
                 msg = deserialize_message(bag_msg.data, classes[bag_msg.topic])
                 for processor in routes[bag_msg.topic]:
                     for topic, reply in processor.on_message(bag_msg.topic, msg, bag_msg.log_time):
