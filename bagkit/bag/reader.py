@@ -50,6 +50,7 @@ def _resolve_files(path: Path) -> tuple[Path, list[Path], BagMetadata | None]:
         existing = [p for p in listed if p.is_file()]
         if existing:
             return path, existing, metadata
+        # Listed files gone (renamed bag, converted storage): fall back to what is there.
     found = sorted(
         (p for p in path.iterdir() if p.suffix in STORAGE_SUFFIXES and p.is_file()),
         key=_natural_key,
@@ -77,6 +78,11 @@ class BagReader:
     def __init__(self, path: str | Path, *, allow_empty: bool = False) -> None:
         self.path = Path(path)
         self.directory, self.files, self.metadata = _resolve_files(self.path)
+        self._missing = [
+            f"{name}: listed in {METADATA_FILENAME} but missing"
+            for name in (self.metadata.relative_file_paths if self.metadata else [])
+            if not (self.directory / name).is_file()
+        ]
         self._storage: list[StorageFile] = []
         try:
             for file in self.files:
@@ -136,7 +142,7 @@ class BagReader:
     @property
     def problems(self) -> list[str]:
         """What could not be read (truncated files, unreadable chunks); grows while reading."""
-        return [p for s in self._storage for p in s.problems]
+        return self._missing + [p for s in self._storage for p in s.problems]
 
     @property
     def has_summary(self) -> bool:

@@ -77,3 +77,18 @@ def test_directory_without_metadata_reads_files_in_natural_order(
     with BagReader(bag_path) as bag:
         assert bag.files == files
         assert [m.sequence for m in bag.messages(topics=["/imu/data"])] == list(range(1200))
+
+
+def test_file_listed_in_metadata_but_missing_is_a_problem(
+    write_sample_bag: Callable[..., Path],
+) -> None:
+    bag_path = write_sample_bag(
+        n_imu=600, max_bag_size=40_000, chunk_size=8_000, compression="none"
+    )
+    info = _metadata(bag_path)
+    last = info["relative_file_paths"][-1]
+    (bag_path / last).unlink()
+    kept = sum(f["message_count"] for f in info["files"][:-1])
+    with BagReader(bag_path) as bag:
+        assert bag.message_count == kept
+        assert bag.problems == [f"{last}: listed in metadata.yaml but missing"]
