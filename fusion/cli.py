@@ -4,12 +4,17 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import typer
+from rich.table import Table
 
-from bagkit.cli.common import fail, handle_errors
+from bagkit.cli.common import OutputFormat, console, err_console, fail, handle_errors, print_json
 from fusion.launch import Launcher
 from fusion.processors import NODE_NAMES
+
+if TYPE_CHECKING:
+    from fusion.monitor import LiveCheck
 
 app = typer.Typer(
     name="fusion",
@@ -75,6 +80,63 @@ def run(
     if extra:
         ros_args += ["--ros-args", *extra]
     raise typer.Exit(run_node(node, ros_args))
+
+
+@app.command(
+    help="Measure the running system over DDS: each topic's rate against nominal and the fused "
+    "altitude's RMS error against the simulated truth (/sim/truth), next to GPS's. Exits 1 when a "
+    "rate is off by more than 10 % or the fused altitude is not better than GPS."
+)
+@handle_errors
+def check(
+    duration: float = typer.Option(30.0, "--duration", min=1.0, help="Seconds to measure."),
+    launch_nodes: bool = typer.Option(
+        False, "--launch", help="Start the system (fusion launch) for the check, then stop it."
+    ),
+    params: Path | None = typer.Option(
+        None, "--params", exists=True, dir_okay=False, help="Parameter file for --launch."
+    ),
+    output_format: OutputFormat = typer.Option(
+        OutputFormat.TABLE, "--format", help="table or json."
+    ),
+) -> None:
+    if output_format is OutputFormat.CSV:
+        raise fail("fusion check supports --format table or json")
+    from fusion.monitor import check_system
+
+    with err_console.status(f"measuring for {duration:g} s ..."):
+        result = check_system(duration, launch=launch_nodes, params_file=params)
+    if output_format is OutputFormat.JSON:
+        print_json(result.as_dict())
+    else:
+        _print_check(result)
+    raise typer.Exit(0 if result.targets_met() else 1)
+
+
+def _print_check(result: LiveCheck) -> None:
+    table = Table(title=f"fusion check over {result.duration_s:g} s")
+    for column in ("topic", "nominal Hz", "messages", "measured Hz", "ratio", "max gap s"):
+        table.add_column(column, justify="left" if column == "topic" else "right")
+    for rate in result.rates:
+        style = "" if rate.within(0.1) else "red"
+        table.add_row(
+            rate.topic,
+            f"{rate.nominal_hz:g}",
+            str(rate.count),
+            f"{rate.rate_hz:.2f}",
+            f"{rate.rate_hz / rate.nominal_hz:.3f}",
+            f"{rate.max_gap_s:.3f}",
+            style=style,
+        )
+    console.print(table)
+    console.print(
+        f"altitude RMS error vs truth: fused {result.fused_rms_m:.2f} m, GPS "
+        f"{result.gps_rms_m:.2f} m (fused/GPS {result.fused_rms_m / result.gps_rms_m:.2f}, "
+        f"{result.altitude_samples} samples)"
+    )
+    for alert in result.alerts:
+        console.print(f"alert: {alert}", highlight=False)
+    console.print("targets met" if result.targets_met() else "[red]targets missed[/]")
 
 
 def main() -> None:
