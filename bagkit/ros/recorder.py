@@ -80,8 +80,9 @@ class SequenceTracker:
     stream extends it; otherwise, while there are fewer streams than matched publishers, it
     starts a new one (a publisher's first message after matching is not a loss); otherwise the
     stream it skipped ahead from (the highest number below it) counts the hole. A number below
-    every stream is a publisher that restarted. Exact with one publisher; with several, holes
-    are exact as long as each publisher's messages arrive in order.
+    every stream is a publisher that restarted. Exact with one publisher; with several whose
+    numbers run close to each other, a lossy stretch can be attributed to the wrong stream and
+    the count be off by a few (an estimate, never a silent zero).
     """
 
     __slots__ = ("_last", "publishers")
@@ -406,8 +407,8 @@ class Recorder:
         """Create the bag and the node, and start recording.
 
         Raises:
-            RecorderOptionsError: the output exists or a bag option is invalid.
-            RecordingFailedError: the output cannot be created.
+            RecorderOptionsError: the output exists or cannot be created, or a bag option is
+                invalid.
         """
         try:
             self._bag = BagWriter(
@@ -417,8 +418,6 @@ class Recorder:
                 max_bag_duration_s=self.max_bag_duration_s,
                 chunk_interval_s=FLUSH_PERIOD_S,
             )
-        except BagWriteError as exc:
-            raise RecordingFailedError(str(exc)) from None
         except BagError as exc:
             raise RecorderOptionsError(str(exc)) from None
         context = self._context

@@ -1,0 +1,261 @@
+"""The recorder over real DDS: known sequences published in-process, read back by three readers."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+import rclpy
+import yaml
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+from rclpy.context import Context
+from rclpy.node import Node
+from rclpy.publisher import Publisher
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rosbags.highlevel import AnyReader
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import Imu
+from std_msgs.msg import Int32, String
+
+from bagkit.bag import BagReader
+from bagkit.ros import recorder as recorder_module
+from bagkit.ros.errors import UnknownMessageTypeError
+from bagkit.ros.qos import parse_offered_qos_profiles
+from bagkit.ros.recorder import Recorder
+
+pytestmark = pytest.mark.ros
+
+MATCH_TIMEOUT_S = 10.0
+
+
+@pytest.fixture
+def node() -> Iterator[Node]:
+    """A publishing node in a context of its own, shut down after the test."""
+    context = Context()
+    rclpy.init(context=context)
+    publisher_node = Node("record_test_publisher", context=context)
+    try:
+        yield publisher_node
+    finally:
+        publisher_node.destroy_node()
+        context.try_shutdown()
+
+
+def wait_for(condition: Callable[[], bool], timeout: float = MATCH_TIMEOUT_S) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError("timed out waiting for the recorder")
+        time.sleep(0.01)
+
+
+def wait_matched(*publishers: Publisher) -> None:
+    wait_for(lambda: all(p.get_subscription_count() > 0 for p in publishers))
+
+
+def imu(i: int) -> Imu:
+    msg = Imu()
+    msg.header.stamp.sec = 1000 + i
+    msg.header.stamp.nanosec = i * 1000
+    msg.header.frame_id = "imu_link"
+    msg.linear_acceleration.z = 9.81 + i * 1e-3
+    msg.angular_velocity.x = -0.5 * i
+    msg.orientation_covariance[0] = -1.0
+    return msg
+
+
+def test_records_known_sequences_readable_by_rosbags_and_mcap(node: Node, tmp_path: Path) -> None:
+    n_imu, n_text = 300, 120
+    reliable = node.create_publisher(Imu, "/rec/imu", 100)
+    best_effort = node.create_publisher(
+        String, "/rec/text", QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT)
+    )
+    latched = node.create_publisher(
+        String, "/rec/latched", QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    )
+    # Published before the recorder exists: only transient-local durability brings it over.
+    latched.publish(String(data="map v1"))
+    bag = tmp_path / "known"
+    with Recorder(bag, regex="^/rec/") as recorder:
+        wait_matched(reliable, best_effort, latched)
+        for i in range(n_imu):
+            reliable.publish(imu(i))
+            if i < n_text:
+                best_effort.publish(String(data=f"text {i}"))
+            time.sleep(0.001)
+        # A topic that appears while recording is recorded from its first matched message.
+        late = node.create_publisher(Int32, "/rec/late", 10)
+        wait_matched(late)
+        for i in range(20):
+            late.publish(Int32(data=i * i))
+        wait_for(lambda: recorder.progress().messages >= n_imu + 1 + 20)
+        time.sleep(0.2)
+    report = recorder.report
+
+    assert report.error is None
+    assert report.topic("/rec/imu").messages == n_imu
+    assert report.topic("/rec/late").messages == 20
+    assert report.topic("/rec/latched").messages == 1
+    text = report.topic("/rec/text")
+    # Best effort may drop (rarely, on localhost); every hole between the first and the last
+    # message received must be counted as a middleware gap.
+    with BagReader(bag) as bag_reader:
+        sequences = [m.sequence for m in bag_reader.messages(topics=["/rec/text"])]
+    assert text.messages + text.gaps == sequences[-1] - sequences[0] + 1
+    assert report.lost == text.gaps
+    assert {t.publishers for t in report.topics} == {1}
+
+    # rosbags: every message deserializes, in publication order, with the published content.
+    with AnyReader([bag]) as reader:
+        by_topic: dict[str, list[Any]] = {}
+        for connection, _timestamp, raw in reader.messages():
+            by_topic.setdefault(connection.topic, []).append(
+                reader.deserialize(raw, connection.msgtype)
+            )
+    imus = by_topic["/rec/imu"]
+    assert [m.header.stamp.sec for m in imus] == [1000 + i for i in range(n_imu)]
+    assert [m.angular_velocity.x for m in imus] == [-0.5 * i for i in range(n_imu)]
+    assert imus[7].header.frame_id == "imu_link"
+    assert imus[7].orientation_covariance[0] == -1.0
+    assert [m.data for m in by_topic["/rec/late"]] == [i * i for i in range(20)]
+    assert [m.data for m in by_topic["/rec/latched"]] == ["map v1"]
+    texts = [m.data for m in by_topic["/rec/text"]]
+    assert texts == sorted(texts, key=lambda t: int(t.split()[1]))
+    assert len(texts) == text.messages
+
+    # mcap + mcap_ros2: the same messages, and the record fields rosbag2 defines.
+    counts: dict[str, int] = {}
+    for mcap_file in sorted(bag.glob("*.mcap")):
+        with mcap_file.open("rb") as stream:
+            reader_ = make_reader(stream, decoder_factories=[DecoderFactory()])
+            assert reader_.get_header().profile == "ros2"
+            for schema, channel, message, decoded in reader_.iter_decoded_messages():
+                assert schema is not None and schema.encoding == "ros2msg"
+                assert channel.message_encoding == "cdr"
+                counts[channel.topic] = counts.get(channel.topic, 0) + 1
+                # log_time is the receive time, publish_time the source timestamp.
+                assert message.publish_time <= message.log_time
+                if channel.topic == "/rec/imu":
+                    # Publication sequence numbers of the only publisher: 1, 2, 3...
+                    assert message.sequence == decoded.header.stamp.sec - 1000 + 1
+    assert counts == {t.topic: t.messages for t in report.topics if t.messages}
+
+
+def test_metadata_and_channel_qos(node: Node, tmp_path: Path) -> None:
+    latched = node.create_publisher(
+        String, "/meta/latched", QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    )
+    latched.publish(String(data="hello"))
+    bag = tmp_path / "meta"
+    with Recorder(bag, topics=["meta/latched"]) as recorder:
+        wait_for(lambda: recorder.progress().messages == 1)
+    info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert info["version"] == 9
+    assert info["storage_identifier"] == "mcap"
+    assert info["relative_file_paths"] == ["meta_0.mcap"]
+    assert info["message_count"] == 1
+    assert info["ros_distro"] == "jazzy"
+    (topic,) = info["topics_with_message_count"]
+    assert topic["message_count"] == 1
+    meta = topic["topic_metadata"]
+    assert (meta["name"], meta["type"], meta["serialization_format"]) == (
+        "/meta/latched",
+        "std_msgs/msg/String",
+        "cdr",
+    )
+    assert meta["type_description_hash"].startswith("RIHS01_")
+    (offered,) = parse_offered_qos_profiles(meta["offered_qos_profiles"])
+    assert offered.durability == DurabilityPolicy.TRANSIENT_LOCAL
+    assert offered.reliability == ReliabilityPolicy.RELIABLE
+    assert info["custom_data"]["bagkit.record.lost"] == "0"
+    assert yaml.safe_load(info["custom_data"]["bagkit.record.loss"]) == {
+        "/meta/latched": {
+            "messages": 1,
+            "gaps": 0,
+            "overflow": 0,
+            "write_failed": 0,
+            "publishers": 1,
+        }
+    }
+    with BagReader(bag) as reader:
+        (message,) = reader.messages()
+        assert reader.topics["/meta/latched"].offered_qos_profiles == meta["offered_qos_profiles"]
+        assert info["starting_time"]["nanoseconds_since_epoch"] == message.log_time
+
+
+def test_publisher_with_weaker_qos_joining_later_is_recorded(node: Node, tmp_path: Path) -> None:
+    """Subscribed reliable; a best-effort publisher appears: re-subscribed to match both."""
+    reliable = node.create_publisher(String, "/mixed", 10)
+    bag = tmp_path / "mixed"
+    with Recorder(bag, topics=["/mixed"]) as recorder:
+        wait_matched(reliable)
+        reliable.publish(String(data="reliable 0"))
+        best_effort = node.create_publisher(
+            String, "/mixed", QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
+        )
+        wait_matched(best_effort)
+        wait_matched(reliable)
+        for i in range(1, 4):
+            reliable.publish(String(data=f"reliable {i}"))
+            best_effort.publish(String(data=f"best effort {i}"))
+            time.sleep(0.01)
+        wait_for(lambda: recorder.progress().messages == 7)
+    assert recorder.report.topic("/mixed").publishers == 2
+    assert recorder.report.lost == 0
+    with BagReader(bag) as reader:
+        assert reader.topic_counts == {"/mixed": 7}
+
+
+def test_unknown_message_package_is_skipped_with_one_warning(
+    node: Node, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    known = recorder_module.import_message_type
+
+    def without_int32(type_name: str) -> Any:
+        # Stands for a package that is not installed: the publisher's own process has it.
+        if type_name == "std_msgs/msg/Int32":
+            raise UnknownMessageTypeError(f"message type {type_name} is not installed")
+        return known(type_name)
+
+    monkeypatch.setattr(recorder_module, "import_message_type", without_int32)
+    unknown = node.create_publisher(Int32, "/skip/int", 10)
+    text = node.create_publisher(String, "/skip/text", 10)
+    warnings: list[str] = []
+    with Recorder(tmp_path / "skip", regex="^/skip/", on_warning=warnings.append) as recorder:
+        wait_matched(text)
+        text.publish(String(data="kept"))
+        unknown.publish(Int32(data=1))
+        wait_for(lambda: recorder.progress().messages == 1)
+        time.sleep(0.3)  # several graph polls: still one warning
+    assert warnings == ["not recording /skip/int: message type std_msgs/msg/Int32 is not installed"]
+    assert list(recorder.report.skipped) == ["/skip/int"]
+    assert [t.topic for t in recorder.report.topics] == ["/skip/text"]
+
+
+def test_use_sim_time_stamps_log_time_from_clock(node: Node, tmp_path: Path) -> None:
+    clock = node.create_publisher(
+        Clock, "/clock", QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+    )
+    data = node.create_publisher(String, "/sim/data", 10)
+    bag = tmp_path / "sim"
+    sim_times = []
+    with Recorder(bag, topics=["/sim/data"], use_sim_time=True) as recorder:
+        wait_matched(clock, data)
+        for i in range(10):
+            sim = Clock()
+            sim.clock.sec = 500 + i
+            clock.publish(sim)
+            sim_times.append((500 + i) * 1_000_000_000)
+            time.sleep(0.05)
+            data.publish(String(data=str(i)))
+            time.sleep(0.05)
+        wait_for(lambda: recorder.progress().messages == 10)
+    with BagReader(bag) as reader:
+        messages = list(reader.messages())
+    # Each message carries the sim time current when it was taken; publish_time stays wall time.
+    assert [m.log_time for m in messages] == sim_times
+    assert all(m.publish_time > 1_600_000_000 * 1_000_000_000 for m in messages)
