@@ -41,11 +41,16 @@ class BagWriteError(BagError):
     """Writing failed (disk full, unwritable directory); what was flushed before stays readable.
 
     Attributes:
-        messages_lost: messages that were accepted by ``write()`` but are not in the bag.
+        lost_by_topic: messages accepted by ``write()`` that are not in the bag, per topic.
     """
 
     exit_code = 1
 
-    def __init__(self, message: str, *, messages_lost: int = 0) -> None:
+    def __init__(self, message: str, *, lost_by_topic: dict[str, int] | None = None) -> None:
         super().__init__(message)
-        self.messages_lost = messages_lost
+        self.lost_by_topic = dict(lost_by_topic or {})
+
+    @property
+    def messages_lost(self) -> int:
+        """Messages accepted by ``write()`` that are not in the bag."""
+        return sum(self.lost_by_topic.values())

@@ -104,6 +104,7 @@ class BagWriter:
         self._topics: dict[str, TopicInfo] = {}
         self._schemas: dict[str, mcap.Schema] = {}
         self._channels: dict[str, mcap.Channel] = {}
+        self._channel_topics: dict[int, str] = {}
         self._topic_counts: dict[int, int] = {}
         self._files: list[FileInformation] = []
         self._file: _StorageFile | None = None
@@ -196,6 +197,7 @@ class BagWriter:
                 metadata,
             )
             self._channels[topic.name] = channel
+            self._channel_topics[channel.id] = topic.name
             self._topics[topic.name] = topic
             self._topic_counts[channel.id] = 0
             self._append(mcap.encode_channel(channel))
@@ -220,8 +222,9 @@ class BagWriter:
 
         Raises:
             BagError: the topic was not added, or the writer is closed.
-            BagWriteError: writing to disk failed; ``messages_lost`` counts the messages that are
-                not in the bag, this call's included. Earlier chunks stay readable.
+            BagWriteError: writing to disk failed; ``lost_by_topic``/``messages_lost`` count the
+                messages that are not in the bag, this call's included (the rest of the failed
+                chunk: messages of earlier calls). Earlier chunks stay readable.
         """
         channel = self._channels.get(topic)
         if channel is None or self._closed:
@@ -229,13 +232,15 @@ class BagWriter:
         with self._lock:
             if self._file is None:
                 raise BagWriteError(
-                    f"{self.path}: no file open after an earlier error", messages_lost=1
+                    f"{self.path}: no file open after an earlier error", lost_by_topic={topic: 1}
                 )
             if (self._max_bag_size or self._max_bag_duration_ns) and self._split_due(log_time):
                 try:
                     self._split()
                 except BagWriteError as exc:
-                    raise BagWriteError(str(exc), messages_lost=exc.messages_lost + 1) from exc
+                    lost = exc.lost_by_topic
+                    lost[topic] = lost.get(topic, 0) + 1
+                    raise BagWriteError(str(exc), lost_by_topic=lost) from exc
             chunk = self._chunk
             offset = len(chunk)
             chunk += mcap.MESSAGE_RECORD_HEADER.pack(
@@ -312,7 +317,7 @@ class BagWriter:
         self._chunk_messages = 0
         self._chunk_opened = time.monotonic()
 
-    def _append(self, data: bytes, *, messages: int = 0) -> int:
+    def _append(self, data: bytes, *, lost: dict[str, int] | None = None) -> int:
         """Write ``data`` at the end of the current file; return its offset.
 
         On failure the file is cut back to where it was, so it stays readable.
@@ -335,8 +340,8 @@ class BagWriter:
                 pass
             raise BagWriteError(
                 f"cannot write {storage.path}: {exc.strerror or exc}"
-                + (f" ({messages} messages lost)" if messages else ""),
-                messages_lost=messages,
+                + (f" ({sum(lost.values())} messages lost)" if lost else ""),
+                lost_by_topic=lost,
             ) from exc
         storage.offset = offset + len(data)
         return offset
@@ -355,6 +360,10 @@ class BagWriter:
             + b"".join(mcap.encode_schema(s) for s in self._schemas.values())
             + b"".join(mcap.encode_channel(c) for c in self._channels.values())
         )
+
+    def _chunk_lost(self, chunk_index: dict[int, array[int]]) -> dict[str, int]:
+        """Messages per topic in a chunk's index (what is lost if the chunk is)."""
+        return {self._channel_topics[c]: len(entries) // 2 for c, entries in chunk_index.items()}
 
     def _split_due(self, log_time: int) -> bool:
         storage = self._file
@@ -379,10 +388,10 @@ class BagWriter:
             return
         storage = self._file
         if storage is None:
-            lost = self._chunk_messages
+            lost = self._chunk_lost(self._chunk_index)
             self._reset_chunk()
             raise BagWriteError(
-                f"{self.path}: no file open after an earlier error", messages_lost=lost
+                f"{self.path}: no file open after an earlier error", lost_by_topic=lost
             )
         records = bytes(self._chunk)
         start, end, messages = self._chunk_start, self._chunk_end, self._chunk_messages
@@ -401,7 +410,7 @@ class BagWriter:
             position += len(record)
             index_records.append(record)
         index_bytes = b"".join(index_records)
-        chunk_offset = self._append(chunk_record + index_bytes, messages=messages)
+        chunk_offset = self._append(chunk_record + index_bytes, lost=self._chunk_lost(chunk_index))
         storage.chunk_indexes.append(
             mcap.ChunkIndex(
                 start,

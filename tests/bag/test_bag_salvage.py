@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import json
 import re
 import shutil
 import signal
@@ -118,26 +119,28 @@ def test_sigkill_loses_at_most_the_last_second(tmp_path: Path) -> None:
 
 _FULL_DISK_WRITER = textwrap.dedent(
     """
-    import resource, signal, sys
+    import json, resource, signal, sys
     from bagkit.bag import BagWriteError, BagWriter, TopicInfo
     signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # over the limit, write() fails with EFBIG
     resource.setrlimit(resource.RLIMIT_FSIZE, (60_000, 60_000))
     bag = BagWriter(sys.argv[1], compression="none", chunk_size=4_000)
-    bag.add_topic(TopicInfo("/tick", "std_msgs/msg/UInt64"))
-    written = 0
+    bag.add_topic(TopicInfo("/a", "std_msgs/msg/UInt64"))
+    bag.add_topic(TopicInfo("/b", "std_msgs/msg/UInt64"))
+    accepted = {"/a": 0, "/b": 0}
     for i in range(100_000):
+        topic = "/a" if i % 3 else "/b"
+        accepted[topic] += 1  # write() takes the message even when it raises
         try:
-            bag.write("/tick", b"\\x00\\x01\\x00\\x00" + i.to_bytes(8, "little"),
+            bag.write(topic, b"\\x00\\x01\\x00\\x00" + i.to_bytes(8, "little"),
                       log_time=1_000 + i, sequence=i)
         except BagWriteError as exc:
-            # messages_lost counts this call's message too.
-            print("error", written + 1 - exc.messages_lost, exc, flush=True)
+            print(json.dumps({"error": str(exc), "accepted": accepted,
+                              "lost": exc.lost_by_topic}), flush=True)
             break
-        written += 1
     try:
         bag.close()
     except BagWriteError as exc:
-        print("close", exc, flush=True)
+        print(json.dumps({"close": str(exc)}), flush=True)
     """
 )
 
@@ -151,14 +154,16 @@ def test_disk_full_is_a_clear_error_and_keeps_what_was_flushed(tmp_path: Path) -
         timeout=60,
         check=True,
     )
-    first = result.stdout.splitlines()[0].split(" ", 2)
-    assert first[0] == "error", result.stdout
-    kept = int(first[1])
-    assert "full_0.mcap" in first[2] and "messages lost" in first[2]
-    assert kept > 500
+    report = json.loads(result.stdout.splitlines()[0])
+    assert "full_0.mcap" in report["error"] and "messages lost" in report["error"]
+    lost = report["lost"]
+    assert lost["/a"] > 0 and lost["/b"] > 0  # the failed chunk held both topics
+    kept = {t: report["accepted"][t] - lost[t] for t in ("/a", "/b")}
+    assert kept["/a"] + kept["/b"] > 500
     with BagReader(bag_path) as bag:
+        assert bag.topic_counts == kept
         sequences = [m.sequence for m in bag.messages()]
-    assert sequences == list(range(kept))
+    assert sequences == list(range(kept["/a"] + kept["/b"]))
 
 
 def test_unwritable_location_is_a_clear_error(tmp_path: Path) -> None:
