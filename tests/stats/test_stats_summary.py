@@ -234,3 +234,19 @@ def test_empty_bag_is_a_clear_error(tmp_path: Path) -> None:
 
 def test_result_is_a_summary(bag: Path) -> None:
     assert isinstance(summarize([bag]), Summary)
+
+
+def test_crashed_recording_is_salvaged(tmp_path: Path, rng: np.random.Generator) -> None:
+    """A file cut short (no summary, a torn chunk): the intact chunks are summarized."""
+    data = imu_data(rng, 10_000)
+    bag = write_bag(tmp_path / "crashed", {"/imu/data": data}, compressed=False)
+    (file,) = bag.glob("*.mcap")
+    content = file.read_bytes()
+    file.write_bytes(content[: int(len(content) * 0.6)])
+
+    result = summarize([bag])
+    (imu,) = result.topics
+    assert 0 < imu.count < len(data.messages)
+    assert any("truncated" in problem for problem in result.problems), result.problems
+    # Chunks hold consecutive messages: what survives is the first `count` of them.
+    _check_topic(imu, data, mask=np.arange(len(data.messages)) < imu.count)
