@@ -1,4 +1,4 @@
-"""Drive the four processors in-process on a simulated clock, as the nodes would over DDS."""
+"""Closed-loop runs of the processors for the tests, and altitude errors against the truth."""
 
 from __future__ import annotations
 
@@ -8,9 +8,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from fusion import topics
-from fusion.processors import LogLine, Processor, create_processor
+from fusion.processors import NODE_NAMES, LogLine
+from fusion.simulate import DEFAULT_START_NS, simulate
 
-START_NS = 1_700_000_000_000_000_000
+START_NS = DEFAULT_START_NS
 
 
 @dataclass
@@ -28,47 +29,18 @@ def run_loop(
     duration_s: float,
     params: Mapping[str, Mapping[str, object]] | None = None,
     *,
-    nodes: tuple[str, ...] = ("sensor_publisher", "data_logger", "alert_system", "sensor_fusion"),
+    nodes: tuple[str, ...] = NODE_NAMES,
 ) -> LoopResult:
-    """Run ``nodes`` for ``duration_s`` of simulated time; outputs feed every subscriber."""
-    params = params or {}
-    processors: dict[str, Processor] = {n: create_processor(n, params.get(n)) for n in nodes}
-    # Like rclpy timers, each first fires one period after the start.
-    next_tick = {
-        name: START_NS + p.timer_period_ns
-        for name, p in processors.items()
-        if p.timer_period_ns is not None
-    }
+    """Run ``nodes`` for ``duration_s`` of simulated time and keep everything they publish."""
     result = LoopResult(logs={name: [] for name in nodes})
-    end_ns = START_NS + round(duration_s * 1e9)
-    while True:
-        now_ns = min(next_tick.values())
-        if now_ns >= end_ns:
-            break
-        for name, processor in processors.items():
-            if next_tick.get(name) != now_ns:
-                continue
-            assert processor.timer_period_ns is not None
-            next_tick[name] += processor.timer_period_ns
-            _deliver(processors, result, now_ns, processor.on_timer(now_ns))
-        for name, processor in processors.items():
-            result.logs[name] += processor.drain_log()
+    for published in simulate(
+        duration_s,
+        params,
+        nodes=nodes,
+        on_log=lambda node, line: result.logs[node].append(line),
+    ):
+        result.published.append((published.now_ns, published.topic, published.msg))
     return result
-
-
-def _deliver(
-    processors: Mapping[str, Processor],
-    result: LoopResult,
-    now_ns: int,
-    outputs: list[tuple[str, Any]],
-) -> None:
-    queue = list(outputs)
-    while queue:
-        topic, msg = queue.pop(0)
-        result.published.append((now_ns, topic, msg))
-        for processor in processors.values():
-            if topic in processor.input_topics:
-                queue += processor.on_message(topic, msg, now_ns)
 
 
 def rms(values: list[float]) -> float:
