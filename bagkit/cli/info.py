@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import datetime
+import enum
 from pathlib import Path
 
 import typer
@@ -11,6 +12,14 @@ from rich.table import Table
 
 from bagkit.bag import BagInfo, bag_info
 from bagkit.cli.common import OutputFormat, console, err_console, handle_errors, print_json, warn
+
+
+class InfoFormat(enum.StrEnum):
+    """Output formats of ``info`` (the table/json subset of :class:`OutputFormat`)."""
+
+    TABLE = OutputFormat.TABLE.value
+    JSON = OutputFormat.JSON.value
+
 
 HELP = """Show what a bag holds: files, size, storage, duration, start and end, message count,
 and per topic its type, count, rate, serialization format and offered QoS.
@@ -117,16 +126,14 @@ def _print_table(info: BagInfo) -> None:
 @handle_errors
 def info(
     bag: Path = typer.Argument(..., help="Bag directory, .mcap file or .db3 file."),
-    output_format: OutputFormat = typer.Option(
-        OutputFormat.TABLE, "--format", "-f", help="table (for people) or json (for scripts)."
+    output_format: InfoFormat = typer.Option(
+        InfoFormat.TABLE, "--format", "-f", help="table (for people) or json (for scripts)."
     ),
 ) -> None:
     """Show what a bag holds (like ros2 bag info)."""
-    if output_format == OutputFormat.CSV:
-        raise typer.BadParameter("csv is not available for info: use table or json")
     with err_console.status(f"reading {bag}"):
         result = bag_info(bag)
-    if output_format == OutputFormat.JSON:
+    if output_format == InfoFormat.JSON:
         print_json(result.to_dict())
     else:
         _print_table(result)

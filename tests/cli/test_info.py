@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import json
 import os
+import sqlite3
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from mcap.reader import make_reader
 from rosbags.typesys import Stores, get_typestore
 
 from bagkit.bag import BagWriter, TopicInfo
@@ -144,3 +146,43 @@ def test_foreign_storage_and_empty_bag(tmp_path: Path, interop_dir: Path) -> Non
     result = _run(str(interop_dir / "ros2bag/test/resources/empty_bag"))
     assert result.returncode == 2
     assert "no messages" in result.stderr
+
+
+def _storage_counts(bag_dir: Path) -> dict[str, int]:
+    """Messages per topic as the storage files hold them (mcap library, or sqlite3)."""
+    counts: dict[str, int] = {}
+    for file in sorted(bag_dir.iterdir()):
+        if file.suffix == ".mcap":
+            with open(file, "rb") as f:
+                for _, channel, _ in make_reader(f).iter_messages():
+                    counts[channel.topic] = counts.get(channel.topic, 0) + 1
+        elif file.suffix == ".db3":
+            db = sqlite3.connect(f"file:{file}?mode=ro&immutable=1", uri=True)
+            for (name,) in db.execute("SELECT name FROM topics"):
+                counts.setdefault(name, 0)
+            query = "SELECT t.name, COUNT(*) FROM messages m JOIN topics t ON m.topic_id = t.id"
+            for name, count in db.execute(query + " GROUP BY t.name"):
+                counts[name] += count
+            db.close()
+    return counts
+
+
+@pytest.mark.parametrize(
+    "relative",
+    [
+        "rosbag2_py/test/resources/mcap/wbag",  # Go-written, split in five files
+        "rosbag2_py/test/resources/sqlite3/talker",
+        "rosbag2_tests/resources/mcap/wrong_rmw_test",
+    ],
+)
+def test_interop_bags(interop_dir: Path, relative: str) -> None:
+    result = _run(str(interop_dir / relative), "--format", "json")
+    assert result.returncode == 0, result.stderr
+    info = json.loads(result.stdout)
+    expected = _storage_counts(interop_dir / relative)
+    assert sum(expected.values()) > 0
+    counted = {t["topic"]: t["count"] for t in info["topics"]}
+    assert {t: c for t, c in counted.items() if c or t in expected} == expected
+    assert info["message_count"] == sum(expected.values())
+    if "wrong_rmw" in relative:
+        assert {t["serialization_format"] for t in info["topics"]} == {"wrong_format"}
