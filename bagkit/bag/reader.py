@@ -9,7 +9,9 @@ from pathlib import Path
 from types import TracebackType
 
 from bagkit.bag.errors import (
+    BagError,
     BagNotFoundError,
+    CorruptBagError,
     EmptyBagError,
     NotABagError,
     UnsupportedStorageError,
@@ -84,12 +86,21 @@ class BagReader:
             if not (self.directory / name).is_file()
         ]
         self._storage: list[StorageFile] = []
+        unreadable: list[BagError] = []
         try:
             for file in self.files:
-                self._storage.append(open_storage_file(file))
+                try:
+                    self._storage.append(open_storage_file(file))
+                except (NotABagError, CorruptBagError) as exc:
+                    # One bad file (a split the recorder was killed in) does not lose the rest.
+                    unreadable.append(exc)
+                    self._missing.append(f"{file.name}: unreadable, skipped ({exc})")
         except BaseException:
             self.close()
             raise
+        if not self._storage:
+            raise unreadable[0]
+        self.files = [s.path for s in self._storage]
         self.storage = ",".join(dict.fromkeys(s.storage_identifier for s in self._storage))
         self.topics: dict[str, TopicInfo] = {}
         self.definitions: dict[str, str] = {}

@@ -76,6 +76,9 @@ class McapFile(StorageFile):
         self._handle = open(path, "rb")  # noqa: SIM115 (closed in close())
         try:
             self.index = mcap.read_file_index(self._handle, name=path.name)
+        except (NotABagError, CorruptBagError) as exc:
+            self._handle.close()
+            raise type(exc)(f"{path}: {exc}") from exc
         except BaseException:
             self._handle.close()
             raise

@@ -220,3 +220,23 @@ def test_chunk_access_finds_the_same_messages(
             expected = [m.data for m in bag.messages(topics=[topic])]
             assert expected
             assert _payloads_from_chunks(bag, topic) == expected
+
+
+@pytest.mark.parametrize("kept_bytes", [0, 5, 20])
+def test_split_bag_killed_while_opening_a_file_keeps_the_others(
+    write_sample_bag: Callable[..., Path], kept_bytes: int
+) -> None:
+    bag_path = write_sample_bag(
+        n_imu=600, max_bag_size=40_000, chunk_size=8_000, compression="none"
+    )
+    files = sorted(bag_path.glob("*.mcap"), key=lambda p: int(p.stem.split("_")[-1]))
+    (bag_path / "metadata.yaml").unlink()
+    last = files[-1]
+    last.write_bytes(last.read_bytes()[:kept_bytes])
+    with BagReader(bag_path) as bag:
+        assert bag.files == files[:-1]
+        sequences = [m.sequence for m in bag.messages(topics=["/imu/data"])]
+        assert len(bag.problems) == 1
+        assert bag.problems[0].startswith(f"{last.name}: unreadable, skipped")
+    assert sequences == list(range(len(sequences)))
+    assert 0 < len(sequences) < 600
