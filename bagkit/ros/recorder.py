@@ -400,7 +400,7 @@ class Recorder:
 
     @property
     def stopped(self) -> threading.Event:
-        """Set when the recording has ended (``stop``, or an error such as a full disk)."""
+        """Set when the bag is finished: after ``stop``, or on an error such as a full disk."""
         return self._stopped
 
     def start(self) -> None:
@@ -698,6 +698,7 @@ class Recorder:
                     record.first_ns = log_time
                 record.last_ns = log_time
         self._finish(bag, failed)
+        self._stopped.set()
 
     def _account(self, topic: _Topic, message_info: Mapping[str, Any]) -> None:
         sequence = message_info["publication_sequence_number"]

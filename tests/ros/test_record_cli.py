@@ -1,0 +1,189 @@
+"""``bagkit record`` as a subprocess: signals, SIGKILL, split bags, a full disk, bad options."""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+from rclpy.node import Node
+from rclpy.serialization import deserialize_message
+from std_msgs.msg import String
+from test_record import node, wait_for
+
+from bagkit.bag import BagReader
+
+pytestmark = pytest.mark.ros
+
+__all__ = ["node"]  # the fixture, shared with test_record.py
+
+STARTUP_TIMEOUT_S = 20.0
+
+
+def record(processes: object, *args: str, **kwargs: object) -> subprocess.Popen[bytes]:
+    return processes.start(  # type: ignore[attr-defined, no-any-return]
+        ["bagkit", "record", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        **kwargs,
+    )
+
+
+def texts(bag: Path, topic: str) -> list[str]:
+    with BagReader(bag) as reader:
+        return [deserialize_message(m.data, String).data for m in reader.messages(topics=[topic])]
+
+
+def test_sigint_finishes_the_bag(node: Node, processes: object, tmp_path: Path) -> None:
+    publisher = node.create_publisher(String, "/cli/chatter", 100)
+    bag = tmp_path / "interrupted"
+    proc = record(processes, "/cli/chatter", "-o", str(bag), "--format", "json")
+    wait_for(lambda: publisher.get_subscription_count() > 0, STARTUP_TIMEOUT_S)
+    published = [f"chatter {i}" for i in range(150)]
+    for text in published:
+        publisher.publish(String(data=text))
+        time.sleep(0.005)
+    time.sleep(0.3)
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=20)
+    assert proc.returncode == 130, stderr.decode()
+    report = json.loads(stdout)
+    assert report["messages"] == 150
+    assert report["lost"] == 0
+    assert (bag / "metadata.yaml").is_file()
+    assert texts(bag, "/cli/chatter") == published
+    with BagReader(bag) as reader:
+        assert reader.problems == []
+        assert reader.message_count == 150
+
+
+def test_sigkill_keeps_all_but_the_last_second(
+    node: Node, processes: object, tmp_path: Path
+) -> None:
+    publisher = node.create_publisher(String, "/cli/killed", 100)
+    bag = tmp_path / "killed"
+    proc = record(processes, "/cli/killed", "-o", str(bag))
+    wait_for(lambda: publisher.get_subscription_count() > 0, STARTUP_TIMEOUT_S)
+    sent: list[tuple[float, str]] = []
+    start = time.monotonic()
+    i = 0
+    while time.monotonic() - start < 3.0:
+        text = f"killed {i}"
+        publisher.publish(String(data=text))
+        sent.append((time.monotonic(), text))
+        i += 1
+        time.sleep(0.01)
+    killed_at = time.monotonic()
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait(timeout=10)
+    assert not (bag / "metadata.yaml").exists()
+    recorded = texts(bag, "/cli/killed")
+    older = [text for at, text in sent if at < killed_at - 1.0]
+    assert len(older) > 150
+    assert recorded[: len(older)] == older
+    assert recorded == [text for _, text in sent][: len(recorded)]
+
+
+def test_split_bag_reads_back_as_one(node: Node, processes: object, tmp_path: Path) -> None:
+    publisher = node.create_publisher(String, "/cli/split", 100)
+    bag = tmp_path / "split"
+    proc = record(
+        processes, "-e", "^/cli/split$", "-o", str(bag), "--max-bag-duration", "1", "-f", "json"
+    )
+    wait_for(lambda: publisher.get_subscription_count() > 0, STARTUP_TIMEOUT_S)
+    published = []
+    start = time.monotonic()
+    while time.monotonic() - start < 3.5:
+        published.append(f"split {len(published)}")
+        publisher.publish(String(data=published[-1]))
+        time.sleep(0.01)
+    time.sleep(0.3)
+    proc.send_signal(signal.SIGTERM)
+    stdout, stderr = proc.communicate(timeout=20)
+    assert proc.returncode == 143, stderr.decode()
+    assert json.loads(stdout)["messages"] == len(published)
+    files = sorted(bag.glob("*.mcap"))
+    assert [f.name for f in files] == [f"split_{i}.mcap" for i in range(len(files))]
+    assert len(files) >= 3
+    with BagReader(bag) as reader:
+        log_times = [m.log_time for m in reader.messages()]
+        assert reader.message_count == len(published)
+    assert log_times == sorted(log_times)
+    assert texts(bag, "/cli/split") == published
+
+
+def test_full_disk_stops_with_one_line_and_keeps_what_was_written(
+    node: Node, processes: object, tmp_path: Path
+) -> None:
+    publisher = node.create_publisher(String, "/cli/big", 100)
+    bag = tmp_path / "full"
+    proc = record(
+        processes,
+        "/cli/big",
+        "-o",
+        str(bag),
+        "--compression",
+        "none",
+        "-f",
+        "json",
+    )
+    wait_for(lambda: publisher.get_subscription_count() > 0, STARTUP_TIMEOUT_S)
+    # A file size limit makes writes fail (EFBIG) as a full disk does (ENOSPC). Set once the
+    # middleware is up: its shared-memory segments are files too. Python ignores SIGXFSZ.
+    resource.prlimit(proc.pid, resource.RLIMIT_FSIZE, (400_000, 400_000))
+    payload = "x" * 20_000
+    for i in range(60):
+        if proc.poll() is not None:
+            break
+        publisher.publish(String(data=f"{i:04d}{payload}"))
+        time.sleep(0.05)
+    stdout, stderr = proc.communicate(timeout=20)
+    assert proc.returncode == 1
+    lines = stderr.decode().strip().splitlines()
+    assert lines[-1].startswith("error: cannot write") and "File too large" in lines[-1]
+    assert sum(line.startswith("error") for line in lines) == 1
+    report = json.loads(stdout)
+    topic = report["topics"][0]
+    assert topic["write_failed"] > 0
+    recorded = texts(bag, "/cli/big")
+    assert len(recorded) == topic["messages"] > 5
+    assert [int(t[:4]) for t in recorded] == list(range(len(recorded)))
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        ([], "nothing to record"),
+        (["-e", "("], "bad --regex regular expression"),
+        (["-a", "--qos-overrides", "/nonexistent.yaml"], "cannot read QoS overrides"),
+    ],
+)
+def test_bad_options_exit_2_with_one_line(
+    processes: object, tmp_path: Path, args: list[str], message: str
+) -> None:
+    proc = record(processes, "-o", str(tmp_path / "never"), *args)
+    _, stderr = proc.communicate(timeout=20)
+    assert proc.returncode == 2
+    (line,) = stderr.decode().strip().splitlines()
+    assert line.startswith("error: ") and message in line
+    assert not (tmp_path / "never").exists()
+
+
+def test_existing_or_unwritable_output_exits_2(processes: object, tmp_path: Path) -> None:
+    existing = tmp_path / "existing"
+    existing.mkdir()
+    (existing / "keep.txt").write_text("mine")
+    a_file = tmp_path / "a_file"
+    a_file.write_text("")
+    for output, message in ((existing, "already exists"), (a_file / "bag", "cannot create")):
+        proc = record(processes, "-a", "-o", str(output))
+        _, stderr = proc.communicate(timeout=20)
+        assert proc.returncode == 2
+        (line,) = stderr.decode().strip().splitlines()
+        assert message in line
+    assert (existing / "keep.txt").read_text() == "mine"
