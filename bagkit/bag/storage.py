@@ -41,6 +41,13 @@ def _extent(block: mcap.ChunkIndex | mcap.MessageRun) -> tuple[int, int]:
     return block.chunk_start_offset, block.chunk_length
 
 
+def _may_hold(block: mcap.ChunkIndex | mcap.MessageRun, channel_ids: set[int]) -> bool:
+    """False when a chunk's message indexes show none of ``channel_ids`` (skip reading it)."""
+    if isinstance(block, mcap.ChunkIndex) and block.message_index_offsets:
+        return not channel_ids.isdisjoint(block.message_index_offsets)
+    return True
+
+
 class StorageFile:
     """What the reader needs from one storage file, whatever its format."""
 
@@ -167,6 +174,8 @@ class McapFile(StorageFile):
         # next chunk's start time are final; the rest wait and are merged with that chunk.
         pending: list[BagMessage] = []
         for block in self._blocks(start_ns, end_ns):
+            if not _may_hold(block, wanted):
+                continue
             if pending:
                 cut = bisect.bisect_left(
                     pending, block.message_start_time, key=lambda m: m.log_time
@@ -193,11 +202,7 @@ class McapFile(StorageFile):
         """Yield the chunks holding messages of ``topics`` (all when None), in file order."""
         wanted = self._channel_ids(topics)
         for block in sorted(self._sorted_blocks, key=_extent):
-            if (
-                isinstance(block, mcap.ChunkIndex)
-                and block.message_index_offsets
-                and not (wanted & block.message_index_offsets.keys())
-            ):
+            if not _may_hold(block, wanted):
                 continue
             try:
                 data = mcap.read_chunk(self._handle, block)

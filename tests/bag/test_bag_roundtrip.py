@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 import yaml
-from bag_samples import IMU, QOS_YAML, STRING, TYPESTORE, deserialize, imu_cdr
+from bag_samples import IMU, QOS_YAML, STRING, TYPESTORE, deserialize, imu_cdr, string_cdr
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.highlevel import AnyReader
@@ -188,3 +188,20 @@ def test_unknown_type_without_definition_is_a_clear_error(tmp_path: Path) -> Non
     with BagReader(tmp_path / "bag") as reader:
         assert reader.definitions == {"not_a_pkg/msg/Nope": "int32 a\n"}
         assert reader.topic_counts == {"/x": 1}
+
+
+def test_topic_filter_skips_chunks_without_the_topic(tmp_path: Path) -> None:
+    with BagWriter(tmp_path / "bag", chunk_size=2_000) as bag:
+        bag.add_topic(TopicInfo("/a", STRING))
+        bag.add_topic(TopicInfo("/b", STRING))
+        for i in range(400):
+            topic = "/a" if i < 200 or i >= 300 else "/b"
+            bag.write(topic, string_cdr(f"{topic} {i}"), log_time=i)
+    with BagReader(tmp_path / "bag") as reader:
+        everything = list(reader.messages())
+        only_b = list(reader.messages(topics=["/b"]))
+        b_chunks = list(reader.chunks(topics=["/b"]))
+    assert only_b == [m for m in everything if m.topic == "/b"]
+    assert [m.log_time for m in only_b] == list(range(200, 300))
+    assert sum(len(c.message_index["/b"]) for c in b_chunks) == 100
+    assert all(set(c.message_index) == {"/b"} for c in b_chunks)
