@@ -54,10 +54,13 @@ def _qos_summary(offered: str) -> str:
             for key, value in profile.items()
             if key in _POLICY_NAMES
         }
-        history = names.get("history", "?")
+        policies = [str(names.get("reliability", "?")), str(names.get("durability", "?"))]
+        history = names.get("history")
         if history == "keep_last":
-            history = f"keep_last({profile.get('depth', '?')})"
-        lines.append(f"{names.get('reliability', '?')}, {names.get('durability', '?')}, {history}")
+            policies.append(f"keep_last({profile.get('depth', '?')})")
+        elif history == "keep_all":
+            policies.append("keep_all")
+        lines.append(", ".join(policies))
     unique = list(dict.fromkeys(lines))
     return "\n".join(unique) if unique else "-"
 
@@ -72,8 +75,9 @@ def _size(n: int) -> str:
 
 
 def _time(ns: int) -> str:
-    stamp = datetime.datetime.fromtimestamp(ns / 1e9, tz=datetime.UTC)
-    return f"{stamp:%b %d %Y %H:%M:%S}.{ns % 1_000_000_000:09d} UTC ({ns / 1e9:.9f})"
+    stamp = datetime.datetime.fromtimestamp(ns // 1_000_000_000, tz=datetime.UTC)
+    seconds, fraction = divmod(ns, 1_000_000_000)
+    return f"{stamp:%b %d %Y %H:%M:%S}.{fraction:09d} UTC ({seconds}.{fraction:09d})"
 
 
 def _print_table(info: BagInfo) -> None:
