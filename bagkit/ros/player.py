@@ -7,9 +7,10 @@ stored bytes when the monotonic clock reaches its scheduled time.
 
 from __future__ import annotations
 
+import itertools
 import re
 import time
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -29,13 +30,14 @@ from rclpy.qos import (
 )
 from rclpy.signals import SignalHandlerOptions
 
-from bagkit.bag import BagReader, TopicInfo
+from bagkit.bag import BagMessage, BagReader, TopicInfo
 from bagkit.ros.errors import PlayerError, SubscriberTimeoutError, UnknownMessageTypeError
 from bagkit.ros.qos import load_qos_overrides, publisher_qos
 from bagkit.ros.timing import (
     DEFAULT_DISCOVERY_TIME_S,
     LATE_THRESHOLD_NS,
     LatenessSummary,
+    ReadAhead,
     Timeline,
     clock_message,
     wait_until,
@@ -371,6 +373,20 @@ class Player:
         window_start = reader.start_ns + self.start_offset_ns
         window_end = window_start + self.duration_ns if self.duration_ns is not None else None
         outputs = self._outputs
+        source = reader.messages(topics=list(outputs), start_ns=window_start, end_ns=window_end)
+        with ReadAhead(source, size=_data_size) as read_ahead:
+            messages = iter(read_ahead)
+            # The first chunk is read before the clock starts, so the first message is on time.
+            first = next(messages, None)
+            if first is None:
+                return 0
+            return self._publish(itertools.chain([first], messages), loop, window_start, lateness)
+
+    def _publish(
+        self, messages: Iterator[BagMessage], loop: int, window_start: int, lateness: list[int]
+    ) -> int:
+        """Publish ``messages`` on schedule; return the bag time they covered (ns)."""
+        outputs = self._outputs
         clock = self._clock
         timeline = Timeline(window_start, time.monotonic_ns(), self.rate)
         tick_ns = int(1e9 / self.clock_hz) if self.clock_hz else 0
@@ -398,13 +414,8 @@ class Player:
                 )
             )
 
-        messages = reader.messages(topics=list(outputs), start_ns=window_start, end_ns=window_end)
         for message in messages:
             log_time = message.log_time
-            if log_time < window_start:
-                continue
-            if window_end is not None and log_time >= window_end:
-                break
             deadline = timeline.deadline(log_time)
             if clock is not None:
                 while next_tick < deadline:
@@ -512,6 +523,10 @@ def _replay_qos(info: TopicInfo) -> QoSProfile:
     ):
         qos.depth = max(qos.depth, REPLAY_DEPTH)
     return qos
+
+
+def _data_size(message: BagMessage) -> int:
+    return len(message.data)
 
 
 def _compatible_subscriptions(node: Node, output: _Output) -> int:
