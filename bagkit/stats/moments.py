@@ -61,7 +61,8 @@ class Moments:
             # No NaN or inf anywhere (either would have made its column's sum non-finite).
             count = np.full(x.shape[1], n, dtype=np.int64)
             mean = total / n
-            m2 = ((y - mean) ** 2).sum(axis=0)
+            y -= mean  # y is a fresh array: square the deviations in place
+            m2 = np.square(y, out=y).sum(axis=0)
         else:
             finite = np.isfinite(x)
             count = finite.sum(axis=0)

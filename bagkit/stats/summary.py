@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable, Iterable, Sequence
+from contextlib import closing
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -23,6 +24,7 @@ from bagkit.decode.layout import CdrLayout, ResolvedLayout
 from bagkit.stats.bulk import decode_bulk, read_u64
 from bagkit.stats.errors import NothingToSummarizeError, StatsError, UnknownTopicError
 from bagkit.stats.moments import Moments
+from bagkit.stats.prefetch import prefetch
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -451,10 +453,12 @@ def summarize(
             if not wanted:
                 continue
             if reader.storage == "mcap":
-                for chunk in reader.chunks(wanted):
-                    done += run.add_chunk(chunk, wanted)
-                    if progress is not None:
-                        progress(done, total)
+                # closing(): the reading thread stops before the reader is closed, also on error.
+                with closing(prefetch(reader.chunks(wanted))) as chunks:
+                    for chunk in chunks:
+                        done += run.add_chunk(chunk, wanted)
+                        if progress is not None:
+                            progress(done, total)
             else:
                 for message in reader.messages(wanted, start_ns, end_ns):
                     accumulator = wanted[message.topic]
