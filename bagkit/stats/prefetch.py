@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import queue
 import threading
-from collections.abc import Iterator
+from collections.abc import Generator, Iterator
 from typing import TypeVar
 
 T = TypeVar("T")
@@ -13,7 +13,7 @@ T = TypeVar("T")
 _DONE = object()
 
 
-def prefetch(items: Iterator[T], *, depth: int = 2) -> Iterator[T]:
+def prefetch(items: Iterator[T], *, depth: int = 2) -> Generator[T, None, None]:
     """Yield ``items``, produced by a worker thread at most ``depth`` items ahead.
 
     Exceptions of the producer are raised in the consumer. Closing the generator early stops
