@@ -113,8 +113,9 @@ def test_sigkill_loses_at_most_the_last_second(tmp_path: Path) -> None:
         messages = list(bag.messages())
     assert [m.sequence for m in messages] == list(range(len(messages)))
     assert [int.from_bytes(m.data[4:], "little") for m in messages] == list(range(len(messages)))
-    # Everything older than one second (plus scheduling slack) before the kill is in the bag.
-    assert killed_at - messages[-1].log_time < 1_300_000_000
+    # Everything older than one second before the kill is in the bag (0.5 s of slack for a
+    # loaded machine: the child may be descheduled between writes).
+    assert killed_at - messages[-1].log_time < 1_500_000_000
 
 
 _FULL_DISK_WRITER = textwrap.dedent(
