@@ -165,9 +165,10 @@ class SensorPublisher(ProcessorBase):
         t = (now_ns - self._start_ns) / 1e9
         self._log_fault_changes(t)
         state = trajectory_state(self.profile, t)
-        # Timers fire a little late or early: half a tick of tolerance keeps slower sensors on
-        # the tick nearest to their due time instead of slipping a whole tick.
-        tolerance = self.tick_ns // 2
+        # The schedule is anchored at the first tick, which may itself have fired a little
+        # late: a tenth of a tick of tolerance keeps slower sensors on the tick of their due
+        # time instead of slipping a whole tick, without sampling early on a coarse sim clock.
+        tolerance = self.tick_ns // 10
         out: list[Output] = []
         for name in _SENSORS:
             due = self._next_due_ns[name]
