@@ -6,6 +6,7 @@ import typer
 
 from bagkit import __version__
 from bagkit.cli import compare as _compare
+from bagkit.cli import golden as _golden
 from bagkit.cli import info as _info
 from bagkit.cli import record as _record
 from bagkit.cli import replay as _replay
@@ -41,3 +42,4 @@ app.command("info", help=_info.HELP, no_args_is_help=True)(_info.info)
 app.command("record", help=_record.HELP, no_args_is_help=True)(_record.record)
 app.add_typer(_replay.app)
 app.add_typer(_stats.app)
+app.add_typer(_golden.app)

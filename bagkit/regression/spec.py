@@ -13,6 +13,7 @@ from bagkit.compare import CompareOptions, options_from_mapping
 from bagkit.compare.errors import CompareError
 from bagkit.regression.errors import SpecError
 from bagkit.regression.lockstep import NodeUnderTest
+from fusion.params import flatten
 
 SPEC_FILE = "spec.yaml"
 BAG_DIR = "golden"
@@ -27,8 +28,9 @@ class FixtureSpec:
         directory: the fixture directory.
         description: one line on what the flight shows.
         duration_s: how long the live system is recorded when the fixture is re-recorded.
-        scenario: parameter overrides of the sensor publisher (seed, trajectory, faults).
-        nodes: the nodes under test with their parameter overrides.
+        scenario: parameter overrides of the sensor publisher (seed, trajectory, faults),
+            dotted names (nested in the file, as in a ROS 2 parameter file).
+        nodes: the nodes under test with their parameter overrides (dotted names).
         inputs: the topics replayed into the nodes.
         outputs: the topics the nodes publish, compared with the golden.
         lockstep: the raw ``compare:`` section for lockstep runs.
@@ -90,8 +92,8 @@ def load_spec(path: Path) -> FixtureSpec:
         directory=file.parent,
         description=str(data.get("description", "")),
         duration_s=float(data.get("duration", 30.0)),
-        scenario=dict(data.get("scenario") or {}),
-        nodes=tuple(NodeUnderTest(str(n), dict(p or {})) for n, p in nodes.items()),
+        scenario=flatten(data.get("scenario") or {}),
+        nodes=tuple(NodeUnderTest(str(n), flatten(p or {})) for n, p in nodes.items()),
         inputs=_topics(data, "inputs", file),
         outputs=_topics(data, "outputs", file),
         lockstep=dict(data.get("compare") or {}),
