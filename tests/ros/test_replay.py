@@ -449,3 +449,45 @@ def test_cli_truncated_bag_replays_what_is_intact(
     assert [r.text for r in got] == [f"/replay/fast#{i}" for i in range(len(got))]
     assert len(got) == report["messages"]
     assert "damaged" in result.stderr and "Traceback" not in result.stderr
+
+
+SENSOR_TOPICS = ["/imu/data", "/gps/fix", "/temperature", "/barometer/pressure"]
+NOMINAL_BAG = Path(__file__).resolve().parents[2] / "fixtures" / "nominal" / "golden"
+
+
+def test_sim_time_nodes_follow_the_clock(listener_factory: type[Listener], processes: Any) -> None:
+    """At --rate 2 the data logger's 5 s summaries (in bag time) come every 2.5 s of wall time."""
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    listener = listener_factory({"/logger/summary": DiagnosticArray})
+    processes.start(["fusion", "run", "data_logger", "--use-sim-time"])
+    topics = [arg for topic in SENSOR_TOPICS for arg in ("--topics", topic)]
+    waits = [arg for topic in ["/clock", *SENSOR_TOPICS] for arg in ("--wait-for", topic)]
+    result = _bagkit(
+        "replay", str(NOMINAL_BAG), "--rate", "2", "--clock", "--duration", "18",
+        *topics, *CLI_KNOWN, *waits, "--wait-timeout", "30",
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    time.sleep(0.3)
+    summaries = [
+        (r.received_ns, deserialize_message(r.data, DiagnosticArray))
+        for r in listener.messages("/logger/summary")
+    ]
+    with BagReader(NOMINAL_BAG) as reader:
+        bag_start, bag_end = reader.start_ns, reader.start_ns + 18_000_000_000
+    # Stamped in bag time, 5 s of it apart; the first may come on the clock's first jump.
+    stamps = [_stamp_ns(s.header.stamp) for _, s in summaries]
+    assert all(bag_start <= ns <= bag_end for ns in stamps), stamps
+    periodic = [(wall, ns) for (wall, _), ns in zip(summaries, stamps, strict=True)][-3:]
+    assert len(periodic) == 3, stamps
+    for (wall_a, ns_a), (wall_b, ns_b) in itertools.pairwise(periodic):
+        assert ns_b - ns_a == 5_000_000_000
+        assert (wall_b - wall_a) / 1e9 == pytest.approx(2.5, abs=0.25)
+    # The logger saw the replayed IMU samples: 10 Hz of bag time.
+    imu = next(s for s in summaries[-1][1].status if s.hardware_id == "/imu/data")
+    count = int(imu.message.split()[0])
+    assert count == pytest.approx(10 * (stamps[-1] - bag_start) / 1e9, abs=3)
+
+
+def _stamp_ns(stamp: Any) -> int:
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)

@@ -1,0 +1,213 @@
+"""``bagkit replay`` timing and throughput, measured by a subscriber in another process.
+
+A bag with 1 kHz aggregate traffic (4 topics at 250 Hz, phases 1 ms apart) is replayed with the
+``bagkit replay`` CLI at ``--rate 1`` (5 s of it) and ``--rate 10`` (20 s of it). A listener
+process takes the raw messages with the middleware's reception timestamps; each payload names its
+message, so its schedule ``(log_time - first) / rate`` is known. Targets (the ceilings the
+figures are printed against):
+- p50 |arrival - schedule| <= 0.1 ms and p99 <= 1 ms, after removing the constant latency
+  (the median offset);
+- every message arrives, in order;
+- first-to-last arrival within 0.5% of the bag's span / rate.
+As fast as possible (``--rate 1e9``, 100k small messages): at least 50k messages/s delivered.
+
+Run: ``.venv/bin/python -m benchmarks replay``
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+TOPICS = [f"/bench/t{i}" for i in range(4)]
+T0 = 1_700_000_000_000_000_000
+PERIOD_NS = 4_000_000  # 250 Hz per topic, 1 kHz over the four
+P50_CEILING_MS = 0.1
+P99_CEILING_MS = 1.0
+SPAN_ERROR_CEILING = 0.005
+THROUGHPUT_FLOOR = 50_000.0
+
+
+def write_bag(path: Path, seconds: float) -> None:
+    """4 topics at 250 Hz, topic i at phase i ms; payload ``<topic index> <message index>``."""
+    from rclpy.serialization import serialize_message
+    from std_msgs.msg import String
+
+    from bagkit.bag import BagWriter, TopicInfo
+
+    with BagWriter(path) as writer:
+        for topic in TOPICS:
+            writer.add_topic(TopicInfo(topic, "std_msgs/msg/String"))
+        for index in range(int(seconds * 1e9 / PERIOD_NS)):
+            for t, topic in enumerate(TOPICS):
+                payload = serialize_message(String(data=f"{t} {index}"))
+                writer.write(topic, payload, log_time=T0 + index * PERIOD_NS + t * 1_000_000)
+
+
+def listen(out: str, expected: int, timeout: float) -> None:
+    """Take raw messages on TOPICS until ``expected`` arrived; save (topic, index, received_ns)."""
+    import rclpy
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from rclpy.serialization import deserialize_message
+    from std_msgs.msg import String
+
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node("bench_replay_listener", context=context)
+    qos = QoSProfile(depth=100_000, reliability=ReliabilityPolicy.RELIABLE)
+    handles = [
+        node.create_subscription(String, topic, lambda _: None, qos, raw=True).handle
+        for topic in TOPICS
+    ]
+    Path(out + ".ready").touch()
+    raw: list[tuple[bytes, int]] = []
+    deadline = time.monotonic() + timeout
+    while len(raw) < expected and time.monotonic() < deadline:
+        idle = True
+        for handle in handles:
+            while (taken := handle.take_message(String, True)) is not None:
+                raw.append((taken[0], taken[1]["received_timestamp"]))
+                idle = False
+        if idle:
+            time.sleep(0.0002)
+    rows = []
+    for data, received in raw:
+        topic, index = deserialize_message(data, String).data.split()
+        rows.append((int(topic), int(index), received))
+    Path(out).write_text(json.dumps(rows))
+    node.destroy_node()
+    context.try_shutdown()
+
+
+def _replay(bag: Path, expected: int, *options: str) -> tuple[np.ndarray, dict[str, object]]:
+    """Run a listener process and ``bagkit replay``; return the listener's rows and the report."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = str(Path(tmp) / "rows.json")
+        listener = subprocess.Popen(
+            [
+                sys.executable,
+                "-c",
+                f"from benchmarks.bench_replay import listen; listen({out!r}, {expected}, 120)",
+            ],
+            start_new_session=True,
+        )
+        try:
+            while not Path(out + ".ready").exists():
+                time.sleep(0.05)
+            replay = subprocess.run(
+                [
+                    str(Path(sys.executable).with_name("bagkit")),
+                    "replay",
+                    str(bag),
+                    "--format",
+                    "json",
+                    "--discovery-time",
+                    "0",
+                    *(arg for topic in TOPICS for arg in ("--wait-for", topic)),
+                    *options,
+                ],
+                capture_output=True,
+                text=True,
+                check=True,
+            )
+            listener.wait(timeout=130)
+        finally:
+            if listener.poll() is None:
+                listener.kill()
+                listener.wait()
+        return np.array(json.loads(Path(out).read_text()), dtype=np.int64), json.loads(
+            replay.stdout
+        )
+
+
+def _ratio(name: str, value: float, ceiling: float, unit: str, *, floor: bool = False) -> bool:
+    met = value >= ceiling if floor else value <= ceiling
+    kind = "floor" if floor else "ceiling"
+    print(
+        f"  {name:<28} {value:10.4f} {unit:<6} = {value / ceiling:6.3f} x {kind} "
+        f"{ceiling:g} {unit}  {'ok' if met else 'MISSED'}"
+    )
+    return met
+
+
+def _timing(bag: Path, rate: float, seconds: float) -> bool:
+    expected = int(seconds * 1e9 / PERIOD_NS) * len(TOPICS)
+    rows, report = _replay(bag, expected, "--rate", f"{rate:g}", "--duration", f"{seconds:g}")
+    print(f"--rate {rate:g}: {len(rows)}/{expected} messages over {seconds:g} s of bag time")
+    rows = rows[np.argsort(rows[:, 2], kind="stable")]
+    topic, index, received = rows[:, 0], rows[:, 1], rows[:, 2]
+    log_time = index * PERIOD_NS + topic * 1_000_000
+    # DDS orders each writer's messages; across topics, reception order is not defined.
+    in_order = len(rows) == expected and all(
+        np.array_equal(index[topic == t], np.arange(expected // len(TOPICS)))
+        for t in range(len(TOPICS))
+    )
+    print(f"  every message, in order      {'ok' if in_order else 'MISSED'}")
+    offset = (received - received[0]) - (log_time - log_time[0]) / rate
+    residual_ms = np.abs(offset - np.median(offset)) / 1e6
+    span = (received[-1] - received[0]) / ((log_time[-1] - log_time[0]) / rate)
+    lateness = report["lateness"]
+    assert isinstance(lateness, dict)
+    print(
+        f"  player's own lateness        p50 {lateness['p50_ms']:.4f} ms, "
+        f"p99 {lateness['p99_ms']:.4f} ms, max {lateness['max_ms']:.3f} ms"
+    )
+    return all(
+        [
+            in_order,
+            _ratio(
+                "p50 |arrival - schedule|",
+                float(np.percentile(residual_ms, 50)),
+                P50_CEILING_MS,
+                "ms",
+            ),
+            _ratio(
+                "p99 |arrival - schedule|",
+                float(np.percentile(residual_ms, 99)),
+                P99_CEILING_MS,
+                "ms",
+            ),
+            _ratio("wall span error", abs(span - 1.0), SPAN_ERROR_CEILING, ""),
+        ]
+    )
+
+
+def _throughput(bag: Path, count: int) -> bool:
+    rows, report = _replay(bag, count, "--rate", "1e9")
+    received = np.sort(rows[:, 2])
+    rate = (len(rows) - 1) / ((received[-1] - received[0]) / 1e9)
+    print(
+        f"--rate 1e9: {len(rows)}/{count} messages delivered; "
+        f"the player published them in {report['wall_duration_s']:.3f} s"
+    )
+    complete = len(rows) == count
+    print(f"  every message delivered      {'ok' if complete else 'MISSED'}")
+    return complete and _ratio("delivered messages/s", rate, THROUGHPUT_FLOOR, "msg/s", floor=True)
+
+
+def main() -> bool:
+    """Run the three replays; True when every target is met."""
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    os.environ.setdefault("ROS_DOMAIN_ID", str(100 + os.getpid() % 100))
+    with tempfile.TemporaryDirectory() as tmp:
+        timing_bag = Path(tmp) / "timing"
+        write_bag(timing_bag, 20.0)
+        fast_bag = Path(tmp) / "fast"
+        write_bag(fast_bag, 25.0)
+        results = [
+            _timing(timing_bag, 1.0, 5.0),
+            _timing(timing_bag, 10.0, 20.0),
+            _throughput(fast_bag, 100_000),
+        ]
+    return all(results)
+
+
+if __name__ == "__main__":
+    sys.exit(0 if main() else 1)
