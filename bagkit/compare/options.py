@@ -35,6 +35,12 @@ class Tolerance:
         return abs(golden - candidate) <= bound
 
 
+def glob_match(name: str, pattern: str) -> bool:
+    """Shell-style match with ``*`` and ``?``; brackets are literal, as in ``status[].level``
+    and ``pose.covariance[14]`` (field paths use them for indices, never as character sets)."""
+    return fnmatch.fnmatchcase(name, pattern.replace("[", "[[]"))
+
+
 @dataclass(frozen=True, slots=True)
 class ToleranceRule:
     """A tolerance for the fields matching ``field`` (glob) on topics matching ``topic`` (glob)."""
@@ -45,7 +51,7 @@ class ToleranceRule:
 
     def matches(self, topic: str, path: str) -> bool:
         """Whether this rule applies to ``path`` on ``topic``."""
-        return fnmatch.fnmatchcase(topic, self.topic) and fnmatch.fnmatchcase(path, self.field)
+        return glob_match(topic, self.topic) and glob_match(path, self.field)
 
 
 def _split_field_pattern(pattern: str) -> tuple[str, str]:
@@ -97,7 +103,7 @@ class CompareOptions:
         """Whether ``path`` on ``topic`` is excluded from the comparison."""
         for pattern in self.ignore_fields:
             topic_glob, field_glob = _split_field_pattern(pattern)
-            if fnmatch.fnmatchcase(topic, topic_glob) and fnmatch.fnmatchcase(path, field_glob):
+            if glob_match(topic, topic_glob) and glob_match(path, field_glob):
                 return True
         return False
 

@@ -238,3 +238,14 @@ def test_sequence_fields_compare_length_and_elements() -> None:
         ("length", "status[].name", 2, 3),
         ("value", "status[].name#1", "gps", "imu"),
     ]
+
+
+def test_brackets_in_field_globs_are_literal() -> None:
+    options = CompareOptions(
+        ignore_fields=("/s:status[].values[].value",),
+        rules=(ToleranceRule("*", "pose.covariance[14]", Tolerance(atol=1.0)),),
+    )
+    assert options.is_ignored("/s", "status[].values[].value")
+    assert not options.is_ignored("/s", "status[].values[].key")
+    assert options.tolerance_for("/t", "pose.covariance[14]").atol == 1.0
+    assert options.tolerance_for("/t", "pose.covariance[1]").atol == 0.0
