@@ -1,12 +1,15 @@
-"""Small helpers on ROS message objects (no rclpy)."""
+"""Small helpers on ROS message objects: rclpy's classes or rosbags' dataclasses (no rclpy)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import numbers
 from typing import Any
 
+import numpy as np
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import Quaternion
+from geometry_msgs.msg import Quaternion, Vector3
 
 
 def stamp(now_ns: int) -> Time:
@@ -41,23 +44,42 @@ def field_value(msg: Any, path: str) -> Any:
     return value
 
 
+def field_names(msg: Any) -> list[str]:
+    """Field names of an rclpy message or a rosbags message dataclass."""
+    if hasattr(msg, "get_fields_and_field_types"):
+        return list(msg.get_fields_and_field_types())
+    if dataclasses.is_dataclass(msg):
+        # rosbags keeps constants (upper case; ROS field names are lower case) and __msgtype__
+        # as dataclass fields.
+        return [f.name for f in dataclasses.fields(msg) if f.name.islower()]
+    return []
+
+
 def numeric_fields(msg: Any, prefix: str = "") -> dict[str, float]:
     """Every numeric scalar field of a message as dotted name -> float.
 
-    Headers, (co)variances and their types, and arrays are left out: they describe the sensor,
-    not the measurement.
+    Headers, (co)variances and their types, arrays and strings are left out: they describe the
+    sensor, not the measurement. Works on rclpy messages and rosbags message dataclasses.
     """
     values: dict[str, float] = {}
-    for name, type_name in msg.get_fields_and_field_types().items():
-        if name == "header" or "variance" in name or "[" in type_name:
-            continue
-        if type_name.startswith("sequence") or type_name == "string":
+    for name in field_names(msg):
+        if name == "header" or "variance" in name:
             continue
         value = getattr(msg, name)
-        if hasattr(value, "get_fields_and_field_types"):
-            values.update(numeric_fields(value, f"{prefix}{name}."))
-        elif isinstance(value, bool):
+        if isinstance(value, bool | np.bool_):
             continue
-        elif isinstance(value, int | float):
+        if isinstance(value, numbers.Real):
             values[f"{prefix}{name}"] = float(value)
+        elif field_names(value):
+            values.update(numeric_fields(value, f"{prefix}{name}."))
     return values
+
+
+def copy_quaternion(q: Any) -> Quaternion:
+    """An rclpy ``Quaternion`` with the values of any quaternion-like object."""
+    return Quaternion(x=float(q.x), y=float(q.y), z=float(q.z), w=float(q.w))
+
+
+def copy_vector3(v: Any) -> Vector3:
+    """An rclpy ``Vector3`` with the values of any vector-like object."""
+    return Vector3(x=float(v.x), y=float(v.y), z=float(v.z))

@@ -21,7 +21,7 @@ from fusion.estimation import (
 )
 from fusion.params import Params
 from fusion.processors.base import Output, ProcessorBase, Severity
-from fusion.processors.messages import stamp_ns
+from fusion.processors.messages import copy_quaternion, copy_vector3, stamp, stamp_ns
 
 # Variance reported for quantities this node does not estimate (REP 103 has no "unknown" marker
 # for pose covariances; a huge variance is what consumers such as robot_localization ignore).
@@ -121,7 +121,7 @@ class SensorFusion(ProcessorBase):
         if not self.filter.update_baro(altitude, variance):
             self.log(Severity.WARN, f"barometric altitude {altitude:.1f} m rejected as outlier")
         out = PoseWithCovarianceStamped()
-        out.header.stamp = msg.header.stamp
+        out.header.stamp = stamp(t_ns)
         out.header.frame_id = self.frame_id
         out.pose.pose.position.z = altitude
         covariance = [0.0] * 36
@@ -139,8 +139,8 @@ class SensorFusion(ProcessorBase):
             return
         known = msg.position_covariance_type != NavSatFix.COVARIANCE_TYPE_UNKNOWN
         cov = msg.position_covariance
-        horizontal_variance = max(cov[0], cov[4]) if known else self.gps_horizontal_sigma**2
-        vertical_variance = cov[8] if known else self.gps_vertical_sigma**2
+        horizontal_variance = float(max(cov[0], cov[4])) if known else self.gps_horizontal_sigma**2
+        vertical_variance = float(cov[8]) if known else self.gps_vertical_sigma**2
         if self.origin is None:
             self.origin = GeodeticOrigin(msg.latitude, msg.longitude)
             self.log(
@@ -164,7 +164,7 @@ class SensorFusion(ProcessorBase):
 
     def _odometry(self, imu: Any, t_ns: int) -> Odometry:
         msg = Odometry()
-        msg.header.stamp = imu.header.stamp
+        msg.header.stamp = stamp(t_ns)
         msg.header.frame_id = self.frame_id
         msg.child_frame_id = self.child_frame_id
         covariance_kf = self.filter.P
@@ -179,10 +179,12 @@ class SensorFusion(ProcessorBase):
         covariance[0] = covariance[7] = horizontal_variance
         covariance[14] = float(covariance_kf[0, 0])
         if imu.orientation_covariance[0] >= 0:
-            pose.pose.orientation = imu.orientation
+            pose.pose.orientation = copy_quaternion(imu.orientation)
             for row in range(3):
                 for col in range(3):
-                    covariance[(row + 3) * 6 + col + 3] = imu.orientation_covariance[row * 3 + col]
+                    covariance[(row + 3) * 6 + col + 3] = float(
+                        imu.orientation_covariance[row * 3 + col]
+                    )
         else:
             for i in (21, 28, 35):
                 covariance[i] = UNKNOWN_VARIANCE
@@ -194,16 +196,16 @@ class SensorFusion(ProcessorBase):
         )
         twist = msg.twist
         twist.twist.linear.x, twist.twist.linear.y, twist.twist.linear.z = vx, vy, vz
-        twist.twist.angular = imu.angular_velocity
+        twist.twist.angular = copy_vector3(imu.angular_velocity)
         twist_covariance = [0.0] * 36
         # Horizontal variances are equal on both axes, so a yaw rotation leaves them unchanged.
         twist_covariance[0] = twist_covariance[7] = self._velocity_variance
         twist_covariance[14] = float(covariance_kf[1, 1])
         for row in range(3):
             for col in range(3):
-                twist_covariance[(row + 3) * 6 + col + 3] = imu.angular_velocity_covariance[
-                    row * 3 + col
-                ]
+                twist_covariance[(row + 3) * 6 + col + 3] = float(
+                    imu.angular_velocity_covariance[row * 3 + col]
+                )
         twist.covariance = twist_covariance
         return msg
 
