@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import bisect
+import operator
 import sqlite3
 import struct
 from collections.abc import Iterator
@@ -14,9 +15,10 @@ import numpy as np
 from bagkit.bag import mcap
 from bagkit.bag.definitions import canonical_type_name
 from bagkit.bag.errors import CorruptBagError, NotABagError, UnsupportedStorageError
-from bagkit.bag.types import BagMessage, TopicInfo
+from bagkit.bag.types import BagMessage, TopicInfo, make_message
 
 SQLITE_MAGIC = b"SQLite format 3\x00"
+_LOG_TIME = operator.attrgetter("log_time")
 
 
 @dataclass(frozen=True, slots=True)
@@ -177,16 +179,14 @@ class McapFile(StorageFile):
             if not _may_hold(block, wanted):
                 continue
             if pending:
-                cut = bisect.bisect_left(
-                    pending, block.message_start_time, key=lambda m: m.log_time
-                )
+                cut = bisect.bisect_left(pending, block.message_start_time, key=_LOG_TIME)
                 yield from pending[:cut]
                 pending = pending[cut:]
             records = self._read_records(block)
             if records is None:
                 continue
             batch = [
-                BagMessage(
+                make_message(
                     channel_topics[channel_id], records[begin:end], log_time, publish_time, seq
                 )
                 for channel_id, seq, log_time, publish_time, begin, end in (
@@ -195,7 +195,7 @@ class McapFile(StorageFile):
                 if channel_id in wanted and lower <= log_time < upper
             ]
             pending.extend(batch)
-            pending.sort(key=lambda m: m.log_time)
+            pending.sort(key=_LOG_TIME)
         yield from pending
 
     def chunks(self, topics: set[str] | None) -> Iterator[BagChunk]:
@@ -293,7 +293,7 @@ class Sqlite3File(StorageFile):
         lower = start_ns if start_ns is not None else 0
         upper = end_ns if end_ns is not None else (1 << 63) - 1
         for topic_id, timestamp, data in self._db.execute(query, (*wanted, lower, upper)):
-            yield BagMessage(self._topic_ids[topic_id], bytes(data), timestamp, timestamp, 0)
+            yield make_message(self._topic_ids[topic_id], bytes(data), timestamp, timestamp, 0)
 
 
 def open_storage_file(path: Path) -> StorageFile:

