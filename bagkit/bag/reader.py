@@ -28,6 +28,14 @@ def _natural_key(path: Path) -> list[int | str]:
     return [int(part) if part.isdigit() else part for part in re.split(r"(\d+)", path.name)]
 
 
+def _listed_file(bag_dir: Path, name: str) -> Path:
+    """A file of ``relative_file_paths``; early rosbag2 versions prefixed the bag's own name."""
+    path = bag_dir / name
+    if not path.exists() and (bag_dir / Path(name).name).exists():
+        return bag_dir / Path(name).name
+    return path
+
+
 def _resolve_files(path: Path) -> tuple[Path, list[Path], BagMetadata | None]:
     """Return (bag directory, storage files, metadata) for a bag path."""
     if not path.exists():
@@ -48,7 +56,7 @@ def _resolve_files(path: Path) -> tuple[Path, list[Path], BagMetadata | None]:
                 f"{path}: rosbag2 {metadata.compression_mode or 'file'} compression "
                 f"{metadata.compression_format!r} is not supported"
             )
-        listed = [path / name for name in metadata.relative_file_paths]
+        listed = [_listed_file(path, name) for name in metadata.relative_file_paths]
         existing = [p for p in listed if p.is_file()]
         if existing:
             return path, existing, metadata
@@ -83,7 +91,7 @@ class BagReader:
         self._missing = [
             f"{name}: listed in {METADATA_FILENAME} but missing"
             for name in (self.metadata.relative_file_paths if self.metadata else [])
-            if not (self.directory / name).is_file()
+            if not _listed_file(self.directory, name).is_file()
         ]
         self._storage: list[StorageFile] = []
         unreadable: list[BagError] = []

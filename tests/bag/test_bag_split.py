@@ -92,3 +92,16 @@ def test_file_listed_in_metadata_but_missing_is_a_problem(
     with BagReader(bag_path) as bag:
         assert bag.message_count == kept
         assert bag.problems == [f"{last}: listed in metadata.yaml but missing"]
+
+
+def test_relative_paths_prefixed_with_the_bag_name(write_sample_bag: Callable[..., Path]) -> None:
+    # Early rosbag2 versions wrote relative_file_paths as "<bag>/<bag>_0.db3".
+    bag_path = write_sample_bag(n_imu=50)
+    document = yaml.safe_load((bag_path / "metadata.yaml").read_text())
+    info = document["rosbag2_bagfile_information"]
+    info["relative_file_paths"] = [f"sample/{name}" for name in info["relative_file_paths"]]
+    (bag_path / "metadata.yaml").write_text(yaml.safe_dump(document))
+    with BagReader(bag_path) as bag:
+        assert bag.files == [bag_path / "sample_0.mcap"]
+        assert bag.message_count == 55
+        assert bag.problems == []
