@@ -234,11 +234,6 @@ class _Cursor:
         self.buf = buf
         self.pos = pos
 
-    def u8(self) -> int:
-        value = self.buf[self.pos]
-        self.pos += 1
-        return value
-
     def u16(self) -> int:
         (value,) = _U16.unpack_from(self.buf, self.pos)
         self.pos += 2

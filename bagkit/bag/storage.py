@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import abc
 import bisect
 import operator
 import sqlite3
@@ -50,7 +51,7 @@ def _may_hold(block: mcap.ChunkIndex | mcap.MessageRun, channel_ids: set[int]) -
     return True
 
 
-class StorageFile:
+class StorageFile(abc.ABC):
     """What the reader needs from one storage file, whatever its format."""
 
     path: Path
@@ -65,12 +66,13 @@ class StorageFile:
     uncompressed_size: int = 0
     compression: str = ""
 
+    @abc.abstractmethod
     def messages(
         self, topics: set[str] | None, start_ns: int | None, end_ns: int | None
     ) -> Iterator[BagMessage]:
         """Yield the messages in log-time order (ties in storage order)."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def close(self) -> None:
         """Release the file."""
 
