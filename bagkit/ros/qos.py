@@ -28,7 +28,8 @@ from bagkit.ros.errors import QosProfileError
 
 # rosbag2's default depth for a profile whose history is not known (Rosbag2QoS default).
 DEFAULT_DEPTH = 10
-# The recorder's subscriptions: deep enough to absorb a burst while the wait-set loop is busy.
+# The recorder's best-effort subscriptions: deep enough to absorb a burst while the wait-set
+# loop is busy.
 RECORD_DEPTH = 1000
 # Jazzy metadata writes strings from this version on.
 STRING_POLICY_VERSION = 9
@@ -178,14 +179,19 @@ def adapt_subscription_qos(
     Reliable only if every publisher is reliable and transient-local only if every publisher
     is (a best-effort or volatile publisher does not match a stricter request); deadline stays
     unspecified and liveliness automatic, the weakest requests, so that they match any offer.
-    The queue is keep-last ``depth``.
+
+    A reliable subscription keeps all: a keep-last reader drops its oldest samples when it
+    falls behind, even from a keep-all publisher, while a keep-all reader leaves them
+    unacknowledged so that the publisher resends them. Keep-last publishers are never slowed
+    by it (they overwrite their own history), keep-all publishers get the flow control they
+    asked for. A best-effort subscription keeps the last ``depth``.
     """
     reliable = bool(offered) and all(p.reliability == ReliabilityPolicy.RELIABLE for p in offered)
     latched = bool(offered) and all(
         p.durability == DurabilityPolicy.TRANSIENT_LOCAL for p in offered
     )
     return QoSProfile(
-        history=HistoryPolicy.KEEP_LAST,
+        history=HistoryPolicy.KEEP_ALL if reliable else HistoryPolicy.KEEP_LAST,
         depth=depth,
         reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
         durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,

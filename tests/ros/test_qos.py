@@ -118,8 +118,11 @@ def test_subscription_matches_every_offer(
 ) -> None:
     request = adapt_subscription_qos(offers)
     assert (request.reliability, request.durability) == (reliability, durability)
-    assert request.history == HistoryPolicy.KEEP_LAST
-    assert request.depth >= 100
+    if reliability == ReliabilityPolicy.RELIABLE:
+        # Flow control instead of reader-side drops.
+        assert request.history == HistoryPolicy.KEEP_ALL
+    else:
+        assert (request.history, request.depth) == (HistoryPolicy.KEEP_LAST, 1000)
     for offer in offers:
         compatibility, reason = qos_check_compatible(offer, request)
         assert compatibility == QoSCompatibility.OK, reason
