@@ -227,8 +227,10 @@ class BagWriter:
                 chunk: messages of earlier calls). Earlier chunks stay readable.
         """
         channel = self._channels.get(topic)
-        if channel is None or self._closed:
-            raise BagError(f"cannot write to {topic}: " + ("closed" if self._closed else "unknown"))
+        if self._closed:
+            raise BagError(f"cannot write to {topic}: {self.path} is closed")
+        if channel is None:
+            raise BagError(f"cannot write to {topic}: the topic was not added to {self.path}")
         with self._lock:
             if self._file is None:
                 raise BagWriteError(
@@ -323,7 +325,10 @@ class BagWriter:
         On failure the file is cut back to where it was, so it stays readable.
         """
         storage = self._file
-        assert storage is not None
+        if storage is None:
+            raise BagWriteError(
+                f"{self.path}: no file open after an earlier error", lost_by_topic=lost
+            )
         offset = storage.offset
         view = memoryview(data)
         try:

@@ -217,3 +217,21 @@ def test_messages_built_by_the_readers_are_ordinary_frozen_messages() -> None:
     assert hash(fast) == hash(BagMessage("/t", b"\x01", 5, 4, 3))
     with pytest.raises(dataclasses.FrozenInstanceError):
         fast.log_time = 6  # type: ignore[misc]
+
+
+def test_writing_to_an_unknown_topic_or_a_closed_bag_is_an_error(tmp_path: Path) -> None:
+    from bagkit.bag import BagError
+
+    bag = BagWriter(tmp_path / "bag")
+    bag.add_topic(TopicInfo("/a", STRING))
+    with pytest.raises(BagError, match="not added"):
+        bag.write("/b", string_cdr("x"), log_time=1)
+    bag.add_topic(TopicInfo("/a", STRING))  # same topic, same type: nothing to do
+    with pytest.raises(BagError, match="already added with type"):
+        bag.add_topic(TopicInfo("/a", IMU))
+    bag.close()
+    bag.close()
+    with pytest.raises(BagError, match="closed"):
+        bag.write("/a", string_cdr("x"), log_time=1)
+    with BagReader(tmp_path / "bag", allow_empty=True) as reader:
+        assert reader.topic_counts == {"/a": 0}
