@@ -235,3 +235,14 @@ def test_writing_to_an_unknown_topic_or_a_closed_bag_is_an_error(tmp_path: Path)
         bag.write("/a", string_cdr("x"), log_time=1)
     with BagReader(tmp_path / "bag", allow_empty=True) as reader:
         assert reader.topic_counts == {"/a": 0}
+
+
+def test_crcs_validate_with_the_mcap_library(write_sample_bag: Callable[..., Path]) -> None:
+    from mcap.records import Footer, Message
+    from mcap.stream_reader import StreamReader
+
+    bag_path = write_sample_bag(n_imu=100, chunk_size=3_000)
+    with open(bag_path / "sample_0.mcap", "rb") as f:
+        records = list(StreamReader(f, validate_crcs=True).records)
+    assert sum(isinstance(r, Message) for r in records) == 110
+    assert isinstance(records[-1], Footer) and records[-1].summary_crc != 0
