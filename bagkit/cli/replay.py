@@ -15,6 +15,7 @@ from bagkit.cli.common import (
     EXIT_INTERRUPTED,
     OutputFormat,
     console,
+    fail,
     handle_errors,
     print_json,
     warn,
@@ -132,6 +133,8 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
     """
     from bagkit.ros.player import Player, parse_remaps
 
+    if output_format is OutputFormat.CSV:
+        raise fail("replay prints its report as a table or as JSON (--format json), not CSV")
     interactive = sys.stderr.isatty()
     progress = _ProgressLine(interactive=interactive)
     with Player(

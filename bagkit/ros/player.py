@@ -52,8 +52,10 @@ GRAPH_SETTLE_S = 0.2
 # message is only safe once both sides have matched, which we cannot observe from here.
 MATCH_GRACE_S = 0.1
 # Publisher history for replayed volatile topics: a reliable publisher that outruns a slow
-# subscriber overwrites what it has not delivered once the history is full.
+# subscriber (a fast replay) overwrites what it has not delivered once its history is full, so
+# the history holds the whole topic, within HISTORY_BUDGET_BYTES, and at least REPLAY_DEPTH.
 REPLAY_DEPTH = 1000
+HISTORY_BUDGET_BYTES = 256 << 20
 # Progress is reported only when the next message is at least this far away (or when it is
 # overdue by PROGRESS_FORCE_S), so reporting never delays a message.
 PROGRESS_SLACK_NS = 3_000_000
@@ -246,11 +248,17 @@ class Player:
         """Recorded topic -> name it is published under, for every replayed topic."""
         return {topic: out.name for topic, out in self._outputs.items()}
 
+    @property
+    def qos_profiles(self) -> dict[str, QoSProfile]:
+        """Recorded topic -> QoS profile it is published with."""
+        return {topic: out.publisher.qos_profile for topic, out in self._outputs.items()}
+
     def _open(self) -> None:
         overrides = load_qos_overrides(self.qos_overrides_path) if self.qos_overrides_path else {}
         reader = self._stack.enter_context(BagReader(self.bag_path))
         self._reader = reader
         selected = self._select_topics(reader.topics)
+        mean_size = reader.uncompressed_size // max(reader.message_count, 1) or 1024
 
         context = self._context
         if context is None:
@@ -271,7 +279,9 @@ class Player:
 
         for info, message_class in selected:
             name = self.remap.get(info.name, info.name)
-            qos = overrides.get(name) or overrides.get(info.name) or _replay_qos(info)
+            qos = overrides.get(name) or overrides.get(info.name)
+            if qos is None:
+                qos = _replay_qos(info, reader.topic_counts.get(info.name, 0), mean_size)
             publisher = node.create_publisher(message_class, name, qos)
             self._outputs[info.name] = _Output(info, publisher, publisher.handle.publish_raw)
         if self.clock_hz is not None:
@@ -511,7 +521,7 @@ def parse_remaps(pairs: Iterable[str]) -> dict[str, str]:
     return remap
 
 
-def _replay_qos(info: TopicInfo) -> QoSProfile:
+def _replay_qos(info: TopicInfo, count: int, mean_size: int) -> QoSProfile:
     """The recorded offer, with a history deep enough that a fast replay drops nothing.
 
     Transient-local topics keep the recorded depth: it is what a late subscriber gets replayed.
@@ -521,7 +531,8 @@ def _replay_qos(info: TopicInfo) -> QoSProfile:
         qos.history == HistoryPolicy.KEEP_LAST
         and qos.durability != DurabilityPolicy.TRANSIENT_LOCAL
     ):
-        qos.depth = max(qos.depth, REPLAY_DEPTH)
+        whole_topic = min(count, HISTORY_BUDGET_BYTES // mean_size)
+        qos.depth = max(qos.depth, REPLAY_DEPTH, whole_topic)
     return qos
 
 

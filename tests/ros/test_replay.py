@@ -21,13 +21,14 @@ import pytest
 import rclpy
 from rclpy.context import Context
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message, serialize_message
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
 from bagkit.bag import BagReader, BagWriter, TopicInfo
 from bagkit.ros.player import Player, play
+from bagkit.ros.qos import dump_offered_qos_profiles
 
 pytestmark = pytest.mark.ros
 
@@ -491,3 +492,29 @@ def test_sim_time_nodes_follow_the_clock(listener_factory: type[Listener], proce
 
 def _stamp_ns(stamp: Any) -> int:
     return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def test_publishers_take_the_recorded_qos_or_the_overrides(tmp_path: Path) -> None:
+    latched = QoSProfile(
+        depth=3, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+    )
+    lossy = QoSProfile(depth=7, reliability=ReliabilityPolicy.BEST_EFFORT)
+    bag = tmp_path / "qos"
+    with BagWriter(bag) as writer:
+        for topic, profile in [("/latched", latched), ("/lossy", lossy), ("/plain", lossy)]:
+            offered = dump_offered_qos_profiles([profile])
+            writer.add_topic(TopicInfo(topic, "std_msgs/msg/String", offered_qos_profiles=offered))
+            writer.write(topic, _payload(topic, 0), log_time=BAG_START_NS)
+    overrides = tmp_path / "overrides.yaml"
+    overrides.write_text("/plain:\n  reliability: reliable\n  history: keep_last\n  depth: 42\n")
+    with Player(bag, qos_overrides=overrides) as player:
+        offered = player.qos_profiles
+    # Transient-local keeps its recorded depth (what a late subscriber gets); volatile topics
+    # get a deep history so that a fast replay overwrites nothing.
+    assert offered["/latched"].durability == DurabilityPolicy.TRANSIENT_LOCAL
+    assert offered["/latched"].reliability == ReliabilityPolicy.RELIABLE
+    assert offered["/latched"].depth == 3
+    assert offered["/lossy"].reliability == ReliabilityPolicy.BEST_EFFORT
+    assert offered["/lossy"].depth >= 1000
+    assert offered["/plain"].reliability == ReliabilityPolicy.RELIABLE
+    assert offered["/plain"].depth == 42
