@@ -7,20 +7,15 @@ from contextlib import ExitStack
 from pathlib import Path
 
 from bagkit.bag import BagReader
+from bagkit.bag.definitions import canonical_type_name
 from bagkit.compare.core import Event, Sample, compare_events, compare_samples
 from bagkit.compare.errors import CompareError
 from bagkit.compare.options import CompareOptions
 from bagkit.compare.result import CompareReport, Divergence, TopicResult
-from bagkit.decode.flatten import flatten_message
-from bagkit.decode.types import MessageTypes
+from bagkit.decode import MessageTypes, flatten_message
 from bagkit.errors import BagkitError
 
 EVENT_TYPE = "diagnostic_msgs/msg/DiagnosticArray"
-
-
-def _canonical(type_name: str) -> str:
-    parts = type_name.split("/")
-    return f"{parts[0]}/msg/{parts[1]}" if len(parts) == 2 else type_name
 
 
 def iter_samples(bag: BagReader, topic: str, types: MessageTypes) -> Iterator[Sample]:
@@ -114,15 +109,19 @@ def compare_bags(
             g_info, c_info = g_bag.topics.get(topic), c_bag.topics.get(topic)
             info = g_info or c_info
             assert info is not None
-            if g_info and c_info and _canonical(g_info.type) != _canonical(c_info.type):
-                result = TopicResult(topic, _canonical(g_info.type), "")
+            if (
+                g_info
+                and c_info
+                and canonical_type_name(g_info.type) != canonical_type_name(c_info.type)
+            ):
+                result = TopicResult(topic, canonical_type_name(g_info.type), "")
                 result.divergence_count = 1
                 result.divergences = [Divergence("type", topic, 0, "", g_info.type, c_info.type)]
                 results.append(result)
                 continue
             g_samples = list(iter_samples(g_bag, topic, g_types)) if g_info else []
             c_samples = list(iter_samples(c_bag, topic, c_types)) if c_info else []
-            msg_type = _canonical(info.type)
+            msg_type = canonical_type_name(info.type)
             if topic in options.event_topics and msg_type == EVENT_TYPE:
                 result = compare_events(
                     topic, msg_type, events_of(g_samples), events_of(c_samples), options

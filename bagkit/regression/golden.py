@@ -11,7 +11,7 @@ from pathlib import Path
 from bagkit.bag import BagReader
 from bagkit.compare import CompareReport, TopicResult, compare_bags
 from bagkit.compare.bags import events_of, iter_samples
-from bagkit.decode.types import MessageTypes
+from bagkit.decode import MessageTypes
 from bagkit.regression.lockstep import LockstepResult, run_lockstep
 from bagkit.regression.spec import BAG_DIR, FixtureSpec
 

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from bagkit.bag import BagReader, BagWriter, TopicInfo, message_definition
-from bagkit.decode.types import MessageTypes
+from bagkit.decode import MessageTypes
 from bagkit.regression.errors import RegressionError
 
 
