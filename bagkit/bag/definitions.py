@@ -74,14 +74,26 @@ def _interface_file(package: str, kind: str, name: str, suffix: str) -> Path | N
     return None
 
 
+# Service-event topics (``pkg/srv/Name_Event``) store the service's ``.srv`` text, as rosbag2 does.
+_SERVICE_EVENT_SUFFIX = "_Event"
+
+
+def _interface_source(type_name: str) -> tuple[str, str, str, str]:
+    """(package, kind, file stem, suffix) of the interface file that defines ``type_name``."""
+    package, kind, name = _split_type_name(type_name)
+    if kind == "srv" and name.endswith(_SERVICE_EVENT_SUFFIX):
+        return package, kind, name.removesuffix(_SERVICE_EVENT_SUFFIX), ".srv"
+    return package, kind, name, ".msg"
+
+
 @functools.cache
 def _msg_text(type_name: str) -> str:
-    package, kind, name = _split_type_name(type_name)
-    path = _interface_file(package, kind, name, ".msg")
+    package, kind, name, suffix = _interface_source(type_name)
+    path = _interface_file(package, kind, name, suffix)
     if path is None:
         raise UnknownMessageTypeError(
             f"message type {canonical_type_name(type_name)} is not installed "
-            f"(no {package}/{kind}/{name}.msg under {', '.join(map(str, _share_dirs()))})"
+            f"(no {package}/{kind}/{name}{suffix} under {', '.join(map(str, _share_dirs()))})"
         )
     return path.read_text(encoding="utf-8")
 
@@ -91,7 +103,7 @@ def _dependencies(package: str, text: str) -> list[str]:
     found: list[str] = []
     for raw_line in text.splitlines():
         line = raw_line.split("#", 1)[0].strip()
-        if not line:
+        if not line or line == "---":
             continue
         match = _TYPE_TOKEN.match(line)
         if match is None:
@@ -115,10 +127,11 @@ def message_definition(type_name: str) -> str:
     """Return the full ``ros2msg`` definition of a message type, as rosbag2 stores it.
 
     That is the type's ``.msg`` text followed, for each dependency (recursively, each once),
-    by a line of 80 ``=``, a line ``MSG: pkg/Name`` and the dependency's text.
+    by a line of 80 ``=``, a line ``MSG: pkg/Name`` and the dependency's text. A service-event
+    type ``pkg/srv/Name_Event`` is defined by the service's ``.srv`` text.
 
     Args:
-        type_name: ``pkg/msg/Name`` (``pkg/Name`` is accepted).
+        type_name: ``pkg/msg/Name`` (``pkg/Name`` is accepted) or ``pkg/srv/Name_Event``.
 
     Raises:
         UnknownMessageTypeError: the type or one of its dependencies is not installed.
@@ -148,7 +161,7 @@ def type_description_hash(type_name: str) -> str:
         UnknownMessageTypeError: the type's ``.json`` type description is not installed.
     """
     canonical = canonical_type_name(type_name)
-    package, kind, name = _split_type_name(canonical)
+    package, kind, name, _ = _interface_source(canonical)
     path = _interface_file(package, kind, name, ".json")
     if path is None:
         raise UnknownMessageTypeError(f"no type description installed for {canonical}")

@@ -246,3 +246,13 @@ def test_crcs_validate_with_the_mcap_library(write_sample_bag: Callable[..., Pat
         records = list(StreamReader(f, validate_crcs=True).records)
     assert sum(isinstance(r, Message) for r in records) == 110
     assert isinstance(records[-1], Footer) and records[-1].summary_crc != 0
+
+
+def test_service_event_definition_is_the_srv_text_as_rosbag2_stores_it() -> None:
+    import sys
+
+    srv = Path(sys.prefix) / "share/rcl_interfaces/srv/GetParameters.srv"
+    text = message_definition("rcl_interfaces/srv/GetParameters_Event")
+    assert text.startswith(srv.read_text())
+    assert "\nMSG: rcl_interfaces/ParameterValue\n" in text
+    assert type_description_hash("rcl_interfaces/srv/GetParameters_Event").startswith("RIHS01_")
