@@ -10,7 +10,7 @@ import typer
 from rich.table import Table
 
 from bagkit.cli.common import OutputFormat, console, err_console, fail, handle_errors, print_json
-from fusion.launch import Launcher
+from fusion.launch import Launcher, validate_parameter_file
 from fusion.processors import NODE_NAMES
 
 if TYPE_CHECKING:
@@ -51,6 +51,9 @@ def launch(
 ) -> None:
     names = [n.strip() for n in only.split(",") if n.strip()] or list(NODE_NAMES)
     _check_nodes(names)
+    if params is not None:
+        # Say what is wrong with the file once, up front, instead of from every node.
+        validate_parameter_file(params, names)
     code = Launcher(names, params_file=params, use_sim_time=use_sim_time).run()
     raise typer.Exit(code)
 

@@ -20,7 +20,8 @@ from types import FrameType
 from typing import IO
 
 from fusion.errors import NodeFailedError
-from fusion.processors import NODE_NAMES
+from fusion.params import load_parameter_file
+from fusion.processors import NODE_NAMES, create_processor
 
 _COLOURS = ("\033[36m", "\033[32m", "\033[33m", "\033[35m")
 _RESET = "\033[0m"
@@ -34,6 +35,19 @@ class NodeProcess:
     name: str
     process: subprocess.Popen[bytes]
     reader: threading.Thread
+
+
+def validate_parameter_file(path: Path, names: Sequence[str]) -> None:
+    """Check ``path`` for every node in ``names`` before anything starts.
+
+    rclpy silently ignores parameters a node does not declare; this catches misspelt names and
+    bad values in each node's own section (``/**`` may hold parameters for some nodes only).
+
+    Raises:
+        ConfigError: the file is not a parameter file, or a node's section is invalid.
+    """
+    for name in names:
+        create_processor(name, load_parameter_file(path, name, wildcard=False))
 
 
 def node_command(

@@ -27,20 +27,30 @@ def flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, object]:
     return flat
 
 
-def load_parameter_file(path: Path, node_name: str) -> dict[str, object]:
+def load_parameter_file(path: Path, node_name: str, *, wildcard: bool = True) -> dict[str, object]:
     """Return the flattened ``ros__parameters`` of ``node_name`` (and ``/**``) in ``path``.
+
+    ``wildcard=False`` leaves the ``/**`` section out.
 
     Raises:
         ConfigError: the file is missing or not a ROS 2 parameter file.
     """
     try:
         document = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise ConfigError(f"cannot read parameter file {path}: {exc}") from exc
+    except OSError as exc:
+        raise ConfigError(f"cannot read parameter file {path}: {exc.strerror}") from exc
+    except yaml.YAMLError as exc:
+        where = ""
+        mark = getattr(exc, "problem_mark", None)
+        if mark is not None:
+            where = f" at line {mark.line + 1}, column {mark.column + 1}"
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise ConfigError(f"{path} is not valid YAML: {problem}{where}") from exc
     if not isinstance(document, Mapping):
         raise ConfigError(f"{path} is not a ROS 2 parameter file (expected a mapping)")
     params: dict[str, object] = {}
-    for key in ("/**", node_name, f"/{node_name}"):
+    sections = ("/**", node_name, f"/{node_name}") if wildcard else (node_name, f"/{node_name}")
+    for key in sections:
         section = document.get(key)
         if section is None:
             continue

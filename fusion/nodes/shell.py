@@ -10,6 +10,7 @@ from typing import Any
 import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.executors import ExternalShutdownException
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -118,7 +119,13 @@ def run_node(node_name: str, args: list[str] | None = None) -> int:
     ``args`` are ROS arguments (``--ros-args --params-file FILE -p use_sim_time:=true``);
     None takes them from ``sys.argv``.
     """
-    rclpy.init(args=sys.argv if args is None else [node_name, *args])
+    try:
+        rclpy.init(args=sys.argv if args is None else [node_name, *args])
+    except _rclpy.RCLError as exc:
+        # rcl's message ends with source locations after the first line: keep the useful part.
+        reason = str(exc).split(", at /")[0].strip()
+        print(f"error: {node_name}: cannot start: {reason}", file=sys.stderr)
+        return 2
     node = None
     try:
         node = ProcessorNode(node_name)
@@ -126,7 +133,10 @@ def run_node(node_name: str, args: list[str] | None = None) -> int:
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except BagkitError as exc:
-        print(f"error: {node_name}: {exc}", file=sys.stderr)
+        message = str(exc)
+        if not message.startswith(f"{node_name}:"):
+            message = f"{node_name}: {message}"
+        print(f"error: {message}", file=sys.stderr)
         return exc.exit_code
     finally:
         if node is not None:

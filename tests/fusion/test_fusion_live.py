@@ -85,8 +85,10 @@ def test_launch_publishes_at_rate_raises_alerts_and_tracks_altitude(
 
 @pytest.mark.ros
 def test_launch_fails_when_a_node_dies(processes: Any, tmp_path: Path) -> None:
+    # In the /** section, which launch does not validate up front (nodes ignore what they do
+    # not declare), so the sensor publisher itself rejects it at start.
     params = tmp_path / "bad.yaml"
-    params.write_text('sensor_publisher:\n  ros__parameters:\n    faults: "wind@1+1"\n')
+    params.write_text('/**:\n  ros__parameters:\n    faults: "wind@1+1"\n')
     proc = processes.start(
         ["fusion", "launch", "--only", "sensor_publisher,data_logger", "--params", str(params)],
         stdout=subprocess.PIPE,
@@ -98,12 +100,34 @@ def test_launch_fails_when_a_node_dies(processes: Any, tmp_path: Path) -> None:
     assert err.decode().strip().splitlines() == ["error: node sensor_publisher exited with code 2"]
 
 
-def test_cli_rejects_unknown_nodes(processes: Any) -> None:
+@pytest.mark.parametrize(
+    ("args", "section", "message"),
+    [
+        (["--only", "camera"], "", "error: unknown node(s) camera."),
+        (
+            [],
+            "data_logger:\n  ros__parameters:\n    sumary_period: 1\n",
+            "error: data_logger: unknown parameter(s): sumary_period",
+        ),
+        (
+            [],
+            "alert_system:\n  summary_period: 1\n",
+            "error: PARAMS: section 'alert_system' has no 'ros__parameters'",
+        ),
+    ],
+)
+def test_launch_rejects_bad_usage_before_starting_anything(
+    processes: Any, tmp_path: Path, args: list[str], section: str, message: str
+) -> None:
+    params = tmp_path / "params.yaml"
+    params.write_text(section)
     proc = processes.start(
-        ["fusion", "launch", "--only", "camera"], stdout=subprocess.PIPE, stderr=subprocess.PIPE
+        ["fusion", "launch", *args, "--params", str(params)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
     )
     out, err = proc.communicate(timeout=30)
     assert proc.returncode == 2
     assert out == b""
-    assert err.decode().startswith("error: unknown node(s) camera.")
-    assert len(err.decode().strip().splitlines()) == 1
+    (line,) = err.decode().strip().splitlines()
+    assert line.startswith(message.replace("PARAMS", str(params)))
