@@ -104,6 +104,12 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
     output: OutputFormat = typer.Option(
         OutputFormat.TABLE, "--format", help="table for people, json or csv for scripts."
     ),
+    bulk: bool = typer.Option(
+        True,
+        "--bulk/--no-bulk",
+        help="Decode fixed-layout messages in bulk with numpy (--no-bulk: one by one, slower, "
+        "to cross-check).",
+    ),
 ) -> None:
     """Count and rate per topic; count, NaN count, min, max, mean and std per numeric field.
 
@@ -123,6 +129,7 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
             start_ns=_offset_ns(bags, start),
             end_ns=_offset_ns(bags, end),
             progress=progress,
+            bulk=bulk,
         )
     finally:
         progress.close()

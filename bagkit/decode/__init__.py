@@ -9,7 +9,13 @@
 from __future__ import annotations
 
 from bagkit.decode.errors import DecodeError, SchemaError, UnsupportedEncodingError
-from bagkit.decode.flatten import FlatValue, LeafField, flatten_message, leaf_fields
+from bagkit.decode.flatten import (
+    FlatValue,
+    LeafField,
+    field_getter,
+    flatten_message,
+    leaf_fields,
+)
 from bagkit.decode.types import MessageTypes
 
 __all__ = [
@@ -19,6 +25,7 @@ __all__ = [
     "MessageTypes",
     "SchemaError",
     "UnsupportedEncodingError",
+    "field_getter",
     "flatten_message",
     "leaf_fields",
 ]

@@ -9,11 +9,13 @@ integers; strings stay strings so they can be compared exactly but are not numer
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from rosbags.interfaces import Nodetype
+from rosbags.typesys.base import normalize_fieldname
 from rosbags.typesys.store import Typestore
 
 STRING_TYPES = frozenset({"string", "wstring"})
@@ -80,10 +82,10 @@ def _walk_desc(
 def flatten_message(
     msg: object, typestore: Typestore, *, numeric_only: bool = False
 ) -> dict[str, FlatValue]:
-    """Flatten a rosbags message object into ``{path: value}``.
+    """Flatten a rosbags message object into ``{path: value}``, in definition order.
 
     Pooled leaves are always present (an empty list when the sequence is empty); their value is
-    a numpy array for sequences of numbers, a list otherwise.
+    a numpy array for a top-level sequence of numbers, a list otherwise.
 
     Args:
         msg: a message decoded by ``typestore`` (``MessageTypes.deserialize``).
@@ -91,63 +93,133 @@ def flatten_message(
         numeric_only: drop string leaves (the view statistics use).
     """
     typename: str = msg.__msgtype__  # type: ignore[attr-defined]
-    # Pre-filled in definition order; pooled leaves start as empty lists and are extended.
-    out: dict[str, FlatValue] = {
-        leaf.path: [] if leaf.pooled else 0 for leaf in _leaf_fields(typestore, typename)
-    }
-    _flatten_struct(out, "", msg, typename, typestore, pooled=False)
-    if numeric_only:
-        strings = {leaf.path for leaf in _leaf_fields(typestore, typename) if not leaf.numeric}
-        return {k: v for k, v in out.items() if k not in strings}
-    return out
+    return _flattener(typestore, typename, numeric_only)(msg)
 
 
-def _scalar(value: Any) -> int | float | str:
-    if isinstance(value, (bool, np.bool_)):
-        return int(value)
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
+def _as_list(value: Any) -> list[Any]:
+    return value.tolist() if isinstance(value, np.ndarray) else list(value)
 
 
-def _flatten_struct(
-    out: dict[str, FlatValue],
-    prefix: str,
-    msg: object,
-    typename: str,
-    ts: Typestore,
-    *,
-    pooled: bool,
-) -> None:
-    for name, desc in ts.fielddefs[typename][1]:
-        _flatten_value(out, f"{prefix}{name}", getattr(msg, name), desc, ts, pooled=pooled)
+def field_getter(
+    typestore: Typestore, typename: str, paths: tuple[str, ...]
+) -> Callable[[object], list[FlatValue]]:
+    """A function returning the values of ``paths`` of a ``typename`` message, in that order.
+
+    Values are those of :func:`flatten_message`; this skips building the dict (statistics read
+    a few fields of millions of messages).
+
+    Raises:
+        KeyError: a path that ``typename`` does not have.
+    """
+    return _generated(typestore, typename, paths, numeric_only=False)
 
 
-def _flatten_value(
-    out: dict[str, FlatValue], path: str, value: Any, desc: Any, ts: Typestore, *, pooled: bool
-) -> None:
-    kind, rest = desc
-    if kind == Nodetype.BASE:
-        if pooled:
-            out[path].append(_scalar(value))  # type: ignore[union-attr]
-        else:
-            out[path] = _scalar(value)
-    elif kind == Nodetype.NAME:
-        _flatten_struct(out, f"{path}.", value, rest, ts, pooled=pooled)
-    elif kind == Nodetype.ARRAY:
-        sub = rest[0]
-        for i, item in enumerate(value):
-            _flatten_value(out, f"{path}[{i}]", item, sub, ts, pooled=pooled)
+# Flattening walks the type once, here, and generates a function of attribute reads and list
+# comprehensions: a recursive walk per message costs several times rosbags' deserialization.
+@functools.lru_cache(maxsize=1024)
+def _flattener(
+    typestore: Typestore, typename: str, numeric_only: bool
+) -> Callable[[object], dict[str, FlatValue]]:
+    return _generated(typestore, typename, None, numeric_only=numeric_only)
+
+
+@functools.lru_cache(maxsize=1024)
+def _generated(
+    typestore: Typestore, typename: str, paths: tuple[str, ...] | None, *, numeric_only: bool
+) -> Any:
+    """``flatten(m) -> dict`` (all leaves when ``paths`` is None) or ``get(m) -> list``."""
+    gen = _Codegen(typestore, numeric_only)
+    gen.struct("m", typename, "", [])
+    if paths is None:
+        result = ["    return {", *(f"        {p!r}: {e}," for p, e in gen.entries), "    }"]
     else:
+        expressions = dict(gen.entries)
+        result = ["    return [", *(f"        {expressions[p]}," for p in paths), "    ]"]
+    body = "\n".join(["def generated(m):", *(f"    {line}" for line in gen.prelude), *result])
+    namespace: dict[str, Any] = {"_as_list": _as_list, "_ndarray": np.ndarray, "np": np}
+    exec(compile(body, f"<bagkit flatten {typename}>", "exec"), namespace)
+    return namespace["generated"]
+
+
+class _Codegen:
+    """Builds the body of a flattening function: prelude statements and (path, expression)."""
+
+    def __init__(self, typestore: Typestore, numeric_only: bool) -> None:
+        self.typestore = typestore
+        self.numeric_only = numeric_only
+        self.prelude: list[str] = []
+        self.entries: list[tuple[str, str]] = []
+        self._names = 0
+
+    def _var(self, stem: str) -> str:
+        self._names += 1
+        return f"{stem}{self._names}"
+
+    def struct(self, expr: str, typename: str, prefix: str, loops: list[str]) -> None:
+        for name, desc in self.typestore.fielddefs[typename][1]:
+            attr = f"{expr}.{normalize_fieldname(name)}"
+            self.value(attr, desc, f"{prefix}{name}", loops)
+
+    def _emit(self, path: str, expr: str, loops: list[str]) -> None:
+        self.entries.append((path, f"[{expr} {' '.join(loops)}]" if loops else expr))
+
+    def value(self, expr: str, desc: Any, path: str, loops: list[str]) -> None:
+        kind, rest = desc
+        if kind == Nodetype.NAME:
+            self.struct(expr, rest, f"{path}.", loops)
+            return
+        if kind == Nodetype.BASE:
+            base = rest[0]
+            if base in STRING_TYPES and self.numeric_only:
+                return
+            self._emit(path, f"int({expr})" if base == "bool" else expr, loops)
+            return
         sub = rest[0]
+        base = sub[1][0] if sub[0] == Nodetype.BASE else None
+        if base in STRING_TYPES and self.numeric_only:
+            return
+        if kind == Nodetype.ARRAY:
+            if base is None or base in STRING_TYPES:
+                for i in range(rest[1]):
+                    self.value(f"{expr}[{i}]", sub, f"{path}[{i}]", loops)
+                return
+            # Numbers: one tolist() (Python scalars), then index it.
+            if loops:
+                items = self._var("a")
+                loops = [*loops, f"for {items} in ({_as_list_call(expr)},)"]
+            else:
+                items = self._var("a")
+                # Inline: decoded messages always hold ndarrays, a call per array adds up.
+                self.prelude.append(f"{items} = {expr}")
+                self.prelude.append(
+                    f"{items} = {items}.tolist() "
+                    f"if {items}.__class__ is _ndarray else list({items})"
+                )
+            for i in range(rest[1]):
+                item = f"{items}[{i}]"
+                self._emit(f"{path}[{i}]", f"int({item})" if base == "bool" else item, loops)
+            return
         key = f"{path}[]"
-        if sub[0] == Nodetype.BASE and isinstance(value, np.ndarray) and not pooled:
-            out[key] = value.astype(np.uint8) if value.dtype == np.bool_ else value
+        if base is None:
+            item = self._var("x")
+            self.struct(item, sub[1], f"{key}.", [*loops, f"for {item} in {expr}"])
             return
-        if sub[0] == Nodetype.BASE:
-            if isinstance(out[key], np.ndarray):
-                out[key] = list(out[key])  # type: ignore[arg-type]
-            out[key].extend(_scalar(v) for v in value)  # type: ignore[union-attr]
+        if not loops:
+            if base in STRING_TYPES:
+                self._emit(key, f"list({expr})", loops)
+            elif base == "bool":
+                self._emit(key, f"np.asarray({expr}, dtype=np.uint8)", loops)
+            else:
+                self._emit(
+                    key, f"{expr} if isinstance({expr}, np.ndarray) else list({expr})", loops
+                )
             return
-        for item in value:
-            _flatten_value(out, key, item, sub, ts, pooled=True)
+        item = self._var("v")
+        source = expr if base in STRING_TYPES else _as_list_call(expr)
+        self._emit(
+            key, f"int({item})" if base == "bool" else item, [*loops, f"for {item} in {source}"]
+        )
+
+
+def _as_list_call(expr: str) -> str:
+    return f"_as_list({expr})"

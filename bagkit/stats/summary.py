@@ -3,7 +3,7 @@
 One pass over each bag, one decompressed chunk at a time (memory does not grow with the bag).
 Topics whose type has a CDR layout (see :mod:`bagkit.decode.layout`) are decoded in bulk from
 each chunk with numpy; every other message goes through rosbags' deserializer and
-:func:`~bagkit.decode.flatten_message`. Both feed the same :class:`~bagkit.stats.moments.Moments`.
+:func:`~bagkit.decode.field_getter`. Both feed the same :class:`~bagkit.stats.moments.Moments`.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import numpy as np
 
 from bagkit.bag import BagChunk, BagReader
 from bagkit.bag.mcap import MESSAGE_DATA_OFFSET, MESSAGE_PREFIX
-from bagkit.decode import DecodeError, LeafField, MessageTypes, flatten_message, leaf_fields
+from bagkit.decode import DecodeError, LeafField, MessageTypes, field_getter, leaf_fields
 from bagkit.decode.layout import CdrLayout, ResolvedLayout
 from bagkit.stats.bulk import decode_bulk, read_u64
 from bagkit.stats.errors import NothingToSummarizeError, StatsError, UnknownTopicError
@@ -181,12 +181,19 @@ class _TopicAccumulator:
     """Running statistics of one topic: one Moments over its scalar fields, one per pooled."""
 
     def __init__(
-        self, topic: str, type_name: str, leaves: list[LeafField], layout: CdrLayout | None
+        self,
+        topic: str,
+        type_name: str,
+        leaves: list[LeafField],
+        layout: CdrLayout | None,
+        getter: Callable[[object], list[Any]],
     ) -> None:
         self.topic = topic
         self.type_name = type_name
         self.leaves = leaves
         self.layout = layout
+        # getter(msg) -> the values of scalar_paths, then of the pooled paths.
+        self.getter = getter
         self.scalar_paths = [leaf.path for leaf in leaves if not leaf.pooled]
         self.column = {path: i for i, path in enumerate(self.scalar_paths)}
         self.scalars = Moments(len(self.scalar_paths))
@@ -197,7 +204,7 @@ class _TopicAccumulator:
         self.failures = 0
         self.first_failure = ""
         self._rows: list[list[Any]] = []
-        self._pooled_rows: dict[str, list[np.ndarray]] = {path: [] for path in self.pooled}
+        self._pooled_rows: list[list[Any]] = []
         self._plans: dict[np.dtype, list[tuple[str, np.ndarray | None, np.ndarray | str]]] = {}
 
     def add_times(self, log_times: np.ndarray) -> None:
@@ -246,11 +253,15 @@ class _TopicAccumulator:
         if self.scalar_paths:
             self.scalars.add(matrix)
 
-    def add_message(self, flat: dict[str, Any]) -> None:
-        """Add one message flattened by :func:`flatten_message` (numeric view)."""
-        self._rows.append([flat[path] for path in self.scalar_paths])
-        for path, rows in self._pooled_rows.items():
-            rows.append(np.asarray(flat[path], dtype=np.float64))
+    def add_message(self, msg: object) -> None:
+        """Add one decoded message."""
+        values = self.getter(msg)
+        if self.pooled:
+            split = len(self.scalar_paths)
+            self._rows.append(values[:split])
+            self._pooled_rows.append(values[split:])
+        else:
+            self._rows.append(values)
         if len(self._rows) >= ROW_BATCH:
             self.flush()
 
@@ -260,10 +271,11 @@ class _TopicAccumulator:
             return
         if self.scalar_paths:
             self.scalars.add(np.array(self._rows, dtype=np.float64))
-        for path, rows in self._pooled_rows.items():
-            self.pooled[path].add(np.concatenate(rows).reshape(-1, 1))
-            rows.clear()
+        for j, moments in enumerate(self.pooled.values()):
+            parts = [np.asarray(row[j], dtype=np.float64) for row in self._pooled_rows]
+            moments.add(np.concatenate(parts).reshape(-1, 1))
         self._rows.clear()
+        self._pooled_rows.clear()
 
     def fail(self, exc: Exception) -> None:
         self.failures += 1
@@ -315,6 +327,7 @@ class _Run:
     fields_given: bool
     start_ns: int | None
     end_ns: int | None
+    bulk: bool
     accumulators: dict[str, _TopicAccumulator] = field(default_factory=dict)
     skipped: dict[str, str] = field(default_factory=dict)
     problems: list[str] = field(default_factory=list)
@@ -344,8 +357,11 @@ class _Run:
             for leaf in leaf_fields(self.types.typestore, canonical)
             if leaf.numeric and self.select_field(leaf.path)
         ]
-        layout = CdrLayout.of(self.types.typestore, canonical)
-        accumulator = _TopicAccumulator(topic, type_name, leaves, layout)
+        layout = CdrLayout.of(self.types.typestore, canonical) if self.bulk else None
+        paths = [leaf.path for leaf in leaves if not leaf.pooled]
+        paths += [leaf.path for leaf in leaves if leaf.pooled]
+        getter = field_getter(self.types.typestore, canonical, tuple(paths))
+        accumulator = _TopicAccumulator(topic, type_name, leaves, layout, getter)
         self.accumulators[topic] = accumulator
         return accumulator
 
@@ -383,20 +399,21 @@ class _Run:
                     accumulator.add_bulk(group.layout, group.values)
             else:
                 leftover = np.arange(len(starts))
-            for i in leftover.tolist():
-                begin = int(starts[i])
-                self.add_payload(accumulator, chunk.records[begin : begin + int(lengths[i])])
+            records = chunk.records
+            for begin, length in zip(
+                starts[leftover].tolist(), lengths[leftover].tolist(), strict=True
+            ):
+                self.add_payload(accumulator, records[begin : begin + length])
         return seen
 
     def add_payload(self, accumulator: _TopicAccumulator, data: bytes) -> None:
         """Decode one message with the general decoder and add it."""
         try:
             msg = self.types.deserialize(data, accumulator.type_name)
-            flat = flatten_message(msg, self.types.typestore, numeric_only=True)
         except DecodeError as exc:
             accumulator.fail(exc)
             return
-        accumulator.add_message(flat)
+        accumulator.add_message(msg)
 
 
 def summarize(
@@ -407,6 +424,7 @@ def summarize(
     start_ns: int | None = None,
     end_ns: int | None = None,
     progress: ProgressCallback | None = None,
+    bulk: bool = True,
 ) -> Summary:
     """Count, rate and exact statistics of every numeric field, pooled over ``bags``.
 
@@ -417,6 +435,8 @@ def summarize(
         start_ns: only messages with ``log_time >= start_ns``.
         end_ns: only messages with ``log_time < end_ns``.
         progress: called with (messages done, messages in total).
+        bulk: decode fixed-layout messages in bulk with numpy; False decodes every message
+            with the general decoder (slower; to cross-check the bulk path).
 
     Raises:
         BagError: a bag cannot be opened (see ``bagkit.bag``).
@@ -427,7 +447,7 @@ def summarize(
     paths = [str(bag) for bag in bags]
     if not paths:
         raise StatsError("no bag given")
-    run = _Run(MessageTypes(), field_matcher(fields), bool(fields), start_ns, end_ns)
+    run = _Run(MessageTypes(), field_matcher(fields), bool(fields), start_ns, end_ns, bulk)
     readers: list[BagReader] = []
     try:
         for path in paths:
