@@ -66,6 +66,11 @@ def _resolve_files(path: Path) -> tuple[Path, list[Path], BagMetadata | None]:
         key=_natural_key,
     )
     if not found:
+        if metadata is not None:
+            raise NotABagError(
+                f"{path}: none of the files listed in {METADATA_FILENAME} exist "
+                f"({', '.join(metadata.relative_file_paths) or 'none listed'})"
+            )
         raise NotABagError(f"{path}: not a bag (no metadata.yaml, no .mcap or .db3 file)")
     return path, found, metadata
 
