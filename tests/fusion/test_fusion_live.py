@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import os
 import signal
 import subprocess
@@ -11,8 +12,12 @@ from typing import Any
 
 import pytest
 import rclpy
+from builtin_interfaces.msg import Time
+from nav_msgs.msg import Odometry
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import Imu
 
 from fusion import topics
 from fusion.monitor import observe
@@ -131,3 +136,49 @@ def test_launch_rejects_bad_usage_before_starting_anything(
     assert out == b""
     (line,) = err.decode().strip().splitlines()
     assert line.startswith(message.replace("PARAMS", str(params)))
+
+
+@pytest.mark.ros
+def test_nodes_run_on_sim_time(processes: Any) -> None:
+    """Under --use-sim-time, timers and stamps follow /clock, here at 5x real time."""
+    launcher = processes.start(
+        ["fusion", "launch", "--use-sim-time", "--only", "sensor_publisher,sensor_fusion"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    context = Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node("sim_clock", context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    imu_stamps: list[float] = []
+    odometry: list[Any] = []
+    try:
+        clock = node.create_publisher(Clock, "/clock", 10)
+        node.create_subscription(
+            Imu,
+            topics.IMU,
+            lambda m: imu_stamps.append(m.header.stamp.sec + m.header.stamp.nanosec * 1e-9),
+            topic_qos(topics.IMU),
+        )
+        node.create_subscription(
+            Odometry, topics.ODOMETRY, odometry.append, topic_qos(topics.ODOMETRY)
+        )
+        sim_ns = 5_000_000_000_000
+        deadline = time.monotonic() + 25.0
+        while len(odometry) < 60 and time.monotonic() < deadline:
+            assert launcher.poll() is None
+            sim_ns += 50_000_000  # 50 ms of sim time every 10 ms of wall time
+            sec, nanosec = divmod(sim_ns, 1_000_000_000)
+            clock.publish(Clock(clock=Time(sec=sec, nanosec=nanosec)))
+            executor.spin_once(timeout_sec=0.01)
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.shutdown(context=context)
+    assert len(odometry) >= 60
+    assert all(5000.0 < s <= sim_ns / 1e9 for s in imu_stamps)
+    steps = [round(b - a, 3) for a, b in itertools.pairwise(imu_stamps)]
+    # One IMU sample per 0.1 s of sim time (rarely 0.15 when a tick lands between /clock steps).
+    assert sorted(steps)[len(steps) // 2] == 0.1
+    assert max(steps) <= 0.2
