@@ -17,6 +17,7 @@ from bagkit.regression.golden import (
     update_golden,
     write_failure_artefacts,
 )
+from bagkit.regression.live import check_live
 from bagkit.regression.spec import FixtureSpec, find_fixtures
 
 REPO = Path(__file__).resolve().parents[2]
@@ -41,5 +42,21 @@ def test_lockstep(spec: FixtureSpec, tmp_path: Path, request: pytest.FixtureRequ
         print(f"{spec.name}: expected outputs rewritten from lockstep: {result.output_counts}")
         return
     check = check_lockstep(spec, tmp_path)
+    if not check.passed:
+        fail_with_artefacts(check)
+
+
+# The live mode runs the fixture with the most going on (faults raising and clearing alerts).
+LIVE_FIXTURES = [s for s in FIXTURES if s.name == "faults"]
+
+
+@pytest.mark.ros
+@pytest.mark.parametrize("spec", LIVE_FIXTURES, ids=[s.name for s in LIVE_FIXTURES])
+def test_live(spec: FixtureSpec, tmp_path: Path, request: pytest.FixtureRequest) -> None:
+    """Nodes with use_sim_time, ``bagkit replay --clock`` of the inputs, ``bagkit record`` of
+    the outputs, compared with the spec's live tolerances."""
+    if request.config.getoption("--update-golden"):
+        pytest.skip("expected outputs are rewritten from lockstep only")
+    check = check_live(spec, tmp_path)
     if not check.passed:
         fail_with_artefacts(check)
