@@ -33,5 +33,9 @@ format: $(STAMP)
 bench: $(STAMP)
 	$(PY) -m benchmarks
 
+# Re-record the golden fixtures from the live system (about 2 minutes), outputs from lockstep.
+golden: $(STAMP)
+	ROS_DOMAIN_ID=$${ROS_DOMAIN_ID:-78} $(VENV)/bin/bagkit golden record
+
 clean:
 	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache
