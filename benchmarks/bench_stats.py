@@ -6,6 +6,9 @@ Peers measured in the same run, on the same bag:
   expanded into columns), then pandas min/max/mean/std: target at least 20x slower than us;
 - rosbags iterating the raw messages without decoding them: target at least 2x slower.
 Peak RSS of a summary of the 1M bag vs the 100k bag (each in a fresh subprocess): at most 1.5x.
+The general path (``bulk=False``: rosbags' deserializer plus generated field getters, what types
+with sequences of messages use) on the 100k bag vs rosbags iterating and deserializing the same
+messages: no slower.
 
 The bags are generated once (one serialized template, fields varied with numpy, written with
 bagkit's writer, zstd chunks) and cached under benchmarks/results/ (gitignored).
@@ -31,6 +34,7 @@ RESULTS = Path(__file__).resolve().parent / "results"
 T0 = 1_700_000_000_000_000_000
 SPEEDUP_VS_DATAFRAME = 20.0
 SPEEDUP_VS_RAW_ITERATION = 2.0
+GENERAL_VS_DESERIALIZE = 1.0
 RSS_RATIO_CEILING = 1.5
 SCALARS = [
     "header.stamp.sec",
@@ -123,6 +127,25 @@ def _rosbags_dataframe(bag: Path) -> None:
     assert stats.shape[1] == 39 and stats.loc["count"].iloc[0] == LARGE
 
 
+def _bagkit_general(bag: Path) -> None:
+    from bagkit.stats import summarize
+
+    summary = summarize([bag], bulk=False)
+    assert summary.topics[0].count == SMALL
+
+
+def _rosbags_deserialize(bag: Path) -> None:
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    count = 0
+    with AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+        for connection, _, raw in reader.messages():
+            reader.deserialize(raw, connection.msgtype)
+            count += 1
+    assert count == SMALL
+
+
 def _rosbags_raw(bag: Path) -> None:
     from rosbags.highlevel import AnyReader
 
@@ -177,6 +200,14 @@ def main() -> bool:
     print(f"speedup vs rosbags+dataframe: {vs_frame:6.1f}x (target >= {SPEEDUP_VS_DATAFRAME:g}x)")
     print(f"speedup vs rosbags raw:       {vs_raw:6.1f}x (target >= {SPEEDUP_VS_RAW_ITERATION:g}x)")
 
+    general = _seconds(lambda: _bagkit_general(small), runs=2)
+    deserialize = _seconds(lambda: _rosbags_deserialize(small), runs=2)
+    vs_deserialize = deserialize / general
+    print(
+        f"general path (bulk=False) {general:6.2f} s vs rosbags deserialize {deserialize:.2f} s "
+        f"on {SMALL:,} msgs: {vs_deserialize:.2f}x (target >= {GENERAL_VS_DESERIALIZE:g}x)"
+    )
+
     rss_small, rss_large = _peak_rss(small), _peak_rss(large)
     assert (rss_small["count"], rss_large["count"]) == (SMALL, LARGE)
     ratio = rss_large["peak_kib"] / rss_small["peak_kib"]
@@ -189,5 +220,6 @@ def main() -> bool:
     return (
         vs_frame >= SPEEDUP_VS_DATAFRAME
         and vs_raw >= SPEEDUP_VS_RAW_ITERATION
+        and vs_deserialize >= GENERAL_VS_DESERIALIZE
         and ratio <= RSS_RATIO_CEILING
     )
