@@ -29,8 +29,10 @@ from bagkit.stats.prefetch import prefetch
 if TYPE_CHECKING:
     import pandas as pd
 
-# Messages decoded one by one are buffered this many at a time before their moments are taken.
+# Messages decoded one by one are buffered this many at a time before their moments are taken,
+# or fewer when their pooled arrays (an image's data[]) hold more than POOLED_BATCH values.
 ROW_BATCH = 4096
+POOLED_BATCH = 1 << 20
 _INTEGER_TYPES = frozenset(
     {
         "bool",
@@ -205,6 +207,7 @@ class _TopicAccumulator:
         self.first_failure = ""
         self._rows: list[list[Any]] = []
         self._pooled_rows: list[list[Any]] = []
+        self._pooled_size = 0
         self._plans: dict[np.dtype, list[tuple[str, np.ndarray | None, np.ndarray | str]]] = {}
 
     def add_times(self, log_times: np.ndarray) -> None:
@@ -259,10 +262,12 @@ class _TopicAccumulator:
         if self.pooled:
             split = len(self.scalar_paths)
             self._rows.append(values[:split])
-            self._pooled_rows.append(values[split:])
+            pooled = values[split:]
+            self._pooled_rows.append(pooled)
+            self._pooled_size += sum(len(v) for v in pooled)
         else:
             self._rows.append(values)
-        if len(self._rows) >= ROW_BATCH:
+        if len(self._rows) >= ROW_BATCH or self._pooled_size >= POOLED_BATCH:
             self.flush()
 
     def flush(self) -> None:
@@ -276,6 +281,7 @@ class _TopicAccumulator:
             moments.add(np.concatenate(parts).reshape(-1, 1))
         self._rows.clear()
         self._pooled_rows.clear()
+        self._pooled_size = 0
 
     def fail(self, exc: Exception) -> None:
         self.failures += 1

@@ -20,6 +20,7 @@ from rosbags_oracle import (
 from bagkit.bag import BagNotFoundError
 from bagkit.stats import (
     NothingToSummarizeError,
+    StatsError,
     Summary,
     TopicStats,
     UnknownTopicError,
@@ -249,3 +250,12 @@ def test_crashed_recording_is_salvaged(tmp_path: Path, rng: np.random.Generator)
     assert any("truncated" in problem for problem in result.problems), result.problems
     # Chunks hold consecutive messages: what survives is the first `count` of them.
     _check_topic(imu, data, mask=np.arange(len(data.messages)) < imu.count)
+
+
+def test_a_topic_with_two_types_across_bags_is_an_error(
+    tmp_path: Path, rng: np.random.Generator
+) -> None:
+    imu = write_bag(tmp_path / "imu", {"/data": imu_data(rng, 5)})
+    flag = write_bag(tmp_path / "flag", {"/data": flag_data(5)})
+    with pytest.raises(StatsError, match="sensor_msgs/msg/Imu in one bag and std_msgs/msg/Bool"):
+        summarize([imu, flag])
