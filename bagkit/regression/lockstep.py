@@ -2,7 +2,7 @@
 
 No node, no executor, no DDS: each input message is deserialized with rclpy's type support,
 handed to every processor that subscribes to its topic with its log time as the clock, and the
-processors' timers fire every ``timer_period_ns`` of bag time, interleaved with the messages.
+processors' timers tick on bag time (see ``_next_tick_ns``), interleaved with the messages.
 What the processors return is serialized and written to a candidate bag with the bag time of
 the event that produced it as log and publish time. The same bag and parameters always give
 the same bytes.
@@ -110,7 +110,6 @@ def run_lockstep(
     input_topics: Sequence[str] | None = None,
     output_topics: Sequence[str] = (),
     copy_topics: Sequence[str] = (),
-    progress: Callable[[int, int], None] | None = None,
 ) -> LockstepResult:
     """Run ``golden``'s inputs through the processors of ``nodes`` into the bag ``output``.
 
@@ -124,7 +123,6 @@ def run_lockstep(
             (their type and QoS are taken from the golden bag).
         copy_topics: topics of the golden copied unchanged into the output, inputs or not
             (this is how a golden is rewritten with new expected outputs).
-        progress: called with (messages done, messages total) now and then.
 
     Raises:
         RegressionError: an input topic is missing or a processor cannot be created.
@@ -132,13 +130,13 @@ def run_lockstep(
     from rclpy.serialization import deserialize_message
 
     from bagkit.ros.types import import_message_type
+    from fusion.errors import FusionError
     from fusion.processors import create_processor
 
     started = time.perf_counter()
     try:
         processors = [create_processor(node.name, dict(node.params)) for node in nodes]
-    except Exception as exc:
-        # Processors raise their own package's errors (bad parameters, unknown node).
+    except FusionError as exc:  # an unknown node, bad parameters
         raise RegressionError(f"cannot create the processors: {exc}") from exc
     subscribed = {t for p in processors for t in p.input_topics}
     wanted = list(input_topics) if input_topics is not None else sorted(subscribed)
@@ -148,7 +146,6 @@ def run_lockstep(
             raise RegressionError(f"{golden}: no input topic(s) {', '.join(missing)}")
         classes = {t: import_message_type(reader.topics[t].type) for t in wanted}
         routes = {t: [p for p in processors if t in p.input_topics] for t in wanted}
-        total = sum(reader.topic_counts.get(t, 0) for t in wanted)
         # (next tick, processor index): ties fire in node order, deterministically. Timers
         # start with the first input and stop with the last one, as bag time does.
         timers: list[tuple[int, int]] = []
@@ -202,12 +199,8 @@ def run_lockstep(
                         out.write(topic, reply, bag_msg.log_time)
                     processor.drain_log()
                 done += 1
-                if progress is not None and done % 2000 == 0:
-                    progress(done, total)
             fire_timers(end_ns + 1)
             counts = {t: n for t, n in out.counts.items() if t not in copied}
-    if progress is not None:
-        progress(done, total)
     return LockstepResult(
         output=output,
         input_messages=done,
