@@ -199,7 +199,10 @@ def check_live(spec: FixtureSpec, workdir: Path, *, startup_timeout: float = 30.
                 str(spec.bag),
             ],
         )
-        code = replay.wait()
+        try:
+            code = replay.wait(timeout=2 * spec.duration_s + 60)
+        except subprocess.TimeoutExpired:
+            raise LiveRunError(f"bagkit replay hangs:\n{procs.log_tail('replay')}") from None
         if code != 0:
             raise LiveRunError(f"bagkit replay exited {code}:\n{procs.log_tail('replay')}")
         time.sleep(0.5)  # the last outputs are in flight
