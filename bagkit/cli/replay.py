@@ -160,6 +160,9 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
         if player.skipped_types:
             listed = ", ".join(f"{t} ({ty})" for t, ty in sorted(player.skipped_types.items()))
             warn(f"not replaying topics whose message type is not installed: {listed}")
+        if player.skipped_formats:
+            listed = ", ".join(f"{t} ({f})" for t, f in sorted(player.skipped_formats.items()))
+            warn(f"not replaying topics whose serialization format is not cdr: {listed}")
         if player.missing_topics:
             warn(f"topics not in the bag: {', '.join(player.missing_topics)}")
         report = player.play()

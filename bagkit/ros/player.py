@@ -29,6 +29,7 @@ from rclpy.qos import (
     qos_check_compatible,
 )
 from rclpy.signals import SignalHandlerOptions
+from rosgraph_msgs.msg import Clock
 
 from bagkit.bag import BagMessage, BagReader, TopicInfo
 from bagkit.ros.errors import PlayerError, SubscriberTimeoutError, UnknownMessageTypeError
@@ -101,6 +102,8 @@ class PlayReport:
     lateness: LatenessSummary
     skipped_types: dict[str, str] = field(default_factory=dict)
     """Topic -> message type that is not installed (not replayed)."""
+    skipped_formats: dict[str, str] = field(default_factory=dict)
+    """Topic -> serialization format other than ``cdr`` (not replayed)."""
     missing_topics: list[str] = field(default_factory=list)
     """Topics asked for with ``topics`` that the bag does not have."""
     problems: list[str] = field(default_factory=list)
@@ -223,6 +226,7 @@ class Player:
         self._clock: _Output | None = None
         self._node_created = 0.0
         self.skipped_types: dict[str, str] = {}
+        self.skipped_formats: dict[str, str] = {}
         self.missing_topics: list[str] = []
 
     def __enter__(self) -> Player:
@@ -285,8 +289,6 @@ class Player:
             publisher = node.create_publisher(message_class, name, qos)
             self._outputs[info.name] = _Output(info, publisher, publisher.handle.publish_raw)
         if self.clock_hz is not None:
-            from rosgraph_msgs.msg import Clock
-
             # What rclcpp's ClockQoS offers and what every use_sim_time node subscribes with.
             clock_qos = QoSProfile(
                 history=HistoryPolicy.KEEP_LAST,
@@ -315,6 +317,9 @@ class Player:
                 continue
             if self.clock_hz is not None and name == CLOCK_TOPIC:
                 continue
+            if info.serialization_format != "cdr":
+                self.skipped_formats[name] = info.serialization_format
+                continue
             try:
                 message_class = import_message_type(info.type)
             except UnknownMessageTypeError:
@@ -322,12 +327,19 @@ class Player:
                 continue
             selected.append((info, message_class))
         if not selected:
-            reason = (
-                f"the types of every selected topic are not installed: "
-                f"{', '.join(sorted(set(self.skipped_types.values())))}"
-                if self.skipped_types
-                else "no topic of the bag matches the topic selection"
-            )
+            if self.skipped_types or self.skipped_formats:
+                reason = "no selected topic can be published: " + "; ".join(
+                    [
+                        f"{name}: {type_name} not installed"
+                        for name, type_name in sorted(self.skipped_types.items())
+                    ]
+                    + [
+                        f"{name}: serialization format {fmt!r} is not cdr"
+                        for name, fmt in sorted(self.skipped_formats.items())
+                    ]
+                )
+            else:
+                reason = "no topic of the bag matches the topic selection"
             raise PlayerError(f"nothing to replay in {self.bag_path}: {reason}")
         return selected
 
@@ -371,6 +383,7 @@ class Player:
             rate=self.rate,
             lateness=LatenessSummary.from_samples(lateness),
             skipped_types=dict(self.skipped_types),
+            skipped_formats=dict(self.skipped_formats),
             missing_topics=list(self.missing_topics),
             problems=list(dict.fromkeys(self._reader.problems)),
             interrupted=interrupted,

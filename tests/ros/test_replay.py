@@ -378,20 +378,25 @@ def test_cli_loop_until_ctrl_c(
     assert "passes" in stdout  # the report is printed even when interrupted
 
 
-@pytest.mark.parametrize("case", ["missing", "not a bag", "unknown types"])
-def test_cli_bad_input_is_one_clear_line(tmp_path: Path, case: str) -> None:
+@pytest.mark.parametrize("case", ["missing", "not a bag", "unknown types", "not cdr"])
+def test_cli_bad_input_is_one_clear_line(tmp_path: Path, interop_dir: Path, case: str) -> None:
     if case == "missing":
         path, expected = tmp_path / "nope", "no such file"
     elif case == "not a bag":
         path = tmp_path / "notes.txt"
         path.write_text("hello\n")
         expected = "not"
-    else:
+    elif case == "unknown types":
         path = tmp_path / "exotic"
         with BagWriter(path) as writer:
             writer.add_topic(TopicInfo("/exotic", "exotic_msgs/msg/Thing"), definition="int32 v\n")
             writer.write("/exotic", b"\x00\x01\x00\x00\x07\x00\x00\x00", log_time=BAG_START_NS)
         expected = "exotic_msgs/msg/Thing"
+    elif case == "not cdr":
+        path = interop_dir / "rosbag2_tests/resources/mcap/wrong_rmw_test"
+        expected = "'wrong_format' is not cdr"
+    else:
+        raise AssertionError(case)
     result = _bagkit("replay", str(path), "--no-wait-for-subscribers")
     assert result.returncode == 2
     lines = result.stderr.strip().splitlines()
