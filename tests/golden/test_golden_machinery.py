@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -70,3 +72,43 @@ def test_changed_constant_fails_with_report_and_plots(fixture_dir: Path, tmp_pat
     report = json.loads((tmp_path / "failure" / "report.json").read_text())
     altitude = next(t for t in report["topics"] if t["topic"] == "/fusion/baro_altitude")
     assert "pose.pose.position.z" in altitude["failed_fields"]
+
+
+def test_cli_check_exit_codes_and_failure_folder(fixture_dir: Path, tmp_path: Path) -> None:
+    bagkit = str(Path(sys.executable).with_name("bagkit"))
+    failures = tmp_path / "failures"
+    ok = subprocess.run(
+        [bagkit, "golden", "check", str(fixture_dir), "--failures", str(failures)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert ok.returncode == 0, ok.stdout + ok.stderr
+    assert "sim (lockstep): pass" in ok.stdout and not failures.exists()
+
+    spec_file = fixture_dir / "spec.yaml"
+    spec_data = yaml.safe_load(spec_file.read_text())
+    spec_data["nodes"]["data_logger"] = {"summary_period": 4.0}
+    spec_file.write_text(yaml.safe_dump(spec_data))
+    changed = subprocess.run(
+        [bagkit, "golden", "check", str(fixture_dir), "--failures", str(failures)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert changed.returncode == 1, changed.stdout + changed.stderr
+    assert "/logger/summary" in changed.stdout
+    report = json.loads((failures / "sim-lockstep" / "report.json").read_text())
+    (summary,) = [t for t in report["topics"] if t["topic"] == "/logger/summary"]
+    assert summary["missing"] > 0 and summary["extra"] > 0
+
+    bad = subprocess.run(
+        [bagkit, "golden", "check", str(tmp_path / "nowhere")],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert bad.returncode == 2 and bad.stderr.startswith("error:")
