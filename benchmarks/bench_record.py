@@ -7,7 +7,7 @@ bytes) sends for a fixed time to one subscriber process at a time:
 - ``recorder``: bagkit's Recorder, exactly as ``bagkit record`` runs it.
 Each subscriber reports messages, bytes and the span between the middleware receive times of
 its first and last message; every subscription is reliable keep-all, as the recorder's is for
-reliable publishers. Count and recorder runs alternate, best of two each (the machine is
+reliable publishers. Count and recorder runs alternate, best of three each (the machine is
 shared). Targets:
 - sensor_msgs/msg/Imu flood (>= 10 s): recorder rate >= 90% of ``count``, 0 lost (the bag
   holds every published message); the ratio to ``naive`` is printed;
@@ -41,7 +41,7 @@ RSS_RATE_HZ = 2000.0
 RATE_FLOOR = 0.9
 RSS_CEILING = 1.5
 READY_TIMEOUT_S = 30.0
-ROUNDS = 2
+ROUNDS = 3
 
 
 def _message_type(kind: str) -> Any:
@@ -80,6 +80,7 @@ def _init(name: str) -> tuple[Any, Any]:
 def publish(kind: str, seconds: float, rate_hz: float) -> None:
     """Flood (or pace at ``rate_hz``) TOPIC for ``seconds`` once matched; print the count."""
     from rclpy.duration import Duration
+    from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
     context, node = _init("bench_record_publisher")
@@ -97,15 +98,22 @@ def publish(kind: str, seconds: float, rate_hz: float) -> None:
     end = start + seconds
     period = 1.0 / rate_hz if rate_hz else 0.0
     publish_raw = publisher.publish
+    blocked = 0
     while (now := time.monotonic()) < end:
-        publish_raw(payload)
+        try:
+            publish_raw(payload)
+        except _rclpy.RCLError:
+            # Keep-all history full for longer than the middleware's blocking time: this is
+            # the flow control of a reliable keep-all flood; publish the same message again.
+            blocked += 1
+            continue
         sent += 1
         if period:
             delay = start + sent * period - now
             if delay > 0:
                 time.sleep(delay)
     publisher.wait_for_all_acked(Duration(seconds=30))
-    print(json.dumps({"sent": sent, "bytes": sent * len(payload)}), flush=True)
+    print(json.dumps({"sent": sent, "bytes": sent * len(payload), "blocked": blocked}), flush=True)
     node.destroy_node()
     context.try_shutdown()
 

@@ -85,10 +85,11 @@ class SequenceTracker:
     the count be off by a few (an estimate, never a silent zero).
     """
 
-    __slots__ = ("_last", "publishers")
+    __slots__ = ("_hot", "_last", "publishers")
 
     def __init__(self) -> None:
         self._last: list[int] = []
+        self._hot = 0  # the stream that advanced last: where the next number most likely goes
         self.publishers = 0
 
     def observe(self, sequence: int, matched_publishers: Callable[[], int]) -> int:
@@ -97,21 +98,28 @@ class SequenceTracker:
         ``matched_publishers`` is asked only when the number does not continue a stream.
         """
         last = self._last
+        hot = self._hot
+        if last and last[hot] + 1 == sequence:
+            last[hot] = sequence
+            return 0
         for i, previous in enumerate(last):
             if sequence == previous + 1:
                 last[i] = sequence
+                self._hot = i
                 return 0
         if len(last) < max(1, matched_publishers()):
             last.append(sequence)
+            self._hot = len(last) - 1
             self.publishers = max(self.publishers, len(last))
             return 0
         below = [(previous, i) for i, previous in enumerate(last) if previous < sequence]
         if not below:
             # Restarted publisher (numbers start again), or a duplicate: nothing lost.
-            last[last.index(max(last))] = sequence
+            self._hot = last.index(max(last))
+            last[self._hot] = sequence
             return 0
-        previous, i = max(below)
-        last[i] = sequence
+        previous, self._hot = max(below)
+        last[self._hot] = sequence
         return sequence - previous - 1
 
 
@@ -231,8 +239,10 @@ class _Topic:
     tracker: SequenceTracker = field(default_factory=SequenceTracker)
 
 
-# Entries of one drained batch: (topic, serialized message, rmw message info).
-_Entry = tuple[_Topic, bytes, dict[str, Any]]
+# What take_message(raw=True) returns: the serialized message and the rmw message info.
+_Taken = tuple[bytes, dict[str, Any]]
+# One drained batch: the messages taken from each ready topic.
+_Batch = list[tuple[_Topic, list[_Taken]]]
 
 
 class _Queue:
@@ -248,13 +258,13 @@ class _Queue:
         self._max_bytes = max_bytes
         self._ready = threading.Condition()
 
-    def put_batch(self, sim_time: int | None, entries: list[_Entry], nbytes: int) -> bool:
+    def put_batch(self, sim_time: int | None, batch: _Batch, nbytes: int) -> bool:
         with self._ready:
             if self._bytes + nbytes > self._max_bytes and self._bytes:
-                item: tuple[str, Any, int] = ("dropped", entries, 0)
+                item: tuple[str, Any, int] = ("dropped", batch, 0)
                 accepted = False
             else:
-                item = ("batch", (sim_time, entries), nbytes)
+                item = ("batch", (sim_time, batch), nbytes)
                 self._bytes += nbytes
                 accepted = True
             self._items.append(item)
@@ -420,6 +430,22 @@ class Recorder:
             )
         except BagError as exc:
             raise RecorderOptionsError(str(exc)) from None
+        try:
+            self._start_node()
+        except BaseException:
+            self._bag.close()
+            self._shutdown_node()
+            raise
+        self._started = time.monotonic()
+        self._discover()
+        self._threads = [
+            threading.Thread(target=self._take_loop, name="bagkit-record-take", daemon=True),
+            threading.Thread(target=self._write_loop, name="bagkit-record-write", daemon=True),
+        ]
+        for thread in self._threads:
+            thread.start()
+
+    def _start_node(self) -> None:
         context = self._context
         if context is None:
             context = Context()
@@ -443,14 +469,14 @@ class Recorder:
                 QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT),
                 raw=True,
             )
-        self._started = time.monotonic()
-        self._discover()
-        self._threads = [
-            threading.Thread(target=self._take_loop, name="bagkit-record-take", daemon=True),
-            threading.Thread(target=self._write_loop, name="bagkit-record-write", daemon=True),
-        ]
-        for thread in self._threads:
-            thread.start()
+
+    def _shutdown_node(self) -> None:
+        if self._node is not None:
+            self._node.destroy_node()
+            self._node = None
+        if self._own_context is not None:
+            self._own_context.try_shutdown()
+            self._own_context = None
 
     def stop(self) -> RecordReport:
         """Stop taking messages, write what was taken, finish the bag; return the report.
@@ -463,12 +489,7 @@ class Recorder:
         for thread in self._threads:
             thread.join()
         self._threads = []
-        if self._node is not None:
-            self._node.destroy_node()
-            self._node = None
-        if self._own_context is not None:
-            self._own_context.try_shutdown()
-            self._own_context = None
+        self._shutdown_node()
         self._stopped.set()
         return self.report
 
@@ -523,7 +544,7 @@ class Recorder:
             if clock is not None:
                 while (taken := clock.handle.take_message(clock.msg_type, True)) is not None:
                     self._sim_time = _clock_ns(taken[0])
-            batch: list[_Entry] = []
+            batch: _Batch = []
             nbytes = 0
             for pointer in ready:
                 topic = by_pointer.get(pointer)
@@ -531,12 +552,14 @@ class Recorder:
                     continue
                 take = topic.subscription.handle.take_message
                 message_type = topic.message_type
+                messages: list[_Taken] = []
                 for _ in range(TAKE_BURST):
                     taken = take(message_type, True)
                     if taken is None:
                         break
-                    batch.append((topic, taken[0], taken[1]))
+                    messages.append(taken)
                     nbytes += len(taken[0])
+                batch.append((topic, messages))
             if batch:
                 queue.put_batch(self._sim_time if clock is not None else None, batch, nbytes)
             if time.monotonic() >= next_poll:
@@ -552,14 +575,14 @@ class Recorder:
     def _drain(self, topic: _Topic) -> None:
         """Take everything waiting in ``topic``'s subscription and queue it."""
         take = topic.subscription.handle.take_message
-        entries: list[_Entry] = []
+        messages: list[_Taken] = []
         while (taken := take(topic.message_type, True)) is not None:
-            entries.append((topic, taken[0], taken[1]))
-        if entries:
+            messages.append(taken)
+        if messages:
             self._queue.put_batch(
                 self._sim_time if self._clock is not None else None,
-                entries,
-                sum(len(e[1]) for e in entries),
+                [(topic, messages)],
+                sum(len(data) for data, _info in messages),
             )
 
     def _discover(self) -> None:
@@ -642,6 +665,17 @@ class Recorder:
     def _write_loop(self) -> None:
         bag = self._bag
         assert bag is not None
+        try:
+            failed = self._write_until_end(bag)
+        except Exception as exc:  # a bug must not leave the bag unfinished
+            self._errors.append(f"recording stopped: {exc!r}")
+            self._stopping.set()
+            failed = True
+        self._finish(bag, failed)
+        self._stopped.set()
+
+    def _write_until_end(self, bag: BagWriter) -> bool:
+        """Write queued messages until the take thread ends; return whether writing failed."""
         failed = False
         last_flush = time.monotonic()
         while True:
@@ -668,45 +702,69 @@ class Recorder:
                     failed = failed or self._write_failed(exc)
                 continue
             if kind == "dropped":
-                for topic, _data, message_info in payload:
-                    self._account(topic, message_info)
-                    topic.record.overflow += 1
+                for topic, messages in payload:
+                    self._account(topic, messages)
+                    topic.record.overflow += len(messages)
                 continue
-            sim_time, entries = payload
-            for topic, data, message_info in entries:
-                self._account(topic, message_info)
-                record = topic.record
+            sim_time, batch = payload
+            for topic, messages in batch:
                 if failed:
-                    record.write_failed += 1
-                    continue
-                log_time = message_info["received_timestamp"] if sim_time is None else sim_time
-                try:
-                    bag.write(
-                        record.topic,
-                        data,
-                        log_time=log_time,
-                        publish_time=message_info["source_timestamp"],
-                        sequence=message_info["publication_sequence_number"] or 0,
-                    )
-                except BagError as exc:
-                    failed = self._write_failed(exc)
-                    record.write_failed += 1
-                    continue
-                record.messages += 1
-                record.bytes += len(data)
-                if not record.first_ns:
-                    record.first_ns = log_time
-                record.last_ns = log_time
-        self._finish(bag, failed)
-        self._stopped.set()
+                    self._account(topic, messages)
+                    topic.record.write_failed += len(messages)
+                else:
+                    failed = self._write_messages(bag, topic, messages, sim_time)
+        return failed
 
-    def _account(self, topic: _Topic, message_info: Mapping[str, Any]) -> None:
-        sequence = message_info["publication_sequence_number"]
-        if sequence:
-            topic.record.gaps += topic.tracker.observe(
-                sequence, topic.subscription.handle.get_publisher_count
-            )
-            topic.record.publishers = topic.tracker.publishers
+    def _write_messages(
+        self, bag: BagWriter, topic: _Topic, messages: list[_Taken], sim_time: int | None
+    ) -> bool:
+        """Write one topic's messages of a batch; return whether writing failed."""
+        # The per-message path of the recorder: locals only, counts updated once per batch.
+        record = topic.record
+        name = record.topic
+        write = bag.write
+        observe = topic.tracker.observe
+        matched = topic.subscription.handle.get_publisher_count
+        gaps = written = nbytes = log_time = 0
+        failed = False
+        try:
+            for data, info in messages:
+                sequence = info["publication_sequence_number"] or 0
+                if sequence:
+                    gaps += observe(sequence, matched)
+                log_time = info["received_timestamp"] if sim_time is None else sim_time
+                write(
+                    name,
+                    data,
+                    log_time=log_time,
+                    publish_time=info["source_timestamp"],
+                    sequence=sequence,
+                )
+                written += 1
+                nbytes += len(data)
+        except BagError as exc:
+            failed = self._write_failed(exc)
+            self._account(topic, messages[written + 1 :])
+            record.write_failed += len(messages) - written
+        if written:
+            if not record.first_ns:
+                first = messages[0][1]["received_timestamp"]
+                record.first_ns = first if sim_time is None else sim_time
+            record.last_ns = log_time
+        record.messages += written
+        record.bytes += nbytes
+        record.gaps += gaps
+        record.publishers = topic.tracker.publishers
+        return failed
+
+    def _account(self, topic: _Topic, messages: list[_Taken]) -> None:
+        """Count sequence gaps of messages that are not written."""
+        matched = topic.subscription.handle.get_publisher_count
+        for _data, info in messages:
+            sequence = info["publication_sequence_number"]
+            if sequence:
+                topic.record.gaps += topic.tracker.observe(sequence, matched)
+        topic.record.publishers = topic.tracker.publishers
 
     def _write_failed(self, exc: BagError) -> bool:
         self._errors.append(str(exc))
