@@ -81,12 +81,13 @@ class Launcher:
         self.stop_timeout = stop_timeout
         self.nodes: list[NodeProcess] = []
         self._stop = threading.Event()
-        self._signal: int | None = None
         self._write_lock = threading.Lock()
         self._colour = self.output.isatty() and "NO_COLOR" not in os.environ
 
     def run(self) -> int:
         """Run until SIGINT/SIGTERM (exit 130) or until a node exits.
+
+        A second SIGINT/SIGTERM while the nodes stop kills them at once.
 
         Raises:
             NodeFailedError: a node exited on its own or could not be stopped.
@@ -109,7 +110,11 @@ class Launcher:
         return EXIT_INTERRUPTED
 
     def _on_signal(self, signum: int, frame: FrameType | None) -> None:
-        self._signal = signum
+        if self._stop.is_set():
+            # A second Ctrl-C while the nodes shut down: do not make the user wait.
+            for node in self.nodes:
+                if node.process.poll() is None:
+                    os.killpg(node.process.pid, signal.SIGKILL)
         self._stop.set()
 
     def _start(self, name: str, index: int) -> None:
