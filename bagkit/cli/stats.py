@@ -6,10 +6,12 @@ import csv
 import math
 import sys
 import time
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import typer
+from rich.measure import Measurement
 from rich.progress import BarColumn, Progress, TaskID, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
@@ -77,6 +79,7 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
     bags: list[Path] = typer.Argument(
         ...,
         help="Bag directories or single .mcap/.db3 files; several are pooled.",
+        metavar="BAG",
         show_default=False,
     ),
     topics: list[str] | None = typer.Option(
@@ -156,18 +159,25 @@ def _json_safe(value: object) -> object:
     return value
 
 
+def _utc(ns: int) -> str:
+    stamp = datetime.fromtimestamp(ns / 1e9, tz=UTC).isoformat(timespec="milliseconds")
+    return stamp.replace("+00:00", "Z")
+
+
 def _number(value: float | int | None) -> str:
+    """Six significant digits, more for large values so that a stamp's seconds stay readable."""
     if value is None:
         return "-"
-    if isinstance(value, int):
+    if isinstance(value, int) or not math.isfinite(value):
         return str(value)
-    return f"{value:.6g}"
+    integer_digits = len(str(int(abs(value)))) if abs(value) >= 1 else 0
+    return f"{value:.{min(15, max(6, integer_digits + 3))}g}"
 
 
 def _print_tables(result: Summary) -> None:
     console.print(
-        f"[bold]{', '.join(result.bags)}[/]: {result.duration_s:.3f} s "
-        f"({result.start_ns} .. {result.end_ns} ns), {len(result.topics)} topics",
+        f"[bold]{', '.join(result.bags)}[/]: {result.duration_s:.3f} s, "
+        f"{_utc(result.start_ns)} .. {_utc(result.end_ns)}, {len(result.topics)} topics",
         highlight=False,
         soft_wrap=True,
     )
@@ -181,8 +191,10 @@ def _print_tables(result: Summary) -> None:
         if not topic.fields:
             continue
         table = Table(show_edge=False, box=None, header_style="dim")
-        for column in ("field", "count", "nan", "min", "max", "mean", "std"):
-            table.add_column(column, justify="left" if column == "field" else "right")
+        # Field names are never cut: they are what scripts and --fields refer to.
+        table.add_column("field", no_wrap=True, min_width=max(len(f.field) for f in topic.fields))
+        for column in ("count", "nan", "min", "max", "mean", "std"):
+            table.add_column(column, justify="right", no_wrap=True)
         for f in topic.fields:
             table.add_row(
                 f.field,
@@ -193,7 +205,14 @@ def _print_tables(result: Summary) -> None:
                 _number(f.mean),
                 _number(f.std),
             )
-        console.print(table)
+        # Never squeeze numbers into ellipses: a wide table is printed wider than the console.
+        natural = Measurement.get(console, console.options.update(width=10_000), table).maximum
+        width = console.width
+        console.width = max(width, natural)
+        try:
+            console.print(table)
+        finally:
+            console.width = width
 
 
 def _print_csv(result: Summary) -> None:
