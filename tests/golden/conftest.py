@@ -9,26 +9,20 @@ from rclpy.serialization import serialize_message
 
 from bagkit.bag import BagWriter, TopicInfo
 from bagkit.ros.types import message_type_name
-from fusion.processors import create_processor
-
-START_NS = 1_700_000_000_000_000_000
+from fusion.simulate import simulate
 
 
-def simulate_inputs(path: Path, duration_s: float, **params: object) -> Path:
-    """A bag of sensor messages from the sensor_publisher processor driven on its own timer,
-    received 0.3 ms after publication: the inputs of a flight without ROS in the loop."""
-    publisher = create_processor("sensor_publisher", params)
-    assert publisher.timer_period_ns is not None
+def simulate_inputs(path: Path, duration_s: float) -> Path:
+    """A bag of the sensor_publisher's messages (fusion.simulate, no ROS), received 0.3 ms
+    after publication: the inputs of a flight with the default fault schedule."""
     added: set[str] = set()
     with BagWriter(path) as bag:
-        now = START_NS
-        while now <= START_NS + duration_s * 1e9:
-            for topic, msg in publisher.on_timer(now):
-                if topic not in added:
-                    bag.add_topic(TopicInfo(topic, message_type_name(msg)))
-                    added.add(topic)
-                bag.write(topic, serialize_message(msg), log_time=now + 300_000, publish_time=now)
-            now += publisher.timer_period_ns
+        for out in simulate(duration_s, nodes=["sensor_publisher"]):
+            if out.topic not in added:
+                bag.add_topic(TopicInfo(out.topic, message_type_name(out.msg)))
+                added.add(out.topic)
+            data = serialize_message(out.msg)
+            bag.write(out.topic, data, log_time=out.now_ns + 300_000, publish_time=out.now_ns)
     return path
 
 
