@@ -175,8 +175,9 @@ class SensorPublisher(ProcessorBase):
             if now_ns < due - tolerance:
                 continue
             period = self.periods_ns[name]
-            # After a jump of the clock (sim time), resume the schedule from now.
-            self._next_due_ns[name] = due + period if due + period > now_ns - period else now_ns
+            # Late by more than a period (a starved timer, a jump of the sim clock): skip the
+            # missed samples but stay in phase with the original schedule.
+            self._next_due_ns[name] = due + period * max(1, (now_ns - due) // period + 1)
             dt = (now_ns - self._last_sample_ns.get(name, now_ns - period)) / 1e9
             self._last_sample_ns[name] = now_ns
             out += self._sample(name, state, t, now_ns, max(dt, 1e-9))
