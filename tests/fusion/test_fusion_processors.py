@@ -160,3 +160,21 @@ def test_rosbags_messages_give_the_same_outputs_as_rclpy_messages() -> None:
             outputs.append([(topic, repr(msg)) for topic, msg in published])
         assert outputs[0] == outputs[1], name
         assert len(outputs[0]) > 0
+
+
+def test_publisher_schedule_survives_late_ticks_and_clock_jumps() -> None:
+    publisher = create_processor("sensor_publisher", {"faults": ""})
+    ms = 1_000_000
+    published = {}
+    for tick_ms in (0, 100, 200, 455, 500, 600, 1000, 1100, 2650, 2700, 2800, 3000):
+        outputs = publisher.on_timer(START_NS + tick_ms * ms)
+        published[tick_ms] = {topic for topic, _ in outputs} - {topics.TRUTH}
+    slow = {topics.GPS, topics.TEMPERATURE, topics.PRESSURE}
+    assert published[0] == {topics.IMU} | slow
+    assert published[455] == {topics.IMU}  # late, but only one IMU sample for 300-455
+    assert published[500] == {topics.IMU, topics.TEMPERATURE, topics.PRESSURE}
+    assert published[1000] == {topics.IMU} | slow
+    # A jump over 1.5 s: one sample each now, then back in phase with the original schedule.
+    assert published[2650] == {topics.IMU} | slow
+    assert published[2700] == published[2800] == {topics.IMU}
+    assert published[3000] == {topics.IMU} | slow
