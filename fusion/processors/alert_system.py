@@ -113,7 +113,9 @@ class AlertSystem(ProcessorBase):
 
     def on_message(self, topic: str, msg: Any, now_ns: int) -> list[Output]:
         """Check one sample against its sensor's rules."""
-        name = _SENSOR_BY_TOPIC[topic]
+        name = _SENSOR_BY_TOPIC.get(topic)
+        if name is None:
+            return []
         sensor = SENSORS[name]
         changed = self.monitor.on_sample(
             name,

@@ -50,7 +50,10 @@ class Processor(Protocol):
         ...
 
     def on_message(self, topic: str, msg: Any, now_ns: int) -> list[Output]:
-        """Handle one received message; return ``(topic, message)`` pairs to publish."""
+        """Handle one received message; return ``(topic, message)`` pairs to publish.
+
+        Topics not in ``input_topics`` are ignored.
+        """
         ...
 
     def on_timer(self, now_ns: int) -> list[Output]:

@@ -39,6 +39,8 @@ class DataLogger(ProcessorBase):
 
     def on_message(self, topic: str, msg: Any, now_ns: int) -> list[Output]:
         """Add the message's numeric fields to the topic's statistics."""
+        if topic not in self.stats:
+            return []
         values = numeric_fields(msg)
         self.stats[topic].add(values)
         fields = " ".join(f"{name}={value:.6g}" for name, value in values.items())

@@ -178,3 +178,9 @@ def test_publisher_schedule_survives_late_ticks_and_clock_jumps() -> None:
     assert published[2650] == {topics.IMU} | slow
     assert published[2700] == published[2800] == {topics.IMU}
     assert published[3000] == {topics.IMU} | slow
+
+
+def test_topics_outside_input_topics_are_ignored() -> None:
+    imu = run_loop(0.15, nodes=("sensor_publisher",)).messages(topics.IMU)[0]
+    for name in NODE_NAMES:
+        assert create_processor(name).on_message("/camera/image", imu, START_NS) == []
