@@ -1,4 +1,4 @@
-"""The verdict of `fusion check` from measured figures (the measuring itself runs in the live test)."""
+"""The verdict of `fusion check` from measured figures (the live test does the measuring)."""
 
 from __future__ import annotations
 
