@@ -393,12 +393,12 @@ class _Run:
             if self.start_ns is not None or self.end_ns is not None:
                 keep = self.in_window(log_times)
                 entries, log_times = entries[keep], log_times[keep]
-            if not len(entries):
+            accumulator.add_times(log_times)
+            if not len(entries) or not accumulator.leaves:  # counted; no field to decode
                 continue
             offsets = entries["offset"].astype(np.int64)
             starts = offsets + MESSAGE_DATA_OFFSET
             lengths = read_u64(buf, offsets + 1).astype(np.int64) - MESSAGE_PREFIX.size
-            accumulator.add_times(log_times)
             if accumulator.layout is not None:
                 groups, leftover = decode_bulk(buf, starts, lengths, accumulator.layout)
                 for group in groups:
@@ -489,7 +489,8 @@ def summarize(
                 for message in reader.messages(wanted, start_ns, end_ns):
                     accumulator = wanted[message.topic]
                     accumulator.add_times(np.array([message.log_time]))
-                    run.add_payload(accumulator, message.data)
+                    if accumulator.leaves:
+                        run.add_payload(accumulator, message.data)
                     done += 1
                     if progress is not None and done % ROW_BATCH == 0:
                         progress(done, total)

@@ -58,8 +58,9 @@ def _check_topic(stats: TopicStats, data: TopicData, mask: np.ndarray | None = N
             assert f.std is None
 
 
-@pytest.fixture
-def topics(rng: np.random.Generator) -> dict[str, TopicData]:
+@pytest.fixture(scope="module")
+def topics() -> dict[str, TopicData]:
+    rng = np.random.default_rng(5)
     # 4000 Imu messages fill more than one 1 MiB chunk of rosbags' writer.
     return {
         "/imu/data": imu_data(rng, 4000),
@@ -69,9 +70,10 @@ def topics(rng: np.random.Generator) -> dict[str, TopicData]:
     }
 
 
-@pytest.fixture
-def bag(tmp_path: Path, topics: dict[str, TopicData]) -> Path:
-    return write_bag(tmp_path / "bag", topics)
+@pytest.fixture(scope="module")
+def bag(tmp_path_factory: pytest.TempPathFactory, topics: dict[str, TopicData]) -> Path:
+    """Written once per module: the tests only read it."""
+    return write_bag(tmp_path_factory.mktemp("stats") / "bag", topics)
 
 
 def test_every_field_matches_numpy(bag: Path, topics: dict[str, TopicData]) -> None:
