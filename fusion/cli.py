@@ -72,6 +72,8 @@ def run(
     use_sim_time: bool = typer.Option(False, "--use-sim-time", help="use_sim_time:=true."),
 ) -> None:
     _check_nodes([node])
+    if params is not None:
+        validate_parameter_file(params, [node])
     from fusion.nodes.shell import run_node
 
     ros_args = list(ctx.args)
