@@ -268,3 +268,26 @@ def test_generated_flattener_equals_a_plain_recursive_walk() -> None:
                 assert list(ours) == list(reference), typename
                 for path, value in ours.items():
                     assert _flat_equal(value, reference[path]), (typename, path)
+
+
+def test_bulk_decoding_of_evenly_spaced_messages_reads_in_place() -> None:
+    """One topic alone in a chunk, same frame_id: a strided view, no copy, same values."""
+    typename = "sensor_msgs/msg/FluidPressure"
+    layout = CdrLayout.of(JAZZY, typename)
+    assert layout is not None
+    rng = np.random.default_rng(8)
+    messages = []
+    for _ in range(50):
+        msg = random_message(JAZZY, typename, rng)
+        msg.header.frame_id = "baro"  # type: ignore[attr-defined]
+        messages.append(msg)
+    payloads = [bytes(JAZZY.serialize_cdr(m, typename)) for m in messages]
+    record = len(payloads[0]) + 31  # as in a chunk: a fixed-size record header before each
+    buffer = np.frombuffer(b"".join(bytes(31) + p for p in payloads), np.uint8)
+    starts = np.arange(len(payloads), dtype=np.int64) * record + 31
+    lengths = np.full(len(payloads), len(payloads[0]), dtype=np.int64)
+    (group,), leftover = decode_bulk(buffer, starts, lengths, layout)
+    assert len(leftover) == 0 and np.shares_memory(group.values, buffer)
+    pressure = str(next(i for i, s in enumerate(layout.slots) if s.path == "fluid_pressure"))
+    expected = [m.fluid_pressure for m in messages]  # type: ignore[attr-defined]
+    assert _same(group.values[pressure], expected)
