@@ -34,6 +34,11 @@ def iter_samples(bag: BagReader, topic: str, types: MessageTypes) -> Iterator[Sa
         raise CompareError(f"{topic}: {exc}") from exc
 
 
+def _raw_samples(bag: BagReader, topic: str) -> list[Sample]:
+    """Messages that cannot be decoded, as their serialized bytes (field ``~cdr``)."""
+    return [Sample(m.log_time, m.publish_time, {"~cdr": m.data}) for m in bag.messages([topic])]
+
+
 def events_of(samples: list[Sample]) -> list[Event]:
     """The statuses of DiagnosticArray samples as events at the array's header stamp."""
     events: list[Event] = []
@@ -119,8 +124,13 @@ def compare_bags(
                 result.divergences = [Divergence("type", topic, 0, "", g_info.type, c_info.type)]
                 results.append(result)
                 continue
-            g_samples = list(iter_samples(g_bag, topic, g_types)) if g_info else []
-            c_samples = list(iter_samples(c_bag, topic, c_types)) if c_info else []
+            try:
+                g_samples = list(iter_samples(g_bag, topic, g_types)) if g_info else []
+                c_samples = list(iter_samples(c_bag, topic, c_types)) if c_info else []
+            except CompareError as exc:
+                warnings.append(f"{exc}; compared byte for byte")
+                g_samples = _raw_samples(g_bag, topic) if g_info else []
+                c_samples = _raw_samples(c_bag, topic) if c_info else []
             msg_type = canonical_type_name(info.type)
             if topic in options.event_topics and msg_type == EVENT_TYPE:
                 result = compare_events(
