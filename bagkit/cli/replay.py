@@ -225,10 +225,12 @@ def _print_report(report: PlayReport) -> None:
         + (f", {report.loops} passes" if report.loops > 1 else "")
         + ")",
         highlight=False,
+        soft_wrap=True,
     )
     console.print(
         f"timing error: p50 {lateness.p50_ms:.3f} ms, p99 {lateness.p99_ms:.3f} ms, "
         f"max {lateness.max_ms:.3f} ms, {lateness.late} messages late "
         f"(> {LATE_THRESHOLD_NS / 1e6:g} ms)",
         highlight=False,
+        soft_wrap=True,
     )

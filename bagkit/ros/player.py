@@ -354,6 +354,8 @@ class Player:
         """
         if self._reader is None:
             raise PlayerError("the player is not open: use it as a context manager")
+        for output in self._outputs.values():
+            output.count = 0
         lateness: list[int] = []
         bag_ns = 0
         passes = 0

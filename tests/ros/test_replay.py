@@ -413,8 +413,9 @@ def test_cli_skips_unknown_types_with_one_warning(
     result = _bagkit("replay", str(bag), "--rate", "10", *CLI_KNOWN, "--wait-for", "/replay/fast")
     assert result.returncode == 0, result.stderr
     warnings = [line for line in result.stderr.splitlines() if "warning" in line]
-    assert len(warnings) == 1 and "/exotic (exotic_msgs/msg/Thing)" in warnings[0]
-    assert len(listener.wait_for_count(len(expected))) == len(expected)
+    assert len(warnings) == 1, result.stderr
+    assert "/exotic (exotic_msgs/msg/Thing)" in warnings[0]
+    assert len(listener.wait_for_count(len(expected))) == len(expected), result.stdout
 
 
 def test_cli_truncated_bag_replays_what_is_intact(
