@@ -476,6 +476,8 @@ def summarize(
                 accumulator = run.accumulator(name, info.type, info.serialization_format)
                 if accumulator is not None:
                     wanted[name] = accumulator
+                else:  # skipped: its messages are not read
+                    total -= reader.topic_counts.get(name, 0)
             if not wanted:
                 continue
             if reader.storage == "mcap":

@@ -261,3 +261,12 @@ def test_a_topic_with_two_types_across_bags_is_an_error(
     flag = write_bag(tmp_path / "flag", {"/data": flag_data(5)})
     with pytest.raises(StatsError, match="sensor_msgs/msg/Imu in one bag and std_msgs/msg/Bool"):
         summarize([imu, flag])
+
+
+def test_progress_counts_up_to_the_messages_read(bag: Path, topics: dict[str, TopicData]) -> None:
+    calls: list[tuple[int, int]] = []
+    summarize([bag], progress=lambda done, total: calls.append((done, total)))
+    total = sum(len(data.messages) for data in topics.values())
+    assert len(calls) > 1 and {t for _, t in calls} == {total}
+    done = [d for d, _ in calls]
+    assert done == sorted(done) and done[-1] == total
