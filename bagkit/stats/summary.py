@@ -534,7 +534,9 @@ def _finish(run: _Run, paths: list[str]) -> Summary:
         if run.skipped and not run.accumulators:
             reasons = "; ".join(f"{t}: {why}" for t, why in sorted(run.skipped.items()))
             raise NothingToSummarizeError(f"no topic of {bags} can be decoded ({reasons})")
-        raise NothingToSummarizeError(f"no messages to summarize in {bags}")
+        windowed = run.start_ns is not None or run.end_ns is not None
+        where = " in the selected time range" if windowed else ""
+        raise NothingToSummarizeError(f"no messages to summarize in {bags}{where}")
     if run.fields_given and not results:
         raise NothingToSummarizeError("no numeric field matches --fields")
     return Summary(
