@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-from bagkit.decode.layout import CdrLayout, NeedLength, ResolvedLayout
+from bagkit.decode.layout import CDR_LE, CdrLayout, NeedLength, ResolvedLayout
 
 # CDR writers pad a payload to a multiple of 4 bytes at most; rosbags accepts the same.
 MAX_TRAILING_PADDING = 3
@@ -71,7 +71,7 @@ def decode_bulk(
     indexes = np.arange(len(starts))
     plain = lengths >= 4
     head = starts[plain]
-    plain[plain] = (buf[head] == 0) & (buf[head + 1] == 1)
+    plain[plain] = (buf[head] == CDR_LE[0]) & (buf[head + 1] == CDR_LE[1])
     leftover = [indexes[~plain]]
     groups: list[BulkGroup] = []
     pending: list[tuple[np.ndarray, tuple[int, ...]]] = [(indexes[plain], ())]
