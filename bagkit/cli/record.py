@@ -65,23 +65,24 @@ def _print_table(report: RecordReport) -> None:
         title_justify="left",
         box=box.SIMPLE_HEAD,
     )
+    # Numbers never wrap; on a narrow terminal (80 columns when piped) the type, last, folds.
     table.add_column("topic", no_wrap=True)
-    table.add_column("type", no_wrap=True)
     for column in ("messages", "lost", "rate", "bytes"):
-        table.add_column(column, justify="right")
+        table.add_column(column, justify="right", no_wrap=True)
+    table.add_column("type", overflow="fold", min_width=16)
     for topic in report.topics:
         lost = f"[red]{topic.lost}[/]" if topic.lost else "0"
         table.add_row(
             topic.topic,
-            topic.type,
             str(topic.messages),
             lost,
             f"{topic.rate_hz:.1f} Hz",
             _human_bytes(topic.bytes),
+            topic.type,
         )
     table.add_section()
     table.add_row(
-        "total", "", str(report.messages), str(report.lost), "", _human_bytes(report.bytes)
+        "total", str(report.messages), str(report.lost), "", _human_bytes(report.bytes), ""
     )
     console.print(table)
     lossy = [t for t in report.topics if t.lost]

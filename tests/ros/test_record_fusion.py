@@ -1,0 +1,101 @@
+"""``bagkit record -a`` on the live fusion system (``fusion launch``), read back three ways."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+from rosbags.highlevel import AnyReader
+
+from bagkit.bag import BagReader
+from bagkit.ros.types import message_type_name
+from fusion import topics
+
+pytestmark = pytest.mark.ros
+
+RECORD_S = 6.0
+SYSTEM_UP_S = 2.5
+NOMINAL_HZ = {topics.IMU: 10.0, topics.GPS: 1.0, topics.TEMPERATURE: 2.0, topics.PRESSURE: 2.0}
+
+
+def test_record_live_fusion_system(processes: object, tmp_path: Path) -> None:
+    params = tmp_path / "params.yaml"
+    # The alert fires before the recording starts: /alerts (transient local) must still be in it.
+    params.write_text(
+        'sensor_publisher:\n  ros__parameters:\n    faults: "temperature_spike@0.5+1"\n'
+    )
+    processes.start(  # type: ignore[attr-defined]
+        ["fusion", "launch", "--params", str(params)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    time.sleep(SYSTEM_UP_S)
+    bag = tmp_path / "fusion"
+    recorder = processes.start(  # type: ignore[attr-defined]
+        ["bagkit", "record", "-a", "-o", str(bag), "-d", str(RECORD_S), "-f", "json"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    stdout, stderr = recorder.communicate(timeout=60)
+    assert recorder.returncode == 0, stderr.decode()
+    report = json.loads(stdout)
+    recorded = {t["topic"]: t for t in report["topics"] if t["messages"]}
+
+    # Every topic of the system, nothing lost, one publisher each. Topics are discovered at
+    # different times (DDS discovery of each node's participant), so each is checked from its
+    # first message on.
+    assert set(topics.TOPIC_TYPES) - {topics.LOGGER_SUMMARY} <= set(recorded)
+    assert report["lost"] == 0
+    for name in topics.TOPIC_TYPES:
+        if name in recorded:
+            assert recorded[name]["publishers"] == 1, name
+            assert recorded[name]["type"] == message_type_name(topics.TOPIC_TYPES[name])
+    for name, nominal in NOMINAL_HZ.items():
+        if recorded[name]["messages"] >= 4:
+            assert abs(recorded[name]["rate_hz"] - nominal) <= 0.2 * nominal, recorded[name]
+
+    # The bag holds exactly the report's messages; each fusion topic (one publisher) has
+    # contiguous sequence numbers (/parameter_events and /rosout have one publisher per node).
+    with BagReader(bag) as reader:
+        assert reader.problems == []
+        assert reader.topic_counts == {t["topic"]: t["messages"] for t in report["topics"]}
+        sequences: dict[str, list[int]] = {}
+        for message in reader.messages():
+            sequences.setdefault(message.topic, []).append(message.sequence)
+    for name in recorded.keys() & topics.TOPIC_TYPES.keys():
+        numbers = sequences[name]
+        assert numbers == list(range(numbers[0], numbers[0] + len(numbers))), name
+
+    # rosbags: everything deserializes; the fusion output follows its inputs one to one.
+    stamps: dict[str, list[int]] = {}
+    with AnyReader([bag]) as any_reader:
+        for connection, _timestamp, raw in any_reader.messages():
+            message = any_reader.deserialize(raw, connection.msgtype)
+            # /rosout and /parameter_events carry their stamp outside a header.
+            stamp = getattr(message, "header", message).stamp
+            stamps.setdefault(connection.topic, []).append(stamp.sec * 10**9 + stamp.nanosec)
+    # One fused output per input sample, stamped like it (the last may still be in flight).
+    for source, output in ((topics.IMU, topics.ODOMETRY), (topics.PRESSURE, topics.BARO_ALTITUDE)):
+        assert stamps[source] == sorted(stamps[source])
+        # From when both topics were being recorded.
+        start = max(stamps[source][0], stamps[output][0])
+        inputs = [t for t in stamps[source] if t >= start]
+        outputs = [t for t in stamps[output] if t >= start]
+        assert set(outputs) <= set(inputs), output
+        assert len(inputs) - 2 <= len(outputs) <= len(inputs), output
+    assert all(len(stamps[name]) == recorded[name]["messages"] for name in recorded)
+
+    # mcap_ros2 decodes every message too.
+    decoded: dict[str, int] = {}
+    for mcap_file in sorted(bag.glob("*.mcap")):
+        with mcap_file.open("rb") as stream:
+            for _schema, channel, _message, _ros in make_reader(
+                stream, decoder_factories=[DecoderFactory()]
+            ).iter_decoded_messages():
+                decoded[channel.topic] = decoded.get(channel.topic, 0) + 1
+    assert decoded == {name: t["messages"] for name, t in recorded.items()}
