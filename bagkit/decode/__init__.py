@@ -8,7 +8,7 @@
 
 from __future__ import annotations
 
-from bagkit.decode.errors import DecodeError, SchemaError, UnsupportedEncodingError
+from bagkit.decode.errors import DecodeError, SchemaError
 from bagkit.decode.flatten import (
     FlatValue,
     LeafField,
@@ -24,7 +24,6 @@ __all__ = [
     "LeafField",
     "MessageTypes",
     "SchemaError",
-    "UnsupportedEncodingError",
     "field_getter",
     "flatten_message",
     "leaf_fields",

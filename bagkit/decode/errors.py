@@ -11,7 +11,3 @@ class DecodeError(BagkitError):
 
 class SchemaError(DecodeError):
     """A stored message definition that cannot be parsed (or none is stored for the type)."""
-
-
-class UnsupportedEncodingError(DecodeError):
-    """A serialization format other than CDR (rosbag2's ``wrong_format`` test bags, ROS 1 ...)."""
