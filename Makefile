@@ -19,7 +19,7 @@ demo: $(STAMP)
 	ROS_DOMAIN_ID=$${ROS_DOMAIN_ID:-77} bash scripts/demo.sh
 
 test: $(STAMP)
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q --durations=10
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .
