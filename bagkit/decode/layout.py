@@ -52,11 +52,6 @@ class Slot:
     count: int | None
     array: bool = False
 
-    @property
-    def numeric(self) -> bool:
-        """Whether the slot holds numbers (not a string)."""
-        return self.base != "string"
-
 
 @dataclass(frozen=True, slots=True)
 class ResolvedLayout:
@@ -96,11 +91,6 @@ class CdrLayout:
             if not _collect(typestore, name, desc, slots):
                 return None
         return cls(tuple(slots))
-
-    @property
-    def variable(self) -> int:
-        """How many length prefixes a message has."""
-        return sum(1 for slot in self.slots if slot.count is None)
 
     def resolve(self, lengths: tuple[int, ...]) -> ResolvedLayout | NeedLength:
         """The dtype for messages with these length prefixes, or where the next prefix is.

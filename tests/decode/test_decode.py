@@ -15,7 +15,7 @@ from rosbags.typesys.store import Typestore
 from bagkit.bag import BagReader, message_definition
 from bagkit.decode import MessageTypes, SchemaError, flatten_message, leaf_fields
 from bagkit.decode.layout import CdrLayout
-from bagkit.stats.bulk import decode_bulk
+from bagkit.stats.bulk import MAX_GROUPS, decode_bulk
 
 JAZZY = get_typestore(Stores.ROS2_JAZZY)
 _NUMPY = {
@@ -291,3 +291,22 @@ def test_bulk_decoding_of_evenly_spaced_messages_reads_in_place() -> None:
     pressure = str(next(i for i, s in enumerate(layout.slots) if s.path == "fluid_pressure"))
     expected = [m.fluid_pressure for m in messages]  # type: ignore[attr-defined]
     assert _same(group.values[pressure], expected)
+
+
+def test_too_many_layouts_go_to_the_general_decoder() -> None:
+    """A frame_id of a different length in every message: bulk decoding would not pay."""
+    typename = "sensor_msgs/msg/Temperature"
+    layout = CdrLayout.of(JAZZY, typename)
+    assert layout is not None
+    rng = np.random.default_rng(9)
+    payloads = []
+    for i in range(MAX_GROUPS + 20):
+        msg = random_message(JAZZY, typename, rng)
+        msg.header.frame_id = "f" * i  # type: ignore[attr-defined]
+        payloads.append(bytes(JAZZY.serialize_cdr(msg, typename)))
+    starts = np.cumsum([0] + [len(p) for p in payloads[:-1]]).astype(np.int64)
+    buffer = np.frombuffer(b"".join(payloads), np.uint8)
+    groups, leftover = decode_bulk(
+        buffer, starts, np.array([len(p) for p in payloads], dtype=np.int64), layout
+    )
+    assert groups == [] and leftover.tolist() == list(range(len(payloads)))
