@@ -259,3 +259,19 @@ def test_use_sim_time_stamps_log_time_from_clock(node: Node, tmp_path: Path) -> 
     # Each message carries the sim time current when it was taken; publish_time stays wall time.
     assert [m.log_time for m in messages] == sim_times
     assert all(m.publish_time > 1_600_000_000 * 1_000_000_000 for m in messages)
+
+
+def test_qos_overrides_replace_the_adapted_profile(node: Node, tmp_path: Path) -> None:
+    publisher = node.create_publisher(String, "/ovr", 10)
+    override = QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST_EFFORT)
+    with Recorder(tmp_path / "ovr", topics=["/ovr"], qos_overrides={"/ovr": override}) as rec:
+        wait_matched(publisher)
+        (subscription,) = [
+            s
+            for s in node.get_subscriptions_info_by_topic("/ovr")
+            if s.node_name == "bagkit_recorder"
+        ]
+        publisher.publish(String(data="over"))
+        wait_for(lambda: rec.progress().messages == 1)
+    # Adapted, it would have been reliable keep-all: the publisher is reliable.
+    assert subscription.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import resource
 import signal
 import subprocess
@@ -172,6 +173,16 @@ def test_bad_options_exit_2_with_one_line(
     (line,) = stderr.decode().strip().splitlines()
     assert line.startswith("error: ") and message in line
     assert not (tmp_path / "never").exists()
+
+
+def test_default_output_name_in_the_current_directory(processes: object, tmp_path: Path) -> None:
+    proc = record(processes, "/cli/nothing", "-d", "0.2", cwd=tmp_path)
+    _, stderr = proc.communicate(timeout=30)
+    assert proc.returncode == 0, stderr.decode()
+    (bag,) = tmp_path.iterdir()
+    assert re.fullmatch(r"rosbag2_\d{4}_\d{2}_\d{2}-\d{2}_\d{2}_\d{2}", bag.name)
+    assert (bag / "metadata.yaml").is_file()
+    assert (bag / f"{bag.name}_0.mcap").is_file()
 
 
 def test_existing_or_unwritable_output_exits_2(processes: object, tmp_path: Path) -> None:
