@@ -8,7 +8,7 @@ integers; strings stay strings so they can be compared exactly but are not numer
 
 from __future__ import annotations
 
-import functools
+import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -53,13 +53,32 @@ def leaf_fields(typestore: Typestore, typename: str) -> list[LeafField]:
     return list(_leaf_fields(typestore, typename))
 
 
-# Typestores hash by identity and a type's fields never change once registered.
-@functools.lru_cache(maxsize=1024)
+# What is derived from a type is cached per typestore (a type's fields never change once
+# registered) and goes away with it: each summary or comparison builds its own typestore.
+_CACHE: weakref.WeakKeyDictionary[Typestore, dict[tuple[Any, ...], Any]] = (
+    weakref.WeakKeyDictionary()
+)
+
+
+def _cached(typestore: Typestore, key: tuple[Any, ...], make: Callable[[], Any]) -> Any:
+    per_store = _CACHE.get(typestore)
+    if per_store is None:
+        per_store = _CACHE[typestore] = {}
+    value = per_store.get(key)
+    if value is None:
+        value = per_store[key] = make()
+    return value
+
+
 def _leaf_fields(typestore: Typestore, typename: str) -> tuple[LeafField, ...]:
-    leaves: list[LeafField] = []
-    for name, desc in typestore.fielddefs[typename][1]:
-        _walk_desc(typestore, name, desc, pooled=False, out=leaves)
-    return tuple(leaves)
+    def make() -> tuple[LeafField, ...]:
+        leaves: list[LeafField] = []
+        for name, desc in typestore.fielddefs[typename][1]:
+            _walk_desc(typestore, name, desc, pooled=False, out=leaves)
+        return tuple(leaves)
+
+    result: tuple[LeafField, ...] = _cached(typestore, ("leaves", typename), make)
+    return result
 
 
 def _walk_desc(
@@ -93,7 +112,12 @@ def flatten_message(
         numeric_only: drop string leaves (the view statistics use).
     """
     typename: str = msg.__msgtype__  # type: ignore[attr-defined]
-    return _flattener(typestore, typename, numeric_only)(msg)
+    flatten = _cached(
+        typestore,
+        ("flatten", typename, numeric_only),
+        lambda: _generate(typestore, typename, None, numeric_only=numeric_only),
+    )
+    return flatten(msg)
 
 
 def _as_list(value: Any) -> list[Any]:
@@ -111,20 +135,17 @@ def field_getter(
     Raises:
         KeyError: a path that ``typename`` does not have.
     """
-    return _generated(typestore, typename, paths, numeric_only=False)
+    getter: Callable[[object], list[FlatValue]] = _cached(
+        typestore,
+        ("get", typename, paths),
+        lambda: _generate(typestore, typename, paths, numeric_only=False),
+    )
+    return getter
 
 
 # Flattening walks the type once, here, and generates a function of attribute reads and list
 # comprehensions: a recursive walk per message costs several times rosbags' deserialization.
-@functools.lru_cache(maxsize=1024)
-def _flattener(
-    typestore: Typestore, typename: str, numeric_only: bool
-) -> Callable[[object], dict[str, FlatValue]]:
-    return _generated(typestore, typename, None, numeric_only=numeric_only)
-
-
-@functools.lru_cache(maxsize=1024)
-def _generated(
+def _generate(
     typestore: Typestore, typename: str, paths: tuple[str, ...] | None, *, numeric_only: bool
 ) -> Any:
     """``flatten(m) -> dict`` (all leaves when ``paths`` is None) or ``get(m) -> list``."""
