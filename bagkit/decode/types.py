@@ -48,7 +48,7 @@ class MessageTypes:
     def add(self, name: str, text: str) -> None:
         """Register one stored definition; a failure is recorded in ``problems``, not raised.
 
-        The first definition of a type wins: bags pooled in one summary are expected to agree.
+        A type already registered is kept: use one ``MessageTypes`` per bag.
         """
         canonical = canonical_type_name(name)
         if canonical in self.typestore.fielddefs:

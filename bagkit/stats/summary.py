@@ -187,8 +187,10 @@ class _TopicAccumulator:
         topic: str,
         type_name: str,
         leaves: list[LeafField],
+        *,
         layout: CdrLayout | None,
         getter: Callable[[object], list[Any]],
+        signature: tuple[LeafField, ...],
     ) -> None:
         self.topic = topic
         self.type_name = type_name
@@ -205,6 +207,8 @@ class _TopicAccumulator:
         self.last_ns: int | None = None
         self.failures = 0
         self.first_failure = ""
+        # Every leaf of the type as first seen: pooled bags must define the type the same way.
+        self.signature = signature
         self._rows: list[list[Any]] = []
         self._pooled_rows: list[list[Any]] = []
         self._pooled_size = 0
@@ -338,14 +342,31 @@ class _Run:
     skipped: dict[str, str] = field(default_factory=dict)
     problems: list[str] = field(default_factory=list)
 
-    def accumulator(self, topic: str, type_name: str, encoding: str) -> _TopicAccumulator | None:
-        """The accumulator of ``topic``, or None when the topic cannot be decoded."""
+    def accumulator(
+        self, topic: str, type_name: str, encoding: str, bag: str
+    ) -> _TopicAccumulator | None:
+        """The accumulator of ``topic``, or None when ``bag``'s messages on it cannot be decoded.
+
+        Raises:
+            StatsError: the topic has another type, or another definition of its type, in a
+                bag summarized before ``bag``.
+        """
         existing = self.accumulators.get(topic)
         if existing is not None:
             if existing.type_name != type_name:
                 raise StatsError(
                     f"topic {topic} has type {existing.type_name} in one bag "
                     f"and {type_name} in another"
+                )
+            try:
+                canonical = self.types.resolve(type_name)
+            except DecodeError as exc:
+                self.problems.append(f"{bag}: messages on {topic} not read: {exc}")
+                return None
+            if tuple(leaf_fields(self.types.typestore, canonical)) != existing.signature:
+                raise StatsError(
+                    f"{type_name} of topic {topic} is defined differently in {bag} than in "
+                    "the bags before it: summarize them separately"
                 )
             return existing
         if topic in self.skipped:
@@ -358,16 +379,15 @@ class _Run:
         except DecodeError as exc:
             self.skipped[topic] = str(exc)
             return None
-        leaves = [
-            leaf
-            for leaf in leaf_fields(self.types.typestore, canonical)
-            if leaf.numeric and self.select_field(leaf.path)
-        ]
+        signature = tuple(leaf_fields(self.types.typestore, canonical))
+        leaves = [leaf for leaf in signature if leaf.numeric and self.select_field(leaf.path)]
         layout = CdrLayout.of(self.types.typestore, canonical) if self.bulk else None
         paths = [leaf.path for leaf in leaves if not leaf.pooled]
         paths += [leaf.path for leaf in leaves if leaf.pooled]
         getter = field_getter(self.types.typestore, canonical, tuple(paths))
-        accumulator = _TopicAccumulator(topic, type_name, leaves, layout, getter)
+        accumulator = _TopicAccumulator(
+            topic, type_name, leaves, layout=layout, getter=getter, signature=signature
+        )
         self.accumulators[topic] = accumulator
         return accumulator
 
@@ -467,13 +487,15 @@ def summarize(
         )
         done = 0
         for reader in readers:
-            for type_name, text in reader.definitions.items():
-                run.types.add(type_name, text)
+            # Each bag is decoded with its own definitions (pooled bags must agree on them).
+            run.types = MessageTypes.from_definitions(reader.definitions)
             wanted: dict[str, _TopicAccumulator] = {}
             for name, info in reader.topics.items():
                 if topics is not None and name not in topics:
                     continue
-                accumulator = run.accumulator(name, info.type, info.serialization_format)
+                accumulator = run.accumulator(
+                    name, info.type, info.serialization_format, str(reader.path)
+                )
                 if accumulator is not None:
                     wanted[name] = accumulator
                 else:  # skipped: its messages are not read

@@ -7,6 +7,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.typesys import get_types_from_msg
+from rosbags.typesys.store import Typestore
 from rosbags_oracle import (
     T0,
     TopicData,
@@ -270,3 +273,23 @@ def test_progress_counts_up_to_the_messages_read(bag: Path, topics: dict[str, To
     assert len(calls) > 1 and {t for _, t in calls} == {total}
     done = [d for d, _ in calls]
     assert done == sorted(done) and done[-1] == total
+
+
+def test_pooled_bags_must_define_a_type_the_same_way(tmp_path: Path) -> None:
+    """Bags recorded with two versions of a message: pooling them would mix fields."""
+    bags = []
+    for name, text in (("v1", "float64 x\n"), ("v2", "float32 x\nfloat32 y\n")):
+        store = Typestore()
+        store.register(get_types_from_msg(text, "custom_msgs/msg/Thing"))
+        thing = store.types["custom_msgs/msg/Thing"]
+        path = tmp_path / name
+        with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+            connection = writer.add_connection("/thing", "custom_msgs/msg/Thing", typestore=store)
+            fields = {f: 1.0 for f in ("x", "y") if f in text}
+            writer.write(
+                connection, T0, bytes(store.serialize_cdr(thing(**fields), thing.__msgtype__))
+            )
+        bags.append(path)
+    assert summarize([bags[0]]).topics[0].fields[0].field == "x"
+    with pytest.raises(StatsError, match=r"defined differently in .*v2"):
+        summarize(bags)
