@@ -128,9 +128,23 @@ def run_node(node_name: str, args: list[str] | None = None) -> int:
         return 2
     node = None
     try:
-        node = ProcessorNode(node_name)
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
+        try:
+            node = ProcessorNode(node_name)
+            rclpy.spin(node)
+        except (KeyboardInterrupt, ExternalShutdownException):
+            pass
+        except _rclpy.RCLError:
+            # SIGINT shuts the context down from rclpy's signal handler; a callback publishing
+            # at that moment fails with "context is invalid". That is the shutdown, not an error.
+            if rclpy.ok():
+                raise
+        finally:
+            if node is not None:
+                node.destroy_node()
+            rclpy.try_shutdown()
+    except KeyboardInterrupt:
+        # rclpy's handler also raises KeyboardInterrupt in the main thread, which can land
+        # during the clean-up above.
         pass
     except BagkitError as exc:
         message = str(exc)
@@ -138,8 +152,4 @@ def run_node(node_name: str, args: list[str] | None = None) -> int:
             message = f"{node_name}: {message}"
         print(f"error: {message}", file=sys.stderr)
         return exc.exit_code
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
     return 0
