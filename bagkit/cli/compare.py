@@ -50,7 +50,12 @@ def _print_table(report: CompareReport, limit: int) -> None:
                 f"  {topic.topic}: {worst.path} |err| {worst.max_abs_error:.3g} "
                 f"(rel {worst.max_rel_error:.3g}; atol {worst.atol:g} rtol {worst.rtol:g})"
             )
-        verdict = "[green]ok[/]" if topic.passed else f"[red]{topic.divergence_count} diff[/]"
+        if not topic.passed:
+            verdict = f"[red]{topic.divergence_count} diff[/]"
+        elif topic.failed_messages:
+            verdict = f"[green]ok[/] ({topic.failed_messages} msgs out, allowed)"
+        else:
+            verdict = "[green]ok[/]"
         counts = (topic.golden_count, topic.candidate_count, topic.missing, topic.extra)
         table.add_row(topic.topic, topic.matched_by or "type", *map(str, counts), verdict)
     console.print(table)
@@ -106,6 +111,12 @@ def compare(
     match_window: float | None = typer.Option(
         None, help="Seconds within which header stamps match [0: exactly]."
     ),
+    pass_rate: float | None = typer.Option(
+        None,
+        min=0.0,
+        max=1.0,
+        help="Fraction of each topic's matched messages that must be within tolerance [1].",
+    ),
     include_times: bool = typer.Option(
         False, "--include-times", help="Also compare receive and publish times."
     ),
@@ -139,6 +150,7 @@ def compare(
         event_window_ns=None if event_window is None else round(event_window * 1e9),
         match_window_ns=None if match_window is None else round(match_window * 1e9),
         include_times=include_times or None,
+        pass_rate=pass_rate,
         max_divergences=show,
     )
     with err_console.status("comparing ...") as status:

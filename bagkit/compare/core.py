@@ -110,6 +110,8 @@ class _TopicComparison:
     def diverge(self, divergence: Divergence) -> None:
         # Keep the earliest ones: a bounded max-heap on (time, arrival order).
         self.result.divergence_count += 1
+        if divergence.kind != "value":
+            self.result.structural_divergences += 1
         item = (-divergence.time_ns, -self.result.divergence_count, divergence)
         if len(self.kept) < self.options.max_divergences:
             heapq.heappush(self.kept, item)
@@ -233,7 +235,13 @@ def compare_samples(
     for sample in extra:
         comparison.diverge(Divergence("extra_message", topic, sample.time_ns))
     for g, c in pairs:
+        before = result.divergence_count - result.structural_divergences
         comparison.compare_pair(g, c, skip=skip)
+        if result.divergence_count - result.structural_divergences > before:
+            result.failed_messages += 1
+    result.allowed_failed_messages = math.floor(
+        (1.0 - options.pass_rate_for(topic)) * len(pairs) + 1e-9
+    )
     return comparison.finish()
 
 

@@ -77,6 +77,9 @@ class CompareOptions:
             this much (0: exactly); ``match_windows`` overrides it per topic.
         include_times: also compare receive and publish times (seconds, as ``~log_time`` and
             ``~publish_time`` fields); ignored by default.
+        pass_rate: the fraction of a topic's matched messages whose values must all be within
+            tolerance (1: every one); ``pass_rates`` overrides it per topic. Missing, extra
+            and differently shaped messages fail a topic whatever the rate.
         max_divergences: how many divergences each topic keeps for the report.
     """
 
@@ -89,7 +92,14 @@ class CompareOptions:
     match_window_ns: int = 0
     match_windows: Mapping[str, int] = field(default_factory=dict)
     include_times: bool = False
+    pass_rate: float = 1.0
+    pass_rates: Mapping[str, float] = field(default_factory=dict)
     max_divergences: int = 10
+
+    def __post_init__(self) -> None:
+        for rate in (self.pass_rate, *self.pass_rates.values()):
+            if not 0.0 <= rate <= 1.0:
+                raise CompareError(f"a pass rate is a fraction in [0, 1], got {rate}")
 
     def tolerance_for(self, topic: str, path: str) -> Tolerance:
         """The tolerance that applies to ``path`` on ``topic``."""
@@ -107,6 +117,10 @@ class CompareOptions:
                 return True
         return False
 
+    def pass_rate_for(self, topic: str) -> float:
+        """The fraction of ``topic``'s matched messages that must be within tolerance."""
+        return self.pass_rates.get(topic, self.pass_rate)
+
     def window_for(self, topic: str) -> int:
         """The stamp matching window of ``topic`` in ns."""
         return self.match_windows.get(topic, self.match_window_ns)
@@ -120,6 +134,13 @@ def _seconds_to_ns(value: Any, what: str) -> int:
     if seconds < 0:
         raise CompareError(f"{what} must be >= 0, got {value!r}")
     return round(seconds * 1e9)
+
+
+def _fraction(value: Any, what: str) -> float:
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise CompareError(f"{what} must be a fraction in [0, 1], got {value!r}") from None
 
 
 def _tolerance(data: Mapping[str, Any], base: Tolerance, where: str) -> Tolerance:
@@ -138,8 +159,9 @@ def options_from_mapping(data: Mapping[str, Any], **overrides: Any) -> CompareOp
     """Build options from the ``compare:`` section of a fixture spec (see docs/regression.md).
 
     Keys: ``atol``, ``rtol``, ``ignore_fields`` (list), ``event_topics`` (list),
-    ``event_window`` (s), ``match_window`` (s), ``include_times``, and ``topics``: a mapping
-    of topic to ``{atol, rtol, match_window, fields: {GLOB: {atol, rtol}}}``. ``overrides``
+    ``event_window`` (s), ``match_window`` (s), ``include_times``, ``pass_rate``, and
+    ``topics``: a mapping of topic to ``{atol, rtol, match_window, pass_rate, fields: {GLOB:
+    {atol, rtol}}}``. ``overrides``
     replace the resulting options' attributes (what the command line sets explicitly).
     """
     known = {
@@ -150,6 +172,7 @@ def options_from_mapping(data: Mapping[str, Any], **overrides: Any) -> CompareOp
         "event_window",
         "match_window",
         "include_times",
+        "pass_rate",
         "topics",
     }
     unknown = set(data) - known
@@ -158,11 +181,14 @@ def options_from_mapping(data: Mapping[str, Any], **overrides: Any) -> CompareOp
     default = _tolerance({k: v for k, v in data.items() if k in {"atol", "rtol"}}, Tolerance(), "")
     rules: list[ToleranceRule] = []
     windows: dict[str, int] = {}
+    rates: dict[str, float] = {}
     for topic, raw_topic_spec in (data.get("topics") or {}).items():
         topic_spec = dict(raw_topic_spec or {})
         fields = topic_spec.pop("fields", None) or {}
         if "match_window" in topic_spec:
             windows[topic] = _seconds_to_ns(topic_spec.pop("match_window"), f"{topic} match_window")
+        if "pass_rate" in topic_spec:
+            rates[topic] = _fraction(topic_spec.pop("pass_rate"), f"{topic} pass_rate")
         topic_tolerance = _tolerance(topic_spec, default, f"compare spec topic {topic}")
         if topic_spec:
             rules.append(ToleranceRule(topic, "*", topic_tolerance))
@@ -180,6 +206,8 @@ def options_from_mapping(data: Mapping[str, Any], **overrides: Any) -> CompareOp
         match_window_ns=_seconds_to_ns(data.get("match_window", 0.0), "match_window"),
         match_windows=windows,
         include_times=bool(data.get("include_times", False)),
+        pass_rate=_fraction(data.get("pass_rate", 1.0), "pass_rate"),
+        pass_rates=rates,
     )
     return replace_options(options, **overrides)
 

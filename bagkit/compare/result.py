@@ -74,11 +74,19 @@ class TopicResult:
     divergence_count: int = 0
     divergences: list[Divergence] = field(default_factory=list)
     max_event_shift_ns: int = 0
+    structural_divergences: int = 0  # anything but a value out of tolerance
+    failed_messages: int = 0  # matched messages with a value out of tolerance
+    allowed_failed_messages: int = 0
 
     @property
     def passed(self) -> bool:
-        """Whether the topic is identical within tolerance."""
-        return self.divergence_count == 0
+        """Whether the topic is identical within tolerance: nothing missing, extra or of
+        another shape, and no more matched messages with values out of tolerance than the
+        topic's pass rate allows (none by default)."""
+        value_divergences = self.divergence_count - self.structural_divergences
+        return self.structural_divergences == 0 and (
+            value_divergences == 0 or self.failed_messages <= self.allowed_failed_messages
+        )
 
     @property
     def failed_fields(self) -> list[FieldResult]:
@@ -129,6 +137,8 @@ class CompareReport:
                     "missing": t.missing,
                     "extra": t.extra,
                     "divergence_count": t.divergence_count,
+                    "failed_messages": t.failed_messages,
+                    "allowed_failed_messages": t.allowed_failed_messages,
                     "max_event_shift_s": t.max_event_shift_ns / 1e9,
                     "failed_fields": [f.path for f in t.failed_fields],
                     "fields": [

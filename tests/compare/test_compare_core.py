@@ -249,3 +249,19 @@ def test_brackets_in_field_globs_are_literal() -> None:
     assert not options.is_ignored("/s", "status[].values[].key")
     assert options.tolerance_for("/t", "pose.covariance[14]").atol == 1.0
     assert options.tolerance_for("/t", "pose.covariance[1]").atol == 0.0
+
+
+def test_pass_rate_tolerates_isolated_value_failures_only() -> None:
+    golden = [stamped(i * SEC, x=0.0) for i in range(50)]
+    candidate = [stamped(i * SEC, x=1.0 if i in {7, 30} else 0.0) for i in range(50)]
+    strict = compare_samples("/t", "T", golden, candidate, CompareOptions())
+    assert not strict.passed and strict.failed_messages == 2
+    lenient = compare_samples("/t", "T", golden, candidate, CompareOptions(pass_rates={"/t": 0.96}))
+    assert lenient.passed and lenient.allowed_failed_messages == 2
+    assert lenient.divergence_count == 2  # still reported
+    assert not compare_samples("/t", "T", golden, candidate, CompareOptions(pass_rate=0.97)).passed
+    # a missing message fails whatever the rate
+    result = compare_samples("/t", "T", golden, candidate[:-1], CompareOptions(pass_rate=0.5))
+    assert not result.passed
+    with pytest.raises(CompareError):
+        CompareOptions(pass_rate=1.5)
