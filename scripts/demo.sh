@@ -68,7 +68,7 @@ outputs = dict.fromkeys(["/alerts", "/logger/summary", "/fusion/odometry", "/fus
 wait_for_subscribers({**inputs, **outputs}, timeout=60, alive=lambda: True)
 EOF
 "$BIN/bagkit" replay --clock --rate 2 --topics "$SENSORS" "$OUT/live"
-sleep 0.5  # the last outputs are in flight
+sleep 2  # the last outputs are still in flight on a loaded machine
 stop "$recorder" "$nodes"
 
 step "4. bagkit compare: replayed outputs against the live ones"

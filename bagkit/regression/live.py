@@ -205,7 +205,7 @@ def check_live(spec: FixtureSpec, workdir: Path, *, startup_timeout: float = 30.
             raise LiveRunError(f"bagkit replay hangs:\n{procs.log_tail('replay')}") from None
         if code != 0:
             raise LiveRunError(f"bagkit replay exited {code}:\n{procs.log_tail('replay')}")
-        time.sleep(0.5)  # the last outputs are in flight
+        time.sleep(2.0)  # the last outputs are still in flight on a loaded machine
         code = procs.stop(recorder)
         if not candidate.exists():
             raise LiveRunError(f"bagkit record exited {code}:\n{procs.log_tail('record')}")
