@@ -52,6 +52,10 @@ def test_update_then_check_passes(fixture_dir: Path, tmp_path: Path) -> None:
     check = check_lockstep(spec, tmp_path / "work")
     assert check.passed, check.summary()
     assert check.lockstep is not None and check.lockstep.speedup > 1
+    # accepting unchanged behaviour changes no byte: `git diff` shows only real changes
+    before = {p.name: p.read_bytes() for p in spec.bag.iterdir()}
+    update_golden(spec)
+    assert {p.name: p.read_bytes() for p in spec.bag.iterdir()} == before
 
 
 def test_changed_constant_fails_with_report_and_plots(fixture_dir: Path, tmp_path: Path) -> None:
