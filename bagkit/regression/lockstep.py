@@ -10,6 +10,7 @@ the same bytes.
 
 from __future__ import annotations
 
+import functools
 import heapq
 import math
 import time
@@ -55,6 +56,12 @@ def _next_tick_ns(after_ns: int, period_ns: int) -> int:
     return (after_ns // period_ns + 1) * period_ns
 
 
+@functools.cache
+def _codec(type_name: str, definition: str) -> MessageTypes:
+    # Building a type's (de)serializers costs milliseconds: once per process and definition.
+    return MessageTypes.from_definitions({type_name: definition})
+
+
 class _OutputBag:
     """The candidate bag: topics added on first use, a sequence number per topic."""
 
@@ -65,14 +72,13 @@ class _OutputBag:
         self.writer = writer
         self.known = known
         self.counts: dict[str, int] = {}
-        self.types: dict[str, str] = {}
-        self.codec = MessageTypes()
+        self.codecs: dict[str, tuple[MessageTypes, str]] = {}
 
     def add_topic(self, info: TopicInfo, definition: str | None = None) -> None:
         self.writer.add_topic(info, definition=definition)
         self.counts[info.name] = 0
-        self.types[info.name] = info.type
-        self.codec.add(info.type, definition or message_definition(info.type))
+        codec = _codec(info.type, definition or message_definition(info.type))
+        self.codecs[info.name] = (codec, codec.resolve(info.type))
 
     def canonical(self, topic: str, data: bytes) -> bytes:
         """``data`` re-encoded with zeroed padding.
@@ -80,8 +86,8 @@ class _OutputBag:
         rclpy's serializer leaves the CDR alignment padding uninitialized (whatever was in
         memory), so the same message serializes to different bytes from run to run.
         """
-        type_name = self.codec.resolve(self.types[topic])
-        store = self.codec.typestore
+        codec, type_name = self.codecs[topic]
+        store = codec.typestore
         return bytes(store.serialize_cdr(store.deserialize_cdr(data, type_name), type_name))
 
     def write(self, topic: str, msg: Any, now_ns: int) -> None:
