@@ -177,6 +177,11 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
             f"the bag is damaged: replayed the {report.messages} messages that could be read; "
             + "; ".join(report.problems)
         )
+    if report.unacknowledged:
+        warn(
+            "subscribers had not acknowledged every message after 10 s on: "
+            + ", ".join(report.unacknowledged)
+        )
     if report.interrupted:
         raise typer.Exit(EXIT_INTERRUPTED)
 

@@ -18,6 +18,7 @@ from typing import Any
 
 import rclpy
 from rclpy.context import Context
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import (
@@ -108,6 +109,8 @@ class PlayReport:
     """Topics asked for with ``topics`` that the bag does not have."""
     problems: list[str] = field(default_factory=list)
     """What the reader could not read (a truncated or damaged file)."""
+    unacknowledged: list[str] = field(default_factory=list)
+    """Reliable topics whose subscribers had not acknowledged every message at the end."""
     interrupted: bool = False
 
     def to_dict(self) -> dict[str, Any]:
@@ -154,6 +157,7 @@ class Player:
         wait_for: Sequence[str] = (),
         wait_timeout: float = 10.0,
         discovery_time: float = DEFAULT_DISCOVERY_TIME_S,
+        ack_timeout: float = 10.0,
         qos_overrides: str | Path | None = None,
         context: Context | None = None,
         node_name: str = "bagkit_player",
@@ -181,6 +185,8 @@ class Player:
             wait_timeout: seconds to wait for subscribers before giving up.
             discovery_time: seconds after the node's creation during which the graph is watched
                 for subscriptions that already exist (see ``wait_until_matched``).
+            ack_timeout: at the end, seconds to wait for subscribers of reliable topics to
+                acknowledge every message (see ``wait_until_acknowledged``).
             qos_overrides: rosbag2 QoS overrides file (``topic: {reliability: ..., ...}``).
             context: rclpy context to use; None = a private one, shut down on exit.
             node_name: name of the player's node.
@@ -214,6 +220,7 @@ class Player:
         self.wait_for = list(wait_for)
         self.wait_timeout = wait_timeout
         self.discovery_time = discovery_time
+        self.ack_timeout = ack_timeout
         self.qos_overrides_path = Path(qos_overrides) if qos_overrides is not None else None
         self.on_progress = on_progress
         self.progress_period_ns = int(progress_period * 1e9)
@@ -370,9 +377,12 @@ class Player:
                     time.sleep(self.delay)
                 bag_ns += self._play_pass(passes, lateness)
                 passes += 1
+            wall_ns = time.monotonic_ns() - wall_start
+            unacknowledged = self.wait_until_acknowledged()
         except KeyboardInterrupt:
             interrupted = True
-        wall_ns = time.monotonic_ns() - wall_start
+            wall_ns = time.monotonic_ns() - wall_start
+            unacknowledged = []
         return PlayReport(
             topics=[
                 TopicPlayback(topic, out.name, out.info.type, out.count)
@@ -388,6 +398,7 @@ class Player:
             skipped_formats=dict(self.skipped_formats),
             missing_topics=list(self.missing_topics),
             problems=list(dict.fromkeys(self._reader.problems)),
+            unacknowledged=unacknowledged,
             interrupted=interrupted,
         )
 
@@ -470,6 +481,23 @@ class Player:
         if on_progress is not None:
             report_progress(time.monotonic_ns())
         return last_log_time - window_start
+
+    def wait_until_acknowledged(self) -> list[str]:
+        """Wait until the subscribers of reliable topics have every message; return the others.
+
+        A fast replay ends while messages are still in flight; destroying the publishers then
+        would lose them. Waits at most ``ack_timeout`` seconds in all.
+        """
+        deadline = time.monotonic() + self.ack_timeout
+        pending = []
+        for output in self._outputs.values():
+            publisher = output.publisher
+            if publisher.qos_profile.reliability != ReliabilityPolicy.RELIABLE:
+                continue
+            remaining = max(deadline - time.monotonic(), 0.0)
+            if not publisher.wait_for_all_acked(Duration(seconds=remaining)):
+                pending.append(output.name)
+        return pending
 
     def wait_until_matched(self) -> None:
         """Block until the subscriptions the graph knows on replayed topics have matched.
