@@ -126,6 +126,11 @@ def subscribe(mode: str, kind: str, out: Path) -> None:
         stop["now"] = True
 
     signal.signal(signal.SIGINT, on_signal)
+    from bagkit.ros.recorder import keep_freed_memory
+
+    # As `bagkit record` does for its process; the peers get it too, so the ratios compare
+    # the work done per message, not the allocator.
+    keep_freed_memory()
     ready = out.with_suffix(".ready")
     if mode == "recorder":
         result = _run_recorder(out.with_suffix(".bag"), ready, stop)

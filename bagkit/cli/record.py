@@ -156,7 +156,7 @@ def record(  # noqa: PLR0917 (typer maps parameters to options)
 ) -> None:
     from bagkit.ros.graph import absolute_topic_name
     from bagkit.ros.qos import load_qos_overrides
-    from bagkit.ros.recorder import Recorder, default_output_name
+    from bagkit.ros.recorder import Recorder, default_output_name, keep_freed_memory
 
     if output_format == OutputFormat.CSV:
         raise fail("--format csv is not supported by record (table or json)")
@@ -180,6 +180,7 @@ def record(  # noqa: PLR0917 (typer maps parameters to options)
         on_warning=warn,
     )
 
+    keep_freed_memory()
     stop = threading.Event()
     received: list[int] = []
 
