@@ -19,6 +19,7 @@ from typing import Any
 import rclpy
 from rclpy.context import Context
 from rclpy.duration import Duration
+from rclpy.exceptions import InvalidTopicNameException
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import (
@@ -293,7 +294,12 @@ class Player:
             qos = overrides.get(name) or overrides.get(info.name)
             if qos is None:
                 qos = _replay_qos(info, reader.topic_counts.get(info.name, 0), mean_size)
-            publisher = node.create_publisher(message_class, name, qos)
+            try:
+                publisher = node.create_publisher(message_class, name, qos)
+            except InvalidTopicNameException as exc:
+                # rclpy's message goes on with the name and a caret under the bad character.
+                reason = str(exc).splitlines()[0].rstrip(":")
+                raise PlayerError(f"cannot publish {info.name} as {name!r}: {reason}") from None
             self._outputs[info.name] = _Output(info, publisher, publisher.handle.publish_raw)
         if self.clock_hz is not None:
             # What rclcpp's ClockQoS offers and what every use_sim_time node subscribes with.

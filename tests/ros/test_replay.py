@@ -382,8 +382,9 @@ def test_cli_loop_until_ctrl_c(
     assert "passes" in stdout  # the report is printed even when interrupted
 
 
-@pytest.mark.parametrize("case", ["missing", "not a bag", "unknown types", "not cdr"])
+@pytest.mark.parametrize("case", ["missing", "not a bag", "unknown types", "not cdr", "bad remap"])
 def test_cli_bad_input_is_one_clear_line(tmp_path: Path, interop_dir: Path, case: str) -> None:
+    options: list[str] = []
     if case == "missing":
         path, expected = tmp_path / "nope", "no such file"
     elif case == "not a bag":
@@ -399,9 +400,12 @@ def test_cli_bad_input_is_one_clear_line(tmp_path: Path, interop_dir: Path, case
     elif case == "not cdr":
         path = interop_dir / "rosbag2_tests/resources/mcap/wrong_rmw_test"
         expected = "'wrong_format' is not cdr"
+    elif case == "bad remap":
+        path, expected = NOMINAL_BAG, "cannot publish /imu/data as '/imu data'"
+        options = ["--remap", "/imu/data:=/imu data"]
     else:
         raise AssertionError(case)
-    result = _bagkit("replay", str(path), "--no-wait-for-subscribers")
+    result = _bagkit("replay", str(path), "--no-wait-for-subscribers", *options)
     assert result.returncode == 2
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1, result.stderr
