@@ -8,6 +8,7 @@ integers; strings stay strings so they can be compared exactly but are not numer
 
 from __future__ import annotations
 
+import re
 import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -155,11 +156,45 @@ def _generate(
         result = ["    return {", *(f"        {p!r}: {e}," for p, e in gen.entries), "    }"]
     else:
         expressions = dict(gen.entries)
-        result = ["    return [", *(f"        {expressions[p]}," for p in paths), "    ]"]
+        result = [
+            "    return [",
+            *(
+                f"        {e},"
+                for e in _splat([expressions[p] for p in paths], list(expressions.values()))
+            ),
+            "    ]",
+        ]
     body = "\n".join(["def generated(m):", *(f"    {line}" for line in gen.prelude), *result])
     namespace: dict[str, Any] = {"_as_list": _as_list, "_ndarray": np.ndarray, "np": np}
     exec(compile(body, f"<bagkit flatten {typename}>", "exec"), namespace)
     return namespace["generated"]
+
+
+_ITEM = re.compile(r"(a\d+)\[(\d+)\]")
+
+
+def _splat(expressions: list[str], every: list[str]) -> list[str]:
+    """``a1[0], a1[1] ... a1[8]`` (a whole array's list, in order) -> ``*a1``.
+
+    ``every`` holds the expressions of all leaves: it tells each array's length.
+    """
+    lengths: dict[str, int] = {}
+    for expr in every:
+        if match := _ITEM.fullmatch(expr):
+            lengths[match[1]] = lengths.get(match[1], 0) + 1
+    out: list[str] = []
+    i = 0
+    while i < len(expressions):
+        match = _ITEM.fullmatch(expressions[i])
+        if match and match[2] == "0":
+            run = [f"{match[1]}[{k}]" for k in range(lengths[match[1]])]
+            if expressions[i : i + len(run)] == run:
+                out.append(f"*{match[1]}")
+                i += len(run)
+                continue
+        out.append(expressions[i])
+        i += 1
+    return out
 
 
 class _Codegen:

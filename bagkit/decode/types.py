@@ -11,7 +11,7 @@ definitions (or incomplete ones), for which rosbags' own Jazzy types are used wh
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -104,11 +104,24 @@ class MessageTypes:
             SchemaError: the type cannot be decoded.
             DecodeError: the data does not match the definition.
         """
+        return self.decoder(name)(data)
+
+    def decoder(self, name: str) -> Callable[[bytes | memoryview], object]:
+        """``deserialize`` for one type, resolved once (for many messages of a topic).
+
+        Raises:
+            SchemaError: the type cannot be decoded.
+        """
         canonical = self.resolve(name)
-        try:
-            return self.typestore.deserialize_cdr(data, canonical)
-        except Exception as exc:  # rosbags raises assertion/struct/index errors on bad bytes
-            raise DecodeError(f"{name} message does not decode: {exc!r}") from exc
+        deserialize = self.typestore.deserialize_cdr
+
+        def decode(data: bytes | memoryview) -> object:
+            try:
+                return deserialize(data, canonical)
+            except Exception as exc:  # rosbags raises assertion/struct/index errors on bad bytes
+                raise DecodeError(f"{name} message does not decode: {exc!r}") from exc
+
+        return decode
 
 
 def _references(parsed: Mapping[str, Any]) -> list[str]:

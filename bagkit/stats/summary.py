@@ -190,6 +190,7 @@ class _TopicAccumulator:
         *,
         layout: CdrLayout | None,
         getter: Callable[[object], list[Any]],
+        decode: Callable[[bytes], object],
         signature: tuple[LeafField, ...],
     ) -> None:
         self.topic = topic
@@ -198,6 +199,8 @@ class _TopicAccumulator:
         self.layout = layout
         # getter(msg) -> the values of scalar_paths, then of the pooled paths.
         self.getter = getter
+        # decode(payload) -> msg, with the definitions of the bag being read.
+        self.decode = decode
         self.scalar_paths = [leaf.path for leaf in leaves if not leaf.pooled]
         self.column = {path: i for i, path in enumerate(self.scalar_paths)}
         self.scalars = Moments(len(self.scalar_paths))
@@ -260,25 +263,32 @@ class _TopicAccumulator:
         if self.scalar_paths:
             self.scalars.add(matrix)
 
-    def add_message(self, msg: object) -> None:
-        """Add one decoded message."""
-        values = self.getter(msg)
-        if self.pooled:
-            split = len(self.scalar_paths)
-            self._rows.append(values[:split])
-            pooled = values[split:]
-            self._pooled_rows.append(pooled)
-            self._pooled_size += sum(len(v) for v in pooled)
-        else:
-            self._rows.append(values)
-        if len(self._rows) >= ROW_BATCH or self._pooled_size >= POOLED_BATCH:
-            self.flush()
+    def add_payloads(self, payloads: Iterable[bytes]) -> None:
+        """Decode messages one by one (the general path) and add them."""
+        decode, getter, rows = self.decode, self.getter, self._rows
+        split = len(self.scalar_paths)
+        for data in payloads:
+            try:
+                values = getter(decode(data))
+            except DecodeError as exc:
+                self.fail(exc)
+                continue
+            if self.pooled:
+                rows.append(values[:split])
+                pooled = values[split:]
+                self._pooled_rows.append(pooled)
+                self._pooled_size += sum(len(v) for v in pooled)
+            else:
+                rows.append(values)
+            if len(rows) >= ROW_BATCH or self._pooled_size >= POOLED_BATCH:
+                self.flush()
 
     def flush(self) -> None:
-        """Take the moments of the messages buffered by :meth:`add_message`."""
+        """Take the moments of the messages buffered by :meth:`add_payloads`."""
         if not self._rows:
             return
         if self.scalar_paths:
+            # np.array of a list of rows converts faster than array('d') or np.fromiter.
             self.scalars.add(np.array(self._rows, dtype=np.float64))
         for j, moments in enumerate(self.pooled.values()):
             parts = [np.asarray(row[j], dtype=np.float64) for row in self._pooled_rows]
@@ -368,6 +378,7 @@ class _Run:
                     f"{type_name} of topic {topic} is defined differently in {bag} than in "
                     "the bags before it: summarize them separately"
                 )
+            existing.decode = self.types.decoder(type_name)
             return existing
         if topic in self.skipped:
             return None
@@ -386,7 +397,13 @@ class _Run:
         paths += [leaf.path for leaf in leaves if leaf.pooled]
         getter = field_getter(self.types.typestore, canonical, tuple(paths))
         accumulator = _TopicAccumulator(
-            topic, type_name, leaves, layout=layout, getter=getter, signature=signature
+            topic,
+            type_name,
+            leaves,
+            layout=layout,
+            getter=getter,
+            decode=self.types.decoder(type_name),
+            signature=signature,
         )
         self.accumulators[topic] = accumulator
         return accumulator
@@ -426,20 +443,13 @@ class _Run:
             else:
                 leftover = np.arange(len(starts))
             records = chunk.records
-            for begin, length in zip(
-                starts[leftover].tolist(), lengths[leftover].tolist(), strict=True
-            ):
-                self.add_payload(accumulator, records[begin : begin + length])
+            accumulator.add_payloads(
+                records[begin : begin + length]
+                for begin, length in zip(
+                    starts[leftover].tolist(), lengths[leftover].tolist(), strict=True
+                )
+            )
         return seen
-
-    def add_payload(self, accumulator: _TopicAccumulator, data: bytes) -> None:
-        """Decode one message with the general decoder and add it."""
-        try:
-            msg = self.types.deserialize(data, accumulator.type_name)
-        except DecodeError as exc:
-            accumulator.fail(exc)
-            return
-        accumulator.add_message(msg)
 
 
 def summarize(
@@ -514,7 +524,7 @@ def summarize(
                     accumulator = wanted[message.topic]
                     accumulator.add_times(np.array([message.log_time]))
                     if accumulator.leaves:
-                        run.add_payload(accumulator, message.data)
+                        accumulator.add_payloads((message.data,))
                     done += 1
                     if progress is not None and done % ROW_BATCH == 0:
                         progress(done, total)

@@ -13,7 +13,7 @@ from rosbags.typesys import Stores, get_typestore
 from rosbags.typesys.store import Typestore
 
 from bagkit.bag import BagReader, message_definition
-from bagkit.decode import MessageTypes, SchemaError, flatten_message, leaf_fields
+from bagkit.decode import MessageTypes, SchemaError, field_getter, flatten_message, leaf_fields
 from bagkit.decode.layout import CdrLayout
 from bagkit.stats.bulk import MAX_GROUPS, decode_bulk
 
@@ -310,3 +310,26 @@ def test_too_many_layouts_go_to_the_general_decoder() -> None:
         buffer, starts, np.array([len(p) for p in payloads], dtype=np.int64), layout
     )
     assert groups == [] and leftover.tolist() == list(range(len(payloads)))
+
+
+@pytest.mark.parametrize(
+    "typename",
+    ["sensor_msgs/msg/Imu", "nav_msgs/msg/Odometry", "diagnostic_msgs/msg/DiagnosticArray"],
+)
+def test_field_getter_returns_the_flattened_values_of_its_paths(typename: str) -> None:
+    rng = np.random.default_rng(12)
+    paths = [leaf.path for leaf in leaf_fields(JAZZY, typename)]
+    selections = [
+        tuple(paths),  # whole arrays in order: read with one unpacking
+        tuple(p for p in paths if not p.endswith(("[3]", "[7]"))),  # arrays with holes
+        tuple(rng.permutation(paths)[: len(paths) // 2]),
+    ]
+    for selection in selections:
+        get = field_getter(JAZZY, typename, selection)
+        for _ in range(5):
+            msg = random_message(JAZZY, typename, rng)
+            flat = flatten_message(msg, JAZZY)
+            values = get(msg)
+            assert len(values) == len(selection)
+            for path, value in zip(selection, values, strict=True):
+                assert _flat_equal(value, flat[path]), (typename, path)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import shutil
+from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
@@ -102,18 +103,20 @@ def test_fast_path_is_taken_and_agrees_with_general_path(
     bag: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     decoded_one_by_one: list[str] = []
-    general = summary_module._Run.add_payload
+    general = summary_module._TopicAccumulator.add_payloads
 
-    def counting(self: summary_module._Run, accumulator: object, data: bytes) -> None:
-        decoded_one_by_one.append(accumulator.topic)  # type: ignore[attr-defined]
-        general(self, accumulator, data)  # type: ignore[arg-type]
+    def counting(self: summary_module._TopicAccumulator, payloads: Iterable[bytes]) -> None:
+        payloads = list(payloads)
+        decoded_one_by_one.extend(self.topic for _ in payloads)
+        general(self, payloads)
 
-    monkeypatch.setattr(summary_module._Run, "add_payload", counting)
+    monkeypatch.setattr(summary_module._TopicAccumulator, "add_payloads", counting)
     fast = summarize([bag])
     # Only the type with sequences of messages goes through the general decoder.
     assert set(decoded_one_by_one) == {"/diagnostics"}
 
     decoded_one_by_one.clear()
+    monkeypatch.setattr(summary_module, "ROW_BATCH", 100)  # many batches to merge
     slow = summarize([bag], bulk=False)
     assert set(decoded_one_by_one) == {"/imu/data", "/scan", "/diagnostics", "/flag"}
     assert len(fast.topics) == len(slow.topics)
