@@ -200,8 +200,8 @@ def main() -> bool:
     print(f"speedup vs rosbags+dataframe: {vs_frame:6.1f}x (target >= {SPEEDUP_VS_DATAFRAME:g}x)")
     print(f"speedup vs rosbags raw:       {vs_raw:6.1f}x (target >= {SPEEDUP_VS_RAW_ITERATION:g}x)")
 
-    general = _seconds(lambda: _bagkit_general(small), runs=2)
-    deserialize = _seconds(lambda: _rosbags_deserialize(small), runs=2)
+    general = _seconds(lambda: _bagkit_general(small), runs=3)
+    deserialize = _seconds(lambda: _rosbags_deserialize(small), runs=3)
     vs_deserialize = deserialize / general
     print(
         f"general path (bulk=False) {general:6.2f} s vs rosbags deserialize {deserialize:.2f} s "
