@@ -126,10 +126,11 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
 ) -> None:
     """Replay BAG over ROS 2 with its recorded timing, scaled by --rate.
 
-    Each message's stored bytes are published when the monotonic clock reaches
-    start + (log time - bag start) / rate. Topics whose type is not installed are skipped.
-    Progress goes to stderr; the per-topic counts and the timing error (how late messages
-    were published: p50/p99/max) go to stdout at the end.
+    Publishes each message's stored bytes at start + (log time - start) / rate.
+
+    First waits until the subscribers known to the graph have matched.
+
+    Progress goes to stderr; per-topic counts and the timing error go to stdout.
     """
     from bagkit.ros.player import Player, parse_remaps
 
