@@ -280,8 +280,8 @@ def test_loops_and_delay(test_bag: Path, listener_factory: type[Listener]) -> No
     # Each pass starts with the delay: the first message 0.5 s after play(), the second pass
     # 0.5 s after the first one ended.
     first_pass_end = got[len(expected) - 1].received_ns
-    assert 0.5 <= (got[0].received_ns - started_ns) / 1e9 < 0.8
-    assert 0.5 <= (got[len(expected)].received_ns - first_pass_end) / 1e9 < 0.8
+    assert 0.5 <= (got[0].received_ns - started_ns) / 1e9 < 1.0
+    assert 0.5 <= (got[len(expected)].received_ns - first_pass_end) / 1e9 < 1.0
 
 
 def test_clock_runs_in_bag_time_before_each_message(
