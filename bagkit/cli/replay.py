@@ -173,6 +173,8 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
         print_json(report.to_dict())
     else:
         _print_report(report)
+    if report.messages == 0 and not report.interrupted:
+        warn("no message of the selected topics lies in the replayed window")
     if report.problems:
         warn(
             f"the bag is damaged: replayed the {report.messages} messages that could be read; "
