@@ -85,6 +85,12 @@ def decode_bulk(
             leftover.append(members[~fits])
             members = members[fits]
             values = read_u32(buf, starts[members] + step.offset)
+            if not len(values):
+                continue
+            low = int(values.min())
+            if low == values.max():  # the usual case: one frame_id, one layout
+                pending.append((members, (*prefixes, low)))
+                continue
             distinct = np.unique(values)
             if len(distinct) + len(groups) + len(pending) > MAX_GROUPS:
                 leftover.append(members)
