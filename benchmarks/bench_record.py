@@ -164,14 +164,16 @@ def _run_subscriber(
 ) -> dict[str, Any]:
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
-    from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
 
     from bagkit.bag import BagWriter, TopicInfo
+    from bagkit.ros.qos import adapt_subscription_qos
     from bagkit.ros.types import message_type_name
 
     context, node = _init(f"bench_record_{mode}")
     message_type = _message_type(kind)
-    qos = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
+    # Exactly the profile the recorder subscribes with to a reliable publisher.
+    qos = adapt_subscription_qos([QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)])
     counts = {"messages": 0, "bytes": 0, "first": 0, "last": 0}
 
     if mode == "naive":

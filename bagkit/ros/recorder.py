@@ -65,6 +65,8 @@ TAKE_BURST = 256
 TAKE_BURST_BYTES = 4 << 20
 # How long the take thread waits for room in a full write queue before dropping a batch.
 QUEUE_WAIT_S = 1.0
+# How long a stop (or a re-subscription) keeps taking what the middleware already holds.
+DRAIN_S = 1.0
 # The writer closes a chunk at least this often, so a killed recorder loses at most this much.
 FLUSH_PERIOD_S = 1.0
 CLOCK_TOPIC = "/clock"
@@ -614,17 +616,24 @@ class Recorder:
             self._drain(topic)
 
     def _drain(self, topic: _Topic) -> None:
-        """Take everything waiting in ``topic``'s subscription and queue it."""
+        """Queue what waits in ``topic``'s subscription, for ``DRAIN_S`` at most.
+
+        A publisher flooding the topic must not hold up a stop.
+        """
         take = topic.subscription.handle.take_message
-        messages: list[_Taken] = []
-        while (taken := take(topic.message_type, True)) is not None:
-            messages.append(taken)
-        if messages:
-            self._queue.put_batch(
-                self._sim_time if self._clock is not None else None,
-                [(topic, messages)],
-                sum(len(data) for data, _info in messages),
-            )
+        sim_time = self._sim_time if self._clock is not None else None
+        deadline = time.monotonic() + DRAIN_S
+        taken: _Taken | None = None
+        while time.monotonic() < deadline:
+            messages: list[_Taken] = []
+            nbytes = 0
+            while nbytes < TAKE_BURST_BYTES and (taken := take(topic.message_type, True)):
+                messages.append(taken)
+                nbytes += len(taken[0])
+            if messages:
+                self._queue.put_batch(sim_time, [(topic, messages)], nbytes)
+            if taken is None:
+                return
 
     def _discover(self) -> None:
         """Subscribe to newly matching topics; re-subscribe where the offers got weaker."""
