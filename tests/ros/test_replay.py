@@ -550,10 +550,12 @@ def test_replay_through_the_pipeline_while_recording_its_outputs(
         stdout=subprocess.DEVNULL,
     )
     topics = [arg for topic in SENSOR_TOPICS for arg in ("--topics", topic)]
-    waits = [arg for topic in ["/clock", *SENSOR_TOPICS] for arg in ("--wait-for", topic)]
-    # --delay: the recorder finds the nodes' publishers up to one discovery period (3 s) late.
+    # The nodes' subscriptions, and the recorder's on the outputs: it subscribes once it has
+    # found the nodes' publishers, which can take one discovery period (3 s).
+    consumed = ["/clock", *SENSOR_TOPICS, "/fusion/odometry", "/fusion/baro_altitude"]
+    waits = [arg for topic in consumed for arg in ("--wait-for", topic)]
     result = _bagkit(
-        "replay", str(NOMINAL_BAG), "--rate", "2", "--clock", "--duration", "8", "--delay", "3",
+        "replay", str(NOMINAL_BAG), "--rate", "2", "--clock", "--duration", "8",
         "--format", "json", *topics, *CLI_KNOWN, *waits, "--wait-timeout", "30",
     )  # fmt: skip
     assert result.returncode == 0, result.stderr
