@@ -120,7 +120,7 @@ def compare_bags(
                 and canonical_type_name(g_info.type) != canonical_type_name(c_info.type)
             ):
                 result = TopicResult(topic, canonical_type_name(g_info.type), "")
-                result.divergence_count = result.structural_divergences = 1
+                result.divergence_count = result.shape_divergences = 1
                 result.divergences = [Divergence("type", topic, 0, "", g_info.type, c_info.type)]
                 results.append(result)
                 continue

@@ -12,6 +12,8 @@ from bagkit.compare.options import CompareOptions, Tolerance
 from bagkit.compare.result import Divergence, FieldResult, TopicResult, Value
 
 STAMP_FIELDS = ("header.stamp.sec", "header.stamp.nanosec")
+# Divergences no pass rate excuses: the messages do not have the same shape.
+SHAPE_KINDS = frozenset({"missing_field", "extra_field", "length", "type"})
 
 
 @dataclass(frozen=True, slots=True)
@@ -110,8 +112,8 @@ class _TopicComparison:
     def diverge(self, divergence: Divergence) -> None:
         # Keep the earliest ones: a bounded max-heap on (time, arrival order).
         self.result.divergence_count += 1
-        if divergence.kind != "value":
-            self.result.structural_divergences += 1
+        if divergence.kind in SHAPE_KINDS:
+            self.result.shape_divergences += 1
         item = (-divergence.time_ns, -self.result.divergence_count, divergence)
         if len(self.kept) < self.options.max_divergences:
             heapq.heappush(self.kept, item)
@@ -234,15 +236,18 @@ def compare_samples(
         comparison.diverge(Divergence("missing_message", topic, sample.time_ns))
     for sample in extra:
         comparison.diverge(Divergence("extra_message", topic, sample.time_ns))
+    result.failed_messages = len(missing) + len(extra)
     for g, c in pairs:
-        before = result.divergence_count - result.structural_divergences
+        before = result.divergence_count
         comparison.compare_pair(g, c, skip=skip)
-        if result.divergence_count - result.structural_divergences > before:
+        if result.divergence_count > before:
             result.failed_messages += 1
-    result.allowed_failed_messages = math.floor(
-        (1.0 - options.pass_rate_for(topic)) * len(pairs) + 1e-9
-    )
+    result.allowed_failed_messages = _allowed(options, topic, len(golden))
     return comparison.finish()
+
+
+def _allowed(options: CompareOptions, topic: str, golden_count: int) -> int:
+    return math.floor((1.0 - options.pass_rate_for(topic)) * golden_count + 1e-9)
 
 
 def compare_events(
@@ -283,6 +288,8 @@ def compare_events(
         comparison.diverge(
             Divergence("extra_event", topic, event.time_ns, event.name, None, _level(event))
         )
+    result.failed_messages = result.missing + result.extra
+    result.allowed_failed_messages = _allowed(options, topic, len(golden))
     return comparison.finish()
 
 

@@ -77,9 +77,10 @@ class CompareOptions:
             this much (0: exactly); ``match_windows`` overrides it per topic.
         include_times: also compare receive and publish times (seconds, as ``~log_time`` and
             ``~publish_time`` fields); ignored by default.
-        pass_rate: the fraction of a topic's matched messages whose values must all be within
-            tolerance (1: every one); ``pass_rates`` overrides it per topic. Missing, extra
-            and differently shaped messages fail a topic whatever the rate.
+        pass_rate: the fraction of a topic's golden messages (or events) that must be
+            matched with every value within tolerance (1: all of them); ``pass_rates``
+            overrides it per topic. Messages of another shape (fields, lengths) fail a topic
+            whatever the rate.
         max_divergences: how many divergences each topic keeps for the report.
     """
 
@@ -118,7 +119,7 @@ class CompareOptions:
         return False
 
     def pass_rate_for(self, topic: str) -> float:
-        """The fraction of ``topic``'s matched messages that must be within tolerance."""
+        """The fraction of ``topic``'s golden messages that must be matched within tolerance."""
         return self.pass_rates.get(topic, self.pass_rate)
 
     def window_for(self, topic: str) -> int:

@@ -74,19 +74,16 @@ class TopicResult:
     divergence_count: int = 0
     divergences: list[Divergence] = field(default_factory=list)
     max_event_shift_ns: int = 0
-    structural_divergences: int = 0  # anything but a value out of tolerance
-    failed_messages: int = 0  # matched messages with a value out of tolerance
-    allowed_failed_messages: int = 0
+    shape_divergences: int = 0  # fields, sequence lengths or types that differ
+    failed_messages: int = 0  # missing, extra, or matched with a value out of tolerance
+    allowed_failed_messages: int = 0  # what the topic's pass rate allows
 
     @property
     def passed(self) -> bool:
-        """Whether the topic is identical within tolerance: nothing missing, extra or of
-        another shape, and no more matched messages with values out of tolerance than the
-        topic's pass rate allows (none by default)."""
-        value_divergences = self.divergence_count - self.structural_divergences
-        return self.structural_divergences == 0 and (
-            value_divergences == 0 or self.failed_messages <= self.allowed_failed_messages
-        )
+        """Whether the topic is identical within tolerance: no message of another shape, and
+        no more missing, extra or out-of-tolerance messages (or events) than the topic's pass
+        rate allows (none by default)."""
+        return self.shape_divergences == 0 and self.failed_messages <= self.allowed_failed_messages
 
     @property
     def failed_fields(self) -> list[FieldResult]:

@@ -251,7 +251,7 @@ def test_brackets_in_field_globs_are_literal() -> None:
     assert options.tolerance_for("/t", "pose.covariance[1]").atol == 0.0
 
 
-def test_pass_rate_tolerates_isolated_value_failures_only() -> None:
+def test_pass_rate_tolerates_isolated_failures_but_not_other_shapes() -> None:
     golden = [stamped(i * SEC, x=0.0) for i in range(50)]
     candidate = [stamped(i * SEC, x=1.0 if i in {7, 30} else 0.0) for i in range(50)]
     strict = compare_samples("/t", "T", golden, candidate, CompareOptions())
@@ -260,8 +260,14 @@ def test_pass_rate_tolerates_isolated_value_failures_only() -> None:
     assert lenient.passed and lenient.allowed_failed_messages == 2
     assert lenient.divergence_count == 2  # still reported
     assert not compare_samples("/t", "T", golden, candidate, CompareOptions(pass_rate=0.97)).passed
-    # a missing message fails whatever the rate
-    result = compare_samples("/t", "T", golden, candidate[:-1], CompareOptions(pass_rate=0.5))
-    assert not result.passed
+    # a missing or extra message counts against the rate too
+    dropped = compare_samples("/t", "T", golden, candidate[:-1], CompareOptions(pass_rate=0.94))
+    assert dropped.passed and dropped.failed_messages == 3
+    assert not compare_samples(
+        "/t", "T", golden, candidate[:-1], CompareOptions(pass_rate=0.96)
+    ).passed
+    # a message of another shape fails whatever the rate
+    reshaped = [*candidate[:-1], stamped(49 * SEC, x=0.0, y=1.0)]
+    assert not compare_samples("/t", "T", golden, reshaped, CompareOptions(pass_rate=0.5)).passed
     with pytest.raises(CompareError):
         CompareOptions(pass_rate=1.5)
