@@ -136,9 +136,11 @@ def test_full_disk_stops_with_one_line_and_keeps_what_was_written(
     wait_for(lambda: publisher.get_subscription_count() > 0, STARTUP_TIMEOUT_S)
     # A file size limit makes writes fail (EFBIG) as a full disk does (ENOSPC). Set once the
     # middleware is up: its shared-memory segments are files too. Python ignores SIGXFSZ.
-    resource.prlimit(proc.pid, resource.RLIMIT_FSIZE, (400_000, 400_000))
+    # About 400 kB/s, one chunk per second: the first chunk fits under the limit, the second
+    # or third does not.
+    resource.prlimit(proc.pid, resource.RLIMIT_FSIZE, (700_000, 700_000))
     payload = "x" * 20_000
-    for i in range(60):
+    for i in range(80):
         if proc.poll() is not None:
             break
         publisher.publish(String(data=f"{i:04d}{payload}"))
