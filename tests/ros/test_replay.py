@@ -29,6 +29,7 @@ from std_msgs.msg import String
 from bagkit.bag import BagReader, BagWriter, TopicInfo
 from bagkit.ros.player import Player, play
 from bagkit.ros.qos import dump_offered_qos_profiles
+from bagkit.ros.timing import clock_message
 
 pytestmark = pytest.mark.ros
 
@@ -380,6 +381,8 @@ def test_cli_loop_until_ctrl_c(
     assert "Traceback" not in stderr
     assert len(listener.messages()) > 2 * per_pass
     assert "passes" in stdout  # the report is printed even when interrupted
+    progress = [line for line in stderr.splitlines() if line.startswith("bag ")]
+    assert progress and "msgs" in progress[-1] and "late" in progress[-1]
 
 
 @pytest.mark.parametrize("case", ["missing", "not a bag", "unknown types", "not cdr", "bad remap"])
@@ -603,3 +606,16 @@ def _header_stamps(
             for m in reader.messages([topic], end_ns=end_ns)
         ]
     return stamps
+
+
+def test_a_recorded_clock_is_not_replayed_with_clock_on(tmp_path: Path) -> None:
+    bag = tmp_path / "with_clock"
+    with BagWriter(bag) as writer:
+        writer.add_topic(TopicInfo("/clock", "rosgraph_msgs/msg/Clock"))
+        writer.add_topic(TopicInfo("/replay/fast", "std_msgs/msg/String"))
+        writer.write("/clock", clock_message(BAG_START_NS), log_time=BAG_START_NS)
+        writer.write("/replay/fast", _payload("/replay/fast", 0), log_time=BAG_START_NS)
+    with Player(bag, clock_hz=100.0, wait_for_subscribers=False) as player:
+        assert set(player.published_topics) == {"/replay/fast"}
+    with Player(bag, wait_for_subscribers=False) as player:
+        assert set(player.published_topics) == {"/clock", "/replay/fast"}
