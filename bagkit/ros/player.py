@@ -100,6 +100,7 @@ class PlayReport:
     bag_duration_s: float
     """Bag time covered by the replayed messages, summed over passes."""
     wall_duration_s: float
+    """Wall time from the start of the first pass (its delay included) to the last message."""
     rate: float
     lateness: LatenessSummary
     skipped_types: dict[str, str] = field(default_factory=dict)
@@ -381,8 +382,11 @@ class Player:
             while self.loops == 0 or passes < self.loops:
                 if self.delay > 0:
                     time.sleep(self.delay)
+                before = len(lateness)
                 bag_ns += self._play_pass(passes, lateness)
                 passes += 1
+                if len(lateness) == before:
+                    break  # an empty window: looping would only spin
             wall_ns = time.monotonic_ns() - wall_start
             unacknowledged = self.wait_until_acknowledged()
         except KeyboardInterrupt:
