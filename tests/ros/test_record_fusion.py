@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import subprocess
 import time
 from pathlib import Path
@@ -11,6 +10,7 @@ import pytest
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.highlevel import AnyReader
+from test_record_cli import report_json
 
 from bagkit.bag import BagReader
 from bagkit.ros.types import message_type_name
@@ -43,7 +43,7 @@ def test_record_live_fusion_system(processes: object, tmp_path: Path) -> None:
     )
     stdout, stderr = recorder.communicate(timeout=60)
     assert recorder.returncode == 0, stderr.decode()
-    report = json.loads(stdout)
+    report = report_json(stdout)
     recorded = {t["topic"]: t for t in report["topics"] if t["messages"]}
 
     # Every topic of the system, nothing lost, one publisher each. Topics are discovered at
