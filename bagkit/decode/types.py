@@ -109,17 +109,28 @@ class MessageTypes:
     def decoder(self, name: str) -> Callable[[bytes | memoryview], object]:
         """``deserialize`` for one type, resolved once (for many messages of a topic).
 
+        Calls rosbags' generated deserializer directly: given a memoryview (of a chunk), the
+        payload is not copied; arrays in the message may then be views of that buffer.
+
         Raises:
             SchemaError: the type cannot be decoded.
         """
         canonical = self.resolve(name)
-        deserialize = self.typestore.deserialize_cdr
+        msgdef = self.typestore.get_msgdef(canonical)
+        little, big = msgdef.deserialize_cdr_le, msgdef.deserialize_cdr_be
+        cls, store = msgdef.cls, self.typestore
 
         def decode(data: bytes | memoryview) -> object:
             try:
-                return deserialize(data, canonical)
-            except Exception as exc:  # rosbags raises assertion/struct/index errors on bad bytes
+                if len(data) < 4 or data[0] != 0 or data[1] > 1:
+                    raise ValueError("not a plain CDR encapsulation")
+                message, end = (little if data[1] else big)(data[4:], 0, cls, store)
+                # CDR writers pad to 4 bytes at most (rosbags' own check).
+                if end + 4 + 3 < len(data):
+                    raise ValueError(f"{len(data) - 4 - end} bytes after the message")
+            except Exception as exc:  # rosbags raises struct/index/unicode errors on bad bytes
                 raise DecodeError(f"{name} message does not decode: {exc!r}") from exc
+            return message
 
         return decode
 

@@ -190,7 +190,7 @@ class _TopicAccumulator:
         *,
         layout: CdrLayout | None,
         getter: Callable[[object], list[Any]],
-        decode: Callable[[bytes], object],
+        decode: Callable[[bytes | memoryview], object],
         signature: tuple[LeafField, ...],
     ) -> None:
         self.topic = topic
@@ -264,7 +264,7 @@ class _TopicAccumulator:
         if self.scalar_paths:
             self.scalars.add(matrix)
 
-    def add_payloads(self, payloads: Iterable[bytes]) -> None:
+    def add_payloads(self, payloads: Iterable[bytes | memoryview]) -> None:
         """Decode messages one by one (the general path) and add them."""
         decode, getter, rows = self.decode, self.getter, self._rows
         split = len(self.scalar_paths)
@@ -276,7 +276,8 @@ class _TopicAccumulator:
                 continue
             if self.pooled:
                 rows.append(values[:split])
-                pooled = values[split:]
+                # Copies: a decoded array may be a view of the chunk, which must not be kept.
+                pooled = [np.array(v, dtype=np.float64) for v in values[split:]]
                 self._pooled_rows.append(pooled)
                 self._pooled_size += sum(len(v) for v in pooled)
             else:
@@ -443,7 +444,8 @@ class _Run:
                     accumulator.add_bulk(group.layout, group.values)
             else:
                 leftover = np.arange(len(starts))
-            records = chunk.records
+            # Views, not copies: add_payloads keeps nothing that points into the chunk.
+            records = memoryview(chunk.records)
             accumulator.add_payloads(
                 records[begin : begin + length]
                 for begin, length in zip(
