@@ -156,3 +156,34 @@ def test_undecodable_topics_are_named(interop_dir: Path) -> None:
     assert "warning: topic /test_service1/_service_event skipped" in partial.stderr
     topics = {t["topic"]: t["count"] for t in json.loads(partial.stdout)["topics"]}
     assert topics == {"/events/write_split": 0, "/test_topic1": 1, "/test_topic2": 1}
+
+
+def test_json_is_strict_with_infinite_values(tmp_path: Path) -> None:
+    """JSON has no inf/NaN literals: they are written as strings, the document stays strict."""
+    path = tmp_path / "inf"
+    temperature = TYPESTORE.types["sensor_msgs/msg/Temperature"]
+    header = TYPESTORE.types["std_msgs/msg/Header"]
+    stamp = TYPESTORE.types["builtin_interfaces/msg/Time"]
+    with BagWriter(path) as writer:
+        writer.add_topic(TopicInfo("/temperature", "sensor_msgs/msg/Temperature"))
+        for i, variance in enumerate([0.5, float("inf"), 0.25]):
+            msg = temperature(
+                header=header(stamp=stamp(sec=i, nanosec=0), frame_id="t"),
+                temperature=20.0 + i,
+                variance=variance,
+            )
+            writer.write(
+                "/temperature",
+                bytes(TYPESTORE.serialize_cdr(msg, msg.__msgtype__)),
+                log_time=T0 + i * 10**9,
+            )
+    proc = _run(path, "--format", "json", "-f", "variance")
+    assert proc.returncode == 0, proc.stderr
+
+    def reject(constant: str) -> None:
+        raise AssertionError(f"non-standard JSON constant {constant}")
+
+    document = json.loads(proc.stdout, parse_constant=reject)
+    (field,) = document["topics"][0]["fields"]
+    assert (field["count"], field["min"], field["max"]) == (3, 0.25, "inf")
+    assert (field["mean"], field["std"]) == ("inf", "NaN")
