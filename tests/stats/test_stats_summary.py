@@ -13,6 +13,7 @@ from rosbags.typesys import get_types_from_msg
 from rosbags.typesys.store import Typestore
 from rosbags_oracle import (
     T0,
+    TYPESTORE,
     TopicData,
     diagnostics_data,
     flag_data,
@@ -296,3 +297,34 @@ def test_pooled_bags_must_define_a_type_the_same_way(tmp_path: Path) -> None:
     assert summarize([bags[0]]).topics[0].fields[0].field == "x"
     with pytest.raises(StatsError, match=r"defined differently in .*v2"):
         summarize(bags)
+
+
+@pytest.mark.parametrize("layout", ["unchunked", "lz4", "none"])
+def test_other_mcap_writer_layouts(tmp_path: Path, layout: str) -> None:
+    """Files from the mcap library: messages outside chunks, lz4 and uncompressed chunks."""
+    from mcap.writer import CompressionType
+    from mcap.writer import Writer as McapWriter
+
+    from bagkit.bag import message_definition
+
+    data = imu_data(np.random.default_rng(3), 500)
+    path = tmp_path / f"{layout}.mcap"
+    with open(path, "wb") as f:
+        writer = McapWriter(
+            f,
+            use_chunking=layout != "unchunked",
+            chunk_size=32 * 1024,
+            compression=CompressionType.LZ4 if layout == "lz4" else CompressionType.NONE,
+        )
+        writer.start("ros2", "test")
+        schema = writer.register_schema(
+            data.type, "ros2msg", message_definition(data.type).encode()
+        )
+        channel = writer.register_channel("/imu/data", "cdr", schema)
+        for log_time, msg in data.messages:
+            payload = bytes(TYPESTORE.serialize_cdr(msg, data.type))
+            writer.add_message(channel, log_time=log_time, data=payload, publish_time=log_time)
+        writer.finish()
+    (imu,) = summarize([path]).topics
+    assert imu.count == len(data.messages)
+    _check_topic(imu, data)
