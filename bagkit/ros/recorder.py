@@ -63,6 +63,8 @@ DEFAULT_QUEUE_BYTES = 64 << 20
 # also ends at TAKE_BURST_BYTES (four 1 MB images), so batches stay far below the queue bound.
 TAKE_BURST = 256
 TAKE_BURST_BYTES = 4 << 20
+# How long taken messages may wait before they are handed to the writer.
+BATCH_AGE_S = 0.005
 # How long the take thread waits for room in a full write queue before dropping a batch.
 QUEUE_WAIT_S = 1.0
 # How long a stop (or a re-subscription) keeps taking what the middleware already holds.
@@ -565,6 +567,14 @@ class Recorder:
         wait_set: Any = None
         generation = -1
         next_poll = time.monotonic() + self.discovery_period_s
+        # Messages accumulate over a few wake-ups before they go to the writer: a hand-over
+        # costs a lock, a notification and a thread switch, too much to pay per message when
+        # the wait set wakes for every one. With sim time, each wake-up's messages carry the
+        # clock of that moment, so each is handed over at once.
+        batch: _Batch = []
+        nbytes = count = 0
+        batch_deadline = 0.0
+        max_age = 0.0 if clock is not None else BATCH_AGE_S
         while not self._stopping.is_set():
             if generation != self._generation:
                 generation = self._generation
@@ -577,14 +587,12 @@ class Recorder:
             for handle in handles:
                 wait_set.add_subscription(handle)
             wait_set.add_guard_condition(wake)
-            timeout = max(0.0, next_poll - time.monotonic())
-            wait_set.wait(int(timeout * 1e9))
+            until = min(next_poll, batch_deadline) if batch else next_poll
+            wait_set.wait(int(max(0.0, until - time.monotonic()) * 1e9))
             ready = wait_set.get_ready_entities("subscription")
             if clock is not None:
                 while (taken := clock.handle.take_message(clock.msg_type, True)) is not None:
                     self._sim_time = _clock_ns(taken[0])
-            batch: _Batch = []
-            nbytes = 0
             for pointer in ready:
                 topic = by_pointer.get(pointer)
                 if topic is None:
@@ -601,13 +609,24 @@ class Recorder:
                     topic_bytes += len(taken[0])
                     if topic_bytes >= TAKE_BURST_BYTES:
                         break  # the rest next round: the wait set reports it ready again
-                batch.append((topic, messages))
-                nbytes += topic_bytes
-            if batch:
+                if messages:
+                    if not batch:
+                        batch_deadline = time.monotonic() + max_age
+                    batch.append((topic, messages))
+                    nbytes += topic_bytes
+                    count += len(messages)
+            now = time.monotonic()
+            if batch and (
+                now >= batch_deadline or nbytes >= TAKE_BURST_BYTES or count >= TAKE_BURST
+            ):
                 queue.put_batch(self._sim_time if clock is not None else None, batch, nbytes)
-            if time.monotonic() >= next_poll:
+                batch = []
+                nbytes = count = 0
+            if now >= next_poll:
                 self._discover()
                 next_poll = time.monotonic() + self.discovery_period_s
+        if batch:
+            queue.put_batch(self._sim_time if clock is not None else None, batch, nbytes)
         self._drain_all()
 
     def _drain_all(self) -> None:
