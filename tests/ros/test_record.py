@@ -275,3 +275,31 @@ def test_qos_overrides_replace_the_adapted_profile(node: Node, tmp_path: Path) -
         wait_for(lambda: rec.progress().messages == 1)
     # Adapted, it would have been reliable keep-all: the publisher is reliable.
     assert subscription.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT
+
+
+def test_write_queue_overflow_is_counted(
+    node: Node, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A writer slower than the input: every message is either in the bag or counted lost."""
+    write = recorder_module.BagWriter.write
+
+    def slow_write(self: Any, *args: Any, **kwargs: Any) -> None:
+        time.sleep(0.005)  # stands for a disk that cannot keep up
+        write(self, *args, **kwargs)
+
+    monkeypatch.setattr(recorder_module.BagWriter, "write", slow_write)
+    monkeypatch.setattr(recorder_module, "QUEUE_WAIT_S", 0.01)
+    publisher = node.create_publisher(String, "/slow", 1000)
+    n = 600
+    # Room for about two batches (5 ms of messages each) waiting for the writer.
+    with Recorder(tmp_path / "slow", topics=["/slow"], queue_bytes=200) as recorder:
+        wait_matched(publisher)
+        for i in range(n):
+            publisher.publish(String(data=f"slow {i:04d}"))
+            time.sleep(0.001)
+        wait_for(lambda: recorder.progress().messages + recorder.progress().lost == n, 20)
+    record = recorder.report.topic("/slow")
+    assert record.overflow > 0
+    assert record.messages + record.lost == n
+    with BagReader(tmp_path / "slow") as reader:
+        assert reader.topic_counts == {"/slow": record.messages}
