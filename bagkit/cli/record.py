@@ -185,8 +185,12 @@ def record(  # noqa: PLR0917 (typer maps parameters to options)
     received: list[int] = []
 
     def on_signal(signum: int, _frame: FrameType | None) -> None:
+        if received:
+            # A second signal: give up finishing (what is on disk stays salvageable).
+            raise KeyboardInterrupt
         received.append(signum)
         stop.set()
+        err_console.print("stopping: finishing the bag (Ctrl-C again to abort)")
 
     previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
