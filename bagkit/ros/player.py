@@ -40,7 +40,6 @@ from bagkit.ros.timing import (
     DEFAULT_DISCOVERY_TIME_S,
     LATE_THRESHOLD_NS,
     LatenessSummary,
-    ReadAhead,
     Timeline,
     clock_message,
     wait_until,
@@ -419,14 +418,16 @@ class Player:
         window_start = reader.start_ns + self.start_offset_ns
         window_end = window_start + self.duration_ns if self.duration_ns is not None else None
         outputs = self._outputs
-        source = reader.messages(topics=list(outputs), start_ns=window_start, end_ns=window_end)
-        with ReadAhead(source, size=_data_size) as read_ahead:
-            messages = iter(read_ahead)
-            # The first chunk is read before the clock starts, so the first message is on time.
-            first = next(messages, None)
-            if first is None:
-                return 0
-            return self._publish(itertools.chain([first], messages), loop, window_start, lateness)
+        messages = iter(
+            reader.messages(topics=list(outputs), start_ns=window_start, end_ns=window_end)
+        )
+        # The first chunk is read before the clock starts, so the first message is on time.
+        # Later chunks are read inline, right after a publication: a read-ahead thread was
+        # measured to do worse, its GIL hand-offs delaying the publishing loop.
+        first = next(messages, None)
+        if first is None:
+            return 0
+        return self._publish(itertools.chain([first], messages), loop, window_start, lateness)
 
     def _publish(
         self, messages: Iterator[BagMessage], loop: int, window_start: int, lateness: list[int]
@@ -587,10 +588,6 @@ def _replay_qos(info: TopicInfo, count: int, mean_size: int) -> QoSProfile:
         whole_topic = min(count, HISTORY_BUDGET_BYTES // mean_size)
         qos.depth = max(qos.depth, REPLAY_DEPTH, whole_topic)
     return qos
-
-
-def _data_size(message: BagMessage) -> int:
-    return len(message.data)
 
 
 def _compatible_subscriptions(node: Node, output: _Output) -> int:

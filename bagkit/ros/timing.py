@@ -3,17 +3,9 @@
 from __future__ import annotations
 
 import math
-import queue
 import struct
-import sys
-import threading
 import time
-from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
-from types import TracebackType
-from typing import Generic, TypeVar
-
-T = TypeVar("T")
 
 # A sleeping thread wakes up tens to hundreds of microseconds late (timer slack, a busy machine);
 # the last stretch before a deadline is spun instead, so timing does not depend on that latency.
@@ -101,94 +93,3 @@ def _percentile(ordered: list[int], fraction: float) -> float:
     low = math.floor(position)
     high = min(low + 1, len(ordered) - 1)
     return ordered[low] + (ordered[high] - ordered[low]) * (position - low)
-
-
-class ReadAhead(Generic[T]):
-    """Iterates ``source`` in a background thread, a bounded number of items ahead.
-
-    The bag reader decompresses and parses a whole chunk at once (tens of milliseconds for a
-    1 MB chunk of small messages); done inline, that burst would land between a message's
-    deadline and its publication. In a thread it runs while the player sleeps, and a short
-    GIL switch interval (``switch_interval_s``, while entered) bounds how long the thread can
-    hold up the publishing loop.
-
-    Args:
-        source: the items to read ahead.
-        batch_items: items handed over at once (fewer queue operations per item).
-        batch_bytes: a batch is handed over early once its items' ``len()`` reach this.
-        max_batches: batches kept ready; the thread waits when they are all unconsumed.
-        switch_interval_s: ``sys.setswitchinterval`` while entered (restored on exit).
-    """
-
-    _END = object()
-
-    def __init__(
-        self,
-        source: Iterable[T],
-        *,
-        size: Callable[[T], int] | None = None,
-        batch_items: int = 256,
-        batch_bytes: int = 1 << 22,
-        max_batches: int = 16,
-        switch_interval_s: float = 1e-4,
-    ) -> None:
-        self._source = source
-        self._size = size
-        self._batch_items = batch_items
-        self._batch_bytes = batch_bytes
-        self._queue: queue.Queue[object] = queue.Queue(maxsize=max_batches)
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="bagkit-read-ahead", daemon=True)
-        self._switch_interval_s = switch_interval_s
-        self._previous_switch_interval = sys.getswitchinterval()
-
-    def __enter__(self) -> ReadAhead[T]:
-        sys.setswitchinterval(self._switch_interval_s)
-        self._thread.start()
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self._stop.set()
-        self._thread.join()
-        sys.setswitchinterval(self._previous_switch_interval)
-
-    def __iter__(self) -> Iterator[T]:
-        while True:
-            batch = self._queue.get()
-            if batch is self._END:
-                return
-            if isinstance(batch, BaseException):
-                raise batch
-            yield from batch  # type: ignore[misc]
-
-    def _run(self) -> None:
-        try:
-            batch: list[T] = []
-            size = 0
-            for item in self._source:
-                batch.append(item)
-                if self._size is not None:
-                    size += self._size(item)
-                if len(batch) >= self._batch_items or size >= self._batch_bytes:
-                    if not self._put(batch):
-                        return
-                    batch, size = [], 0
-            if batch and not self._put(batch):
-                return
-            self._put(self._END)
-        except Exception as exc:  # handed to the consumer, raised there
-            self._put(exc)
-
-    def _put(self, item: object) -> bool:
-        while not self._stop.is_set():
-            try:
-                self._queue.put(item, timeout=0.1)
-                return True
-            except queue.Full:
-                continue
-        return False

@@ -2,10 +2,7 @@
 
 from __future__ import annotations
 
-import itertools
-import sys
 import time
-from collections.abc import Iterator
 
 import pytest
 from rclpy.serialization import serialize_message
@@ -18,7 +15,6 @@ from bagkit.ros.player import parse_remaps
 from bagkit.ros.timing import (
     LATE_THRESHOLD_NS,
     LatenessSummary,
-    ReadAhead,
     Timeline,
     clock_message,
     wait_until,
@@ -96,36 +92,3 @@ def test_clock_takes_an_optional_value(
     result = CliRunner().invoke(app, ["replay", *args])
     assert result.exit_code == 2, result.output
     assert seen["clock_hz"] == float(expected)
-
-
-def test_read_ahead_yields_everything_in_order_and_restores_the_switch_interval() -> None:
-    before = sys.getswitchinterval()
-    with ReadAhead(range(10_000), size=lambda _: 1000, batch_items=64) as items:
-        assert sys.getswitchinterval() < before
-        assert list(items) == list(range(10_000))
-    assert sys.getswitchinterval() == before
-
-
-def test_read_ahead_raises_the_readers_error_in_the_consumer() -> None:
-    def failing() -> Iterator[int]:
-        yield 1
-        raise ValueError("chunk 3 is damaged")
-
-    with ReadAhead(failing()) as items, pytest.raises(ValueError, match="chunk 3"):
-        list(items)
-
-
-def test_read_ahead_stops_its_thread_when_left_early() -> None:
-    produced: list[int] = []
-
-    def endless() -> Iterator[int]:
-        for i in itertools.count():
-            produced.append(i)
-            yield i
-
-    with ReadAhead(endless(), batch_items=10, max_batches=2) as items:
-        assert next(iter(items)) == 0
-    stopped_at = len(produced)
-    time.sleep(0.3)
-    assert len(produced) == stopped_at  # the thread is gone, not reading on
-    assert stopped_at <= 10 * 4  # bounded look-ahead: queued batches plus the one being built
