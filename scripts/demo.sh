@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # make demo: the whole loop in about a minute and a half.
-#   1. the live system (sensor publisher + logger, alert and fusion nodes) recorded for 25 s
+#   1. the live system (sensor publisher + logger, alert and fusion nodes) recorded for 30 s
 #   2. bagkit stats summary of the recording
 #   3. its sensor topics replayed at --rate 2 through the nodes (use_sim_time), outputs recorded
 #   4. bagkit compare of the replayed outputs against the live ones, with a verdict
@@ -11,7 +11,7 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
 export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-77}"
 BIN=.venv/bin
 OUT=demo_out
-LIVE_SECONDS=25
+LIVE_SECONDS=30
 SENSORS=/imu/data,/gps/fix,/temperature,/barometer/pressure
 OUTPUTS=(/alerts /logger/summary /fusion/odometry /fusion/baro_altitude)
 NODES=data_logger,alert_system,sensor_fusion
@@ -40,18 +40,19 @@ step() { printf '\n\033[1m== %s\033[0m\n' "$*"; }
 rm -rf "$OUT" && mkdir -p "$OUT/logs"
 
 step "1. live system, recorded for ${LIVE_SECONDS} s (ROS_DOMAIN_ID=$ROS_DOMAIN_ID)"
-start "$BIN/bagkit" record -o "$OUT/live" --all >"$OUT/logs/record-live.log" 2>&1
+start env COLUMNS=120 "$BIN/bagkit" record -o "$OUT/live" --all >"$OUT/logs/record-live.log" 2>&1
 recorder=${pids[-1]}
 sleep 1  # the recorder is in the graph before the first sensor message
 start "$BIN/fusion" launch >"$OUT/logs/live-system.log" 2>&1
 system=${pids[-1]}
 sleep "$LIVE_SECONDS"
 stop "$recorder" "$system"
-tail -n 12 "$OUT/logs/record-live.log"
+sed -n '3,$p' "$OUT/logs/record-live.log"  # the recorder's report: messages and losses per topic
 
 step "2. bagkit stats summary $OUT/live"
-"$BIN/bagkit" stats summary "$OUT/live" --topics /barometer/pressure --topics /fusion/baro_altitude \
-  --fields 'fluid_pressure' --fields 'pose.pose.position.z' --fields 'pose.covariance[14]'
+"$BIN/bagkit" stats summary "$OUT/live" --topics /temperature --topics /barometer/pressure \
+  --topics /fusion/baro_altitude --fields temperature --fields fluid_pressure \
+  --fields 'pose.pose.position.z' --fields 'pose.covariance[14]'
 
 step "3. sensor topics replayed at --rate 2 through the logger, alert and fusion nodes"
 start "$BIN/fusion" launch --use-sim-time --only "$NODES" >"$OUT/logs/replay-nodes.log" 2>&1
@@ -72,12 +73,20 @@ sleep 2  # the last outputs are still in flight on a loaded machine
 stop "$recorder" "$nodes"
 
 step "4. bagkit compare: replayed outputs against the live ones"
-# The live logger's timer ran on the wall clock from the nodes' start, the replayed one on bag
-# time: its summaries are compared by the lockstep golden tests instead. The tolerances are the
-# live ones of the golden fixtures (cross-topic reordering on DDS, see docs/regression.md).
+# What the comparison leaves out, and why:
+# - /logger/summary: the live logger's timer ran on the wall clock from the nodes' start, the
+#   replayed one on bag time; the lockstep golden tests compare summaries.
+# - the first 8 s: the live nodes started before the recorder caught up, so their filter had
+#   seen samples the bag does not hold; the replayed filter converges to the same state.
+# - odometry x/y: ENU coordinates from the first GPS fix each fusion node saw, which for the
+#   live node came before the recording started (a constant offset).
+# Tolerances: the live ones of the golden fixtures (cross-topic reordering on DDS).
+echo "(after 8 s of filter warm-up; odometry x/y and /logger/summary left out: see scripts/demo.sh)"
 set +e
 "$BIN/bagkit" compare "$OUT/live" "$OUT/replayed" --spec fixtures/faults/spec.yaml --live \
-  --topics /alerts,/fusion/odometry,/fusion/baro_altitude --report "$OUT/compare.json"
+  --topics /alerts,/fusion/odometry,/fusion/baro_altitude --skip 8 \
+  --ignore-fields /fusion/odometry:pose.pose.position.x \
+  --ignore-fields /fusion/odometry:pose.pose.position.y --report "$OUT/compare.json"
 verdict=$?
 set -e
 if [ "$verdict" -eq 0 ]; then

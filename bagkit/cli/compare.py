@@ -111,6 +111,11 @@ def compare(
     match_window: float | None = typer.Option(
         None, help="Seconds within which header stamps match [0: exactly]."
     ),
+    skip: float | None = typer.Option(
+        None,
+        min=0.0,
+        help="Seconds after the golden's first message before which nothing is compared.",
+    ),
     pass_rate: float | None = typer.Option(
         None,
         min=0.0,
@@ -151,6 +156,7 @@ def compare(
         match_window_ns=None if match_window is None else round(match_window * 1e9),
         include_times=include_times or None,
         pass_rate=pass_rate,
+        skip_ns=None if skip is None else round(skip * 1e9),
         max_divergences=show,
     )
     with err_console.status("comparing ...") as status:

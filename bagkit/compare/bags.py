@@ -131,6 +131,11 @@ def compare_bags(
                 warnings.append(f"{exc}; compared byte for byte")
                 g_samples = _raw_samples(g_bag, topic) if g_info else []
                 c_samples = _raw_samples(c_bag, topic) if c_info else []
+            if options.skip_ns:
+                # Warm-up skipped on both sides by message time (stamp, else receive time).
+                begin = g_bag.start_ns + options.skip_ns
+                g_samples = [x for x in g_samples if x.time_ns >= begin]
+                c_samples = [x for x in c_samples if x.time_ns >= begin]
             msg_type = canonical_type_name(info.type)
             if topic in options.event_topics and msg_type == EVENT_TYPE:
                 result = compare_events(

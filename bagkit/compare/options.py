@@ -81,6 +81,8 @@ class CompareOptions:
             matched with every value within tolerance (1: all of them); ``pass_rates``
             overrides it per topic. Messages of another shape (fields, lengths) fail a topic
             whatever the rate.
+        skip_ns: compare only messages stamped at least this long after the golden's first
+            message (a warm-up whose state the bags do not hold).
         max_divergences: how many divergences each topic keeps for the report.
     """
 
@@ -95,6 +97,7 @@ class CompareOptions:
     include_times: bool = False
     pass_rate: float = 1.0
     pass_rates: Mapping[str, float] = field(default_factory=dict)
+    skip_ns: int = 0
     max_divergences: int = 10
 
     def __post_init__(self) -> None:

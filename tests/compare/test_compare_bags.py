@@ -252,3 +252,15 @@ def test_undecodable_topic_is_compared_byte_for_byte(tmp_path: Path) -> None:
     failed = compare_bags(golden, other)
     (divergence,) = failed.first_divergences()
     assert (divergence.field, divergence.time_ns) == ("~cdr", SEC)
+
+
+def test_skip_leaves_out_the_warm_up(golden: Path, tmp_path: Path) -> None:
+    def cold_start(topic: str, index: int, msg: object) -> object | None:
+        if topic == ALTITUDE and index < 4:  # the first 2 s differ or are missing
+            return None if index == 0 else altitude(index * SEC // 2, 0.0)
+        return msg
+
+    bag = candidate(tmp_path, cold_start)
+    assert not compare_bags(golden, bag).passed
+    assert compare_bags(golden, bag, CompareOptions(skip_ns=2 * SEC)).passed
+    assert not compare_bags(golden, bag, CompareOptions(skip_ns=SEC)).passed
