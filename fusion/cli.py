@@ -9,7 +9,15 @@ from typing import TYPE_CHECKING
 import typer
 from rich.table import Table
 
-from bagkit.cli.common import OutputFormat, console, err_console, fail, handle_errors, print_json
+from bagkit.cli.common import (
+    OutputFormat,
+    console,
+    err_console,
+    fail,
+    handle_errors,
+    print_json,
+    run_app,
+)
 from fusion.launch import Launcher, validate_parameter_file
 from fusion.processors import NODE_NAMES
 
@@ -148,4 +156,4 @@ def main() -> None:
     """Entry point of the ``fusion`` console script; no arguments means ``fusion launch``."""
     if len(sys.argv) == 1:
         sys.argv.append("launch")
-    app()
+    run_app(app)

@@ -12,6 +12,9 @@ from typing import Any, ParamSpec, TypeVar
 import typer
 from rich.console import Console
 
+# typer 0.29 vendors click; its exception classes are only importable from there (typer is pinned).
+from typer._click.exceptions import NoArgsIsHelpError, UsageError
+
 from bagkit.errors import BagkitError
 
 P = ParamSpec("P")
@@ -65,3 +68,26 @@ def handle_errors(func: Callable[P, R]) -> Callable[P, R]:
             raise fail(f"{exc.strerror or exc}: {exc.filename or ''}".rstrip(": "), 2) from None
 
     return wrapper
+
+
+def run_app(app: typer.Typer) -> None:
+    """Run a typer app as a console script, with usage errors as one ``error:`` line (exit 2).
+
+    Click would print a usage block and a boxed message; a wrong flag is bad input like any
+    other, so it gets the same one-line treatment, with a pointer to ``--help``.
+    """
+    try:
+        result = app(standalone_mode=False)
+    except NoArgsIsHelpError as exc:
+        # Help asked for by omission: print it, exit 2 as click does.
+        err_console.print(exc.ctx.get_help() if exc.ctx is not None else "", highlight=False)
+        sys.exit(2)
+    except UsageError as exc:
+        hint = f" (see '{exc.ctx.command_path} --help')" if exc.ctx is not None else ""
+        raise SystemExit(fail(exc.format_message() + hint, exc.exit_code).exit_code) from None
+    except typer.TyperException as exc:
+        raise SystemExit(fail(exc.format_message(), exc.exit_code).exit_code) from None
+    except typer.Abort:
+        err_console.print("interrupted")
+        sys.exit(EXIT_INTERRUPTED)
+    sys.exit(result if isinstance(result, int) else 0)

@@ -11,6 +11,7 @@ from bagkit.cli import info as _info
 from bagkit.cli import record as _record
 from bagkit.cli import replay as _replay
 from bagkit.cli import stats as _stats
+from bagkit.cli.common import run_app
 
 app = typer.Typer(
     name="bagkit",
@@ -43,3 +44,8 @@ app.command("record", help=_record.HELP, no_args_is_help=True)(_record.record)
 app.add_typer(_replay.app)
 app.add_typer(_stats.app)
 app.add_typer(_golden.app)
+
+
+def run() -> None:
+    """Console entry point of ``bagkit``."""
+    run_app(app)
