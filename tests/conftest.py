@@ -17,7 +17,7 @@ import pytest
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
 if "BAGKIT_TEST_DOMAIN_ID" not in os.environ:
-    os.environ["BAGKIT_TEST_DOMAIN_ID"] = str(100 + os.getpid() % 100)
+    os.environ["BAGKIT_TEST_DOMAIN_ID"] = str(100 + os.getpid() % 130)
 os.environ["ROS_DOMAIN_ID"] = os.environ["BAGKIT_TEST_DOMAIN_ID"]
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
