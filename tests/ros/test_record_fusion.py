@@ -18,7 +18,9 @@ from fusion import topics
 
 pytestmark = pytest.mark.ros
 
-RECORD_S = 6.0
+# DDS discovery of a node started by another process can take up to ~3 s here (the periodic
+# participant announcement), and the transient-local /alerts sample is only delivered once matched.
+RECORD_S = 8.0
 SYSTEM_UP_S = 2.5
 NOMINAL_HZ = {topics.IMU: 10.0, topics.GPS: 1.0, topics.TEMPERATURE: 2.0, topics.PRESSURE: 2.0}
 
