@@ -9,6 +9,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from rclpy.topic_or_service_is_hidden import topic_or_service_is_hidden
 
+from bagkit.errors import BagkitError
 from bagkit.ros.errors import RecorderOptionsError
 
 
@@ -17,13 +18,16 @@ def absolute_topic_name(name: str) -> str:
     return name if name.startswith("/") else f"/{name}"
 
 
-def _compile(pattern: str | None, option: str) -> re.Pattern[str] | None:
+def compile_topic_pattern(
+    pattern: str | None, option: str, *, error: type[BagkitError] = RecorderOptionsError
+) -> re.Pattern[str] | None:
+    """Compile a ``--regex``/``--exclude`` option; a bad expression raises ``error``."""
     if pattern is None:
         return None
     try:
         return re.compile(pattern)
     except re.error as exc:
-        raise RecorderOptionsError(f"bad {option} regular expression {pattern!r}: {exc}") from None
+        raise error(f"{option} {pattern!r} is not a valid regular expression: {exc}") from None
 
 
 @dataclass(frozen=True, slots=True)
@@ -61,8 +65,8 @@ class TopicFilter:
         return cls(
             topics=frozenset(absolute_topic_name(t) for t in topics),
             all_topics=all_topics,
-            regex=_compile(regex, "--regex"),
-            exclude=_compile(exclude, "--exclude"),
+            regex=compile_topic_pattern(regex, "--regex"),
+            exclude=compile_topic_pattern(exclude, "--exclude"),
             include_hidden=include_hidden,
         )
 

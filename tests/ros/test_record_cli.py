@@ -171,7 +171,7 @@ def test_full_disk_stops_with_one_line_and_keeps_what_was_written(
     ("args", "message"),
     [
         ([], "nothing to record"),
-        (["-e", "("], "bad --regex regular expression"),
+        (["-e", "("], "--regex '(' is not a valid regular expression"),
         (["-a", "--qos-overrides", "/nonexistent.yaml"], "cannot read QoS overrides"),
     ],
 )
