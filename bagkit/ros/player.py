@@ -8,7 +8,6 @@ stored bytes when the monotonic clock reaches its scheduled time.
 from __future__ import annotations
 
 import itertools
-import re
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import ExitStack
@@ -35,6 +34,7 @@ from rosgraph_msgs.msg import Clock
 
 from bagkit.bag import BagMessage, BagReader, TopicInfo
 from bagkit.ros.errors import PlayerError, SubscriberTimeoutError, UnknownMessageTypeError
+from bagkit.ros.graph import compile_topic_pattern
 from bagkit.ros.qos import load_qos_overrides, publisher_qos
 from bagkit.ros.timing import (
     DEFAULT_DISCOVERY_TIME_S,
@@ -209,8 +209,8 @@ class Player:
         self.bag_path = Path(bag)
         self.rate = rate
         self.topics = list(topics) if topics is not None else None
-        self.regex = _compile(regex, "--regex")
-        self.exclude = _compile(exclude, "--exclude")
+        self.regex = compile_topic_pattern(regex, "--regex", error=PlayerError)
+        self.exclude = compile_topic_pattern(exclude, "--exclude", error=PlayerError)
         self.start_offset_ns = int(start_offset * 1e9)
         self.duration_ns = int(duration * 1e9) if duration is not None else None
         self.loops = loops
@@ -598,14 +598,3 @@ def _compatible_subscriptions(node: Node, output: _Output) -> int:
         if compatibility != QoSCompatibility.ERROR:
             count += 1
     return count
-
-
-def _compile(pattern: str | None, option: str) -> re.Pattern[str] | None:
-    if pattern is None:
-        return None
-    try:
-        return re.compile(pattern)
-    except re.error as exc:
-        raise PlayerError(
-            f"{option} {pattern!r} is not a valid regular expression: {exc}"
-        ) from None
