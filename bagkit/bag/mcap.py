@@ -795,9 +795,12 @@ def encode_channel(channel: Channel) -> bytes:
     return encode_record(Opcode.CHANNEL, content)
 
 
-def encode_chunk(chunk: Chunk) -> bytes:
-    """Serialize a Chunk record."""
-    content = (
+def encode_chunk_header(chunk: Chunk) -> bytes:
+    """Serialize a Chunk record up to its records, which follow it as they are.
+
+    Writing the (large) records separately saves copying them into one record buffer.
+    """
+    content_prefix = (
         _CHUNK_PREFIX.pack(
             chunk.message_start_time,
             chunk.message_end_time,
@@ -806,9 +809,15 @@ def encode_chunk(chunk: Chunk) -> bytes:
         )
         + encode_string(chunk.compression)
         + _U64.pack(len(chunk.records))
-        + chunk.records
     )
-    return encode_record(Opcode.CHUNK, content)
+    return (
+        RECORD_HEADER.pack(Opcode.CHUNK, len(content_prefix) + len(chunk.records)) + content_prefix
+    )
+
+
+def encode_chunk(chunk: Chunk) -> bytes:
+    """Serialize a Chunk record."""
+    return encode_chunk_header(chunk) + chunk.records
 
 
 def encode_message_index(channel_id: int, entries: bytes) -> bytes:

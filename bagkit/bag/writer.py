@@ -30,7 +30,7 @@ SCHEMA_ENCODING = "ros2msg"
 DEFAULT_CHUNK_SIZE = 1 << 20
 
 
-def _compressor(compression: str) -> tuple[str, Callable[[bytes], bytes]]:
+def _compressor(compression: str) -> tuple[str, Callable[[bytearray], bytes]]:
     if compression == "zstd":
         return "zstd", zstandard.ZstdCompressor(level=1).compress
     if compression == "lz4":
@@ -319,8 +319,8 @@ class BagWriter:
         self._chunk_messages = 0
         self._chunk_opened = time.monotonic()
 
-    def _append(self, data: bytes, *, lost: dict[str, int] | None = None) -> int:
-        """Write ``data`` at the end of the current file; return its offset.
+    def _append(self, *parts: bytes | bytearray, lost: dict[str, int] | None = None) -> int:
+        """Write ``parts`` one after the other at the end of the current file; return the offset.
 
         On failure the file is cut back to where it was, so it stays readable.
         """
@@ -330,13 +330,14 @@ class BagWriter:
                 f"{self.path}: no file open after an earlier error", lost_by_topic=lost
             )
         offset = storage.offset
-        view = memoryview(data)
         try:
-            while view:
-                written = storage.handle.write(view)
-                if written is None:
-                    raise OSError("write would block")
-                view = view[written:]
+            for part in parts:
+                view = memoryview(part)
+                while view:
+                    written = storage.handle.write(view)
+                    if written is None:
+                        raise OSError("write would block")
+                    view = view[written:]
         except OSError as exc:
             try:
                 storage.handle.truncate(offset)
@@ -348,7 +349,7 @@ class BagWriter:
                 + (f" ({sum(lost.values())} messages lost)" if lost else ""),
                 lost_by_topic=lost,
             ) from exc
-        storage.offset = offset + len(data)
+        storage.offset = offset + sum(len(part) for part in parts)
         return offset
 
     def _open_file(self) -> None:
@@ -398,30 +399,33 @@ class BagWriter:
             raise BagWriteError(
                 f"{self.path}: no file open after an earlier error", lost_by_topic=lost
             )
-        records = bytes(self._chunk)
+        records = self._chunk  # _reset_chunk gives later messages a new buffer: no copy needed
         start, end, messages = self._chunk_start, self._chunk_end, self._chunk_messages
         chunk_index = self._chunk_index
         self._reset_chunk()
         compressed = self._compress(records)
-        chunk_record = mcap.encode_chunk(
+        chunk_header = mcap.encode_chunk_header(
             mcap.Chunk(start, end, len(records), zlib.crc32(records), self._compression, compressed)
         )
+        chunk_length = len(chunk_header) + len(compressed)
         index_records = []
         index_offsets: dict[int, int] = {}
-        position = storage.offset + len(chunk_record)
+        position = storage.offset + chunk_length
         for channel_id, entries in chunk_index.items():
             record = mcap.encode_message_index(channel_id, entries.tobytes())
             index_offsets[channel_id] = position
             position += len(record)
             index_records.append(record)
         index_bytes = b"".join(index_records)
-        chunk_offset = self._append(chunk_record + index_bytes, lost=self._chunk_lost(chunk_index))
+        chunk_offset = self._append(
+            chunk_header, compressed, index_bytes, lost=self._chunk_lost(chunk_index)
+        )
         storage.chunk_indexes.append(
             mcap.ChunkIndex(
                 start,
                 end,
                 chunk_offset,
-                len(chunk_record),
+                chunk_length,
                 index_offsets,
                 len(index_bytes),
                 self._compression,
