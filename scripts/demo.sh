@@ -48,6 +48,13 @@ system=${pids[-1]}
 sleep "$LIVE_SECONDS"
 stop "$recorder" "$system"
 sed -n '3,$p' "$OUT/logs/record-live.log"  # the recorder's report: messages and losses per topic
+echo
+echo "alerts raised and cleared by the alert system (faults scheduled in fusion/config/params.yaml):"
+grep '^\[alert_system\]' "$OUT/logs/live-system.log" || echo "(none)"
+echo
+echo "the data logger's last summary:"
+awk '/^\[data_logger\].*summary at/ { last = "" } /^\[data_logger\]/ { last = last $0 "\n" }
+     END { printf "%s", last }' "$OUT/logs/live-system.log"
 
 step "2. bagkit stats summary $OUT/live"
 "$BIN/bagkit" stats summary "$OUT/live" --topics /temperature --topics /barometer/pressure \
