@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import copy
+import functools
 import math
 from collections.abc import Iterator, Mapping
 from importlib import resources
@@ -36,7 +38,8 @@ def load_parameter_file(path: Path, node_name: str, *, wildcard: bool = True) ->
         ConfigError: the file is missing or not a ROS 2 parameter file.
     """
     try:
-        document = yaml.safe_load(path.read_text())
+        # libyaml's loader: the packaged file is read for every processor a lockstep run creates.
+        document = yaml.load(path.read_text(), Loader=yaml.CSafeLoader)
     except OSError as exc:
         raise ConfigError(f"cannot read parameter file {path}: {exc.strerror}") from exc
     except yaml.YAMLError as exc:
@@ -61,7 +64,12 @@ def load_parameter_file(path: Path, node_name: str, *, wildcard: bool = True) ->
 
 
 def default_parameters(node_name: str) -> dict[str, object]:
-    """The packaged defaults of ``node_name``, flattened to dotted names."""
+    """The packaged defaults of ``node_name``, flattened to dotted names (a fresh copy)."""
+    return copy.deepcopy(_packaged_defaults(node_name))
+
+
+@functools.cache
+def _packaged_defaults(node_name: str) -> dict[str, object]:
     return load_parameter_file(PARAMS_FILE, node_name)
 
 
