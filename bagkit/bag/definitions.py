@@ -19,13 +19,11 @@ from bagkit.bag.errors import UnknownMessageTypeError
 # rosbag2 separates the definitions of dependencies with this line (80 '=').
 DEFINITION_SEPARATOR = "=" * 80
 
-_PRIMITIVES = frozenset(
+INTEGER_TYPES = frozenset(
     {
         "bool",
         "byte",
         "char",
-        "float32",
-        "float64",
         "int8",
         "uint8",
         "int16",
@@ -34,10 +32,10 @@ _PRIMITIVES = frozenset(
         "uint32",
         "int64",
         "uint64",
-        "string",
-        "wstring",
     }
 )
+"""The ROS 2 primitive types that hold integers (bool, byte and char included)."""
+_PRIMITIVES = INTEGER_TYPES | {"float32", "float64", "string", "wstring"}
 # The type token of a field or constant line: strip bounds and array suffixes.
 _TYPE_TOKEN = re.compile(r"^([A-Za-z_][A-Za-z0-9_/]*)")
 

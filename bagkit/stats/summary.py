@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from bagkit.bag import BagChunk, BagReader
+from bagkit.bag.definitions import INTEGER_TYPES
 from bagkit.bag.mcap import MESSAGE_DATA_OFFSET, MESSAGE_PREFIX
 from bagkit.decode import DecodeError, LeafField, MessageTypes, field_getter, leaf_fields
 from bagkit.decode.layout import CdrLayout, ResolvedLayout
@@ -33,21 +34,6 @@ if TYPE_CHECKING:
 # or fewer when their pooled arrays (an image's data[]) hold more than POOLED_BATCH values.
 ROW_BATCH = 4096
 POOLED_BATCH = 1 << 20
-_INTEGER_TYPES = frozenset(
-    {
-        "bool",
-        "byte",
-        "char",
-        "int8",
-        "uint8",
-        "int16",
-        "uint16",
-        "int32",
-        "uint32",
-        "int64",
-        "uint64",
-    }
-)
 
 ProgressCallback = Callable[[int, int], None]
 """Called with (messages done, messages in total) as the summary advances."""
@@ -328,7 +314,7 @@ def _field_stats(leaf: LeafField, moments: Moments, column: int, std: float) -> 
     if count == 0:
         return FieldStats(leaf.path, 0, nan_count, None, None, None, None)
     low, high = float(moments.min[column]), float(moments.max[column])
-    as_int = leaf.base in _INTEGER_TYPES
+    as_int = leaf.base in INTEGER_TYPES
     return FieldStats(
         leaf.path,
         count,
