@@ -11,7 +11,7 @@ from __future__ import annotations
 import re
 from collections.abc import Callable, Iterable, Sequence
 from contextlib import closing
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -107,18 +107,7 @@ class Summary:
                     "type": t.type,
                     "count": t.count,
                     "rate_hz": t.rate_hz,
-                    "fields": [
-                        {
-                            "field": f.field,
-                            "count": f.count,
-                            "nan_count": f.nan_count,
-                            "min": f.min,
-                            "max": f.max,
-                            "mean": f.mean,
-                            "std": f.std,
-                        }
-                        for f in t.fields
-                    ],
+                    "fields": [asdict(f) for f in t.fields],
                 }
                 for t in self.topics
             ],
@@ -129,19 +118,7 @@ class Summary:
         import pandas as pd
 
         rows = [
-            {
-                "topic": t.topic,
-                "type": t.type,
-                "field": f.field,
-                "count": f.count,
-                "nan_count": f.nan_count,
-                "min": f.min,
-                "max": f.max,
-                "mean": f.mean,
-                "std": f.std,
-            }
-            for t in self.topics
-            for f in t.fields
+            {"topic": t.topic, "type": t.type, **asdict(f)} for t in self.topics for f in t.fields
         ]
         columns = ["topic", "type", "field", "count", "nan_count", "min", "max", "mean", "std"]
         frame = pd.DataFrame(rows, columns=columns)
