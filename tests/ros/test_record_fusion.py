@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import subprocess
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -21,22 +22,35 @@ pytestmark = pytest.mark.ros
 # DDS discovery of a node started by another process can take up to ~3 s here (the periodic
 # participant announcement), and the transient-local /alerts sample is only delivered once matched.
 RECORD_S = 8.0
-SYSTEM_UP_S = 2.5
+# The spike starts once the alert system has surely discovered the sensor publisher and lasts
+# long enough to pass the alert debounce; the recording starts only after the alert was raised.
+SPIKE = "temperature_spike@4+3"
+ALERT_RAISED = "[alert_system] [ERROR]"
+ALERT_TIMEOUT_S = 30.0
 NOMINAL_HZ = {topics.IMU: 10.0, topics.GPS: 1.0, topics.TEMPERATURE: 2.0, topics.PRESSURE: 2.0}
+
+
+def wait_for_line(log: Path, text: str, *, timeout: float, is_alive: Callable[[], bool]) -> None:
+    """Wait until ``text`` appears in the growing file ``log``."""
+    deadline = time.monotonic() + timeout
+    while text not in log.read_text(errors="replace"):
+        assert is_alive(), f"launch exited before {text!r}:\n{log.read_text(errors='replace')}"
+        assert time.monotonic() < deadline, f"no {text!r} within {timeout} s"
+        time.sleep(0.1)
 
 
 def test_record_live_fusion_system(processes: object, tmp_path: Path) -> None:
     params = tmp_path / "params.yaml"
     # The alert fires before the recording starts: /alerts (transient local) must still be in it.
-    params.write_text(
-        'sensor_publisher:\n  ros__parameters:\n    faults: "temperature_spike@0.5+1"\n'
+    params.write_text(f'sensor_publisher:\n  ros__parameters:\n    faults: "{SPIKE}"\n')
+    log_path = tmp_path / "launch.log"
+    with log_path.open("wb") as log:
+        launcher = processes.start(  # type: ignore[attr-defined]
+            ["fusion", "launch", "--params", str(params)], stdout=log, stderr=subprocess.STDOUT
+        )
+    wait_for_line(
+        log_path, ALERT_RAISED, timeout=ALERT_TIMEOUT_S, is_alive=lambda: launcher.poll() is None
     )
-    processes.start(  # type: ignore[attr-defined]
-        ["fusion", "launch", "--params", str(params)],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
-    time.sleep(SYSTEM_UP_S)
     bag = tmp_path / "fusion"
     recorder = processes.start(  # type: ignore[attr-defined]
         ["bagkit", "record", "-a", "-o", str(bag), "-d", str(RECORD_S), "-f", "json"],
