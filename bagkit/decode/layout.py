@@ -9,6 +9,7 @@ read so far and either asks for the next prefix or returns the dtype of the whol
 
 from __future__ import annotations
 
+import struct
 from dataclasses import dataclass
 
 import numpy as np
@@ -18,6 +19,7 @@ from rosbags.typesys.store import Typestore
 ENCAPSULATION_SIZE = 4
 # Encapsulation header of little-endian plain CDR (what every ROS 2 middleware writes).
 CDR_LE = b"\x00\x01"
+_U32 = struct.Struct("<I")
 
 _PRIMITIVES: dict[str, str] = {
     "bool": "u1",
@@ -98,11 +100,39 @@ class CdrLayout:
         ``lengths`` are the values of the first prefixes in order (for strings: bytes including
         the terminating NUL, as CDR stores them).
         """
+        placed = self._place(lengths)
+        if isinstance(placed, NeedLength):
+            return placed
+        numeric = [p for p in placed.slots if p.fmt]
+        dtype = np.dtype(
+            {
+                "names": [str(p.index) for p in numeric],
+                "formats": [p.fmt for p in numeric],
+                "offsets": [p.offset for p in numeric],
+                "itemsize": placed.size,
+            }
+        )
+        return ResolvedLayout(dtype, tuple(p.index for p in numeric))
+
+    def data_mask(self, lengths: tuple[int, ...]) -> int | NeedLength:
+        """A mask of the bytes that hold data, or where the next length prefix is.
+
+        The mask has all bits set in the bytes of the encapsulation header, the length prefixes,
+        the strings and the primitives, read as a little-endian integer; the rest of a payload
+        with these length prefixes is alignment padding.
+        """
+        placed = self._place(lengths)
+        if isinstance(placed, NeedLength):
+            return placed
+        mask = (1 << (8 * ENCAPSULATION_SIZE)) - 1
+        for offset, size in placed.data:
+            mask |= ((1 << (8 * size)) - 1) << (8 * offset)
+        return mask
+
+    def _place(self, lengths: tuple[int, ...]) -> _Placement | NeedLength:
         pos = 0
-        names: list[str] = []
-        formats: list[str | tuple[str, tuple[int, ...]]] = []
-        offsets: list[int] = []
-        indexes: list[int] = []
+        slots: list[_PlacedSlot] = []
+        data: list[tuple[int, int]] = []
         known = iter(lengths)
         for index, slot in enumerate(self.slots):
             if slot.count is None:
@@ -110,31 +140,70 @@ class CdrLayout:
                 length = next(known, None)
                 if length is None:
                     return NeedLength(ENCAPSULATION_SIZE + pos)
+                data.append((ENCAPSULATION_SIZE + pos, 4))
                 pos += 4
                 count = length
             else:
                 count = slot.count
             if slot.base == "string":
+                data.append((ENCAPSULATION_SIZE + pos, count))
                 pos += count
                 continue
             fmt = _PRIMITIVES[slot.base]
             size = np.dtype(fmt).itemsize
             if count:
                 pos = _align(pos, size)
-            names.append(str(index))
-            formats.append(fmt if not slot.array and slot.count == 1 else (fmt, (count,)))
-            offsets.append(ENCAPSULATION_SIZE + pos)
-            indexes.append(index)
+            shaped = fmt if not slot.array and slot.count == 1 else (fmt, (count,))
+            slots.append(_PlacedSlot(index, ENCAPSULATION_SIZE + pos, shaped))
+            data.append((ENCAPSULATION_SIZE + pos, size * count))
             pos += size * count
-        dtype = np.dtype(
-            {
-                "names": names,
-                "formats": formats,
-                "offsets": offsets,
-                "itemsize": ENCAPSULATION_SIZE + pos,
-            }
-        )
-        return ResolvedLayout(dtype, tuple(indexes))
+        return _Placement(tuple(slots), tuple(data), ENCAPSULATION_SIZE + pos)
+
+
+@dataclass(frozen=True, slots=True)
+class _PlacedSlot:
+    """A numeric slot at its byte offset in the payload."""
+
+    index: int
+    offset: int
+    fmt: str | tuple[str, tuple[int, ...]]
+
+
+@dataclass(frozen=True, slots=True)
+class _Placement:
+    """Where everything of a message with known length prefixes is."""
+
+    slots: tuple[_PlacedSlot, ...]
+    data: tuple[tuple[int, int], ...]
+    """(offset, size) of every length prefix, string and primitive run."""
+    size: int
+
+
+class PaddingZeroer:
+    """Sets the alignment padding of CDR payloads of one type to zero.
+
+    Writers leave padding as they please (rclpy's serializer leaves it uninitialized, so one
+    message serializes to different bytes from run to run); with zeroed padding a message has
+    one encoding, whichever writer produced it. Masks are cached per set of length prefixes.
+    """
+
+    def __init__(self, layout: CdrLayout) -> None:
+        self._layout = layout
+        self._steps: dict[tuple[int, ...], int | NeedLength] = {}
+
+    def __call__(self, data: bytes) -> bytes:
+        """``data`` with every byte that is not header, length prefix or value set to zero."""
+        lengths: tuple[int, ...] = ()
+        steps = self._steps
+        while True:
+            step = steps.get(lengths)
+            if step is None:
+                step = steps[lengths] = self._layout.data_mask(lengths)
+            if isinstance(step, NeedLength):
+                lengths += _U32.unpack_from(data, step.offset)
+                continue
+            size = len(data)
+            return (int.from_bytes(data, "little") & step).to_bytes(size, "little")
 
 
 def _align(pos: int, size: int) -> int:

@@ -21,6 +21,7 @@ from typing import Any
 
 from bagkit.bag import BagReader, BagWriter, TopicInfo, message_definition
 from bagkit.decode import MessageTypes
+from bagkit.decode.layout import CdrLayout, PaddingZeroer
 from bagkit.regression.errors import RegressionError
 
 
@@ -57,9 +58,26 @@ def _next_tick_ns(after_ns: int, period_ns: int) -> int:
 
 
 @functools.cache
-def _codec(type_name: str, definition: str) -> MessageTypes:
-    # Building a type's (de)serializers costs milliseconds: once per process and definition.
-    return MessageTypes.from_definitions({type_name: definition})
+def _canonicalizer(type_name: str, definition: str) -> Callable[[bytes], bytes]:
+    """A function that gives a payload of ``type_name`` its one encoding: zeroed padding.
+
+    rclpy's serializer leaves the CDR alignment padding uninitialized (whatever was in memory),
+    so the same message serializes to different bytes from run to run. Types with a fixed
+    layout once their length prefixes are read get the padding masked out; the others (with
+    sequences of messages) are decoded and re-encoded with rosbags. Built once per process and
+    definition: building a type's (de)serializers costs milliseconds.
+    """
+    codec = MessageTypes.from_definitions({type_name: definition})
+    store = codec.typestore
+    name = codec.resolve(type_name)
+    layout = CdrLayout.of(store, name)
+    if layout is not None:
+        return PaddingZeroer(layout)
+
+    def reencode(data: bytes) -> bytes:
+        return bytes(store.serialize_cdr(store.deserialize_cdr(data, name), name))
+
+    return reencode
 
 
 class _OutputBag:
@@ -72,23 +90,14 @@ class _OutputBag:
         self.writer = writer
         self.known = known
         self.counts: dict[str, int] = {}
-        self.codecs: dict[str, tuple[MessageTypes, str]] = {}
+        self.canonicalizers: dict[str, Callable[[bytes], bytes]] = {}
 
     def add_topic(self, info: TopicInfo, definition: str | None = None) -> None:
         self.writer.add_topic(info, definition=definition)
         self.counts[info.name] = 0
-        codec = _codec(info.type, definition or message_definition(info.type))
-        self.codecs[info.name] = (codec, codec.resolve(info.type))
-
-    def canonical(self, topic: str, data: bytes) -> bytes:
-        """``data`` re-encoded with zeroed padding.
-
-        rclpy's serializer leaves the CDR alignment padding uninitialized (whatever was in
-        memory), so the same message serializes to different bytes from run to run.
-        """
-        codec, type_name = self.codecs[topic]
-        store = codec.typestore
-        return bytes(store.serialize_cdr(store.deserialize_cdr(data, type_name), type_name))
+        self.canonicalizers[info.name] = _canonicalizer(
+            info.type, definition or message_definition(info.type)
+        )
 
     def write(self, topic: str, msg: Any, now_ns: int) -> None:
         from rclpy.serialization import serialize_message
@@ -101,7 +110,7 @@ class _OutputBag:
         self.counts[topic] += 1
         self.writer.write(
             topic,
-            self.canonical(topic, serialize_message(msg)),
+            self.canonicalizers[topic](serialize_message(msg)),
             log_time=now_ns,
             publish_time=now_ns,
             sequence=self.counts[topic],
@@ -137,13 +146,16 @@ def run_lockstep(
 
     from bagkit.ros.types import import_message_type
     from fusion.errors import FusionError
-    from fusion.processors import create_processor
+    from fusion.processors import Severity, create_processor
 
     started = time.perf_counter()
     try:
         processors = [create_processor(node.name, dict(node.params)) for node in nodes]
     except FusionError as exc:  # an unknown node, bad parameters
         raise RegressionError(f"cannot create the processors: {exc}") from exc
+    for processor in processors:
+        # Nobody reads the log here; the per-sample debug lines alone cost a tenth of a run.
+        processor.min_log_severity = Severity.WARN
     subscribed = {t for p in processors for t in p.input_topics}
     wanted = list(input_topics) if input_topics is not None else sorted(subscribed)
     with BagReader(golden) as reader:

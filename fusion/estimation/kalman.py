@@ -70,12 +70,25 @@ class VerticalKalmanFilter:
         if not self.initialized or dt <= 0:
             return
         c = self.config
-        transition = np.array([[1.0, dt, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
-        control = np.array([0.5 * dt * dt, dt, 0.0])
-        self.x = transition @ self.x + control * vertical_acceleration
-        process_noise = np.outer(control, control) * c.accel_sigma**2
-        process_noise[2, 2] += c.bias_random_walk**2 * dt
-        self.P = transition @ self.P @ transition.T + process_noise
+        # x' = F x + B a and P' = F P F^T + B B^T accel_sigma^2 + diag(0, 0, bias walk^2 dt) with
+        # F = [[1, dt, 0], [0, 1, 0], [0, 0, 1]], B = [dt^2 / 2, dt, 0], written out: this runs
+        # for every IMU sample and 3x3 numpy products cost more in call overhead than in math.
+        (h, v, b), p = self.x.tolist(), self.P.tolist()
+        half_dt2 = 0.5 * dt * dt
+        q = c.accel_sigma**2
+        self.x = np.array(
+            [h + dt * v + half_dt2 * vertical_acceleration, v + dt * vertical_acceleration, b]
+        )
+        # F P: row 0 gains dt times row 1; (F P) F^T: column 0 gains dt times column 1.
+        r0 = [p[0][0] + dt * p[1][0], p[0][1] + dt * p[1][1], p[0][2] + dt * p[1][2]]
+        r1, r2 = p[1], p[2]
+        self.P = np.array(
+            [
+                [r0[0] + dt * r0[1] + half_dt2 * half_dt2 * q, r0[1] + half_dt2 * dt * q, r0[2]],
+                [r1[0] + dt * r1[1] + dt * half_dt2 * q, r1[1] + dt * dt * q, r1[2]],
+                [r2[0] + dt * r2[1], r2[1], r2[2] + c.bias_random_walk**2 * dt],
+            ]
+        )
 
     def update_baro(self, altitude: float, variance: float) -> bool:
         """Fuse a barometric altitude; returns False when it was rejected as an outlier."""

@@ -64,6 +64,9 @@ class Processor(Protocol):
         """Return and forget the log lines produced since the last call."""
         ...
 
+    min_log_severity: Severity
+    """Lines below this severity are not produced (the node sets its logger's level)."""
+
 
 class ProcessorBase:
     """Default no-op handlers and the log buffer."""
@@ -74,6 +77,7 @@ class ProcessorBase:
 
     def __init__(self) -> None:
         self._log: list[LogLine] = []
+        self.min_log_severity = Severity.DEBUG
 
     def on_message(self, topic: str, msg: Any, now_ns: int) -> list[Output]:
         """Ignore the message."""
@@ -88,6 +92,11 @@ class ProcessorBase:
         lines, self._log = self._log, []
         return lines
 
+    def logs(self, severity: Severity) -> bool:
+        """Whether a line of ``severity`` would be kept (to skip formatting one that is not)."""
+        return severity >= self.min_log_severity
+
     def log(self, severity: Severity, text: str) -> None:
-        """Queue a line for the node to log."""
-        self._log.append(LogLine(severity, text))
+        """Queue a line for the node to log (unless below ``min_log_severity``)."""
+        if severity >= self.min_log_severity:
+            self._log.append(LogLine(severity, text))

@@ -43,8 +43,9 @@ class DataLogger(ProcessorBase):
             return []
         values = numeric_fields(msg)
         self.stats[topic].add(values)
-        fields = " ".join(f"{name}={value:.6g}" for name, value in values.items())
-        self.log(Severity.DEBUG, f"{topic} stamp={stamp_ns(msg.header.stamp)} {fields}")
+        if self.logs(Severity.DEBUG):
+            fields = " ".join(f"{name}={value:.6g}" for name, value in values.items())
+            self.log(Severity.DEBUG, f"{topic} stamp={stamp_ns(msg.header.stamp)} {fields}")
         return []
 
     def on_timer(self, now_ns: int) -> list[Output]:

@@ -5,11 +5,13 @@ from __future__ import annotations
 import dataclasses
 import math
 import numbers
+import operator
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import Quaternion, Vector3
+from geometry_msgs.msg import Quaternion
 
 
 def stamp(now_ns: int) -> Time:
@@ -55,13 +57,37 @@ def field_names(msg: Any) -> list[str]:
     return []
 
 
-def numeric_fields(msg: Any, prefix: str = "") -> dict[str, float]:
+def numeric_fields(msg: Any) -> dict[str, float]:
     """Every numeric scalar field of a message as dotted name -> float.
 
     Headers, (co)variances and their types, arrays and strings are left out: they describe the
     sensor, not the measurement. Works on rclpy messages and rosbags message dataclasses.
     """
-    values: dict[str, float] = {}
+    getter = _NUMERIC_GETTERS.get(type(msg))
+    if getter is None:
+        getter = _NUMERIC_GETTERS[type(msg)] = _numeric_getter(msg)
+    names, values = getter
+    return dict(zip(names, map(float, values(msg)), strict=True))
+
+
+_NumericGetter = tuple[tuple[str, ...], Callable[[Any], tuple[Any, ...]]]
+# Which fields are numeric depends on the message class only: walked once per class, then read
+# with one C-level attrgetter per message (the data logger does this for every sample).
+_NUMERIC_GETTERS: dict[type, _NumericGetter] = {}
+
+
+def _numeric_getter(example: Any) -> _NumericGetter:
+    names = tuple(_numeric_paths(example))
+    if len(names) == 1:
+        single = operator.attrgetter(names[0])
+        return names, lambda msg: (single(msg),)
+    if not names:
+        return names, lambda _msg: ()
+    return names, operator.attrgetter(*names)
+
+
+def _numeric_paths(msg: Any, prefix: str = "") -> list[str]:
+    paths: list[str] = []
     for name in field_names(msg):
         if name == "header" or "variance" in name:
             continue
@@ -69,17 +95,27 @@ def numeric_fields(msg: Any, prefix: str = "") -> dict[str, float]:
         if isinstance(value, bool | np.bool_):
             continue
         if isinstance(value, numbers.Real):
-            values[f"{prefix}{name}"] = float(value)
+            paths.append(f"{prefix}{name}")
         elif field_names(value):
-            values.update(numeric_fields(value, f"{prefix}{name}."))
-    return values
+            paths.extend(_numeric_paths(value, f"{prefix}{name}."))
+    return paths
 
 
-def copy_quaternion(q: Any) -> Quaternion:
-    """An rclpy ``Quaternion`` with the values of any quaternion-like object."""
-    return Quaternion(x=float(q.x), y=float(q.y), z=float(q.z), w=float(q.w))
+def set_stamp(target: Any, now_ns: int) -> None:
+    """Set a ``builtin_interfaces/Time`` in place (cheaper than building a new one)."""
+    target.sec, target.nanosec = divmod(now_ns, 1_000_000_000)
 
 
-def copy_vector3(v: Any) -> Vector3:
-    """An rclpy ``Vector3`` with the values of any vector-like object."""
-    return Vector3(x=float(v.x), y=float(v.y), z=float(v.z))
+def copy_quaternion(target: Any, source: Any) -> None:
+    """Copy the values of any quaternion-like ``source`` into the message field ``target``."""
+    target.x, target.y, target.z, target.w = (
+        float(source.x),
+        float(source.y),
+        float(source.z),
+        float(source.w),
+    )
+
+
+def copy_vector3(target: Any, source: Any) -> None:
+    """Copy the values of any vector-like ``source`` into the message field ``target``."""
+    target.x, target.y, target.z = float(source.x), float(source.y), float(source.z)

@@ -21,7 +21,13 @@ from fusion.estimation import (
 )
 from fusion.params import Params
 from fusion.processors.base import Output, ProcessorBase, Severity
-from fusion.processors.messages import copy_quaternion, copy_vector3, stamp, stamp_ns
+from fusion.processors.messages import (
+    copy_quaternion,
+    copy_vector3,
+    set_stamp,
+    stamp,
+    stamp_ns,
+)
 
 # Variance reported for quantities this node does not estimate (REP 103 has no "unknown" marker
 # for pose covariances; a huge variance is what consumers such as robot_localization ignore).
@@ -163,8 +169,10 @@ class SensorFusion(ProcessorBase):
             self.log(Severity.WARN, f"GPS altitude {msg.altitude:.1f} m rejected as outlier")
 
     def _odometry(self, imu: Any, t_ns: int) -> Odometry:
+        # Fields are set in place: each nested message of a new Odometry exists already, and
+        # building a replacement costs microseconds per sample.
         msg = Odometry()
-        msg.header.stamp = stamp(t_ns)
+        set_stamp(msg.header.stamp, t_ns)
         msg.header.frame_id = self.frame_id
         msg.child_frame_id = self.child_frame_id
         covariance_kf = self.filter.P
@@ -178,13 +186,10 @@ class SensorFusion(ProcessorBase):
         covariance = [0.0] * 36
         covariance[0] = covariance[7] = horizontal_variance
         covariance[14] = float(covariance_kf[0, 0])
-        if imu.orientation_covariance[0] >= 0:
-            pose.pose.orientation = copy_quaternion(imu.orientation)
-            for row in range(3):
-                for col in range(3):
-                    covariance[(row + 3) * 6 + col + 3] = float(
-                        imu.orientation_covariance[row * 3 + col]
-                    )
+        orientation_covariance = _floats(imu.orientation_covariance)
+        if orientation_covariance[0] >= 0:
+            copy_quaternion(pose.pose.orientation, imu.orientation)
+            _set_rotation_block(covariance, orientation_covariance)
         else:
             for i in (21, 28, 35):
                 covariance[i] = UNKNOWN_VARIANCE
@@ -196,18 +201,26 @@ class SensorFusion(ProcessorBase):
         )
         twist = msg.twist
         twist.twist.linear.x, twist.twist.linear.y, twist.twist.linear.z = vx, vy, vz
-        twist.twist.angular = copy_vector3(imu.angular_velocity)
+        copy_vector3(twist.twist.angular, imu.angular_velocity)
         twist_covariance = [0.0] * 36
         # Horizontal variances are equal on both axes, so a yaw rotation leaves them unchanged.
         twist_covariance[0] = twist_covariance[7] = self._velocity_variance
         twist_covariance[14] = float(covariance_kf[1, 1])
-        for row in range(3):
-            for col in range(3):
-                twist_covariance[(row + 3) * 6 + col + 3] = float(
-                    imu.angular_velocity_covariance[row * 3 + col]
-                )
+        _set_rotation_block(twist_covariance, _floats(imu.angular_velocity_covariance))
         twist.covariance = twist_covariance
         return msg
+
+
+def _floats(values: Any) -> list[float]:
+    """A message's float array (numpy in rclpy and rosbags, or any sequence) as a list."""
+    return values.tolist() if hasattr(values, "tolist") else [float(v) for v in values]
+
+
+def _set_rotation_block(covariance: list[float], block: list[float]) -> None:
+    """Put a row-major 3x3 ``block`` into the rotation part of a row-major 6x6 covariance."""
+    covariance[21:24] = block[0:3]
+    covariance[27:30] = block[3:6]
+    covariance[33:36] = block[6:9]
 
 
 def _vertical_specific_force(imu: Any) -> float:
