@@ -26,14 +26,16 @@ class RunningStats:
         if math.isnan(value):
             self.nan_count += 1
             return
-        self.count += 1
-        if self.count == 1:
+        count = self.count = self.count + 1
+        if count == 1:
             self.min = self.max = self.mean = value
             return
-        self.min = min(self.min, value)
-        self.max = max(self.max, value)
+        if value < self.min:
+            self.min = value
+        elif value > self.max:
+            self.max = value
         delta = value - self.mean
-        self.mean += delta / self.count
+        self.mean += delta / count
         self._m2 += delta * (value - self.mean)
 
     @property
@@ -57,8 +59,9 @@ class FieldStats:
     def add(self, values: dict[str, float]) -> None:
         """Add one message's numeric fields."""
         self.messages += 1
+        fields = self.fields
         for name, value in values.items():
-            stats = self.fields.get(name)
+            stats = fields.get(name)
             if stats is None:
-                stats = self.fields[name] = RunningStats()
+                stats = fields[name] = RunningStats()
             stats.add(value)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import numbers
 import operator
@@ -40,10 +41,12 @@ def quaternion_from_euler(roll: float, pitch: float, yaw: float) -> Quaternion:
 
 def field_value(msg: Any, path: str) -> Any:
     """The value at a dotted attribute ``path`` of ``msg`` (``"linear_acceleration.z"``)."""
-    value = msg
-    for part in path.split("."):
-        value = getattr(value, part)
-    return value
+    return _attribute_getter(path)(msg)
+
+
+@functools.cache
+def _attribute_getter(path: str) -> operator.attrgetter[Any]:
+    return operator.attrgetter(path)
 
 
 def field_names(msg: Any) -> list[str]:
