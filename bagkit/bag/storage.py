@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import abc
-import bisect
+import heapq
 import operator
 import sqlite3
 import struct
@@ -20,6 +20,7 @@ from bagkit.bag.types import BagMessage, TopicInfo, make_message
 
 SQLITE_MAGIC = b"SQLite format 3\x00"
 _LOG_TIME = operator.attrgetter("log_time")
+_OFFSET = operator.itemgetter(0)
 
 
 @dataclass(frozen=True, slots=True)
@@ -42,6 +43,16 @@ def _extent(block: mcap.ChunkIndex | mcap.MessageRun) -> tuple[int, int]:
     if isinstance(block, mcap.MessageRun):
         return block.offset, block.length
     return block.chunk_start_offset, block.chunk_length
+
+
+def _merged(blocks: list[tuple[int, Iterator[BagMessage]]]) -> Iterator[BagMessage]:
+    """Merge the log-time ordered messages of overlapping ``(file offset, messages)`` blocks.
+
+    Equal log times come in storage order: heapq.merge takes them from the earlier iterable.
+    """
+    if len(blocks) == 1:
+        return blocks[0][1]
+    return heapq.merge(*(messages for _, messages in sorted(blocks, key=_OFFSET)), key=_LOG_TIME)
 
 
 def _may_hold(block: mcap.ChunkIndex | mcap.MessageRun, channel_ids: set[int]) -> bool:
@@ -151,13 +162,6 @@ class McapFile(StorageFile):
                 continue
             yield block
 
-    def _read_records(self, block: mcap.ChunkIndex | mcap.MessageRun) -> bytes | None:
-        try:
-            return mcap.read_block_records(self._handle, block)
-        except (CorruptBagError, struct.error, UnicodeDecodeError) as exc:
-            self._problem(block, str(exc))
-            return None
-
     def _problem(self, block: mcap.ChunkIndex | mcap.MessageRun, what: str) -> None:
         offset, length = _extent(block)
         message = f"{self.path.name}: chunk at byte {offset} ({length} bytes) unreadable: {what}"
@@ -171,34 +175,64 @@ class McapFile(StorageFile):
         wanted = self._channel_ids(topics)
         if not wanted:
             return
-        channel_topics = self._channel_topics
         lower = start_ns if start_ns is not None else 0
         upper = end_ns if end_ns is not None else 1 << 64
-        # Chunks are sorted by start time; a chunk may overlap the next ones. Messages up to the
-        # next chunk's start time are final; the rest wait and are merged with that chunk.
-        pending: list[BagMessage] = []
+        # Blocks are sorted by start time. A block that starts before the ones already taken
+        # end overlaps them: such a group is merged; groups simply follow one another.
+        group: list[tuple[int, Iterator[BagMessage]]] = []
+        group_end = 0
         for block in self._blocks(start_ns, end_ns):
             if not _may_hold(block, wanted):
                 continue
-            if pending:
-                cut = bisect.bisect_left(pending, block.message_start_time, key=_LOG_TIME)
-                yield from pending[:cut]
-                pending = pending[cut:]
-            records = self._read_records(block)
-            if records is None:
-                continue
-            batch = [
-                make_message(
-                    channel_topics[channel_id], records[begin:end], log_time, publish_time, seq
+            if group and block.message_start_time >= group_end:
+                yield from _merged(group)
+                group = []
+            group_end = max(group_end, block.message_end_time) if group else block.message_end_time
+            group.append((_extent(block)[0], self._block_messages(block, wanted, lower, upper)))
+        yield from _merged(group)
+
+    def _block_messages(
+        self, block: mcap.ChunkIndex | mcap.MessageRun, wanted: set[int], lower: int, upper: int
+    ) -> Iterator[BagMessage]:
+        """The messages of one block in log-time order, built one at a time as they are taken.
+
+        Only the message index is ordered up front (numpy): a replay that takes the next message
+        when it is due is not held up for the whole chunk's worth of objects.
+        """
+        try:
+            chunk = mcap.read_chunk(self._handle, block)
+        except (CorruptBagError, struct.error, UnicodeDecodeError) as exc:
+            self._problem(block, str(exc))
+            return
+        parts = [entries for channel, entries in chunk.message_index.items() if channel in wanted]
+        if not parts:
+            return
+        index = np.concatenate(parts) if len(parts) > 1 else parts[0]
+        times = index["log_time"]
+        index = index[(times >= lower) & (times < upper)]
+        offsets = index["offset"][np.lexsort((index["offset"], index["log_time"]))].tolist()
+        records = chunk.records
+        size = len(records)
+        channel_topics = self._channel_topics
+        unpack = mcap.MESSAGE_RECORD_HEADER.unpack_from
+        for offset in offsets:
+            try:
+                opcode, length, channel_id, sequence, log_time, publish_time = unpack(
+                    records, offset
                 )
-                for channel_id, seq, log_time, publish_time, begin, end in (
-                    mcap.iter_chunk_messages(records)
-                )
-                if channel_id in wanted and lower <= log_time < upper
-            ]
-            pending.extend(batch)
-            pending.sort(key=_LOG_TIME)
-        yield from pending
+            except struct.error:
+                opcode = length = channel_id = 0
+            end = offset + mcap.RECORD_HEADER.size + length
+            if opcode != mcap.Opcode.MESSAGE or end > size or channel_id not in channel_topics:
+                self._problem(block, f"message index points at no message (offset {offset})")
+                return
+            yield make_message(
+                channel_topics[channel_id],
+                records[offset + mcap.MESSAGE_DATA_OFFSET : end],
+                log_time,
+                publish_time,
+                sequence,
+            )
 
     def chunks(self, topics: set[str] | None) -> Iterator[BagChunk]:
         """Yield the chunks holding messages of ``topics`` (all when None), in file order."""

@@ -8,6 +8,7 @@ stored bytes when the monotonic clock reaches its scheduled time.
 from __future__ import annotations
 
 import itertools
+import math
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import ExitStack
@@ -35,7 +36,7 @@ from rosgraph_msgs.msg import Clock
 from bagkit.bag import BagMessage, BagReader, TopicInfo
 from bagkit.ros.errors import PlayerError, SubscriberTimeoutError, UnknownMessageTypeError
 from bagkit.ros.graph import compile_topic_pattern
-from bagkit.ros.qos import load_qos_overrides, publisher_qos
+from bagkit.ros.qos import load_qos_overrides, replay_publisher_qos
 from bagkit.ros.timing import (
     DEFAULT_DISCOVERY_TIME_S,
     LATE_THRESHOLD_NS,
@@ -53,11 +54,6 @@ GRAPH_SETTLE_S = 0.2
 # A publisher sees a subscription match before the subscription sees the publisher; the first
 # message is only safe once both sides have matched, which we cannot observe from here.
 MATCH_GRACE_S = 0.1
-# Publisher history for replayed volatile topics: a reliable publisher that outruns a slow
-# subscriber (a fast replay) overwrites what it has not delivered once its history is full, so
-# the history holds the whole topic, within HISTORY_BUDGET_BYTES, and at least REPLAY_DEPTH.
-REPLAY_DEPTH = 1000
-HISTORY_BUDGET_BYTES = 256 << 20
 # Progress is reported only when the next message is at least this far away (or when it is
 # overdue by PROGRESS_FORCE_S), so reporting never delays a message.
 PROGRESS_SLACK_NS = 3_000_000
@@ -271,6 +267,7 @@ class Player:
         self._reader = reader
         selected = self._select_topics(reader.topics)
         mean_size = reader.uncompressed_size // max(reader.message_count, 1) or 1024
+        bag_duration_s = (reader.end_ns - reader.start_ns) / 1e9
 
         context = self._context
         if context is None:
@@ -293,7 +290,14 @@ class Player:
             name = self.remap.get(info.name, info.name)
             qos = overrides.get(name) or overrides.get(info.name)
             if qos is None:
-                qos = _replay_qos(info, reader.topic_counts.get(info.name, 0), mean_size)
+                qos = replay_publisher_qos(
+                    info,
+                    count=reader.topic_counts.get(info.name, 0),
+                    mean_size=mean_size,
+                    messages_per_s=self._replay_rate_hz(
+                        reader.topic_counts.get(info.name, 0), bag_duration_s
+                    ),
+                )
             try:
                 publisher = node.create_publisher(message_class, name, qos)
             except InvalidTopicNameException as exc:
@@ -313,6 +317,12 @@ class Player:
             self._clock = _Output(
                 TopicInfo(CLOCK_TOPIC, CLOCK_TYPE), publisher, publisher.handle.publish_raw
             )
+
+    def _replay_rate_hz(self, count: int, bag_duration_s: float) -> float:
+        """Messages per second of wall time of a topic with ``count`` messages, at ``rate``."""
+        if bag_duration_s <= 0:
+            return math.inf
+        return count / bag_duration_s * self.rate
 
     def _select_topics(self, topics: Mapping[str, TopicInfo]) -> list[tuple[TopicInfo, Any]]:
         wanted = set(self.topics) if self.topics is not None else None
@@ -573,21 +583,6 @@ def parse_remaps(pairs: Iterable[str]) -> dict[str, str]:
             raise PlayerError(f"remapping {pair!r} is not of the form OLD:=NEW")
         remap[old] = new
     return remap
-
-
-def _replay_qos(info: TopicInfo, count: int, mean_size: int) -> QoSProfile:
-    """The recorded offer, with a history deep enough that a fast replay drops nothing.
-
-    Transient-local topics keep the recorded depth: it is what a late subscriber gets replayed.
-    """
-    qos = publisher_qos(info)
-    if (
-        qos.history == HistoryPolicy.KEEP_LAST
-        and qos.durability != DurabilityPolicy.TRANSIENT_LOCAL
-    ):
-        whole_topic = min(count, HISTORY_BUDGET_BYTES // mean_size)
-        qos.depth = max(qos.depth, REPLAY_DEPTH, whole_topic)
-    return qos
 
 
 def _compatible_subscriptions(node: Node, output: _Output) -> int:

@@ -61,3 +61,27 @@ def test_reads_every_layout(tmp_path: Path, variant: str) -> None:
         str(i) for i in range(0, 150, 5)
     ]
     assert chunk_payloads == 150
+
+
+@pytest.mark.parametrize("variant", ["lz4_small_chunks", "no_indexes", "no_chunks", "default"])
+def test_equal_log_times_keep_storage_order(tmp_path: Path, variant: str) -> None:
+    path = tmp_path / "ties.mcap"
+    written: list[tuple[int, int]] = []
+    with open(path, "wb") as f:
+        writer = Writer(f, **VARIANTS[variant])
+        writer.start("ros2", "mcap python")
+        schema = writer.register_schema(IMU, "ros2msg", message_definition(IMU).encode())
+        channels = [writer.register_channel(f"/imu{n}", "cdr", schema) for n in range(3)]
+        for i in range(300):
+            # Three messages per log time, one per channel, in a rotating channel order; a
+            # late one (every 11th) sorts before messages written earlier.
+            t = 1_000 + (i // 3) * 10 - (25 if i % 11 == 0 else 0)
+            channel = channels[(i + i // 3) % 3]
+            writer.add_message(channel, log_time=t, data=imu_cdr(i), publish_time=t, sequence=i)
+            written.append((t, i))
+        writer.finish()
+    with BagReader(path) as bag:
+        read = [(m.log_time, m.sequence) for m in bag.messages()]
+        assert bag.problems == []
+    # Python's sort is stable: equal log times stay in the order they were written.
+    assert read == sorted(written, key=lambda entry: entry[0])

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import pytest
@@ -21,13 +22,17 @@ from rclpy.qos import (
 from bagkit.bag import TopicInfo
 from bagkit.ros.errors import QosProfileError
 from bagkit.ros.qos import (
+    HISTORY_BUDGET_BYTES,
+    HISTORY_WINDOW_S,
     INFINITE_NS,
+    REPLAY_DEPTH,
     adapt_publisher_qos,
     adapt_subscription_qos,
     dump_offered_qos_profiles,
     load_qos_overrides,
     parse_offered_qos_profiles,
     publisher_qos,
+    replay_publisher_qos,
 )
 
 
@@ -209,3 +214,25 @@ def test_bad_overrides_name_the_problem(tmp_path: Path, text: str, message: str)
 def test_missing_overrides_file(tmp_path: Path) -> None:
     with pytest.raises(QosProfileError, match="cannot read"):
         load_qos_overrides(tmp_path / "nope.yaml")
+
+
+def test_replay_history_covers_the_messages_in_flight_only() -> None:
+    def depth(offer: QoSProfile, messages_per_s: float, *, count: int = 50_000) -> QoSProfile:
+        info = TopicInfo(
+            "/t", "std_msgs/msg/String", offered_qos_profiles=dump_offered_qos_profiles([offer])
+        )
+        return replay_publisher_qos(info, count=count, mean_size=100, messages_per_s=messages_per_s)
+
+    # A 250 Hz topic: at rate 1 the floor, at rate 10 a window of it, as fast as possible all
+    # of it (within the memory budget).
+    assert depth(RELIABLE, 250.0).depth == REPLAY_DEPTH
+    assert depth(RELIABLE, 2500.0).depth == round(2500 * HISTORY_WINDOW_S) > REPLAY_DEPTH
+    assert depth(RELIABLE, math.inf).depth == 50_000
+    assert depth(RELIABLE, math.inf, count=10**9).depth == HISTORY_BUDGET_BYTES // 100
+    # A deeper recorded history is kept; the rest of the offer is the recorded one.
+    deep = depth(_offer(history=HistoryPolicy.KEEP_LAST, depth=5000), 250.0)
+    assert (deep.depth, deep.reliability) == (5000, ReliabilityPolicy.RELIABLE)
+    assert depth(BEST_EFFORT, 2500.0).reliability == ReliabilityPolicy.BEST_EFFORT
+    # What a late subscriber of a latched topic gets is the recorded depth, however fast.
+    assert depth(LATCHED, math.inf).depth == 1
+    assert depth(_offer(history=HistoryPolicy.KEEP_ALL), 2500.0).history == HistoryPolicy.KEEP_ALL
