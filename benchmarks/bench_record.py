@@ -5,10 +5,10 @@ bytes) sends for a fixed time to one subscriber process at a time:
 - ``count``: a wait-set loop that takes raw messages and only counts them (the ceiling);
 - ``naive``: an rclpy executor callback per message writing a BagWriter (a typical recorder);
 - ``recorder``: bagkit's Recorder, exactly as ``bagkit record`` runs it.
-Each subscriber reports messages, bytes and the span between the middleware receive times of
-its first and last message; every subscription is reliable keep-all, as the recorder's is for
-reliable publishers. Count and recorder runs alternate, best of three each (the machine is
-shared). Targets:
+Each subscriber reports messages, bytes, the span between the middleware receive times of
+its first and last message, and its process's CPU time per message (DDS threads included);
+every subscription is reliable keep-all, as the recorder's is for reliable publishers. Count
+and recorder runs alternate, best of three each (the machine is shared). Targets:
 - sensor_msgs/msg/Imu flood (>= 10 s): recorder rate >= 90% of ``count``, 0 lost (the bag
   holds every published message); the ratio to ``naive`` is printed;
 - 1 MB sensor_msgs/msg/Image at full speed: recorder MB/s >= 90% of ``count``, 0 lost;
@@ -136,7 +136,9 @@ def subscribe(mode: str, kind: str, out: Path) -> None:
         result = _run_recorder(out.with_suffix(".bag"), ready, stop)
     else:
         result = _run_subscriber(mode, kind, out.with_suffix(".bag"), ready, stop)
-    result["peak_rss"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    result["peak_rss"] = usage.ru_maxrss * 1024
+    result["cpu_s"] = usage.ru_utime + usage.ru_stime
     out.write_text(json.dumps(result))
 
 
@@ -279,7 +281,8 @@ def _line(name: str, result: dict[str, Any]) -> str:
     return (
         f"  {name:9s} {result['messages']:>8d}/{result['sent']:<8d} msgs  "
         f"{result['rate']:>9.0f} msg/s  {result['mb_per_s']:>8.1f} MB/s  "
-        f"peak RSS {result['peak_rss'] / 2**20:6.0f} MiB"
+        f"peak RSS {result['peak_rss'] / 2**20:6.0f} MiB  "
+        f"CPU {result['cpu_s'] / max(result['messages'], 1) * 1e6:7.1f} us/msg"
     )
 
 
