@@ -6,10 +6,9 @@ Peers measured in the same run, on the same bag:
   expanded into columns), then pandas min/max/mean/std: target at least 20x slower than us;
 - rosbags iterating the raw messages without decoding them: target at least 2x slower.
 Peak RSS of a summary of the 1M bag vs the 100k bag (each in a fresh subprocess): at most 1.5x.
-Reported, not a target: the general path (``bulk=False``: rosbags' generated deserializers plus
-bagkit's generated field getters, what types with sequences of messages use) on the 100k bag vs
-rosbags iterating and deserializing the same messages. Both do the same decoding work, so the
-ratio sits around 1 and moves with the machine's load.
+The general path (``bulk=False``: leaf values read straight from the CDR bytes, what types with
+sequences of messages and the messages bulk decoding leaves over use) on the 100k bag against
+rosbags iterating and deserializing the same messages: target no slower (>= 1x).
 
 The bags are generated once (one serialized template, fields varied with numpy, written with
 bagkit's writer, zstd chunks) and cached under benchmarks/results/ (gitignored).
@@ -35,6 +34,7 @@ RESULTS = Path(__file__).resolve().parent / "results"
 T0 = 1_700_000_000_000_000_000
 SPEEDUP_VS_DATAFRAME = 20.0
 SPEEDUP_VS_RAW_ITERATION = 2.0
+GENERAL_VS_DESERIALIZE = 1.0
 RSS_RATIO_CEILING = 1.5
 SCALARS = [
     "header.stamp.sec",
@@ -205,7 +205,7 @@ def main() -> bool:
     vs_deserialize = deserialize / general
     print(
         f"general path (bulk=False) {general:6.2f} s vs rosbags deserialize {deserialize:.2f} s "
-        f"on {SMALL:,} msgs: {vs_deserialize:.2f}x (reported, no target)"
+        f"on {SMALL:,} msgs: {vs_deserialize:.2f}x (target >= {GENERAL_VS_DESERIALIZE:g}x)"
     )
 
     rss_small, rss_large = _peak_rss(small), _peak_rss(large)
@@ -220,5 +220,6 @@ def main() -> bool:
     return (
         vs_frame >= SPEEDUP_VS_DATAFRAME
         and vs_raw >= SPEEDUP_VS_RAW_ITERATION
+        and vs_deserialize >= GENERAL_VS_DESERIALIZE
         and ratio <= RSS_RATIO_CEILING
     )

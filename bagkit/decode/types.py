@@ -11,7 +11,7 @@ definitions (or incomplete ones), for which rosbags' own Jazzy types are used wh
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -20,7 +20,9 @@ from rosbags.typesys import Stores, TypesysError, get_types_from_msg, get_typest
 from rosbags.typesys.store import Typestore
 
 from bagkit.bag.definitions import canonical_type_name
+from bagkit.decode.direct import ValueReader, value_reader
 from bagkit.decode.errors import DecodeError, SchemaError
+from bagkit.decode.flatten import FlatValue, field_getter
 
 _SERVICE_EVENT_INFO = "service_msgs/msg/ServiceEventInfo"
 
@@ -133,6 +135,25 @@ class MessageTypes:
             return message
 
         return decode
+
+    def value_reader(self, name: str, paths: Sequence[str]) -> ValueReader:
+        """A function returning the values of leaf ``paths`` of one payload of type ``name``.
+
+        The same values as ``field_getter(typestore, name, paths)(decoder(name)(payload))``,
+        read straight from the bytes where it can (see :mod:`bagkit.decode.direct`).
+
+        Raises:
+            SchemaError: the type cannot be decoded.
+            KeyError: a path that the type does not have.
+        """
+        canonical = self.resolve(name)
+        getter = field_getter(self.typestore, canonical, tuple(paths))
+        decode = self.decoder(name)
+
+        def through_objects(data: bytes | memoryview) -> list[FlatValue]:
+            return getter(decode(data))
+
+        return value_reader(self.typestore, canonical, paths, through_objects)
 
 
 def _references(parsed: Mapping[str, Any]) -> list[str]:

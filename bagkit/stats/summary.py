@@ -20,7 +20,8 @@ import numpy as np
 from bagkit.bag import BagChunk, BagReader
 from bagkit.bag.definitions import INTEGER_TYPES
 from bagkit.bag.mcap import MESSAGE_DATA_OFFSET, MESSAGE_PREFIX
-from bagkit.decode import DecodeError, LeafField, MessageTypes, field_getter, leaf_fields
+from bagkit.decode import DecodeError, LeafField, MessageTypes, leaf_fields
+from bagkit.decode.direct import ValueReader
 from bagkit.decode.layout import CdrLayout, ResolvedLayout
 from bagkit.stats.bulk import decode_bulk, read_u64
 from bagkit.stats.errors import NothingToSummarizeError, StatsError, UnknownTopicError
@@ -152,19 +153,17 @@ class _TopicAccumulator:
         leaves: list[LeafField],
         *,
         layout: CdrLayout | None,
-        getter: Callable[[object], list[Any]],
-        decode: Callable[[bytes | memoryview], object],
+        read_values: ValueReader,
         signature: tuple[LeafField, ...],
     ) -> None:
         self.topic = topic
         self.type_name = type_name
         self.leaves = leaves
         self.layout = layout
-        # getter(msg) -> the values of scalar_paths, then of the pooled paths.
-        self.getter = getter
-        # decode(payload) -> msg, with the definitions of the bag being read.
-        self.decode = decode
+        # read_values(payload) -> the values of scalar_paths, then of the pooled paths.
+        self.read_values = read_values
         self.scalar_paths = [leaf.path for leaf in leaves if not leaf.pooled]
+        self.paths = self.scalar_paths + [leaf.path for leaf in leaves if leaf.pooled]
         self.column = {path: i for i, path in enumerate(self.scalar_paths)}
         self.scalars = Moments(len(self.scalar_paths))
         self.pooled = {leaf.path: Moments(1) for leaf in leaves if leaf.pooled}
@@ -229,11 +228,11 @@ class _TopicAccumulator:
 
     def add_payloads(self, payloads: Iterable[bytes | memoryview]) -> None:
         """Decode messages one by one (the general path) and add them."""
-        decode, getter, rows = self.decode, self.getter, self._rows
+        read_values, rows = self.read_values, self._rows
         split = len(self.scalar_paths)
         for data in payloads:
             try:
-                values = getter(decode(data))
+                values = read_values(data)
             except DecodeError as exc:
                 self.fail(exc)
                 continue
@@ -343,7 +342,7 @@ class _Run:
                     f"{type_name} of topic {topic} is defined differently in {bag} than in "
                     "the bags before it: summarize them separately"
                 )
-            existing.decode = self.types.decoder(type_name)
+            existing.read_values = self.types.value_reader(type_name, existing.paths)
             return existing
         if topic in self.skipped:
             return None
@@ -360,14 +359,12 @@ class _Run:
         layout = CdrLayout.of(self.types.typestore, canonical) if self.bulk else None
         paths = [leaf.path for leaf in leaves if not leaf.pooled]
         paths += [leaf.path for leaf in leaves if leaf.pooled]
-        getter = field_getter(self.types.typestore, canonical, tuple(paths))
         accumulator = _TopicAccumulator(
             topic,
             type_name,
             leaves,
             layout=layout,
-            getter=getter,
-            decode=self.types.decoder(type_name),
+            read_values=self.types.value_reader(type_name, paths),
             signature=signature,
         )
         self.accumulators[topic] = accumulator

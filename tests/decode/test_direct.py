@@ -1,0 +1,97 @@
+"""Leaf values straight from CDR bytes equal those of the decoded message, for every type."""
+
+from __future__ import annotations
+
+import struct
+
+import numpy as np
+import pytest
+from rosbags.typesys import Stores, get_types_from_idl, get_typestore
+from test_decode import JAZZY, _flat_equal, random_message
+
+from bagkit.decode import DecodeError, flatten_message, leaf_fields
+from bagkit.decode.direct import value_reader
+
+
+def _no_fallback(_data: bytes | memoryview) -> list[object]:
+    raise AssertionError("the direct reader handed a little-endian payload to the object path")
+
+
+def _serializable_message(typename: str, rng: np.random.Generator) -> tuple[object, bytes]:
+    """A random message and its CDR bytes; rosbags packs ``byte`` as int8, so random octets
+    over 127 are drawn again."""
+    for _ in range(50):
+        msg = random_message(JAZZY, typename, rng)
+        try:
+            return msg, bytes(JAZZY.serialize_cdr(msg, typename))
+        except struct.error:
+            continue
+    raise AssertionError(f"no serializable random {typename}")
+
+
+def test_every_jazzy_type_reads_like_its_decoded_message() -> None:
+    """Random values, sequence lengths and strings; all paths, then every other path."""
+    rng = np.random.default_rng(21)
+    checked = 0
+    for typename in sorted(JAZZY.fielddefs):
+        paths = [leaf.path for leaf in leaf_fields(JAZZY, typename)]
+        readers = {
+            selection: value_reader(JAZZY, typename, selection, _no_fallback)
+            for selection in (tuple(paths), tuple(paths[::2]))
+        }
+        for _ in range(3):
+            msg, payload = _serializable_message(typename, rng)
+            flat = flatten_message(msg, JAZZY)
+            for selection, read in readers.items():
+                values = read(memoryview(payload))
+                assert len(values) == len(selection)
+                for path, value in zip(selection, values, strict=True):
+                    assert _flat_equal(value, flat[path]), (typename, path, value, flat[path])
+            checked += 1
+    assert checked > 300
+
+
+def test_byte_is_unsigned_as_ros_defines_it() -> None:
+    """rosbags reads ``byte`` as int8; ROS 2 (and bulk decoding) as an unsigned octet."""
+    typename = "diagnostic_msgs/msg/DiagnosticStatus"
+    msg = random_message(JAZZY, typename, np.random.default_rng(5))
+    msg.level = -56  # type: ignore[attr-defined]
+    payload = bytes(JAZZY.serialize_cdr(msg, typename))
+    assert value_reader(JAZZY, typename, ["level"], _no_fallback)(payload) == [200]
+
+
+def test_other_encapsulations_and_wide_strings_take_the_object_path() -> None:
+    typename = "sensor_msgs/msg/Temperature"
+    msg = random_message(JAZZY, typename, np.random.default_rng(3))
+    big_endian = bytes(JAZZY.serialize_cdr(msg, typename, little_endian=False))
+    handed_over: list[bytes] = []
+
+    def fallback(data: bytes | memoryview) -> list[object]:
+        handed_over.append(bytes(data))
+        return ["from the object path"]
+
+    read = value_reader(JAZZY, typename, ["temperature"], fallback)
+    assert read(big_endian) == ["from the object path"] and handed_over == [big_endian]
+    # Only IDL schemas have wide strings (rosbags' .msg parser has none).
+    store = get_typestore(Stores.EMPTY)
+    store.register(
+        get_types_from_idl("module t { module msg { struct Wide { wstring text; int32 x; }; }; };")
+    )
+    assert value_reader(store, "t/msg/Wide", ["x"], fallback) is fallback
+
+
+def test_bytes_that_do_not_match_the_type_are_a_decode_error() -> None:
+    typename = "sensor_msgs/msg/NavSatFix"
+    msg = random_message(JAZZY, typename, np.random.default_rng(4))
+    payload = bytes(JAZZY.serialize_cdr(msg, typename))
+    read = value_reader(JAZZY, typename, ["latitude"], _no_fallback)
+    assert read(payload) == [msg.latitude]  # type: ignore[attr-defined]
+    with pytest.raises(DecodeError, match="NavSatFix"):
+        read(payload[:-12])
+    with pytest.raises(DecodeError, match="bytes after"):
+        read(payload + bytes(16))
+
+
+def test_an_unknown_path_is_a_key_error() -> None:
+    with pytest.raises(KeyError, match="no leaf"):
+        value_reader(JAZZY, "sensor_msgs/msg/Temperature", ["pressure"], _no_fallback)
