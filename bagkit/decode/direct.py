@@ -25,26 +25,25 @@ from rosbags.typesys.store import Typestore
 
 from bagkit.decode.errors import DecodeError
 from bagkit.decode.flatten import FlatValue
+from bagkit.decode.layout import PRIMITIVE_FORMATS, U32
 
-# struct code and size of each primitive (CDR aligns each to its own size).
-_PRIMITIVES: dict[str, tuple[str, int]] = {
-    "bool": ("?", 1),
-    "byte": ("B", 1),
-    "char": ("B", 1),
-    "int8": ("b", 1),
-    "uint8": ("B", 1),
-    "int16": ("h", 2),
-    "uint16": ("H", 2),
-    "int32": ("i", 4),
-    "uint32": ("I", 4),
-    "int64": ("q", 8),
-    "uint64": ("Q", 8),
-    "float32": ("f", 4),
-    "float64": ("d", 8),
+# struct code of each primitive; sizes and numpy dtypes come from the bulk layouts' table.
+_CODES: dict[str, str] = {
+    "bool": "?",
+    "byte": "B",
+    "char": "B",
+    "int8": "b",
+    "uint8": "B",
+    "int16": "h",
+    "uint16": "H",
+    "int32": "i",
+    "uint32": "I",
+    "int64": "q",
+    "uint64": "Q",
+    "float32": "f",
+    "float64": "d",
 }
-_DTYPES = {name: np.dtype(f"<{code}") for name, (code, _) in _PRIMITIVES.items()}
-_DTYPES["bool"] = np.dtype(np.uint8)
-_U32 = struct.Struct("<I")
+_DTYPES = {name: np.dtype(fmt) for name, fmt in PRIMITIVE_FORMATS.items()}
 
 
 class UnsupportedTypeError(Exception):
@@ -100,7 +99,7 @@ class _Codegen:
         self.typestore = typestore
         self.wanted = wanted
         self.lines: list[str] = []
-        self.namespace: dict[str, Any] = {"_u32": _U32.unpack_from, "np": np}
+        self.namespace: dict[str, Any] = {"_u32": U32.unpack_from, "np": np}
         self.variables: dict[str, str] = {}  # leaf path -> local holding its value
         self.pooled_init: list[str] = []
         self._names = 0
@@ -123,7 +122,7 @@ class _Codegen:
         kind, rest = desc
         if kind == Nodetype.BASE:
             base = rest[0]
-            if base in _PRIMITIVES:
+            if base in _CODES:
                 self._run.append((path, base, None))
                 return
             self.flush(depth, pooled)
@@ -135,7 +134,7 @@ class _Codegen:
         sub, length = rest
         element = sub[1][0] if sub[0] == Nodetype.BASE else None
         if kind == Nodetype.ARRAY:
-            if element in _PRIMITIVES:
+            if element in _CODES:
                 self._run.append((path, element, length))
                 return
             for i in range(length):
@@ -155,7 +154,7 @@ class _Codegen:
         for start in range(8):
             fmt, pos = "<", start
             for _path, base, count in run:
-                code, size = _PRIMITIVES[base]
+                code, size = _CODES[base], _DTYPES[base].itemsize
                 if count == 0:
                     continue
                 pad = -pos % size
@@ -222,7 +221,7 @@ class _Codegen:
 
     def sequence(self, sub: Any, element: str | None, path: str, depth: int, pooled: bool) -> None:
         count = self.length(depth)
-        if element in _PRIMITIVES:
+        if element in _CODES:
             self.primitive_sequence(path, element, count, depth, pooled)
             return
         item = self.name("i")
@@ -237,7 +236,7 @@ class _Codegen:
     def primitive_sequence(
         self, path: str, base: str, count: str, depth: int, pooled: bool
     ) -> None:
-        _, size = _PRIMITIVES[base]
+        size = _DTYPES[base].itemsize
         if size > 1:
             # Writers align the first element only when there is one.
             self.emit(f"if {count}:", depth)

@@ -19,9 +19,10 @@ from rosbags.typesys.store import Typestore
 ENCAPSULATION_SIZE = 4
 # Encapsulation header of little-endian plain CDR (what every ROS 2 middleware writes).
 CDR_LE = b"\x00\x01"
-_U32 = struct.Struct("<I")
+U32 = struct.Struct("<I")
 
-_PRIMITIVES: dict[str, str] = {
+# numpy format of each CDR primitive (CDR aligns each to its own size).
+PRIMITIVE_FORMATS: dict[str, str] = {
     "bool": "u1",
     "byte": "u1",
     "char": "u1",
@@ -149,7 +150,7 @@ class CdrLayout:
                 data.append((ENCAPSULATION_SIZE + pos, count))
                 pos += count
                 continue
-            fmt = _PRIMITIVES[slot.base]
+            fmt = PRIMITIVE_FORMATS[slot.base]
             size = np.dtype(fmt).itemsize
             if count:
                 pos = _align(pos, size)
@@ -200,7 +201,7 @@ class PaddingZeroer:
             if step is None:
                 step = steps[lengths] = self._layout.data_mask(lengths)
             if isinstance(step, NeedLength):
-                lengths += _U32.unpack_from(data, step.offset)
+                lengths += U32.unpack_from(data, step.offset)
                 continue
             size = len(data)
             return (int.from_bytes(data, "little") & step).to_bytes(size, "little")
@@ -217,7 +218,7 @@ def _collect(typestore: Typestore, path: str, desc: tuple, slots: list[Slot]) ->
         if base == "string":
             slots.append(Slot(path, base, None))
             return True
-        if base not in _PRIMITIVES:
+        if base not in PRIMITIVE_FORMATS:
             return False
         slots.append(Slot(path, base, 1))
         return True
@@ -228,11 +229,11 @@ def _collect(typestore: Typestore, path: str, desc: tuple, slots: list[Slot]) ->
         )
     sub, length = rest
     if kind == Nodetype.ARRAY:
-        if sub[0] == Nodetype.BASE and sub[1][0] in _PRIMITIVES:
+        if sub[0] == Nodetype.BASE and sub[1][0] in PRIMITIVE_FORMATS:
             slots.append(Slot(path, sub[1][0], length, array=True))
             return True
         return all(_collect(typestore, f"{path}[{i}]", sub, slots) for i in range(length))
-    if sub[0] == Nodetype.BASE and sub[1][0] in _PRIMITIVES:
+    if sub[0] == Nodetype.BASE and sub[1][0] in PRIMITIVE_FORMATS:
         slots.append(Slot(f"{path}[]", sub[1][0], None))
         return True
     return False
