@@ -153,17 +153,15 @@ class _TopicAccumulator:
         leaves: list[LeafField],
         *,
         layout: CdrLayout | None,
-        read_values: ValueReader,
+        types: MessageTypes,
         signature: tuple[LeafField, ...],
     ) -> None:
         self.topic = topic
         self.type_name = type_name
         self.leaves = leaves
         self.layout = layout
-        # read_values(payload) -> the values of scalar_paths, then of the pooled paths.
-        self.read_values = read_values
         self.scalar_paths = [leaf.path for leaf in leaves if not leaf.pooled]
-        self.paths = self.scalar_paths + [leaf.path for leaf in leaves if leaf.pooled]
+        self.read_values = self.value_reader(types)
         self.column = {path: i for i, path in enumerate(self.scalar_paths)}
         self.scalars = Moments(len(self.scalar_paths))
         self.pooled = {leaf.path: Moments(1) for leaf in leaves if leaf.pooled}
@@ -178,6 +176,11 @@ class _TopicAccumulator:
         self._pooled_rows: list[list[Any]] = []
         self._pooled_size = 0
         self._plans: dict[np.dtype, list[tuple[str, np.ndarray | None, np.ndarray | str]]] = {}
+
+    def value_reader(self, types: MessageTypes) -> ValueReader:
+        """payload -> the values of ``scalar_paths``, then of the pooled paths."""
+        pooled = [leaf.path for leaf in self.leaves if leaf.pooled]
+        return types.value_reader(self.type_name, [*self.scalar_paths, *pooled])
 
     def add_times(self, log_times: np.ndarray) -> None:
         if not len(log_times):
@@ -342,7 +345,7 @@ class _Run:
                     f"{type_name} of topic {topic} is defined differently in {bag} than in "
                     "the bags before it: summarize them separately"
                 )
-            existing.read_values = self.types.value_reader(type_name, existing.paths)
+            existing.read_values = existing.value_reader(self.types)
             return existing
         if topic in self.skipped:
             return None
@@ -357,15 +360,8 @@ class _Run:
         signature = tuple(leaf_fields(self.types.typestore, canonical))
         leaves = [leaf for leaf in signature if leaf.numeric and self.select_field(leaf.path)]
         layout = CdrLayout.of(self.types.typestore, canonical) if self.bulk else None
-        paths = [leaf.path for leaf in leaves if not leaf.pooled]
-        paths += [leaf.path for leaf in leaves if leaf.pooled]
         accumulator = _TopicAccumulator(
-            topic,
-            type_name,
-            leaves,
-            layout=layout,
-            read_values=self.types.value_reader(type_name, paths),
-            signature=signature,
+            topic, type_name, leaves, layout=layout, types=self.types, signature=signature
         )
         self.accumulators[topic] = accumulator
         return accumulator
