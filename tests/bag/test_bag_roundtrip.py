@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import random
 from collections.abc import Callable
 from pathlib import Path
 
@@ -256,3 +257,66 @@ def test_service_event_definition_is_the_srv_text_as_rosbag2_stores_it() -> None
     assert text.startswith(srv.read_text())
     assert "\nMSG: rcl_interfaces/ParameterValue\n" in text
     assert type_description_hash("rcl_interfaces/srv/GetParameters_Event").startswith("RIHS01_")
+
+
+@pytest.mark.parametrize("options", [{}, {"max_bag_size": 30_000, "compression": "none"}])
+def test_write_batch_writes_the_same_files_as_one_write_per_message(
+    tmp_path: Path, options: dict[str, int | str]
+) -> None:
+    # Batches of uneven sizes that cross chunk and file boundaries, two topics interleaved.
+    rng = random.Random(3)
+    messages: list[tuple[str, bytes, int, int]] = []
+    for i in range(900):
+        topic = "/imu/data" if i % 5 else "/text"
+        data = imu_cdr(i) if topic == "/imu/data" else string_cdr(f"m{i}" * rng.randint(0, 40))
+        messages.append((topic, data, 1_000_000 + i * 1000, i))
+    batches: list[list[tuple[str, bytes, int, int]]] = []
+    for topic, *rest in messages:
+        if not batches or batches[-1][0][0] != topic or rng.random() < 0.2:
+            batches.append([])
+        batches[-1].append((topic, *rest))
+
+    for name in ("single", "batch"):
+        # The same bag name: the file names are in the bytes (the rosbag2 metadata record).
+        with BagWriter(
+            tmp_path / name / "bag", chunk_size=8_000, chunk_interval_s=3600, **options
+        ) as bag:
+            bag.add_topic(TopicInfo("/imu/data", IMU))
+            bag.add_topic(TopicInfo("/text", STRING))
+            for batch in batches:
+                if name == "single":
+                    for topic, data, log_time, sequence in batch:
+                        bag.write(
+                            topic,
+                            data,
+                            log_time=log_time,
+                            publish_time=-sequence % 7,
+                            sequence=sequence,
+                        )
+                else:
+                    bag.write_batch(
+                        batch[0][0],
+                        [data for _t, data, _l, _s in batch],
+                        log_times=[log_time for _t, _d, log_time, _s in batch],
+                        publish_times=[-sequence % 7 for *_, sequence in batch],
+                        sequences=[sequence for *_, sequence in batch],
+                    )
+
+    single = sorted((tmp_path / "single" / "bag").glob("*.mcap"))
+    batch = sorted((tmp_path / "batch" / "bag").glob("*.mcap"))
+    assert len(single) == 1 if not options else len(single) >= 3
+    assert [p.name for p in single] == [p.name for p in batch]
+    for single_file, batch_file in zip(single, batch, strict=True):
+        assert single_file.read_bytes() == batch_file.read_bytes()
+    with BagReader(tmp_path / "batch" / "bag") as bag:
+        assert [(m.topic, m.data, m.log_time, m.sequence) for m in bag.messages()] == messages
+
+
+def test_write_batch_checks_lengths_before_writing(tmp_path: Path) -> None:
+    with BagWriter(tmp_path / "bag") as bag:
+        bag.add_topic(TopicInfo("/a", STRING))
+        with pytest.raises(ValueError, match="differ in length"):
+            bag.write_batch("/a", [string_cdr("x"), string_cdr("y")], log_times=[1])
+        bag.write_batch("/a", [string_cdr("z")], log_times=[2])
+    with BagReader(tmp_path / "bag") as reader:
+        assert [m.log_time for m in reader.messages()] == [2]

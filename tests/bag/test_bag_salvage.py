@@ -128,12 +128,18 @@ _FULL_DISK_WRITER = textwrap.dedent(
     bag.add_topic(TopicInfo("/a", "std_msgs/msg/UInt64"))
     bag.add_topic(TopicInfo("/b", "std_msgs/msg/UInt64"))
     accepted = {"/a": 0, "/b": 0}
-    for i in range(100_000):
-        topic = "/a" if i % 3 else "/b"
-        accepted[topic] += 1  # write() takes the message even when it raises
+    batch = int(sys.argv[2])  # 1: write(), more: write_batch() of that many messages
+    for first in range(0, 100_000, batch):
+        topic = "/a" if (first // batch) % 3 else "/b"
+        numbers = range(first, first + batch)
+        accepted[topic] += batch  # the messages are taken even when the call raises
+        payloads = [b"\\x00\\x01\\x00\\x00" + i.to_bytes(8, "little") for i in numbers]
         try:
-            bag.write(topic, b"\\x00\\x01\\x00\\x00" + i.to_bytes(8, "little"),
-                      log_time=1_000 + i, sequence=i)
+            if batch == 1:
+                bag.write(topic, payloads[0], log_time=1_000 + first, sequence=first)
+            else:
+                bag.write_batch(topic, payloads, log_times=[1_000 + i for i in numbers],
+                                sequences=numbers)
         except BagWriteError as exc:
             print(json.dumps({"error": str(exc), "accepted": accepted,
                               "lost": exc.lost_by_topic}), flush=True)
@@ -146,10 +152,11 @@ _FULL_DISK_WRITER = textwrap.dedent(
 )
 
 
-def test_disk_full_is_a_clear_error_and_keeps_what_was_flushed(tmp_path: Path) -> None:
+@pytest.mark.parametrize("batch", [1, 7])
+def test_disk_full_is_a_clear_error_and_keeps_what_was_flushed(tmp_path: Path, batch: int) -> None:
     bag_path = tmp_path / "full"
     result = subprocess.run(
-        [sys.executable, "-c", _FULL_DISK_WRITER, str(bag_path)],
+        [sys.executable, "-c", _FULL_DISK_WRITER, str(bag_path), str(batch)],
         capture_output=True,
         text=True,
         timeout=60,
