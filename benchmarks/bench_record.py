@@ -20,6 +20,7 @@ Run: ``.venv/bin/python -m benchmarks record``
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import resource
@@ -142,6 +143,22 @@ def subscribe(mode: str, kind: str, out: Path) -> None:
     out.write_text(json.dumps(result))
 
 
+def _thread_cpu() -> dict[str, float]:
+    """CPU seconds of this process's live threads, by kind: the middleware's (``dds.*``),
+    the recorder's (``bagkit-*``), the rest (``python``)."""
+    tick = os.sysconf("SC_CLK_TCK")
+    totals: dict[str, float] = {}
+    for stat in Path("/proc/self/task").glob("*/stat"):
+        with contextlib.suppress(OSError):
+            text = stat.read_text()
+            # comm is in parentheses and may hold spaces; utime and stime are fields 14 and 15.
+            comm = text[text.index("(") + 1 : text.rindex(")")]
+            fields = text[text.rindex(")") + 2 :].split()
+            kind = "dds" if comm.startswith("dds.") else comm.removeprefix("bagkit-")
+            totals[kind] = totals.get(kind, 0.0) + (int(fields[11]) + int(fields[12])) / tick
+    return totals
+
+
 def _run_recorder(bag: Path, ready: Path, stop: dict[str, bool]) -> dict[str, Any]:
     from bagkit.ros.recorder import Recorder
 
@@ -150,6 +167,7 @@ def _run_recorder(bag: Path, ready: Path, stop: dict[str, bool]) -> dict[str, An
     ready.touch()
     while not stop["now"]:
         time.sleep(0.05)
+    threads = _thread_cpu()
     report = recorder.stop()
     topic = report.topic(TOPIC) if report.topics else None
     return {
@@ -158,6 +176,7 @@ def _run_recorder(bag: Path, ready: Path, stop: dict[str, bool]) -> dict[str, An
         "span_ns": (topic.last_ns - topic.first_ns) if topic else 0,
         "lost": report.lost,
         "error": report.error,
+        "threads": threads,
     }
 
 
@@ -220,6 +239,7 @@ def _run_subscriber(
                 counts["last"] = received
             if stopping:
                 break
+    threads = _thread_cpu()
     node.destroy_node()
     context.try_shutdown()
     return {
@@ -228,6 +248,7 @@ def _run_subscriber(
         "span_ns": counts["last"] - counts["first"],
         "lost": None,
         "error": None,
+        "threads": threads,
     }
 
 
@@ -278,11 +299,17 @@ def _run(mode: str, kind: str, seconds: float, rate_hz: float = 0.0) -> dict[str
 
 
 def _line(name: str, result: dict[str, Any]) -> str:
+    messages = max(result["messages"], 1)
+    threads = ", ".join(
+        f"{kind} {seconds / messages * 1e6:.1f}"
+        for kind, seconds in sorted(result["threads"].items(), key=lambda item: -item[1])
+        if seconds / messages * 1e6 >= 0.1
+    )
     return (
         f"  {name:9s} {result['messages']:>8d}/{result['sent']:<8d} msgs  "
         f"{result['rate']:>9.0f} msg/s  {result['mb_per_s']:>8.1f} MB/s  "
         f"peak RSS {result['peak_rss'] / 2**20:6.0f} MiB  "
-        f"CPU {result['cpu_s'] / max(result['messages'], 1) * 1e6:7.1f} us/msg"
+        f"CPU {result['cpu_s'] / messages * 1e6:7.1f} us/msg ({threads})"
     )
 
 

@@ -76,7 +76,27 @@ CLOCK_TOPIC = "/clock"
 _M_TRIM_THRESHOLD = -1
 _M_MMAP_THRESHOLD = -3
 _MMAP_THRESHOLD_MAX = 32 << 20
+_PR_SET_NAME = 15  # prctl option (linux/prctl.h)
 CUSTOM_DATA_PREFIX = "bagkit.record."
+
+
+def _libc_function(name: str) -> Any:
+    """A C library function through ctypes, or None where there is no such library or function."""
+    try:
+        return getattr(ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6"), name)
+    except (OSError, AttributeError):
+        return None
+
+
+def name_native_thread(name: str) -> None:
+    """Give the calling thread ``name`` (15 bytes at most) in ``top -H``, ``ps -L`` and /proc.
+
+    Python 3.11 names only its own thread objects; without this every thread of the recorder
+    shows up as ``python`` beside the middleware's named ones. No-op without glibc.
+    """
+    prctl = _libc_function("prctl")
+    if prctl is not None:
+        prctl(_PR_SET_NAME, name.encode()[:15], 0, 0, 0)
 
 
 def keep_freed_memory() -> None:
@@ -87,10 +107,8 @@ def keep_freed_memory() -> None:
     1 MB 0.8 ms -> 0.08 ms, writing it 2.7 ms -> 0.8 ms). Process-wide, so ``bagkit record``
     calls it for its own process; the :class:`Recorder` does not. No-op without glibc.
     """
-    try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
-        mallopt = libc.mallopt
-    except (OSError, AttributeError):
+    mallopt = _libc_function("mallopt")
+    if mallopt is None:
         return
     mallopt(_M_MMAP_THRESHOLD, _MMAP_THRESHOLD_MAX)
     mallopt(_M_TRIM_THRESHOLD, 4 * _MMAP_THRESHOLD_MAX)
@@ -153,6 +171,21 @@ class SequenceTracker:
         previous, self._hot = max(below)
         last[self._hot] = sequence
         return sequence - previous - 1
+
+    def observe_many(self, sequences: list[int], matched_publishers: Callable[[], int]) -> int:
+        """Account for received ``sequences`` in order (0: unknown, skipped); return the skipped.
+
+        The common case, a run that continues the last stream without a hole, costs one list
+        comparison instead of a call per number.
+        """
+        last = self._last
+        if sequences and last:
+            expected = last[self._hot] + 1
+            if sequences == list(range(expected, expected + len(sequences))):
+                last[self._hot] = sequences[-1]
+                return 0
+        observe = self.observe
+        return sum(observe(sequence, matched_publishers) for sequence in sequences if sequence)
 
 
 # -- results -------------------------------------------------------------------------------------
@@ -549,6 +582,7 @@ class Recorder:
     # -- take thread ----------------------------------------------------------------------------
 
     def _take_loop(self) -> None:
+        name_native_thread("bagkit-take")
         try:
             self._take_until_stopped()
         except Exception as exc:  # any failure must still finish the bag
@@ -732,6 +766,7 @@ class Recorder:
     # -- writer thread --------------------------------------------------------------------------
 
     def _write_loop(self) -> None:
+        name_native_thread("bagkit-write")
         bag = self._bag
         assert bag is not None
         try:
@@ -787,43 +822,36 @@ class Recorder:
     def _write_messages(
         self, bag: BagWriter, topic: _Topic, messages: list[_Taken], sim_time: int | None
     ) -> bool:
-        """Write one topic's messages of a batch; return whether writing failed."""
-        # The per-message path of the recorder: locals only, counts updated once per batch.
+        """Write one topic's messages of a batch; return whether writing failed.
+
+        After a failure the counts are those of the batch; :meth:`_finish` recounts from the bag.
+        """
         record = topic.record
-        name = record.topic
-        write = bag.write
-        observe = topic.tracker.observe
-        matched = topic.subscription.handle.get_publisher_count
-        gaps = written = nbytes = log_time = 0
+        infos = [info for _data, info in messages]
+        sequences = [info["publication_sequence_number"] or 0 for info in infos]
+        received = [info["received_timestamp"] for info in infos]
+        log_times = received if sim_time is None else [sim_time] * len(messages)
+        record.gaps += topic.tracker.observe_many(
+            sequences, topic.subscription.handle.get_publisher_count
+        )
+        record.publishers = topic.tracker.publishers
+        payloads = [data for data, _info in messages]
         failed = False
         try:
-            for data, info in messages:
-                sequence = info["publication_sequence_number"] or 0
-                if sequence:
-                    gaps += observe(sequence, matched)
-                log_time = info["received_timestamp"] if sim_time is None else sim_time
-                write(
-                    name,
-                    data,
-                    log_time=log_time,
-                    publish_time=info["source_timestamp"],
-                    sequence=sequence,
-                )
-                written += 1
-                nbytes += len(data)
+            bag.write_batch(
+                record.topic,
+                payloads,
+                log_times=log_times,
+                publish_times=[info["source_timestamp"] for info in infos],
+                sequences=sequences,
+            )
         except BagError as exc:
             failed = self._write_failed(exc)
-            self._account(topic, messages[written + 1 :])
-            record.write_failed += len(messages) - written
-        if written:
-            if not record.first_ns:
-                first = messages[0][1]["received_timestamp"]
-                record.first_ns = first if sim_time is None else sim_time
-            record.last_ns = log_time
-        record.messages += written
-        record.bytes += nbytes
-        record.gaps += gaps
-        record.publishers = topic.tracker.publishers
+        if not record.first_ns:
+            record.first_ns = log_times[0]
+        record.last_ns = log_times[-1]
+        record.messages += len(messages)
+        record.bytes += sum(map(len, payloads))
         return failed
 
     def _account(self, topic: _Topic, messages: list[_Taken]) -> None:

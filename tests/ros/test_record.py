@@ -281,13 +281,13 @@ def test_write_queue_overflow_is_counted(
     node: Node, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """A writer slower than the input: every message is either in the bag or counted lost."""
-    write = recorder_module.BagWriter.write
+    write_batch = recorder_module.BagWriter.write_batch
 
-    def slow_write(self: Any, *args: Any, **kwargs: Any) -> None:
-        time.sleep(0.005)  # stands for a disk that cannot keep up
-        write(self, *args, **kwargs)
+    def slow_write_batch(self: Any, topic: str, payloads: list[bytes], **kwargs: Any) -> None:
+        time.sleep(0.005 * len(payloads))  # stands for a disk that cannot keep up
+        write_batch(self, topic, payloads, **kwargs)
 
-    monkeypatch.setattr(recorder_module.BagWriter, "write", slow_write)
+    monkeypatch.setattr(recorder_module.BagWriter, "write_batch", slow_write_batch)
     monkeypatch.setattr(recorder_module, "QUEUE_WAIT_S", 0.01)
     publisher = node.create_publisher(String, "/slow", 1000)
     n = 600

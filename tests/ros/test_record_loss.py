@@ -50,3 +50,29 @@ def test_new_publisher_starting_below_the_others_is_not_a_gap() -> None:
 def test_restarted_publisher_is_not_a_gap() -> None:
     # The node restarted: its new writer counts from 1 again.
     assert feed([*range(1, 50), *range(1, 10)], 1) == (0, 1)
+
+
+def test_observe_many_counts_as_one_observe_per_number() -> None:
+    # Two publishers with holes, a restart, unknown (0) numbers; fed in batches of any size.
+    rng = random.Random(11)
+    numbers = [n for n in range(1, 2000) if rng.random() > 0.02]
+    numbers[700:700] = [0, 0, *range(5, 40)]
+    numbers[1500:1500] = list(range(1, 30))
+    for _ in range(20):
+        one, batched = SequenceTracker(), SequenceTracker()
+        expected = sum(one.observe(n, lambda: 2) for n in numbers if n)
+        position, lost = 0, 0
+        while position < len(numbers):
+            size = rng.choice([1, 2, 5, 64, 300])
+            lost += batched.observe_many(numbers[position : position + size], lambda: 2)
+            position += size
+        assert lost == expected > 0
+        assert batched.publishers == one.publishers
+
+
+def test_observe_many_fast_path_continues_the_stream() -> None:
+    tracker = SequenceTracker()
+    assert tracker.observe_many(list(range(10, 20)), lambda: 1) == 0
+    assert tracker.observe_many(list(range(20, 300)), lambda: 1) == 0
+    assert tracker.observe_many([300, 302, 303], lambda: 1) == 1
+    assert tracker.observe_many([305], lambda: 1) == 1
