@@ -317,13 +317,19 @@ def _best_of(modes: tuple[str, ...], kind: str, seconds: float) -> dict[str, dic
     """Run the modes interleaved ROUNDS times; keep each mode's fastest run.
 
     The machine is shared: interleaving and best-of keep a load spike from deciding a ratio.
+    Every run's rate is printed, so that the spread is seen beside the ratio.
     """
     best: dict[str, dict[str, Any]] = {}
+    rates: dict[str, list[float]] = {mode: [] for mode in modes}
     for _ in range(ROUNDS):
         for mode in modes:
             result = _run(mode, kind, seconds)
+            rates[mode].append(result["mb_per_s"] if kind == "image" else result["rate"])
             if mode not in best or result["rate"] > best[mode]["rate"]:
                 best[mode] = result
+    unit = "MB/s" if kind == "image" else "msg/s"
+    for mode, values in rates.items():
+        print(f"  {mode:9s} every run: {', '.join(f'{v:.0f}' for v in values)} {unit}")
     return best
 
 
