@@ -266,11 +266,15 @@ def test_qos_overrides_replace_the_adapted_profile(node: Node, tmp_path: Path) -
     override = QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST_EFFORT)
     with Recorder(tmp_path / "ovr", topics=["/ovr"], qos_overrides={"/ovr": override}) as rec:
         wait_matched(publisher)
-        (subscription,) = [
-            s
-            for s in node.get_subscriptions_info_by_topic("/ovr")
-            if s.node_name == "bagkit_recorder"
-        ]
+
+        def recorder_subscriptions() -> list[Any]:
+            infos = node.get_subscriptions_info_by_topic("/ovr")
+            return [s for s in infos if s.node_name == "bagkit_recorder"]
+
+        # Matching and the graph cache are updated by different discovery callbacks: the
+        # publisher can match before the subscription's node name is in this node's graph.
+        wait_for(lambda: len(recorder_subscriptions()) == 1)
+        (subscription,) = recorder_subscriptions()
         publisher.publish(String(data="over"))
         wait_for(lambda: rec.progress().messages == 1)
     # Adapted, it would have been reliable keep-all: the publisher is reliable.

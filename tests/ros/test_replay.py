@@ -540,7 +540,7 @@ def test_publishers_take_the_recorded_qos_or_the_overrides(tmp_path: Path) -> No
 
 
 def test_replay_through_the_pipeline_while_recording_its_outputs(
-    tmp_path: Path, processes: Any
+    tmp_path: Path, processes: Any, listener_factory: type[Listener]
 ) -> None:
     """fusion launch --use-sim-time + bagkit replay --clock + bagkit record of the outputs."""
     outputs = ["/fusion/odometry", "/fusion/baro_altitude", "/logger/summary", "/alerts"]
@@ -552,11 +552,20 @@ def test_replay_through_the_pipeline_while_recording_its_outputs(
         ["bagkit", "record", "--use-sim-time", "-o", str(recorded_bag), *outputs],
         stdout=subprocess.DEVNULL,
     )
+    # The recorder subscribes once it has seen the nodes' publishers (a discovery period can
+    # pass first, longer on a loaded machine); wait until this graph shows its subscriptions.
+    graph = listener_factory({}).node
+    deadline = time.monotonic() + 30
+    while not all(
+        any(s.node_name == "bagkit_recorder" for s in graph.get_subscriptions_info_by_topic(t))
+        for t in ("/fusion/odometry", "/fusion/baro_altitude")
+    ):
+        assert time.monotonic() < deadline, "the recorder did not subscribe to the outputs"
+        time.sleep(0.05)
     topics = [arg for topic in SENSOR_TOPICS for arg in ("--topics", topic)]
     waits = [arg for topic in ["/clock", *SENSOR_TOPICS] for arg in ("--wait-for", topic)]
-    # --delay: the recorder's subscriptions exist from its start, but they match the nodes'
-    # publishers only once the two processes have discovered each other, which can take one
-    # discovery period (3 s); nothing in the graph shows when that has happened.
+    # --delay: the nodes' publishers still have to match the recorder's new subscriptions;
+    # nothing in the graph shows when that has happened.
     result = _bagkit(
         "replay", str(NOMINAL_BAG), "--rate", "2", "--clock", "--duration", "8", "--delay", "3",
         "--format", "json", *topics, *CLI_KNOWN, *waits, "--wait-timeout", "30",
