@@ -115,7 +115,10 @@ def publish(kind: str, seconds: float, rate_hz: float) -> None:
             if delay > 0:
                 time.sleep(delay)
     publisher.wait_for_all_acked(Duration(seconds=30))
-    print(json.dumps({"sent": sent, "bytes": sent * len(payload), "blocked": blocked}), flush=True)
+    print(
+        json.dumps({"sent": sent, "sent_bytes": sent * len(payload), "blocked": blocked}),
+        flush=True,
+    )
     node.destroy_node()
     context.try_shutdown()
 
