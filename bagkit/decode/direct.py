@@ -181,11 +181,19 @@ class _Codegen:
     def leaf(self, path: str, base: str, expr: str, depth: int, pooled: bool) -> None:
         if path not in self.wanted:
             return
-        value = f"int({expr})" if base == "bool" else expr
-        if pooled:
-            self.emit(f"{self.pooled(path)}.append({value})", depth)
+        self.store(path, f"int({expr})" if base == "bool" else expr, depth, pooled)
+
+    def store(self, path: str, expr: str, depth: int, pooled: bool, *, many: bool = False) -> None:
+        """Emit the code that keeps ``expr`` as the value of ``path`` (``many``: a sequence).
+
+        Inside a sequence of structs (``pooled``) values are collected in the path's pool.
+        """
+        if not pooled:
+            self.emit(f"{self.variable(path)} = {expr}", depth)
+        elif many:
+            self.emit(f"{self.pooled(path)}.extend({expr}.tolist())", depth)
         else:
-            self.emit(f"{self.variable(path)} = {value}", depth)
+            self.emit(f"{self.pooled(path)}.append({expr})", depth)
 
     def variable(self, path: str) -> str:
         return self.variables.setdefault(path, self.name("v"))
@@ -213,10 +221,7 @@ class _Codegen:
         if path in self.wanted:
             # The count includes the terminating NUL (0 only from writers that omit it).
             text = f"bytes(b[4 + p : 4 + p + max({count} - 1, 0)]).decode()"
-            if pooled:
-                self.emit(f"{self.pooled(path)}.append({text})", depth)
-            else:
-                self.emit(f"{self.variable(path)} = {text}", depth)
+            self.store(path, text, depth, pooled)
         self.emit(f"p += {count}", depth)
 
     def sequence(self, sub: Any, element: str | None, path: str, depth: int, pooled: bool) -> None:
@@ -247,10 +252,7 @@ class _Codegen:
             array = f"np.frombuffer(b, {dtype}, {count}, 4 + p)"
             if base == "bool":
                 array = f"({array} != 0).astype({dtype})"
-            if pooled:
-                self.emit(f"{self.pooled(path)}.extend({array}.tolist())", depth)
-            else:
-                self.emit(f"{self.variable(path)} = {array}", depth)
+            self.store(path, array, depth, pooled, many=True)
         self.emit(f"p += {count} * {size}", depth)
 
 
