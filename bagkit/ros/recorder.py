@@ -856,14 +856,12 @@ class Recorder:
         After a failure the counts are those of the batch; :meth:`_finish` recounts from the bag.
         """
         record = topic.record
+        sequences = self._account(topic, messages)
         infos = [info for _data, info in messages]
-        sequences = [info["publication_sequence_number"] or 0 for info in infos]
-        received = [info["received_timestamp"] for info in infos]
-        log_times = received if sim_time is None else [sim_time] * len(messages)
-        record.gaps += topic.tracker.observe_many(
-            sequences, topic.subscription.handle.get_publisher_count
-        )
-        record.publishers = topic.tracker.publishers
+        if sim_time is None:
+            log_times = [info["received_timestamp"] for info in infos]
+        else:
+            log_times = [sim_time] * len(messages)
         payloads = [data for data, _info in messages]
         failed = False
         try:
@@ -883,14 +881,14 @@ class Recorder:
         record.bytes += sum(map(len, payloads))
         return failed
 
-    def _account(self, topic: _Topic, messages: list[_Taken]) -> None:
-        """Count sequence gaps of messages that are not written."""
-        matched = topic.subscription.handle.get_publisher_count
-        for _data, info in messages:
-            sequence = info["publication_sequence_number"]
-            if sequence:
-                topic.record.gaps += topic.tracker.observe(sequence, matched)
+    def _account(self, topic: _Topic, messages: list[_Taken]) -> list[int]:
+        """Count the sequence gaps up to ``messages``; return their sequence numbers (0: none)."""
+        sequences = [info["publication_sequence_number"] or 0 for _data, info in messages]
+        topic.record.gaps += topic.tracker.observe_many(
+            sequences, topic.subscription.handle.get_publisher_count
+        )
         topic.record.publishers = topic.tracker.publishers
+        return sequences
 
     def _write_failed(self, exc: BagError) -> bool:
         self._errors.append(str(exc))
