@@ -50,6 +50,7 @@ from bagkit.bag.errors import BagError
 from bagkit.ros.errors import RecorderOptionsError, RecordingFailedError, UnknownMessageTypeError
 from bagkit.ros.graph import DiscoveredTopic, TopicFilter, discover_topics
 from bagkit.ros.qos import adapt_subscription_qos, dump_offered_qos_profiles
+from bagkit.ros.take import TakenMessages, take_serialized
 from bagkit.ros.types import import_message_type
 
 _log = logging.getLogger(__name__)
@@ -313,10 +314,8 @@ class _Topic:
     tracker: SequenceTracker = field(default_factory=SequenceTracker)
 
 
-# What take_message(raw=True) returns: the serialized message and the rmw message info.
-_Taken = tuple[bytes, dict[str, Any]]
 # One drained batch: the messages taken from each ready topic.
-_Batch = list[tuple[_Topic, list[_Taken]]]
+_Batch = list[tuple[_Topic, TakenMessages]]
 
 
 class _Queue:
@@ -656,28 +655,18 @@ class Recorder:
             taken_last_round = 0
             full_last_round = False
             for topic in ready:
-                take = topic.subscription.handle.take_message
-                message_type = topic.message_type
-                messages: list[_Taken] = []
-                topic_bytes = 0
-                for _ in range(TAKE_BURST):
-                    taken = take(message_type, True)
-                    if taken is None:
-                        break
-                    messages.append(taken)
-                    topic_bytes += len(taken[0])
-                    if topic_bytes >= TAKE_BURST_BYTES:
-                        break  # the rest next round
-                if messages:
+                # The rest of a topic's burst waits for the next round.
+                taken = take_serialized(
+                    topic.subscription, max_count=TAKE_BURST, max_bytes=TAKE_BURST_BYTES
+                )
+                if taken.payloads:
                     if not batch:
                         batch_deadline = time.monotonic() + max_age
-                    batch.append((topic, messages))
-                    nbytes += topic_bytes
-                    count += len(messages)
-                    taken_last_round += len(messages)
-                    full_last_round |= (
-                        len(messages) == TAKE_BURST or topic_bytes >= TAKE_BURST_BYTES
-                    )
+                    batch.append((topic, taken))
+                    nbytes += taken.nbytes
+                    count += len(taken)
+                    taken_last_round += len(taken)
+                    full_last_round |= len(taken) == TAKE_BURST or taken.nbytes >= TAKE_BURST_BYTES
             now = time.monotonic()
             if batch and (
                 now >= batch_deadline or nbytes >= TAKE_BURST_BYTES or count >= TAKE_BURST
@@ -702,20 +691,15 @@ class Recorder:
 
         A publisher flooding the topic must not hold up a stop.
         """
-        take = topic.subscription.handle.take_message
         sim_time = self._sim_time if self._clock is not None else None
         deadline = time.monotonic() + DRAIN_S
-        taken: _Taken | None = None
         while time.monotonic() < deadline:
-            messages: list[_Taken] = []
-            nbytes = 0
-            while nbytes < TAKE_BURST_BYTES and (taken := take(topic.message_type, True)):
-                messages.append(taken)
-                nbytes += len(taken[0])
-            if messages:
-                self._queue.put_batch(sim_time, [(topic, messages)], nbytes)
-            if taken is None:
+            taken = take_serialized(
+                topic.subscription, max_count=TAKE_BURST, max_bytes=TAKE_BURST_BYTES
+            )
+            if not taken.payloads:
                 return
+            self._queue.put_batch(sim_time, [(topic, taken)], taken.nbytes)
 
     def _discover(self) -> None:
         """Subscribe to newly matching topics; re-subscribe where the offers got weaker."""
@@ -835,60 +819,53 @@ class Recorder:
                     failed = failed or self._write_failed(exc)
                 continue
             if kind == "dropped":
-                for topic, messages in payload:
-                    self._account(topic, messages)
-                    topic.record.overflow += len(messages)
+                for topic, taken in payload:
+                    self._account(topic, taken)
+                    topic.record.overflow += len(taken)
                 continue
             sim_time, batch = payload
-            for topic, messages in batch:
+            for topic, taken in batch:
                 if failed:
-                    self._account(topic, messages)
-                    topic.record.write_failed += len(messages)
+                    self._account(topic, taken)
+                    topic.record.write_failed += len(taken)
                 else:
-                    failed = self._write_messages(bag, topic, messages, sim_time)
+                    failed = self._write_messages(bag, topic, taken, sim_time)
         return failed
 
     def _write_messages(
-        self, bag: BagWriter, topic: _Topic, messages: list[_Taken], sim_time: int | None
+        self, bag: BagWriter, topic: _Topic, taken: TakenMessages, sim_time: int | None
     ) -> bool:
         """Write one topic's messages of a batch; return whether writing failed.
 
         After a failure the counts are those of the batch; :meth:`_finish` recounts from the bag.
         """
         record = topic.record
-        sequences = self._account(topic, messages)
-        infos = [info for _data, info in messages]
-        if sim_time is None:
-            log_times = [info["received_timestamp"] for info in infos]
-        else:
-            log_times = [sim_time] * len(messages)
-        payloads = [data for data, _info in messages]
+        self._account(topic, taken)
+        log_times = taken.received if sim_time is None else [sim_time] * len(taken)
         failed = False
         try:
             bag.write_batch(
                 record.topic,
-                payloads,
+                taken.payloads,
                 log_times=log_times,
-                publish_times=[info["source_timestamp"] for info in infos],
-                sequences=sequences,
+                publish_times=taken.sources,
+                sequences=taken.sequences,
             )
         except BagError as exc:
             failed = self._write_failed(exc)
         if not record.first_ns:
             record.first_ns = log_times[0]
         record.last_ns = log_times[-1]
-        record.messages += len(messages)
-        record.bytes += sum(map(len, payloads))
+        record.messages += len(taken)
+        record.bytes += taken.nbytes
         return failed
 
-    def _account(self, topic: _Topic, messages: list[_Taken]) -> list[int]:
-        """Count the sequence gaps up to ``messages``; return their sequence numbers (0: none)."""
-        sequences = [info["publication_sequence_number"] or 0 for _data, info in messages]
+    def _account(self, topic: _Topic, taken: TakenMessages) -> None:
+        """Count the sequence gaps up to the messages just taken."""
         topic.record.gaps += topic.tracker.observe_many(
-            sequences, topic.subscription.handle.get_publisher_count
+            taken.sequences, topic.subscription.handle.get_publisher_count
         )
         topic.record.publishers = topic.tracker.publishers
-        return sequences
 
     def _write_failed(self, exc: BagError) -> bool:
         self._errors.append(str(exc))

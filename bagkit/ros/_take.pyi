@@ -1,0 +1,3 @@
+def take_serialized(
+    take: int, subscription: int, max_count: int, max_bytes: int, /
+) -> tuple[list[bytes], list[int], list[int], list[int], int]: ...

@@ -1,0 +1,61 @@
+"""Take serialized messages from a subscription in batches, as columns.
+
+rclpy's ``take_message(raw=True)`` costs about 4.3 us per message here (a tuple and a dict of
+the message info each time); :func:`take_serialized` takes up to a count or byte budget in one
+call for about 1.8 us per message, through the ``_take`` extension, and returns what
+:meth:`bagkit.bag.BagWriter.write_batch` takes.
+"""
+
+from __future__ import annotations
+
+import ctypes
+from dataclasses import dataclass
+from functools import cache
+
+from rclpy.subscription import Subscription
+
+from bagkit.ros import _take
+
+
+@dataclass(slots=True)
+class TakenMessages:
+    """Messages taken from one subscription, oldest first, one list per field."""
+
+    payloads: list[bytes]
+    received: list[int]
+    """Receive times (ns), stamped by the middleware."""
+    sources: list[int]
+    """Source timestamps (ns), stamped by the publisher's middleware."""
+    sequences: list[int]
+    """Publication sequence numbers (0 where the middleware has none)."""
+    nbytes: int
+    """Sum of the payload sizes."""
+
+    def __len__(self) -> int:
+        return len(self.payloads)
+
+
+@cache
+def _rcl_take_serialized_message() -> int:
+    """Address of ``rcl_take_serialized_message`` in the librcl that rclpy has loaded."""
+    # The ROS wheels' start-up hook puts their lib directory on LD_LIBRARY_PATH, so this finds
+    # the same file rclpy linked against: the dynamic loader returns the loaded copy.
+    address = ctypes.cast(ctypes.CDLL("librcl.so").rcl_take_serialized_message, ctypes.c_void_p)
+    assert address.value is not None
+    return address.value
+
+
+def take_serialized(subscription: Subscription, *, max_count: int, max_bytes: int) -> TakenMessages:
+    """Take what ``subscription`` holds, up to ``max_count`` messages or ``max_bytes``.
+
+    The message that crosses ``max_bytes`` is still taken. An empty result means nothing
+    was waiting.
+
+    Raises:
+        RuntimeError: the middleware failed (not: nothing to take).
+    """
+    with subscription.handle:  # rclpy must not destroy the subscription during the call
+        payloads, received, sources, sequences, nbytes = _take.take_serialized(
+            _rcl_take_serialized_message(), subscription.handle.pointer, max_count, max_bytes
+        )
+    return TakenMessages(payloads, received, sources, sequences, nbytes)
