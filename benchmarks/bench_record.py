@@ -8,7 +8,8 @@ bytes) sends for a fixed time to one subscriber process at a time:
 Each subscriber reports messages, bytes, the span between the middleware receive times of
 its first and last message, and its process's CPU time per message (DDS threads included);
 every subscription is reliable keep-all, as the recorder's is for reliable publishers. Count
-and recorder runs alternate, best of five each for Imu, three for images (the machine is shared). Targets:
+and recorder runs alternate, best of five each for Imu, three for images (the machine is
+shared). Targets:
 - sensor_msgs/msg/Imu flood (>= 10 s): recorder rate >= 90% of ``count``, 0 lost (the bag
   holds every published message); the ratio to ``naive`` is printed;
 - 1 MB sensor_msgs/msg/Image at full speed: recorder MB/s >= 90% of ``count``, 0 lost; then,
