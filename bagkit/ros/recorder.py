@@ -305,7 +305,7 @@ class RecordProgress:
 
 @dataclass(slots=True)
 class _Topic:
-    """A subscribed topic: what the take thread needs per message, and its counts."""
+    """A subscribed topic: its subscription, what re-subscribing needs (type, QoS), its counts."""
 
     record: TopicRecord
     subscription: Subscription
