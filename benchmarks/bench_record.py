@@ -3,15 +3,19 @@
 A flood publisher (its own process, reliable keep-all, pre-serialized payloads published as
 bytes) sends for a fixed time to one subscriber process at a time:
 - ``count``: a wait-set loop that takes raw messages and only counts them (the ceiling);
+- ``inline``: the same loop taking batches with bagkit's take and writing them to a BagWriter
+  in the same thread, no queue: what taking plus writing the bag costs at the least, the
+  ceiling for any recorder of this bag format on this machine (not a target);
 - ``naive``: an rclpy executor callback per message writing a BagWriter (a typical recorder);
 - ``recorder``: bagkit's Recorder, exactly as ``bagkit record`` runs it.
 Each subscriber reports messages, bytes, the span between the middleware receive times of
 its first and last message, and its process's CPU time per message (DDS threads included);
 every subscription is reliable keep-all, as the recorder's is for reliable publishers. Count
-and recorder runs alternate, best of five each for Imu, three for images (the machine is
-shared). Targets:
+and recorder runs alternate, best of five each for Imu, three for images with ``inline``
+between them (the machine is shared). Targets:
 - sensor_msgs/msg/Imu flood (>= 10 s): recorder rate >= 90% of ``count``, 0 lost (the bag
-  holds every published message); the ratio to ``naive`` is printed;
+  holds every published message); the ratios to ``naive`` and of one ``inline`` run are
+  printed;
 - 1 MB sensor_msgs/msg/Image at full speed: recorder MB/s >= 90% of ``count``, 0 lost; then,
   not a target, the same with a publisher whose shared-memory segment holds 64 messages
   instead of Fast DDS's default 512 KiB (the default makes the transport drop fragments that a
@@ -241,6 +245,7 @@ def _run_subscriber(
 
     from bagkit.bag import BagWriter, TopicInfo
     from bagkit.ros.qos import adapt_subscription_qos
+    from bagkit.ros.take import take_serialized
     from bagkit.ros.types import message_type_name
 
     context, node = _init(f"bench_record_{mode}")
@@ -273,9 +278,11 @@ def _run_subscriber(
             executor.spin_once(timeout_sec=0.1)
         writer.close()
     else:
-        handle = node.create_subscription(
-            message_type, TOPIC, lambda _m: None, qos, raw=True
-        ).handle
+        subscription = node.create_subscription(message_type, TOPIC, lambda _m: None, qos, raw=True)
+        handle = subscription.handle
+        if mode == "inline":
+            writer = BagWriter(bag)
+            writer.add_topic(TopicInfo(TOPIC, message_type_name(message_type)))
         wait_set = _rclpy.WaitSet(1, 0, 0, 0, 0, 0, context.handle)
         ready.touch()
         while True:
@@ -283,14 +290,30 @@ def _run_subscriber(
             wait_set.clear_entities()
             wait_set.add_subscription(handle)
             wait_set.wait(0 if stopping else 50_000_000)
-            while (taken := handle.take_message(message_type, True)) is not None:
-                received = taken[1]["received_timestamp"]
-                counts["messages"] += 1
-                counts["bytes"] += len(taken[0])
-                counts["first"] = counts["first"] or received
-                counts["last"] = received
+            if mode == "count":
+                while (taken := handle.take_message(message_type, True)) is not None:
+                    received = taken[1]["received_timestamp"]
+                    counts["messages"] += 1
+                    counts["bytes"] += len(taken[0])
+                    counts["first"] = counts["first"] or received
+                    counts["last"] = received
+            else:
+                while batch := take_serialized(subscription, max_count=256, max_bytes=4 << 20):
+                    writer.write_batch(
+                        TOPIC,
+                        batch.payloads,
+                        log_times=batch.received,
+                        publish_times=batch.sources,
+                        sequences=batch.sequences,
+                    )
+                    counts["messages"] += len(batch)
+                    counts["bytes"] += batch.nbytes
+                    counts["first"] = counts["first"] or batch.received[0]
+                    counts["last"] = batch.received[-1]
             if stopping:
                 break
+        if mode == "inline":
+            writer.close()
     threads = _thread_cpu()
     node.destroy_node()
     context.try_shutdown()
@@ -349,7 +372,7 @@ def _run(
         result: dict[str, Any] = json.loads(out.read_text())
         result.update(json.loads(pub.stdout.strip().splitlines()[-1]))
         bag = out.with_suffix(".bag")
-        if mode == "recorder":
+        if mode in ("recorder", "inline"):
             from bagkit.bag import BagReader
 
             with BagReader(bag) as reader:
@@ -403,6 +426,7 @@ def main() -> bool:
     print(f"Imu flood, reliable keep-all, {IMU_SECONDS:g} s per run, best of {IMU_ROUNDS}:")
     imu = _best_of(("count", "recorder"), "imu", IMU_SECONDS, IMU_ROUNDS)
     imu["naive"] = _run("naive", "imu", IMU_SECONDS)
+    imu["inline"] = _run("inline", "imu", IMU_SECONDS)
     for mode, result in imu.items():
         print(_line(mode, result))
     recorder = imu["recorder"]
@@ -411,12 +435,13 @@ def main() -> bool:
     print(
         f"  recorder/count rate {ratio:.2f} (target >= {RATE_FLOOR}); "
         f"recorder/naive rate {recorder['rate'] / imu['naive']['rate']:.2f}; "
+        f"inline/count rate {imu['inline']['rate'] / imu['count']['rate']:.2f}; "
         f"bag holds {recorder['in_bag']}/{recorder['sent']}, lost {recorder['lost']}"
     )
     ok &= ratio >= RATE_FLOOR and complete
 
     print(f"1 MB Image at full speed, {IMAGE_SECONDS:g} s per run, best of {IMAGE_ROUNDS}:")
-    image = _best_of(("count", "recorder"), "image", IMAGE_SECONDS, IMAGE_ROUNDS)
+    image = _best_of(("count", "inline", "recorder"), "image", IMAGE_SECONDS, IMAGE_ROUNDS)
     for mode, result in image.items():
         print(_line(mode, result))
     recorder = image["recorder"]
@@ -424,6 +449,8 @@ def main() -> bool:
     complete = recorder["in_bag"] == recorder["sent"] and recorder["lost"] == 0
     print(
         f"  recorder/count MB/s {ratio:.2f} (target >= {RATE_FLOOR}); "
+        f"inline/count {image['inline']['mb_per_s'] / image['count']['mb_per_s']:.2f}, "
+        f"recorder/inline {recorder['mb_per_s'] / image['inline']['mb_per_s']:.2f}; "
         f"bag holds {recorder['in_bag']}/{recorder['sent']}, lost {recorder['lost']}"
     )
     ok &= ratio >= RATE_FLOOR and complete
@@ -471,7 +498,7 @@ def _cli() -> None:
     pub.add_argument("seconds", type=float)
     pub.add_argument("rate_hz", type=float)
     sub = roles.add_parser("subscribe")
-    sub.add_argument("mode", choices=["count", "naive", "recorder"])
+    sub.add_argument("mode", choices=["count", "inline", "naive", "recorder"])
     sub.add_argument("kind", choices=["imu", "image"])
     sub.add_argument("out", type=Path)
     args = parser.parse_args()
