@@ -320,3 +320,43 @@ def test_write_batch_checks_lengths_before_writing(tmp_path: Path) -> None:
         bag.write_batch("/a", [string_cdr("z")], log_times=[2])
     with BagReader(tmp_path / "bag") as reader:
         assert [m.log_time for m in reader.messages()] == [2]
+
+
+@pytest.mark.parametrize("compression", ["zstd", "lz4", "none"])
+def test_large_payloads_between_small_ones_read_back_everywhere(
+    tmp_path: Path, compression: str
+) -> None:
+    # Chunks of a few records each, some larger than a chunk; every fourth payload is a buffer
+    # that the caller overwrites after the call.
+    from mcap.records import Chunk, Message
+    from mcap.stream_reader import StreamReader
+
+    rng = random.Random(5)
+    sizes = [rng.choice([0, 30, 900, 65_536, 300_000, 500_000]) for _ in range(60)]
+    texts = [bytes(rng.choice(b"abc ") for _ in range(size)).decode() for size in sizes]
+    reused = bytearray()
+    with BagWriter(
+        tmp_path / "bag", compression=compression, chunk_size=400_000, chunk_interval_s=3600
+    ) as bag:
+        bag.add_topic(TopicInfo("/text", STRING))
+        for i, text in enumerate(texts):
+            if i % 4 == 3:
+                reused[:] = string_cdr(text)
+                bag.write("/text", reused, log_time=i, sequence=i)
+                reused[:] = b"overwritten after the write"
+            else:
+                bag.write_batch("/text", [string_cdr(text)], log_times=[i], sequences=[i])
+
+    with BagReader(tmp_path / "bag") as reader:
+        assert [deserialize(m.data, STRING).data for m in reader.messages()] == texts
+        assert reader.problems == []
+    with AnyReader([tmp_path / "bag"], default_typestore=TYPESTORE) as reader:
+        decoded = [reader.deserialize(raw, c.msgtype).data for c, _, raw in reader.messages()]
+    assert decoded == texts
+    with open(tmp_path / "bag" / "bag_0.mcap", "rb") as f:
+        records = list(StreamReader(f, validate_crcs=True).records)
+        f.seek(0)
+        chunks = [r for r in StreamReader(f, emit_chunks=True).records if isinstance(r, Chunk)]
+    assert [deserialize(r.data, STRING).data for r in records if isinstance(r, Message)] == texts
+    assert len(chunks) >= 5
+    assert {c.compression for c in chunks} == {"" if compression == "none" else compression}
