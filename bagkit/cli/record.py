@@ -154,6 +154,7 @@ def record(  # noqa: PLR0917 (typer maps parameters to options)
         OutputFormat.TABLE, "--format", "-f", help="Final report as a table or JSON (no csv)."
     ),
 ) -> None:
+    from bagkit.ros.fastdds import large_receive_queue
     from bagkit.ros.graph import absolute_topic_name
     from bagkit.ros.qos import load_qos_overrides
     from bagkit.ros.recorder import Recorder, default_output_name, keep_freed_memory
@@ -194,7 +195,8 @@ def record(  # noqa: PLR0917 (typer maps parameters to options)
 
     previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
-        recorder.start()
+        with large_receive_queue():  # read when the participant is created
+            recorder.start()
         err_console.print(f"recording to {recorder.path} (Ctrl-C to stop)", highlight=False)
         deadline = None if duration is None else time.monotonic() + duration
         with err_console.status(_progress_line(recorder.progress())) as status:

@@ -209,3 +209,44 @@ def test_existing_or_unwritable_output_exits_2(processes: object, tmp_path: Path
         (line,) = stderr.decode().strip().splitlines()
         assert message in line
     assert (existing / "keep.txt").read_text() == "mine"
+
+
+def shared_memory_ports(pid: int) -> dict[str, int]:
+    """Fast DDS shared-memory port files that process ``pid`` maps, with their sizes."""
+    maps = Path(f"/proc/{pid}/maps").read_text().splitlines()
+    names = {line.split()[-1] for line in maps if "/dev/shm/fastrtps_port" in line}
+    return {name: os.stat(name).st_size for name in names if not name.endswith("_el")}
+
+
+@pytest.mark.parametrize("user_profile", [False, True])
+def test_record_gives_itself_a_large_receive_queue_unless_the_user_has_a_profile(
+    node: Node, processes: object, tmp_path: Path, user_profile: bool
+) -> None:
+    # Fast DDS sizes a port file by its descriptors: 52 KB for the default 512, 1.3 MB for
+    # bagkit's 65536. This test's own process has the default; both map each other's port.
+    env = dict(os.environ)
+    if user_profile:
+        mine = tmp_path / "mine.xml"
+        mine.write_text(
+            '<?xml version="1.0" encoding="UTF-8"?>\n'
+            '<dds xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"><profiles>'
+            '<participant profile_name="mine" is_default_profile="true"><rtps/></participant>'
+            "</profiles></dds>\n"
+        )
+        env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(mine)
+    publisher = node.create_publisher(String, "/cli/queue", 100)
+    bag = tmp_path / "queue"
+    proc = record(processes, "/cli/queue", "-o", str(bag), "--format", "json", env=env)
+    wait_for(lambda: publisher.get_subscription_count() > 0, STARTUP_TIMEOUT_S)
+    for i in range(20):
+        publisher.publish(String(data=f"q{i}"))
+    time.sleep(0.3)
+    ports = shared_memory_ports(proc.pid)
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=20)
+    assert proc.returncode == 130, stderr.decode()
+    assert report_json(stdout)["messages"] == 20
+    assert ports, "the recorder maps no shared-memory port"
+    # The recorder opens its data and discovery ports: both large, unless the user's profile.
+    large = [size for size in ports.values() if size > 1_000_000]
+    assert bool(large) is not user_profile, ports
