@@ -10,7 +10,10 @@ bytes) sends for a fixed time to one subscriber process at a time:
 - ``recorder``: bagkit's Recorder, exactly as ``bagkit record`` runs it.
 Each subscriber reports messages, bytes, the span between the middleware receive times of
 its first and last message, and its process's CPU time per message (DDS threads included);
-every subscription is reliable keep-all, as the recorder's is for reliable publishers. Count
+every subscription is reliable keep-all, as the recorder's is for reliable publishers. Every
+subscriber process gets the large shared-memory receive queue that ``bagkit record`` gives its
+own (``bagkit.ros.fastdds``), so the ratios compare the work per message; one Imu run of
+``count`` without it shows what the queue is worth (``count-dflt``, not a target). Count
 and recorder runs alternate, best of five each for Imu, three for images with ``inline``
 between them (the machine is shared). Targets:
 - sensor_msgs/msg/Imu flood (>= 10 s): recorder rate >= 90% of ``count``, 0 lost (the bag
@@ -164,24 +167,29 @@ def publish(kind: str, seconds: float, rate_hz: float) -> None:
     context.try_shutdown()
 
 
-def subscribe(mode: str, kind: str, out: Path) -> None:
-    """Run one subscriber until SIGINT, then write its result as JSON to ``out``."""
+def subscribe(mode: str, kind: str, out: Path, *, default_transport: bool = False) -> None:
+    """Run one subscriber until SIGINT, then write its result as JSON to ``out``.
+
+    ``default_transport``: without the large receive queue of ``bagkit record``.
+    """
     stop = {"now": False}
 
     def on_signal(_signum: int, _frame: object) -> None:
         stop["now"] = True
 
     signal.signal(signal.SIGINT, on_signal)
+    from bagkit.ros.fastdds import large_receive_queue
     from bagkit.ros.recorder import keep_freed_memory
 
-    # As `bagkit record` does for its process; the peers get it too, so the ratios compare
-    # the work done per message, not the allocator.
+    # Both as `bagkit record` does for its process; the peers get them too, so the ratios
+    # compare the work done per message, not the allocator or the transport's queue.
     keep_freed_memory()
     ready = out.with_suffix(".ready")
-    if mode == "recorder":
-        result = _run_recorder(out.with_suffix(".bag"), ready, stop)
-    else:
-        result = _run_subscriber(mode, kind, out.with_suffix(".bag"), ready, stop)
+    with contextlib.nullcontext() if default_transport else large_receive_queue():
+        if mode == "recorder":
+            result = _run_recorder(out.with_suffix(".bag"), ready, stop)
+        else:
+            result = _run_subscriber(mode, kind, out.with_suffix(".bag"), ready, stop)
     usage = resource.getrusage(resource.RUSAGE_SELF)
     result["peak_rss"] = _peak_rss()
     result["cpu_s"] = usage.ru_utime + usage.ru_stime
@@ -328,11 +336,18 @@ def _run_subscriber(
 
 
 def _run(
-    mode: str, kind: str, seconds: float, rate_hz: float = 0.0, *, large_segment: bool = False
+    mode: str,
+    kind: str,
+    seconds: float,
+    rate_hz: float = 0.0,
+    *,
+    large_segment: bool = False,
+    default_transport: bool = False,
 ) -> dict[str, Any]:
     """One publisher + one subscriber process; the subscriber's result plus ``sent``.
 
     ``large_segment``: the publisher gets LARGE_SEGMENT_PROFILE (the subscriber does not).
+    ``default_transport``: the subscriber runs without the large receive queue.
     """
     env = dict(os.environ)
     env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
@@ -345,7 +360,8 @@ def _run(
             profile = Path(tmp) / "large_segment.xml"
             profile.write_text(LARGE_SEGMENT_PROFILE)
             publisher_env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(profile)
-        sub = subprocess.Popen([*me, "subscribe", mode, kind, str(out)], env=env)
+        options = ["--default-transport"] if default_transport else []
+        sub = subprocess.Popen([*me, "subscribe", mode, kind, str(out), *options], env=env)
         try:
             deadline = time.monotonic() + READY_TIMEOUT_S
             while not out.with_suffix(".ready").exists():
@@ -427,15 +443,18 @@ def main() -> bool:
     imu = _best_of(("count", "recorder"), "imu", IMU_SECONDS, IMU_ROUNDS)
     imu["naive"] = _run("naive", "imu", IMU_SECONDS)
     imu["inline"] = _run("inline", "imu", IMU_SECONDS)
+    imu["count-dflt"] = _run("count", "imu", IMU_SECONDS, default_transport=True)
     for mode, result in imu.items():
         print(_line(mode, result))
     recorder = imu["recorder"]
     ratio = recorder["rate"] / imu["count"]["rate"]
+    ratio_to_default = recorder["rate"] / imu["count-dflt"]["rate"]
     complete = recorder["in_bag"] == recorder["sent"] and recorder["lost"] == 0
     print(
         f"  recorder/count rate {ratio:.2f} (target >= {RATE_FLOOR}); "
         f"recorder/naive rate {recorder['rate'] / imu['naive']['rate']:.2f}; "
         f"inline/count rate {imu['inline']['rate'] / imu['count']['rate']:.2f}; "
+        f"recorder/count with the default queue {ratio_to_default:.2f}; "
         f"bag holds {recorder['in_bag']}/{recorder['sent']}, lost {recorder['lost']}"
     )
     ok &= ratio >= RATE_FLOOR and complete
@@ -501,11 +520,12 @@ def _cli() -> None:
     sub.add_argument("mode", choices=["count", "inline", "naive", "recorder"])
     sub.add_argument("kind", choices=["imu", "image"])
     sub.add_argument("out", type=Path)
+    sub.add_argument("--default-transport", action="store_true")
     args = parser.parse_args()
     if args.role == "publish":
         publish(args.kind, args.seconds, args.rate_hz)
     else:
-        subscribe(args.mode, args.kind, args.out)
+        subscribe(args.mode, args.kind, args.out, default_transport=args.default_transport)
 
 
 if __name__ == "__main__":
