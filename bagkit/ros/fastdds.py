@@ -1,17 +1,19 @@
-"""Fast DDS settings for a recording process: a receive queue that a flood does not overflow.
+"""Fast DDS shared-memory settings for floods: a recorder's receive queue, a publisher's buffers.
 
-Fast DDS delivers same-host samples through a shared-memory *port* per receiving participant, a
-queue of 512 descriptors by default. A publisher flooding a topic fills it whenever the
-receiving process is descheduled for a moment; the samples that do not fit are dropped by the
-transport and repaired by the reliability protocol, and until the repair arrives Fast DDS 2.14
-walks its set of out-of-order sequence numbers for every sample received
-(``WriterProxy::unknown_missing_changes_up_to``). Measured with an Imu flood here: the receive
-thread's CPU per message 16 - 25 us with the default queue, 5 - 6 us with 65536 descriptors, and
-the rate of a counting subscriber 27 - 32k -> 58 - 68k msg/s.
+Fast DDS moves same-host samples through shared memory: the publisher writes each into a buffer
+of its segment, from a pool of ``port_queue_capacity`` buffers (512 by default), and pushes a
+descriptor into the receiving participant's *port*, a queue of as many descriptors as the
+receiver's ``port_queue_capacity``. In a flood either runs out whenever the subscriber falls a
+few milliseconds behind; the samples that do not make it are repaired by the reliability
+protocol, and meanwhile Fast DDS 2.14 walks its set of out-of-order sequence numbers for every
+sample received (``WriterProxy::unknown_missing_changes_up_to``). Measured with the Imu flood of
+``benchmarks record``, a counting subscriber: 25 - 30k msg/s with both sides at 512, 27 - 36k
+with only one side at 65536, 62 - 72k with both (receive thread 20 - 27 -> 5 - 6 us per message).
 
-The queue belongs to the participant that receives, so a recorder can size its own. Fast DDS
-takes it from an XML profile, read once per process when the first participant is created:
-:func:`large_receive_queue` provides one for the duration of a ``with`` block.
+The receive queue belongs to the recorder, which sizes its own with :func:`large_receive_queue`;
+the send buffers belong to the publishing processes, which need a profile of their own
+(:func:`shared_memory_profile` writes one; docs/record.md explains where it goes). Fast DDS
+reads a profile once per process, when the first participant is created.
 """
 
 from __future__ import annotations
@@ -44,18 +46,28 @@ def localhost_only(environ: MutableMapping[str, str]) -> bool:
     return environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "") not in _RANGES_WITH_DEFAULT_TRANSPORTS
 
 
-def receive_queue_profile(
-    *, localhost: bool, port_queue_capacity: int = PORT_QUEUE_CAPACITY
+def shared_memory_profile(
+    *,
+    localhost: bool,
+    port_queue_capacity: int = PORT_QUEUE_CAPACITY,
+    segment_size: int | None = None,
 ) -> str:
-    """A Fast DDS XML profile: Fast DDS's own transports, with a larger shared-memory port.
+    """A Fast DDS XML profile: Fast DDS's own transports, with a larger shared-memory transport.
 
     Args:
         localhost: discovery is limited to this host. rmw_fastrtps then adds a shared-memory and
             a UDP transport of its own after the profile's, so the profile brings only the
-            shared-memory one (the first to open the port sets its size). Otherwise the profile
-            lists both transports of Fast DDS's default.
-        port_queue_capacity: descriptors in the port (messages waiting to be read).
+            shared-memory one (the first transport to open a port sets its size). Otherwise the
+            profile lists both transports of Fast DDS's default.
+        port_queue_capacity: descriptors in the receive port, and buffers in the send pool.
+        segment_size: bytes of the send segment (Fast DDS's default: 512 KiB).
     """
+    segment = (
+        ""
+        if segment_size is None
+        else f"""
+        <segment_size>{segment_size}</segment_size>"""
+    )
     udp_descriptor = udp_reference = ""
     if not localhost:
         udp_descriptor = """
@@ -71,11 +83,11 @@ def receive_queue_profile(
     <transport_descriptors>
       <transport_descriptor>
         <transport_id>bagkit_shm</transport_id>
-        <type>SHM</type>
+        <type>SHM</type>{segment}
         <port_queue_capacity>{port_queue_capacity}</port_queue_capacity>
       </transport_descriptor>{udp_descriptor}
     </transport_descriptors>
-    <participant profile_name="bagkit_record" is_default_profile="true">
+    <participant profile_name="bagkit_shared_memory" is_default_profile="true">
       <rtps>
         <userTransports>
           <transport_id>bagkit_shm</transport_id>{udp_reference}
@@ -113,7 +125,7 @@ def large_receive_queue(
 ) -> Iterator[bool]:
     """Give the DDS participants created inside the block a large shared-memory receive queue.
 
-    Writes :func:`receive_queue_profile` to a temporary file and points
+    Writes :func:`shared_memory_profile` to a temporary file and points
     ``FASTRTPS_DEFAULT_PROFILES_FILE`` at it until the block ends. Process-wide, and only for
     participants created in the block if none was created in the process before (Fast DDS reads
     its profile once): ``bagkit record`` opens it around the recording; the :class:`Recorder`
@@ -134,7 +146,7 @@ def large_receive_queue(
     with tempfile.TemporaryDirectory(prefix="bagkit-fastdds-") as directory:
         profile = Path(directory) / "bagkit_record.xml"
         profile.write_text(
-            receive_queue_profile(
+            shared_memory_profile(
                 localhost=localhost_only(env), port_queue_capacity=port_queue_capacity
             )
         )

@@ -11,15 +11,15 @@ from bagkit.ros.fastdds import (
     PROFILES_FILE_VARIABLE,
     large_receive_queue,
     localhost_only,
-    receive_queue_profile,
+    shared_memory_profile,
     user_middleware_setting,
 )
 
 NS = {"f": "http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"}
 
 
-def transports(profile: str) -> list[tuple[str, str | None]]:
-    """(type, port_queue_capacity) of each transport the default participant profile uses."""
+def transports(profile: str) -> list[tuple[str, str | None, str | None]]:
+    """(type, port_queue_capacity, segment_size) of each transport of the default profile."""
     root = ET.fromstring(profile)
     descriptors = {
         d.findtext("f:transport_id", namespaces=NS): d
@@ -33,6 +33,7 @@ def transports(profile: str) -> list[tuple[str, str | None]]:
         (
             descriptors[name].findtext("f:type", namespaces=NS) or "",
             descriptors[name].findtext("f:port_queue_capacity", namespaces=NS),
+            descriptors[name].findtext("f:segment_size", namespaces=NS),
         )
         for name in used
     ]
@@ -40,10 +41,13 @@ def transports(profile: str) -> list[tuple[str, str | None]]:
 
 def test_profile_keeps_fast_dds_transports_with_a_larger_port() -> None:
     # rmw_fastrtps adds its own shared-memory and UDP transports for LOCALHOST, after ours.
-    assert transports(receive_queue_profile(localhost=True, port_queue_capacity=4096)) == [
-        ("SHM", "4096")
+    assert transports(shared_memory_profile(localhost=True, port_queue_capacity=4096)) == [
+        ("SHM", "4096", None)
     ]
-    assert transports(receive_queue_profile(localhost=False)) == [("SHM", "65536"), ("UDPv4", None)]
+    assert transports(shared_memory_profile(localhost=False, segment_size=1 << 26)) == [
+        ("SHM", "65536", str(1 << 26)),
+        ("UDPv4", None, None),
+    ]
 
 
 @pytest.mark.parametrize(
@@ -84,7 +88,7 @@ def test_profile_file_exists_only_inside_the_block(monkeypatch: pytest.MonkeyPat
     with large_receive_queue(environ, port_queue_capacity=2048) as applied:
         assert applied
         profile = Path(environ[PROFILES_FILE_VARIABLE])
-        assert transports(profile.read_text()) == [("SHM", "2048")]
+        assert transports(profile.read_text()) == [("SHM", "2048", None)]
     assert environ == {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
     assert not profile.exists()
 
