@@ -211,11 +211,21 @@ def test_existing_or_unwritable_output_exits_2(processes: object, tmp_path: Path
     assert (existing / "keep.txt").read_text() == "mine"
 
 
-def shared_memory_ports(pid: int) -> dict[str, int]:
-    """Fast DDS shared-memory port files that process ``pid`` maps, with their sizes."""
-    maps = Path(f"/proc/{pid}/maps").read_text().splitlines()
-    names = {line.split()[-1] for line in maps if "/dev/shm/fastrtps_port" in line}
-    return {name: os.stat(name).st_size for name in names if not name.endswith("_el")}
+def shared_memory_ports(pid: int) -> dict[int, int]:
+    """Sizes of this session's domain's Fast DDS shared-memory ports that ``pid`` maps.
+
+    Ports are files that outlive their processes; the few outside the domain's port range
+    (7000, 7001) are shared by every domain and may have been sized by anyone.
+    """
+    first = 7400 + 250 * int(os.environ["ROS_DOMAIN_ID"])
+    ports = {}
+    for line in Path(f"/proc/{pid}/maps").read_text().splitlines():
+        name = line.split()[-1]
+        if name.startswith("/dev/shm/fastrtps_port") and name[22:].isdigit():
+            port = int(name[22:])
+            if first <= port < first + 250:
+                ports[port] = os.stat(name).st_size
+    return ports
 
 
 @pytest.mark.parametrize("user_profile", [False, True])
@@ -247,6 +257,5 @@ def test_record_gives_itself_a_large_receive_queue_unless_the_user_has_a_profile
     assert proc.returncode == 130, stderr.decode()
     assert report_json(stdout)["messages"] == 20
     assert ports, "the recorder maps no shared-memory port"
-    # The recorder opens its data and discovery ports: both large, unless the user's profile.
     large = [size for size in ports.values() if size > 1_000_000]
     assert bool(large) is not user_profile, ports
