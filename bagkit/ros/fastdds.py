@@ -5,8 +5,9 @@ of its segment, from a pool of ``port_queue_capacity`` buffers (512 by default),
 descriptor into the receiving participant's *port*, a queue of as many descriptors as the
 receiver's ``port_queue_capacity``. In a flood either runs out whenever the subscriber falls a
 few milliseconds behind; the samples that do not make it are repaired by the reliability
-protocol, and meanwhile Fast DDS 2.14 walks its set of out-of-order sequence numbers for every
-sample received (``WriterProxy::unknown_missing_changes_up_to``). Measured with the Imu flood of
+protocol, and meanwhile (as we read Fast DDS 2.14 and its perf profile) the receive thread walks
+its set of out-of-order sequence numbers for every sample received
+(``WriterProxy::unknown_missing_changes_up_to``). Measured with the Imu flood of
 ``benchmarks record``, a counting subscriber: 25 - 30k msg/s with both sides at 512, 27 - 36k
 with only one side at 65536, 62 - 72k with both (receive thread 22 - 27 -> 5 - 6 us per message).
 
@@ -128,7 +129,7 @@ def large_receive_queue(
     Writes :func:`shared_memory_profile` to a temporary file and points
     ``FASTRTPS_DEFAULT_PROFILES_FILE`` at it until the block ends. Process-wide, and only for
     participants created in the block if none was created in the process before (Fast DDS reads
-    its profile once): ``bagkit record`` opens it around the recording; the :class:`Recorder`
+    its profile once): ``bagkit record`` opens it around ``Recorder.start()``; the ``Recorder``
     class leaves its host process alone. Nothing changes where the user has a setting of their
     own (:func:`user_middleware_setting`).
 
