@@ -49,7 +49,12 @@ import time
 from pathlib import Path
 from typing import Any
 
-from bagkit.ros.fastdds import PORT_QUEUE_CAPACITY
+from bagkit.ros.fastdds import (
+    PORT_QUEUE_CAPACITY,
+    large_receive_queue,
+    localhost_only,
+    shared_memory_profile,
+)
 
 TOPIC = "/bench/record"
 DEPTH = 1000
@@ -167,7 +172,6 @@ def subscribe(mode: str, kind: str, out: Path, *, default_transport: bool = Fals
         stop["now"] = True
 
     signal.signal(signal.SIGINT, on_signal)
-    from bagkit.ros.fastdds import large_receive_queue
     from bagkit.ros.recorder import keep_freed_memory
 
     # Both as `bagkit record` does for its process; the peers get them too, so the ratios
@@ -346,8 +350,6 @@ def _run(
         out = Path(tmp) / "result.json"
         publisher_env = dict(env)
         if publisher_shm is not None:
-            from bagkit.ros.fastdds import localhost_only, shared_memory_profile
-
             profile = Path(tmp) / "publisher.xml"
             profile.write_text(
                 shared_memory_profile(localhost=localhost_only(env), **publisher_shm)

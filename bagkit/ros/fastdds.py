@@ -1,10 +1,11 @@
 """Fast DDS shared-memory settings for floods: a recorder's receive queue, a publisher's buffers.
 
 Fast DDS moves same-host samples through shared memory: the publisher writes each into a buffer
-of its segment, from a pool of ``port_queue_capacity`` buffers (512 by default), and pushes a
-descriptor into the receiving participant's *port*, a queue of as many descriptors as the
-receiver's ``port_queue_capacity``. In a flood either runs out whenever the subscriber falls a
-few milliseconds behind; the samples that do not make it are repaired by the reliability
+of its segment and pushes a descriptor into the receiving participant's *port*, a queue of the
+receiver's ``port_queue_capacity`` descriptors (512 by default). The same setting in the
+publisher's profile sizes, as we read Fast DDS, its pool of send buffers; measured is that it
+matters (figures below). In a flood either runs out whenever the subscriber falls a few
+milliseconds behind; the samples that do not make it are repaired by the reliability
 protocol, and meanwhile (as we read Fast DDS 2.14 and its perf profile) the receive thread walks
 its set of out-of-order sequence numbers for every sample received
 (``WriterProxy::unknown_missing_changes_up_to``). Measured with the Imu flood of

@@ -221,10 +221,9 @@ def shared_memory_ports(pid: int) -> dict[int, int]:
     ports = {}
     for line in Path(f"/proc/{pid}/maps").read_text().splitlines():
         name = line.split()[-1]
-        if name.startswith("/dev/shm/fastrtps_port") and name[22:].isdigit():
-            port = int(name[22:])
-            if first <= port < first + 250:
-                ports[port] = os.stat(name).st_size
+        number = name.removeprefix("/dev/shm/fastrtps_port")
+        if number != name and number.isdigit() and first <= int(number) < first + 250:
+            ports[int(number)] = os.stat(name).st_size
     return ports
 
 
