@@ -21,7 +21,13 @@ if "BAGKIT_TEST_DOMAIN_ID" not in os.environ:
 os.environ["ROS_DOMAIN_ID"] = os.environ["BAGKIT_TEST_DOMAIN_ID"]
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
-INTEROP_DIR = REPO_ROOT.parent / "shared" / "interop" / "rosbag2_jazzy"
+# The rosbag2 test bags live outside the repository (CI and the developers' machines have them
+# beside the clone); BAGKIT_INTEROP_DIR points elsewhere.
+INTEROP_DIR = Path(
+    os.environ.get(
+        "BAGKIT_INTEROP_DIR", REPO_ROOT.parent / "shared" / "interop" / "rosbag2_jazzy"
+    )
+)
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -34,9 +40,16 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 
 @pytest.fixture(scope="session")
 def interop_dir() -> Path:
-    """The rosbag2 Jazzy test bags that ship beside the repository (``../shared/interop``)."""
+    """The rosbag2 Jazzy test bags (``BAGKIT_INTEROP_DIR``, or beside the repository).
+
+    Skipped where they are absent, as in a user's clone; under CI (``CI=true``) their absence is
+    a failure, so that CI never passes by skipping them.
+    """
     if not INTEROP_DIR.is_dir():
-        pytest.fail(f"interop bags not found at {INTEROP_DIR}")
+        reason = f"rosbag2 interop bags not found at {INTEROP_DIR} (set BAGKIT_INTEROP_DIR)"
+        if os.environ.get("CI", "").lower() == "true":
+            pytest.fail(reason)
+        pytest.skip(reason)
     return INTEROP_DIR
 
 

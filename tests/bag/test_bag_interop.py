@@ -1,4 +1,4 @@
-"""Every rosbag2 test bag of ../shared/interop: the per-topic counts its storage holds."""
+"""Every rosbag2 test bag of the interop folder (tests/conftest.py): the per-topic counts its storage holds."""
 
 from __future__ import annotations
 

@@ -133,7 +133,7 @@ def test_unusable_input_exits_2_with_one_line(tmp_path: Path, make: object, mess
     assert "Traceback" not in result.stderr
 
 
-def test_foreign_storage_and_empty_bag(tmp_path: Path, interop_dir: Path) -> None:
+def test_foreign_storage(tmp_path: Path) -> None:
     foreign = tmp_path / "foreign"
     foreign.mkdir()
     (foreign / "metadata.yaml").write_text(
@@ -143,6 +143,9 @@ def test_foreign_storage_and_empty_bag(tmp_path: Path, interop_dir: Path) -> Non
     result = _run(str(foreign))
     assert result.returncode == 2
     assert "hdf5" in result.stderr and "not supported" in result.stderr
+
+
+def test_empty_bag(interop_dir: Path) -> None:
     result = _run(str(interop_dir / "ros2bag/test/resources/empty_bag"))
     assert result.returncode == 2
     assert "no messages" in result.stderr

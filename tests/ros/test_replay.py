@@ -386,7 +386,9 @@ def test_cli_loop_until_ctrl_c(
 
 
 @pytest.mark.parametrize("case", ["missing", "not a bag", "unknown types", "not cdr", "bad remap"])
-def test_cli_bad_input_is_one_clear_line(tmp_path: Path, interop_dir: Path, case: str) -> None:
+def test_cli_bad_input_is_one_clear_line(
+    tmp_path: Path, request: pytest.FixtureRequest, case: str
+) -> None:
     options: list[str] = []
     if case == "missing":
         path, expected = tmp_path / "nope", "no such file"
@@ -401,6 +403,7 @@ def test_cli_bad_input_is_one_clear_line(tmp_path: Path, interop_dir: Path, case
             writer.write("/exotic", b"\x00\x01\x00\x00\x07\x00\x00\x00", log_time=BAG_START_NS)
         expected = "exotic_msgs/msg/Thing"
     elif case == "not cdr":
+        interop_dir: Path = request.getfixturevalue("interop_dir")
         path = interop_dir / "rosbag2_tests/resources/mcap/wrong_rmw_test"
         expected = "'wrong_format' is not cdr"
     elif case == "bad remap":
