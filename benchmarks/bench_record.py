@@ -256,7 +256,7 @@ def _run_subscriber(
     counts = {"messages": 0, "bytes": 0, "first": 0, "last": 0}
 
     if mode == "naive":
-        writer = BagWriter(bag)
+        writer = BagWriter(bag).open()
         writer.add_topic(TopicInfo(TOPIC, message_type_name(message_type)))
 
         def on_message(data: bytes, info: Any) -> None:
@@ -282,7 +282,7 @@ def _run_subscriber(
         subscription = node.create_subscription(message_type, TOPIC, lambda _m: None, qos, raw=True)
         handle = subscription.handle
         if mode == "inline":
-            writer = BagWriter(bag)
+            writer = BagWriter(bag).open()
             writer.add_topic(TopicInfo(TOPIC, message_type_name(message_type)))
         wait_set = _rclpy.WaitSet(1, 0, 0, 0, 0, 0, context.handle)
         ready.touch()

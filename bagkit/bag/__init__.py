@@ -11,6 +11,7 @@ from bagkit.bag.errors import (
     BagExistsError,
     BagNotFoundError,
     BagWriteError,
+    ChunkError,
     CorruptBagError,
     EmptyBagError,
     NotABagError,
@@ -18,8 +19,8 @@ from bagkit.bag.errors import (
     UnsupportedStorageError,
 )
 from bagkit.bag.info import BagInfo, TopicSummary, bag_info
+from bagkit.bag.mcap_file import BagChunk
 from bagkit.bag.reader import BagReader
-from bagkit.bag.storage import BagChunk
 from bagkit.bag.types import BagMessage, TopicInfo
 from bagkit.bag.writer import BagWriter
 
@@ -33,6 +34,7 @@ __all__ = [
     "BagReader",
     "BagWriteError",
     "BagWriter",
+    "ChunkError",
     "CorruptBagError",
     "EmptyBagError",
     "NotABagError",

@@ -54,3 +54,7 @@ class BagWriteError(BagError):
     def messages_lost(self) -> int:
         """Messages accepted by ``write()`` that are not in the bag."""
         return sum(self.lost_by_topic.values())
+
+
+class ChunkError(CorruptBagError):
+    """One MCAP chunk cannot be used (too large, does not decompress, bad CRC); the rest can."""

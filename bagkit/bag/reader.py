@@ -16,8 +16,10 @@ from bagkit.bag.errors import (
     NotABagError,
     UnsupportedStorageError,
 )
+from bagkit.bag.mcap_file import BagChunk, McapFile
+from bagkit.bag.mcapio import DEFAULT_MAX_CHUNK_SIZE, MAGIC
 from bagkit.bag.metadata import METADATA_FILENAME, BagMetadata, read_metadata
-from bagkit.bag.storage import BagChunk, McapFile, StorageFile, open_storage_file
+from bagkit.bag.storage import SQLITE_MAGIC, Sqlite3File, StorageFile
 from bagkit.bag.types import BagMessage, TopicInfo
 
 STORAGE_SUFFIXES = (".mcap", ".db3")
@@ -75,49 +77,115 @@ def _resolve_files(path: Path) -> tuple[Path, list[Path], BagMetadata | None]:
     return path, found, metadata
 
 
+def open_storage_file(
+    path: Path, *, check_crc: bool = True, max_chunk_size: int = DEFAULT_MAX_CHUNK_SIZE
+) -> StorageFile:
+    """Open one storage file by its content (MCAP or SQLite3 magic).
+
+    Raises:
+        NotABagError: neither MCAP nor SQLite3.
+    """
+    with open(path, "rb") as f:
+        head = f.read(len(SQLITE_MAGIC))
+    if head.startswith(MAGIC):
+        return McapFile(path, check_crc=check_crc, max_chunk_size=max_chunk_size)
+    if head == SQLITE_MAGIC:
+        return Sqlite3File(path)
+    raise NotABagError(f"{path}: neither an MCAP nor a SQLite3 file")
+
+
 class BagReader:
     """Read a bag: a rosbag2 bag directory (split or not, with or without ``metadata.yaml``), a
     single ``.mcap`` file, or a single ``.db3`` file.
 
     Topics, counts and times come from the storage files (MCAP summaries when present, a salvage
     scan otherwise); ``metadata.yaml`` only fills in what the storage lacks (QoS, type hashes).
+    Nothing is read before :meth:`open` (``with BagReader(path) as bag:`` opens it).
 
     Args:
         path: the bag.
         allow_empty: accept a bag without messages (by default EmptyBagError).
-
-    Raises:
-        BagNotFoundError, NotABagError, CorruptBagError, UnsupportedStorageError, EmptyBagError.
+        check_crc: check each MCAP chunk's CRC when it is read; a damaged chunk's messages are
+            then reported lost in ``problems`` instead of being decoded.
+        max_chunk_size: the largest uncompressed MCAP chunk read; a chunk declaring more is a
+            problem (its messages lost), so memory stays bounded whatever a file declares.
     """
 
-    def __init__(self, path: str | Path, *, allow_empty: bool = False) -> None:
+    def __init__(
+        self,
+        path: str | Path,
+        *,
+        allow_empty: bool = False,
+        check_crc: bool = True,
+        max_chunk_size: int = DEFAULT_MAX_CHUNK_SIZE,
+    ) -> None:
         self.path = Path(path)
+        self.directory = self.path
+        self.allow_empty = allow_empty
+        self.check_crc = check_crc
+        self.max_chunk_size = max_chunk_size
+        self.files: list[Path] = []
+        self.metadata: BagMetadata | None = None
+        self.storage = ""
+        self.topics: dict[str, TopicInfo] = {}
+        self.definitions: dict[str, str] = {}
+        self.topic_counts: dict[str, int] = {}
+        self.start_ns = 0
+        self.end_ns = 0
+        self._missing: list[str] = []
+        self._storage: list[StorageFile] = []
+        self._opened = False
+
+    def open(self) -> BagReader:
+        """Open the storage files and read what they hold; return self.
+
+        Raises:
+            BagNotFoundError, NotABagError, CorruptBagError, UnsupportedStorageError,
+            EmptyBagError.
+        """
+        if self._opened:
+            return self
         self.directory, self.files, self.metadata = _resolve_files(self.path)
         self._missing = [
             f"{name}: listed in {METADATA_FILENAME} but missing"
             for name in (self.metadata.relative_file_paths if self.metadata else [])
             if not _listed_file(self.directory, name).is_file()
         ]
-        self._storage: list[StorageFile] = []
-        unreadable: list[BagError] = []
         try:
-            for file in self.files:
-                try:
-                    self._storage.append(open_storage_file(file))
-                except (NotABagError, CorruptBagError) as exc:
-                    # One bad file (a split the recorder was killed in) does not lose the rest.
-                    unreadable.append(exc)
-                    self._missing.append(f"{file.name}: unreadable, skipped ({exc})")
+            self._open_storage()
         except BaseException:
             self.close()
             raise
+        self._opened = True
+        self._describe()
+        if not self.allow_empty and self.message_count == 0:
+            self.close()
+            problems = "; ".join(self.problems)
+            raise EmptyBagError(
+                f"{self.path}: the bag holds no messages" + (f" ({problems})" if problems else "")
+            )
+        return self
+
+    def _open_storage(self) -> None:
+        unreadable: list[BagError] = []
+        for file in self.files:
+            try:
+                self._storage.append(
+                    open_storage_file(
+                        file, check_crc=self.check_crc, max_chunk_size=self.max_chunk_size
+                    )
+                )
+            except (NotABagError, CorruptBagError) as exc:
+                # One bad file (a split the recorder was killed in) does not lose the rest.
+                unreadable.append(exc)
+                self._missing.append(f"{file.name}: unreadable, skipped ({exc})")
         if not self._storage:
             raise unreadable[0]
         self.files = [s.path for s in self._storage]
+
+    def _describe(self) -> None:
+        """Topics, definitions, counts and times of all storage files together."""
         self.storage = ",".join(dict.fromkeys(s.storage_identifier for s in self._storage))
-        self.topics: dict[str, TopicInfo] = {}
-        self.definitions: dict[str, str] = {}
-        self.topic_counts: dict[str, int] = {}
         recorded = {t.name: t for t, _ in self.metadata.topics} if self.metadata else {}
         for storage in self._storage:
             for name, topic in storage.topics.items():
@@ -135,15 +203,9 @@ class BagReader:
         with_messages = [s for s in self._storage if any(s.topic_counts.values())]
         self.start_ns = min((s.start_ns for s in with_messages), default=0)
         self.end_ns = max((s.end_ns for s in with_messages), default=0)
-        if not allow_empty and self.message_count == 0:
-            self.close()
-            problems = "; ".join(self.problems)
-            raise EmptyBagError(
-                f"{self.path}: the bag holds no messages" + (f" ({problems})" if problems else "")
-            )
 
     def __enter__(self) -> BagReader:
-        return self
+        return self.open()
 
     def __exit__(
         self,
@@ -152,6 +214,10 @@ class BagReader:
         tb: TracebackType | None,
     ) -> None:
         self.close()
+
+    def _check_open(self) -> None:
+        if not self._opened:
+            raise BagError(f"{self.path}: the reader is not open (use open() or a with block)")
 
     def close(self) -> None:
         """Close the storage files."""
@@ -207,6 +273,7 @@ class BagReader:
             start_ns: only messages with ``log_time >= start_ns``.
             end_ns: only messages with ``log_time < end_ns``.
         """
+        self._check_open()
         wanted = set(topics) if topics is not None else None
         streams = [s.messages(wanted, start_ns, end_ns) for s in self._storage]
         if len(streams) == 1:
@@ -220,6 +287,7 @@ class BagReader:
         For bulk decoding: each :class:`BagChunk` carries the message-index entries per topic.
         SQLite3 files have no chunks and are skipped.
         """
+        self._check_open()
         wanted = set(topics) if topics is not None else None
         for storage in self._storage:
             if isinstance(storage, McapFile):

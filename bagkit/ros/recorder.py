@@ -509,7 +509,7 @@ class Recorder:
                 max_bag_size=self.max_bag_size,
                 max_bag_duration_s=self.max_bag_duration_s,
                 chunk_interval_s=FLUSH_PERIOD_S,
-            )
+            ).open()
         except BagError as exc:
             raise RecorderOptionsError(str(exc)) from None
         try:

@@ -19,11 +19,10 @@ import numpy as np
 
 from bagkit.bag import BagChunk, BagReader
 from bagkit.bag.definitions import INTEGER_TYPES
-from bagkit.bag.mcap import MESSAGE_DATA_OFFSET, MESSAGE_PREFIX
 from bagkit.decode import DecodeError, LeafField, MessageTypes, leaf_fields
 from bagkit.decode.direct import ValueReader
 from bagkit.decode.layout import CdrLayout, ResolvedLayout
-from bagkit.stats.bulk import decode_bulk, read_u64
+from bagkit.stats.bulk import decode_bulk
 from bagkit.stats.errors import NothingToSummarizeError, StatsError, UnknownTopicError
 from bagkit.stats.moments import Moments
 from bagkit.stats.prefetch import prefetch
@@ -383,17 +382,13 @@ class _Run:
             if accumulator is None:
                 continue
             seen += len(index)
-            entries = index
-            log_times = entries["log_time"]
+            log_times, starts, lengths = chunk.payloads(topic)
             if self.start_ns is not None or self.end_ns is not None:
                 keep = self.in_window(log_times)
-                entries, log_times = entries[keep], log_times[keep]
+                log_times, starts, lengths = log_times[keep], starts[keep], lengths[keep]
             accumulator.add_times(log_times)
-            if not len(entries) or not accumulator.leaves:  # counted; no field to decode
+            if not len(starts) or not accumulator.leaves:  # counted; no field to decode
                 continue
-            offsets = entries["offset"].astype(np.int64)
-            starts = offsets + MESSAGE_DATA_OFFSET
-            lengths = read_u64(buf, offsets + 1).astype(np.int64) - MESSAGE_PREFIX.size
             if accumulator.layout is not None:
                 groups, leftover = decode_bulk(buf, starts, lengths, accumulator.layout)
                 for group in groups:
@@ -446,7 +441,7 @@ def summarize(
     readers: list[BagReader] = []
     try:
         for path in paths:
-            readers.append(BagReader(path, allow_empty=True))
+            readers.append(BagReader(path, allow_empty=True).open())
         _check_topics(readers, topics)
         total = sum(
             count

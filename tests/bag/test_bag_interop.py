@@ -1,4 +1,4 @@
-"""Every rosbag2 test bag of the interop folder (tests/conftest.py): the per-topic counts its storage holds."""
+"""Every rosbag2 test bag of the interop folder (tests/conftest.py): per-topic counts in storage."""
 
 from __future__ import annotations
 
@@ -110,7 +110,7 @@ def test_empty_bag_is_a_clear_error_and_leaves_the_folder_pristine(interop_dir: 
     bag_dir = interop_dir / "ros2bag/test/resources/empty_bag"
     before = sorted((p.name, p.stat().st_size, p.stat().st_mtime_ns) for p in bag_dir.iterdir())
     with pytest.raises(EmptyBagError, match="no messages"):
-        BagReader(bag_dir)
+        BagReader(bag_dir).open()
     with BagReader(bag_dir, allow_empty=True) as bag:
         assert bag.storage == "sqlite3"
         assert bag.topic_counts == {"/rosout": 0, "/parameter_events": 0}

@@ -174,7 +174,7 @@ def test_existing_output_is_never_overwritten(tmp_path: Path) -> None:
     target.mkdir()
     (target / "keep.txt").write_text("precious")
     with pytest.raises(BagExistsError):
-        BagWriter(target)
+        BagWriter(target).open()
     assert (target / "keep.txt").read_text() == "precious"
 
 
@@ -223,7 +223,7 @@ def test_messages_built_by_the_readers_are_ordinary_frozen_messages() -> None:
 def test_writing_to_an_unknown_topic_or_a_closed_bag_is_an_error(tmp_path: Path) -> None:
     from bagkit.bag import BagError
 
-    bag = BagWriter(tmp_path / "bag")
+    bag = BagWriter(tmp_path / "bag").open()
     bag.add_topic(TopicInfo("/a", STRING))
     with pytest.raises(BagError, match="not added"):
         bag.write("/b", string_cdr("x"), log_time=1)

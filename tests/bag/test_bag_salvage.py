@@ -21,7 +21,6 @@ from mcap.records import Message
 from mcap.stream_reader import StreamReader
 
 from bagkit.bag import BagReader, BagWriteError, BagWriter, NotABagError, TopicInfo
-from bagkit.bag.mcap import MESSAGE_DATA_OFFSET
 
 
 def _intact_messages_before(data: bytes) -> int:
@@ -72,7 +71,7 @@ def test_truncated_file_keeps_every_complete_chunk(
 def test_garbage_is_not_a_bag(tmp_path: Path) -> None:
     (tmp_path / "junk.mcap").write_bytes(b"hello, not an mcap file at all")
     with pytest.raises(NotABagError):
-        BagReader(tmp_path / "junk.mcap")
+        BagReader(tmp_path / "junk.mcap").open()
 
 
 _KILLED_WRITER = textwrap.dedent(
@@ -124,7 +123,7 @@ _FULL_DISK_WRITER = textwrap.dedent(
     from bagkit.bag import BagWriteError, BagWriter, TopicInfo
     signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # over the limit, write() fails with EFBIG
     resource.setrlimit(resource.RLIMIT_FSIZE, (60_000, 60_000))
-    bag = BagWriter(sys.argv[1], compression="none", chunk_size=4_000)
+    bag = BagWriter(sys.argv[1], compression="none", chunk_size=4_000).open()
     bag.add_topic(TopicInfo("/a", "std_msgs/msg/UInt64"))
     bag.add_topic(TopicInfo("/b", "std_msgs/msg/UInt64"))
     accepted = {"/a": 0, "/b": 0}
@@ -178,7 +177,7 @@ def test_unwritable_location_is_a_clear_error(tmp_path: Path) -> None:
     blocker = tmp_path / "file"
     blocker.write_text("a file, not a directory")
     with pytest.raises(BagWriteError, match="cannot create"):
-        BagWriter(blocker / "bag")
+        BagWriter(blocker / "bag").open()
 
 
 def test_chunks_close_once_per_second_and_on_flush(tmp_path: Path) -> None:
@@ -204,13 +203,12 @@ def test_chunks_close_once_per_second_and_on_flush(tmp_path: Path) -> None:
 
 
 def _payloads_from_chunks(bag: BagReader, topic: str) -> list[bytes]:
-    """Payloads located through the chunk-level API (message-index offsets)."""
+    """Payloads located through the chunk-level API (payload spans)."""
     out = []
     for chunk in bag.chunks(topics=[topic]):
-        for offset in chunk.message_index[topic]["offset"]:
-            start = int(offset)
-            length = int.from_bytes(chunk.records[start + 1 : start + 9], "little")
-            out.append(chunk.records[start + MESSAGE_DATA_OFFSET : start + 9 + length])
+        _, starts, lengths = chunk.payloads(topic)
+        for start, length in zip(starts.tolist(), lengths.tolist(), strict=True):
+            out.append(chunk.records[start : start + length])
     return out
 
 

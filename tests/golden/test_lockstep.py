@@ -55,7 +55,7 @@ def test_outputs_are_written_at_the_bag_time_of_their_cause(
     assert summaries == [start, *range((start // period + 1) * period, end + 1, period)]
     assert result.timer_calls >= len(summaries)
     assert result.input_messages == sum(
-        1 for _ in BagReader(simulated_flight).messages(topics=list(SENSORS))
+        1 for _ in BagReader(simulated_flight).open().messages(topics=list(SENSORS))
     )
 
 

@@ -1,0 +1,92 @@
+"""The topics of a bag being written: their Schema and Channel records and message counts."""
+
+from __future__ import annotations
+
+from mcap.well_known import SchemaEncoding
+
+from bagkit.bag.definitions import canonical_type_name, message_definition, type_description_hash
+from bagkit.bag.errors import BagError, UnknownMessageTypeError
+from bagkit.bag.mcapio.records import Channel, Schema
+from bagkit.bag.types import TopicInfo
+
+
+class BagTopics:
+    """Topics by name, one Schema per type and one Channel per topic (ids from 1), counts."""
+
+    def __init__(self) -> None:
+        self.topics: dict[str, TopicInfo] = {}
+        self.schemas: dict[str, Schema] = {}
+        self.channels: dict[str, Channel] = {}
+        self.channel_topics: dict[int, str] = {}
+        self.counts: dict[int, int] = {}
+
+    def add(self, topic: TopicInfo, definition: str | None) -> list[Schema | Channel]:
+        """Add ``topic``; return the records it needs written (none when already added).
+
+        Raises:
+            UnknownMessageTypeError: ``definition`` is None and the type is not installed.
+            BagError: the topic was already added with another type.
+        """
+        known = self.topics.get(topic.name)
+        if known is not None:
+            if known.type != topic.type:
+                raise BagError(
+                    f"topic {topic.name} already added with type {known.type}, not {topic.type}"
+                )
+            return []
+        records: list[Schema | Channel] = []
+        topic = _with_type_hash(topic)
+        schema = self.schemas.get(topic.type)
+        if schema is None:
+            schema = _schema(len(self.schemas) + 1, topic.type, definition)
+            self.schemas[topic.type] = schema
+            records.append(schema)
+        metadata = {"offered_qos_profiles": topic.offered_qos_profiles}
+        if topic.type_description_hash:
+            metadata["topic_type_hash"] = topic.type_description_hash
+        channel = Channel(
+            id=len(self.channels) + 1,
+            schema_id=schema.id,
+            topic=topic.name,
+            message_encoding=topic.serialization_format,
+            metadata=metadata,
+        )
+        self.channels[topic.name] = channel
+        self.channel_topics[channel.id] = topic.name
+        self.topics[topic.name] = topic
+        self.counts[channel.id] = 0
+        records.append(channel)
+        return records
+
+    def by_topic(self, counts: dict[int, int]) -> dict[str, int]:
+        """``counts`` per channel id, per topic name."""
+        return {self.channel_topics[c]: n for c, n in counts.items()}
+
+    def with_counts(self) -> list[tuple[TopicInfo, int]]:
+        """Each topic with its message count (for metadata.yaml)."""
+        return [(topic, self.counts[self.channels[name].id]) for name, topic in self.topics.items()]
+
+
+def _with_type_hash(topic: TopicInfo) -> TopicInfo:
+    """``topic`` with its type hash filled from the installed type description when missing."""
+    if topic.type_description_hash:
+        return topic
+    try:
+        hash_string = type_description_hash(canonical_type_name(topic.type))
+    except UnknownMessageTypeError:
+        return topic
+    return TopicInfo(
+        topic.name,
+        topic.type,
+        topic.serialization_format,
+        topic.offered_qos_profiles,
+        hash_string,
+    )
+
+
+def _schema(schema_id: int, type_name: str, definition: str | None) -> Schema:
+    """The Schema record of a type; ``definition`` None reads it from the installed files."""
+    text = message_definition(canonical_type_name(type_name)) if definition is None else definition
+    return Schema(
+        id=schema_id, name=type_name, encoding=SchemaEncoding.ROS2, data=text.encode("utf-8")
+    )

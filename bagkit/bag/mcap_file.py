@@ -1,0 +1,296 @@
+"""An MCAP storage file of a bag: topics and counts from its index, messages and chunks.
+
+A chunk that cannot be read (damaged, too large, fails its CRC) costs its own messages only:
+they are counted in ``problems`` and the rest of the file is read.
+"""
+
+from __future__ import annotations
+
+import heapq
+import operator
+import struct
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from mcap.well_known import Profile
+
+from bagkit.bag.definitions import canonical_type_name
+from bagkit.bag.errors import ChunkError, CorruptBagError, NotABagError, UnsupportedStorageError
+from bagkit.bag.mcapio import (
+    DEFAULT_MAX_CHUNK_SIZE,
+    Block,
+    ChunkContents,
+    Source,
+    count_messages,
+    extent,
+    payload_spans,
+    read_chunk,
+    read_file_index,
+)
+from bagkit.bag.mcapio.records import MESSAGE_RECORD_HEADER, RECORD_HEADER, ChunkIndex, Opcode
+from bagkit.bag.storage import StorageFile
+from bagkit.bag.types import BagMessage, TopicInfo, make_message
+
+_LOG_TIME = operator.attrgetter("log_time")
+_OFFSET = operator.itemgetter(0)
+_NO_SPANS = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64))
+
+
+@dataclass(frozen=True, slots=True)
+class BagChunk:
+    """One MCAP chunk, decompressed, with where each of its topics' messages are.
+
+    ``message_index[topic]`` is a ``MESSAGE_INDEX_DTYPE`` array (``log_time``, ``offset`` of
+    the Message record in ``records``, as stored); :meth:`payloads` gives the checked payload
+    spans.
+    """
+
+    file: Path
+    records: bytes
+    message_index: dict[str, np.ndarray]
+    problems: list[str] = field(default_factory=list, repr=False, compare=False)
+
+    def payloads(self, topic: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(log_times, starts, lengths)`` (int64) of each payload of ``topic`` in ``records``.
+
+        A message whose index entry points outside the chunk, or at no whole Message record,
+        is left out and counted in ``problems``.
+        """
+        entries = self.message_index.get(topic)
+        if entries is None:
+            return _NO_SPANS
+        log_times, starts, lengths, dropped = payload_spans(self.records, entries)
+        if dropped:
+            self.problems.append(
+                f"{self.file.name}: {dropped} messages of {topic} indexed outside their chunk "
+                "(damaged message index): lost"
+            )
+        return log_times, starts, lengths
+
+
+def _merged(blocks: list[tuple[int, Iterator[BagMessage]]]) -> Iterator[BagMessage]:
+    """Merge the log-time ordered messages of overlapping ``(file offset, messages)`` blocks.
+
+    Equal log times come in storage order: heapq.merge takes them from the earlier iterable.
+    """
+    if len(blocks) == 1:
+        return blocks[0][1]
+    return heapq.merge(*(messages for _, messages in sorted(blocks, key=_OFFSET)), key=_LOG_TIME)
+
+
+def _may_hold(block: Block, channel_ids: set[int]) -> bool:
+    """False when a chunk's message indexes show none of ``channel_ids`` (skip reading it)."""
+    if isinstance(block, ChunkIndex) and block.message_index_offsets:
+        return not channel_ids.isdisjoint(block.message_index_offsets)
+    return True
+
+
+class McapFile(StorageFile):
+    """An MCAP storage file (summary and indexes when present, salvage otherwise).
+
+    Args:
+        path: the file.
+        check_crc: check each chunk's CRC when it is read (a mismatch loses that chunk).
+        max_chunk_size: the largest uncompressed chunk read (a larger one is a problem).
+
+    Raises:
+        NotABagError, CorruptBagError: not an MCAP file, or its header is unreadable.
+        UnsupportedStorageError: a profile other than ``ros2``.
+    """
+
+    storage_identifier = "mcap"
+
+    def __init__(
+        self, path: Path, *, check_crc: bool = True, max_chunk_size: int = DEFAULT_MAX_CHUNK_SIZE
+    ) -> None:
+        self.path = path
+        self.check_crc = check_crc
+        self.max_chunk_size = max_chunk_size
+        self._handle = open(path, "rb")  # noqa: SIM115 (closed in close())
+        try:
+            self._source = Source(self._handle, path.name)
+            self.index = read_file_index(self._source)
+        except (NotABagError, CorruptBagError) as exc:
+            self._handle.close()
+            raise type(exc)(f"{path}: {exc}") from exc
+        except BaseException:
+            self._handle.close()
+            raise
+        profile = self.index.header.profile
+        if profile not in (Profile.ROS2, ""):
+            self._handle.close()
+            raise UnsupportedStorageError(f"{path}: MCAP profile {profile!r} is not ROS 2")
+        self.problems = list(self.index.problems)
+        self._describe_topics()
+        self.start_ns = self.index.message_start_time
+        self.end_ns = self.index.message_end_time
+        chunks = self.index.chunk_indexes
+        self._sorted_blocks: list[Block] = sorted(
+            [*chunks, *self.index.message_runs],
+            key=lambda b: (b.message_start_time, extent(b)[0]),
+        )
+        self.compressed_size = sum(c.compressed_size for c in chunks)
+        self.uncompressed_size = sum(c.uncompressed_size for c in chunks)
+        self.compression = ",".join(sorted({c.compression or "none" for c in chunks}))
+
+    def _describe_topics(self) -> None:
+        """Topics, definitions and counts from the channels and schemas."""
+        self._channel_topics: dict[int, str] = {}
+        self.topics = {}
+        self.definitions = {}
+        for channel in self.index.channels.values():
+            schema = self.index.schemas.get(channel.schema_id)
+            type_name = canonical_type_name(schema.name) if schema else ""
+            self._channel_topics[channel.id] = channel.topic
+            self.topics.setdefault(
+                channel.topic,
+                TopicInfo(
+                    name=channel.topic,
+                    type=type_name,
+                    serialization_format=channel.message_encoding,
+                    offered_qos_profiles=channel.metadata.get("offered_qos_profiles", ""),
+                    type_description_hash=channel.metadata.get("topic_type_hash", ""),
+                ),
+            )
+            if schema is not None and type_name not in self.definitions:
+                self.definitions[type_name] = schema.data.decode("utf-8", errors="replace")
+        self.topic_counts = dict.fromkeys(self.topics, 0)
+        for channel_id, count in self.index.channel_message_counts.items():
+            topic = self._channel_topics.get(channel_id)
+            if topic is not None:
+                self.topic_counts[topic] += count
+
+    def close(self) -> None:
+        """Close the file."""
+        self._handle.close()
+
+    def _channel_ids(self, topics: set[str] | None) -> set[int]:
+        return {c for c, t in self._channel_topics.items() if topics is None or t in topics}
+
+    def _blocks(self, start_ns: int | None, end_ns: int | None) -> Iterator[Block]:
+        """Chunks (and runs of loose messages) that may hold messages in the time range."""
+        for block in self._sorted_blocks:
+            if start_ns is not None and block.message_end_time < start_ns:
+                continue
+            if end_ns is not None and block.message_start_time >= end_ns:
+                continue
+            yield block
+
+    def _problem(self, block: Block, what: str) -> None:
+        offset, length = extent(block)
+        lost = count_messages(self._source, block)
+        message = (
+            f"{self.path.name}: chunk at byte {offset} ({length} bytes) unreadable: {what}; "
+            + (f"its {lost} messages are lost" if lost is not None else "its messages are lost")
+        )
+        if message not in self.problems:
+            self.problems.append(message)
+
+    def _read(self, block: Block) -> ChunkContents | None:
+        """A block's contents, or None (and a problem) when it cannot be read."""
+        try:
+            return read_chunk(
+                self._source, block, check_crc=self.check_crc, max_size=self.max_chunk_size
+            )
+        except ChunkError as exc:
+            self._problem(block, str(exc))
+            return None
+
+    def messages(
+        self, topics: set[str] | None, start_ns: int | None, end_ns: int | None
+    ) -> Iterator[BagMessage]:
+        """Yield the messages in log-time order (ties in storage order)."""
+        wanted = self._channel_ids(topics)
+        if not wanted:
+            return
+        lower = start_ns if start_ns is not None else 0
+        upper = end_ns if end_ns is not None else 1 << 64
+        # Blocks are sorted by start time. A block that starts before the ones already taken
+        # end overlaps them: such a group is merged; groups simply follow one another.
+        group: list[tuple[int, Iterator[BagMessage]]] = []
+        group_end = 0
+        for block in self._blocks(start_ns, end_ns):
+            if not _may_hold(block, wanted):
+                continue
+            if group and block.message_start_time >= group_end:
+                yield from _merged(group)
+                group = []
+            group_end = max(group_end, block.message_end_time) if group else block.message_end_time
+            group.append((extent(block)[0], self._block_messages(block, wanted, lower, upper)))
+        yield from _merged(group)
+
+    def _block_messages(
+        self, block: Block, wanted: set[int], lower: int, upper: int
+    ) -> Iterator[BagMessage]:
+        """The messages of one block in log-time order, built one at a time as they are taken.
+
+        Only the message index is ordered up front (numpy): a replay that takes the next message
+        when it is due is not held up for the whole chunk's worth of objects.
+        """
+        chunk = self._read(block)
+        if chunk is None:
+            return
+        parts = [entries for channel, entries in chunk.message_index.items() if channel in wanted]
+        if not parts:
+            return
+        index = np.concatenate(parts) if len(parts) > 1 else parts[0]
+        times = index["log_time"]
+        index = index[(times >= lower) & (times < upper)]
+        offsets = index["offset"][np.lexsort((index["offset"], index["log_time"]))].tolist()
+        records = chunk.records
+        size = len(records)
+        channel_topics = self._channel_topics
+        unpack = MESSAGE_RECORD_HEADER.unpack_from
+        lost = 0
+        for offset in offsets:
+            try:
+                opcode, length, channel_id, sequence, log_time, publish_time = unpack(
+                    records, offset
+                )
+            except struct.error:
+                opcode = length = channel_id = 0
+            end = offset + RECORD_HEADER.size + length
+            if opcode != Opcode.MESSAGE or end > size or channel_id not in channel_topics:
+                lost += 1
+                continue
+            yield make_message(
+                channel_topics[channel_id],
+                records[offset + MESSAGE_RECORD_HEADER.size : end],
+                log_time,
+                publish_time,
+                sequence,
+            )
+        if lost:
+            offset = extent(block)[0]
+            self.problems.append(
+                f"{self.path.name}: chunk at byte {offset}: {lost} message index entries point "
+                "at no message: those messages are lost"
+            )
+
+    def chunks(self, topics: set[str] | None) -> Iterator[BagChunk]:
+        """Yield the chunks holding messages of ``topics`` (all when None), in file order."""
+        wanted = self._channel_ids(topics)
+        for block in sorted(self._sorted_blocks, key=extent):
+            if not _may_hold(block, wanted):
+                continue
+            data = self._read(block)
+            if data is None:
+                continue
+            by_topic: dict[str, list[np.ndarray]] = {}
+            for channel_id, entries in data.message_index.items():
+                if channel_id in wanted:
+                    by_topic.setdefault(self._channel_topics[channel_id], []).append(entries)
+            if by_topic:
+                yield BagChunk(
+                    self.path,
+                    data.records,
+                    {
+                        topic: parts[0]
+                        if len(parts) == 1
+                        else np.sort(np.concatenate(parts), order="offset")
+                        for topic, parts in by_topic.items()
+                    },
+                    self.problems,
+                )

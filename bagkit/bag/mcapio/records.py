@@ -1,0 +1,306 @@
+"""MCAP records: framing, bounded parsing of the records bagkit reads, and encoding.
+
+Opcodes are ``mcap.opcode.Opcode``; the summary-level record types (``Header``, ``Footer``,
+``Schema``, ``Channel``, ``Chunk``, ``ChunkIndex``, ``Statistics``, ``Metadata``,
+``MetadataIndex``, ``SummaryOffset``, ``DataEnd``) are the ``mcap`` package's dataclasses and are
+encoded by their own ``write()``. Parsing is bagkit's: the package's ``read()`` takes lengths
+from the file as they are (a short read silently truncates a string, a length of 2**62 is read
+as asked), while every length parsed here is checked against its record first and a bad one is a
+:class:`CorruptBagError`. Message Index records are parsed into numpy arrays (one
+``np.frombuffer`` per record instead of a Python tuple per message: see benchmarks/README.md,
+"bagkit.bag.mcapio").
+
+Spec: https://mcap.dev/spec
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Iterator
+
+import numpy as np
+from mcap.data_stream import RecordBuilder
+from mcap.opcode import Opcode
+from mcap.records import (
+    Channel,
+    Chunk,
+    ChunkIndex,
+    DataEnd,
+    Footer,
+    Header,
+    McapRecord,
+    Metadata,
+    MetadataIndex,
+    Schema,
+    Statistics,
+    SummaryOffset,
+)
+
+from bagkit.bag.errors import CorruptBagError
+
+MAGIC = b"\x89MCAP0\r\n"
+# Every record: opcode (u8), content length (u64), content.
+RECORD_HEADER = struct.Struct("<BQ")
+# Message record content before the payload: channel_id, sequence, log_time, publish_time.
+MESSAGE_PREFIX = struct.Struct("<HIQQ")
+# A whole Message record header (opcode, length, then MESSAGE_PREFIX); the payload follows.
+MESSAGE_RECORD_HEADER = struct.Struct("<BQHIQQ")
+MESSAGE_PAYLOAD_OFFSET = MESSAGE_RECORD_HEADER.size
+# One entry of a Message Index record: (log_time, offset of the Message record in the chunk).
+MESSAGE_INDEX_DTYPE = np.dtype([("log_time", "<u8"), ("offset", "<u8")])
+# A Chunk record's fixed fields before its compression name: start, end, size, CRC.
+CHUNK_PREFIX = struct.Struct("<QQQI")
+FOOTER = struct.Struct("<QQI")
+FOOTER_RECORD_SIZE = RECORD_HEADER.size + FOOTER.size
+_CHUNK_INDEX_PREFIX = struct.Struct("<QQQQ")
+_STATISTICS_PREFIX = struct.Struct("<QHIIIIQQ")
+_U16 = struct.Struct("<H")
+_U32 = struct.Struct("<I")
+_U64 = struct.Struct("<Q")
+
+__all__ = [
+    "Channel",
+    "Chunk",
+    "ChunkIndex",
+    "DataEnd",
+    "Footer",
+    "Header",
+    "Metadata",
+    "MetadataIndex",
+    "Opcode",
+    "Schema",
+    "Statistics",
+    "SummaryOffset",
+]
+
+
+class Cursor:
+    """Reads MCAP's primitive types from one record's content, checking every length."""
+
+    __slots__ = ("buf", "pos")
+
+    def __init__(self, buf: bytes | memoryview, pos: int = 0) -> None:
+        self.buf = buf
+        self.pos = pos
+
+    def _take(self, size: int) -> int:
+        start = self.pos
+        if start + size > len(self.buf):
+            raise CorruptBagError(
+                f"a field of {size} bytes at byte {start} runs past the end of its "
+                f"{len(self.buf)}-byte record"
+            )
+        self.pos = start + size
+        return start
+
+    def unpack(self, layout: struct.Struct) -> tuple[int, ...]:
+        """Read the fixed fields described by ``layout``."""
+        return layout.unpack_from(self.buf, self._take(layout.size))
+
+    def u16(self) -> int:
+        return int(_U16.unpack_from(self.buf, self._take(2))[0])
+
+    def u32(self) -> int:
+        return int(_U32.unpack_from(self.buf, self._take(4))[0])
+
+    def u64(self) -> int:
+        return int(_U64.unpack_from(self.buf, self._take(8))[0])
+
+    def raw(self, length: int) -> memoryview:
+        start = self._take(length)
+        return memoryview(self.buf)[start : start + length]
+
+    def string(self) -> str:
+        data = self.raw(self.u32())
+        try:
+            return str(data, "utf-8")
+        except UnicodeDecodeError as exc:
+            raise CorruptBagError(f"a string is not UTF-8 ({exc.reason})") from None
+
+    def string_map(self) -> dict[str, str]:
+        inner = Cursor(self.raw(self.u32()))
+        result: dict[str, str] = {}
+        while inner.pos < len(inner.buf):
+            key = inner.string()
+            result[key] = inner.string()
+        return result
+
+    def int_map(self) -> dict[int, int]:
+        """A ``Map<uint16, uint64>`` (channel id to count or offset)."""
+        entries = self.raw(self.u32())
+        entry = struct.Struct("<HQ")
+        if len(entries) % entry.size:
+            raise CorruptBagError(f"a map of {len(entries)} bytes is not whole entries")
+        return {int(k): int(v) for k, v in entry.iter_unpack(entries)}
+
+
+def parse_header(content: bytes | memoryview) -> Header:
+    """Parse a Header record's content."""
+    cur = Cursor(content)
+    return Header(profile=cur.string(), library=cur.string())
+
+
+def parse_footer(content: bytes | memoryview) -> Footer:
+    """Parse a Footer record's content."""
+    summary_start, summary_offset_start, summary_crc = Cursor(content).unpack(FOOTER)
+    return Footer(
+        summary_start=summary_start,
+        summary_offset_start=summary_offset_start,
+        summary_crc=summary_crc,
+    )
+
+
+def parse_schema(content: bytes | memoryview) -> Schema:
+    """Parse a Schema record's content."""
+    cur = Cursor(content)
+    schema_id, name, encoding = cur.u16(), cur.string(), cur.string()
+    return Schema(id=schema_id, name=name, encoding=encoding, data=bytes(cur.raw(cur.u32())))
+
+
+def parse_channel(content: bytes | memoryview) -> Channel:
+    """Parse a Channel record's content."""
+    cur = Cursor(content)
+    channel_id, schema_id, topic = cur.u16(), cur.u16(), cur.string()
+    return Channel(
+        id=channel_id,
+        schema_id=schema_id,
+        topic=topic,
+        message_encoding=cur.string(),
+        metadata=cur.string_map(),
+    )
+
+
+def parse_chunk(content: bytes | memoryview) -> Chunk:
+    """Parse a Chunk record's content; ``data`` (still compressed) is a view into ``content``."""
+    cur = Cursor(content)
+    start, end, uncompressed_size, crc = cur.unpack(CHUNK_PREFIX)
+    compression = cur.string()
+    data = cur.raw(cur.u64())
+    return Chunk(
+        message_start_time=start,
+        message_end_time=end,
+        uncompressed_size=uncompressed_size,
+        uncompressed_crc=crc,
+        compression=compression,
+        data=data,  # type: ignore[arg-type]
+    )
+
+
+def parse_message_index(content: bytes | memoryview) -> tuple[int, np.ndarray]:
+    """Parse a Message Index record's content into (channel id, ``MESSAGE_INDEX_DTYPE`` array)."""
+    cur = Cursor(content)
+    channel_id = cur.u16()
+    entries = cur.raw(cur.u32())
+    if len(entries) % MESSAGE_INDEX_DTYPE.itemsize:
+        raise CorruptBagError(f"a message index of {len(entries)} bytes is not whole entries")
+    return channel_id, np.frombuffer(entries, dtype=MESSAGE_INDEX_DTYPE)
+
+
+def parse_chunk_index(content: bytes | memoryview) -> ChunkIndex:
+    """Parse a Chunk Index record's content."""
+    cur = Cursor(content)
+    start, end, offset, length = cur.unpack(_CHUNK_INDEX_PREFIX)
+    offsets = cur.int_map()
+    index_length = cur.u64()
+    compression = cur.string()
+    return ChunkIndex(
+        message_start_time=start,
+        message_end_time=end,
+        chunk_start_offset=offset,
+        chunk_length=length,
+        message_index_offsets=offsets,
+        message_index_length=index_length,
+        compression=compression,
+        compressed_size=cur.u64(),
+        uncompressed_size=cur.u64(),
+    )
+
+
+def parse_statistics(content: bytes | memoryview) -> Statistics:
+    """Parse a Statistics record's content."""
+    cur = Cursor(content)
+    messages, schemas, channels, attachments, metadata, chunks, start, end = cur.unpack(
+        _STATISTICS_PREFIX
+    )
+    return Statistics(
+        message_count=messages,
+        schema_count=schemas,
+        channel_count=channels,
+        attachment_count=attachments,
+        metadata_count=metadata,
+        chunk_count=chunks,
+        message_start_time=start,
+        message_end_time=end,
+        channel_message_counts=cur.int_map(),
+    )
+
+
+def parse_metadata(content: bytes | memoryview) -> Metadata:
+    """Parse a Metadata record's content."""
+    cur = Cursor(content)
+    return Metadata(name=cur.string(), metadata=cur.string_map())
+
+
+def parse_metadata_index(content: bytes | memoryview) -> MetadataIndex:
+    """Parse a Metadata Index record's content."""
+    cur = Cursor(content)
+    return MetadataIndex(offset=cur.u64(), length=cur.u64(), name=cur.string())
+
+
+def iter_records(buf: bytes | memoryview, start: int = 0) -> Iterator[tuple[int, int, memoryview]]:
+    """Yield ``(offset, opcode, content)`` for each record of ``buf`` from ``start``.
+
+    The one walker over a run of records (a summary section, a chunk's records). Chunk records
+    are not opened.
+
+    Raises:
+        CorruptBagError: a record runs past the end of ``buf``.
+    """
+    view = memoryview(buf)
+    end = len(view)
+    pos = start
+    header_size = RECORD_HEADER.size
+    unpack = RECORD_HEADER.unpack_from
+    while pos + header_size <= end:
+        opcode, length = unpack(view, pos)
+        content_start = pos + header_size
+        if length > end - content_start:
+            break
+        yield pos, opcode, view[content_start : content_start + length]
+        pos = content_start + length
+    if pos != end:
+        raise CorruptBagError(f"the record at byte {pos} runs past the end of its {end}-byte block")
+
+
+def encode(record: McapRecord) -> bytes:
+    """Serialize a record of the ``mcap`` package with its opcode and length."""
+    builder = RecordBuilder()
+    record.write(builder)
+    return bytes(builder.end())
+
+
+def encode_chunk_header(chunk: Chunk) -> bytes:
+    """Serialize a Chunk record up to its compressed data, which the caller writes after it.
+
+    Writing the (large) data separately saves copying it into one record buffer.
+    """
+    prefix = CHUNK_PREFIX.pack(
+        chunk.message_start_time,
+        chunk.message_end_time,
+        chunk.uncompressed_size,
+        chunk.uncompressed_crc,
+    )
+    compression = chunk.compression.encode("utf-8")
+    content_prefix = prefix + _U32.pack(len(compression)) + compression + _U64.pack(len(chunk.data))
+    return RECORD_HEADER.pack(Opcode.CHUNK, len(content_prefix) + len(chunk.data)) + content_prefix
+
+
+def encode_message_index(channel_id: int, entries: bytes) -> bytes:
+    """Serialize a Message Index record from packed ``(log_time, offset)`` u64 pairs."""
+    content_length = _U16.size + _U32.size + len(entries)
+    return (
+        RECORD_HEADER.pack(Opcode.MESSAGE_INDEX, content_length)
+        + _U16.pack(channel_id)
+        + _U32.pack(len(entries))
+        + entries
+    )

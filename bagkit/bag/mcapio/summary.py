@@ -1,0 +1,195 @@
+"""What an MCAP file holds (:class:`FileIndex`), from its summary section, checked against the file.
+
+Every offset and length of the summary is checked before it is used: a summary that does not
+fit the file is not used (the file is scanned instead, :mod:`bagkit.bag.mcapio.salvage`), and a
+chunk or metadata index pointing outside the data section, or overlapping another chunk, is
+dropped with a problem. Reading a summary of a 1M-message file takes about 2 ms (benchmarks,
+``info``), like the ``mcap`` package's ``get_summary``; bagkit's own parsing is kept because it
+checks lengths (see :mod:`bagkit.bag.mcapio.records`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from bagkit.bag.errors import CorruptBagError, NotABagError
+from bagkit.bag.mcapio.chunks import MessageRun
+from bagkit.bag.mcapio.records import (
+    FOOTER_RECORD_SIZE,
+    MAGIC,
+    RECORD_HEADER,
+    Channel,
+    ChunkIndex,
+    Header,
+    Metadata,
+    MetadataIndex,
+    Opcode,
+    Schema,
+    Statistics,
+    iter_records,
+    parse_channel,
+    parse_chunk_index,
+    parse_footer,
+    parse_header,
+    parse_metadata,
+    parse_metadata_index,
+    parse_schema,
+    parse_statistics,
+)
+from bagkit.bag.mcapio.source import Source
+
+
+@dataclass(slots=True)
+class FileIndex:
+    """What one MCAP file holds, from its summary or, when it has none, from a salvage scan.
+
+    Attributes:
+        summary: True when the file's summary section was used (the file was closed cleanly).
+        channel_message_counts: messages per channel id.
+        problems: what could not be read (empty for intact files).
+    """
+
+    header: Header
+    schemas: dict[int, Schema] = field(default_factory=dict)
+    channels: dict[int, Channel] = field(default_factory=dict)
+    chunk_indexes: list[ChunkIndex] = field(default_factory=list)
+    message_runs: list[MessageRun] = field(default_factory=list)
+    channel_message_counts: dict[int, int] = field(default_factory=dict)
+    message_start_time: int = 0
+    message_end_time: int = 0
+    metadata: list[Metadata] = field(default_factory=list)
+    summary: bool = False
+    problems: list[str] = field(default_factory=list)
+
+    @property
+    def message_count(self) -> int:
+        """Messages in the file."""
+        return sum(self.channel_message_counts.values())
+
+
+def read_header(source: Source) -> Header:
+    """Check the leading magic and read the Header record.
+
+    Raises:
+        NotABagError: the file does not start with the MCAP magic.
+        CorruptBagError: the header record is unreadable.
+    """
+    start = source.read(0, min(source.size, len(MAGIC) + RECORD_HEADER.size))
+    if not start.startswith(MAGIC):
+        raise NotABagError("not an MCAP file (bad magic)")
+    if len(start) < len(MAGIC) + RECORD_HEADER.size:
+        raise CorruptBagError("MCAP file ends inside its header")
+    opcode, length = RECORD_HEADER.unpack_from(start, len(MAGIC))
+    if opcode != Opcode.HEADER:
+        raise CorruptBagError("MCAP file does not start with a Header record")
+    if not source.holds(len(start), length):
+        raise CorruptBagError(
+            f"the header record's length ({length}) runs past the end of the file"
+        )
+    return parse_header(source.read(len(start), length))
+
+
+def _summary_bounds(source: Source) -> tuple[int, int] | None:
+    """(summary start, footer offset), or None when the file has no summary (not closed).
+
+    Raises:
+        CorruptBagError: the footer points outside the file.
+    """
+    footer_offset = source.size - FOOTER_RECORD_SIZE - len(MAGIC)
+    if footer_offset < 2 * len(MAGIC):
+        return None
+    end = source.read(footer_offset, FOOTER_RECORD_SIZE + len(MAGIC))
+    if end[-len(MAGIC) :] != MAGIC or end[0] != Opcode.FOOTER:
+        return None
+    footer = parse_footer(end[RECORD_HEADER.size : FOOTER_RECORD_SIZE])
+    if footer.summary_start == 0:
+        return None
+    if not len(MAGIC) < footer.summary_start <= footer_offset:
+        raise CorruptBagError(
+            f"the footer's summary start ({footer.summary_start}) is outside the file"
+        )
+    return footer.summary_start, footer_offset
+
+
+def read_summary(source: Source, header: Header) -> FileIndex | None:
+    """Build the index from the summary section; None when the file has no usable summary.
+
+    Raises:
+        CorruptBagError: the summary section is damaged.
+    """
+    bounds = _summary_bounds(source)
+    if bounds is None:
+        return None
+    summary_start, footer_offset = bounds
+    index = FileIndex(header=header, summary=True)
+    statistics: Statistics | None = None
+    metadata_indexes: list[MetadataIndex] = []
+    for _, opcode, content in iter_records(
+        source.read(summary_start, footer_offset - summary_start)
+    ):
+        if opcode == Opcode.SCHEMA:
+            schema = parse_schema(content)
+            index.schemas[schema.id] = schema
+        elif opcode == Opcode.CHANNEL:
+            channel = parse_channel(content)
+            index.channels[channel.id] = channel
+        elif opcode == Opcode.CHUNK_INDEX:
+            index.chunk_indexes.append(parse_chunk_index(content))
+        elif opcode == Opcode.STATISTICS:
+            statistics = parse_statistics(content)
+        elif opcode == Opcode.METADATA_INDEX:
+            metadata_indexes.append(parse_metadata_index(content))
+    if statistics is None or (statistics.message_count and not index.chunk_indexes):
+        # Without statistics, or with messages outside chunks, the data section must be read.
+        return None
+    index.channel_message_counts = dict(statistics.channel_message_counts)
+    _keep_valid_chunk_indexes(index, source, summary_start)
+    # Chunk indexes before Statistics: the Go writer's statistics skip log_time 0.
+    if index.chunk_indexes:
+        index.message_start_time = min(c.message_start_time for c in index.chunk_indexes)
+        index.message_end_time = max(c.message_end_time for c in index.chunk_indexes)
+    else:
+        index.message_start_time = statistics.message_start_time
+        index.message_end_time = statistics.message_end_time
+    for entry in metadata_indexes:
+        _read_metadata(index, source, entry, summary_start)
+    return index
+
+
+def _keep_valid_chunk_indexes(index: FileIndex, source: Source, data_end: int) -> None:
+    """Drop (as problems) chunk indexes outside the data section or overlapping another."""
+    kept: list[ChunkIndex] = []
+    covered = 0  # end of the last kept chunk, in file order
+    for chunk in sorted(index.chunk_indexes, key=lambda c: c.chunk_start_offset):
+        start, length = chunk.chunk_start_offset, chunk.chunk_length
+        if start < len(MAGIC) or length < RECORD_HEADER.size or length > data_end - start:
+            what = "points outside the data section"
+        elif start < covered:
+            what = "overlaps the chunk before it"
+        elif chunk.message_start_time > chunk.message_end_time:
+            what = "ends before it starts"
+        else:
+            kept.append(chunk)
+            covered = start + length
+            continue
+        index.problems.append(
+            f"{source.name}: the index of a chunk at byte {start} ({length} bytes) {what}: "
+            "that chunk is not read"
+        )
+    index.chunk_indexes = kept
+
+
+def _read_metadata(index: FileIndex, source: Source, entry: MetadataIndex, data_end: int) -> None:
+    """Add the Metadata record of ``entry``, or a problem when it cannot be read."""
+    try:
+        if not RECORD_HEADER.size <= entry.length <= data_end - entry.offset:
+            raise CorruptBagError(
+                f"{entry.length} bytes at byte {entry.offset} are outside the data"
+            )
+        record = source.read(entry.offset, entry.length)
+        opcode, length = RECORD_HEADER.unpack_from(record)
+        if opcode != Opcode.METADATA or length != entry.length - RECORD_HEADER.size:
+            raise CorruptBagError(f"no metadata record at byte {entry.offset}")
+        index.metadata.append(parse_metadata(memoryview(record)[RECORD_HEADER.size :]))
+    except CorruptBagError as exc:
+        index.problems.append(f"{source.name}: metadata {entry.name!r} unreadable ({exc})")
