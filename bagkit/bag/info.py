@@ -49,13 +49,15 @@ class BagInfo:
         return asdict(self)
 
 
-def bag_info(path: str | Path) -> BagInfo:
+def bag_info(path: str | Path, *, check_crc: bool = True) -> BagInfo:
     """Describe a bag (directory, split bag, single ``.mcap`` or ``.db3``) like ``ros2 bag info``.
+
+    ``check_crc``: check the CRC of the chunks a salvage scan opens (see ``BagReader``).
 
     Raises:
         BagError: the path is missing, not a bag, empty, or in a foreign storage format.
     """
-    with BagReader(path) as bag:
+    with BagReader(path, check_crc=check_crc) as bag:
         duration_s = (bag.end_ns - bag.start_ns) / 1e9
         topics = [
             TopicSummary(

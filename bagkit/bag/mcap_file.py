@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import heapq
 import operator
-import struct
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -111,7 +110,9 @@ class McapFile(StorageFile):
         self._handle = open(path, "rb")  # noqa: SIM115 (closed in close())
         try:
             self._source = Source(self._handle, path.name)
-            self.index = read_file_index(self._source)
+            self.index = read_file_index(
+                self._source, check_crc=check_crc, max_chunk_size=max_chunk_size
+            )
         except (NotABagError, CorruptBagError) as exc:
             self._handle.close()
             raise type(exc)(f"{path}: {exc}") from exc
@@ -244,13 +245,12 @@ class McapFile(StorageFile):
         channel_topics = self._channel_topics
         unpack = MESSAGE_RECORD_HEADER.unpack_from
         lost = 0
+        last_header = size - MESSAGE_RECORD_HEADER.size
         for offset in offsets:
-            try:
-                opcode, length, channel_id, sequence, log_time, publish_time = unpack(
-                    records, offset
-                )
-            except struct.error:
-                opcode = length = channel_id = 0
+            if offset > last_header:
+                lost += 1
+                continue
+            opcode, length, channel_id, sequence, log_time, publish_time = unpack(records, offset)
             end = offset + RECORD_HEADER.size + length
             if opcode != Opcode.MESSAGE or end > size or channel_id not in channel_topics:
                 lost += 1

@@ -130,6 +130,9 @@ def compare(
         OutputFormat.TABLE, "--format", help="table, or json (the verdict on stdout)."
     ),
     show: int = typer.Option(10, help="How many divergences to print and keep per topic."),
+    check_crc: bool = typer.Option(
+        True, "--crc/--no-crc", help="Check each chunk's CRC as it is read (--no-crc: skip it)."
+    ),
 ) -> None:
     """Compare CANDIDATE with GOLDEN within tolerances (exit 0 same, 1 different, 2 bad input)."""
     if output_format is OutputFormat.CSV:
@@ -161,7 +164,11 @@ def compare(
     )
     with err_console.status("comparing ...") as status:
         result = compare_bags(
-            golden, candidate, options, progress=lambda t: status.update(f"comparing {t}")
+            golden,
+            candidate,
+            options,
+            progress=lambda t: status.update(f"comparing {t}"),
+            check_crc=check_crc,
         )
     for warning in result.warnings:
         warn(warning)

@@ -133,10 +133,13 @@ def info(
     output_format: InfoFormat = typer.Option(
         InfoFormat.TABLE, "--format", "-f", help="table (for people) or json (for scripts)."
     ),
+    check_crc: bool = typer.Option(
+        True, "--crc/--no-crc", help="Check the CRC of chunks a salvage scan opens."
+    ),
 ) -> None:
     """Show what a bag holds (like ros2 bag info)."""
     with err_console.status(f"reading {bag}"):
-        result = bag_info(bag)
+        result = bag_info(bag, check_crc=check_crc)
     if output_format == InfoFormat.JSON:
         print_json(result.to_dict())
     else:

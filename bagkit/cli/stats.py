@@ -113,6 +113,9 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
         help="Decode fixed-layout messages in bulk with numpy (--no-bulk: one by one, slower, "
         "to cross-check).",
     ),
+    check_crc: bool = typer.Option(
+        True, "--crc/--no-crc", help="Check each chunk's CRC as it is read (--no-crc: skip it)."
+    ),
 ) -> None:
     """Count and rate per topic; count, NaN count, min, max, mean and std per numeric field.
 
@@ -133,6 +136,7 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
             end_ns=_offset_ns(bags, end),
             progress=progress,
             bulk=bulk,
+            check_crc=check_crc,
         )
     finally:
         progress.close()

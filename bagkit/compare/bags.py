@@ -72,6 +72,7 @@ def compare_bags(
     options: CompareOptions | None = None,
     *,
     progress: Callable[[str], None] | None = None,
+    check_crc: bool = True,
 ) -> CompareReport:
     """Compare ``candidate`` with ``golden`` topic by topic.
 
@@ -79,14 +80,16 @@ def compare_bags(
     its messages missing or extra); otherwise the topics both bags have, and the topics only
     one of them has are listed as warnings.
 
+    ``check_crc``: check each chunk's CRC as it is read (see ``BagReader``).
+
     Raises:
         CompareError: a bag cannot be read or decoded, or a requested topic is in neither bag.
     """
     options = options or CompareOptions()
     with ExitStack() as stack:
         try:
-            g_bag = stack.enter_context(BagReader(golden))
-            c_bag = stack.enter_context(BagReader(candidate))
+            g_bag = stack.enter_context(BagReader(golden, check_crc=check_crc))
+            c_bag = stack.enter_context(BagReader(candidate, check_crc=check_crc))
         except BagkitError as exc:
             raise CompareError(str(exc)) from exc
         g_types = MessageTypes.from_definitions(g_bag.definitions)
@@ -144,4 +147,5 @@ def compare_bags(
             else:
                 result = compare_samples(topic, msg_type, g_samples, c_samples, options)
             results.append(result)
+        warnings.extend([*g_bag.problems, *c_bag.problems])  # damaged chunks: messages lost
     return CompareReport(str(golden), str(candidate), results, warnings)

@@ -415,6 +415,7 @@ def summarize(
     end_ns: int | None = None,
     progress: ProgressCallback | None = None,
     bulk: bool = True,
+    check_crc: bool = True,
 ) -> Summary:
     """Count, rate and exact statistics of every numeric field, pooled over ``bags``.
 
@@ -427,6 +428,7 @@ def summarize(
         progress: called with (messages done, messages in total).
         bulk: decode fixed-layout messages in bulk with numpy; False decodes every message
             with the general decoder (slower; to cross-check the bulk path).
+        check_crc: check each chunk's CRC as it is read (a damaged chunk is a problem).
 
     Raises:
         BagError: a bag cannot be opened (see ``bagkit.bag``).
@@ -441,7 +443,7 @@ def summarize(
     readers: list[BagReader] = []
     try:
         for path in paths:
-            readers.append(BagReader(path, allow_empty=True).open())
+            readers.append(BagReader(path, allow_empty=True, check_crc=check_crc).open())
         _check_topics(readers, topics)
         total = sum(
             count

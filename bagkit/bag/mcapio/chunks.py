@@ -22,10 +22,12 @@ from zlib_ng.zlib_ng import crc32
 
 from bagkit.bag.errors import ChunkError, CorruptBagError
 from bagkit.bag.mcapio.records import (
+    MAX_SECTION_SIZE,
     MESSAGE_INDEX_DTYPE,
     MESSAGE_PREFIX,
     MESSAGE_RECORD_HEADER,
     RECORD_HEADER,
+    Chunk,
     ChunkIndex,
     Opcode,
     iter_records,
@@ -37,6 +39,9 @@ from bagkit.bag.mcapio.source import Source
 # A chunk holds at least its largest message: 256 MiB admits any ROS 2 message seen in practice
 # (an uncompressed 8K RGB image is 100 MB) while a reader holds only a few chunks at a time.
 DEFAULT_MAX_CHUNK_SIZE = 256 << 20
+# Incompressible records come out of zstd/lz4 slightly larger than they went in; a chunk record
+# is refused beyond this multiple of the maximum chunk size.
+_MAX_COMPRESSED_RATIO = 2
 
 
 @dataclass(frozen=True, slots=True)
@@ -107,30 +112,58 @@ def decompress(compression: str, data: bytes | memoryview, size: int, max_size: 
     return out
 
 
+def _read_chunk_record(source: Source, offset: int, max_size: int) -> tuple[Chunk, int]:
+    """The Chunk record at ``offset`` (its data still compressed) and its whole length."""
+    opcode, length = RECORD_HEADER.unpack(source.read(offset, RECORD_HEADER.size))
+    if opcode != Opcode.CHUNK:
+        raise ChunkError("no chunk record there")
+    if length > _MAX_COMPRESSED_RATIO * max_size:
+        raise ChunkError(
+            f"a chunk record of {length} bytes, over the maximum chunk size of {max_size}"
+        )
+    content = source.read(offset + RECORD_HEADER.size, length)
+    return parse_chunk(memoryview(content)), RECORD_HEADER.size + length
+
+
+def _load(source: Source, block: Block, check_crc: bool, max_size: int) -> tuple[bytes, bool]:
+    """A block's records, and whether its index agrees with the chunk record found.
+
+    Raises:
+        ChunkError: see :func:`read_block_records`.
+    """
+    offset, length = extent(block)
+    try:
+        if isinstance(block, MessageRun):
+            if length > max_size:
+                raise ChunkError(f"{length} bytes of messages, over the maximum of {max_size}")
+            return source.read(offset, length), True
+        chunk, record_length = _read_chunk_record(source, offset, max_size)
+    except ChunkError:
+        raise
+    except CorruptBagError as exc:
+        raise ChunkError(str(exc)) from None
+    records = decompress(chunk.compression, chunk.data, chunk.uncompressed_size, max_size)
+    if check_crc and chunk.uncompressed_crc and crc32(records) != chunk.uncompressed_crc:
+        raise ChunkError("CRC mismatch (the chunk is damaged)")
+    agrees = (
+        record_length == block.chunk_length
+        and chunk.uncompressed_size == block.uncompressed_size
+        and chunk.message_start_time == block.message_start_time
+        and chunk.message_end_time == block.message_end_time
+    )
+    return records, agrees
+
+
 def read_block_records(
     source: Source, block: Block, *, check_crc: bool = True, max_size: int = DEFAULT_MAX_CHUNK_SIZE
 ) -> bytes:
     """The records of a chunk (decompressed, CRC-checked) or of a run of loose messages.
 
     Raises:
-        ChunkError: the chunk is not where its index says, too large, does not decompress, or
-            fails its CRC.
+        ChunkError: no chunk record where the block says, one over ``max_size``, data that
+            does not decompress to its declared size, or a CRC mismatch.
     """
-    offset, length = extent(block)
-    try:
-        raw = memoryview(source.read(offset, length))
-        opcode, content_length = RECORD_HEADER.unpack_from(raw)
-        if isinstance(block, MessageRun):
-            return bytes(raw)
-        if opcode != Opcode.CHUNK or content_length != length - RECORD_HEADER.size:
-            raise ChunkError("no chunk record there")
-        chunk = parse_chunk(raw[RECORD_HEADER.size :])
-    except (CorruptBagError, ValueError) as exc:  # ValueError: struct.error, a too-short read
-        raise ChunkError(str(exc)) from None
-    records = decompress(chunk.compression, chunk.data, chunk.uncompressed_size, max_size)
-    if check_crc and chunk.uncompressed_crc and crc32(records) != chunk.uncompressed_crc:
-        raise ChunkError("CRC mismatch (the chunk is damaged)")
-    return records
+    return _load(source, block, check_crc, max_size)[0]
 
 
 def read_message_indexes(source: Source, chunk_index: ChunkIndex) -> dict[int, np.ndarray]:
@@ -143,7 +176,7 @@ def read_message_indexes(source: Source, chunk_index: ChunkIndex) -> dict[int, n
     if not offsets:
         return {}
     first = min(offsets.values())
-    if chunk_index.message_index_length > DEFAULT_MAX_CHUNK_SIZE:
+    if chunk_index.message_index_length > MAX_SECTION_SIZE:
         raise CorruptBagError(f"message indexes of {chunk_index.message_index_length} bytes")
     block = source.read(first, chunk_index.message_index_length)
     found: dict[int, np.ndarray] = {}
@@ -181,16 +214,17 @@ def read_chunk(
 ) -> ChunkContents:
     """Read one chunk (or run of loose messages) with the message positions of each channel.
 
-    Uses the Message Index records after the chunk when they are where its index says;
-    otherwise the positions are found by walking the records.
+    Uses the Message Index records after the chunk when the chunk index agrees with the chunk
+    record and they are where it says; otherwise (swapped or damaged indexes, chunks without
+    indexes) the positions are found by walking the records.
 
     Raises:
         ChunkError: the chunk cannot be read (see :func:`read_block_records`), or its records
             are damaged.
     """
-    records = read_block_records(source, block, check_crc=check_crc, max_size=max_size)
+    records, agrees = _load(source, block, check_crc, max_size)
     try:
-        if isinstance(block, ChunkIndex) and block.message_index_offsets:
+        if agrees and isinstance(block, ChunkIndex) and block.message_index_offsets:
             try:
                 return ChunkContents(records, read_message_indexes(source, block))
             except CorruptBagError:

@@ -50,6 +50,9 @@ MESSAGE_PAYLOAD_OFFSET = MESSAGE_RECORD_HEADER.size
 MESSAGE_INDEX_DTYPE = np.dtype([("log_time", "<u8"), ("offset", "<u8")])
 # A Chunk record's fixed fields before its compression name: start, end, size, CRC.
 CHUNK_PREFIX = struct.Struct("<QQQI")
+# The most bytes read whole for a summary section, the Message Index records of one chunk, or a
+# Schema, Channel or Metadata record: about 1M chunk indexes, far beyond any real file.
+MAX_SECTION_SIZE = 256 << 20
 FOOTER = struct.Struct("<QQI")
 FOOTER_RECORD_SIZE = RECORD_HEADER.size + FOOTER.size
 _CHUNK_INDEX_PREFIX = struct.Struct("<QQQQ")

@@ -10,10 +10,11 @@ in about 10 ms (benchmarks, ``info``).
 from __future__ import annotations
 
 from bagkit.bag.errors import CorruptBagError
-from bagkit.bag.mcapio.chunks import MessageRun, read_block_records
+from bagkit.bag.mcapio.chunks import DEFAULT_MAX_CHUNK_SIZE, MessageRun, read_block_records
 from bagkit.bag.mcapio.records import (
     CHUNK_PREFIX,
     MAGIC,
+    MAX_SECTION_SIZE,
     MESSAGE_PREFIX,
     RECORD_HEADER,
     ChunkIndex,
@@ -35,8 +36,13 @@ MAX_RUN_BYTES = 1 << 20
 _CHUNK_HEAD_BYTES = CHUNK_PREFIX.size + 4 + 256 + 8
 
 
-def read_file_index(source: Source) -> FileIndex:
+def read_file_index(
+    source: Source, *, check_crc: bool = True, max_chunk_size: int = DEFAULT_MAX_CHUNK_SIZE
+) -> FileIndex:
     """What an MCAP file holds: from its summary, or by salvage when it has no usable one.
+
+    ``check_crc`` and ``max_chunk_size`` apply to the chunks a scan opens (see
+    :func:`~bagkit.bag.mcapio.chunks.read_chunk`).
 
     Raises:
         NotABagError: not an MCAP file.
@@ -50,7 +56,7 @@ def read_file_index(source: Source) -> FileIndex:
         index = None
         problem = f"{source.name}: summary unreadable ({exc}); the file was scanned instead"
     if index is None:
-        index = _Scanner(source, header).scan()
+        index = _Scanner(source, header, check_crc, max_chunk_size).scan()
         if problem:
             index.problems.insert(0, problem)
     index.chunk_indexes.sort(key=lambda c: (c.message_start_time, c.chunk_start_offset))
@@ -81,8 +87,10 @@ def _chunk_index_from_record(source: Source, pos: int, length: int) -> ChunkInde
 class _Scanner:
     """One salvage scan of one file (state shared by the record handlers)."""
 
-    def __init__(self, source: Source, header: Header) -> None:
+    def __init__(self, source: Source, header: Header, check_crc: bool, max_size: int) -> None:
         self.source = source
+        self.check_crc = check_crc
+        self.max_size = max_size
         self.index = FileIndex(header=header, summary=False)
         self.pending: ChunkIndex | None = None  # the last chunk, not yet counted
         self.pending_counts: dict[int, int] = {}  # from the Message Index records after it
@@ -146,6 +154,8 @@ class _Scanner:
             self._add_message(pos, length)
 
     def _content(self, pos: int, length: int) -> bytes:
+        if length > MAX_SECTION_SIZE:
+            raise CorruptBagError(f"a record of {length} bytes")
         return self.source.read(pos + RECORD_HEADER.size, length)
 
     def _add_message(self, pos: int, length: int) -> None:
@@ -197,7 +207,9 @@ class _Scanner:
 
     def _open_chunk(self, chunk_index: ChunkIndex) -> dict[int, int]:
         """Decompress and check a chunk, keep schemas/channels found in it; count messages."""
-        records = read_block_records(self.source, chunk_index)
+        records = read_block_records(
+            self.source, chunk_index, check_crc=self.check_crc, max_size=self.max_size
+        )
         counts: dict[int, int] = {}
         for _, opcode, content in iter_records(records):
             if opcode == Opcode.MESSAGE:

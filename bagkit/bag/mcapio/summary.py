@@ -17,6 +17,7 @@ from bagkit.bag.mcapio.chunks import MessageRun
 from bagkit.bag.mcapio.records import (
     FOOTER_RECORD_SIZE,
     MAGIC,
+    MAX_SECTION_SIZE,
     RECORD_HEADER,
     Channel,
     ChunkIndex,
@@ -82,7 +83,7 @@ def read_header(source: Source) -> Header:
     opcode, length = RECORD_HEADER.unpack_from(start, len(MAGIC))
     if opcode != Opcode.HEADER:
         raise CorruptBagError("MCAP file does not start with a Header record")
-    if not source.holds(len(start), length):
+    if length > MAX_SECTION_SIZE or not source.holds(len(start), length):
         raise CorruptBagError(
             f"the header record's length ({length}) runs past the end of the file"
         )
@@ -121,6 +122,8 @@ def read_summary(source: Source, header: Header) -> FileIndex | None:
     if bounds is None:
         return None
     summary_start, footer_offset = bounds
+    if footer_offset - summary_start > MAX_SECTION_SIZE:
+        raise CorruptBagError(f"a summary section of {footer_offset - summary_start} bytes")
     index = FileIndex(header=header, summary=True)
     statistics: Statistics | None = None
     metadata_indexes: list[MetadataIndex] = []
@@ -182,7 +185,7 @@ def _keep_valid_chunk_indexes(index: FileIndex, source: Source, data_end: int) -
 def _read_metadata(index: FileIndex, source: Source, entry: MetadataIndex, data_end: int) -> None:
     """Add the Metadata record of ``entry``, or a problem when it cannot be read."""
     try:
-        if not RECORD_HEADER.size <= entry.length <= data_end - entry.offset:
+        if not RECORD_HEADER.size <= entry.length <= min(MAX_SECTION_SIZE, data_end - entry.offset):
             raise CorruptBagError(
                 f"{entry.length} bytes at byte {entry.offset} are outside the data"
             )

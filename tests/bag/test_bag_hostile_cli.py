@@ -1,0 +1,85 @@
+"""Hostile bags through the CLI (subprocesses of ``bagkit``): one ``error:`` line and exit 2 for an
+unusable file; a damaged chunk is a warning and its messages are reported lost; ``--no-crc``."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+from hostile_files import Layout, chunk_messages
+
+BAGKIT = str(Path(sys.executable).with_name("bagkit"))
+
+
+def _run(*args: str | Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [BAGKIT, *map(str, args)], capture_output=True, text=True, timeout=120, check=False
+    )
+
+
+@pytest.fixture
+def flipped(write_sample_bag: Callable[..., Path]) -> tuple[Path, Path, int]:
+    """(intact bag, a copy with one byte flipped inside its second chunk, messages lost)."""
+    intact = write_sample_bag(chunk_size=20_000, compression="none")
+    damaged = intact.parent / "damaged"
+    shutil.copytree(intact, damaged)
+    layout = Layout.of(damaged / "sample_0.mcap")
+    chunk = layout.chunks[1]
+    layout.data[chunk.chunk_start_offset + chunk.chunk_length - 3] ^= 0x01
+    layout.save()
+    return intact, damaged, chunk_messages(layout, chunk)
+
+
+@pytest.mark.parametrize("command", [["info"], ["stats", "summary"]])
+def test_a_header_length_of_2_62_is_one_error_line(
+    write_sample_bag: Callable[..., Path], command: list[str]
+) -> None:
+    bag = write_sample_bag()
+    layout = Layout.of(bag / "sample_0.mcap")
+    layout.put(9, "<Q", 2**62)
+    layout.save()
+    run = _run(*command, bag)
+    assert run.returncode == 2
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1
+    assert lines[0].startswith("error: ")
+    assert "header record's length (4611686018427387904) runs past the end" in lines[0]
+
+
+def test_stats_reports_a_damaged_chunk_and_no_crc_reads_it(
+    flipped: tuple[Path, Path, int],
+) -> None:
+    intact, damaged, lost = flipped
+    counts = {}
+    for bag, options in ((intact, []), (damaged, []), (damaged, ["--no-crc"])):
+        run = _run("stats", "summary", bag, "--format", "json", *options)
+        assert run.returncode == 0, run.stderr
+        document = json.loads(run.stdout)
+        counts[(bag.name, *options)] = sum(t["count"] for t in document["topics"])
+        assert ("CRC mismatch" in run.stderr) == (bag == damaged and not options)
+    assert counts[("damaged",)] == counts[("sample",)] - lost
+    assert counts[("damaged", "--no-crc")] == counts[("sample",)]
+    run = _run("stats", "summary", damaged)
+    assert f"CRC mismatch (the chunk is damaged); its {lost} messages are lost" in run.stderr
+
+
+def test_compare_warns_of_a_damaged_chunk(flipped: tuple[Path, Path, int]) -> None:
+    intact, damaged, _ = flipped
+    run = _run("compare", intact, damaged)
+    assert run.returncode == 1
+    assert "warning:" in run.stderr and "CRC mismatch" in run.stderr
+    run = _run("compare", intact, damaged, "--no-crc")
+    assert "CRC mismatch" not in run.stderr
+
+
+def test_info_accepts_no_crc(flipped: tuple[Path, Path, int]) -> None:
+    _, damaged, _ = flipped
+    for options in ([], ["--no-crc"]):
+        run = _run("info", damaged, "--format", "json", *options)
+        assert run.returncode == 0, run.stderr
+        assert json.loads(run.stdout)["problems"] == []  # info reads no chunk

@@ -1,0 +1,141 @@
+"""bagkit.bag.mcapio chunk writing and reading: the chunk builder and file writer read back by
+the mcap package, bounded decompression, payload spans checked against the mcap reader."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import lz4.frame
+import numpy as np
+import pytest
+import zstandard
+from mcap.reader import make_reader
+from mcap.records import Channel, Header, Schema
+
+from bagkit.bag import BagReader
+from bagkit.bag.errors import ChunkError
+from bagkit.bag.mcapio.chunk_builder import ChunkBuilder
+from bagkit.bag.mcapio.chunks import decompress, payload_spans
+from bagkit.bag.mcapio.file_writer import McapFileWriter
+from bagkit.bag.mcapio.records import MESSAGE_INDEX_DTYPE
+
+COMPRESSORS: dict[str, Callable[[bytearray], bytes]] = {
+    "zstd": zstandard.ZstdCompressor().compress,
+    "lz4": lz4.frame.compress,
+    "": bytes,
+}
+
+
+@pytest.mark.parametrize("compression", ["zstd", "lz4", ""])
+def test_chunks_built_and_written_read_back_with_mcap(tmp_path: Path, compression: str) -> None:
+    schema = Schema(id=1, name="pkg/msg/T", encoding="ros2msg", data=b"int32 x")
+    channels = [
+        Channel(id=c, schema_id=1, topic=f"/t{c}", message_encoding="cdr", metadata={})
+        for c in (1, 2)
+    ]
+    path = tmp_path / "f.mcap"
+    writer = McapFileWriter.create(path, Header(profile="ros2", library="t"), [schema], channels)
+    expected = []
+    for chunk_number in range(3):
+        builder = ChunkBuilder()
+        for i in range(50):
+            channel_id = 1 + i % 2
+            log_time = 1 + chunk_number * 1000 + i
+            data = bytes([i]) * (i + chunk_number)
+            builder.add(channel_id, data, log_time, log_time - 1, 2**32 + i)
+            expected.append((f"/t{channel_id}", log_time, log_time - 1, i, data))
+        assert builder.message_counts() == {1: 25, 2: 25}
+        writer.write_chunk(builder.close(compression, COMPRESSORS[compression]), lost={})
+    writer.finish([schema], channels)
+    writer.close()
+    with open(path, "rb") as f:
+        reader = make_reader(f, validate_crcs=True)
+        got = [
+            (ch.topic, m.log_time, m.publish_time, m.sequence, m.data)
+            for _, ch, m in reader.iter_messages(log_time_order=False)
+        ]
+        summary = reader.get_summary()
+    assert got == expected  # sequences are stored modulo 2**32
+    assert summary is not None and summary.statistics is not None
+    assert summary.statistics.message_count == 150
+    assert summary.statistics.channel_message_counts == {1: 75, 2: 75}
+    assert len(summary.chunk_indexes) == 3
+
+
+def test_decompression_never_exceeds_the_declared_size() -> None:
+    records = b"\x05" * 100_000
+    bomb = zstandard.ZstdCompressor(write_content_size=False).compress(records)
+    assert decompress("zstd", bomb, len(records), 1 << 20) == records
+    with pytest.raises(ChunkError, match="does not decompress"):
+        decompress("zstd", bomb, 1000, 1 << 20)
+    sized = zstandard.ZstdCompressor().compress(records)
+    with pytest.raises(ChunkError, match="zstd frame holds 100000 bytes, the chunk declares 99"):
+        decompress("zstd", sized, 99, 1 << 20)
+    framed = lz4.frame.compress(records)
+    assert decompress("lz4", framed, len(records), 1 << 20) == records
+    with pytest.raises(ChunkError, match="declared 1000 bytes"):
+        decompress("lz4", framed, 1000, 1 << 20)
+    with pytest.raises(ChunkError, match="over the maximum chunk size of 65536"):
+        decompress("zstd", bomb, len(records), 1 << 16)
+    with pytest.raises(ChunkError, match="declares 0 bytes"):
+        decompress("zstd", bomb, 0, 1 << 20)
+    with pytest.raises(ChunkError, match="unsupported chunk compression 'brotli'"):
+        decompress("brotli", bomb, 10, 1 << 20)
+    with pytest.raises(ChunkError, match="does not decompress"):
+        decompress("lz4", b"not lz4 at all", 10, 1 << 20)
+
+
+@pytest.mark.parametrize("compression", ["zstd", "lz4", "none"])
+def test_payload_spans_are_the_payloads_mcap_reads(
+    write_sample_bag: Callable[..., Path], compression: str
+) -> None:
+    bag_path = write_sample_bag(compression=compression, chunk_size=20_000)
+    with open(bag_path / "sample_0.mcap", "rb") as f:
+        oracle: dict[str, list[tuple[int, bytes]]] = {}
+        for _, channel, message in make_reader(f).iter_messages(log_time_order=False):
+            oracle.setdefault(channel.topic, []).append((message.log_time, message.data))
+    with BagReader(bag_path) as bag:
+        found: dict[str, list[tuple[int, bytes]]] = {}
+        chunks = 0
+        for chunk in bag.chunks():
+            chunks += 1
+            for topic in chunk.message_index:
+                log_times, starts, lengths = chunk.payloads(topic)
+                assert log_times.dtype == starts.dtype == lengths.dtype == np.int64
+                found.setdefault(topic, []).extend(
+                    (t, chunk.records[s : s + n])
+                    for t, s, n in zip(
+                        log_times.tolist(), starts.tolist(), lengths.tolist(), strict=True
+                    )
+                )
+        assert bag.problems == []
+    assert chunks > 3
+    assert found == oracle
+
+
+def test_spans_outside_the_chunk_are_dropped_and_counted(
+    write_sample_bag: Callable[..., Path],
+) -> None:
+    with BagReader(write_sample_bag(n_imu=20)) as bag:
+        chunk = next(bag.chunks(["/imu/data"]))
+        index = chunk.message_index["/imu/data"]
+        good = payload_spans(chunk.records, index)
+        assert good[3] == 0 and len(good[1]) == 20
+        broken = index.copy()
+        broken["offset"][3] = len(chunk.records) + 5  # past the end
+        broken["offset"][4] = 2**64 - 1
+        broken["offset"][5] = index["offset"][5] + 1  # not at a record start
+        broken["offset"][6] = len(chunk.records) - 10  # header would run past the end
+        log_times, starts, lengths, dropped = payload_spans(chunk.records, broken)
+        assert dropped == 4
+        keep = np.ones(20, dtype=bool)
+        keep[3:7] = False
+        assert starts.tolist() == good[1][keep].tolist()
+        assert lengths.tolist() == good[2][keep].tolist()
+        assert log_times.tolist() == good[0][keep].tolist()
+        chunk.message_index["/imu/data"] = broken
+        assert len(chunk.payloads("/imu/data")[1]) == 16
+        assert any("4 messages of /imu/data indexed outside" in p for p in bag.problems)
+    empty = payload_spans(b"", np.zeros(2, dtype=MESSAGE_INDEX_DTYPE))
+    assert empty[3] == 2 and len(empty[1]) == 0
