@@ -1,5 +1,6 @@
 """Bag layer: write throughput vs the mcap library's Writer, read throughput vs rosbags and mcap,
-and ``info`` time vs its 0.2 s ceiling on bags 10x apart in size.
+the cost of checking chunk CRCs on read (with/without, same bag), and ``info`` time vs its
+0.2 s ceiling on bags 10x apart in size.
 
 Run: ``.venv/bin/python -m benchmarks info``
 """
@@ -82,6 +83,28 @@ def _write_mcap(path: Path, n: int, payloads: list[bytes]) -> None:
         writer.finish()
 
 
+def _crc_cost(bag: Path) -> None:
+    """Chunk CRCs are checked on every read by default: their cost, same bag, same run."""
+    from bagkit.stats import summarize
+
+    def read(check_crc: bool) -> Callable[[], None]:
+        def run() -> None:
+            with BagReader(bag, check_crc=check_crc) as reader:
+                for _ in reader.messages():
+                    pass
+
+        return run
+
+    with_crc, without = _best_of(3, read(True)), _best_of(3, read(False))
+    s_with = _best_of(3, lambda: summarize([bag], check_crc=True))
+    s_without = _best_of(3, lambda: summarize([bag], check_crc=False))
+    print(
+        f"CRC check on read, {SMALL:,} messages: with/without {with_crc / without:.3f} "
+        f"({with_crc * 1e3:.0f} vs {without * 1e3:.0f} ms); stats summary with/without "
+        f"{s_with / s_without:.3f} ({s_with * 1e3:.0f} vs {s_without * 1e3:.0f} ms) (report)"
+    )
+
+
 def main() -> bool:
     """Print the figures; True when every target is met."""
     payloads = _imu_payloads(64)
@@ -136,6 +159,7 @@ def main() -> bool:
         print(f"  ratio bagkit/rosbags: {r_rosbags / r_bagkit:.2f}x (target >= 1.0)")
         print(f"  ratio bagkit/mcap reader: {r_mcap / r_bagkit:.2f}x")
         ok &= r_rosbags / r_bagkit >= 1.0
+        _crc_cost(small)
 
         # info: summary and indexes only, on bags 10x apart.
         large = root / "large"

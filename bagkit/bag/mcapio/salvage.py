@@ -100,6 +100,7 @@ class _Scanner:
         """Walk the data section; return what it holds."""
         pos = len(MAGIC)
         stopped_at = None
+        closed = False  # Data End or Footer reached: the last chunk's indexes are complete
         size = self.source.size
         while pos < size:
             if pos + RECORD_HEADER.size > size:
@@ -110,6 +111,7 @@ class _Scanner:
                 stopped_at = pos
                 break
             if opcode in (Opcode.DATA_END, Opcode.FOOTER):
+                closed = True
                 break
             try:
                 self._record(pos, opcode, length)
@@ -119,7 +121,7 @@ class _Scanner:
                 )
             pos += RECORD_HEADER.size + length
         # After a cut, the last chunk's indexes may be incomplete: count it from its records.
-        self._settle(trust_indexes=stopped_at is None)
+        self._settle(trust_indexes=closed)
         self._end_run()
         if stopped_at is not None:
             self.index.problems.append(
