@@ -11,119 +11,23 @@ from __future__ import annotations
 import re
 from collections.abc import Callable, Iterable, Sequence
 from contextlib import closing
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from bagkit.bag import BagChunk, BagReader
-from bagkit.bag.definitions import INTEGER_TYPES
 from bagkit.bag.mcap import MESSAGE_DATA_OFFSET, MESSAGE_PREFIX
-from bagkit.decode import DecodeError, LeafField, MessageTypes, leaf_fields
-from bagkit.decode.direct import ValueReader
-from bagkit.decode.layout import CdrLayout, ResolvedLayout
+from bagkit.decode import DecodeError, MessageTypes, leaf_fields
+from bagkit.decode.layout import CdrLayout
+from bagkit.stats.accumulate import ROW_BATCH, TopicAccumulator
 from bagkit.stats.bulk import decode_bulk, read_u64
 from bagkit.stats.errors import NothingToSummarizeError, StatsError, UnknownTopicError
-from bagkit.stats.moments import Moments
 from bagkit.stats.prefetch import prefetch
-
-if TYPE_CHECKING:
-    import pandas as pd
-
-# Messages decoded one by one are buffered this many at a time before their moments are taken,
-# or fewer when their pooled arrays (an image's data[]) hold more than POOLED_BATCH values.
-ROW_BATCH = 4096
-POOLED_BATCH = 1 << 20
+from bagkit.stats.result import Summary
 
 ProgressCallback = Callable[[int, int], None]
 """Called with (messages done, messages in total) as the summary advances."""
-
-
-@dataclass(frozen=True, slots=True)
-class FieldStats:
-    """Statistics of one numeric leaf field (NaN values are counted apart, as pandas does).
-
-    ``min``/``max``/``mean`` are None without values, ``std`` (ddof=1) below two values;
-    ``min``/``max`` are ints for integer and boolean fields.
-    """
-
-    field: str
-    count: int
-    nan_count: int
-    min: float | int | None
-    max: float | int | None
-    mean: float | None
-    std: float | None
-
-
-@dataclass(frozen=True, slots=True)
-class TopicStats:
-    """Count, rate and field statistics of one topic.
-
-    ``rate_hz`` is (count - 1) / (last - first log time), None below two messages.
-    """
-
-    topic: str
-    type: str
-    count: int
-    rate_hz: float | None
-    fields: tuple[FieldStats, ...]
-
-
-@dataclass(frozen=True, slots=True)
-class Summary:
-    """What :func:`summarize` found.
-
-    Attributes:
-        bags: the bags summarized, as given.
-        start_ns, end_ns: first and last log time of the summarized messages.
-        topics: per topic, in name order.
-        skipped: topic -> why it could not be decoded (not in ``topics``).
-        problems: what could not be read (salvaged files, messages that do not decode).
-    """
-
-    bags: tuple[str, ...]
-    start_ns: int
-    end_ns: int
-    topics: tuple[TopicStats, ...]
-    skipped: dict[str, str] = field(default_factory=dict)
-    problems: tuple[str, ...] = ()
-
-    @property
-    def duration_s(self) -> float:
-        """Seconds from the first to the last summarized message."""
-        return (self.end_ns - self.start_ns) / 1e9
-
-    def to_dict(self) -> dict[str, Any]:
-        """The JSON document of ``bagkit stats summary --format json``."""
-        return {
-            "bags": list(self.bags),
-            "start_ns": self.start_ns,
-            "end_ns": self.end_ns,
-            "duration_s": self.duration_s,
-            "topics": [
-                {
-                    "topic": t.topic,
-                    "type": t.type,
-                    "count": t.count,
-                    "rate_hz": t.rate_hz,
-                    "fields": [asdict(f) for f in t.fields],
-                }
-                for t in self.topics
-            ],
-        }
-
-    def to_dataframe(self) -> pd.DataFrame:
-        """One row per (topic, field): columns topic, type, field, count ... std."""
-        import pandas as pd
-
-        rows = [
-            {"topic": t.topic, "type": t.type, **asdict(f)} for t in self.topics for f in t.fields
-        ]
-        columns = ["topic", "type", "field", "count", "nan_count", "min", "max", "mean", "std"]
-        frame = pd.DataFrame(rows, columns=columns)
-        return frame.astype({c: "float64" for c in ("min", "max", "mean", "std")})
 
 
 def field_matcher(patterns: Sequence[str] | None) -> Callable[[str], bool]:
@@ -143,168 +47,6 @@ def field_matcher(patterns: Sequence[str] | None) -> Callable[[str], bool]:
     return lambda path: regex.fullmatch(path) is not None
 
 
-class _TopicAccumulator:
-    """Running statistics of one topic: one Moments over its scalar fields, one per pooled."""
-
-    def __init__(
-        self,
-        topic: str,
-        type_name: str,
-        leaves: list[LeafField],
-        *,
-        layout: CdrLayout | None,
-        types: MessageTypes,
-        signature: tuple[LeafField, ...],
-    ) -> None:
-        self.topic = topic
-        self.type_name = type_name
-        self.leaves = leaves
-        self.layout = layout
-        self.scalar_paths = [leaf.path for leaf in leaves if not leaf.pooled]
-        self.read_values = self.value_reader(types)
-        self.column = {path: i for i, path in enumerate(self.scalar_paths)}
-        self.scalars = Moments(len(self.scalar_paths))
-        self.pooled = {leaf.path: Moments(1) for leaf in leaves if leaf.pooled}
-        self.count = 0
-        self.first_ns: int | None = None
-        self.last_ns: int | None = None
-        self.failures = 0
-        self.first_failure = ""
-        # Every leaf of the type as first seen: pooled bags must define the type the same way.
-        self.signature = signature
-        self._rows: list[list[Any]] = []
-        self._pooled_rows: list[list[Any]] = []
-        self._pooled_size = 0
-        self._plans: dict[np.dtype, list[tuple[str, np.ndarray | None, np.ndarray | str]]] = {}
-
-    def value_reader(self, types: MessageTypes) -> ValueReader:
-        """payload -> the values of ``scalar_paths``, then of the pooled paths."""
-        pooled = [leaf.path for leaf in self.leaves if leaf.pooled]
-        return types.value_reader(self.type_name, [*self.scalar_paths, *pooled])
-
-    def add_times(self, log_times: np.ndarray) -> None:
-        if not len(log_times):
-            return
-        self.count += len(log_times)
-        first, last = int(log_times.min()), int(log_times.max())
-        self.first_ns = first if self.first_ns is None else min(self.first_ns, first)
-        self.last_ns = last if self.last_ns is None else max(self.last_ns, last)
-
-    def _plan(self, resolved: ResolvedLayout) -> list[tuple[str, np.ndarray | None, Any]]:
-        """Where each dtype field goes: (name, source columns or None, target columns | path)."""
-        plan = self._plans.get(resolved.dtype)
-        if plan is not None:
-            return plan
-        assert self.layout is not None
-        plan = []
-        for index in resolved.slot_indexes:
-            slot = self.layout.slots[index]
-            name = str(index)
-            if slot.count is None:
-                if slot.path in self.pooled:
-                    plan.append((name, None, slot.path))
-            elif slot.array:
-                paths = [f"{slot.path}[{i}]" for i in range(slot.count)]
-                source = [i for i, p in enumerate(paths) if p in self.column]
-                if source:
-                    targets = np.array([self.column[paths[i]] for i in source])
-                    plan.append((name, np.array(source), targets))
-            elif slot.path in self.column:
-                plan.append((name, None, np.array([self.column[slot.path]])))
-        self._plans[resolved.dtype] = plan
-        return plan
-
-    def add_bulk(self, resolved: ResolvedLayout, values: np.ndarray) -> None:
-        """Add messages decoded in bulk (a structured array of ``resolved.dtype``)."""
-        # Column-major: filling a column and reducing along it are contiguous (2x faster).
-        matrix = np.empty((len(values), len(self.scalar_paths)), order="F")
-        for name, source, target in self._plan(resolved):
-            column = values[name]
-            if isinstance(target, str):
-                self.pooled[target].add(column.reshape(-1, 1))
-            elif source is None:
-                matrix[:, target[0]] = column
-            else:
-                matrix[:, target] = column[:, source]
-        if self.scalar_paths:
-            self.scalars.add(matrix)
-
-    def add_payloads(self, payloads: Iterable[bytes | memoryview]) -> None:
-        """Decode messages one by one (the general path) and add them."""
-        read_values, rows = self.read_values, self._rows
-        split = len(self.scalar_paths)
-        for data in payloads:
-            try:
-                values = read_values(data)
-            except DecodeError as exc:
-                self.fail(exc)
-                continue
-            if self.pooled:
-                rows.append(values[:split])
-                # Copies: a decoded array may be a view of the chunk, which must not be kept.
-                pooled = [np.array(v, dtype=np.float64) for v in values[split:]]
-                self._pooled_rows.append(pooled)
-                self._pooled_size += sum(len(v) for v in pooled)
-            else:
-                rows.append(values)
-            if len(rows) >= ROW_BATCH or self._pooled_size >= POOLED_BATCH:
-                self.flush()
-
-    def flush(self) -> None:
-        """Take the moments of the messages buffered by :meth:`add_payloads`."""
-        if not self._rows:
-            return
-        if self.scalar_paths:
-            # np.array of a list of rows converts faster than array('d') or np.fromiter.
-            self.scalars.add(np.array(self._rows, dtype=np.float64))
-        for j, moments in enumerate(self.pooled.values()):
-            parts = [np.asarray(row[j], dtype=np.float64) for row in self._pooled_rows]
-            moments.add(np.concatenate(parts).reshape(-1, 1))
-        self._rows.clear()
-        self._pooled_rows.clear()
-        self._pooled_size = 0
-
-    def fail(self, exc: Exception) -> None:
-        self.failures += 1
-        self.first_failure = self.first_failure or str(exc)
-
-    def result(self) -> TopicStats:
-        self.flush()
-        std = self.scalars.std()
-        fields = []
-        for leaf in self.leaves:
-            if leaf.pooled:
-                moments, column = self.pooled[leaf.path], 0
-                leaf_std = moments.std()[0]
-            else:
-                moments, column = self.scalars, self.column[leaf.path]
-                leaf_std = std[column]
-            fields.append(_field_stats(leaf, moments, column, float(leaf_std)))
-        rate = None
-        if self.count > 1 and self.first_ns is not None and self.last_ns is not None:
-            span = (self.last_ns - self.first_ns) / 1e9
-            rate = (self.count - 1) / span if span > 0 else None
-        return TopicStats(self.topic, self.type_name, self.count, rate, tuple(fields))
-
-
-def _field_stats(leaf: LeafField, moments: Moments, column: int, std: float) -> FieldStats:
-    count = int(moments.count[column])
-    nan_count = int(moments.nan_count[column])
-    if count == 0:
-        return FieldStats(leaf.path, 0, nan_count, None, None, None, None)
-    low, high = float(moments.min[column]), float(moments.max[column])
-    as_int = leaf.base in INTEGER_TYPES
-    return FieldStats(
-        leaf.path,
-        count,
-        nan_count,
-        int(low) if as_int else low,
-        int(high) if as_int else high,
-        float(moments.mean[column]),
-        None if np.isnan(std) and count < 2 else std,
-    )
-
-
 @dataclass(slots=True)
 class _Run:
     """The state of one :func:`summarize` call across its bags."""
@@ -315,13 +57,13 @@ class _Run:
     start_ns: int | None
     end_ns: int | None
     bulk: bool
-    accumulators: dict[str, _TopicAccumulator] = field(default_factory=dict)
+    accumulators: dict[str, TopicAccumulator] = field(default_factory=dict)
     skipped: dict[str, str] = field(default_factory=dict)
     problems: list[str] = field(default_factory=list)
 
     def accumulator(
         self, topic: str, type_name: str, encoding: str, bag: str
-    ) -> _TopicAccumulator | None:
+    ) -> TopicAccumulator | None:
         """The accumulator of ``topic``, or None when ``bag``'s messages on it cannot be decoded.
 
         Raises:
@@ -360,7 +102,7 @@ class _Run:
         signature = tuple(leaf_fields(self.types.typestore, canonical))
         leaves = [leaf for leaf in signature if leaf.numeric and self.select_field(leaf.path)]
         layout = CdrLayout.of(self.types.typestore, canonical) if self.bulk else None
-        accumulator = _TopicAccumulator(
+        accumulator = TopicAccumulator(
             topic, type_name, leaves, layout=layout, types=self.types, signature=signature
         )
         self.accumulators[topic] = accumulator
@@ -374,7 +116,7 @@ class _Run:
             mask &= log_times < self.end_ns
         return mask
 
-    def add_chunk(self, chunk: BagChunk, accumulators: dict[str, _TopicAccumulator]) -> int:
+    def add_chunk(self, chunk: BagChunk, accumulators: dict[str, TopicAccumulator]) -> int:
         """Add the messages of ``chunk`` on the accumulated topics; return how many were seen."""
         buf = np.frombuffer(chunk.records, dtype=np.uint8)
         seen = 0
@@ -458,7 +200,7 @@ def summarize(
         for reader in readers:
             # Each bag is decoded with its own definitions (pooled bags must agree on them).
             run.types = MessageTypes.from_definitions(reader.definitions)
-            wanted: dict[str, _TopicAccumulator] = {}
+            wanted: dict[str, TopicAccumulator] = {}
             for name, info in reader.topics.items():
                 if topics is not None and name not in topics:
                     continue

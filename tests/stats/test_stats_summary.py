@@ -31,7 +31,7 @@ from bagkit.stats import (
     UnknownTopicError,
     summarize,
 )
-from bagkit.stats import summary as summary_module
+from bagkit.stats import accumulate as accumulate_module
 
 RTOL = 1e-9
 
@@ -104,20 +104,20 @@ def test_fast_path_is_taken_and_agrees_with_general_path(
     bag: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     decoded_one_by_one: list[str] = []
-    general = summary_module._TopicAccumulator.add_payloads
+    general = accumulate_module.TopicAccumulator.add_payloads
 
-    def counting(self: summary_module._TopicAccumulator, payloads: Iterable[bytes]) -> None:
+    def counting(self: accumulate_module.TopicAccumulator, payloads: Iterable[bytes]) -> None:
         payloads = list(payloads)
         decoded_one_by_one.extend(self.topic for _ in payloads)
         general(self, payloads)
 
-    monkeypatch.setattr(summary_module._TopicAccumulator, "add_payloads", counting)
+    monkeypatch.setattr(accumulate_module.TopicAccumulator, "add_payloads", counting)
     fast = summarize([bag])
     # Only the type with sequences of messages goes through the general decoder.
     assert set(decoded_one_by_one) == {"/diagnostics"}
 
     decoded_one_by_one.clear()
-    monkeypatch.setattr(summary_module, "ROW_BATCH", 100)  # many batches to merge
+    monkeypatch.setattr(accumulate_module, "ROW_BATCH", 100)  # many batches to merge
     slow = summarize([bag], bulk=False)
     assert set(decoded_one_by_one) == {"/imu/data", "/scan", "/diagnostics", "/flag"}
     assert len(fast.topics) == len(slow.topics)
