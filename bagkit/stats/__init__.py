@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from bagkit.stats.errors import NothingToSummarizeError, StatsError, UnknownTopicError
 from bagkit.stats.result import FieldStats, Summary, TopicStats
-from bagkit.stats.summary import field_matcher, summarize
+from bagkit.stats.summary import summarize
 
 __all__ = [
     "FieldStats",
@@ -13,6 +13,5 @@ __all__ = [
     "Summary",
     "TopicStats",
     "UnknownTopicError",
-    "field_matcher",
     "summarize",
 ]

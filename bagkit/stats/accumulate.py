@@ -9,8 +9,9 @@ import numpy as np
 
 from bagkit.bag.definitions import INTEGER_TYPES
 from bagkit.decode import DecodeError, LeafField, MessageTypes
+from bagkit.decode.bulk import decode_bulk, spans_inside
 from bagkit.decode.direct import ValueReader
-from bagkit.decode.layout import CdrLayout, ResolvedLayout
+from bagkit.decode.layout import CdrLayout
 from bagkit.stats.moments import Moments
 from bagkit.stats.result import FieldStats, TopicStats
 
@@ -38,6 +39,7 @@ class TopicAccumulator:
         self.leaves = leaves
         self.layout = layout
         self.scalar_paths = [leaf.path for leaf in leaves if not leaf.pooled]
+        self.paths = [leaf.path for leaf in leaves]
         self.read_values = self.value_reader(types)
         self.column = {path: i for i, path in enumerate(self.scalar_paths)}
         self.scalars = Moments(len(self.scalar_paths))
@@ -52,7 +54,6 @@ class TopicAccumulator:
         self._rows: list[list[Any]] = []
         self._pooled_rows: list[list[Any]] = []
         self._pooled_size = 0
-        self._plans: dict[np.dtype, list[tuple[str, np.ndarray | None, np.ndarray | str]]] = {}
 
     def value_reader(self, types: MessageTypes) -> ValueReader:
         """payload -> the values of ``scalar_paths``, then of the pooled paths."""
@@ -67,42 +68,41 @@ class TopicAccumulator:
         self.first_ns = first if self.first_ns is None else min(self.first_ns, first)
         self.last_ns = last if self.last_ns is None else max(self.last_ns, last)
 
-    def _plan(self, resolved: ResolvedLayout) -> list[tuple[str, np.ndarray | None, Any]]:
-        """Where each dtype field goes: (name, source columns or None, target columns | path)."""
-        plan = self._plans.get(resolved.dtype)
-        if plan is not None:
-            return plan
-        assert self.layout is not None
-        plan = []
-        for index in resolved.slot_indexes:
-            slot = self.layout.slots[index]
-            name = str(index)
-            if slot.count is None:
-                if slot.path in self.pooled:
-                    plan.append((name, None, slot.path))
-            elif slot.array:
-                paths = [f"{slot.path}[{i}]" for i in range(slot.count)]
-                source = [i for i, p in enumerate(paths) if p in self.column]
-                if source:
-                    targets = np.array([self.column[paths[i]] for i in source])
-                    plan.append((name, np.array(source), targets))
-            elif slot.path in self.column:
-                plan.append((name, None, np.array([self.column[slot.path]])))
-        self._plans[resolved.dtype] = plan
-        return plan
+    def add_spans(self, records: bytes, starts: np.ndarray, lengths: np.ndarray) -> None:
+        """Add the payloads ``records[starts[i] : starts[i] + lengths[i]]`` (one chunk's).
 
-    def add_bulk(self, resolved: ResolvedLayout, values: np.ndarray) -> None:
-        """Add messages decoded in bulk (a structured array of ``resolved.dtype``)."""
+        Decoded in bulk where the type has a layout, the rest one by one; a span that is not
+        inside ``records`` counts as a message that could not be decoded.
+        """
+        buf = np.frombuffer(records, dtype=np.uint8)
+        if self.layout is not None:
+            groups, leftover = decode_bulk(buf, starts, lengths, self.layout)
+            for group in groups:
+                self.add_columns(group.columns(self.paths), len(group.indexes))
+        else:
+            leftover = np.arange(len(starts))
+        starts, lengths = starts[leftover], lengths[leftover]
+        inside = spans_inside(len(buf), starts, lengths)
+        if not inside.all():
+            self.fail(DecodeError("payload outside its chunk"), int((~inside).sum()))
+            starts, lengths = starts[inside], lengths[inside]
+        # Views, not copies: add_payloads keeps nothing that points into the chunk.
+        view = memoryview(records)
+        self.add_payloads(
+            view[begin : begin + length]
+            for begin, length in zip(starts.tolist(), lengths.tolist(), strict=True)
+        )
+
+    def add_columns(self, columns: dict[str, np.ndarray], count: int) -> None:
+        """Add ``count`` messages decoded in bulk: leaf path -> values (see ``BulkGroup``)."""
         # Column-major: filling a column and reducing along it are contiguous (2x faster).
-        matrix = np.empty((len(values), len(self.scalar_paths)), order="F")
-        for name, source, target in self._plan(resolved):
-            column = values[name]
-            if isinstance(target, str):
-                self.pooled[target].add(column.reshape(-1, 1))
-            elif source is None:
-                matrix[:, target[0]] = column
+        matrix = np.empty((count, len(self.scalar_paths)), order="F")
+        for path, values in columns.items():
+            column = self.column.get(path)
+            if column is None:
+                self.pooled[path].add(values.reshape(-1, 1))
             else:
-                matrix[:, target] = column[:, source]
+                matrix[:, column] = values
         if self.scalar_paths:
             self.scalars.add(matrix)
 
@@ -141,8 +141,9 @@ class TopicAccumulator:
         self._pooled_rows.clear()
         self._pooled_size = 0
 
-    def fail(self, exc: Exception) -> None:
-        self.failures += 1
+    def fail(self, exc: Exception, count: int = 1) -> None:
+        """Count ``count`` messages that could not be decoded (the first reason is kept)."""
+        self.failures += count
         self.first_failure = self.first_failure or str(exc)
 
     def result(self) -> TopicStats:
@@ -161,7 +162,9 @@ class TopicAccumulator:
         if self.count > 1 and self.first_ns is not None and self.last_ns is not None:
             span = (self.last_ns - self.first_ns) / 1e9
             rate = (self.count - 1) / span if span > 0 else None
-        return TopicStats(self.topic, self.type_name, self.count, rate, tuple(fields))
+        return TopicStats(
+            self.topic, self.type_name, self.count, rate, tuple(fields), self.failures
+        )
 
 
 def _field_stats(leaf: LeafField, moments: Moments, column: int, std: float) -> FieldStats:

@@ -31,6 +31,8 @@ class TopicStats:
     """Count, rate and field statistics of one topic.
 
     ``rate_hz`` is (count - 1) / (last - first log time), None below two messages.
+    ``undecodable``: messages counted in ``count`` whose payload did not decode (left out of
+    the field statistics).
     """
 
     topic: str
@@ -38,6 +40,7 @@ class TopicStats:
     count: int
     rate_hz: float | None
     fields: tuple[FieldStats, ...]
+    undecodable: int = 0
 
 
 @dataclass(frozen=True, slots=True)
@@ -77,6 +80,7 @@ class Summary:
                     "type": t.type,
                     "count": t.count,
                     "rate_hz": t.rate_hz,
+                    "undecodable": t.undecodable,
                     "fields": [asdict(f) for f in t.fields],
                 }
                 for t in self.topics

@@ -8,7 +8,6 @@ each chunk with numpy; every other message goes through rosbags' deserializer an
 
 from __future__ import annotations
 
-import re
 from collections.abc import Callable, Iterable, Sequence
 from contextlib import closing
 from dataclasses import dataclass, field
@@ -19,9 +18,10 @@ import numpy as np
 from bagkit.bag import BagChunk, BagReader
 from bagkit.bag.mcap import MESSAGE_DATA_OFFSET, MESSAGE_PREFIX
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
+from bagkit.decode.bulk import read_u64
 from bagkit.decode.layout import CdrLayout
+from bagkit.decode.paths import FieldSelection
 from bagkit.stats.accumulate import ROW_BATCH, TopicAccumulator
-from bagkit.stats.bulk import decode_bulk, read_u64
 from bagkit.stats.errors import NothingToSummarizeError, StatsError, UnknownTopicError
 from bagkit.stats.prefetch import prefetch
 from bagkit.stats.result import Summary
@@ -30,30 +30,12 @@ ProgressCallback = Callable[[int, int], None]
 """Called with (messages done, messages in total) as the summary advances."""
 
 
-def field_matcher(patterns: Sequence[str] | None) -> Callable[[str], bool]:
-    """A predicate for field paths matching any of the globs in ``patterns`` (all when None).
-
-    Only ``*`` and ``?`` are wildcards: brackets are literal so that ``covariance[0]`` and
-    ``ranges[]`` can be named as they are printed.
-    """
-    if not patterns:
-        return lambda _path: True
-    regex = re.compile(
-        "|".join(
-            "".join(".*" if c == "*" else "." if c == "?" else re.escape(c) for c in pattern)
-            for pattern in patterns
-        )
-    )
-    return lambda path: regex.fullmatch(path) is not None
-
-
 @dataclass(slots=True)
 class _Run:
     """The state of one :func:`summarize` call across its bags."""
 
     types: MessageTypes
-    select_field: Callable[[str], bool]
-    fields_given: bool
+    fields: FieldSelection
     start_ns: int | None
     end_ns: int | None
     bulk: bool
@@ -100,7 +82,8 @@ class _Run:
             self.skipped[topic] = str(exc)
             return None
         signature = tuple(leaf_fields(self.types.typestore, canonical))
-        leaves = [leaf for leaf in signature if leaf.numeric and self.select_field(leaf.path)]
+        selected = self.fields.for_topic(topic)
+        leaves = [leaf for leaf in signature if leaf.numeric and selected(leaf.path)]
         layout = CdrLayout.of(self.types.typestore, canonical) if self.bulk else None
         accumulator = TopicAccumulator(
             topic, type_name, leaves, layout=layout, types=self.types, signature=signature
@@ -136,20 +119,7 @@ class _Run:
             offsets = entries["offset"].astype(np.int64)
             starts = offsets + MESSAGE_DATA_OFFSET
             lengths = read_u64(buf, offsets + 1).astype(np.int64) - MESSAGE_PREFIX.size
-            if accumulator.layout is not None:
-                groups, leftover = decode_bulk(buf, starts, lengths, accumulator.layout)
-                for group in groups:
-                    accumulator.add_bulk(group.layout, group.values)
-            else:
-                leftover = np.arange(len(starts))
-            # Views, not copies: add_payloads keeps nothing that points into the chunk.
-            records = memoryview(chunk.records)
-            accumulator.add_payloads(
-                records[begin : begin + length]
-                for begin, length in zip(
-                    starts[leftover].tolist(), lengths[leftover].tolist(), strict=True
-                )
-            )
+            accumulator.add_spans(chunk.records, starts, lengths)
         return seen
 
 
@@ -168,7 +138,8 @@ def summarize(
     Args:
         bags: bag directories or single ``.mcap``/``.db3`` files.
         topics: only these topics (all when None).
-        fields: only fields matching one of these globs (``*``, ``?``; brackets literal).
+        fields: only the fields these patterns select (:mod:`bagkit.decode.paths`: globs
+            with ``*`` and ``?``, brackets literal, ``TOPIC_GLOB:FIELD_GLOB``).
         start_ns: only messages with ``log_time >= start_ns``.
         end_ns: only messages with ``log_time < end_ns``.
         progress: called with (messages done, messages in total).
@@ -184,7 +155,7 @@ def summarize(
     paths = [str(bag) for bag in bags]
     if not paths:
         raise StatsError("no bag given")
-    run = _Run(MessageTypes(), field_matcher(fields), bool(fields), start_ns, end_ns, bulk)
+    run = _Run(MessageTypes(), FieldSelection(fields), start_ns, end_ns, bulk)
     readers: list[BagReader] = []
     try:
         for path in paths:
@@ -258,7 +229,7 @@ def _finish(run: _Run, paths: list[str]) -> Summary:
                 f"{topic}: {accumulator.failures} messages could not be decoded "
                 f"({accumulator.first_failure})"
             )
-        if run.fields_given and not accumulator.leaves:
+        if run.fields and not accumulator.leaves:
             continue
         results.append(accumulator.result())
     counted = [a for a in run.accumulators.values() if a.first_ns is not None]
@@ -270,7 +241,7 @@ def _finish(run: _Run, paths: list[str]) -> Summary:
         windowed = run.start_ns is not None or run.end_ns is not None
         where = " in the selected time range" if windowed else ""
         raise NothingToSummarizeError(f"no messages to summarize in {bags}{where}")
-    if run.fields_given and not results:
+    if run.fields and not results:
         raise NothingToSummarizeError("no numeric field matches --fields")
     return Summary(
         bags=tuple(paths),
