@@ -74,6 +74,10 @@ class TopicAccumulator:
         Decoded in bulk where the type has a layout, the rest one by one; a span that is not
         inside ``records`` counts as a message that could not be decoded.
         """
+        with np.errstate(invalid="ignore"):  # casts of signalling NaNs (see Moments.add)
+            self._add_spans(records, starts, lengths)
+
+    def _add_spans(self, records: bytes, starts: np.ndarray, lengths: np.ndarray) -> None:
         buf = np.frombuffer(records, dtype=np.uint8)
         if self.layout is not None:
             groups, leftover = decode_bulk(buf, starts, lengths, self.layout)
@@ -108,6 +112,10 @@ class TopicAccumulator:
 
     def add_payloads(self, payloads: Iterable[bytes | memoryview]) -> None:
         """Decode messages one by one (the general path) and add them."""
+        with np.errstate(invalid="ignore"):  # casts of signalling NaNs (see Moments.add)
+            self._add_payloads(payloads)
+
+    def _add_payloads(self, payloads: Iterable[bytes | memoryview]) -> None:
         read_values, rows = self.read_values, self._rows
         split = len(self.scalar_paths)
         for data in payloads:
@@ -131,6 +139,10 @@ class TopicAccumulator:
         """Take the moments of the messages buffered by :meth:`add_payloads`."""
         if not self._rows:
             return
+        with np.errstate(invalid="ignore"):  # casts of signalling NaNs (see Moments.add)
+            self._flush()
+
+    def _flush(self) -> None:
         if self.scalar_paths:
             # np.array of a list of rows converts faster than array('d') or np.fromiter.
             self.scalars.add(np.array(self._rows, dtype=np.float64))

@@ -39,6 +39,9 @@ class _Run:
     start_ns: int | None
     end_ns: int | None
     bulk: bool
+    progress: ProgressCallback | None
+    done: int = 0
+    total: int = 0
     accumulators: dict[str, TopicAccumulator] = field(default_factory=dict)
     skipped: dict[str, str] = field(default_factory=dict)
     problems: list[str] = field(default_factory=list)
@@ -99,6 +102,42 @@ class _Run:
             mask &= log_times < self.end_ns
         return mask
 
+    def read(self, reader: BagReader, topics: Sequence[str] | None) -> None:
+        """Add the messages of ``reader`` on ``topics`` (all when None)."""
+        # Each bag is decoded with its own definitions (pooled bags must agree on them).
+        self.types = MessageTypes.from_definitions(reader.definitions)
+        wanted: dict[str, TopicAccumulator] = {}
+        for name, info in reader.topics.items():
+            if topics is not None and name not in topics:
+                continue
+            accumulator = self.accumulator(
+                name, info.type, info.serialization_format, str(reader.path)
+            )
+            if accumulator is not None:
+                wanted[name] = accumulator
+            else:  # skipped: its messages are not read
+                self.total -= reader.topic_counts.get(name, 0)
+        if wanted and reader.storage == "mcap":
+            # closing(): the reading thread stops before the reader is closed, also on error.
+            with closing(prefetch(reader.chunks(wanted))) as chunks:
+                for chunk in chunks:
+                    self.advance(self.add_chunk(chunk, wanted))
+        elif wanted:
+            for message in reader.messages(wanted, self.start_ns, self.end_ns):
+                accumulator = wanted[message.topic]
+                accumulator.add_times(np.array([message.log_time]))
+                if accumulator.leaves:
+                    accumulator.add_payloads((message.data,))
+                self.advance(1, every=ROW_BATCH)
+        self.problems.extend(reader.problems)
+
+    def advance(self, messages: int, every: int = 1) -> None:
+        """Count ``messages`` as done; report progress (each time ``done`` passes a multiple
+        of ``every``)."""
+        before, self.done = self.done, self.done + messages
+        if self.progress is not None and self.done // every != before // every:
+            self.progress(self.done, self.total)
+
     def add_chunk(self, chunk: BagChunk, accumulators: dict[str, TopicAccumulator]) -> int:
         """Add the messages of ``chunk`` on the accumulated topics; return how many were seen."""
         buf = np.frombuffer(chunk.records, dtype=np.uint8)
@@ -155,57 +194,25 @@ def summarize(
     paths = [str(bag) for bag in bags]
     if not paths:
         raise StatsError("no bag given")
-    run = _Run(MessageTypes(), FieldSelection(fields), start_ns, end_ns, bulk)
+    run = _Run(MessageTypes(), FieldSelection(fields), start_ns, end_ns, bulk, progress)
     readers: list[BagReader] = []
     try:
         for path in paths:
             readers.append(BagReader(path, allow_empty=True))
         _check_topics(readers, topics)
-        total = sum(
+        run.total = sum(
             count
             for reader in readers
             for topic, count in reader.topic_counts.items()
             if topics is None or topic in topics
         )
-        done = 0
         for reader in readers:
-            # Each bag is decoded with its own definitions (pooled bags must agree on them).
-            run.types = MessageTypes.from_definitions(reader.definitions)
-            wanted: dict[str, TopicAccumulator] = {}
-            for name, info in reader.topics.items():
-                if topics is not None and name not in topics:
-                    continue
-                accumulator = run.accumulator(
-                    name, info.type, info.serialization_format, str(reader.path)
-                )
-                if accumulator is not None:
-                    wanted[name] = accumulator
-                else:  # skipped: its messages are not read
-                    total -= reader.topic_counts.get(name, 0)
-            if not wanted:
-                continue
-            if reader.storage == "mcap":
-                # closing(): the reading thread stops before the reader is closed, also on error.
-                with closing(prefetch(reader.chunks(wanted))) as chunks:
-                    for chunk in chunks:
-                        done += run.add_chunk(chunk, wanted)
-                        if progress is not None:
-                            progress(done, total)
-            else:
-                for message in reader.messages(wanted, start_ns, end_ns):
-                    accumulator = wanted[message.topic]
-                    accumulator.add_times(np.array([message.log_time]))
-                    if accumulator.leaves:
-                        accumulator.add_payloads((message.data,))
-                    done += 1
-                    if progress is not None and done % ROW_BATCH == 0:
-                        progress(done, total)
-            run.problems.extend(reader.problems)
+            run.read(reader, topics)
     finally:
         for reader in readers:
             reader.close()
     if progress is not None:
-        progress(total, total)
+        progress(run.total, run.total)
     return _finish(run, paths)
 
 

@@ -152,3 +152,52 @@ def test_spans_outside_the_chunk_are_counted_not_read() -> None:
         assert (flag.count, flag.mean) == (2, 0.5)
         assert accumulator.failures == 3
         assert accumulator.first_failure == "payload outside its chunk"
+
+
+@pytest.mark.parametrize("bulk", [True, False])
+@pytest.mark.parametrize(
+    "type_name",
+    ["sensor_msgs/msg/Imu", "sensor_msgs/msg/LaserScan", "diagnostic_msgs/msg/DiagnosticArray"],
+)
+def test_mutated_payloads_never_end_a_topic(type_name: str, bulk: bool) -> None:
+    """A fixed-seed fuzz: random bytes, random u32s at aligned offsets (lengths), cut and
+    extended payloads. Every message is either decoded or counted; nothing raises."""
+    rng = np.random.default_rng(12)
+    make = {
+        "sensor_msgs/msg/Imu": imu_data,
+        "sensor_msgs/msg/LaserScan": scan_data,
+        "diagnostic_msgs/msg/DiagnosticArray": diagnostics_data,
+    }[type_name]
+    payloads = [_serialized(msg, type_name) for _, msg in make(rng, 40).messages]
+    mutated = []
+    for i in range(1500):
+        data = bytearray(payloads[i % len(payloads)])
+        kind = i % 4
+        if kind == 0:
+            data[int(rng.integers(4, len(data)))] = int(rng.integers(0, 256))
+        elif kind == 1:
+            at = int(rng.integers(1, len(data) // 4)) * 4
+            value = int(rng.choice([2**31, 2**32 - 1, len(data), int(rng.integers(0, 64))]))
+            data[at : at + 4] = value.to_bytes(4, "little")
+        elif kind == 2:
+            data = data[: int(rng.integers(0, len(data)))]
+        else:
+            data += bytes(int(rng.integers(1, 16)))
+        mutated.append(bytes(data))
+    types = MessageTypes.from_definitions({})
+    name = types.resolve(type_name)
+    leaves = [leaf for leaf in leaf_fields(types.typestore, name) if leaf.numeric]
+    layout = CdrLayout.of(types.typestore, name) if bulk else None
+    accumulator = accumulate_module.TopicAccumulator(
+        "/t", name, leaves, layout=layout, types=types, signature=tuple(leaves)
+    )
+    records = b"".join(mutated)
+    lengths = np.array([len(p) for p in mutated], dtype=np.int64)
+    starts = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
+    accumulator.add_spans(records, starts, lengths)
+    accumulator.add_times(np.arange(len(mutated), dtype=np.int64))
+    stats = accumulator.result()
+    assert 0 < accumulator.failures < len(mutated)
+    # Each decoded message gave one value (or NaN) to every scalar field.
+    scalar = next(f for f in stats.fields if f.field == "header.stamp.sec")
+    assert scalar.count + scalar.nan_count == len(mutated) - accumulator.failures
