@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 from contextlib import ExitStack
+from dataclasses import dataclass
 from pathlib import Path
 
 from bagkit.bag import BagReader
@@ -12,22 +13,36 @@ from bagkit.compare.core import Event, Sample, compare_events, compare_samples
 from bagkit.compare.errors import CompareError
 from bagkit.compare.options import CompareOptions
 from bagkit.compare.result import CompareReport, Divergence, TopicResult
-from bagkit.decode import MessageTypes, flatten_message
+from bagkit.decode import DecodeError, MessageTypes, flatten_message
 from bagkit.errors import BagkitError
 
 EVENT_TYPE = "diagnostic_msgs/msg/DiagnosticArray"
 
 
-def iter_samples(bag: BagReader, topic: str, types: MessageTypes) -> Iterator[Sample]:
+def iter_samples(
+    bag: BagReader, topic: str, types: MessageTypes, *, undecodable: list[str] | None = None
+) -> Iterator[Sample]:
     """Every message of ``topic`` in ``bag`` as a Sample (flattened leaf fields).
 
+    Args:
+        undecodable: when given, a message whose payload does not decode is left out and why
+            is appended here; otherwise it raises like a type that cannot be decoded.
+
     Raises:
-        CompareError: the topic's messages cannot be decoded.
+        CompareError: the topic's type (or, without ``undecodable``, a message) cannot be
+            decoded.
     """
     type_name = bag.topics[topic].type
     try:
+        decode = types.decoder(type_name)
         for msg in bag.messages(topics=[topic]):
-            decoded = types.deserialize(msg.data, type_name)
+            try:
+                decoded = decode(msg.data)
+            except DecodeError as exc:
+                if undecodable is None:
+                    raise
+                undecodable.append(str(exc))
+                continue
             fields = flatten_message(decoded, types.typestore)
             yield Sample(msg.log_time, msg.publish_time, fields)
     except BagkitError as exc:
@@ -66,6 +81,31 @@ def field_series(
     return times, values
 
 
+@dataclass(slots=True)
+class _Side:
+    """One of the two bags being compared, with its decoder."""
+
+    bag: BagReader
+    types: MessageTypes
+
+    def samples(self, topic: str, undecodable: list[str]) -> list[Sample]:
+        """The decoded messages of ``topic``; why the others did not decode in ``undecodable``.
+
+        Raises:
+            CompareError: the type cannot be decoded, or none of its messages decodes (the
+                definition does not describe them).
+        """
+        if topic not in self.bag.topics:
+            return []
+        samples = list(iter_samples(self.bag, topic, self.types, undecodable=undecodable))
+        if undecodable and not samples:
+            raise CompareError(f"{topic}: no message decodes ({undecodable[0]})")
+        return samples
+
+    def raw_samples(self, topic: str) -> list[Sample]:
+        return _raw_samples(self.bag, topic) if topic in self.bag.topics else []
+
+
 def compare_bags(
     golden: Path,
     candidate: Path,
@@ -78,12 +118,15 @@ def compare_bags(
 
     Topics: ``options.topics`` when set (a topic missing from either bag then fails with all
     its messages missing or extra); otherwise the topics both bags have, and the topics only
-    one of them has are listed as warnings.
+    one of them has are listed as warnings. A message that does not decode is left out and
+    counted (``golden_undecodable``/``candidate_undecodable``, a failed message each, and a
+    warning); a topic whose type cannot be decoded, or none of whose messages decodes, is
+    compared byte for byte.
 
     ``check_crc``: check each chunk's CRC as it is read (see ``BagReader``).
 
     Raises:
-        CompareError: a bag cannot be read or decoded, or a requested topic is in neither bag.
+        CompareError: a bag cannot be read, or a requested topic is in neither bag.
     """
     options = options or CompareOptions()
     with ExitStack() as stack:
@@ -92,60 +135,78 @@ def compare_bags(
             c_bag = stack.enter_context(BagReader(candidate, check_crc=check_crc))
         except BagkitError as exc:
             raise CompareError(str(exc)) from exc
-        g_types = MessageTypes.from_definitions(g_bag.definitions)
-        c_types = MessageTypes.from_definitions(c_bag.definitions)
+        golden_side = _Side(g_bag, MessageTypes.from_definitions(g_bag.definitions))
+        candidate_side = _Side(c_bag, MessageTypes.from_definitions(c_bag.definitions))
         warnings: list[str] = []
-        if options.topics is not None:
-            unknown = [t for t in options.topics if t not in g_bag.topics and t not in c_bag.topics]
-            if unknown:
-                raise CompareError(f"topic(s) in neither bag: {', '.join(unknown)}")
-            topics = list(options.topics)
-        else:
-            topics = sorted(g_bag.topics.keys() & c_bag.topics.keys())
-            only_golden = sorted(g_bag.topics.keys() - c_bag.topics.keys())
-            only_candidate = sorted(c_bag.topics.keys() - g_bag.topics.keys())
-            if only_golden:
-                warnings.append(f"not compared, only in the golden: {', '.join(only_golden)}")
-            if only_candidate:
-                warnings.append(f"not compared, only in the candidate: {', '.join(only_candidate)}")
-            if not topics:
-                raise CompareError("the bags have no topic in common")
         results: list[TopicResult] = []
-        for topic in topics:
+        for topic in _topics(g_bag, c_bag, options, warnings):
             if progress is not None:
                 progress(topic)
-            g_info, c_info = g_bag.topics.get(topic), c_bag.topics.get(topic)
-            info = g_info or c_info
-            assert info is not None
-            if (
-                g_info
-                and c_info
-                and canonical_type_name(g_info.type) != canonical_type_name(c_info.type)
-            ):
-                result = TopicResult(topic, canonical_type_name(g_info.type), "")
-                result.divergence_count = result.shape_divergences = 1
-                result.divergences = [Divergence("type", topic, 0, "", g_info.type, c_info.type)]
-                results.append(result)
-                continue
-            try:
-                g_samples = list(iter_samples(g_bag, topic, g_types)) if g_info else []
-                c_samples = list(iter_samples(c_bag, topic, c_types)) if c_info else []
-            except CompareError as exc:
-                warnings.append(f"{exc}; compared byte for byte")
-                g_samples = _raw_samples(g_bag, topic) if g_info else []
-                c_samples = _raw_samples(c_bag, topic) if c_info else []
-            if options.skip_ns:
-                # Warm-up skipped on both sides by message time (stamp, else receive time).
-                begin = g_bag.start_ns + options.skip_ns
-                g_samples = [x for x in g_samples if x.time_ns >= begin]
-                c_samples = [x for x in c_samples if x.time_ns >= begin]
-            msg_type = canonical_type_name(info.type)
-            if topic in options.event_topics and msg_type == EVENT_TYPE:
-                result = compare_events(
-                    topic, msg_type, events_of(g_samples), events_of(c_samples), options
-                )
-            else:
-                result = compare_samples(topic, msg_type, g_samples, c_samples, options)
-            results.append(result)
+            results.append(_compare_topic(topic, golden_side, candidate_side, options, warnings))
         warnings.extend([*g_bag.problems, *c_bag.problems])  # damaged chunks: messages lost
     return CompareReport(str(golden), str(candidate), results, warnings)
+
+
+def _topics(
+    g_bag: BagReader, c_bag: BagReader, options: CompareOptions, warnings: list[str]
+) -> list[str]:
+    """The topics to compare (see :func:`compare_bags`)."""
+    if options.topics is not None:
+        unknown = [t for t in options.topics if t not in g_bag.topics and t not in c_bag.topics]
+        if unknown:
+            raise CompareError(f"topic(s) in neither bag: {', '.join(unknown)}")
+        return list(options.topics)
+    topics = sorted(g_bag.topics.keys() & c_bag.topics.keys())
+    only_golden = sorted(g_bag.topics.keys() - c_bag.topics.keys())
+    only_candidate = sorted(c_bag.topics.keys() - g_bag.topics.keys())
+    if only_golden:
+        warnings.append(f"not compared, only in the golden: {', '.join(only_golden)}")
+    if only_candidate:
+        warnings.append(f"not compared, only in the candidate: {', '.join(only_candidate)}")
+    if not topics:
+        raise CompareError("the bags have no topic in common")
+    return topics
+
+
+def _compare_topic(
+    topic: str, golden: _Side, candidate: _Side, options: CompareOptions, warnings: list[str]
+) -> TopicResult:
+    g_info, c_info = golden.bag.topics.get(topic), candidate.bag.topics.get(topic)
+    info = g_info or c_info
+    assert info is not None
+    if g_info and c_info and canonical_type_name(g_info.type) != canonical_type_name(c_info.type):
+        result = TopicResult(topic, canonical_type_name(g_info.type), "")
+        result.divergence_count = result.shape_divergences = 1
+        result.divergences = [Divergence("type", topic, 0, "", g_info.type, c_info.type)]
+        return result
+    g_bad: list[str] = []
+    c_bad: list[str] = []
+    try:
+        g_samples = golden.samples(topic, g_bad)
+        c_samples = candidate.samples(topic, c_bad)
+    except CompareError as exc:
+        warnings.append(f"{exc}; compared byte for byte")
+        g_samples, c_samples = golden.raw_samples(topic), candidate.raw_samples(topic)
+        g_bad.clear()
+        c_bad.clear()
+    if g_bad or c_bad:
+        warnings.append(
+            f"{topic}: {len(g_bad)} golden and {len(c_bad)} candidate messages could not be "
+            f"decoded and are left out ({(g_bad or c_bad)[0]})"
+        )
+    if options.skip_ns:
+        # Warm-up skipped on both sides by message time (stamp, else receive time).
+        begin = golden.bag.start_ns + options.skip_ns
+        g_samples = [x for x in g_samples if x.time_ns >= begin]
+        c_samples = [x for x in c_samples if x.time_ns >= begin]
+    msg_type = canonical_type_name(info.type)
+    if topic in options.event_topics and msg_type == EVENT_TYPE:
+        result = compare_events(
+            topic, msg_type, events_of(g_samples), events_of(c_samples), options
+        )
+    else:
+        result = compare_samples(topic, msg_type, g_samples, c_samples, options)
+    result.golden_undecodable, result.candidate_undecodable = len(g_bad), len(c_bad)
+    # A message that cannot be checked is not a message that passed.
+    result.failed_messages += len(g_bad) + len(c_bad)
+    return result

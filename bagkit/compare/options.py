@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-import fnmatch
+import functools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 from bagkit.compare.errors import CompareError
+from bagkit.decode.paths import FieldSelection, name_matches, path_matches
 
 DEFAULT_EVENT_TOPICS = ("/alerts",)
 DEFAULT_EVENT_WINDOW_NS = 500_000_000
@@ -35,15 +36,10 @@ class Tolerance:
         return abs(golden - candidate) <= bound
 
 
-def glob_match(name: str, pattern: str) -> bool:
-    """Shell-style match with ``*`` and ``?``; brackets are literal, as in ``status[].level``
-    and ``pose.covariance[14]`` (field paths use them for indices, never as character sets)."""
-    return fnmatch.fnmatchcase(name, pattern.replace("[", "[[]"))
-
-
 @dataclass(frozen=True, slots=True)
 class ToleranceRule:
-    """A tolerance for the fields matching ``field`` (glob) on topics matching ``topic`` (glob)."""
+    """A tolerance for the fields ``field`` selects on topics matching ``topic`` (globs of
+    :mod:`bagkit.decode.paths`)."""
 
     topic: str
     field: str
@@ -51,15 +47,7 @@ class ToleranceRule:
 
     def matches(self, topic: str, path: str) -> bool:
         """Whether this rule applies to ``path`` on ``topic``."""
-        return glob_match(topic, self.topic) and glob_match(path, self.field)
-
-
-def _split_field_pattern(pattern: str) -> tuple[str, str]:
-    # "TOPIC_GLOB:FIELD_GLOB" restricts a pattern to some topics; a bare glob applies to all.
-    if ":" in pattern:
-        topic, _, path = pattern.partition(":")
-        return topic or "*", path or "*"
-    return "*", pattern
+        return name_matches(topic, self.topic) and path_matches(path, self.field)
 
 
 @dataclass(frozen=True, slots=True)
@@ -115,11 +103,7 @@ class CompareOptions:
 
     def is_ignored(self, topic: str, path: str) -> bool:
         """Whether ``path`` on ``topic`` is excluded from the comparison."""
-        for pattern in self.ignore_fields:
-            topic_glob, field_glob = _split_field_pattern(pattern)
-            if glob_match(topic, topic_glob) and glob_match(path, field_glob):
-                return True
-        return False
+        return _selection(self.ignore_fields).selects(topic, path)
 
     def pass_rate_for(self, topic: str) -> float:
         """The fraction of ``topic``'s golden messages that must be matched within tolerance."""
@@ -128,6 +112,11 @@ class CompareOptions:
     def window_for(self, topic: str) -> int:
         """The stamp matching window of ``topic`` in ns."""
         return self.match_windows.get(topic, self.match_window_ns)
+
+
+@functools.lru_cache(maxsize=64)
+def _selection(patterns: tuple[str, ...]) -> FieldSelection:
+    return FieldSelection(patterns)
 
 
 def _seconds_to_ns(value: Any, what: str) -> int:

@@ -77,6 +77,10 @@ class TopicResult:
     shape_divergences: int = 0  # fields, sequence lengths or types that differ
     failed_messages: int = 0  # missing, extra, or matched with a value out of tolerance
     allowed_failed_messages: int = 0  # what the topic's pass rate allows
+    # Messages whose payload did not decode: left out of the matching (so their partners count
+    # as missing or extra).
+    golden_undecodable: int = 0
+    candidate_undecodable: int = 0
 
     @property
     def passed(self) -> bool:
@@ -136,6 +140,8 @@ class CompareReport:
                     "divergence_count": t.divergence_count,
                     "failed_messages": t.failed_messages,
                     "allowed_failed_messages": t.allowed_failed_messages,
+                    "golden_undecodable": t.golden_undecodable,
+                    "candidate_undecodable": t.candidate_undecodable,
                     "max_event_shift_s": t.max_event_shift_ns / 1e9,
                     "failed_fields": [f.path for f in t.failed_fields],
                     "fields": [

@@ -3,7 +3,11 @@
 - :class:`MessageTypes`: a rosbags typestore built from a bag's ros2msg definitions.
 - :func:`flatten_message` / :func:`leaf_fields`: messages as ``{dotted path: value}``, and the
   same paths from the schema alone.
-- :mod:`bagkit.decode.layout`: CDR layouts as numpy dtypes, for bulk decoding.
+- :mod:`bagkit.decode.paths`: the field-glob language (``[TOPIC_GLOB:]FIELD_GLOB``).
+- :mod:`bagkit.decode.layout` and :mod:`bagkit.decode.bulk`: CDR layouts as numpy dtypes, and
+  many payloads of one layout decoded at once into columns; :mod:`bagkit.decode.direct`: leaf
+  values read from one payload (the general path).
+- :mod:`bagkit.decode.typegraph`: the limits a type must keep before anything walks it.
 """
 
 from __future__ import annotations
@@ -16,10 +20,12 @@ from bagkit.decode.flatten import (
     flatten_message,
     leaf_fields,
 )
+from bagkit.decode.paths import FieldSelection
 from bagkit.decode.types import MessageTypes
 
 __all__ = [
     "DecodeError",
+    "FieldSelection",
     "FlatValue",
     "LeafField",
     "MessageTypes",

@@ -26,6 +26,7 @@ from rosbags.typesys.store import Typestore
 from bagkit.decode.errors import DecodeError
 from bagkit.decode.flatten import FlatValue
 from bagkit.decode.layout import PRIMITIVE_FORMATS, U32
+from bagkit.decode.typegraph import check_registered
 
 # struct code of each primitive; sizes and numpy dtypes come from the bulk layouts' table.
 _CODES: dict[str, str] = {
@@ -47,7 +48,8 @@ _DTYPES = {name: np.dtype(fmt) for name, fmt in PRIMITIVE_FORMATS.items()}
 
 
 class UnsupportedTypeError(Exception):
-    """The type has parts this reader does not handle (wide strings); use the object path."""
+    """The type has parts this reader does not handle (wide strings, sequences of structs
+    nested deeper than Python nests loops); use the object path."""
 
 
 ValueReader = Callable[[bytes | memoryview], list[FlatValue]]
@@ -68,8 +70,14 @@ def value_reader(
         fallback: the object path (``field_getter(...)(decoder(data))``), used for payloads
             that are not little-endian plain CDR and for types this reader does not handle.
 
-    The returned function raises DecodeError when the bytes do not match the type.
+    The returned function raises DecodeError when the bytes do not match the type; a length
+    prefix is checked against the bytes left before anything is read or allocated for it.
+
+    Raises:
+        SchemaError: the type is recursive or too large (:mod:`bagkit.decode.typegraph`).
+        KeyError: a path that the type does not have.
     """
+    check_registered(typestore, typename)
     try:
         direct = _generate(typestore, typename, tuple(paths))
     except UnsupportedTypeError:
@@ -80,8 +88,10 @@ def value_reader(
             return fallback(data)
         try:
             values, end = direct(data)
-        except (struct.error, ValueError, IndexError) as exc:
+        except (struct.error, ValueError, IndexError, OverflowError) as exc:
             raise DecodeError(f"{typename} message does not decode: {exc!r}") from exc
+        if end + 4 > len(data):
+            raise DecodeError(f"{typename} message does not decode: it ends past the payload")
         # CDR writers pad to 4 bytes at most.
         if end + 4 + 3 < len(data):
             raise DecodeError(
@@ -207,11 +217,17 @@ class _Codegen:
     # -- strings and sequences ----------------------------------------------------------------
 
     def length(self, depth: int) -> str:
-        """Emit: align to 4, read a uint32 length prefix; return its local's name."""
+        """Emit: align to 4, read a uint32 length prefix; return its local's name.
+
+        Every element of a string or sequence takes at least a byte: a prefix larger than the
+        bytes left is refused before a loop runs or anything is allocated for it.
+        """
         count = self.name("c")
         self.emit("p = (p + 3) & -4", depth)
         self.emit(f"{count} = _u32(b, 4 + p)[0]", depth)
         self.emit("p += 4", depth)
+        self.emit(f"if {count} > len(b) - 4 - p:", depth)
+        self.emit("raise ValueError('a length prefix says more than the payload holds')", depth + 1)
         return count
 
     def string(self, path: str, base: str, depth: int, pooled: bool) -> None:
@@ -272,6 +288,10 @@ def _generate(
         *gen.lines,
         f"    return [{', '.join(gen.variables[path] for path in paths)}], p",
     ]
-    exec(compile("\n".join(body), f"<bagkit read {typename}>", "exec"), gen.namespace)
+    try:
+        code = compile("\n".join(body), f"<bagkit read {typename}>", "exec")
+    except (SyntaxError, RecursionError) as exc:  # Python's limits on nested blocks
+        raise UnsupportedTypeError(f"{typename}: {exc}") from exc
+    exec(code, gen.namespace)
     reader: Callable[[bytes | memoryview], tuple[list[FlatValue], int]] = gen.namespace["read"]
     return reader

@@ -19,6 +19,8 @@ from rosbags.interfaces import Nodetype
 from rosbags.typesys.base import normalize_fieldname
 from rosbags.typesys.store import Typestore
 
+from bagkit.decode.typegraph import check_registered
+
 STRING_TYPES = frozenset({"string", "wstring"})
 
 # Value of one leaf: a scalar, or for a pooled leaf the list (or array) of every element's value.
@@ -50,7 +52,9 @@ def leaf_fields(typestore: Typestore, typename: str) -> list[LeafField]:
 
     Raises:
         KeyError: ``typename`` (or a type it uses) is not in ``typestore``.
+        SchemaError: the type is recursive or too large (:mod:`bagkit.decode.typegraph`).
     """
+    check_registered(typestore, typename)
     return list(_leaf_fields(typestore, typename))
 
 
@@ -150,6 +154,7 @@ def _generate(
     typestore: Typestore, typename: str, paths: tuple[str, ...] | None, *, numeric_only: bool
 ) -> Any:
     """``flatten(m) -> dict`` (all leaves when ``paths`` is None) or ``get(m) -> list``."""
+    check_registered(typestore, typename)
     gen = _Codegen(typestore, numeric_only)
     gen.struct("m", typename, "", [])
     if paths is None:

@@ -10,16 +10,21 @@ read so far and either asks for the next prefix or returns the dtype of the whol
 from __future__ import annotations
 
 import struct
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
 from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
 
+from bagkit.decode.errors import DecodeError
+from bagkit.decode.typegraph import check_registered
+
 ENCAPSULATION_SIZE = 4
 # Encapsulation header of little-endian plain CDR (what every ROS 2 middleware writes).
 CDR_LE = b"\x00\x01"
 U32 = struct.Struct("<I")
+MAX_CACHED_MASKS = 1024
 
 # numpy format of each CDR primitive (CDR aligns each to its own size).
 PRIMITIVE_FORMATS: dict[str, str] = {
@@ -57,23 +62,62 @@ class Slot:
 
 
 @dataclass(frozen=True, slots=True)
+class LeafColumn:
+    """Where one leaf's values are in a :class:`ResolvedLayout`'s records.
+
+    Attributes:
+        path: the leaf path (``header.stamp.sec``, ``orientation_covariance[4]``, ``ranges[]``).
+        name: the dtype field holding it.
+        element: the element of a fixed array field, None for the whole field.
+    """
+
+    path: str
+    name: str
+    element: int | None
+
+
+@dataclass(frozen=True, slots=True)
 class ResolvedLayout:
     """The layout of the messages whose length prefixes all have given values.
 
-    ``dtype`` has one field per numeric slot, named by the slot's index in ``CdrLayout.slots``
-    (``"3"``), at its byte offset from the start of the payload (encapsulation header included);
-    its ``itemsize`` is the exact payload size (CDR writers may add up to 3 bytes of padding).
+    ``dtype`` has one field per slot with values, named by the slot's index in
+    ``CdrLayout.slots`` (``"3"``), at its byte offset from the start of the payload
+    (encapsulation header included): numbers as their numpy type (a sequence as a subarray),
+    strings as ``S<length>`` (bytes, no NUL). Its ``itemsize`` is the exact payload size (CDR
+    writers may add up to 3 bytes of padding). ``leaves`` says where each leaf is.
     """
 
     dtype: np.dtype
     slot_indexes: tuple[int, ...]
+    leaves: tuple[LeafColumn, ...]
+
+    def columns(self, records: np.ndarray, paths: Iterable[str]) -> dict[str, np.ndarray]:
+        """The values of leaf ``paths`` in ``records`` (an array of ``dtype``), as views.
+
+        A scalar leaf (and each element of a fixed array) is one value per record; a pooled
+        leaf (``ranges[]``) a 2-D array, one row per record (all of one length in a layout);
+        a string leaf ``S`` bytes. Paths that the layout has no values for (empty strings)
+        are left out.
+        """
+        wanted = set(paths)
+        found: dict[str, np.ndarray] = {}
+        for leaf in self.leaves:
+            if leaf.path in wanted:
+                column = records[leaf.name]
+                found[leaf.path] = column if leaf.element is None else column[:, leaf.element]
+        return found
 
 
 @dataclass(frozen=True, slots=True)
 class NeedLength:
-    """The offset in the payload of the next ``uint32`` length prefix to read."""
+    """The offset in the payload of the next ``uint32`` length prefix to read.
+
+    ``element_size`` is the size of one element of what it counts (1 for a string's bytes): a
+    prefix saying more than the rest of the payload can hold is not a layout of that payload.
+    """
 
     offset: int
+    element_size: int
 
 
 @dataclass(frozen=True, slots=True)
@@ -88,7 +132,11 @@ class CdrLayout:
 
         Sequences of messages, sequences of strings and wide strings vary too freely to be
         grouped by a few length prefixes; such types are decoded message by message.
+
+        Raises:
+            SchemaError: the type is recursive or too large (:mod:`bagkit.decode.typegraph`).
         """
+        check_registered(typestore, typename)
         slots: list[Slot] = []
         for name, desc in typestore.fielddefs[typename][1]:
             if not _collect(typestore, name, desc, slots):
@@ -104,16 +152,24 @@ class CdrLayout:
         placed = self._place(lengths)
         if isinstance(placed, NeedLength):
             return placed
-        numeric = [p for p in placed.slots if p.fmt]
         dtype = np.dtype(
             {
-                "names": [str(p.index) for p in numeric],
-                "formats": [p.fmt for p in numeric],
-                "offsets": [p.offset for p in numeric],
+                "names": [str(p.index) for p in placed.slots],
+                "formats": [p.fmt for p in placed.slots],
+                "offsets": [p.offset for p in placed.slots],
                 "itemsize": placed.size,
             }
         )
-        return ResolvedLayout(dtype, tuple(p.index for p in numeric))
+        leaves: list[LeafColumn] = []
+        for p in placed.slots:
+            slot = self.slots[p.index]
+            if slot.array and slot.count is not None:
+                leaves.extend(
+                    LeafColumn(f"{slot.path}[{i}]", str(p.index), i) for i in range(slot.count)
+                )
+            else:
+                leaves.append(LeafColumn(slot.path, str(p.index), None))
+        return ResolvedLayout(dtype, tuple(p.index for p in placed.slots), tuple(leaves))
 
     def data_mask(self, lengths: tuple[int, ...]) -> int | NeedLength:
         """A mask of the bytes that hold data, or where the next length prefix is.
@@ -136,11 +192,13 @@ class CdrLayout:
         data: list[tuple[int, int]] = []
         known = iter(lengths)
         for index, slot in enumerate(self.slots):
+            fmt = PRIMITIVE_FORMATS.get(slot.base, "u1")  # u1: the bytes of a string
+            size = np.dtype(fmt).itemsize
             if slot.count is None:
                 pos = _align(pos, 4)
                 length = next(known, None)
                 if length is None:
-                    return NeedLength(ENCAPSULATION_SIZE + pos)
+                    return NeedLength(ENCAPSULATION_SIZE + pos, size)
                 data.append((ENCAPSULATION_SIZE + pos, 4))
                 pos += 4
                 count = length
@@ -148,10 +206,10 @@ class CdrLayout:
                 count = slot.count
             if slot.base == "string":
                 data.append((ENCAPSULATION_SIZE + pos, count))
+                if count > 1:  # the bytes before the NUL (a writer may omit an empty one's)
+                    slots.append(_PlacedSlot(index, ENCAPSULATION_SIZE + pos, f"S{count - 1}"))
                 pos += count
                 continue
-            fmt = PRIMITIVE_FORMATS[slot.base]
-            size = np.dtype(fmt).itemsize
             if count:
                 pos = _align(pos, size)
             shaped = fmt if not slot.array and slot.count == 1 else (fmt, (count,))
@@ -185,7 +243,8 @@ class PaddingZeroer:
 
     Writers leave padding as they please (rclpy's serializer leaves it uninitialized, so one
     message serializes to different bytes from run to run); with zeroed padding a message has
-    one encoding, whichever writer produced it. Masks are cached per set of length prefixes.
+    one encoding, whichever writer produced it. Masks are cached per set of length prefixes
+    (up to ``MAX_CACHED_MASKS`` of them: the lengths come from the payloads).
     """
 
     def __init__(self, layout: CdrLayout) -> None:
@@ -193,17 +252,27 @@ class PaddingZeroer:
         self._steps: dict[tuple[int, ...], int | NeedLength] = {}
 
     def __call__(self, data: bytes) -> bytes:
-        """``data`` with every byte that is not header, length prefix or value set to zero."""
+        """``data`` with every byte that is not header, length prefix or value set to zero.
+
+        Raises:
+            DecodeError: a length prefix says more than the payload holds.
+        """
         lengths: tuple[int, ...] = ()
         steps = self._steps
+        size = len(data)
         while True:
             step = steps.get(lengths)
             if step is None:
-                step = steps[lengths] = self._layout.data_mask(lengths)
+                step = self._layout.data_mask(lengths)
+                if len(steps) < MAX_CACHED_MASKS:
+                    steps[lengths] = step
             if isinstance(step, NeedLength):
-                lengths += U32.unpack_from(data, step.offset)
+                room = size - step.offset - 4
+                length = U32.unpack_from(data, step.offset)[0] if room >= 0 else -1
+                if not 0 <= length * step.element_size <= room:
+                    raise DecodeError("a length prefix says more than the payload holds")
+                lengths += (length,)
                 continue
-            size = len(data)
             return (int.from_bytes(data, "little") & step).to_bytes(size, "little")
 
 

@@ -11,6 +11,7 @@ definitions (or incomplete ones), for which rosbags' own Jazzy types are used wh
 
 from __future__ import annotations
 
+from collections import ChainMap
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -23,6 +24,7 @@ from bagkit.bag.definitions import canonical_type_name
 from bagkit.decode.direct import ValueReader, value_reader
 from bagkit.decode.errors import DecodeError, SchemaError
 from bagkit.decode.flatten import FlatValue, field_getter
+from bagkit.decode.typegraph import check_type_graph
 
 _SERVICE_EVENT_INFO = "service_msgs/msg/ServiceEventInfo"
 
@@ -67,6 +69,8 @@ class MessageTypes:
         except KeyError as exc:
             missing = exc.args[0] if exc.args else exc
             self.problems[name] = f"definition of {name} is incomplete (no definition of {missing})"
+        except SchemaError as exc:
+            self.problems[name] = f"definition of {name} cannot be used ({exc})"
 
     def _register(self, parsed: dict[str, Any]) -> None:
         """Register ``parsed`` plus the dependencies it names but does not define."""
@@ -79,6 +83,8 @@ class MessageTypes:
                         raise KeyError(dep)
                     parsed[dep] = builtin[dep]
                     missing.extend(d for d in _references({dep: builtin[dep]}) if d not in parsed)
+        # Before rosbags sees them: its code generation recurses through the types.
+        check_type_graph(ChainMap(parsed, self.typestore.fielddefs), parsed)
         self.typestore.register(parsed)
 
     def resolve(self, name: str) -> str:
@@ -127,6 +133,9 @@ class MessageTypes:
                 if len(data) < 4 or data[0] != 0 or data[1] > 1:
                     raise ValueError("not a plain CDR encapsulation")
                 message, end = (little if data[1] else big)(data[4:], 0, cls, store)
+                # rosbags cuts a string that runs past the end short instead of failing.
+                if end + 4 > len(data):
+                    raise ValueError("the message ends past the payload")
                 # CDR writers pad to 4 bytes at most (rosbags' own check).
                 if end + 4 + 3 < len(data):
                     raise ValueError(f"{len(data) - 4 - end} bytes after the message")

@@ -9,7 +9,7 @@ class RosError(BagkitError):
     """A ROS 2 runtime problem (graph, QoS, middleware)."""
 
 
-class UnknownMessageTypeError(RosError):
+class MessageClassNotFoundError(RosError):
     """A message type whose Python package is not installed."""
 
 

@@ -34,7 +34,7 @@ from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 
 from bagkit.bag import BagMessage, BagReader, TopicInfo
-from bagkit.ros.errors import PlayerError, SubscriberTimeoutError, UnknownMessageTypeError
+from bagkit.ros.errors import MessageClassNotFoundError, PlayerError, SubscriberTimeoutError
 from bagkit.ros.graph import compile_topic_pattern
 from bagkit.ros.qos import load_qos_overrides, replay_publisher_qos
 from bagkit.ros.timing import (
@@ -345,7 +345,7 @@ class Player:
                 continue
             try:
                 message_class = import_message_type(info.type)
-            except UnknownMessageTypeError:
+            except MessageClassNotFoundError:
                 self.skipped_types[name] = info.type
                 continue
             selected.append((info, message_class))

@@ -47,7 +47,7 @@ from rclpy.subscription import Subscription
 
 from bagkit.bag import BagReader, BagWriteError, BagWriter, TopicInfo
 from bagkit.bag.errors import BagError
-from bagkit.ros.errors import RecorderOptionsError, RecordingFailedError, UnknownMessageTypeError
+from bagkit.ros.errors import MessageClassNotFoundError, RecorderOptionsError, RecordingFailedError
 from bagkit.ros.graph import DiscoveredTopic, TopicFilter, discover_topics
 from bagkit.ros.qos import adapt_subscription_qos, dump_offered_qos_profiles
 from bagkit.ros.take import TakenMessages, take_serialized
@@ -729,7 +729,7 @@ class Recorder:
         type_name = found.types[0]
         try:
             message_type = import_message_type(type_name)
-        except UnknownMessageTypeError:
+        except MessageClassNotFoundError:
             self._skip(found.name, f"message type {type_name} is not installed")
             return
         qos = self.qos_overrides.get(found.name) or adapt_subscription_qos(found.offered)

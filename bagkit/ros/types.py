@@ -5,26 +5,26 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-from bagkit.ros.errors import UnknownMessageTypeError
+from bagkit.ros.errors import MessageClassNotFoundError
 
 
 def import_message_type(type_name: str) -> Any:
     """Return the generated Python class for ``pkg/msg/Name`` (``pkg/Name`` is accepted too).
 
     Raises:
-        UnknownMessageTypeError: the package is not installed or has no such message.
+        MessageClassNotFoundError: the package is not installed or has no such message.
     """
     parts = type_name.split("/")
     if len(parts) == 2:
         parts = [parts[0], "msg", parts[1]]
     if len(parts) != 3 or not all(parts):
-        raise UnknownMessageTypeError(f"not a ROS 2 message type name: {type_name!r}")
+        raise MessageClassNotFoundError(f"not a ROS 2 message type name: {type_name!r}")
     package, kind, name = parts
     try:
         module = importlib.import_module(f"{package}.{kind}")
         return getattr(module, name)
     except (ImportError, AttributeError) as exc:
-        raise UnknownMessageTypeError(f"message type {type_name} is not installed") from exc
+        raise MessageClassNotFoundError(f"message type {type_name} is not installed") from exc
 
 
 def message_type_name(message_class: Any) -> str:

@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 from bagkit.stats.errors import NothingToSummarizeError, StatsError, UnknownTopicError
-from bagkit.stats.summary import FieldStats, Summary, TopicStats, field_matcher, summarize
+from bagkit.stats.result import FieldStats, Summary, TopicStats
+from bagkit.stats.summary import summarize
 
 __all__ = [
     "FieldStats",
@@ -12,6 +13,5 @@ __all__ = [
     "Summary",
     "TopicStats",
     "UnknownTopicError",
-    "field_matcher",
     "summarize",
 ]

@@ -45,7 +45,12 @@ class Moments:
 
     def add(self, values: np.ndarray) -> None:
         """Add the rows of ``values`` (shape ``(n, width)``, any numeric dtype)."""
-        x = np.asarray(values, dtype=np.float64)
+        # Bytes from a bag can hold any float: a signalling NaN warns when cast, values near
+        # 1e308 overflow to inf when summed; both end as NaN/inf figures, without a warning.
+        with np.errstate(invalid="ignore", over="ignore"):
+            self._add(np.asarray(values, dtype=np.float64))
+
+    def _add(self, x: np.ndarray) -> None:
         n = x.shape[0]
         if not n:
             return

@@ -45,7 +45,8 @@ def alert(t_ns: int, name: str, level: bytes) -> DiagnosticArray:
 def write_bag(path: Path, mutate: Mutation | None = None) -> Path:
     """A 10 s bag: 2 Hz altitude, one note per second (no header), two alerts.
 
-    ``mutate(topic, index, msg)`` may change a message, or return None to drop it.
+    ``mutate(topic, index, msg)`` may change a message, replace it with bytes written as they
+    are, or return None to drop it.
     """
     messages: list[tuple[str, int, object]] = []
     for i in range(20):
@@ -71,7 +72,8 @@ def write_bag(path: Path, mutate: Mutation | None = None) -> Path:
             if changed is not None:
                 # receive times differ from run to run: they must not matter by default
                 receive = t + (7_000_000 if mutate else 0)
-                bag.write(topic, serialize_message(changed), log_time=receive, publish_time=t)
+                data = changed if isinstance(changed, bytes) else serialize_message(changed)
+                bag.write(topic, data, log_time=receive, publish_time=t)
     return path
 
 
@@ -86,6 +88,38 @@ def candidate(tmp_path: Path, mutate: Mutation) -> Path:
 
 def unchanged(topic: str, index: int, msg: object) -> object:
     return msg
+
+
+def test_an_undecodable_message_costs_that_message_only(golden: Path, tmp_path: Path) -> None:
+    """Lengths the payload cannot hold: the message is left out and counted, a failed message
+    each; the rest of its topic is compared as usual."""
+
+    def corrupt(topic: str, index: int, msg: object) -> object:
+        if (topic, index) not in {(ALTITUDE, 3), (ALTITUDE, 8), (NOTES, 9)}:
+            return msg
+        data = bytearray(serialize_message(msg))
+        # header.frame_id's length (altitude), the string's (note)
+        offset = 12 if topic == ALTITUDE else 4
+        data[offset : offset + 4] = (2**31 if index == 3 else 2**32 - 1).to_bytes(4, "little")
+        return bytes(data)
+
+    report = compare_bags(golden, candidate(tmp_path, corrupt))
+
+    by_topic = {t.topic: t for t in report.topics}
+    heights = by_topic[ALTITUDE]
+    assert (heights.golden_undecodable, heights.candidate_undecodable) == (0, 2)
+    assert (heights.matched, heights.missing, heights.extra) == (18, 2, 0)
+    assert heights.failed_messages == 4 and heights.divergence_count == 2 and not heights.passed
+    notes = by_topic[NOTES]
+    assert (notes.candidate_undecodable, notes.matched, notes.missing) == (1, 9, 1)
+    assert notes.failed_messages == 2
+    assert by_topic[ALERTS].passed and by_topic[ALERTS].candidate_undecodable == 0
+    assert [w.split(" (")[0] for w in report.warnings] == [
+        f"{ALTITUDE}: 0 golden and 2 candidate messages could not be decoded and are left out",
+        f"{NOTES}: 0 golden and 1 candidate messages could not be decoded and are left out",
+    ]
+    topic_json = next(t for t in report.to_dict()["topics"] if t["topic"] == ALTITUDE)
+    assert (topic_json["golden_undecodable"], topic_json["candidate_undecodable"]) == (0, 2)
 
 
 def test_identical_bags_pass(golden: Path, tmp_path: Path) -> None:

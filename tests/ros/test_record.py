@@ -23,7 +23,7 @@ from std_msgs.msg import Int32, String
 
 from bagkit.bag import BagReader
 from bagkit.ros import recorder as recorder_module
-from bagkit.ros.errors import UnknownMessageTypeError
+from bagkit.ros.errors import MessageClassNotFoundError
 from bagkit.ros.qos import parse_offered_qos_profiles
 from bagkit.ros.recorder import Recorder
 
@@ -218,7 +218,7 @@ def test_unknown_message_package_is_skipped_with_one_warning(
     def without_int32(type_name: str) -> Any:
         # Stands for a package that is not installed: the publisher's own process has it.
         if type_name == "std_msgs/msg/Int32":
-            raise UnknownMessageTypeError(f"message type {type_name} is not installed")
+            raise MessageClassNotFoundError(f"message type {type_name} is not installed")
         return known(type_name)
 
     monkeypatch.setattr(recorder_module, "import_message_type", without_int32)

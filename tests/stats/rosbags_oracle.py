@@ -8,14 +8,18 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+import pytest
 from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 T0 = 1_700_000_000_000_000_000
 FRAMES = ["imu", "imu_link", "", "a_rather_long_frame_name_x"]
+# Statistics equal numpy on the written values within this (relative) tolerance.
+RTOL = 1e-9
 
 
 @dataclass
@@ -155,8 +159,29 @@ def flag_data(n: int, t0: int = T0) -> TopicData:
     return data
 
 
-def write_bag(path: Path, topics: dict[str, TopicData], *, compressed: bool = True) -> Path:
-    """Write ``topics`` into a rosbag2 (version 9, MCAP) bag at ``path`` with rosbags."""
+@dataclass
+class RawTopic:
+    """Payloads written as given (crafted, hostile), with a definition of one's own or none
+    (then the type's from rosbags' Jazzy types)."""
+
+    type: str
+    messages: list[tuple[int, bytes]] = field(default_factory=list)
+    definition: str | None = None
+
+
+def write_bag(
+    path: Path,
+    topics: dict[str, TopicData],
+    *,
+    compressed: bool = True,
+    raw: dict[str, RawTopic] | None = None,
+) -> Path:
+    """Write ``topics`` into a rosbag2 (version 9, MCAP) bag at ``path`` with rosbags.
+
+    ``raw`` adds payloads as they are: on a topic of ``topics`` (same type) among its
+    messages, or on a topic of their own.
+    """
+    raw = raw or {}
     writer = Writer(path, version=9, storage_plugin=StoragePlugin.MCAP)
     if compressed:
         writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
@@ -165,12 +190,45 @@ def write_bag(path: Path, topics: dict[str, TopicData], *, compressed: bool = Tr
             topic: writer.add_connection(topic, data.type, typestore=TYPESTORE)
             for topic, data in topics.items()
         }
+        for topic, extra in raw.items():
+            if topic in connections:
+                continue
+            if extra.definition is None:
+                connections[topic] = writer.add_connection(topic, extra.type, typestore=TYPESTORE)
+            else:
+                connections[topic] = writer.add_connection(
+                    topic, extra.type, msgdef=extra.definition, rihs01="RIHS01_" + "0" * 64
+                )
         ordered = sorted(
-            (log_time, topic, msg)
-            for topic, data in topics.items()
-            for log_time, msg in data.messages
+            [
+                (log_time, topic, bytes(TYPESTORE.serialize_cdr(msg, data.type)))
+                for topic, data in topics.items()
+                for log_time, msg in data.messages
+            ]
+            + [(t, topic, payload) for topic, extra in raw.items() for t, payload in extra.messages]
         )
-        for log_time, topic, msg in ordered:
-            data = bytes(TYPESTORE.serialize_cdr(msg, topics[topic].type))
-            writer.write(connections[topic], log_time, data)
+        for log_time, topic, payload in ordered:
+            writer.write(connections[topic], log_time, payload)
     return path
+
+
+def check_topic(stats: Any, data: TopicData, mask: np.ndarray | None = None) -> None:
+    """Every reported field against numpy on the values the generator wrote."""
+    assert stats.type == data.type
+    assert {f.field for f in stats.fields} == set(data.values)
+    for f in stats.fields:
+        values = data.expected(f.field)
+        if mask is not None:
+            values = values[mask]
+        finite = values[~np.isnan(values)]
+        assert f.count == len(finite), f.field
+        assert f.nan_count == int(np.isnan(values).sum()), f.field
+        if not len(finite):
+            assert f.min is None and f.mean is None and f.std is None
+            continue
+        assert f.min == finite.min() and f.max == finite.max(), f.field
+        assert f.mean == pytest.approx(finite.mean(), rel=RTOL, abs=1e-12), f.field
+        if len(finite) > 1:
+            assert f.std == pytest.approx(finite.std(ddof=1), rel=RTOL, abs=1e-12), f.field
+        else:
+            assert f.std is None

@@ -1,9 +1,8 @@
-"""summarize() against numpy on bags written by rosbags, fast path against general path."""
+"""summarize() against numpy on bags written by rosbags: selection, pooling, salvage, errors."""
 
 from __future__ import annotations
 
 import shutil
-from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
@@ -12,10 +11,12 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import get_types_from_msg
 from rosbags.typesys.store import Typestore
 from rosbags_oracle import (
+    RTOL,
     T0,
     TYPESTORE,
+    RawTopic,
     TopicData,
-    diagnostics_data,
+    check_topic,
     flag_data,
     imu_data,
     scan_data,
@@ -26,59 +27,14 @@ from bagkit.bag import BagNotFoundError
 from bagkit.stats import (
     NothingToSummarizeError,
     StatsError,
-    Summary,
-    TopicStats,
     UnknownTopicError,
     summarize,
 )
-from bagkit.stats import summary as summary_module
-
-RTOL = 1e-9
 
 
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(20261122)
-
-
-def _check_topic(stats: TopicStats, data: TopicData, mask: np.ndarray | None = None) -> None:
-    """Every reported field against numpy on the values the generator wrote."""
-    assert stats.type == data.type
-    assert {f.field for f in stats.fields} == set(data.values)
-    for f in stats.fields:
-        values = data.expected(f.field)
-        if mask is not None:
-            values = values[mask]
-        finite = values[~np.isnan(values)]
-        assert f.count == len(finite), f.field
-        assert f.nan_count == int(np.isnan(values).sum()), f.field
-        if not len(finite):
-            assert f.min is None and f.mean is None and f.std is None
-            continue
-        assert f.min == finite.min() and f.max == finite.max(), f.field
-        assert f.mean == pytest.approx(finite.mean(), rel=RTOL, abs=1e-12), f.field
-        if len(finite) > 1:
-            assert f.std == pytest.approx(finite.std(ddof=1), rel=RTOL, abs=1e-12), f.field
-        else:
-            assert f.std is None
-
-
-@pytest.fixture(scope="module")
-def topics() -> dict[str, TopicData]:
-    rng = np.random.default_rng(5)
-    # 4000 Imu messages fill more than one 1 MiB chunk of rosbags' writer.
-    return {
-        "/imu/data": imu_data(rng, 4000),
-        "/scan": scan_data(rng, 60),
-        "/diagnostics": diagnostics_data(rng, 30),
-        "/flag": flag_data(20),
-    }
-
-
-@pytest.fixture(scope="module")
-def bag(tmp_path_factory: pytest.TempPathFactory, topics: dict[str, TopicData]) -> Path:
-    """Written once per module: the tests only read it."""
-    return write_bag(tmp_path_factory.mktemp("stats") / "bag", topics)
 
 
 def test_every_field_matches_numpy(bag: Path, topics: dict[str, TopicData]) -> None:
@@ -87,7 +43,7 @@ def test_every_field_matches_numpy(bag: Path, topics: dict[str, TopicData]) -> N
     for stats in result.topics:
         data = topics[stats.topic]
         assert stats.count == len(data.messages)
-        _check_topic(stats, data)
+        check_topic(stats, data)
     times = [t for data in topics.values() for t, _ in data.messages]
     assert (result.start_ns, result.end_ns) == (min(times), max(times))
     assert result.skipped == {} and result.problems == ()
@@ -100,41 +56,6 @@ def test_rate_is_from_first_to_last_message(bag: Path, topics: dict[str, TopicDa
     assert imu.rate_hz == pytest.approx((len(times) - 1) / ((times[-1] - times[0]) / 1e9))
 
 
-def test_fast_path_is_taken_and_agrees_with_general_path(
-    bag: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    decoded_one_by_one: list[str] = []
-    general = summary_module._TopicAccumulator.add_payloads
-
-    def counting(self: summary_module._TopicAccumulator, payloads: Iterable[bytes]) -> None:
-        payloads = list(payloads)
-        decoded_one_by_one.extend(self.topic for _ in payloads)
-        general(self, payloads)
-
-    monkeypatch.setattr(summary_module._TopicAccumulator, "add_payloads", counting)
-    fast = summarize([bag])
-    # Only the type with sequences of messages goes through the general decoder.
-    assert set(decoded_one_by_one) == {"/diagnostics"}
-
-    decoded_one_by_one.clear()
-    monkeypatch.setattr(summary_module, "ROW_BATCH", 100)  # many batches to merge
-    slow = summarize([bag], bulk=False)
-    assert set(decoded_one_by_one) == {"/imu/data", "/scan", "/diagnostics", "/flag"}
-    assert len(fast.topics) == len(slow.topics)
-    for a, b in zip(fast.topics, slow.topics, strict=True):
-        assert (a.topic, a.count, a.rate_hz) == (b.topic, b.count, b.rate_hz)
-        for fa, fb in zip(a.fields, b.fields, strict=True):
-            assert (fa.field, fa.count, fa.nan_count, fa.min, fa.max) == (
-                fb.field,
-                fb.count,
-                fb.nan_count,
-                fb.min,
-                fb.max,
-            )
-            for x, y in ((fa.mean, fb.mean), (fa.std, fb.std)):
-                assert (x is None and y is None) or x == pytest.approx(y, rel=RTOL, abs=1e-12)
-
-
 def test_time_window_selects_messages(bag: Path, topics: dict[str, TopicData]) -> None:
     start, end = T0 + 2_000_000_000, T0 + 9_000_000_000
     result = summarize([bag], start_ns=start, end_ns=end)
@@ -144,7 +65,7 @@ def test_time_window_selects_messages(bag: Path, topics: dict[str, TopicData]) -
         inside = np.array([start <= t < end for t, _ in data.messages])
         assert stats.count == int(inside.sum())
         if stats.topic in ("/imu/data", "/flag"):  # one value per message: mask by message
-            _check_topic(stats, data, mask=inside)
+            check_topic(stats, data, mask=inside)
 
 
 def test_topic_and_field_selection(bag: Path, topics: dict[str, TopicData]) -> None:
@@ -203,25 +124,8 @@ def test_several_bags_and_split_files_are_pooled(tmp_path: Path, rng: np.random.
     }
     for stats in result.topics:
         assert stats.count == len(pooled[stats.topic].messages)
-        _check_topic(stats, pooled[stats.topic])
+        check_topic(stats, pooled[stats.topic])
     assert result.end_ns == third["/imu/data"].messages[-1][0]
-
-
-def test_dataframe_has_a_row_per_field(bag: Path) -> None:
-    result = summarize([bag], topics=["/imu/data"])
-    frame = result.to_dataframe()
-    assert len(frame) == len(result.topics[0].fields)
-    row = frame.set_index("field").loc["linear_acceleration.z"]
-    field = next(f for f in result.topics[0].fields if f.field == "linear_acceleration.z")
-    assert (row["count"], row["mean"], row["std"]) == (field.count, field.mean, field.std)
-
-
-def test_json_document_has_the_documented_keys(bag: Path) -> None:
-    document = summarize([bag]).to_dict()
-    assert list(document) == ["bags", "start_ns", "end_ns", "duration_s", "topics"]
-    topic = document["topics"][0]
-    assert list(topic) == ["topic", "type", "count", "rate_hz", "fields"]
-    assert list(topic["fields"][0]) == ["field", "count", "nan_count", "min", "max", "mean", "std"]
 
 
 def test_bad_input_raises_readable_errors(bag: Path, tmp_path: Path) -> None:
@@ -241,10 +145,6 @@ def test_empty_bag_is_a_clear_error(tmp_path: Path) -> None:
         summarize([empty])
 
 
-def test_result_is_a_summary(bag: Path) -> None:
-    assert isinstance(summarize([bag]), Summary)
-
-
 def test_crashed_recording_is_salvaged(tmp_path: Path, rng: np.random.Generator) -> None:
     """A file cut short (no summary, a torn chunk): the intact chunks are summarized."""
     data = imu_data(rng, 10_000)
@@ -258,7 +158,7 @@ def test_crashed_recording_is_salvaged(tmp_path: Path, rng: np.random.Generator)
     assert 0 < imu.count < len(data.messages)
     assert any("truncated" in problem for problem in result.problems), result.problems
     # Chunks hold consecutive messages: what survives is the first `count` of them.
-    _check_topic(imu, data, mask=np.arange(len(data.messages)) < imu.count)
+    check_topic(imu, data, mask=np.arange(len(data.messages)) < imu.count)
 
 
 def test_a_topic_with_two_types_across_bags_is_an_error(
@@ -327,4 +227,43 @@ def test_other_mcap_writer_layouts(tmp_path: Path, layout: str) -> None:
         writer.finish()
     (imu,) = summarize([path]).topics
     assert imu.count == len(data.messages)
-    _check_topic(imu, data)
+    check_topic(imu, data)
+
+
+def test_recursive_and_deep_types_are_skipped_the_others_summarized(tmp_path: Path) -> None:
+    separator = "=" * 80 + "\n"
+    chain = "".join(
+        (f"{separator}MSG: deep/T{i}\n" if i else "") + f"deep/T{i + 1} next\nfloat64 v\n"
+        for i in range(4999)
+    )
+    raw = {
+        "/self": RawTopic("a/msg/Self", [(T0, b"\x00\x01\x00\x00")], "a/Self child\n"),
+        "/kids": RawTopic("b/msg/Kids", [(T0, b"\x00\x01\x00\x00")], "b/Kids[] kids\n"),
+        "/ping": RawTopic(
+            "c/msg/Ping",
+            [(T0, b"\x00\x01\x00\x00")],
+            f"c/Pong pong\n{separator}MSG: c/Pong\nc/Ping[] ping\n",
+        ),
+        "/deep": RawTopic(
+            "deep/msg/T0",
+            [(T0, b"\x00\x01\x00\x00")],
+            f"{chain}{separator}MSG: deep/T4999\nint8 end\n",
+        ),
+    }
+    data = imu_data(np.random.default_rng(2), 50)
+    bag = write_bag(tmp_path / "types", {"/imu/data": data}, raw=raw)
+
+    result = summarize([bag])
+
+    (imu,) = result.topics
+    check_topic(imu, data)
+    assert result.skipped == {
+        "/deep": "definition of deep/msg/T0 cannot be used "
+        "(deep/msg/T0 nests types more than 100 deep)",
+        "/kids": "definition of b/msg/Kids cannot be used "
+        "(b/msg/Kids is recursive (b/msg/Kids -> b/msg/Kids))",
+        "/ping": "definition of c/msg/Ping cannot be used "
+        "(c/msg/Ping is recursive (c/msg/Ping -> c/msg/Pong -> c/msg/Ping))",
+        "/self": "definition of a/msg/Self cannot be used "
+        "(a/msg/Self is recursive (a/msg/Self -> a/msg/Self))",
+    }

@@ -1,7 +1,8 @@
-"""PaddingZeroer: one encoding per message, whatever a writer left in the alignment padding."""
+"""CDR layouts; PaddingZeroer: one encoding per message, whatever a writer left in the padding."""
 
 from __future__ import annotations
 
+import struct
 from typing import Any
 
 import numpy as np
@@ -9,6 +10,7 @@ import pytest
 from rclpy.serialization import serialize_message
 from rosbags.typesys import Stores, get_typestore
 
+from bagkit.decode import DecodeError
 from bagkit.decode.layout import CdrLayout, PaddingZeroer
 from bagkit.ros.types import import_message_type
 
@@ -93,3 +95,18 @@ def test_garbage_in_the_padding_is_zeroed(typename: str, message: Any) -> None:
 
 def test_types_with_sequences_of_messages_have_no_fixed_layout() -> None:
     assert CdrLayout.of(JAZZY, "diagnostic_msgs/msg/DiagnosticArray") is None
+
+
+@pytest.mark.parametrize("length", [9, 2**31, 2**32 - 1])
+def test_a_length_prefix_larger_than_the_payload_is_a_decode_error(length: int) -> None:
+    """Nothing is sized from the prefix (a mask of 2**31 bytes would take 2 GiB)."""
+    scan = import_message_type("sensor_msgs/msg/LaserScan")()
+    scan.header.frame_id = "lidar"
+    data = bytearray(serialize_message(scan))
+    layout = CdrLayout.of(JAZZY, "sensor_msgs/msg/LaserScan")
+    assert layout is not None
+    data[12:16] = struct.pack("<I", length)  # header.frame_id's length
+    with pytest.raises(DecodeError, match="length prefix"):
+        PaddingZeroer(layout)(bytes(data))
+    with pytest.raises(DecodeError, match="length prefix"):
+        PaddingZeroer(layout)(bytes(data[:14]))

@@ -6,10 +6,10 @@ import struct
 
 import numpy as np
 import pytest
+from random_messages import JAZZY, flat_equal, random_message
 from rosbags.typesys import Stores, get_types_from_idl, get_typestore
-from test_decode import JAZZY, _flat_equal, random_message
 
-from bagkit.decode import DecodeError, flatten_message, leaf_fields
+from bagkit.decode import DecodeError, MessageTypes, flatten_message, leaf_fields
 from bagkit.decode.direct import value_reader
 
 
@@ -46,7 +46,7 @@ def test_every_jazzy_type_reads_like_its_decoded_message() -> None:
                 values = read(memoryview(payload))
                 assert len(values) == len(selection)
                 for path, value in zip(selection, values, strict=True):
-                    assert _flat_equal(value, flat[path]), (typename, path, value, flat[path])
+                    assert flat_equal(value, flat[path]), (typename, path, value, flat[path])
             checked += 1
     assert checked > 300
 
@@ -95,3 +95,36 @@ def test_bytes_that_do_not_match_the_type_are_a_decode_error() -> None:
 def test_an_unknown_path_is_a_key_error() -> None:
     with pytest.raises(KeyError, match="no leaf"):
         value_reader(JAZZY, "sensor_msgs/msg/Temperature", ["pressure"], _no_fallback)
+
+
+@pytest.mark.parametrize(
+    ("typename", "offset", "paths"),
+    [
+        ("sensor_msgs/msg/Temperature", 12, ["temperature"]),  # header.frame_id's length
+        ("sensor_msgs/msg/LaserScan", 52, ["ranges[]"]),  # ranges' count
+        ("diagnostic_msgs/msg/DiagnosticArray", 24, ["status[].level"]),  # status' count
+    ],
+)
+@pytest.mark.parametrize("length", [2**31, 2**32 - 1])
+def test_a_length_prefix_larger_than_the_payload_is_a_decode_error(
+    typename: str, offset: int, paths: list[str], length: int
+) -> None:
+    msg, _ = _serializable_message(typename, np.random.default_rng(6))
+    msg.header.frame_id = "base"  # type: ignore[attr-defined]
+    data = bytearray(JAZZY.serialize_cdr(msg, typename))
+    data[offset : offset + 4] = struct.pack("<I", length)
+    read = value_reader(JAZZY, typename, paths, _no_fallback)
+    with pytest.raises(DecodeError, match="length prefix says more than the payload holds"):
+        read(bytes(data))
+
+
+def test_a_string_running_past_the_end_is_a_decode_error() -> None:
+    """The last field a string whose length leaves the payload: not read short, refused."""
+    typename = "std_msgs/msg/String"
+    read = value_reader(JAZZY, typename, ["data"], _no_fallback)
+    assert read(b"\x00\x01\x00\x00\x03\x00\x00\x00ab\x00") == ["ab"]
+    with pytest.raises(DecodeError, match="length prefix"):
+        read(b"\x00\x01\x00\x00\x09\x00\x00\x00ab\x00")
+    types = MessageTypes.from_definitions({typename: "string data\n"})
+    with pytest.raises(DecodeError, match="does not decode"):
+        types.deserialize(b"\x00\x01\x00\x00\x09\x00\x00\x00ab\x00", typename)

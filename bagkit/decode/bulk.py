@@ -2,13 +2,18 @@
 
 Messages are grouped by the values of their length prefixes (string lengths such as
 ``header.frame_id``, sequence counts), which fixes every other field's offset; each group is
-then read with one structured dtype. Messages that do not fit (big-endian or XCDR2
-encapsulation, unexpected sizes, too many distinct layouts) are handed back for the general
-decoder, so bulk decoding never guesses.
+then read with one structured dtype and handed out as columns, one array per leaf field
+(:meth:`BulkGroup.columns`). Messages that do not fit (big-endian or XCDR2 encapsulation,
+unexpected sizes, a length prefix larger than the payload, a span outside the buffer, too many
+distinct layouts) are handed back for the general decoder, so bulk decoding never guesses.
+
+Statistics accumulate moments from the columns; a table builder writes each group's columns
+at its ``indexes`` and fills the leftover rows from the general decoder.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,6 +34,11 @@ class BulkGroup:
     layout: ResolvedLayout
     indexes: np.ndarray
     values: np.ndarray
+
+    def columns(self, paths: Iterable[str]) -> dict[str, np.ndarray]:
+        """Leaf path -> values of this group's messages (views of the buffer, in ``indexes``
+        order); see :meth:`ResolvedLayout.columns`."""
+        return self.layout.columns(self.values, paths)
 
 
 def read_u32(buf: np.ndarray, positions: np.ndarray) -> np.ndarray:
@@ -54,6 +64,11 @@ def gather(buf: np.ndarray, starts: np.ndarray, dtype: np.dtype) -> np.ndarray:
     return sliding_window_view(buf, size)[starts].view(dtype).ravel()
 
 
+def spans_inside(size: int, starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+    """Which spans ``[start, start + length)`` lie inside a buffer of ``size`` bytes."""
+    return (starts >= 0) & (lengths >= 0) & (starts <= size - lengths)
+
+
 def decode_bulk(
     buf: np.ndarray, starts: np.ndarray, lengths: np.ndarray, layout: CdrLayout
 ) -> tuple[list[BulkGroup], np.ndarray]:
@@ -66,10 +81,11 @@ def decode_bulk(
         layout: the type's CDR layout.
 
     Returns:
-        The decoded groups, and the indexes of the messages left for the general decoder.
+        The decoded groups, and the indexes (ascending) of the messages left for the general
+        decoder, which include every span that is not inside ``buf``.
     """
     indexes = np.arange(len(starts))
-    plain = lengths >= 4
+    plain = spans_inside(len(buf), starts, lengths) & (lengths >= 4)
     head = starts[plain]
     plain[plain] = (buf[head] == CDR_LE[0]) & (buf[head + 1] == CDR_LE[1])
     leftover = [indexes[~plain]]
@@ -81,10 +97,7 @@ def decode_bulk(
             continue
         step = layout.resolve(prefixes)
         if isinstance(step, NeedLength):
-            fits = lengths[members] >= step.offset + 4
-            leftover.append(members[~fits])
-            members = members[fits]
-            values = read_u32(buf, starts[members] + step.offset)
+            members, values = _read_prefixes(buf, starts, lengths, members, step, leftover=leftover)
             if not len(values):
                 continue
             low = int(values.min())
@@ -106,3 +119,27 @@ def decode_bulk(
         if len(members):
             groups.append(BulkGroup(step, members, gather(buf, starts[members], step.dtype)))
     return groups, np.sort(np.concatenate(leftover))
+
+
+def _read_prefixes(
+    buf: np.ndarray,
+    starts: np.ndarray,
+    lengths: np.ndarray,
+    members: np.ndarray,
+    step: NeedLength,
+    *,
+    leftover: list[np.ndarray],
+) -> tuple[np.ndarray, np.ndarray]:
+    """The members whose prefix at ``step`` fits in their payload, and those prefixes.
+
+    The others go to ``leftover``: a prefix is only trusted once the rest of the payload can
+    hold what it counts, so no layout (nor dtype) is ever built from an impossible length.
+    """
+    room = lengths[members] - (step.offset + 4)
+    fits = room >= 0
+    leftover.append(members[~fits])
+    members, room = members[fits], room[fits]
+    values = read_u32(buf, starts[members] + step.offset)
+    fits = values.astype(np.int64) * step.element_size <= room
+    leftover.append(members[~fits])
+    return members[fits], values[fits]

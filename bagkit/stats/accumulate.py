@@ -1,0 +1,197 @@
+"""Running statistics of one topic, fed by bulk-decoded columns or by payloads one at a time."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from typing import Any
+
+import numpy as np
+
+from bagkit.bag.definitions import INTEGER_TYPES
+from bagkit.decode import DecodeError, LeafField, MessageTypes
+from bagkit.decode.bulk import decode_bulk, spans_inside
+from bagkit.decode.direct import ValueReader
+from bagkit.decode.layout import CdrLayout
+from bagkit.stats.moments import Moments
+from bagkit.stats.result import FieldStats, TopicStats
+
+# Messages decoded one by one are buffered this many at a time before their moments are taken,
+# or fewer when their pooled arrays (an image's data[]) hold more than POOLED_BATCH values.
+ROW_BATCH = 4096
+POOLED_BATCH = 1 << 20
+
+
+class TopicAccumulator:
+    """Running statistics of one topic: one Moments over its scalar fields, one per pooled."""
+
+    def __init__(
+        self,
+        topic: str,
+        type_name: str,
+        leaves: list[LeafField],
+        *,
+        layout: CdrLayout | None,
+        types: MessageTypes,
+        signature: tuple[LeafField, ...],
+    ) -> None:
+        self.topic = topic
+        self.type_name = type_name
+        self.leaves = leaves
+        self.layout = layout
+        self.scalar_paths = [leaf.path for leaf in leaves if not leaf.pooled]
+        self.paths = [leaf.path for leaf in leaves]
+        self.read_values = self.value_reader(types)
+        self.column = {path: i for i, path in enumerate(self.scalar_paths)}
+        self.scalars = Moments(len(self.scalar_paths))
+        self.pooled = {leaf.path: Moments(1) for leaf in leaves if leaf.pooled}
+        self.count = 0
+        self.first_ns: int | None = None
+        self.last_ns: int | None = None
+        self.failures = 0
+        self.first_failure = ""
+        # Every leaf of the type as first seen: pooled bags must define the type the same way.
+        self.signature = signature
+        self._rows: list[list[Any]] = []
+        self._pooled_rows: list[list[Any]] = []
+        self._pooled_size = 0
+
+    def value_reader(self, types: MessageTypes) -> ValueReader:
+        """payload -> the values of ``scalar_paths``, then of the pooled paths."""
+        pooled = [leaf.path for leaf in self.leaves if leaf.pooled]
+        return types.value_reader(self.type_name, [*self.scalar_paths, *pooled])
+
+    def add_times(self, log_times: np.ndarray) -> None:
+        if not len(log_times):
+            return
+        self.count += len(log_times)
+        first, last = int(log_times.min()), int(log_times.max())
+        self.first_ns = first if self.first_ns is None else min(self.first_ns, first)
+        self.last_ns = last if self.last_ns is None else max(self.last_ns, last)
+
+    def add_spans(self, records: bytes, starts: np.ndarray, lengths: np.ndarray) -> None:
+        """Add the payloads ``records[starts[i] : starts[i] + lengths[i]]`` (one chunk's).
+
+        Decoded in bulk where the type has a layout, the rest one by one; a span that is not
+        inside ``records`` counts as a message that could not be decoded.
+        """
+        with np.errstate(invalid="ignore"):  # casts of signalling NaNs (see Moments.add)
+            self._add_spans(records, starts, lengths)
+
+    def _add_spans(self, records: bytes, starts: np.ndarray, lengths: np.ndarray) -> None:
+        buf = np.frombuffer(records, dtype=np.uint8)
+        if self.layout is not None:
+            groups, leftover = decode_bulk(buf, starts, lengths, self.layout)
+            for group in groups:
+                self.add_columns(group.columns(self.paths), len(group.indexes))
+        else:
+            leftover = np.arange(len(starts))
+        starts, lengths = starts[leftover], lengths[leftover]
+        inside = spans_inside(len(buf), starts, lengths)
+        if not inside.all():
+            self.fail(DecodeError("payload outside its chunk"), int((~inside).sum()))
+            starts, lengths = starts[inside], lengths[inside]
+        # Views, not copies: add_payloads keeps nothing that points into the chunk.
+        view = memoryview(records)
+        self.add_payloads(
+            view[begin : begin + length]
+            for begin, length in zip(starts.tolist(), lengths.tolist(), strict=True)
+        )
+
+    def add_columns(self, columns: dict[str, np.ndarray], count: int) -> None:
+        """Add ``count`` messages decoded in bulk: leaf path -> values (see ``BulkGroup``)."""
+        # Column-major: filling a column and reducing along it are contiguous (2x faster).
+        matrix = np.empty((count, len(self.scalar_paths)), order="F")
+        for path, values in columns.items():
+            column = self.column.get(path)
+            if column is None:
+                self.pooled[path].add(values.reshape(-1, 1))
+            else:
+                matrix[:, column] = values
+        if self.scalar_paths:
+            self.scalars.add(matrix)
+
+    def add_payloads(self, payloads: Iterable[bytes | memoryview]) -> None:
+        """Decode messages one by one (the general path) and add them."""
+        with np.errstate(invalid="ignore"):  # casts of signalling NaNs (see Moments.add)
+            self._add_payloads(payloads)
+
+    def _add_payloads(self, payloads: Iterable[bytes | memoryview]) -> None:
+        read_values, rows = self.read_values, self._rows
+        split = len(self.scalar_paths)
+        for data in payloads:
+            try:
+                values = read_values(data)
+            except DecodeError as exc:
+                self.fail(exc)
+                continue
+            if self.pooled:
+                rows.append(values[:split])
+                # Copies: a decoded array may be a view of the chunk, which must not be kept.
+                pooled = [np.array(v, dtype=np.float64) for v in values[split:]]
+                self._pooled_rows.append(pooled)
+                self._pooled_size += sum(len(v) for v in pooled)
+            else:
+                rows.append(values)
+            if len(rows) >= ROW_BATCH or self._pooled_size >= POOLED_BATCH:
+                self.flush()
+
+    def flush(self) -> None:
+        """Take the moments of the messages buffered by :meth:`add_payloads`."""
+        if not self._rows:
+            return
+        with np.errstate(invalid="ignore"):  # casts of signalling NaNs (see Moments.add)
+            self._flush()
+
+    def _flush(self) -> None:
+        if self.scalar_paths:
+            # np.array of a list of rows converts faster than array('d') or np.fromiter.
+            self.scalars.add(np.array(self._rows, dtype=np.float64))
+        for j, moments in enumerate(self.pooled.values()):
+            parts = [np.asarray(row[j], dtype=np.float64) for row in self._pooled_rows]
+            moments.add(np.concatenate(parts).reshape(-1, 1))
+        self._rows.clear()
+        self._pooled_rows.clear()
+        self._pooled_size = 0
+
+    def fail(self, exc: Exception, count: int = 1) -> None:
+        """Count ``count`` messages that could not be decoded (the first reason is kept)."""
+        self.failures += count
+        self.first_failure = self.first_failure or str(exc)
+
+    def result(self) -> TopicStats:
+        self.flush()
+        std = self.scalars.std()
+        fields = []
+        for leaf in self.leaves:
+            if leaf.pooled:
+                moments, column = self.pooled[leaf.path], 0
+                leaf_std = moments.std()[0]
+            else:
+                moments, column = self.scalars, self.column[leaf.path]
+                leaf_std = std[column]
+            fields.append(_field_stats(leaf, moments, column, float(leaf_std)))
+        rate = None
+        if self.count > 1 and self.first_ns is not None and self.last_ns is not None:
+            span = (self.last_ns - self.first_ns) / 1e9
+            rate = (self.count - 1) / span if span > 0 else None
+        return TopicStats(
+            self.topic, self.type_name, self.count, rate, tuple(fields), self.failures
+        )
+
+
+def _field_stats(leaf: LeafField, moments: Moments, column: int, std: float) -> FieldStats:
+    count = int(moments.count[column])
+    nan_count = int(moments.nan_count[column])
+    if count == 0:
+        return FieldStats(leaf.path, 0, nan_count, None, None, None, None)
+    low, high = float(moments.min[column]), float(moments.max[column])
+    as_int = leaf.base in INTEGER_TYPES
+    return FieldStats(
+        leaf.path,
+        count,
+        nan_count,
+        int(low) if as_int else low,
+        int(high) if as_int else high,
+        float(moments.mean[column]),
+        None if np.isnan(std) and count < 2 else std,
+    )
