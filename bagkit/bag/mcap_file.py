@@ -34,6 +34,9 @@ from bagkit.bag.types import BagMessage, TopicInfo, make_message
 
 _LOG_TIME = operator.attrgetter("log_time")
 _OFFSET = operator.itemgetter(0)
+# Overlapping chunks are merged in log-time order while they need at most this many times
+# max_chunk_size of memory (uncompressed); beyond, order is given up rather than memory.
+MERGE_BUDGET_CHUNKS = 4
 _NO_SPANS = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64))
 
 
@@ -209,18 +212,34 @@ class McapFile(StorageFile):
         lower = start_ns if start_ns is not None else 0
         upper = end_ns if end_ns is not None else 1 << 64
         # Blocks are sorted by start time. A block that starts before the ones already taken
-        # end overlaps them: such a group is merged; groups simply follow one another.
+        # end overlaps them: such a group is merged (all its chunks in memory at once), up to
+        # MERGE_BUDGET_CHUNKS chunks' worth; groups simply follow one another.
+        budget = MERGE_BUDGET_CHUNKS * self.max_chunk_size
         group: list[tuple[int, Iterator[BagMessage]]] = []
-        group_end = 0
+        group_end = group_bytes = 0
         for block in self._blocks(start_ns, end_ns):
             if not _may_hold(block, wanted):
                 continue
-            if group and block.message_start_time >= group_end:
+            size = block.uncompressed_size if isinstance(block, ChunkIndex) else block.length
+            size = min(size, self.max_chunk_size)  # larger ones are not read
+            overlaps = bool(group) and block.message_start_time < group_end
+            if group and (not overlaps or group_bytes + size > budget):
+                if overlaps:
+                    self._out_of_order()
                 yield from _merged(group)
-                group = []
+                group, group_bytes = [], 0
             group_end = max(group_end, block.message_end_time) if group else block.message_end_time
+            group_bytes += size
             group.append((extent(block)[0], self._block_messages(block, wanted, lower, upper)))
         yield from _merged(group)
+
+    def _out_of_order(self) -> None:
+        message = (
+            f"{self.path.name}: chunks overlapping in time beyond {MERGE_BUDGET_CHUNKS} chunks' "
+            "worth of memory: some messages come out of log-time order"
+        )
+        if message not in self.problems:
+            self.problems.append(message)
 
     def _block_messages(
         self, block: Block, wanted: set[int], lower: int, upper: int

@@ -199,3 +199,25 @@ def test_a_truncated_record_length_inside_a_chunk_loses_that_chunk(
         f"sample_0.mcap: chunk at byte {chunk.chunk_start_offset}: 1 message index entries "
         "point at no message: those messages are lost"
     ]
+
+
+def test_overlapping_chunks_are_merged_within_a_memory_budget(tmp_path: Path) -> None:
+    from bag_samples import STRING, string_cdr
+
+    from bagkit.bag import BagWriter, TopicInfo
+
+    times = [(i * 7919) % 1000 for i in range(1000)]  # every chunk spans almost all of them
+    with BagWriter(tmp_path / "overlap", chunk_size=2_000, compression="none") as bag:
+        bag.add_topic(TopicInfo("/t", STRING))
+        for i, t in enumerate(times):
+            bag.write("/t", string_cdr(f"m{i}"), log_time=1 + t)
+    with BagReader(tmp_path / "overlap") as reader:
+        got = [m.log_time for m in reader.messages()]
+        assert got == sorted(1 + t for t in times)
+        assert reader.problems == []
+    with BagReader(tmp_path / "overlap", max_chunk_size=4_000) as reader:
+        got = [m.log_time for m in reader.messages()]
+        assert sorted(got) == sorted(1 + t for t in times)
+        assert got != sorted(got)
+        assert len(reader.problems) == 1
+        assert "chunks overlapping in time beyond 4 chunks' worth of memory" in reader.problems[0]

@@ -84,10 +84,13 @@ def test_parse_inverts_encode(record: object, parse: object) -> None:
     assert parse(data[RECORD_HEADER.size :]) == record  # type: ignore[operator]
 
 
-@pytest.mark.parametrize(("record", "parse"), SAMPLES, ids=lambda x: type(x).__name__)
+# The stream reader yields a Footer only at the end of a file: the others, after a Header.
+@pytest.mark.parametrize(
+    ("record", "parse"),
+    [s for s in SAMPLES if not isinstance(s[0], Footer)],
+    ids=lambda x: type(x).__name__,
+)
 def test_the_mcap_reader_reads_what_is_encoded(record: object, parse: object) -> None:
-    if isinstance(record, Footer):
-        pytest.skip("the stream reader yields a footer only at the end of a file")
     stream = MAGIC + encode(Header(profile="ros2", library="x")) + encode(record)  # type: ignore[arg-type]
     read = StreamReader(io.BytesIO(stream), skip_magic=False).records
     assert next(read) == Header(profile="ros2", library="x")

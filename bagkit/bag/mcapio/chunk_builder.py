@@ -1,8 +1,8 @@
 """The open chunk of a writer: Message records appended in place, their index per channel.
 
 bagkit's own (the ``mcap`` package's ``Writer`` builds a record object and a Python list entry
-per message): 2.5-2.8x the ``mcap`` Writer's throughput in ``python -m benchmarks info``, which
-the recorder needs at its 60k msg/s.
+per message): kept for "ratio bagkit/mcap Writer" and "ratio to the recorder's need" of
+``python -m benchmarks info`` (figures in benchmarks/README.md, "bagkit.bag.mcapio").
 """
 
 from __future__ import annotations

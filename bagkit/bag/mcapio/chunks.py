@@ -3,8 +3,9 @@
 Decompression never produces more than the chunk declares, and a chunk may declare at most
 ``max_chunk_size`` bytes (:data:`DEFAULT_MAX_CHUNK_SIZE`), so a compression bomb costs one
 error, not the machine's memory. Message positions come from the Message Index records as
-numpy arrays (``MESSAGE_INDEX_DTYPE``); the ``mcap`` package's reader builds a Python object
-per message instead, about 10x slower here (see benchmarks/README.md, "bagkit.bag.mcapio").
+numpy arrays (``MESSAGE_INDEX_DTYPE``) instead of the ``mcap`` package's reader, which builds a
+Python object per message: kept for "read 100,000 messages ... bagkit/mcap reader" of
+``python -m benchmarks info`` (figures in benchmarks/README.md, "bagkit.bag.mcapio").
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import numpy as np
 import zstandard
 from numpy.lib.stride_tricks import sliding_window_view
 
-# zlib-ng's CRC-32 (same polynomial as zlib's) runs at ~17x zlib's speed here (PCLMUL), and
+# zlib-ng's CRC-32 (same polynomial as zlib's) is many times faster than zlib's (PCLMUL), and
 # every chunk is checksummed on write and on read.
 from zlib_ng.zlib_ng import crc32
 

@@ -2,9 +2,10 @@
 
 The data section is walked record by record. A chunk followed by its Message Index records is
 counted from them without being decompressed; the last chunk before a cut, and chunks without
-indexes, are decompressed and CRC-checked. bagkit's own scan (the ``mcap`` package stops at the
-first bad record and has no count without decompressing) salvages a 1M-message file cut at 90%
-in about 10 ms (benchmarks, ``info``).
+indexes, are decompressed and CRC-checked. bagkit's own scan: the ``mcap`` package's stream
+reader stops at the first bad record and decompresses every chunk to count its messages; kept
+for "info on the large bag cut at 90% (salvage scan)" of ``python -m benchmarks info`` (figures
+in benchmarks/README.md, "bagkit.bag.mcapio").
 """
 
 from __future__ import annotations

@@ -3,9 +3,9 @@
 Every offset and length of the summary is checked before it is used: a summary that does not
 fit the file is not used (the file is scanned instead, :mod:`bagkit.bag.mcapio.salvage`), and a
 chunk or metadata index pointing outside the data section, or overlapping another chunk, is
-dropped with a problem. Reading a summary of a 1M-message file takes about 2 ms (benchmarks,
-``info``), like the ``mcap`` package's ``get_summary``; bagkit's own parsing is kept because it
-checks lengths (see :mod:`bagkit.bag.mcapio.records`).
+dropped with a problem. Parsing is bagkit's own because it checks lengths (see
+:mod:`bagkit.bag.mcapio.records`), at the ``mcap`` package's ``get_summary`` speed ("info" of
+``python -m benchmarks info``, figures in benchmarks/README.md, "bagkit.bag.mcapio").
 """
 
 from __future__ import annotations
