@@ -90,20 +90,19 @@ def value_reader(
             values, end = direct(data)
         except (struct.error, ValueError, IndexError, OverflowError) as exc:
             raise DecodeError(f"{typename} message does not decode: {exc!r}") from exc
-        if end + 4 > len(data):
-            raise DecodeError(f"{typename} message does not decode: it ends past the payload")
         # CDR writers pad to 4 bytes at most.
-        if end + 4 + 3 < len(data):
-            raise DecodeError(
-                f"{typename} message does not decode: {len(data) - 4 - end} bytes after it"
-            )
+        size = len(data) - 4
+        if not size - 3 <= end <= size:
+            problem = "it ends past the payload" if end > size else f"{size - end} bytes after it"
+            raise DecodeError(f"{typename} message does not decode: {problem}")
         return values
 
     return read
 
 
 class _Codegen:
-    """Emits the statements of one reader: ``p`` is the position after the 4-byte header."""
+    """Emits the statements of one reader: ``p`` is the position after the 4-byte header, ``n``
+    the size of what follows it."""
 
     def __init__(self, typestore: Typestore, wanted: frozenset[str]) -> None:
         self.typestore = typestore
@@ -226,7 +225,7 @@ class _Codegen:
         self.emit("p = (p + 3) & -4", depth)
         self.emit(f"{count} = _u32(b, 4 + p)[0]", depth)
         self.emit("p += 4", depth)
-        self.emit(f"if {count} > len(b) - 4 - p:", depth)
+        self.emit(f"if {count} > n - p:", depth)
         self.emit("raise ValueError('a length prefix says more than the payload holds')", depth + 1)
         return count
 
@@ -284,6 +283,7 @@ def _generate(
     body = [
         "def read(b):",
         "    p = 0",
+        "    n = len(b) - 4",
         *(f"    {line}" for line in gen.pooled_init),
         *gen.lines,
         f"    return [{', '.join(gen.variables[path] for path in paths)}], p",

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import json
 import struct
+import subprocess
+import sys
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -133,6 +136,29 @@ def test_hostile_payloads_cost_their_message_only(tmp_path: Path, bulk: bool) ->
         f"{topic}: {len(hostile[topic])} messages could not be decoded" for topic in sorted(hostile)
     ]
     assert result.skipped == {}
+
+
+def test_the_cli_warns_and_summarizes_the_rest(tmp_path: Path) -> None:
+    """``bagkit stats summary`` on hostile payloads: exit 0, one warning line per topic, the
+    counts in the JSON, no traceback."""
+    rng = np.random.default_rng(9)
+    data = imu_data(rng, 100)
+    hostile = _hostile_payloads()["/imu/data"]
+    raw = {"/imu/data": RawTopic(data.type, [(data.messages[5][0] + 1, p) for p in hostile])}
+    bag = write_bag(tmp_path / "hostile", {"/imu/data": data}, raw=raw)
+    bagkit = str(Path(sys.executable).with_name("bagkit"))
+    run = subprocess.run(
+        [bagkit, "stats", "summary", str(bag), "--format", "json"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert run.returncode == 0, run.stderr
+    assert run.stderr.startswith("warning: /imu/data: 4 messages could not be decoded")
+    assert len(run.stderr.splitlines()) == 1 and "Traceback" not in run.stderr
+    (topic,) = json.loads(run.stdout)["topics"]
+    assert (topic["count"], topic["undecodable"]) == (104, 4)
 
 
 def test_spans_outside_the_chunk_are_counted_not_read() -> None:
