@@ -88,7 +88,6 @@ class ResolvedLayout:
     """
 
     dtype: np.dtype
-    slot_indexes: tuple[int, ...]
     leaves: tuple[LeafColumn, ...]
 
     def columns(self, records: np.ndarray, paths: Iterable[str]) -> dict[str, np.ndarray]:
@@ -169,7 +168,7 @@ class CdrLayout:
                 )
             else:
                 leaves.append(LeafColumn(slot.path, str(p.index), None))
-        return ResolvedLayout(dtype, tuple(p.index for p in placed.slots), tuple(leaves))
+        return ResolvedLayout(dtype, tuple(leaves))
 
     def data_mask(self, lengths: tuple[int, ...]) -> int | NeedLength:
         """A mask of the bytes that hold data, or where the next length prefix is.

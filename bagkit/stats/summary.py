@@ -1,9 +1,10 @@
 """``summarize``: per-topic counts and rates, per-numeric-field exact statistics, over bags.
 
 One pass over each bag, one decompressed chunk at a time (memory does not grow with the bag).
-Topics whose type has a CDR layout (see :mod:`bagkit.decode.layout`) are decoded in bulk from
-each chunk with numpy; every other message goes through rosbags' deserializer and
-:func:`~bagkit.decode.field_getter`. Both feed the same :class:`~bagkit.stats.moments.Moments`.
+Each topic's :class:`~bagkit.stats.accumulate.TopicAccumulator` gets the payload spans of each
+chunk: topics whose type has a CDR layout are decoded in bulk with numpy
+(:mod:`bagkit.decode.bulk`), every other message by the general path
+(:meth:`~bagkit.decode.MessageTypes.value_reader`); both feed the same moments.
 """
 
 from __future__ import annotations
