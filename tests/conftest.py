@@ -24,18 +24,8 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 # The rosbag2 test bags live outside the repository (CI and the developers' machines have them
 # beside the clone); BAGKIT_INTEROP_DIR points elsewhere.
 INTEROP_DIR = Path(
-    os.environ.get(
-        "BAGKIT_INTEROP_DIR", REPO_ROOT.parent / "shared" / "interop" / "rosbag2_jazzy"
-    )
+    os.environ.get("BAGKIT_INTEROP_DIR", REPO_ROOT.parent / "shared" / "interop" / "rosbag2_jazzy")
 )
-
-
-def pytest_addoption(parser: pytest.Parser) -> None:
-    parser.addoption(
-        "--update-golden",
-        action="store_true",
-        help="tests/golden: rewrite the fixtures' expected outputs (lockstep), do not compare",
-    )
 
 
 @pytest.fixture(scope="session")

@@ -12,7 +12,8 @@ import pytest
 import yaml
 
 from bagkit.bag import BagReader
-from bagkit.regression.golden import check_lockstep, update_golden, write_failure_artefacts
+from bagkit.regression.artefacts import write_failure_artefacts
+from bagkit.regression.golden import check_lockstep, update_golden
 from bagkit.regression.spec import load_spec
 
 OUTPUTS = ["/alerts", "/logger/summary", "/fusion/odometry", "/fusion/baro_altitude"]
@@ -27,7 +28,10 @@ def make_fixture(directory: Path, inputs_bag: Path, **fusion_params: object) -> 
     spec = {
         "description": "simulated in-process",
         "duration": 20,
-        "nodes": {"data_logger": {}, "alert_system": {}, "sensor_fusion": fusion_params},
+        "processor": "fusion.regression:make_processors",
+        "processor_args": {
+            "nodes": {"data_logger": {}, "alert_system": {}, "sensor_fusion": fusion_params}
+        },
         "inputs": ["/imu/data", "/gps/fix", "/temperature", "/barometer/pressure"],
         "outputs": OUTPUTS,
         "compare": {"atol": 1e-9, "rtol": 1e-9},
@@ -54,16 +58,17 @@ def test_update_then_check_passes(fixture_dir: Path, tmp_path: Path) -> None:
     assert check.lockstep is not None and check.lockstep.speedup > 1
     # accepting unchanged behaviour changes no byte: `git diff` shows only real changes
     # (once the golden holds outputs: the simulated one got its first ones in the fixture)
-    update_golden(spec)
     before = {p.name: p.read_bytes() for p in spec.bag.iterdir()}
-    update_golden(spec)
+    assert not update_golden(spec).rewritten
     assert {p.name: p.read_bytes() for p in spec.bag.iterdir()} == before
 
 
 def test_changed_constant_fails_with_report_and_plots(fixture_dir: Path, tmp_path: Path) -> None:
     spec_file = fixture_dir / "spec.yaml"
     spec_data = yaml.safe_load(spec_file.read_text())
-    spec_data["nodes"]["sensor_fusion"] = {"qnh": 101335.0}  # 10 Pa: about 0.8 m of altitude
+    spec_data["processor_args"]["nodes"]["sensor_fusion"] = {
+        "qnh": 101335.0
+    }  # 10 Pa: about 0.8 m of altitude
     spec_file.write_text(yaml.safe_dump(spec_data))
     check = check_lockstep(load_spec(fixture_dir), tmp_path / "work")
     assert not check.passed
@@ -73,7 +78,7 @@ def test_changed_constant_fails_with_report_and_plots(fixture_dir: Path, tmp_pat
 
     written = write_failure_artefacts(check, tmp_path / "failure")
     names = {p.name for p in written}
-    assert "report.json" in names and "fusion_baro_altitude.png" in names
+    assert {"report.json", "report.html", "fusion_baro_altitude.png"} <= names
     assert all(p.stat().st_size > 0 for p in written)
     report = json.loads((tmp_path / "failure" / "report.json").read_text())
     altitude = next(t for t in report["topics"] if t["topic"] == "/fusion/baro_altitude")
@@ -95,7 +100,7 @@ def test_cli_check_exit_codes_and_failure_folder(fixture_dir: Path, tmp_path: Pa
 
     spec_file = fixture_dir / "spec.yaml"
     spec_data = yaml.safe_load(spec_file.read_text())
-    spec_data["nodes"]["data_logger"] = {"summary_period": 4.0}
+    spec_data["processor_args"]["nodes"]["data_logger"] = {"summary_period": 4.0}
     spec_file.write_text(yaml.safe_dump(spec_data))
     changed = subprocess.run(
         [bagkit, "golden", "check", str(fixture_dir), "--failures", str(failures)],
