@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import sys
 import tempfile
 from pathlib import Path
 
@@ -24,6 +26,9 @@ FIXTURES_ARG = typer.Argument(
 
 
 def _specs(fixtures: list[Path] | None) -> list[FixtureSpec]:
+    # Processor factories import from the current directory too, as under `python -m`.
+    if "" not in sys.path and os.getcwd() not in sys.path:
+        sys.path.insert(0, os.getcwd())
     if fixtures:
         return [load_spec(path) for path in fixtures]
     found = find_fixtures(Path("fixtures"))

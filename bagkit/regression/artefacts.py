@@ -22,12 +22,39 @@ def _plotted_paths(topic: TopicResult) -> list[str]:
     return paths[:MAX_PLOTTED_FIELDS]
 
 
-def _values(samples: list[Sample], path: str, t0: int) -> dict[float, float]:
-    return {
-        (s.time_ns - t0) / 1e9: float(s.fields[path])
+def _values(samples: list[Sample], path: str, t0: int) -> list[tuple[float, float]]:
+    return [
+        ((s.time_ns - t0) / 1e9, float(s.fields[path]))
         for s in samples
         if isinstance(s.fields.get(path), int | float)
-    }
+    ]
+
+
+def _pairs(
+    golden: list[tuple[float, float]], candidate: list[tuple[float, float]], by_order: bool
+) -> list[tuple[float, float, float]]:
+    """The samples the comparison paired: by position for topics matched in order, else by
+    equal time (the stamp), at the golden's time."""
+    if by_order:
+        return [(t, g, c) for (t, g), (_, c) in zip(golden, candidate, strict=False)]
+    candidate_at = dict(candidate)
+    return [(t, g, candidate_at[t]) for t, g in golden if t in candidate_at]
+
+
+def _series(
+    topic: TopicResult, g_samples: list[Sample], c_samples: list[Sample], t0: int
+) -> list[FieldSeries]:
+    fields = {f.path: f for f in topic.failed_fields}
+    made = []
+    for path in [] if topic.matched_by == "event" else _plotted_paths(topic):
+        golden, candidate = _values(g_samples, path, t0), _values(c_samples, path, t0)
+        pairs = _pairs(golden, candidate, by_order=topic.matched_by == "order")
+        made.append(
+            FieldSeries(
+                topic.topic, path, golden, candidate, pairs, fields[path].atol, fields[path].rtol
+            )
+        )
+    return made
 
 
 def _topic_samples(bag: BagReader, types: MessageTypes, topic: str) -> list[Sample]:
@@ -51,18 +78,7 @@ def write_failure_artefacts(check: GoldenCheck, folder: Path) -> list[Path]:
         for topic in (t for t in check.report.topics if not t.passed):
             g_samples = _topic_samples(golden, g_types, topic.topic)
             c_samples = _topic_samples(candidate, c_types, topic.topic)
-            fields = {f.path: f for f in topic.failed_fields}
-            topic_series = [
-                FieldSeries(
-                    topic.topic,
-                    path,
-                    _values(g_samples, path, t0),
-                    _values(c_samples, path, t0),
-                    fields[path].atol,
-                    fields[path].rtol,
-                )
-                for path in ([] if topic.matched_by == "event" else _plotted_paths(topic))
-            ]
+            topic_series = _series(topic, g_samples, c_samples, t0)
             series += topic_series
             png = folder / f"{topic.topic.strip('/').replace('/', '_')}.png"
             _plot_png(topic, topic_series, g_samples=g_samples, c_samples=c_samples, t0=t0, png=png)
@@ -114,12 +130,11 @@ def _plot_png(
                 (one.golden, "golden", "-"),
                 (one.candidate, "candidate", "--"),
             ):
-                ax.plot(list(values), list(values.values()), style, label=label)
-            common = sorted(one.golden.keys() & one.candidate.keys())
+                ax.plot([t for t, _ in values], [v for _, v in values], style, label=label)
             diff_ax = ax.twinx()
             diff_ax.plot(
-                common,
-                [one.candidate[t] - one.golden[t] for t in common],
+                [t for t, _, _ in one.pairs],
+                [c - g for _, g, c in one.pairs],
                 ":",
                 color="tab:red",
                 label="candidate - golden",

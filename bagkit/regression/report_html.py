@@ -38,12 +38,14 @@ svg{background:#fafafa;border:1px solid #ddd;margin:4px 0}
 
 @dataclass(frozen=True, slots=True)
 class FieldSeries:
-    """One failing field of one topic: both bags' values by time (seconds), its tolerance."""
+    """One failing field of one topic: both bags' values over time (seconds), the matched
+    pairs ``(time, golden, candidate)`` as the comparison paired them, the tolerance."""
 
     topic: str
     path: str
-    golden: dict[float, float]
-    candidate: dict[float, float]
+    golden: list[tuple[float, float]]
+    candidate: list[tuple[float, float]]
+    pairs: list[tuple[float, float, float]]
     atol: float
     rtol: float
 
@@ -110,8 +112,7 @@ def _svg(body: str, label: str) -> str:
 
 def field_plots(series: FieldSeries) -> str:
     """Golden vs candidate with the tolerance band, and their difference with the band."""
-    golden = sorted(series.golden.items())
-    candidate = sorted(series.candidate.items())
+    golden, candidate = series.golden, series.candidate
     upper = [(t, v + series.bound(v)) for t, v in golden]
     lower = [(t, v - series.bound(v)) for t, v in golden]
     values = [v for _, v in golden + candidate] + [v for _, v in upper + lower]
@@ -123,11 +124,11 @@ def field_plots(series: FieldSeries) -> str:
         + axes.polyline(candidate, CANDIDATE_COLOR, "candidate"),
         f"{series.topic} {series.path} values",
     )
-    common = sorted(series.golden.keys() & series.candidate.keys())
-    diff = [(t, series.candidate[t] - series.golden[t]) for t in common]
-    bounds = [(t, series.bound(series.golden[t], series.candidate[t])) for t in common]
+    diff = [(t, c - g) for t, g, c in series.pairs]
+    bounds = [(t, series.bound(g, c)) for t, g, c in series.pairs]
     diff_axes = _Axes(
-        common, [d for _, d in diff] + [b for _, b in bounds] + [-b for _, b in bounds]
+        [t for t, _ in diff],
+        [d for _, d in diff] + [b for _, b in bounds] + [-b for _, b in bounds],
     )
     diff_svg = _svg(
         diff_axes.frame(f"{series.path}: candidate - golden, tolerance band")

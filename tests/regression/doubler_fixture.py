@@ -24,19 +24,20 @@ class Doubler:
     output_topics = ("/doubled", "/sum")
     timer_period_ns = 1_000_000_000
 
-    def __init__(self):
+    def __init__(self, factor):
+        self.factor = factor
         self.total = 0.0
 
     def on_message(self, topic, msg, now_ns):
         self.total += msg.data
-        return [("/doubled", Float64(data=FACTOR * msg.data))]
+        return [("/doubled", Float64(data=self.factor * msg.data))]
 
     def on_timer(self, now_ns):
         return [("/sum", Float64(data=self.total))]
 
 
-def make_processors():
-    return [Doubler()]
+def make_processors(factor=FACTOR):
+    return [Doubler(factor)]
 '''
 
 
