@@ -29,6 +29,7 @@ from bagkit.regression.spec import BAG_DIR, SPEC_FILE, FixtureSpec
 MAX_FIXTURE_BYTES = 2_000_000
 STOP_TIMEOUT_S = 15.0
 SETTLE_S = 2.0
+CLOCK_HOLD_S = 0.5
 LOG_TAIL_LINES = 15
 
 
@@ -125,21 +126,25 @@ def _start_system(procs: Processes, commands: Sequence[Sequence[str]], prefix: s
         procs.start(f"{prefix}-{index}" if len(commands) > 1 else prefix, command)
 
 
-def _wait_for_graph(procs: Processes, counts: dict[str, int], timeout: float) -> None:
+def _prepare_graph(procs: Processes, counts: dict[str, int], start_ns: int, timeout: float) -> None:
+    """Wait for the subscriptions in ``counts``, then set the nodes' clock to ``start_ns``."""
     from bagkit.ros.errors import SubscriberTimeoutError
-    from bagkit.ros.graph_wait import wait_for_subscriptions
+    from bagkit.ros.graph_wait import hold_clock, wait_for_subscriptions
 
     try:
         wait_for_subscriptions(counts, timeout=timeout, alive=lambda: procs.exited() is None)
+        clocks = counts.get("/clock", 0)
+        if clocks:
+            hold_clock(start_ns, subscriptions=clocks, seconds=CLOCK_HOLD_S, timeout=timeout)
     except ChildProcessError:
         procs.check_running()
     except SubscriberTimeoutError as exc:
         raise LiveRunError(f"the system did not come up: {exc}") from exc
 
 
-def _bag_seconds(bag: Path) -> float:
+def _bag_span(bag: Path) -> tuple[int, int]:
     with BagReader(bag) as reader:
-        return (reader.end_ns - reader.start_ns) / 1e9
+        return reader.start_ns, reader.end_ns
 
 
 def check_live(spec: FixtureSpec, workdir: Path, *, startup_timeout: float = 30.0) -> GoldenCheck:
@@ -147,8 +152,9 @@ def check_live(spec: FixtureSpec, workdir: Path, *, startup_timeout: float = 30.
 
     The spec's ``launch`` commands start the nodes (with use_sim_time); ``bagkit record
     --use-sim-time`` records the outputs; once the graph shows the subscriptions the spec
-    waits for, ``bagkit replay --clock`` publishes the inputs and the clock at ``live_rate``;
-    the comparison uses the spec's live tolerances.
+    waits for, the nodes' clock is set to the golden's start, and ``bagkit replay --clock``
+    publishes the inputs and the clock at ``live_rate``; the comparison uses the spec's live
+    tolerances.
 
     Raises:
         SpecError: the spec has no launch command.
@@ -158,7 +164,8 @@ def check_live(spec: FixtureSpec, workdir: Path, *, startup_timeout: float = 30.
         raise SpecError(f"{spec.directory / SPEC_FILE}: live mode needs a launch command")
     workdir.mkdir(parents=True, exist_ok=True)
     candidate = workdir / "candidate"
-    replay_timeout = 2 * _bag_seconds(spec.bag) / spec.live_rate + 60
+    start_ns, end_ns = _bag_span(spec.bag)
+    replay_timeout = 2 * (end_ns - start_ns) / 1e9 / spec.live_rate + 60
     with _processes(workdir / "logs") as procs:
         _start_system(procs, spec.launch, "launch")
         recorder = procs.start(
@@ -166,7 +173,7 @@ def check_live(spec: FixtureSpec, workdir: Path, *, startup_timeout: float = 30.
             [_script("bagkit"), "record", "--use-sim-time", "-o", str(candidate), *spec.outputs],
         )
         counts = {**spec.subscription_counts(), **dict.fromkeys(spec.outputs, 1)}
-        _wait_for_graph(procs, counts, startup_timeout)
+        _prepare_graph(procs, counts, start_ns, startup_timeout)
         replay = procs.start(
             "replay",
             [
