@@ -16,6 +16,7 @@ app = typer.Typer(
     name="golden",
     help="Golden-bag regression: check fixtures in lockstep or live, accept changes, re-record.",
     no_args_is_help=True,
+    context_settings={"help_option_names": ["-h", "--help"]},
 )
 
 FIXTURES_ARG = typer.Argument(
@@ -91,6 +92,8 @@ def update(fixtures: list[Path] | None = FIXTURES_ARG) -> None:
 
     Outputs within the spec's lockstep tolerance of the golden's are kept: accepting unchanged
     behaviour rewrites no file.
+
+    Example: bagkit golden update fixtures/takeoff && git diff --stat fixtures/
     """
     from bagkit.regression.golden import update_golden
 
