@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import time
 
-from fusion.monitor import check_system
+from fusion.nodes.monitor import check_system
 from fusion.simulate import simulate
 
 LIVE_SECONDS = 30.0

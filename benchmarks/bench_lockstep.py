@@ -16,11 +16,17 @@ from pathlib import Path
 
 from bagkit.bag import BagReader
 from bagkit.regression.lockstep import LockstepResult, run_lockstep
+from bagkit.regression.processor import Processor, make_processors
 from bagkit.regression.spec import FixtureSpec, find_fixtures
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures"
 TARGET_SPEEDUP = 100.0
 RUNS = 3
+
+
+def _processors(spec: FixtureSpec) -> list[Processor]:
+    assert spec.processor is not None
+    return make_processors(spec.processor, spec.processor_args)
 
 
 def _best_run(spec: FixtureSpec, workdir: Path) -> LockstepResult:
@@ -29,7 +35,7 @@ def _best_run(spec: FixtureSpec, workdir: Path) -> LockstepResult:
         result = run_lockstep(
             spec.bag,
             workdir / f"{spec.name}-{run}",
-            nodes=spec.nodes,
+            processors=_processors(spec),
             input_topics=spec.inputs,
             output_topics=spec.outputs,
         )
@@ -44,7 +50,6 @@ def _processor_seconds(spec: FixtureSpec) -> float:
     from rclpy.serialization import deserialize_message
 
     from bagkit.ros.types import import_message_type
-    from fusion.processors import create_processor
 
     with BagReader(spec.bag) as reader:
         classes = {t: import_message_type(reader.topics[t].type) for t in spec.inputs}
@@ -52,7 +57,7 @@ def _processor_seconds(spec: FixtureSpec) -> float:
             (m.topic, deserialize_message(m.data, classes[m.topic]), m.log_time)
             for m in reader.messages(topics=list(spec.inputs))
         ]
-    processors = [create_processor(n.name, dict(n.params)) for n in spec.nodes]
+    processors = _processors(spec)
     periods = {id(p): p.timer_period_ns for p in processors}
     next_tick = {id(p): inputs[0][2] for p in processors}
     start = time.perf_counter()

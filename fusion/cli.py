@@ -22,7 +22,7 @@ from fusion.launch import Launcher, validate_parameter_file
 from fusion.processors import NODE_NAMES
 
 if TYPE_CHECKING:
-    from fusion.monitor import LiveCheck
+    from fusion.nodes.monitor import LiveCheck
 
 app = typer.Typer(
     name="fusion",
@@ -115,7 +115,7 @@ def check(
 ) -> None:
     if output_format is OutputFormat.CSV:
         raise fail("fusion check supports --format table or json")
-    from fusion.monitor import check_system
+    from fusion.nodes.monitor import check_system
 
     with err_console.status(f"measuring for {duration:g} s ..."):
         result = check_system(duration, launch=launch_nodes, params_file=params)

@@ -69,11 +69,11 @@ start "$BIN/bagkit" record --use-sim-time -o "$OUT/replayed" "${OUTPUTS[@]}" \
 recorder=${pids[-1]}
 # Until every node subscribes to its inputs and /clock and the recorder to every output.
 "$BIN/python" - <<'EOF'
-from bagkit.regression.live import wait_for_subscribers
+from bagkit.ros.graph_wait import wait_for_subscriptions
 
 inputs = {"/imu/data": 3, "/gps/fix": 3, "/temperature": 2, "/barometer/pressure": 3, "/clock": 3}
 outputs = dict.fromkeys(["/alerts", "/logger/summary", "/fusion/odometry", "/fusion/baro_altitude"], 1)
-wait_for_subscribers({**inputs, **outputs}, timeout=60, alive=lambda: True)
+wait_for_subscriptions({**inputs, **outputs}, timeout=60, alive=lambda: True)
 EOF
 "$BIN/bagkit" replay --clock --rate 2 --topics "$SENSORS" "$OUT/live"
 sleep 2  # the last outputs are still in flight on a loaded machine

@@ -28,14 +28,6 @@ INTEROP_DIR = Path(
 )
 
 
-def pytest_addoption(parser: pytest.Parser) -> None:
-    parser.addoption(
-        "--update-golden",
-        action="store_true",
-        help="tests/golden: rewrite the fixtures' expected outputs (lockstep), do not compare",
-    )
-
-
 @pytest.fixture(scope="session")
 def interop_dir() -> Path:
     """The rosbag2 Jazzy test bags (``BAGKIT_INTEROP_DIR``, or beside the repository).

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import sys
 import tempfile
 from pathlib import Path
 
@@ -14,6 +16,7 @@ app = typer.Typer(
     name="golden",
     help="Golden-bag regression: check fixtures in lockstep or live, accept changes, re-record.",
     no_args_is_help=True,
+    context_settings={"help_option_names": ["-h", "--help"]},
 )
 
 FIXTURES_ARG = typer.Argument(
@@ -24,6 +27,9 @@ FIXTURES_ARG = typer.Argument(
 
 
 def _specs(fixtures: list[Path] | None) -> list[FixtureSpec]:
+    # Processor factories import from the current directory too, as under `python -m`.
+    if "" not in sys.path and os.getcwd() not in sys.path:
+        sys.path.insert(0, os.getcwd())
     if fixtures:
         return [load_spec(path) for path in fixtures]
     found = find_fixtures(Path("fixtures"))
@@ -37,37 +43,44 @@ def _specs(fixtures: list[Path] | None) -> list[FixtureSpec]:
 def check(
     fixtures: list[Path] | None = FIXTURES_ARG,
     *,
-    live: bool = typer.Option(
-        False, "--live", help="Replay through the nodes over DDS (use_sim_time) instead."
+    mode: str = typer.Option(
+        "lockstep",
+        "--mode",
+        help="lockstep, live (replay through the nodes over DDS), or all (the spec's modes).",
     ),
+    live: bool = typer.Option(False, "--live", help="Shorthand for --mode live."),
     failures: Path = typer.Option(
-        Path("golden_failures"), help="Where a failing fixture's report.json and plots go."
+        Path("golden_failures"), help="Where a failing fixture's report.json/.html and plots go."
     ),
 ) -> None:
     """Run each fixture's inputs through today's code and compare with its expected outputs.
 
-    Exit status 0 when every fixture matches, 1 when one differs (its report and plots are in
-    FAILURES/<fixture>-<mode>/), 2 for unusable input.
-    """
-    from bagkit.regression.golden import check_lockstep, write_failure_artefacts
-    from bagkit.regression.live import check_live
+    Exit status 0 when every fixture matches, 1 when one differs (its report is in
+    FAILURES/<fixture>-<mode>/report.html), 2 for unusable input.
 
+    Example: bagkit golden check fixtures/takeoff --mode all
+    """
+    from bagkit.regression.artefacts import write_failure_artefacts
+    from bagkit.regression.golden import run_check
+
+    mode = "live" if live else mode
+    if mode not in {"lockstep", "live", "all"}:
+        raise fail(f"--mode must be lockstep, live or all, not {mode!r}")
     failed = []
     for spec in _specs(fixtures):
-        with tempfile.TemporaryDirectory(prefix="bagkit-golden-") as tmp:
-            with err_console.status(f"{spec.name}: {'live' if live else 'lockstep'} ..."):
-                result = check_live(spec, Path(tmp)) if live else check_lockstep(spec, Path(tmp))
-            speed = ""
-            if result.lockstep is not None:
-                speed = f" ({result.lockstep.speedup:.0f}x real time)"
-            console.print(result.summary(), highlight=False, markup=False)
-            if speed:
-                console.print(f"  lockstep{speed}", highlight=False)
-            if not result.passed:
-                folder = failures / f"{spec.name}-{result.mode}"
-                write_failure_artefacts(result, folder)
-                console.print(f"  report and plots: {folder}", highlight=False)
-                failed.append(spec.name)
+        for each in spec.modes if mode == "all" else (mode,):
+            with tempfile.TemporaryDirectory(prefix="bagkit-golden-") as tmp:
+                with err_console.status(f"{spec.name}: {each} ..."):
+                    result = run_check(spec, each, Path(tmp))
+                console.print(result.summary(), highlight=False, markup=False)
+                if result.lockstep is not None:
+                    speed = f"{result.lockstep.speedup:.0f}x real time"
+                    console.print(f"  lockstep ({speed})", highlight=False)
+                if not result.passed:
+                    folder = failures / f"{spec.name}-{result.mode}"
+                    write_failure_artefacts(result, folder)
+                    console.print(f"  report: {folder / 'report.html'}", highlight=False)
+                    failed.append(spec.name)
     if failed:
         raise typer.Exit(1)
 
@@ -75,34 +88,39 @@ def check(
 @app.command()
 @handle_errors
 def update(fixtures: list[Path] | None = FIXTURES_ARG) -> None:
-    """Accept today's behaviour: rewrite each fixture's expected outputs from lockstep."""
+    """Accept today's behaviour: rewrite each fixture's expected outputs from lockstep.
+
+    Outputs within the spec's lockstep tolerance of the golden's are kept: accepting unchanged
+    behaviour rewrites no file.
+
+    Example: bagkit golden update fixtures/takeoff && git diff --stat fixtures/
+    """
     from bagkit.regression.golden import update_golden
 
     for spec in _specs(fixtures):
-        result = update_golden(spec)
-        counts = ", ".join(f"{t} {n}" for t, n in sorted(result.output_counts.items()))
-        console.print(f"{spec.name}: outputs rewritten ({counts})", highlight=False)
+        update = update_golden(spec)
+        counts = ", ".join(f"{t} {n}" for t, n in sorted(update.lockstep.output_counts.items()))
+        verdict = "outputs rewritten" if update.rewritten else "unchanged, nothing rewritten"
+        console.print(f"{spec.name}: {verdict} ({counts})", highlight=False)
 
 
 @app.command()
 @handle_errors
 def record(fixtures: list[Path] | None = FIXTURES_ARG) -> None:
-    """Re-record fixtures from the live system, then rewrite their outputs from lockstep.
+    """Record fixtures' goldens from the live system named by the spec's record_launch.
 
-    For each fixture, `fusion launch` runs the sensor publisher with the spec's scenario and the
-    nodes under test while `bagkit record` records inputs, outputs and /sim/truth for the spec's
-    duration; the expected outputs are then computed from the recorded inputs by lockstep.
-    Run it with ROS_DOMAIN_ID set to a domain of your own.
+    For each fixture, the spec's record_launch commands run the whole system on the wall clock
+    while `bagkit record` records inputs, outputs and record_topics for the spec's duration;
+    with a processor factory, the expected outputs are then computed from the recorded inputs
+    by lockstep. Run it with ROS_DOMAIN_ID set to a domain of your own.
+
+    Example: bagkit golden record fixtures/takeoff
     """
-    from bagkit.regression.live import record_fixture
+    from bagkit.regression.live import record_golden
 
     for spec in _specs(fixtures):
         with tempfile.TemporaryDirectory(prefix="bagkit-golden-") as tmp:
-            result = record_fixture(spec, Path(tmp), log=err_console.print)
+            counts = record_golden(spec, Path(tmp), log=err_console.print)
         size = sum(f.stat().st_size for f in spec.bag.iterdir())
-        counts = ", ".join(f"{t} {n}" for t, n in sorted(result.output_counts.items()))
-        console.print(
-            f"{spec.name}: {spec.bag} {size / 1e6:.2f} MB, {result.input_messages} inputs; "
-            f"outputs: {counts}",
-            highlight=False,
-        )
+        listed = ", ".join(f"{t} {n}" for t, n in sorted(counts.items()))
+        console.print(f"{spec.name}: {spec.bag} {size / 1e6:.2f} MB; {listed}", highlight=False)

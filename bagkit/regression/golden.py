@@ -1,21 +1,17 @@
-"""Golden checks: run a fixture's inputs through today's code, compare, explain a failure."""
+"""Golden checks in lockstep, and accepting today's behaviour as the new golden."""
 
 from __future__ import annotations
 
-import json
-import shutil
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 from bagkit.bag import BagReader
-from bagkit.compare import CompareReport, TopicResult, compare_bags
-from bagkit.compare.bags import events_of, iter_samples
-from bagkit.decode import MessageTypes
+from bagkit.compare import CompareReport, compare_bags
+from bagkit.regression.errors import SpecError
 from bagkit.regression.lockstep import LockstepResult, run_lockstep
-from bagkit.regression.spec import BAG_DIR, FixtureSpec
-
-MAX_PLOTTED_FIELDS = 6
+from bagkit.regression.processor import Processor, make_processors
+from bagkit.regression.spec import BAG_DIR, SPEC_FILE, FixtureSpec
 
 
 @dataclass(frozen=True, slots=True)
@@ -48,19 +44,47 @@ class GoldenCheck:
         return "\n".join(lines)
 
 
+def _processors(spec: FixtureSpec) -> list[Processor]:
+    if spec.processor is None:
+        raise SpecError(f"{spec.directory / SPEC_FILE}: lockstep needs a processor factory")
+    return make_processors(spec.processor, spec.processor_args)
+
+
 def check_lockstep(spec: FixtureSpec, workdir: Path) -> GoldenCheck:
-    """Run ``spec``'s golden inputs through the processors and compare the outputs."""
+    """Run ``spec``'s golden inputs through its processors and compare the outputs.
+
+    Raises:
+        SpecError: the spec has no processor factory, or the factory fails.
+        RegressionError: the golden lacks an input topic.
+    """
     candidate = workdir / "candidate"
     result = run_lockstep(
-        spec.bag, candidate, nodes=spec.nodes, input_topics=spec.inputs, output_topics=spec.outputs
+        spec.bag,
+        candidate,
+        processors=_processors(spec),
+        input_topics=spec.inputs,
+        output_topics=spec.outputs,
     )
     report = compare_bags(spec.bag, candidate, spec.compare_options("lockstep"))
     return GoldenCheck(spec, "lockstep", candidate, report, result)
 
 
-def update_golden(spec: FixtureSpec) -> LockstepResult:
-    """Rewrite ``spec``'s golden bag: every non-output topic kept as recorded, the outputs
-    replaced by what lockstep computes today (the accepted new behaviour)."""
+@dataclass(frozen=True, slots=True)
+class GoldenUpdate:
+    """What accepting today's behaviour did to a fixture."""
+
+    lockstep: LockstepResult
+    rewritten: bool
+    """False when today's outputs matched the golden's within the lockstep tolerance."""
+
+
+def update_golden(spec: FixtureSpec) -> GoldenUpdate:
+    """Accept today's behaviour: rewrite ``spec``'s golden bag with the outputs lockstep
+    computes, every other topic kept as recorded.
+
+    Outputs that match the golden's within the spec's lockstep tolerance are kept as they are
+    (no file is touched), so that accepting unchanged behaviour, on any CPU, rewrites nothing.
+    """
     with BagReader(spec.bag) as reader:
         kept = [t for t in reader.topics if t not in spec.outputs]
     with tempfile.TemporaryDirectory(dir=spec.directory, prefix=".update-") as tmp:
@@ -68,114 +92,28 @@ def update_golden(spec: FixtureSpec) -> LockstepResult:
         result = run_lockstep(
             spec.bag,
             fresh,
-            nodes=spec.nodes,
+            processors=_processors(spec),
             input_topics=spec.inputs,
             output_topics=spec.outputs,
             copy_topics=kept,
         )
+        if compare_bags(spec.bag, fresh, spec.compare_options("lockstep")).passed:
+            return GoldenUpdate(result, rewritten=False)
         old = Path(tmp) / "old"
         spec.bag.rename(old)
         fresh.rename(spec.bag)
-    return result
+    return GoldenUpdate(result, rewritten=True)
 
 
-def write_failure_artefacts(check: GoldenCheck, folder: Path) -> list[Path]:
-    """Write ``report.json`` and one PNG per failing topic (golden vs candidate) to ``folder``.
+def run_check(spec: FixtureSpec, mode: str, workdir: Path) -> GoldenCheck:
+    """Check ``spec`` in ``mode`` (``lockstep`` or ``live``) in ``workdir``.
 
-    Returns the files written. The folder is emptied first so that it shows one failure.
+    Raises:
+        SpecError: the spec does not describe the system for ``mode``.
+        LiveRunError: a live run failed.
     """
-    shutil.rmtree(folder, ignore_errors=True)
-    folder.mkdir(parents=True)
-    written = [folder / "report.json"]
-    written[0].write_text(json.dumps(check.report.to_dict(), indent=2) + "\n")
-    failing = [t for t in check.report.topics if not t.passed]
-    if not failing:
-        return written
-    with BagReader(check.spec.bag) as golden, BagReader(check.candidate) as candidate:
-        g_types = MessageTypes.from_definitions(golden.definitions)
-        c_types = MessageTypes.from_definitions(candidate.definitions)
-        for topic in failing:
-            png = folder / f"{topic.topic.strip('/').replace('/', '_')}.png"
-            _plot_topic(
-                topic,
-                golden=golden,
-                g_types=g_types,
-                candidate=candidate,
-                c_types=c_types,
-                png=png,
-            )
-            written.append(png)
-    return written
+    if mode == "live":
+        from bagkit.regression.live import check_live
 
-
-def _plot_topic(
-    topic: TopicResult,
-    *,
-    golden: BagReader,
-    g_types: MessageTypes,
-    candidate: BagReader,
-    c_types: MessageTypes,
-    png: Path,
-) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    name = topic.topic
-    t0 = golden.start_ns
-    g_samples = list(iter_samples(golden, name, g_types)) if name in golden.topics else []
-    c_samples = list(iter_samples(candidate, name, c_types)) if name in candidate.topics else []
-    if topic.matched_by == "event":
-        fig, ax = plt.subplots(figsize=(10, 3.5))
-        for samples, label, marker in ((g_samples, "golden", "o"), (c_samples, "candidate", "x")):
-            events = events_of(samples)
-            ax.scatter(
-                [(e.time_ns - t0) / 1e9 for e in events],
-                [f"{e.name} [{e.level}]" for e in events],
-                marker=marker,
-                label=label,
-            )
-        ax.set_title(f"{name}: events (name [level])")
-        ax.legend()
-        ax.set_xlabel("time since the golden's start (s)")
-    else:
-        # The scalar fields that failed, each with candidate - golden on a second axis;
-        # without any, the message counts over time show the missing and extra messages.
-        paths = [f.path for f in topic.failed_fields if f.numeric and "[]" not in f.path]
-        paths = paths[:MAX_PLOTTED_FIELDS] or ["(message count)"]
-        fig, axes = plt.subplots(len(paths), 1, figsize=(10, 2.8 * len(paths)), squeeze=False)
-        for ax, path in zip(axes[:, 0], paths, strict=True):
-            series = {}
-            for samples, label, style in (
-                (g_samples, "golden", "-"),
-                (c_samples, "candidate", "--"),
-            ):
-                if path == "(message count)":
-                    times = [(s.time_ns - t0) / 1e9 for s in samples]
-                    ax.plot(times, range(len(times)), style, label=label)
-                    continue
-                series[label] = {
-                    (s.time_ns - t0) / 1e9: float(s.fields[path])
-                    for s in samples
-                    if isinstance(s.fields.get(path), int | float)
-                }
-                ax.plot(list(series[label]), list(series[label].values()), style, label=label)
-            if series:
-                common = sorted(series["golden"].keys() & series["candidate"].keys())
-                diff_ax = ax.twinx()
-                diff_ax.plot(
-                    common,
-                    [series["candidate"][t] - series["golden"][t] for t in common],
-                    ":",
-                    color="tab:red",
-                    label="candidate - golden",
-                )
-                diff_ax.set_ylabel("candidate - golden", color="tab:red", fontsize=8)
-                diff_ax.legend(fontsize=8, loc="upper right")
-            ax.set_title(f"{name} {path}", fontsize=9)
-            ax.legend(fontsize=8, loc="upper left")
-        axes[-1, 0].set_xlabel("time since the golden's start (s)")
-    fig.tight_layout()
-    fig.savefig(png, dpi=80)
-    plt.close(fig)
+        return check_live(spec, workdir)
+    return check_lockstep(spec, workdir)

@@ -1,9 +1,10 @@
-"""The live system in the loop: recording fixtures, and replaying goldens through DDS.
+"""The live system in the loop: replaying goldens through DDS, and recording new goldens.
 
-Both run our own console scripts as subprocesses, as a user would: ``fusion launch`` for the
-nodes, ``bagkit record`` for the recording and ``bagkit replay --clock`` for the inputs. Every
-process runs in its own session and is stopped by its pid (SIGINT, then SIGKILL), so a failed
-run leaves nothing behind. The caller's environment decides the ROS domain and discovery range.
+The system under test is whatever the spec's command lines start (any language). bagkit runs
+its own console scripts beside them, as a user would: ``bagkit record`` for the recording and
+``bagkit replay --clock`` for the inputs. Every process runs in its own session and is stopped
+by its pid (SIGINT, then SIGKILL), so a failed run leaves nothing behind. The caller's
+environment decides the ROS domain and discovery range.
 """
 
 from __future__ import annotations
@@ -14,48 +15,27 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Collection, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import IO, Any
+from typing import IO
 
-import yaml
-
+from bagkit.bag import BagReader
 from bagkit.compare import compare_bags
-from bagkit.regression.errors import LiveRunError
+from bagkit.regression.errors import LiveRunError, SpecError
 from bagkit.regression.golden import GoldenCheck, update_golden
-from bagkit.regression.lockstep import LockstepResult, NodeUnderTest
-from bagkit.regression.spec import BAG_DIR, FixtureSpec
+from bagkit.regression.spec import BAG_DIR, SPEC_FILE, FixtureSpec
 
-TRUTH_TOPIC = "/sim/truth"
 MAX_FIXTURE_BYTES = 2_000_000
 STOP_TIMEOUT_S = 15.0
+SETTLE_S = 2.0
+CLOCK_HOLD_S = 0.5
+LOG_TAIL_LINES = 15
 
 
 def _script(name: str) -> str:
     # The console scripts of this environment, whatever PATH says.
     return str(Path(sys.executable).with_name(name))
-
-
-def _nested(flat: Mapping[str, object]) -> dict[str, Any]:
-    """Dotted parameter names as the nested mapping of a ROS 2 parameter file."""
-    tree: dict[str, Any] = {}
-    for key, value in flat.items():
-        *parents, leaf = key.split(".")
-        node = tree
-        for part in parents:
-            node = node.setdefault(part, {})
-        node[leaf] = value
-    return tree
-
-
-def write_parameter_file(path: Path, params: Mapping[str, Mapping[str, object]]) -> Path:
-    """A ROS 2 parameter file with ``params`` (node name -> dotted overrides)."""
-    document = {
-        node: {"ros__parameters": _nested(values)} for node, values in params.items() if values
-    }
-    path.write_text(yaml.safe_dump(document, sort_keys=False))
-    return path
 
 
 class Processes:
@@ -66,22 +46,30 @@ class Processes:
         self.started: list[tuple[str, subprocess.Popen[bytes], IO[bytes]]] = []
 
     def start(self, name: str, args: Sequence[str]) -> subprocess.Popen[bytes]:
-        """Start ``args``; stdout and stderr go to ``<log_dir>/<name>.log``."""
+        """Start ``args``; stdout and stderr go to ``<log_dir>/<name>.log``.
+
+        Raises:
+            LiveRunError: the program cannot be started.
+        """
         log = (self.log_dir / f"{name}.log").open("wb")
-        proc = subprocess.Popen(
-            list(args),
-            stdout=log,
-            stderr=subprocess.STDOUT,
-            stdin=subprocess.DEVNULL,
-            start_new_session=True,
-        )
+        try:
+            proc = subprocess.Popen(
+                list(args),
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                stdin=subprocess.DEVNULL,
+                start_new_session=True,
+            )
+        except OSError as exc:
+            log.close()
+            raise LiveRunError(f"cannot start {name} ({args[0]}): {exc.strerror}") from exc
         self.started.append((name, proc, log))
         return proc
 
     def stop(self, proc: subprocess.Popen[bytes], timeout: float = STOP_TIMEOUT_S) -> int:
-        """SIGINT ``proc`` (SIGKILL after ``timeout``); return its exit code."""
+        """SIGINT ``proc``'s process group (SIGKILL after ``timeout``); return its exit code."""
         if proc.poll() is None:
-            proc.send_signal(signal.SIGINT)
+            os.killpg(proc.pid, signal.SIGINT)
         try:
             return proc.wait(timeout=timeout)
         except subprocess.TimeoutExpired:
@@ -94,10 +82,33 @@ class Processes:
             self.stop(proc)
             log.close()
 
-    def log_tail(self, name: str, lines: int = 15) -> str:
+    def exited(self, ignore: Collection[str] = ()) -> str | None:
+        """The name of the first process (not in ``ignore``) that has exited, or None."""
+        return next(
+            (n for n, proc, _ in self.started if n not in ignore and proc.poll() is not None),
+            None,
+        )
+
+    def check_running(self, ignore: Collection[str] = ()) -> None:
+        """Raise if a process (not in ``ignore``) has exited.
+
+        Raises:
+            LiveRunError: naming the process, its exit code and the tail of its log.
+        """
+        name = self.exited(ignore)
+        if name is not None:
+            code = next(p.returncode for n, p, _ in self.started if n == name)
+            raise LiveRunError(
+                f"a process of the live run exited early: {name} (exit code {code}); "
+                f"the end of its log:\n{self.log_tail(name)}"
+            )
+
+    def log_tail(self, name: str, lines: int = LOG_TAIL_LINES) -> str:
         """The end of a process's log, for error messages."""
+        for _, _, log in self.started:
+            log.flush()
         text = (self.log_dir / f"{name}.log").read_text(errors="replace")
-        return "\n".join(text.splitlines()[-lines:])
+        return "\n".join(text.splitlines()[-lines:]) or "(empty)"
 
 
 @contextmanager
@@ -110,102 +121,80 @@ def _processes(log_dir: Path) -> Iterator[Processes]:
         group.stop_all()
 
 
-def wait_for_subscribers(
-    counts: Mapping[str, int], *, timeout: float, alive: Callable[[], bool]
-) -> None:
-    """Wait until each topic has at least its count of subscriptions in the ROS graph.
+def _start_system(procs: Processes, commands: Sequence[Sequence[str]], prefix: str) -> None:
+    for index, command in enumerate(commands):
+        procs.start(f"{prefix}-{index}" if len(commands) > 1 else prefix, command)
 
-    Raises:
-        LiveRunError: ``timeout`` passed, or ``alive()`` turned false (a process died).
-    """
-    import rclpy
-    from rclpy.context import Context
 
-    context = Context()
-    rclpy.init(context=context)
+def _prepare_graph(procs: Processes, counts: dict[str, int], start_ns: int, timeout: float) -> None:
+    """Wait for the subscriptions in ``counts``, then set the nodes' clock to ``start_ns``."""
+    from bagkit.ros.errors import SubscriberTimeoutError
+    from bagkit.ros.graph_wait import hold_clock, wait_for_subscriptions
+
     try:
-        node = rclpy.create_node("bagkit_golden_wait", context=context)
-        deadline = time.monotonic() + timeout
-        while True:
-            short = {t: n for t, n in counts.items() if node.count_subscribers(t) < n}
-            if not short:
-                return
-            if not alive():
-                raise LiveRunError("a process of the live run exited early")
-            if time.monotonic() > deadline:
-                raise LiveRunError(f"no subscriber after {timeout:.0f} s on {', '.join(short)}")
-            time.sleep(0.1)
-    finally:
-        rclpy.shutdown(context=context)
+        wait_for_subscriptions(counts, timeout=timeout, alive=lambda: procs.exited() is None)
+        clocks = counts.get("/clock", 0)
+        if clocks:
+            hold_clock(start_ns, subscriptions=clocks, seconds=CLOCK_HOLD_S, timeout=timeout)
+    except ChildProcessError:
+        procs.check_running()
+    except SubscriberTimeoutError as exc:
+        raise LiveRunError(f"the system did not come up: {exc}") from exc
 
 
-def _subscriber_counts(nodes: Sequence[NodeUnderTest], inputs: Sequence[str]) -> dict[str, int]:
-    from fusion.processors import create_processor
-
-    counts = dict.fromkeys(inputs, 0)
-    for node in nodes:
-        for topic in create_processor(node.name, dict(node.params)).input_topics:
-            if topic in counts:
-                counts[topic] += 1
-    counts["/clock"] = len(nodes)
-    return counts
-
-
-def _launch_args(spec: FixtureSpec, workdir: Path, *, sim_time: bool) -> list[str]:
-    params = {node.name: node.params for node in spec.nodes}
-    args = [_script("fusion"), "launch"]
-    if sim_time:
-        args += ["--use-sim-time", "--only", ",".join(node.name for node in spec.nodes)]
-    else:
-        params = {"sensor_publisher": spec.scenario, **params}
-    if any(params.values()):
-        args += ["--params", str(write_parameter_file(workdir / "params.yaml", params))]
-    return args
+def _bag_span(bag: Path) -> tuple[int, int]:
+    with BagReader(bag) as reader:
+        return reader.start_ns, reader.end_ns
 
 
 def check_live(spec: FixtureSpec, workdir: Path, *, startup_timeout: float = 30.0) -> GoldenCheck:
     """Replay ``spec``'s golden inputs through the nodes on DDS and compare their outputs.
 
-    The nodes run with ``use_sim_time``; ``bagkit replay --clock`` publishes the inputs and the
-    clock; ``bagkit record --use-sim-time`` records the outputs; the comparison uses the spec's
-    live tolerances.
+    The spec's ``launch`` commands start the nodes (with use_sim_time); ``bagkit record
+    --use-sim-time`` records the outputs; once the graph shows the subscriptions the spec
+    waits for, the nodes' clock is set to the golden's start, and ``bagkit replay --clock``
+    publishes the inputs and the clock at ``live_rate``; the comparison uses the spec's live
+    tolerances.
 
     Raises:
+        SpecError: the spec has no launch command.
         LiveRunError: a process failed or the graph did not come up.
     """
+    if not spec.launch:
+        raise SpecError(f"{spec.directory / SPEC_FILE}: live mode needs a launch command")
     workdir.mkdir(parents=True, exist_ok=True)
     candidate = workdir / "candidate"
+    start_ns, end_ns = _bag_span(spec.bag)
+    replay_timeout = 2 * (end_ns - start_ns) / 1e9 / spec.live_rate + 60
     with _processes(workdir / "logs") as procs:
-        nodes = procs.start("nodes", _launch_args(spec, workdir, sim_time=True))
+        _start_system(procs, spec.launch, "launch")
         recorder = procs.start(
             "record",
             [_script("bagkit"), "record", "--use-sim-time", "-o", str(candidate), *spec.outputs],
         )
-        counts = _subscriber_counts(spec.nodes, spec.inputs)
-        counts.update(dict.fromkeys(spec.outputs, 1))  # the recorder's
-        wait_for_subscribers(
-            counts,
-            timeout=startup_timeout,
-            alive=lambda: nodes.poll() is None and recorder.poll() is None,
-        )
+        counts = {**spec.subscription_counts(), **dict.fromkeys(spec.outputs, 1)}
+        _prepare_graph(procs, counts, start_ns, startup_timeout)
         replay = procs.start(
             "replay",
             [
                 _script("bagkit"),
                 "replay",
                 "--clock",
+                "--rate",
+                repr(spec.live_rate),
                 "--topics",
                 ",".join(spec.inputs),
                 str(spec.bag),
             ],
         )
         try:
-            code = replay.wait(timeout=2 * spec.duration_s + 60)
+            code = replay.wait(timeout=replay_timeout)
         except subprocess.TimeoutExpired:
             raise LiveRunError(f"bagkit replay hangs:\n{procs.log_tail('replay')}") from None
         if code != 0:
             raise LiveRunError(f"bagkit replay exited {code}:\n{procs.log_tail('replay')}")
-        time.sleep(2.0)  # the last outputs are still in flight on a loaded machine
+        time.sleep(SETTLE_S)  # the last outputs are still in flight on a loaded machine
+        procs.check_running(ignore=("replay",))
         code = procs.stop(recorder)
         if not candidate.exists():
             raise LiveRunError(f"bagkit record exited {code}:\n{procs.log_tail('record')}")
@@ -213,37 +202,35 @@ def check_live(spec: FixtureSpec, workdir: Path, *, startup_timeout: float = 30.
     return GoldenCheck(spec, "live", candidate, report)
 
 
-def record_fixture(
+def record_golden(
     spec: FixtureSpec, workdir: Path, *, log: Callable[[str], None] = print
-) -> LockstepResult:
-    """Re-record ``spec``'s golden bag from the live system, then rewrite its outputs.
+) -> dict[str, int]:
+    """Record ``spec``'s golden bag from the live system; return its message counts by topic.
 
-    The whole system (sensor publisher with the spec's scenario, and the nodes under test)
-    runs on the wall clock while ``bagkit record`` records inputs, outputs and the ground
-    truth for ``spec.duration_s``. The recorded outputs are then replaced by lockstep's (the
-    recorder joins a little after the nodes, so the live outputs start from a state the bag
-    does not hold; the golden tests compare against outputs computed from the bag alone).
+    ``bagkit record`` records the inputs, outputs and ``record_topics`` while the spec's
+    ``record_launch`` commands run the whole system on the wall clock for ``duration``. With a
+    processor factory, the recorded outputs are then replaced by lockstep's (the recorder joins
+    a little after the nodes, so the live outputs start from a state the bag does not hold).
 
     Raises:
+        SpecError: the spec has no record_launch command.
         LiveRunError: a process failed, or the bag is larger than 2 MB.
     """
+    if not spec.record_launch:
+        raise SpecError(f"{spec.directory / SPEC_FILE}: recording needs record_launch")
     workdir.mkdir(parents=True, exist_ok=True)
     recording = workdir / BAG_DIR
-    topics = [*spec.inputs, *spec.outputs, TRUTH_TOPIC]
+    topics = list(dict.fromkeys([*spec.inputs, *spec.outputs, *spec.record_topics]))
     with _processes(workdir / "logs") as procs:
         recorder = procs.start(
             "record", [_script("bagkit"), "record", "-o", str(recording), *topics]
         )
-        time.sleep(1.0)  # the recorder is in the graph before the first sensor message
-        nodes = procs.start("system", _launch_args(spec, workdir, sim_time=False))
+        time.sleep(1.0)  # the recorder is in the graph before the first input
+        _start_system(procs, spec.record_launch, "system")
         log(f"{spec.name}: recording {spec.duration_s:.0f} s of the live system ...")
         deadline = time.monotonic() + spec.duration_s + 1.0
         while time.monotonic() < deadline:
-            if nodes.poll() is not None or recorder.poll() is not None:
-                raise LiveRunError(
-                    f"the live system stopped early:\n{procs.log_tail('system')}\n"
-                    f"{procs.log_tail('record')}"
-                )
+            procs.check_running()
             time.sleep(0.2)
         code = procs.stop(recorder)
         if not recording.exists():
@@ -254,4 +241,7 @@ def record_fixture(
     if spec.bag.exists():
         shutil.rmtree(spec.bag)
     shutil.move(recording, spec.bag)
-    return update_golden(spec)
+    if spec.processor is not None:
+        update_golden(spec)
+    with BagReader(spec.bag) as reader:
+        return dict(reader.topic_counts)

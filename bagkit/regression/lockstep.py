@@ -1,6 +1,7 @@
-"""Lockstep replay: a bag's inputs straight into the fusion processors, in-process, on bag time.
+"""Lockstep replay: a bag's inputs straight into the processors, in-process, on bag time.
 
-No node, no executor, no DDS: each input message is deserialized with rclpy's type support,
+No node, no executor, no DDS: each input message is deserialized with rclpy's type support
+(``bagkit.ros.serialization``),
 handed to every processor that subscribes to its topic with its log time as the clock, and the
 processors' timers tick on bag time (see ``_next_tick_ns``), interleaved with the messages.
 What the processors return is serialized and written to a candidate bag with the bag time of
@@ -15,22 +16,15 @@ import heapq
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from bagkit.bag import BagReader, BagWriter, TopicInfo, message_definition
+from bagkit.bag import BagMessage, BagReader, BagWriter, TopicInfo, message_definition
 from bagkit.decode import MessageTypes
 from bagkit.decode.layout import CdrLayout, PaddingZeroer
 from bagkit.regression.errors import RegressionError
-
-
-@dataclass(frozen=True, slots=True)
-class NodeUnderTest:
-    """A fusion node to run: its name (which selects the processor) and parameter overrides."""
-
-    name: str
-    params: Mapping[str, object] = field(default_factory=dict)
+from bagkit.regression.processor import Processor
 
 
 @dataclass(frozen=True, slots=True)
@@ -84,9 +78,10 @@ class _OutputBag:
     """The candidate bag: topics added on first use, a sequence number per topic."""
 
     def __init__(self, writer: BagWriter, known: Mapping[str, TopicInfo]) -> None:
-        from bagkit.ros.types import message_type_name
+        from bagkit.ros.serialization import message_type_name, serialize
 
         self._type_name: Callable[[Any], str] = message_type_name
+        self._serialize: Callable[[Any], bytes] = serialize
         self.writer = writer
         self.known = known
         self.counts: dict[str, int] = {}
@@ -100,8 +95,6 @@ class _OutputBag:
         )
 
     def write(self, topic: str, msg: Any, now_ns: int) -> None:
-        from rclpy.serialization import serialize_message
-
         if topic not in self.counts:
             golden = self.known.get(topic)
             msg_type = self._type_name(msg)
@@ -110,28 +103,72 @@ class _OutputBag:
         self.counts[topic] += 1
         self.writer.write(
             topic,
-            self.canonicalizers[topic](serialize_message(msg)),
+            self.canonicalizers[topic](self._serialize(msg)),
             log_time=now_ns,
             publish_time=now_ns,
             sequence=self.counts[topic],
         )
+
+    def copy(self, message: BagMessage) -> None:
+        """Write a message of the golden unchanged."""
+        self.writer.write(
+            message.topic,
+            message.data,
+            log_time=message.log_time,
+            publish_time=message.publish_time,
+            sequence=message.sequence,
+        )
+
+
+class _Timers:
+    """The processors' timers on bag time; ties fire in processor order, deterministically."""
+
+    def __init__(self, processors: Sequence[Processor], out: _OutputBag) -> None:
+        self.processors = processors
+        self.out = out
+        self.heap: list[tuple[int, int]] = []
+        self.calls = 0
+
+    def start(self, start_ns: int) -> None:
+        # Timers start with the first input and stop with the last one, as bag time does.
+        self.heap = [(start_ns, i) for i, p in enumerate(self.processors) if p.timer_period_ns]
+
+    def fire_until(self, until_ns: int) -> None:
+        """Fire every tick before ``until_ns``."""
+        while self.heap and self.heap[0][0] < until_ns:
+            tick, index = heapq.heappop(self.heap)
+            processor = self.processors[index]
+            for topic, msg in processor.on_timer(tick):
+                self.out.write(topic, msg, tick)
+            _drain(processor)
+            self.calls += 1
+            period = processor.timer_period_ns
+            assert period is not None
+            heapq.heappush(self.heap, (_next_tick_ns(tick, period), index))
+
+
+def _drain(processor: Processor) -> None:
+    # Nobody reads a processor's log here; draining keeps its buffer bounded.
+    drain = getattr(processor, "drain_log", None)
+    if drain is not None:
+        drain()
 
 
 def run_lockstep(
     golden: Path,
     output: Path,
     *,
-    nodes: Sequence[NodeUnderTest],
+    processors: Sequence[Processor],
     input_topics: Sequence[str] | None = None,
     output_topics: Sequence[str] = (),
     copy_topics: Sequence[str] = (),
 ) -> LockstepResult:
-    """Run ``golden``'s inputs through the processors of ``nodes`` into the bag ``output``.
+    """Run ``golden``'s inputs through ``processors`` into the bag ``output``.
 
     Args:
         golden: the bag to read inputs from.
         output: the candidate bag to write (must not exist).
-        nodes: the processors to run, created with ``fusion.processors.create_processor``.
+        processors: the system under test (see ``bagkit.regression.Processor``).
         input_topics: the topics fed to the processors (default: every topic a processor
             subscribes to); each must be in the golden bag.
         output_topics: topics created in the output even if nothing is published on them
@@ -140,90 +177,59 @@ def run_lockstep(
             (this is how a golden is rewritten with new expected outputs).
 
     Raises:
-        RegressionError: an input topic is missing or a processor cannot be created.
+        RegressionError: an input topic is missing or its type is not installed.
     """
-    from rclpy.serialization import deserialize_message
-
-    from bagkit.ros.types import import_message_type
-    from fusion.errors import FusionError
-    from fusion.processors import Severity, create_processor
+    from bagkit.ros.errors import UnknownMessageTypeError
+    from bagkit.ros.serialization import deserializer
 
     started = time.perf_counter()
-    try:
-        processors = [create_processor(node.name, dict(node.params)) for node in nodes]
-    except FusionError as exc:  # an unknown node, bad parameters
-        raise RegressionError(f"cannot create the processors: {exc}") from exc
-    for processor in processors:
-        # Nobody reads the log here; the per-sample debug lines alone cost a tenth of a run.
-        processor.min_log_severity = Severity.WARN
     subscribed = {t for p in processors for t in p.input_topics}
     wanted = list(input_topics) if input_topics is not None else sorted(subscribed)
     with BagReader(golden) as reader:
         missing = [t for t in wanted if t not in reader.topics]
         if missing:
             raise RegressionError(f"{golden}: no input topic(s) {', '.join(missing)}")
-        classes = {t: import_message_type(reader.topics[t].type) for t in wanted}
+        try:
+            decoders = {t: deserializer(reader.topics[t].type) for t in wanted}
+        except UnknownMessageTypeError as exc:
+            raise RegressionError(f"{golden}: {exc}") from exc
         routes = {t: [p for p in processors if t in p.input_topics] for t in wanted}
-        # (next tick, processor index): ties fire in node order, deterministically. Timers
-        # start with the first input and stop with the last one, as bag time does.
-        timers: list[tuple[int, int]] = []
         start_ns = end_ns = 0
-        timer_calls = 0
         done = 0
         # Chunks closed by size only (not by wall time) keep the file bytes reproducible.
         with BagWriter(output, chunk_interval_s=math.inf) as writer:
             out = _OutputBag(writer, reader.topics)
             copied = [t for t in copy_topics if t in reader.topics]
-            for t in copied:
-                out.add_topic(reader.topics[t], reader.definitions.get(reader.topics[t].type))
-            for t in output_topics:
+            for t in [*copied, *output_topics]:
                 if t in reader.topics and t not in out.counts:
                     info = reader.topics[t]
                     out.add_topic(info, reader.definitions.get(info.type))
-
-            def fire_timers(until_ns: int) -> None:
-                nonlocal timer_calls
-                while timers and timers[0][0] < until_ns:
-                    tick, index = heapq.heappop(timers)
-                    processor = processors[index]
-                    for topic, msg in processor.on_timer(tick):
-                        out.write(topic, msg, tick)
-                    processor.drain_log()
-                    timer_calls += 1
-                    assert processor.timer_period_ns is not None
-                    heapq.heappush(timers, (_next_tick_ns(tick, processor.timer_period_ns), index))
-
+            timers = _Timers(processors, out)
             for bag_msg in reader.messages(topics=sorted({*wanted, *copied})):
                 if bag_msg.topic in copied:
-                    out.writer.write(
-                        bag_msg.topic,
-                        bag_msg.data,
-                        log_time=bag_msg.log_time,
-                        publish_time=bag_msg.publish_time,
-                        sequence=bag_msg.sequence,
-                    )
-                if bag_msg.topic not in classes:
+                    out.copy(bag_msg)
+                if bag_msg.topic not in decoders:
                     continue
                 if not done:
                     start_ns = bag_msg.log_time
-                    timers = [(start_ns, i) for i, p in enumerate(processors) if p.timer_period_ns]
+                    timers.start(start_ns)
                 end_ns = bag_msg.log_time
                 # A tick at exactly a message's time fires before it, as a node that is
                 # spinning would see the timer become ready first.
-                fire_timers(bag_msg.log_time + 1)
-                msg = deserialize_message(bag_msg.data, classes[bag_msg.topic])
+                timers.fire_until(bag_msg.log_time + 1)
+                msg = decoders[bag_msg.topic](bag_msg.data)
                 for processor in routes[bag_msg.topic]:
                     for topic, reply in processor.on_message(bag_msg.topic, msg, bag_msg.log_time):
                         out.write(topic, reply, bag_msg.log_time)
-                    processor.drain_log()
+                    _drain(processor)
                 done += 1
-            fire_timers(end_ns + 1)
+            timers.fire_until(end_ns + 1)
             counts = {t: n for t, n in out.counts.items() if t not in copied}
     return LockstepResult(
         output=output,
         input_messages=done,
         output_counts=counts,
-        timer_calls=timer_calls,
+        timer_calls=timers.calls,
         bag_duration_ns=end_ns - start_ns,
         wall_time_s=time.perf_counter() - started,
     )

@@ -1,8 +1,16 @@
-"""Fixture specs: what a golden bag holds and how its replays are judged (``spec.yaml``)."""
+"""Fixture specs: the system under test, what its golden bag holds, how runs are judged.
+
+A fixture is a directory holding ``spec.yaml`` and the golden bag ``golden/``. The spec names
+the system under test in one or both of two ways: ``processor`` (a factory of Python
+processors, run in lockstep) and ``launch`` (command lines that start the nodes with
+``use_sim_time``, run live over DDS). See docs/regression.md for every key.
+"""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import shlex
+import sys
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -12,45 +20,60 @@ import yaml
 from bagkit.compare import CompareOptions, options_from_mapping
 from bagkit.compare.errors import CompareError
 from bagkit.regression.errors import SpecError
-from bagkit.regression.lockstep import NodeUnderTest
-from fusion.params import flatten
 
 SPEC_FILE = "spec.yaml"
 BAG_DIR = "golden"
+MODES = ("lockstep", "live")
+MAX_SPEC_BYTES = 1_000_000
+
+Command = tuple[str, ...]
 
 
 @dataclass(frozen=True, slots=True)
 class FixtureSpec:
-    """A golden fixture: ``fixtures/<name>/spec.yaml`` beside the bag ``fixtures/<name>/golden``.
+    """A golden fixture: ``<dir>/spec.yaml`` beside the bag ``<dir>/golden``.
 
     Attributes:
         name: the fixture's directory name.
         directory: the fixture directory.
-        description: one line on what the flight shows.
-        duration_s: how long the live system is recorded when the fixture is re-recorded.
-        scenario: parameter overrides of the sensor publisher (seed, trajectory, faults),
-            dotted names (nested in the file, as in a ROS 2 parameter file).
-        nodes: the nodes under test with their parameter overrides (dotted names).
-        inputs: the topics replayed into the nodes.
-        outputs: the topics the nodes publish, compared with the golden.
+        description: one line on what the recording shows.
+        duration_s: how long ``bagkit golden record`` records the live system.
+        inputs: the topics replayed into the system.
+        outputs: the topics the system publishes, compared with the golden.
+        processor: ``module:factory`` of the lockstep processors, or None.
+        processor_args: keyword arguments of the factory.
+        launch: command lines starting the nodes under test with use_sim_time (live mode).
+        record_launch: command lines starting the whole system on the wall clock, sources of
+            the inputs included (``bagkit golden record``).
+        record_topics: further topics recorded into the golden (ground truth, say).
+        wait_for: topic -> subscriptions to wait for before replaying (default: one on each
+            input topic and on /clock).
+        live_rate: replay rate of live mode (1 = real time).
+        modes: the modes this fixture runs in (default: those the spec describes).
         lockstep: the raw ``compare:`` section for lockstep runs.
         live: the raw ``live_compare:`` section for live replays through DDS.
     """
 
     name: str
     directory: Path
-    description: str
-    duration_s: float
-    scenario: Mapping[str, object]
-    nodes: tuple[NodeUnderTest, ...]
     inputs: tuple[str, ...]
     outputs: tuple[str, ...]
+    description: str = ""
+    duration_s: float = 30.0
+    processor: str | None = None
+    processor_args: Mapping[str, Any] = field(default_factory=dict)
+    launch: tuple[Command, ...] = ()
+    record_launch: tuple[Command, ...] = ()
+    record_topics: tuple[str, ...] = ()
+    wait_for: Mapping[str, int] = field(default_factory=dict)
+    live_rate: float = 1.0
+    modes: tuple[str, ...] = ()
     lockstep: Mapping[str, Any] = field(default_factory=dict)
     live: Mapping[str, Any] = field(default_factory=dict)
 
     @property
     def bag(self) -> Path:
-        """The golden bag: live-recorded inputs and the expected outputs (from lockstep)."""
+        """The golden bag: recorded inputs and the expected outputs."""
         return self.directory / BAG_DIR
 
     def compare_options(self, mode: str = "lockstep", **overrides: Any) -> CompareOptions:
@@ -61,12 +84,88 @@ class FixtureSpec:
         except CompareError as exc:
             raise SpecError(f"{self.directory / SPEC_FILE}: {mode}: {exc}") from exc
 
+    def subscription_counts(self) -> dict[str, int]:
+        """What live mode waits for in the ROS graph before it replays."""
+        return dict(self.wait_for) or {**dict.fromkeys(self.inputs, 1), "/clock": 1}
 
-def _topics(data: Mapping[str, Any], key: str, where: Path) -> tuple[str, ...]:
-    value = data.get(key)
-    if not isinstance(value, list) or not value or not all(isinstance(t, str) for t in value):
-        raise SpecError(f"{where}: {key} must be a non-empty list of topic names")
+
+def _topics(
+    data: Mapping[str, Any], key: str, where: Path, *, required: bool = True
+) -> tuple[str, ...]:
+    value = data.get(key, None if required else [])
+    if not isinstance(value, list) or (required and not value):
+        raise SpecError(
+            f"{where}: {key} must be a {'non-empty ' if required else ''}list of topics"
+        )
+    if not all(isinstance(t, str) and t.startswith("/") for t in value):
+        raise SpecError(f"{where}: {key} must hold topic names starting with /")
     return tuple(value)
+
+
+def resolve_command(command: Sequence[str], directory: Path) -> Command:
+    """``command`` with ``{fixture}`` replaced by the fixture directory and a leading
+    ``python`` (or a console script installed beside it) resolved to this environment."""
+    args = [arg.replace("{fixture}", str(directory)) for arg in command]
+    if args[0] in {"python", "python3"}:
+        args[0] = sys.executable
+    elif "/" not in args[0] and Path(sys.executable).with_name(args[0]).exists():
+        args[0] = str(Path(sys.executable).with_name(args[0]))
+    return tuple(args)
+
+
+def _commands(data: Mapping[str, Any], key: str, where: Path) -> tuple[Command, ...]:
+    value = data.get(key)
+    if value is None:
+        return ()
+    items = value if isinstance(value, list) else [value]
+    commands = []
+    for item in items:
+        args = shlex.split(item) if isinstance(item, str) else item
+        if not isinstance(args, list) or not args or not all(isinstance(a, str) for a in args):
+            raise SpecError(f"{where}: {key} must be a command line or a list of them")
+        commands.append(resolve_command(args, where.parent))
+    return tuple(commands)
+
+
+def _mapping(data: Mapping[str, Any], key: str, where: Path) -> dict[str, Any]:
+    value = data.get(key) or {}
+    if not isinstance(value, Mapping):
+        raise SpecError(f"{where}: {key} must be a mapping")
+    return dict(value)
+
+
+def _wait_for(data: Mapping[str, Any], where: Path) -> dict[str, int]:
+    counts = _mapping(data, "wait_for", where)
+    if not all(isinstance(n, int) and n >= 0 for n in counts.values()):
+        raise SpecError(f"{where}: wait_for must map topics to subscription counts")
+    return counts
+
+
+def _modes(data: Mapping[str, Any], where: Path, has: dict[str, bool]) -> tuple[str, ...]:
+    value = data.get("modes", [m for m in MODES if has[m]])
+    if not value and not data.get("modes"):
+        raise SpecError(f"{where}: no system under test: give processor and/or launch")
+    if not isinstance(value, list) or not value or any(m not in MODES for m in value):
+        raise SpecError(f"{where}: modes must be a list of {', '.join(MODES)}")
+    for mode in value:
+        if not has[mode]:
+            key = "processor" if mode == "lockstep" else "launch"
+            raise SpecError(f"{where}: mode {mode} needs {key}")
+    return tuple(value)
+
+
+def _read(file: Path) -> Mapping[str, Any]:
+    try:
+        if file.stat().st_size > MAX_SPEC_BYTES:
+            raise SpecError(f"{file} is larger than {MAX_SPEC_BYTES} bytes")
+        data = yaml.safe_load(file.read_text())
+    except OSError as exc:
+        raise SpecError(f"cannot read fixture spec {file}: {exc.strerror}") from exc
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        raise SpecError(f"{file} is not valid YAML: {exc}") from exc
+    if not isinstance(data, Mapping):
+        raise SpecError(f"{file}: expected a mapping")
+    return data
 
 
 def load_spec(path: Path) -> FixtureSpec:
@@ -76,28 +175,35 @@ def load_spec(path: Path) -> FixtureSpec:
         SpecError: the file is missing or invalid.
     """
     file = path / SPEC_FILE if path.is_dir() else path
+    data = _read(file)
+    processor = data.get("processor")
+    if processor is not None and (not isinstance(processor, str) or ":" not in processor):
+        raise SpecError(f"{file}: processor must read module.path:function, not {processor!r}")
+    launch = _commands(data, "launch", file)
     try:
-        data = yaml.safe_load(file.read_text())
-    except OSError as exc:
-        raise SpecError(f"cannot read fixture spec {file}: {exc.strerror}") from exc
-    except yaml.YAMLError as exc:
-        raise SpecError(f"{file} is not valid YAML: {exc}") from exc
-    if not isinstance(data, Mapping):
-        raise SpecError(f"{file}: expected a mapping")
-    nodes = data.get("nodes")
-    if not isinstance(nodes, Mapping) or not nodes:
-        raise SpecError(f"{file}: nodes must map node names to parameter overrides")
+        live_rate = float(data.get("live_rate", 1.0))
+        duration = float(data.get("duration", 30.0))
+    except (TypeError, ValueError) as exc:
+        raise SpecError(f"{file}: live_rate and duration must be numbers") from exc
+    if not 0 < live_rate < 1e6 or not 0 < duration < 1e6:
+        raise SpecError(f"{file}: live_rate and duration must be positive")
     spec = FixtureSpec(
         name=file.parent.name,
         directory=file.parent,
         description=str(data.get("description", "")),
-        duration_s=float(data.get("duration", 30.0)),
-        scenario=flatten(data.get("scenario") or {}),
-        nodes=tuple(NodeUnderTest(str(n), flatten(p or {})) for n, p in nodes.items()),
+        duration_s=duration,
         inputs=_topics(data, "inputs", file),
         outputs=_topics(data, "outputs", file),
-        lockstep=dict(data.get("compare") or {}),
-        live=dict(data.get("live_compare") or {}),
+        processor=processor,
+        processor_args=_mapping(data, "processor_args", file),
+        launch=launch,
+        record_launch=_commands(data, "record_launch", file),
+        record_topics=_topics(data, "record_topics", file, required=False),
+        wait_for=_wait_for(data, file),
+        live_rate=live_rate,
+        modes=_modes(data, file, {"lockstep": processor is not None, "live": bool(launch)}),
+        lockstep=_mapping(data, "compare", file),
+        live=_mapping(data, "live_compare", file),
     )
     spec.compare_options("lockstep")  # fail now, not in the middle of a run
     spec.compare_options("live")
@@ -106,4 +212,4 @@ def load_spec(path: Path) -> FixtureSpec:
 
 def find_fixtures(root: Path) -> list[FixtureSpec]:
     """Every fixture under ``root`` (directories holding a ``spec.yaml``), by name."""
-    return [load_spec(p.parent) for p in sorted(root.glob(f"*/{SPEC_FILE}"))]
+    return [load_spec(p.parent) for p in sorted(root.rglob(SPEC_FILE))]

@@ -20,7 +20,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu
 
 from fusion import topics
-from fusion.monitor import observe
+from fusion.nodes.monitor import observe
 from fusion.nodes.shell import topic_qos
 
 GPS_VERTICAL_SIGMA = 2.97  # hypot(2.5, 1.6): the default GPS vertical error

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 
-from fusion.monitor import LiveCheck, TopicRate
+from fusion.nodes.monitor import LiveCheck, TopicRate
 
 
 def _check(imu_rate: float, fused: float, gps: float) -> LiveCheck:

@@ -7,20 +7,24 @@ from pathlib import Path
 import pytest
 
 from bagkit.bag import BagReader
-from bagkit.regression.errors import RegressionError
-from bagkit.regression.lockstep import NodeUnderTest, run_lockstep
+from bagkit.regression.errors import RegressionError, SpecError
+from bagkit.regression.lockstep import run_lockstep
+from bagkit.regression.processor import Processor
+from bagkit.regression.processor import make_processors as make_processors_of_spec
+from fusion.regression import make_processors
 
-NODES = (
-    NodeUnderTest("data_logger"),
-    NodeUnderTest("alert_system"),
-    NodeUnderTest("sensor_fusion"),
-)
+
+def nodes(**sensor_fusion: object) -> list[Processor]:
+    """Fresh processors of the three nodes under test (processors keep state)."""
+    return make_processors({"data_logger": {}, "alert_system": {}, "sensor_fusion": sensor_fusion})
+
+
 SENSORS = ("/imu/data", "/gps/fix", "/temperature", "/barometer/pressure")
 
 
 def test_two_runs_are_bit_identical(simulated_flight: Path, tmp_path: Path) -> None:
-    first = run_lockstep(simulated_flight, tmp_path / "a" / "out", nodes=NODES)
-    second = run_lockstep(simulated_flight, tmp_path / "b" / "out", nodes=NODES)
+    first = run_lockstep(simulated_flight, tmp_path / "a" / "out", processors=nodes())
+    second = run_lockstep(simulated_flight, tmp_path / "b" / "out", processors=nodes())
     assert first.output_counts == second.output_counts
     assert set(first.output_counts) == {
         "/fusion/odometry",
@@ -37,7 +41,7 @@ def test_two_runs_are_bit_identical(simulated_flight: Path, tmp_path: Path) -> N
 def test_outputs_are_written_at_the_bag_time_of_their_cause(
     simulated_flight: Path, tmp_path: Path
 ) -> None:
-    result = run_lockstep(simulated_flight, tmp_path / "out", nodes=NODES)
+    result = run_lockstep(simulated_flight, tmp_path / "out", processors=nodes())
     with BagReader(simulated_flight) as inputs:
         imu_times = [m.log_time for m in inputs.messages(topics=["/imu/data"])]
         pressure_times = [m.log_time for m in inputs.messages(topics=["/barometer/pressure"])]
@@ -61,7 +65,9 @@ def test_outputs_are_written_at_the_bag_time_of_their_cause(
 
 def test_copied_topics_are_kept_byte_for_byte(simulated_flight: Path, tmp_path: Path) -> None:
     copied = [*SENSORS, "/sim/truth"]
-    result = run_lockstep(simulated_flight, tmp_path / "out", nodes=NODES, copy_topics=copied)
+    result = run_lockstep(
+        simulated_flight, tmp_path / "out", processors=nodes(), copy_topics=copied
+    )
     with BagReader(simulated_flight) as golden, BagReader(tmp_path / "out") as out:
         assert list(golden.messages(topics=copied)) == list(out.messages(topics=copied))
         assert out.topics["/imu/data"] == golden.topics["/imu/data"]
@@ -70,9 +76,8 @@ def test_copied_topics_are_kept_byte_for_byte(simulated_flight: Path, tmp_path: 
 
 
 def test_changed_parameter_changes_the_outputs(simulated_flight: Path, tmp_path: Path) -> None:
-    run_lockstep(simulated_flight, tmp_path / "a", nodes=NODES)
-    changed = (NodeUnderTest("sensor_fusion", {"qnh": 101425.0}),)
-    run_lockstep(simulated_flight, tmp_path / "b", nodes=changed)
+    run_lockstep(simulated_flight, tmp_path / "a", processors=nodes())
+    run_lockstep(simulated_flight, tmp_path / "b", processors=nodes(qnh=101425.0))
     with BagReader(tmp_path / "a") as a, BagReader(tmp_path / "b") as b:
         base = list(a.messages(topics=["/fusion/baro_altitude"]))
         other = list(b.messages(topics=["/fusion/baro_altitude"]))
@@ -82,6 +87,12 @@ def test_changed_parameter_changes_the_outputs(simulated_flight: Path, tmp_path:
 
 def test_bad_input_is_a_regression_error(simulated_flight: Path, tmp_path: Path) -> None:
     with pytest.raises(RegressionError, match="no input topic"):
-        run_lockstep(simulated_flight, tmp_path / "a", nodes=NODES, input_topics=["/lidar"])
-    with pytest.raises(RegressionError, match="processors"):
-        run_lockstep(simulated_flight, tmp_path / "b", nodes=(NodeUnderTest("no_such_node"),))
+        run_lockstep(simulated_flight, tmp_path / "a", processors=nodes(), input_topics=["/lidar"])
+    with pytest.raises(SpecError, match="no_such_node"):
+        make_processors_of_spec(
+            "fusion.regression:make_processors", {"nodes": {"no_such_node": {}}}
+        )
+    with pytest.raises(SpecError, match="cannot import"):
+        make_processors_of_spec("no_such_pkg.cores:make", {})
+    with pytest.raises(SpecError, match="Processor objects"):
+        make_processors_of_spec("builtins:list", {})

@@ -1,8 +1,8 @@
-"""Mutation proof: the golden tests catch a 1% change of a fusion constant and a changed alert
-threshold, with a report that names the affected topic and field.
+"""Mutation proof: the golden fixtures (collected by bagkit's pytest plugin) catch a 1% change
+of a fusion constant and a changed alert threshold, with a report naming the topic and field.
 
 Each mutation is made in a temporary copy of the repository, whose golden lockstep tests then
-run in a pytest subprocess importing the copy (PYTHONPATH).
+run in a pytest subprocess importing the copy (PYTHONPATH), plugin included.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ PRESSURE_ERROR_BOUNDS = "error: [70000.0, 108000.0]"
 def mutated_copy(tmp_path: Path, file: str, old: str, new: str) -> Path:
     copy = tmp_path / "repo"
     ignore = shutil.ignore_patterns("__pycache__", "golden_failures", ".*")
-    for name in ("bagkit", "fusion", "fixtures", "tests"):
+    for name in ("bagkit", "fusion", "fixtures"):
         shutil.copytree(REPO / name, copy / name, ignore=ignore)
     shutil.copy2(REPO / "pyproject.toml", copy / "pyproject.toml")
     target = copy / file
@@ -43,9 +43,9 @@ def run_golden(copy: Path, fixture: str) -> tuple[subprocess.CompletedProcess[st
             "-q",
             "-p",
             "no:cacheprovider",
-            "tests/golden/test_golden.py",
-            "-k",
-            f"test_lockstep and {fixture}",
+            f"fixtures/{fixture}",
+            "--golden-mode",
+            "lockstep",
         ],
         cwd=copy,
         env=env,

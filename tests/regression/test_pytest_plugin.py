@@ -1,0 +1,102 @@
+"""bagkit's pytest plugin (entry point pytest11), run by pytest itself in a fresh directory
+holding only a stranger's fixture: no conftest, the plugin does everything."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from doubler_fixture import digest, write_core, write_fixture
+
+from bagkit.regression.golden import update_golden
+from bagkit.regression.spec import load_spec
+
+pytest_plugins = ["pytester"]
+
+INI = "[pytest]\npythonpath = .\ngolden_roots = fixtures\n"
+
+
+@pytest.fixture
+def project(pytester: pytest.Pytester, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """A directory with pytest.ini, the doubler core and its fixture, outputs accepted."""
+    root = pytester.path
+    (root / "pytest.ini").write_text(INI)
+    write_core(root)
+    fixture = write_fixture(root / "fixtures" / "ramp")
+    monkeypatch.syspath_prepend(str(root))
+    # the core is rewritten within a second: no bytecode cache that could hide the change
+    monkeypatch.setenv("PYTHONDONTWRITEBYTECODE", "1")
+    assert update_golden(load_spec(fixture)).rewritten  # the first outputs
+    return root
+
+
+def test_a_passing_fixture_is_one_item_per_mode(project: Path, pytester: pytest.Pytester) -> None:
+    result = pytester.runpytest_subprocess("-v")
+    result.assert_outcomes(passed=1)
+    result.stdout.fnmatch_lines(["*fixtures/ramp/spec.yaml::lockstep PASSED*"])
+
+
+def test_a_changed_constant_fails_naming_topic_field_and_report(
+    project: Path, pytester: pytest.Pytester
+) -> None:
+    write_core(project, factor=2.001)
+    result = pytester.runpytest_subprocess()
+    result.assert_outcomes(failed=1)
+    out = result.stdout.str()
+    assert "ramp (lockstep): FAIL" in out
+    assert "/doubled" in out and "data (max |err|" in out
+    assert "/sum" not in out.split("report:")[0].split("FAIL", 1)[1].split("\n")[1]
+    report_dir = project / "golden_failures" / "ramp-lockstep"
+    assert f"report: {report_dir / 'report.html'}" in out
+    report = json.loads((report_dir / "report.json").read_text())
+    failing = {t["topic"]: t for t in report["topics"] if not t["passed"]}
+    assert set(failing) == {"/doubled"}
+    assert failing["/doubled"]["failed_fields"] == ["data"]
+    assert (report_dir / "report.html").stat().st_size > 0
+
+
+def test_update_golden_accepts_a_change_and_is_idempotent(
+    project: Path, pytester: pytest.Pytester
+) -> None:
+    fixture = project / "fixtures" / "ramp"
+    unchanged = digest(fixture)
+    pytester.runpytest_subprocess("--update-golden").assert_outcomes(passed=1)
+    assert digest(fixture) == unchanged, "accepting unchanged behaviour rewrote files"
+
+    write_core(project, factor=3.0)
+    pytester.runpytest_subprocess("--update-golden").assert_outcomes(passed=1)
+    accepted = digest(fixture)
+    assert accepted != unchanged
+    assert accepted.keys() == unchanged.keys()
+    pytester.runpytest_subprocess().assert_outcomes(passed=1)
+    pytester.runpytest_subprocess("--update-golden").assert_outcomes(passed=1)
+    assert digest(fixture) == accepted
+
+
+def test_golden_root_option_and_mode_filter(project: Path, pytester: pytest.Pytester) -> None:
+    (project / "pytest.ini").write_text("[pytest]\npythonpath = .\n")
+    # no root configured: the spec is not collected (and the plugin stays out of the way)
+    assert pytester.runpytest_subprocess().ret == pytest.ExitCode.NO_TESTS_COLLECTED
+    pytester.runpytest_subprocess("--golden-root", "fixtures").assert_outcomes(passed=1)
+    only_live = pytester.runpytest_subprocess("--golden-root", "fixtures", "--golden-mode", "live")
+    assert only_live.ret == pytest.ExitCode.NO_TESTS_COLLECTED
+
+
+def test_ordinary_tests_beside_the_fixtures_still_run(
+    project: Path, pytester: pytest.Pytester
+) -> None:
+    pytester.makepyfile(test_plain="def test_one():\n    assert 1 + 1 == 2\n")
+    result = pytester.runpytest_subprocess("-v")
+    result.assert_outcomes(passed=2)
+    # explicit arguments: only what they name
+    pytester.runpytest_subprocess("test_plain.py").assert_outcomes(passed=1)
+
+
+def test_a_broken_spec_is_one_error_line(project: Path, pytester: pytest.Pytester) -> None:
+    spec = project / "fixtures" / "ramp" / "spec.yaml"
+    spec.write_text(spec.read_text().replace("doubler_core:make_processors", "doubler_core"))
+    result = pytester.runpytest_subprocess()
+    assert result.ret == pytest.ExitCode.INTERRUPTED
+    result.stdout.fnmatch_lines(["*error: *processor must read module.path:function*"])
+    assert "Traceback" not in result.stdout.str()

@@ -1,0 +1,83 @@
+"""Proof with a stranger's package: the thermostat of examples/ (its own node, Python core,
+topics and message types; no fusion), copied without its golden into a temporary directory.
+bagkit records a golden from its live system, and ``pytest`` there, with nothing but bagkit's
+plugin and a pytest.ini naming the fixture root, passes; one changed constant fails it, naming
+the topic and the field. The committed example passes as it stands."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from bagkit.bag import BagReader
+
+REPO = Path(__file__).resolve().parents[2]
+EXAMPLE = REPO / "examples" / "thermostat"
+KP = "KP = 0.35"
+
+pytestmark = pytest.mark.ros
+
+
+def run(args: list[str], cwd: Path, timeout: float = 240) -> subprocess.CompletedProcess[str]:
+    env = dict(os.environ, PYTHONDONTWRITEBYTECODE="1")
+    return subprocess.run(
+        args, cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout, check=False
+    )
+
+
+def pytest_in(project: Path, *args: str) -> subprocess.CompletedProcess[str]:
+    return run([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", *args], project)
+
+
+@pytest.fixture
+def stranger(tmp_path: Path) -> Path:
+    """The thermostat package and its spec, without a golden."""
+    project = tmp_path / "thermostat"
+    ignore = shutil.ignore_patterns("golden", "golden_failures", "__pycache__")
+    shutil.copytree(EXAMPLE, project, ignore=ignore)
+    assert not (project / "fixtures" / "office" / "golden").exists()
+    return project
+
+
+def test_record_a_golden_pass_then_fail_on_a_changed_constant(stranger: Path) -> None:
+    bagkit = str(Path(sys.executable).with_name("bagkit"))
+    recorded = run([bagkit, "golden", "record", "fixtures/office"], stranger)
+    assert recorded.returncode == 0, recorded.stdout + recorded.stderr
+    with BagReader(stranger / "fixtures" / "office" / "golden") as golden:
+        counts = golden.topic_counts
+    # 12 s at 10 Hz, less the sensor's start-up (seconds on a loaded machine); one heater
+    # command per reading (computed again by lockstep)
+    assert counts["/thermostat/temperature"] >= 50
+    assert counts["/thermostat/heater"] == counts["/thermostat/temperature"]
+
+    passed = pytest_in(stranger, "-v")
+    assert passed.returncode == 0, passed.stdout + passed.stderr
+    assert "fixtures/office/spec.yaml::lockstep PASSED" in passed.stdout
+    assert "fixtures/office/spec.yaml::live PASSED" in passed.stdout
+
+    core = stranger / "thermostat" / "core.py"
+    assert core.read_text().count(KP) == 1
+    core.write_text(core.read_text().replace(KP, "KP = 0.37"))
+    failed = pytest_in(stranger)
+    assert failed.returncode == 1, failed.stdout + failed.stderr
+    for mode in ("lockstep", "live"):
+        assert f"office ({mode}): FAIL" in failed.stdout
+        report = json.loads(
+            (stranger / "golden_failures" / f"office-{mode}" / "report.json").read_text()
+        )
+        (heater,) = [t for t in report["topics"] if not t["passed"]]
+        assert heater["topic"] == "/thermostat/heater"
+        assert heater["failed_fields"] == ["data"]
+    assert "/thermostat/heater: missing 0, extra 0; fields: data (max |err|" in failed.stdout
+
+
+def test_the_committed_example_passes(tmp_path: Path) -> None:
+    result = pytest_in(EXAMPLE, "-v", "--golden-failures", str(tmp_path / "failures"))
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "2 passed" in result.stdout
