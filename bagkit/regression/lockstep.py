@@ -179,7 +179,7 @@ def run_lockstep(
     Raises:
         RegressionError: an input topic is missing or its type is not installed.
     """
-    from bagkit.ros.errors import UnknownMessageTypeError
+    from bagkit.ros.errors import MessageClassNotFoundError
     from bagkit.ros.serialization import deserializer
 
     started = time.perf_counter()
@@ -191,7 +191,7 @@ def run_lockstep(
             raise RegressionError(f"{golden}: no input topic(s) {', '.join(missing)}")
         try:
             decoders = {t: deserializer(reader.topics[t].type) for t in wanted}
-        except UnknownMessageTypeError as exc:
+        except MessageClassNotFoundError as exc:
             raise RegressionError(f"{golden}: {exc}") from exc
         routes = {t: [p for p in processors if t in p.input_topics] for t in wanted}
         start_ns = end_ns = 0

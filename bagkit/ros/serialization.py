@@ -18,7 +18,7 @@ def deserializer(type_name: str) -> Any:
     """A function from CDR bytes to a message object of ``type_name`` (``pkg/msg/Name``).
 
     Raises:
-        UnknownMessageTypeError: the type's Python package is not installed.
+        MessageClassNotFoundError: the type's Python package is not installed.
     """
     cls = import_message_type(type_name)
 
