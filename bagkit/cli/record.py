@@ -27,7 +27,7 @@ from bagkit.cli.common import (
 
 if TYPE_CHECKING:
     # The recorder imports rclpy: only `bagkit record` itself pays for that import.
-    from bagkit.ros.recorder import RecordProgress, RecordReport
+    from bagkit.ros.record_report import RecordProgress, RecordReport
 
 HELP = (
     "Record TOPICS (or --all, or --regex) into an MCAP bag that ros2 bag, Foxglove and rosbags "
@@ -155,9 +155,10 @@ def record(  # noqa: PLR0917 (typer maps parameters to options)
     ),
 ) -> None:
     from bagkit.ros.fastdds import large_receive_queue
-    from bagkit.ros.graph import absolute_topic_name
+    from bagkit.ros.memory import keep_freed_memory
     from bagkit.ros.qos import load_qos_overrides
-    from bagkit.ros.recorder import Recorder, default_output_name, keep_freed_memory
+    from bagkit.ros.recorder import Recorder, default_output_name
+    from bagkit.ros.selection import absolute_topic_name
 
     if output_format == OutputFormat.CSV:
         raise fail("--format csv is not supported by record (table or json)")

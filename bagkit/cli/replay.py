@@ -24,7 +24,7 @@ from bagkit.ros.timing import DEFAULT_CLOCK_HZ, DEFAULT_DISCOVERY_TIME_S, LATE_T
 
 if TYPE_CHECKING:
     # The player imports rclpy: only `bagkit replay` itself pays for that import.
-    from bagkit.ros.player import PlayProgress, PlayReport
+    from bagkit.ros.playback_report import PlayProgress, PlayReport
 
 _NUMBER = re.compile(r"[0-9]*\.?[0-9]+([eE][-+]?[0-9]+)?")
 

@@ -22,7 +22,7 @@ from sensor_msgs.msg import Imu
 from std_msgs.msg import Int32, String
 
 from bagkit.bag import BagReader
-from bagkit.ros import recorder as recorder_module
+from bagkit.ros import handoff, subscriptions, write_loop
 from bagkit.ros.errors import UnknownMessageTypeError
 from bagkit.ros.qos import parse_offered_qos_profiles
 from bagkit.ros.recorder import Recorder
@@ -213,7 +213,7 @@ def test_publisher_with_weaker_qos_joining_later_is_recorded(node: Node, tmp_pat
 def test_unknown_message_package_is_skipped_with_one_warning(
     node: Node, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    known = recorder_module.import_message_type
+    known = subscriptions.import_message_type
 
     def without_int32(type_name: str) -> Any:
         # Stands for a package that is not installed: the publisher's own process has it.
@@ -221,7 +221,7 @@ def test_unknown_message_package_is_skipped_with_one_warning(
             raise UnknownMessageTypeError(f"message type {type_name} is not installed")
         return known(type_name)
 
-    monkeypatch.setattr(recorder_module, "import_message_type", without_int32)
+    monkeypatch.setattr(subscriptions, "import_message_type", without_int32)
     unknown = node.create_publisher(Int32, "/skip/int", 10)
     text = node.create_publisher(String, "/skip/text", 10)
     warnings: list[str] = []
@@ -285,14 +285,14 @@ def test_write_queue_overflow_is_counted(
     node: Node, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """A writer slower than the input: every message is either in the bag or counted lost."""
-    write_batch = recorder_module.BagWriter.write_batch
+    write_batch = write_loop.BagWriter.write_batch
 
     def slow_write_batch(self: Any, topic: str, payloads: list[bytes], **kwargs: Any) -> None:
         time.sleep(0.005 * len(payloads))  # stands for a disk that cannot keep up
         write_batch(self, topic, payloads, **kwargs)
 
-    monkeypatch.setattr(recorder_module.BagWriter, "write_batch", slow_write_batch)
-    monkeypatch.setattr(recorder_module, "QUEUE_WAIT_S", 0.01)
+    monkeypatch.setattr(write_loop.BagWriter, "write_batch", slow_write_batch)
+    monkeypatch.setattr(handoff, "QUEUE_WAIT_S", 0.01)
     publisher = node.create_publisher(String, "/slow", 1000)
     n = 600
     # Room for about two batches (5 ms of messages each) waiting for the writer.

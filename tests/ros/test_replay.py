@@ -27,9 +27,9 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
 from bagkit.bag import BagReader, BagWriter, TopicInfo
+from bagkit.ros.clock import clock_message
 from bagkit.ros.player import Player, play
 from bagkit.ros.qos import REPLAY_DEPTH, dump_offered_qos_profiles
-from bagkit.ros.timing import clock_message
 
 pytestmark = pytest.mark.ros
 
@@ -349,7 +349,13 @@ def test_cli_replays_a_rosbag2_recording(
     report = json.loads(result.stdout)
     assert report["messages"] == len(expected)
     assert report["topics"] == [
-        {"topic": "/topic", "published_as": "/topic", "type": "std_msgs/msg/String", "messages": 10}
+        {
+            "topic": "/topic",
+            "published_as": "/topic",
+            "type": "std_msgs/msg/String",
+            "messages": 10,
+            "unreadable": 0,
+        }
     ]
 
 
