@@ -102,8 +102,8 @@ class LatenessSamples:
 
     __slots__ = ("_random", "capacity", "count", "late", "max_ns", "samples")
 
-    def __init__(self, capacity: int = LATENESS_SAMPLES) -> None:
-        self.capacity = capacity
+    def __init__(self, capacity: int | None = None) -> None:
+        self.capacity = LATENESS_SAMPLES if capacity is None else capacity
         self.samples = array("q")
         self.count = 0
         self.late = 0
