@@ -135,7 +135,8 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
     Progress goes to stderr; per-topic counts and the timing error go to stdout.
     """
     from bagkit.ros.fastdds import large_receive_queue
-    from bagkit.ros.player import Player, parse_remaps
+    from bagkit.ros.player import Player
+    from bagkit.ros.selection import parse_remaps
 
     if output_format is OutputFormat.CSV:
         raise fail("replay prints its report as a table or as JSON (--format json), not CSV")

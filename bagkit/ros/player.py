@@ -11,7 +11,7 @@ from __future__ import annotations
 import itertools
 import math
 import time
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
@@ -25,6 +25,7 @@ from rclpy.signals import SignalHandlerOptions
 from bagkit.bag import BagReader, TopicInfo
 from bagkit.ros.clock import CLOCK_TOPIC
 from bagkit.ros.errors import PlayerError, UnknownMessageTypeError
+from bagkit.ros.lateness import LatenessSamples
 from bagkit.ros.playback_report import PlayProgress, PlayReport, TopicPlayback
 from bagkit.ros.publish_loop import PassPublisher
 from bagkit.ros.publishers import (
@@ -36,7 +37,7 @@ from bagkit.ros.publishers import (
 )
 from bagkit.ros.qos import load_qos_overrides, replay_publisher_qos
 from bagkit.ros.selection import TopicSelection
-from bagkit.ros.timing import DEFAULT_DISCOVERY_TIME_S, LatenessSamples
+from bagkit.ros.timing import DEFAULT_DISCOVERY_TIME_S
 from bagkit.ros.types import import_message_type
 
 
@@ -102,18 +103,7 @@ class Player:
             on_progress: called with a ``PlayProgress`` about every ``progress_period`` seconds.
             progress_period: seconds between progress reports.
         """
-        if not rate > 0:
-            raise PlayerError(f"rate must be positive, got {rate}")
-        if start_offset < 0:
-            raise PlayerError(f"start offset must not be negative, got {start_offset}")
-        if duration is not None and not duration > 0:
-            raise PlayerError(f"duration must be positive, got {duration}")
-        if delay < 0:
-            raise PlayerError(f"delay must not be negative, got {delay}")
-        if clock_hz is not None and not clock_hz > 0:
-            raise PlayerError(f"clock rate must be positive, got {clock_hz}")
-        if loops < 0:
-            raise PlayerError(f"loops must be 0 (forever) or positive, got {loops}")
+        _check_options(rate, start_offset, duration, delay, clock_hz, loops)
         self.bag_path = Path(bag)
         self.rate = rate
         # A bag's topics were chosen when it was recorded: hidden ones replay like the others.
@@ -398,12 +388,24 @@ def play(bag: str | Path, **options: Any) -> PlayReport:
         return player.play()
 
 
-def parse_remaps(pairs: Iterable[str]) -> dict[str, str]:
-    """Parse ``OLD:=NEW`` topic remappings (as in ``ros2 bag play --remap``)."""
-    remap = {}
-    for pair in pairs:
-        old, sep, new = pair.partition(":=")
-        if not sep or not old or not new:
-            raise PlayerError(f"remapping {pair!r} is not of the form OLD:=NEW")
-        remap[old] = new
-    return remap
+def _check_options(  # noqa: PLR0917 (the Player's options, checked together)
+    rate: float,
+    start_offset: float,
+    duration: float | None,
+    delay: float,
+    clock_hz: float | None,
+    loops: int,
+) -> None:
+    """Raise PlayerError for an option out of its range."""
+    if not rate > 0:
+        raise PlayerError(f"rate must be positive, got {rate}")
+    if start_offset < 0:
+        raise PlayerError(f"start offset must not be negative, got {start_offset}")
+    if duration is not None and not duration > 0:
+        raise PlayerError(f"duration must be positive, got {duration}")
+    if delay < 0:
+        raise PlayerError(f"delay must not be negative, got {delay}")
+    if clock_hz is not None and not clock_hz > 0:
+        raise PlayerError(f"clock rate must be positive, got {clock_hz}")
+    if loops < 0:
+        raise PlayerError(f"loops must be 0 (forever) or positive, got {loops}")

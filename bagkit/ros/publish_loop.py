@@ -12,10 +12,17 @@ from collections.abc import Callable, Iterator
 
 from bagkit.bag import BagMessage
 from bagkit.ros.clock import clock_message
+from bagkit.ros.lateness import LatenessSamples
 from bagkit.ros.playback_report import PlayProgress
 from bagkit.ros.publishers import TopicOutput
-from bagkit.ros.timing import LATE_THRESHOLD_NS, LatenessSamples, Timeline, wait_until
+from bagkit.ros.timing import LATE_THRESHOLD_NS, Timeline, wait_until
 
+# Lateness samples are handed to LatenessSamples in blocks, when the next message is at least
+# LATENESS_SLACK_NS away (a block of 4096 takes about 0.1 ms), or at the latest at
+# LATENESS_BLOCK_MAX: a list append per message is all the publishing loop pays otherwise.
+LATENESS_BLOCK = 4096
+LATENESS_BLOCK_MAX = 8 * LATENESS_BLOCK
+LATENESS_SLACK_NS = 1_000_000
 # Progress is reported only when the next message is at least this far away (or when it is
 # overdue by PROGRESS_FORCE_S), so reporting never delays a message.
 PROGRESS_SLACK_NS = 3_000_000
@@ -56,47 +63,49 @@ class PassPublisher:
         self.progress_period_ns = progress_period_ns
         self.loop = loop
         self.timeline = Timeline(0, 0, rate)
-        self.messages = 0
-        self.late = 0
         self._window_start = 0
-        self._last_log_time = 0
         self._next_tick = 0
         self._next_progress = 0
+        self._counted_before = (0, 0)  # lateness count and late messages before this pass
 
     def run(self, messages: Iterator[BagMessage], window_start: int) -> int:
         """Publish ``messages`` on schedule from now; return the bag time they covered (ns)."""
         self.timeline = Timeline(window_start, time.monotonic_ns(), self.rate)
-        self._window_start = self._last_log_time = window_start
+        self._window_start = last_log_time = window_start
         self._next_tick = self.timeline.wall_start_ns + self.tick_ns
         self._next_progress = self.timeline.wall_start_ns + self.progress_period_ns
+        self._counted_before = (self.lateness.count, self.lateness.late)
         clock = self.clock
         if clock is not None:
             clock.publish(clock_message(window_start))
         outputs = self.outputs
-        lateness = self.lateness
         on_progress = self.on_progress
+        delays: list[int] = []
         for message in messages:
             log_time = message.log_time
             deadline = self.timeline.deadline(log_time)
             if clock is not None:
                 self._tick_clock_until(deadline)
             if on_progress is not None:
-                self._maybe_report_progress(deadline)
+                self._maybe_report_progress(deadline, last_log_time, delays)
+            if len(delays) >= LATENESS_BLOCK and (
+                deadline - time.monotonic_ns() > LATENESS_SLACK_NS
+                or len(delays) >= LATENESS_BLOCK_MAX
+            ):
+                self.lateness.add_many(delays)
+                delays = []
             now = wait_until(deadline)
             if clock is not None:
                 clock.publish(clock_message(log_time))
             output = outputs[message.topic]
             output.publish(message.data)
             output.count += 1
-            delay_ns = now - deadline
-            lateness.add(delay_ns)
-            self.messages += 1
-            if delay_ns > LATE_THRESHOLD_NS:
-                self.late += 1
-            self._last_log_time = log_time
+            delays.append(now - deadline)
+            last_log_time = log_time
+        self.lateness.add_many(delays)
         if on_progress is not None:
-            self._report_progress(time.monotonic_ns())
-        return self._last_log_time - window_start
+            self._report_progress(time.monotonic_ns(), last_log_time, [])
+        return last_log_time - window_start
 
     def _tick_clock_until(self, deadline: int) -> None:
         """Publish ``/clock`` at ``clock_hz`` up to ``deadline``."""
@@ -107,25 +116,29 @@ class PassPublisher:
             # After a stall, resume ticking from now instead of bursting the backlog.
             self._next_tick = max(self._next_tick + self.tick_ns, time.monotonic_ns())
 
-    def _maybe_report_progress(self, deadline: int) -> None:
+    def _maybe_report_progress(self, deadline: int, last_log_time: int, delays: list[int]) -> None:
         now = time.monotonic_ns()
         if now >= self._next_progress and (
             deadline - now > PROGRESS_SLACK_NS or now - self._next_progress > PROGRESS_FORCE_S * 1e9
         ):
-            self._report_progress(now)
+            self._report_progress(now, last_log_time, delays)
             self._next_progress = now + self.progress_period_ns
 
-    def _report_progress(self, now: int) -> None:
+    def _report_progress(self, now: int, last_log_time: int, delays: list[int]) -> None:
+        """Report this pass so far; ``delays`` are the samples not yet handed to ``lateness``."""
         assert self.on_progress is not None
-        bag_s = (self._last_log_time - self._window_start) / 1e9
+        count_before, late_before = self._counted_before
+        bag_s = (last_log_time - self._window_start) / 1e9
         wall_s = (now - self.timeline.wall_start_ns) / 1e9
         self.on_progress(
             PlayProgress(
                 bag_time_s=bag_s,
                 wall_time_s=wall_s,
                 effective_rate=bag_s / wall_s if wall_s > 0 else 0.0,
-                messages=self.messages,
-                late=self.late,
+                messages=self.lateness.count - count_before + len(delays),
+                late=self.lateness.late
+                - late_before
+                + sum(1 for delay in delays if delay > LATE_THRESHOLD_NS),
                 loop=self.loop,
             )
         )

@@ -15,7 +15,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 from bagkit.errors import BagkitError
-from bagkit.ros.errors import RecorderOptionsError
+from bagkit.ros.errors import PlayerError, RecorderOptionsError
 
 
 def absolute_topic_name(name: str) -> str:
@@ -92,3 +92,14 @@ class TopicSelection:
     def missing(self, available: Iterable[str]) -> list[str]:
         """Named topics that are not in ``available``, sorted."""
         return sorted(self.topics - set(available))
+
+
+def parse_remaps(pairs: Iterable[str]) -> dict[str, str]:
+    """Parse ``OLD:=NEW`` topic remappings (as ``ros2 bag play --remap``)."""
+    remap = {}
+    for pair in pairs:
+        old, sep, new = pair.partition(":=")
+        if not sep or not old or not new:
+            raise PlayerError(f"remapping {pair!r} is not of the form OLD:=NEW")
+        remap[old] = new
+    return remap

@@ -3,9 +3,7 @@
 from __future__ import annotations
 
 import math
-import random
 import time
-from array import array
 from dataclasses import dataclass
 
 # A sleeping thread wakes up tens to hundreds of microseconds late (timer slack, a busy machine);
@@ -21,11 +19,6 @@ DEFAULT_CLOCK_HZ = 100.0
 # How long the player watches the graph for subscriptions that existed before it: Fast DDS
 # announces a participant every 3 s, and a new participant is often found only at the next one.
 DEFAULT_DISCOVERY_TIME_S = 3.0
-
-# Lateness samples kept for the percentiles: every one up to this many, then a uniform random
-# sample of them (reservoir sampling), so that a replay looping for days holds constant memory.
-# Count, maximum and late messages stay exact.
-LATENESS_SAMPLES = 100_000
 
 
 @dataclass(frozen=True, slots=True)
@@ -90,44 +83,3 @@ def _percentile(ordered: list[int], fraction: float) -> float:
     low = math.floor(position)
     high = min(low + 1, len(ordered) - 1)
     return ordered[low] + (ordered[high] - ordered[low]) * (position - low)
-
-
-class LatenessSamples:
-    """Per-message lateness (ns) of a replay in bounded memory.
-
-    Keeps every sample up to ``capacity``, then a uniform random sample of ``capacity`` of
-    them (algorithm R, seeded: the same replay gives the same summary); the count, the maximum
-    and the number of late messages are exact.
-    """
-
-    __slots__ = ("_random", "capacity", "count", "late", "max_ns", "samples")
-
-    def __init__(self, capacity: int | None = None) -> None:
-        self.capacity = LATENESS_SAMPLES if capacity is None else capacity
-        self.samples = array("q")
-        self.count = 0
-        self.late = 0
-        self.max_ns = 0
-        self._random = random.Random(0)
-
-    def add(self, lateness_ns: int) -> None:
-        """Account for one message published ``lateness_ns`` after its time (< 0: early)."""
-        self.count += 1
-        if lateness_ns > LATE_THRESHOLD_NS:
-            self.late += 1
-        self.max_ns = max(self.max_ns, lateness_ns)
-        if len(self.samples) < self.capacity:
-            self.samples.append(lateness_ns)
-            return
-        slot = self._random.randrange(self.count)
-        if slot < self.capacity:
-            self.samples[slot] = lateness_ns
-
-    def summary(self) -> LatenessSummary:
-        """Percentiles from the samples kept; maximum and late count over every message."""
-        if not self.count:
-            return LatenessSummary.from_samples([])
-        sampled = LatenessSummary.from_samples(list(self.samples))
-        return LatenessSummary(
-            p50_ms=sampled.p50_ms, p99_ms=sampled.p99_ms, max_ms=self.max_ns / 1e6, late=self.late
-        )

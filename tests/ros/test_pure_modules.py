@@ -9,6 +9,7 @@ PURE = [
     "bagkit.ros.clock",
     "bagkit.ros.fastdds",
     "bagkit.ros.handoff",
+    "bagkit.ros.lateness",
     "bagkit.ros.loss",
     "bagkit.ros.memory",
     "bagkit.ros.playback_report",

@@ -642,17 +642,17 @@ def test_a_recorded_clock_is_not_replayed_with_clock_on(tmp_path: Path) -> None:
 def test_looping_keeps_the_lateness_samples_bounded(
     test_bag: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
+    from bagkit.ros import lateness
     from bagkit.ros import player as player_module
-    from bagkit.ros import timing
 
-    kept: list[timing.LatenessSamples] = []
+    kept: list[lateness.LatenessSamples] = []
 
-    class Spied(timing.LatenessSamples):
+    class Spied(lateness.LatenessSamples):
         def __init__(self) -> None:
             super().__init__()
             kept.append(self)
 
-    monkeypatch.setattr(timing, "LATENESS_SAMPLES", 50)
+    monkeypatch.setattr(lateness, "LATENESS_SAMPLES", 50)
     monkeypatch.setattr(player_module, "LatenessSamples", Spied)
     per_pass = len(recorded(test_bag))
     report = play(test_bag, rate=100.0, loops=20, wait_for_subscribers=False)

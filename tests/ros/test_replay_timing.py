@@ -9,10 +9,10 @@ from typer.testing import CliRunner
 
 from bagkit.cli.main import app
 from bagkit.ros.errors import PlayerError
-from bagkit.ros.player import parse_remaps
+from bagkit.ros.lateness import LatenessSamples
+from bagkit.ros.selection import parse_remaps
 from bagkit.ros.timing import (
     LATE_THRESHOLD_NS,
-    LatenessSamples,
     LatenessSummary,
     Timeline,
     wait_until,
