@@ -172,7 +172,7 @@ def subscribe(mode: str, kind: str, out: Path, *, default_transport: bool = Fals
         stop["now"] = True
 
     signal.signal(signal.SIGINT, on_signal)
-    from bagkit.ros.recorder import keep_freed_memory
+    from bagkit.ros.memory import keep_freed_memory
 
     # Both as `bagkit record` does for its process; the peers get them too, so the ratios
     # compare the work done per message, not the allocator or the transport's queue.

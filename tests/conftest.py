@@ -6,6 +6,7 @@ import os
 import signal
 import subprocess
 import sys
+import types
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -26,6 +27,37 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 INTEROP_DIR = Path(
     os.environ.get("BAGKIT_INTEROP_DIR", REPO_ROOT.parent / "shared" / "interop" / "rosbag2_jazzy")
 )
+
+
+# Fixtures that start DDS participants, in this process or in subprocesses (`processes` starts
+# `bagkit record/replay` and `fusion`): every test that uses one is a `ros` test.
+DDS_FIXTURES = frozenset({"node", "context", "listener_factory", "processes"})
+# Names whose presence in a test module means its tests create participants themselves.
+_DDS_MODULE_NAMES = ("Recorder", "Player", "play")
+
+
+def _starts_dds(module: types.ModuleType | None) -> bool:
+    """Whether a test module imports rclpy itself or the library's participant-creating API."""
+    if module is None:
+        return False
+    names = vars(module)
+    if isinstance(names.get("rclpy"), types.ModuleType):
+        return True
+    return any(
+        str(getattr(names.get(name), "__module__", "")).startswith(
+            ("bagkit.ros", "bagkit.regression")
+        )
+        for name in _DDS_MODULE_NAMES
+    )
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Mark every test that starts DDS `ros`, from the fixtures it uses or its module's imports,
+    so that `pytest -m "not ros"` is the fast loop without a middleware."""
+    for item in items:
+        fixtures = set(getattr(item, "fixturenames", ()))
+        if fixtures & DDS_FIXTURES or _starts_dds(getattr(item, "module", None)):
+            item.add_marker(pytest.mark.ros)
 
 
 @pytest.fixture(scope="session")

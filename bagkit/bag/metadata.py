@@ -99,8 +99,12 @@ def write_metadata(bag_dir: Path, metadata: BagMetadata) -> None:
     """Write ``metadata.yaml`` atomically (a crash never leaves half a file)."""
     target = bag_dir / METADATA_FILENAME
     partial = target.with_name(METADATA_FILENAME + ".partial")
-    partial.write_text(metadata.dump(), encoding="utf-8")
-    partial.replace(target)
+    try:
+        partial.write_text(metadata.dump(), encoding="utf-8")
+        partial.replace(target)
+    except OSError:
+        partial.unlink(missing_ok=True)  # a full disk must not leave half a file behind
+        raise
 
 
 def _qos_text(value: Any) -> str:

@@ -27,7 +27,8 @@ from bagkit.cli.common import (
 
 if TYPE_CHECKING:
     # The recorder imports rclpy: only `bagkit record` itself pays for that import.
-    from bagkit.ros.recorder import RecordProgress, RecordReport
+    from bagkit.ros.record_report import RecordProgress, RecordReport
+    from bagkit.ros.recorder import Recorder
 
 HELP = (
     "Record TOPICS (or --all, or --regex) into an MCAP bag that ros2 bag, Foxglove and rosbags "
@@ -113,7 +114,7 @@ def record(  # noqa: PLR0917 (typer maps parameters to options)
         None, "--regex", "-e", help="Also record topics whose name contains a match of RE."
     ),
     exclude: str | None = typer.Option(
-        None, "--exclude", "-x", help="Leave out topics selected by --all/--regex matching RE."
+        None, "--exclude", "-x", help="Leave out every topic matching RE, named ones too."
     ),
     output: Path | None = typer.Option(
         None,
@@ -154,10 +155,10 @@ def record(  # noqa: PLR0917 (typer maps parameters to options)
         OutputFormat.TABLE, "--format", "-f", help="Final report as a table or JSON (no csv)."
     ),
 ) -> None:
-    from bagkit.ros.fastdds import large_receive_queue
-    from bagkit.ros.graph import absolute_topic_name
+    from bagkit.ros.memory import keep_freed_memory
     from bagkit.ros.qos import load_qos_overrides
-    from bagkit.ros.recorder import Recorder, default_output_name, keep_freed_memory
+    from bagkit.ros.recorder import Recorder, default_output_name
+    from bagkit.ros.selection import absolute_topic_name
 
     if output_format == OutputFormat.CSV:
         raise fail("--format csv is not supported by record (table or json)")
@@ -182,6 +183,26 @@ def record(  # noqa: PLR0917 (typer maps parameters to options)
     )
 
     keep_freed_memory()
+    report, received = _record_until_stopped(recorder, duration)
+
+    if output_format == OutputFormat.JSON:
+        print_json(report.to_dict())
+    else:
+        _print_table(report)
+    for topic, reason in report.skipped.items():
+        warn(f"not recorded: {topic}: {reason}")
+    if report.error is not None:
+        raise fail(report.error, 1)
+    if received:
+        raise typer.Exit(EXIT_INTERRUPTED if received[0] == signal.SIGINT else 128 + received[0])
+
+
+def _record_until_stopped(
+    recorder: Recorder, duration: float | None
+) -> tuple[RecordReport, list[int]]:
+    """Record until a signal, ``duration`` or a failure; return the report and the signals."""
+    from bagkit.ros.fastdds import large_receive_queue
+
     stop = threading.Event()
     received: list[int] = []
 
@@ -210,14 +231,4 @@ def record(  # noqa: PLR0917 (typer maps parameters to options)
         report = recorder.stop()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-
-    if output_format == OutputFormat.JSON:
-        print_json(report.to_dict())
-    else:
-        _print_table(report)
-    for topic, reason in report.skipped.items():
-        warn(f"not recorded: {topic}: {reason}")
-    if report.error is not None:
-        raise fail(report.error, 1)
-    if received:
-        raise typer.Exit(EXIT_INTERRUPTED if received[0] == signal.SIGINT else 128 + received[0])
+    return report, received

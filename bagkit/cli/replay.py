@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import re
 import sys
+from contextlib import ExitStack
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -24,7 +25,8 @@ from bagkit.ros.timing import DEFAULT_CLOCK_HZ, DEFAULT_DISCOVERY_TIME_S, LATE_T
 
 if TYPE_CHECKING:
     # The player imports rclpy: only `bagkit replay` itself pays for that import.
-    from bagkit.ros.player import PlayProgress, PlayReport
+    from bagkit.ros.playback_report import PlayProgress, PlayReport
+    from bagkit.ros.player import Player
 
 _NUMBER = re.compile(r"[0-9]*\.?[0-9]+([eE][-+]?[0-9]+)?")
 
@@ -132,13 +134,15 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
 
     Progress goes to stderr; per-topic counts and the timing error go to stdout.
     """
-    from bagkit.ros.player import Player, parse_remaps
+    from bagkit.ros.fastdds import large_receive_queue
+    from bagkit.ros.player import Player
+    from bagkit.ros.selection import parse_remaps
 
     if output_format is OutputFormat.CSV:
         raise fail("replay prints its report as a table or as JSON (--format json), not CSV")
     interactive = sys.stderr.isatty()
     progress = _ProgressLine(interactive=interactive)
-    with Player(
+    player = Player(
         bag,
         rate=rate,
         topics=[name for value in topics for name in re.split(r"[,\s]+", value) if name] or None,
@@ -157,15 +161,13 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
         qos_overrides=qos_overrides,
         on_progress=progress.update,
         progress_period=0.25 if interactive else 5.0,
-    ) as player:
-        if player.skipped_types:
-            listed = ", ".join(f"{t} ({ty})" for t, ty in sorted(player.skipped_types.items()))
-            warn(f"not replaying topics whose message type is not installed: {listed}")
-        if player.skipped_formats:
-            listed = ", ".join(f"{t} ({f})" for t, f in sorted(player.skipped_formats.items()))
-            warn(f"not replaying topics whose serialization format is not cdr: {listed}")
-        if player.missing_topics:
-            warn(f"topics not in the bag: {', '.join(player.missing_topics)}")
+    )
+    with ExitStack() as stack:
+        # The same Fast DDS shared-memory sizing as `bagkit record`: the profile's queue
+        # capacity also sizes the participant's pool of send buffers (read at its creation).
+        with large_receive_queue():
+            stack.enter_context(player)
+        _warn_skipped(player)
         report = player.play()
     progress.finish()
 
@@ -173,12 +175,32 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
         print_json(report.to_dict())
     else:
         _print_report(report)
+    _finish(report, bag)
+
+
+def _warn_skipped(player: Player) -> None:
+    if player.skipped_types:
+        listed = ", ".join(f"{t} ({ty})" for t, ty in sorted(player.skipped_types.items()))
+        warn(f"not replaying topics whose message type is not installed: {listed}")
+    if player.skipped_formats:
+        listed = ", ".join(f"{t} ({f})" for t, f in sorted(player.skipped_formats.items()))
+        warn(f"not replaying topics whose serialization format is not cdr: {listed}")
+    if player.missing_topics:
+        warn(f"topics not in the bag: {', '.join(player.missing_topics)}")
+
+
+def _finish(report: PlayReport, bag: Path) -> None:
+    """Warnings, the error of a replay that found nothing readable, the exit status."""
+    damage = "; ".join(report.problems)
+    if report.problems and report.messages == 0 and not report.interrupted:
+        raise fail(f"nothing replayed: {bag} is damaged: {damage}", 2)
     if report.messages == 0 and not report.interrupted:
         warn("no message of the selected topics lies in the replayed window")
     if report.problems:
+        unreadable = f", {report.unreadable} could not be read" if report.unreadable else ""
         warn(
-            f"the bag is damaged: replayed the {report.messages} messages that could be read; "
-            + "; ".join(report.problems)
+            f"the bag is damaged: replayed the {report.messages} messages that could be read"
+            f"{unreadable}; {damage}"
         )
     if report.unacknowledged:
         warn(
@@ -218,12 +240,16 @@ def _print_report(report: PlayReport) -> None:
     table.add_column("published as")
     table.add_column("type")
     table.add_column("messages", justify="right")
+    damaged = report.unreadable > 0
+    if damaged:
+        table.add_column("unreadable", justify="right")
     for topic in report.topics:
         table.add_row(
             topic.topic,
             "" if topic.published_as == topic.topic else topic.published_as,
             topic.type,
             str(topic.messages),
+            *([str(topic.unreadable)] if damaged else []),
         )
     console.print(table)
     lateness = report.lateness

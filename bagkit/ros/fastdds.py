@@ -147,11 +147,16 @@ def large_receive_queue(
         return
     with tempfile.TemporaryDirectory(prefix="bagkit-fastdds-") as directory:
         profile = Path(directory) / "bagkit_record.xml"
-        profile.write_text(
-            shared_memory_profile(
-                localhost=localhost_only(env), port_queue_capacity=port_queue_capacity
+        try:
+            profile.write_text(
+                shared_memory_profile(
+                    localhost=localhost_only(env), port_queue_capacity=port_queue_capacity
+                )
             )
-        )
+        except OSError:
+            # A full disk: the participant runs with Fast DDS's defaults (the bag will say more).
+            yield False
+            return
         env[PROFILES_FILE_VARIABLE] = str(profile)
         try:
             yield True

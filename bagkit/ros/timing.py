@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import struct
 import time
 from dataclasses import dataclass
 
@@ -20,9 +19,6 @@ DEFAULT_CLOCK_HZ = 100.0
 # How long the player watches the graph for subscriptions that existed before it: Fast DDS
 # announces a participant every 3 s, and a new participant is often found only at the next one.
 DEFAULT_DISCOVERY_TIME_S = 3.0
-
-_CDR_LE_HEADER = b"\x00\x01\x00\x00"
-_TIME = struct.Struct("<iI")
 
 
 @dataclass(frozen=True, slots=True)
@@ -55,12 +51,6 @@ def wait_until(deadline_ns: int, *, spin_window_ns: int = SPIN_WINDOW_NS) -> int
     while now < deadline_ns:
         now = time.monotonic_ns()
     return now
-
-
-def clock_message(bag_ns: int) -> bytes:
-    """Serialized ``rosgraph_msgs/msg/Clock`` (CDR, little endian) holding ``bag_ns``."""
-    sec, nanosec = divmod(bag_ns, 1_000_000_000)
-    return _CDR_LE_HEADER + _TIME.pack(sec, nanosec)
 
 
 @dataclass(frozen=True, slots=True)

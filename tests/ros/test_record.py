@@ -22,7 +22,7 @@ from sensor_msgs.msg import Imu
 from std_msgs.msg import Int32, String
 
 from bagkit.bag import BagReader
-from bagkit.ros import recorder as recorder_module
+from bagkit.ros import handoff, subscriptions, write_loop
 from bagkit.ros.errors import MessageClassNotFoundError
 from bagkit.ros.qos import parse_offered_qos_profiles
 from bagkit.ros.recorder import Recorder
@@ -213,7 +213,7 @@ def test_publisher_with_weaker_qos_joining_later_is_recorded(node: Node, tmp_pat
 def test_unknown_message_package_is_skipped_with_one_warning(
     node: Node, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    known = recorder_module.import_message_type
+    known = subscriptions.import_message_type
 
     def without_int32(type_name: str) -> Any:
         # Stands for a package that is not installed: the publisher's own process has it.
@@ -221,7 +221,7 @@ def test_unknown_message_package_is_skipped_with_one_warning(
             raise MessageClassNotFoundError(f"message type {type_name} is not installed")
         return known(type_name)
 
-    monkeypatch.setattr(recorder_module, "import_message_type", without_int32)
+    monkeypatch.setattr(subscriptions, "import_message_type", without_int32)
     unknown = node.create_publisher(Int32, "/skip/int", 10)
     text = node.create_publisher(String, "/skip/text", 10)
     warnings: list[str] = []
@@ -285,14 +285,14 @@ def test_write_queue_overflow_is_counted(
     node: Node, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """A writer slower than the input: every message is either in the bag or counted lost."""
-    write_batch = recorder_module.BagWriter.write_batch
+    write_batch = write_loop.BagWriter.write_batch
 
     def slow_write_batch(self: Any, topic: str, payloads: list[bytes], **kwargs: Any) -> None:
         time.sleep(0.005 * len(payloads))  # stands for a disk that cannot keep up
         write_batch(self, topic, payloads, **kwargs)
 
-    monkeypatch.setattr(recorder_module.BagWriter, "write_batch", slow_write_batch)
-    monkeypatch.setattr(recorder_module, "QUEUE_WAIT_S", 0.01)
+    monkeypatch.setattr(write_loop.BagWriter, "write_batch", slow_write_batch)
+    monkeypatch.setattr(handoff, "QUEUE_WAIT_S", 0.01)
     publisher = node.create_publisher(String, "/slow", 1000)
     n = 600
     # Room for about two batches (5 ms of messages each) waiting for the writer.
@@ -307,3 +307,58 @@ def test_write_queue_overflow_is_counted(
     assert record.messages + record.lost == n
     with BagReader(tmp_path / "slow") as reader:
         assert reader.topic_counts == {"/slow": record.messages}
+
+
+def test_type_without_a_definition_is_skipped_and_recording_goes_on(
+    node: Node, tmp_path: Path
+) -> None:
+    # A service's request type is importable, but there is no .msg file to store in the bag:
+    # the same holds for an action's feedback message.
+    from rcl_interfaces.srv import ListParameters
+
+    odd = node.create_publisher(ListParameters.Request, "/odd/request", 10)
+    text = node.create_publisher(String, "/odd/text", 10)
+    warnings: list[str] = []
+    bag = tmp_path / "odd"
+    with Recorder(bag, regex="^/odd/", on_warning=warnings.append) as recorder:
+        wait_matched(text)
+        wait_for(lambda: "/odd/request" in recorder.report.skipped)
+        odd.publish(ListParameters.Request())
+        for i in range(3):
+            text.publish(String(data=f"kept {i}"))
+        wait_for(lambda: recorder.progress().messages == 3)
+        time.sleep(0.3)  # several graph polls: still one warning
+    assert len(warnings) == 1
+    assert warnings[0].startswith("not recording /odd/request: no message definition")
+    assert "rcl_interfaces/srv/ListParameters_Request" in warnings[0]
+    assert recorder.report.error is None
+    assert [t.topic for t in recorder.report.topics] == ["/odd/text"]
+    with BagReader(bag) as reader:
+        assert reader.topic_counts == {"/odd/text": 3}
+
+
+def test_subscription_error_in_discovery_still_finishes_the_bag(
+    node: Node, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    publisher = node.create_publisher(String, "/broken/topic", 10)
+    create_subscription = Node.create_subscription
+
+    def failing(self: Node, message_type: Any, topic: str, *args: Any, **kwargs: Any) -> Any:
+        # Stands for the middleware refusing the subscription (rclpy raises RuntimeError).
+        if topic == "/broken/topic":
+            raise RuntimeError("could not create subscription: middleware refused")
+        return create_subscription(self, message_type, topic, *args, **kwargs)
+
+    monkeypatch.setattr(Node, "create_subscription", failing)
+    wait_for(lambda: bool(node.get_publishers_info_by_topic("/broken/topic")))
+    bag = tmp_path / "broken"
+    recorder = Recorder(bag, topics=["/broken/topic"])
+    recorder.start()
+    assert recorder.stopped.wait(MATCH_TIMEOUT_S)
+    report = recorder.stop()
+    assert publisher.get_subscription_count() == 0
+    assert report.error == "recording stopped: could not create subscription: middleware refused"
+    with BagReader(bag, allow_empty=True) as reader:
+        assert reader.has_summary
+        assert reader.message_count == 0
+    assert (bag / "metadata.yaml").is_file()

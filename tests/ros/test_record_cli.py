@@ -13,7 +13,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from rclpy.duration import Duration
 from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 from std_msgs.msg import String
 from test_record import node, wait_for
@@ -165,6 +167,77 @@ def test_full_disk_stops_with_one_line_and_keeps_what_was_written(
     recorded = texts(bag, "/cli/big")
     assert len(recorded) == topic["messages"] > 5
     assert [int(t[:4]) for t in recorded] == list(range(len(recorded)))
+
+
+def lost_in_error_line(stderr: bytes) -> int:
+    """The lost count of the one ``error:`` line (``... (N messages lost)``)."""
+    (line,) = [x for x in stderr.decode().splitlines() if x.startswith("error")]
+    match = re.search(r"\((\d+) messages lost\)$", line)
+    assert match, line
+    return int(match.group(1))
+
+
+@pytest.mark.parametrize(
+    "case",
+    [
+        (700_000, 20_000, 10),  # ten messages make it to disk, a later chunk does not
+        (1_500, 40_000, 0),  # not even the first chunk fits; nor does metadata.yaml
+    ],
+)
+def test_full_disk_loss_is_exact_in_the_error_line_the_report_and_the_bag(
+    node: Node, processes: object, tmp_path: Path, case: tuple[int, int, int]
+) -> None:
+    limit, size, flushed_first = case
+    reliable = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+    publisher = node.create_publisher(String, "/cli/exact", reliable)
+    bag = tmp_path / "exact"
+    proc = record(processes, "/cli/exact", "-o", str(bag), "--compression", "none", "-f", "json")
+    wait_for(lambda: publisher.get_subscription_count() > 0, STARTUP_TIMEOUT_S)
+    resource.prlimit(proc.pid, resource.RLIMIT_FSIZE, (limit, limit))
+    published: list[str] = []
+
+    def burst(count: int) -> None:
+        for _ in range(count):
+            published.append(f"{len(published):04d}" + os.urandom(size // 2).hex())
+            publisher.publish(String(data=published[-1]))
+        # Everything is in the recorder before its writer closes the chunk (after >= 0.5 s).
+        assert publisher.wait_for_all_acked(Duration(seconds=10))
+
+    if flushed_first:
+        burst(flushed_first)
+        time.sleep(2.0)  # the writer flushes them: idle for half a second
+    burst(40)
+    stdout, stderr = proc.communicate(timeout=30)
+    assert proc.returncode == 1, stderr.decode()
+    report = report_json(stdout)
+    with BagReader(bag, allow_empty=True) as reader:
+        recorded = [
+            deserialize_message(m.data, String).data for m in reader.messages(["/cli/exact"])
+        ]
+    assert recorded == published[: len(recorded)]
+    assert len(recorded) >= flushed_first
+    (topic,) = report["topics"]
+    assert topic["messages"] == report["messages"] == len(recorded)
+    assert topic["write_failed"] == report["lost"] == len(published) - len(recorded) > 0
+    assert lost_in_error_line(stderr) == report["lost"]
+    assert not (bag / "metadata.yaml.partial").exists()
+
+
+def test_full_disk_at_start_exits_1_and_leaves_nothing(processes: object, tmp_path: Path) -> None:
+    bag = tmp_path / "nothing"
+    proc = record(
+        processes,
+        "-a",
+        "-o",
+        str(bag),
+        # Room for the probe of tempfile (4 bytes), not for an MCAP header.
+        preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_FSIZE, (8, 8)),
+    )
+    _, stderr = proc.communicate(timeout=30)
+    assert proc.returncode == 1, stderr.decode()
+    (line,) = stderr.decode().strip().splitlines()
+    assert line.startswith("error: cannot write") and "File too large" in line
+    assert not bag.exists()
 
 
 @pytest.mark.parametrize(

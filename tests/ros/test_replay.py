@@ -27,9 +27,9 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
 from bagkit.bag import BagReader, BagWriter, TopicInfo
+from bagkit.ros.clock import clock_message
 from bagkit.ros.player import Player, play
 from bagkit.ros.qos import REPLAY_DEPTH, dump_offered_qos_profiles
-from bagkit.ros.timing import clock_message
 
 pytestmark = pytest.mark.ros
 
@@ -349,7 +349,13 @@ def test_cli_replays_a_rosbag2_recording(
     report = json.loads(result.stdout)
     assert report["messages"] == len(expected)
     assert report["topics"] == [
-        {"topic": "/topic", "published_as": "/topic", "type": "std_msgs/msg/String", "messages": 10}
+        {
+            "topic": "/topic",
+            "published_as": "/topic",
+            "type": "std_msgs/msg/String",
+            "messages": 10,
+            "unreadable": 0,
+        }
     ]
 
 
@@ -631,3 +637,136 @@ def test_a_recorded_clock_is_not_replayed_with_clock_on(tmp_path: Path) -> None:
         assert set(player.published_topics) == {"/replay/fast"}
     with Player(bag, wait_for_subscribers=False) as player:
         assert set(player.published_topics) == {"/clock", "/replay/fast"}
+
+
+def test_looping_keeps_the_lateness_samples_bounded(
+    test_bag: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from bagkit.ros import lateness
+    from bagkit.ros import player as player_module
+
+    kept: list[lateness.LatenessSamples] = []
+
+    class Spied(lateness.LatenessSamples):
+        def __init__(self) -> None:
+            super().__init__()
+            kept.append(self)
+
+    monkeypatch.setattr(lateness, "LATENESS_SAMPLES", 50)
+    monkeypatch.setattr(player_module, "LatenessSamples", Spied)
+    per_pass = len(recorded(test_bag))
+    report = play(test_bag, rate=100.0, loops=20, wait_for_subscribers=False)
+    assert report.loops == 20
+    assert report.messages == 20 * per_pass > 50
+    (samples,) = kept
+    assert samples.count == report.messages
+    assert len(samples.samples) == 50  # what is retained does not grow with the passes
+
+
+def _corrupt_chunks(bag: Path, which: list[int]) -> tuple[int, int]:
+    """Break the zstd frame of chunks ``which`` of ``bag``; return (messages, in those chunks)."""
+    from mcap.reader import make_reader
+
+    (storage,) = bag.glob("*.mcap")
+    with storage.open("rb") as f:
+        reader = make_reader(f)
+        chunks = reader.get_summary().chunk_indexes  # type: ignore[union-attr]
+        log_times = [message.log_time for _, _, message in reader.iter_messages()]
+    broken = [chunks[i] for i in which]
+    lost = sum(
+        1 for t in log_times for c in broken if c.message_start_time <= t <= c.message_end_time
+    )
+    with storage.open("r+b") as f:
+        for chunk in broken:
+            # Past the chunk's opcode, length, times, sizes, CRC and compression name: the frame.
+            f.seek(chunk.chunk_start_offset + 1 + 8 * 4 + 4 + 4 + len(chunk.compression) + 8)
+            f.write(b"\xff" * 8)
+    return len(log_times), lost
+
+
+@pytest.mark.parametrize("broken", ["one chunk", "every chunk"])
+def test_cli_chunk_that_does_not_decompress_is_named_and_counted(
+    tmp_path: Path, broken: str
+) -> None:
+    bag = tmp_path / "broken"
+    with BagWriter(bag, chunk_size=2_000) as writer:
+        writer.add_topic(TopicInfo("/replay/fast", "std_msgs/msg/String"))
+        for index in range(200):
+            writer.write(
+                "/replay/fast",
+                _payload("/replay/fast", index),
+                log_time=BAG_START_NS + index * 1_000_000,
+            )
+    with BagReader(bag) as reader:
+        chunk_count = sum(1 for _ in reader.chunks())
+    which = [2] if broken == "one chunk" else list(range(chunk_count))
+    total, lost = _corrupt_chunks(bag, which)
+    result = _bagkit("replay", str(bag), "--rate", "100", "--no-wait-for-subscribers", "-f", "json")
+    assert "Traceback" not in result.stderr
+    assert "no message of the selected topics" not in result.stderr
+    if broken == "every chunk":
+        assert result.returncode == 2
+        (line,) = result.stderr.strip().splitlines()
+        assert line.startswith("error: nothing replayed") and "chunk at byte" in line
+        return
+    assert result.returncode == 0, result.stderr
+    report = json.loads(result.stdout)
+    assert 0 < lost < total
+    assert report["messages"] == total - lost
+    assert report["unreadable"] == report["topics"][0]["unreadable"] == lost
+    (warning,) = [line for line in result.stderr.splitlines() if "damaged" in line]
+    assert f"{lost} could not be read" in warning and "chunk at byte" in warning
+
+
+def test_cli_start_offset_past_the_end_is_one_clear_line(test_bag: Path) -> None:
+    result = _bagkit("replay", str(test_bag), "--start-offset", "5", "--no-wait-for-subscribers")
+    assert result.returncode == 2
+    (line,) = result.stderr.strip().splitlines()
+    assert line.startswith("error: --start-offset 5 s is past the end of")
+    assert "nan" not in result.stdout + result.stderr
+
+
+@pytest.mark.parametrize("user_profile", [False, True])
+def test_replay_gives_itself_the_large_shared_memory_pool_unless_the_user_has_a_profile(
+    test_bag: Path, listener_factory: type[Listener], tmp_path: Path, user_profile: bool
+) -> None:
+    from test_record_cli import shared_memory_ports
+
+    env = dict(os.environ)
+    if user_profile:
+        mine = tmp_path / "mine.xml"
+        mine.write_text(
+            '<?xml version="1.0" encoding="UTF-8"?>\n'
+            '<dds xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"><profiles>'
+            '<participant profile_name="mine" is_default_profile="true"><rtps/></participant>'
+            "</profiles></dds>\n"
+        )
+        env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(mine)
+    listener = listener_factory(STRING_TOPICS)
+    proc = subprocess.Popen(
+        [
+            str(Path(sys.executable).with_name("bagkit")),
+            "replay",
+            str(test_bag),
+            *CLI_KNOWN,
+            "--wait-for",
+            "/replay/fast",
+        ],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    try:
+        listener.wait_for_count(1)
+        ports = shared_memory_ports(proc.pid)  # read while the replay runs (about 1 s)
+        _, stderr = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 0, stderr.decode()
+    assert ports, "the player maps no shared-memory port"
+    # Fast DDS sizes a port file by its descriptors: 52 KB for the default 512, 1.3 MB for
+    # bagkit's 65536 (the same setting sizes the participant's send pool).
+    large = [size for size in ports.values() if size > 1_000_000]
+    assert bool(large) is not user_profile, ports

@@ -5,18 +5,16 @@ from __future__ import annotations
 import time
 
 import pytest
-from rclpy.serialization import serialize_message
-from rosgraph_msgs.msg import Clock
 from typer.testing import CliRunner
 
 from bagkit.cli.main import app
 from bagkit.ros.errors import PlayerError
-from bagkit.ros.player import parse_remaps
+from bagkit.ros.lateness import LatenessSamples
+from bagkit.ros.selection import parse_remaps
 from bagkit.ros.timing import (
     LATE_THRESHOLD_NS,
     LatenessSummary,
     Timeline,
-    clock_message,
     wait_until,
 )
 
@@ -36,13 +34,6 @@ def test_wait_until_never_returns_early() -> None:
         assert time.monotonic_ns() >= deadline
 
 
-def test_clock_message_is_the_cdr_of_rosgraph_clock() -> None:
-    stamp_ns = 1_700_000_123_456_789_012
-    expected = Clock()
-    expected.clock.sec, expected.clock.nanosec = divmod(stamp_ns, 1_000_000_000)
-    assert clock_message(stamp_ns) == serialize_message(expected)
-
-
 def test_lateness_summary_percentiles_and_late_count() -> None:
     samples = [i * 10_000 for i in range(101)]  # 0 .. 1 ms in 10 us steps
     samples += [-5_000, LATE_THRESHOLD_NS + 1, 7_000_000]
@@ -59,6 +50,24 @@ def test_lateness_summary_of_nothing_is_nan() -> None:
     summary = LatenessSummary.from_samples([])
     assert summary.late == 0
     assert summary.p50_ms != summary.p50_ms
+
+
+def test_lateness_samples_are_exact_below_capacity_and_bounded_above() -> None:
+    samples = [(i * 7_919) % 3_000_000 - 100_000 for i in range(5_000)]
+    exact = LatenessSamples()
+    for value in samples:
+        exact.add(value)
+    assert exact.summary() == LatenessSummary.from_samples(samples)
+    bounded = LatenessSamples(capacity=100)
+    for value in samples * 20:  # 20 passes over the same messages
+        bounded.add(value)
+    assert len(bounded.samples) == 100
+    assert bounded.count == 100_000
+    summary = bounded.summary()
+    # Count, maximum and late messages stay exact; the percentiles come from the sample.
+    assert summary.late == 20 * sum(1 for v in samples if v > LATE_THRESHOLD_NS)
+    assert summary.max_ms == max(samples) / 1e6
+    assert 0.9 < summary.p50_ms < 1.8  # the samples spread evenly over -0.1 .. 2.9 ms
 
 
 def test_parse_remaps() -> None:

@@ -1,0 +1,72 @@
+"""What a replay did: per-topic counts, timing error, what could not be read (no rclpy)."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+from bagkit.ros.timing import LatenessSummary
+
+
+@dataclass(frozen=True, slots=True)
+class PlayProgress:
+    """A snapshot of a running replay, for a progress line."""
+
+    bag_time_s: float
+    """Bag time played in the current pass, from the start of the replayed window."""
+    wall_time_s: float
+    """Wall time since the first message of the current pass was scheduled."""
+    effective_rate: float
+    messages: int
+    late: int
+    loop: int
+
+
+@dataclass(frozen=True, slots=True)
+class TopicPlayback:
+    """What was replayed of one topic."""
+
+    topic: str
+    published_as: str
+    type: str
+    messages: int
+    unreadable: int = 0
+    """Messages the bag's index lists but that could not be read (damaged chunks)."""
+
+
+@dataclass(slots=True)
+class PlayReport:
+    """The outcome of a replay."""
+
+    topics: list[TopicPlayback]
+    messages: int
+    loops: int
+    """Passes over the bag that completed."""
+    bag_duration_s: float
+    """Bag time covered by the replayed messages, summed over passes."""
+    wall_duration_s: float
+    """Wall time from the start of the first pass (its delay included) to the last message."""
+    rate: float
+    lateness: LatenessSummary
+    skipped_types: dict[str, str] = field(default_factory=dict)
+    """Topic -> message type that is not installed (not replayed)."""
+    skipped_formats: dict[str, str] = field(default_factory=dict)
+    """Topic -> serialization format other than ``cdr`` (not replayed)."""
+    missing_topics: list[str] = field(default_factory=list)
+    """Topics asked for with ``topics`` that the bag does not have."""
+    problems: list[str] = field(default_factory=list)
+    """What the reader could not read (a truncated or damaged file), naming the chunk."""
+    unacknowledged: list[str] = field(default_factory=list)
+    """Reliable topics whose subscribers had not acknowledged every message at the end."""
+    interrupted: bool = False
+
+    @property
+    def unreadable(self) -> int:
+        """Messages of the replayed topics that could not be read, over every pass."""
+        return sum(t.unreadable for t in self.topics)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The report as plain JSON-ready data."""
+        data = asdict(self)
+        data["unreadable"] = self.unreadable
+        return data

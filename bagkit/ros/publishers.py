@@ -1,0 +1,155 @@
+"""The player's publishers: one per replayed topic and ``/clock``; matching, acknowledgement."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+from rclpy.duration import Duration
+from rclpy.exceptions import InvalidTopicNameException
+from rclpy.node import Node
+from rclpy.publisher import Publisher
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSCompatibility,
+    QoSProfile,
+    ReliabilityPolicy,
+    qos_check_compatible,
+)
+from rosgraph_msgs.msg import Clock
+
+from bagkit.bag import TopicInfo
+from bagkit.ros.clock import CLOCK_TOPIC, CLOCK_TYPE
+from bagkit.ros.errors import PlayerError, SubscriberTimeoutError
+
+# The graph counts as settled when it has not changed for this long.
+GRAPH_SETTLE_S = 0.2
+# A publisher sees a subscription match before the subscription sees the publisher; the first
+# message is only safe once both sides have matched, which we cannot observe from here.
+MATCH_GRACE_S = 0.1
+# What rclcpp's ClockQoS offers and what every use_sim_time node subscribes with.
+CLOCK_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.BEST_EFFORT,
+    durability=DurabilityPolicy.VOLATILE,
+)
+
+
+@dataclass(slots=True)
+class TopicOutput:
+    """A replayed topic's publisher and how many messages went out on it."""
+
+    info: TopicInfo
+    publisher: Publisher
+    publish: Callable[[bytes], None]
+    """The publisher's raw publish, without ``Publisher.publish``'s per-call checks."""
+    count: int = 0
+
+    @property
+    def name(self) -> str:
+        """The name it is published under (after remapping)."""
+        return str(self.publisher.topic_name)
+
+
+def create_output(
+    node: Node, info: TopicInfo, message_class: object, name: str, qos: QoSProfile
+) -> TopicOutput:
+    """A publisher of ``info``'s messages under ``name``.
+
+    Raises:
+        PlayerError: ``name`` is not a valid topic name.
+    """
+    try:
+        publisher = node.create_publisher(message_class, name, qos)
+    except InvalidTopicNameException as exc:
+        # rclpy's message goes on with the name and a caret under the bad character.
+        reason = str(exc).splitlines()[0].rstrip(":")
+        raise PlayerError(f"cannot publish {info.name} as {name!r}: {reason}") from None
+    return TopicOutput(info, publisher, publisher.handle.publish_raw)
+
+
+def create_clock_output(node: Node) -> TopicOutput:
+    """The ``/clock`` publisher, with the QoS sim-time nodes subscribe with."""
+    publisher = node.create_publisher(Clock, CLOCK_TOPIC, CLOCK_QOS)
+    return TopicOutput(TopicInfo(CLOCK_TOPIC, CLOCK_TYPE), publisher, publisher.handle.publish_raw)
+
+
+def wait_until_matched(
+    node: Node,
+    outputs: Sequence[TopicOutput],
+    *,
+    wait_for: Sequence[str],
+    settled_at: float,
+    timeout: float,
+) -> None:
+    """Block until the subscriptions the graph knows on ``outputs`` have matched.
+
+    A subscription in another process shows up in the graph only when its participant's
+    discovery announcement arrives, so the graph is watched until ``settled_at`` (monotonic)
+    and until it has been unchanged for ``GRAPH_SETTLE_S``; every compatible subscription seen
+    by then must match. Topics in ``wait_for`` additionally need at least one subscription.
+
+    Raises:
+        SubscriberTimeoutError: not matched within ``timeout`` seconds.
+    """
+    required = sorted(set(wait_for))
+    now = time.monotonic()
+    deadline = now + timeout
+    settled_at = max(settled_at, now + GRAPH_SETTLE_S)
+    last_graph: dict[str, int] = {}
+    while True:
+        graph = {out.name: node.count_subscribers(out.name) for out in outputs}
+        graph.update({topic: node.count_subscribers(topic) for topic in required})
+        now = time.monotonic()
+        if graph != last_graph:
+            last_graph = graph
+            settled_at = max(settled_at, now + GRAPH_SETTLE_S)
+        pending = [
+            f"{out.name} ({matched} of {expected} subscriptions matched)"
+            for out in outputs
+            for matched, expected in [
+                (out.publisher.get_subscription_count(), _compatible_subscriptions(node, out))
+            ]
+            if matched < expected
+        ]
+        pending += [f"a subscriber on {topic}" for topic in required if not graph[topic]]
+        if not pending and now >= settled_at:
+            break
+        if now >= deadline:
+            raise SubscriberTimeoutError(
+                f"timed out after {timeout:g} s waiting for {', '.join(pending)}; "
+                "use --no-wait-for-subscribers to start anyway"
+            )
+        time.sleep(0.02)
+    time.sleep(MATCH_GRACE_S)
+
+
+def wait_until_acknowledged(outputs: Sequence[TopicOutput], timeout: float) -> list[str]:
+    """Wait until the subscribers of reliable topics have every message; return the others.
+
+    A fast replay ends while messages are still in flight; destroying the publishers then
+    would lose them. Waits at most ``timeout`` seconds in all.
+    """
+    deadline = time.monotonic() + timeout
+    pending = []
+    for output in outputs:
+        publisher = output.publisher
+        if publisher.qos_profile.reliability != ReliabilityPolicy.RELIABLE:
+            continue
+        remaining = max(deadline - time.monotonic(), 0.0)
+        if not publisher.wait_for_all_acked(Duration(seconds=remaining)):
+            pending.append(output.name)
+    return pending
+
+
+def _compatible_subscriptions(node: Node, output: TopicOutput) -> int:
+    """Subscriptions on ``output``'s topic in the graph whose QoS can match the publisher's."""
+    count = 0
+    for endpoint in node.get_subscriptions_info_by_topic(output.name):
+        compatibility, _ = qos_check_compatible(output.publisher.qos_profile, endpoint.qos_profile)
+        if compatibility != QoSCompatibility.ERROR:
+            count += 1
+    return count

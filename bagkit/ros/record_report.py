@@ -1,0 +1,125 @@
+"""What a recording produced: per-topic counts and losses, the report, progress snapshots."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+
+@dataclass(slots=True)
+class TopicRecord:
+    """What was recorded on one topic, and what was lost."""
+
+    topic: str
+    type: str
+    messages: int = 0
+    bytes: int = 0
+    gaps: int = 0
+    overflow: int = 0
+    write_failed: int = 0
+    publishers: int = 0
+    first_ns: int = 0
+    last_ns: int = 0
+
+    @property
+    def lost(self) -> int:
+        """Every message of this topic that is not in the bag."""
+        return self.gaps + self.overflow + self.write_failed
+
+    @property
+    def rate_hz(self) -> float:
+        """Average message rate between the first and the last message (receive time)."""
+        span = self.last_ns - self.first_ns
+        return (self.messages - 1) / span * 1e9 if self.messages > 1 and span > 0 else 0.0
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready view, with ``lost`` and ``rate_hz``."""
+        return {
+            "topic": self.topic,
+            "type": self.type,
+            "messages": self.messages,
+            "lost": self.lost,
+            "gaps": self.gaps,
+            "overflow": self.overflow,
+            "write_failed": self.write_failed,
+            "publishers": self.publishers,
+            "rate_hz": self.rate_hz,
+            "bytes": self.bytes,
+        }
+
+
+@dataclass(slots=True)
+class RecordReport:
+    """The outcome of a recording: per-topic counts, skipped topics, the error that stopped it."""
+
+    path: Path
+    duration_s: float = 0.0
+    topics: list[TopicRecord] = field(default_factory=list)
+    skipped: dict[str, str] = field(default_factory=dict)
+    error: str | None = None
+
+    @property
+    def messages(self) -> int:
+        """Messages in the bag."""
+        return sum(t.messages for t in self.topics)
+
+    @property
+    def lost(self) -> int:
+        """Messages lost on every topic together."""
+        return sum(t.lost for t in self.topics)
+
+    @property
+    def bytes(self) -> int:
+        """Serialized message bytes in the bag."""
+        return sum(t.bytes for t in self.topics)
+
+    def topic(self, name: str) -> TopicRecord:
+        """The record of topic ``name`` (KeyError if it was not recorded)."""
+        for record in self.topics:
+            if record.topic == name:
+                return record
+        raise KeyError(name)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready view."""
+        return {
+            "path": str(self.path),
+            "duration_s": self.duration_s,
+            "messages": self.messages,
+            "lost": self.lost,
+            "bytes": self.bytes,
+            "topics": [t.to_dict() for t in self.topics],
+            "skipped": dict(self.skipped),
+            "error": self.error,
+        }
+
+
+@dataclass(frozen=True, slots=True)
+class RecordProgress:
+    """A snapshot of a running recording, for a progress line."""
+
+    elapsed_s: float
+    topics: int
+    messages: int
+    bytes: int
+    lost: int
+
+
+def loss_summary(records: list[TopicRecord]) -> str:
+    """JSON ``{topic: {messages, gaps, overflow, write_failed, publishers}}`` (custom_data is
+    string -> string)."""
+    return json.dumps(
+        {
+            r.topic: {
+                "messages": r.messages,
+                "gaps": r.gaps,
+                "overflow": r.overflow,
+                "write_failed": r.write_failed,
+                "publishers": r.publishers,
+            }
+            for r in sorted(records, key=lambda r: r.topic)
+        },
+        sort_keys=True,
+    )

@@ -1,0 +1,105 @@
+"""Which topics to record or replay: one set of rules for both, as ``ros2 bag`` selects them.
+
+A topic is selected when it is named, or when ``all_topics`` is set, or when ``regex`` matches
+somewhere in its name; then every topic that ``exclude`` matches is left out, named ones too
+(``ros2 bag``'s ``--exclude-regex`` works on top of ``--topics``, ``--all`` and ``--regex``).
+Hidden topics (a name component starting with ``_``) are selected by ``all_topics`` or
+``regex`` only with ``include_hidden``; a named hidden topic is always selected. Names are
+absolute: ``imu/data`` means ``/imu/data``. No rclpy import.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+from bagkit.errors import BagkitError
+from bagkit.ros.errors import PlayerError, RecorderOptionsError
+
+
+def absolute_topic_name(name: str) -> str:
+    """``imu/data`` -> ``/imu/data``: bagkit's nodes live in the root namespace."""
+    return name if name.startswith("/") else f"/{name}"
+
+
+def is_hidden(name: str) -> bool:
+    """Whether a component of ``name`` starts with ``_``, as rclpy's hidden-topic rule."""
+    return any(part.startswith("_") for part in name.split("/"))
+
+
+def compile_topic_pattern(
+    pattern: str | None, option: str, *, error: type[BagkitError] = RecorderOptionsError
+) -> re.Pattern[str] | None:
+    """Compile a ``--regex``/``--exclude`` option; a bad expression raises ``error``."""
+    if pattern is None:
+        return None
+    try:
+        return re.compile(pattern)
+    except re.error as exc:
+        raise error(f"{option} {pattern!r} is not a valid regular expression: {exc}") from None
+
+
+@dataclass(frozen=True, slots=True)
+class TopicSelection:
+    """The topics chosen by names, ``--all``, ``--regex``, ``--exclude`` and hidden-ness."""
+
+    topics: frozenset[str] = frozenset()
+    all_topics: bool = False
+    regex: re.Pattern[str] | None = None
+    exclude: re.Pattern[str] | None = None
+    include_hidden: bool = False
+
+    @classmethod
+    def create(
+        cls,
+        topics: Iterable[str] = (),
+        *,
+        all_topics: bool = False,
+        regex: str | None = None,
+        exclude: str | None = None,
+        include_hidden: bool = False,
+        error: type[BagkitError] = RecorderOptionsError,
+    ) -> TopicSelection:
+        """Build a selection from command-line style options.
+
+        Raises:
+            error: a regular expression does not compile.
+        """
+        return cls(
+            topics=frozenset(absolute_topic_name(t) for t in topics),
+            all_topics=all_topics,
+            regex=compile_topic_pattern(regex, "--regex", error=error),
+            exclude=compile_topic_pattern(exclude, "--exclude", error=error),
+            include_hidden=include_hidden,
+        )
+
+    @property
+    def empty(self) -> bool:
+        """Whether nothing can be selected: no name, no ``--all``, no ``--regex``."""
+        return not self.topics and not self.all_topics and self.regex is None
+
+    def matches(self, name: str) -> bool:
+        """Whether topic ``name`` is selected."""
+        if self.exclude is not None and self.exclude.search(name):
+            return False
+        if name in self.topics:
+            return True
+        if not (self.all_topics or (self.regex is not None and self.regex.search(name))):
+            return False
+        return self.include_hidden or not is_hidden(name)
+
+    def missing(self, available: Iterable[str]) -> list[str]:
+        """Named topics that are not in ``available``, sorted."""
+        return sorted(self.topics - set(available))
+
+
+def parse_remaps(pairs: Iterable[str]) -> dict[str, str]:
+    """Parse ``OLD:=NEW`` topic remappings (as ``ros2 bag play --remap``)."""
+    remap = {}
+    for pair in pairs:
+        old, sep, new = pair.partition(":=")
+        if not sep or not old or not new:
+            raise PlayerError(f"remapping {pair!r} is not of the form OLD:=NEW")
+        remap[old] = new
+    return remap

@@ -1,0 +1,189 @@
+"""The recorder's subscriptions: one per selected topic, QoS adapted to the publishers' offers.
+
+Runs in the take thread (after the first discovery, which ``Recorder.start`` waits for); the
+writer thread and ``progress()`` read the topics under ``lock``.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.subscription import Subscription
+
+from bagkit.bag import TopicInfo, message_definition
+from bagkit.bag.errors import UnknownMessageTypeError as UnknownDefinitionError
+from bagkit.ros.errors import MessageClassNotFoundError
+from bagkit.ros.graph import DiscoveredTopic, discover_topics
+from bagkit.ros.handoff import HandoffQueue
+from bagkit.ros.loss import SequenceTracker
+from bagkit.ros.qos import adapt_subscription_qos, dump_offered_qos_profiles
+from bagkit.ros.record_report import TopicRecord
+from bagkit.ros.selection import TopicSelection
+from bagkit.ros.types import import_message_type
+
+_log = logging.getLogger(__name__)
+
+
+@dataclass(slots=True)
+class RecordedTopic:
+    """A subscribed topic: its subscription, what re-subscribing needs (type, QoS), its counts."""
+
+    record: TopicRecord
+    subscription: Subscription
+    message_type: Any
+    qos: QoSProfile
+    tracker: SequenceTracker = field(default_factory=SequenceTracker)
+
+    def count_gaps(self, sequences: list[int]) -> None:
+        """Count the sequence gaps up to the messages just taken (``sequences``)."""
+        record = self.record
+        record.gaps += self.tracker.observe_many(
+            sequences, self.subscription.handle.get_publisher_count
+        )
+        record.publishers = self.tracker.publishers
+
+
+@dataclass(frozen=True, slots=True)
+class NewTopic:
+    """What the writer needs to add a topic to the bag before its first message."""
+
+    topic: RecordedTopic
+    info: TopicInfo
+    definition: str
+
+
+def never_called(_message: object) -> None:
+    """Subscriptions are drained from the wait set, never through an executor callback."""
+
+
+class Subscriptions:
+    """Subscribe to the selected topics as publishers appear; skip those that cannot be recorded.
+
+    Args:
+        node: the recorder's node.
+        selection: which topics to record.
+        qos_overrides: topic -> subscription profile, instead of the adapted one.
+        queue: where new topics are announced to the writer.
+        skipped: topic -> reason it is not recorded (the report's, filled here).
+        on_warning: called with each warning; default: logging.
+    """
+
+    def __init__(
+        self,
+        node: Node,
+        selection: TopicSelection,
+        *,
+        qos_overrides: Mapping[str, QoSProfile],
+        queue: HandoffQueue,
+        skipped: dict[str, str],
+        on_warning: Callable[[str], None] | None,
+    ) -> None:
+        self.node = node
+        self.selection = selection
+        self.qos_overrides = qos_overrides
+        self.topics: dict[str, RecordedTopic] = {}
+        # Bumped whenever a subscription is added or replaced: the wait set is rebuilt.
+        self.generation = 0
+        self.lock = threading.Lock()
+        self._queue = queue
+        self._skipped = skipped
+        self._on_warning = on_warning
+
+    def snapshot(self) -> list[RecordedTopic]:
+        """The topics subscribed so far."""
+        with self.lock:
+            return list(self.topics.values())
+
+    def discover(self, drain: Callable[[RecordedTopic], None]) -> None:
+        """Subscribe to newly matching topics; re-subscribe where the offers got weaker.
+
+        ``drain`` queues what an old subscription holds before it is replaced.
+        """
+        for found in discover_topics(self.node, self.selection):
+            known = self.topics.get(found.name)
+            if known is None:
+                self._subscribe(found)
+            elif found.name not in self.qos_overrides:
+                self._adapt(known, found, drain)
+
+    def skip(self, topic: str, reason: str) -> None:
+        """Leave ``topic`` out of the recording, with one warning (however often it is seen)."""
+        with self.lock:
+            if topic in self._skipped:
+                return
+            self._skipped[topic] = reason
+        message = f"not recording {topic}: {reason}"
+        if self._on_warning is not None:
+            self._on_warning(message)
+        else:
+            _log.warning("%s", message)
+
+    def _subscribe(self, found: DiscoveredTopic) -> None:
+        if found.name in self._skipped:
+            return
+        if len(set(found.types)) > 1:
+            self.skip(found.name, f"published with several types: {', '.join(found.types)}")
+            return
+        type_name = found.types[0]
+        try:
+            message_type = import_message_type(type_name)
+        except MessageClassNotFoundError:
+            self.skip(found.name, f"message type {type_name} is not installed")
+            return
+        try:
+            # Read now rather than by the writer: a type without a definition on disk (an
+            # action's or a service's inner message) is skipped before it is subscribed.
+            definition = message_definition(type_name)
+        except UnknownDefinitionError as exc:
+            self.skip(found.name, f"no message definition for the bag: {exc}")
+            return
+        qos = self.qos_overrides.get(found.name) or adapt_subscription_qos(found.offered)
+        info = TopicInfo(
+            found.name,
+            type_name,
+            offered_qos_profiles=dump_offered_qos_profiles(found.offered),
+            type_description_hash=found.type_hash,
+        )
+        subscription = self.node.create_subscription(
+            message_type, found.name, never_called, qos, raw=True
+        )
+        topic = RecordedTopic(TopicRecord(found.name, type_name), subscription, message_type, qos)
+        # The writer adds the topic to the bag before the first message taken from it.
+        self._queue.put_control("topic", NewTopic(topic, info, definition))
+        with self.lock:
+            self.topics[found.name] = topic
+            self.generation += 1
+
+    def _adapt(
+        self, topic: RecordedTopic, found: DiscoveredTopic, drain: Callable[[RecordedTopic], None]
+    ) -> None:
+        """A new publisher with a weaker offer would not match: subscribe again, matching all."""
+        wanted = adapt_subscription_qos(found.offered)
+        current = topic.qos
+        weaker = (
+            current.reliability == ReliabilityPolicy.RELIABLE
+            and wanted.reliability != ReliabilityPolicy.RELIABLE
+        ) or (
+            current.durability == DurabilityPolicy.TRANSIENT_LOCAL
+            and wanted.durability != DurabilityPolicy.TRANSIENT_LOCAL
+        )
+        if not weaker:
+            return
+        # Subscribe anew before dropping the old one, so that nothing is missed in between;
+        # the old one's queue is drained into the bag first.
+        replacement = self.node.create_subscription(
+            topic.message_type, topic.record.topic, never_called, wanted, raw=True
+        )
+        old = topic.subscription
+        drain(topic)
+        with self.lock:
+            topic.subscription = replacement
+            topic.qos = wanted
+            self.generation += 1
+        self.node.destroy_subscription(old)

@@ -1,0 +1,172 @@
+"""The recorder's writer thread: write handed-over batches to the bag and account for loss.
+
+Every message taken is, at the end, either in the bag (``messages``) or counted lost on its
+topic: ``gaps`` (holes in publication sequence numbers: lost inside the middleware),
+``overflow`` (dropped on a full hand-off queue), ``write_failed`` (handed to the bag writer but
+not in the bag, from :class:`~bagkit.bag.BagWriteError`'s ``lost_by_topic``, or taken after
+writing failed). No rclpy import.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+from bagkit.bag import BagWriteError, BagWriter
+from bagkit.bag.errors import BagError
+from bagkit.ros.handoff import Batch, BatchPart, HandoffQueue, StopSignal
+from bagkit.ros.memory import name_native_thread
+from bagkit.ros.record_report import TopicRecord, loss_summary
+
+if TYPE_CHECKING:
+    from bagkit.ros.subscriptions import NewTopic
+
+# The writer closes a chunk at least this often, so a killed recorder loses at most this much.
+FLUSH_PERIOD_S = 1.0
+CUSTOM_DATA_PREFIX = "bagkit.record."
+
+
+class WriteLoop:
+    """The writer thread's work: the bag, the per-topic records, whether writing failed.
+
+    Args:
+        bag: the open bag.
+        queue: the hand-off from the take thread.
+        stop: failures are reported here (the take thread then stops).
+        skip: ``skip(topic, reason)`` leaves a topic that cannot be added out, with a warning.
+    """
+
+    def __init__(
+        self,
+        bag: BagWriter,
+        queue: HandoffQueue,
+        stop: StopSignal,
+        skip: Callable[[str, str], None],
+    ) -> None:
+        self.bag = bag
+        self.queue = queue
+        self.stop = stop
+        self.records: dict[str, TopicRecord] = {}
+        self.failed = False
+        self._skip = skip
+        self._left_out: set[str] = set()
+
+    def run(self) -> None:
+        """The thread's body: write until the take thread ends, then finish the bag."""
+        name_native_thread("bagkit-write")
+        try:
+            self._write_until_end()
+        except Exception as exc:  # a bug must not leave the bag unfinished
+            self.stop.fail(f"recording stopped: {exc!r}")
+            self.failed = True
+        self._finish()
+
+    def _write_until_end(self) -> None:
+        last_flush = time.monotonic()
+        while True:
+            item = self.queue.get(FLUSH_PERIOD_S / 2)
+            now = time.monotonic()
+            if item is None or now - last_flush >= FLUSH_PERIOD_S:
+                # Idle or slow topics: close the open chunk so a crash loses at most a second.
+                self._flush()
+                last_flush = now
+                if item is None:
+                    continue
+            kind, payload = item
+            if kind == "end":
+                return
+            if kind == "topic":
+                self._add_topic(payload)
+            elif kind == "dropped":
+                self._count_dropped(payload)
+            else:
+                self._write_batch(payload)
+
+    def _add_topic(self, new: NewTopic) -> None:
+        name = new.info.name
+        self.records[name] = new.topic.record
+        if self.failed:
+            return
+        try:
+            self.bag.add_topic(new.info, definition=new.definition)
+        except BagWriteError as exc:
+            self._write_failed(exc)
+        except BagError as exc:
+            self._left_out.add(name)
+            del self.records[name]
+            self._skip(name, str(exc))
+
+    def _count_dropped(self, batch: Batch) -> None:
+        for topic, taken in batch.parts:
+            if topic.record.topic not in self._left_out:
+                topic.count_gaps(taken.sequences)
+                topic.record.overflow += len(taken)
+
+    def _write_batch(self, batch: Batch) -> None:
+        for part in batch.parts:
+            topic, taken = part
+            if topic.record.topic in self._left_out:
+                continue
+            topic.count_gaps(taken.sequences)
+            if self.failed:
+                topic.record.write_failed += len(taken)
+            else:
+                self._write(part, batch.sim_time)
+
+    def _write(self, part: BatchPart, sim_time: int | None) -> None:
+        """Write one topic's messages of a batch; what the writer loses is taken back out."""
+        topic, taken = part
+        record = topic.record
+        log_times = taken.received if sim_time is None else [sim_time] * len(taken)
+        if not record.first_ns:
+            record.first_ns = log_times[0]
+        record.last_ns = log_times[-1]
+        record.messages += len(taken)
+        record.bytes += taken.nbytes
+        try:
+            self.bag.write_batch(
+                record.topic,
+                taken.payloads,
+                log_times=log_times,
+                publish_times=taken.sources,
+                sequences=taken.sequences,
+            )
+        except BagWriteError as exc:
+            self._write_failed(exc)
+        except BagError as exc:
+            record.messages -= len(taken)
+            record.write_failed += len(taken)
+            self._write_failed(BagWriteError(str(exc)))
+
+    def _flush(self) -> None:
+        if not self.failed:
+            try:
+                self.bag.flush()
+            except BagWriteError as exc:
+                self._write_failed(exc)
+
+    def _write_failed(self, exc: BagWriteError) -> None:
+        """Move the messages the bag writer lost from ``messages`` to ``write_failed``; stop."""
+        for name, lost in exc.lost_by_topic.items():
+            record = self.records.get(name)
+            if record is not None:
+                record.messages -= lost
+                record.write_failed += lost
+        self.failed = True
+        # The report's error line gives the loss of the whole recording, not this chunk's.
+        self.stop.fail(str(exc).removesuffix(f" ({exc.messages_lost} messages lost)"))
+
+    def _finish(self) -> None:
+        """Flush, store the loss counts in metadata.yaml's custom data, close the bag."""
+        self._flush()
+        bag = self.bag
+        records = list(self.records.values())
+        bag.custom_data[CUSTOM_DATA_PREFIX + "lost"] = str(sum(r.lost for r in records))
+        bag.custom_data[CUSTOM_DATA_PREFIX + "loss"] = loss_summary(records)
+        try:
+            bag.close()
+        except BagWriteError as exc:
+            self._write_failed(exc)
+        except BagError as exc:
+            self.stop.fail(str(exc))
