@@ -56,7 +56,9 @@ def _value(ts: Typestore, desc: Any, rng: np.random.Generator, name: str) -> Any
     if kind == Nodetype.NAME:
         return random_message(ts, rest, rng)
     sub, bound = rest
-    n = bound if kind == Nodetype.ARRAY else int(rng.integers(0, (bound or 5) + 1))
+    # Sequences are short, but for a blob's ``data`` (long enough to be cut by echo).
+    longest = 300 if name == "data" else 5
+    n = bound if kind == Nodetype.ARRAY else int(rng.integers(0, (bound or longest) + 1))
     if sub[0] == Nodetype.BASE and sub[1][0] != "string":
         return _primitives(rng, sub[1][0], n)
     return [_value(ts, sub, rng, name) for _ in range(n)]
