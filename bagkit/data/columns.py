@@ -14,7 +14,7 @@ back) goes through the general decoder (``MessageTypes.value_reader``). Columns:
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
 import numpy as np
@@ -60,19 +60,34 @@ def arrow_schema(leaves: Sequence[LeafField]) -> pa.Schema:
     )
 
 
-def _numpy_dtype(leaf: LeafField) -> np.dtype:
+def numpy_dtype(leaf: LeafField) -> np.dtype:
     if leaf.base in STRING_TYPES or leaf.pooled:
         return np.dtype(object)
     return np.dtype(bool) if leaf.base == "bool" else np.dtype(PRIMITIVE_FORMATS[leaf.base])
 
 
-class _Columns:
-    """Columns of ``n`` rows being filled, some rows from bulk groups, the rest one by one."""
+class Rows:
+    """``n`` rows being filled (some from bulk groups, the rest one by one): times, one array
+    per leaf, and which rows decoded (``ok``). The arrays may be views of a larger table."""
 
-    def __init__(self, leaves: Sequence[LeafField], n: int) -> None:
+    def __init__(
+        self,
+        leaves: Sequence[LeafField],
+        arrays: list[np.ndarray],
+        times: tuple[np.ndarray, np.ndarray],
+        ok: np.ndarray,
+    ) -> None:
         self.leaves = leaves
-        self.arrays = [np.empty(n, dtype=_numpy_dtype(leaf)) for leaf in leaves]
-        self.ok = np.ones(n, dtype=bool)
+        self.arrays = arrays
+        self.log_times, self.publish_times = times
+        self.ok = ok
+
+    @classmethod
+    def empty(cls, leaves: Sequence[LeafField], n: int) -> Rows:
+        """Rows of their own (not part of a table)."""
+        arrays = [np.empty(n, dtype=numpy_dtype(leaf)) for leaf in leaves]
+        times = (np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64))
+        return cls(leaves, arrays, times, np.ones(n, dtype=bool))
 
     def fill_rows(self, rows: list[list[Any]], positions: list[int]) -> None:
         """Set the rows at ``positions`` from per-message value lists."""
@@ -87,21 +102,28 @@ class _Columns:
             else:
                 array[where] = np.array(values, dtype=array.dtype)
 
-    def batch(
-        self, schema: pa.Schema, log_times: np.ndarray, publish: np.ndarray
-    ) -> pa.RecordBatch:
+    def batch(self, schema: pa.Schema) -> pa.RecordBatch:
+        """The rows that decoded, as a record batch of ``schema``."""
         ok = self.ok if not self.ok.all() else slice(None)
-        columns = [pa.array(log_times[ok]), pa.array(publish[ok])]
-        for leaf, array, field in zip(self.leaves, self.arrays, list(schema)[2:], strict=True):
-            kept = array[ok]
-            if leaf.pooled:
-                columns.append(_list_array(kept, leaf, field.type))
-            else:
-                columns.append(pa.array(kept, type=field.type))
-        return pa.RecordBatch.from_arrays(columns, schema=schema)
+        arrays = [self.log_times[ok], self.publish_times[ok], *(a[ok] for a in self.arrays)]
+        return pa.RecordBatch.from_arrays(arrow_arrays(self.leaves, arrays, schema), schema=schema)
 
 
-def _list_array(items: np.ndarray, leaf: LeafField, type_: pa.ListType) -> pa.Array:
+def arrow_arrays(
+    leaves: Sequence[LeafField], arrays: Sequence[np.ndarray], schema: pa.Schema
+) -> list[pa.Array]:
+    """``log_time``, ``publish_time`` and the leaf arrays as Arrow arrays of ``schema``
+    (numbers without a copy)."""
+    out = [pa.array(arrays[0]), pa.array(arrays[1])]
+    for leaf, array, field in zip(leaves, arrays[2:], list(schema)[2:], strict=True):
+        if leaf.pooled:
+            out.append(list_array(array, leaf, field.type))
+        else:
+            out.append(pa.array(array, type=field.type))
+    return out
+
+
+def list_array(items: np.ndarray, leaf: LeafField, type_: pa.ListType) -> pa.Array:
     if leaf.base in STRING_TYPES:
         return pa.array([list(x) for x in items], type=type_)
     dtype = np.dtype(PRIMITIVE_FORMATS[leaf.base])
@@ -153,10 +175,19 @@ class TopicColumns:
 
     def chunk_batch(self, records: bytes, index: np.ndarray, window: Window) -> pa.RecordBatch:
         """The messages of this topic in one decompressed chunk (``index``: its entries)."""
+        rows = self.decode_chunk(records, index, window, lambda n: Rows.empty(self.leaves, n))
+        return rows.batch(self.schema)
+
+    def decode_chunk(
+        self, records: bytes, index: np.ndarray, window: Window, reserve: Callable[[int], Rows]
+    ) -> Rows:
+        """Decode the messages of this topic in one chunk into ``reserve(count)``."""
         buf = np.frombuffer(records, dtype=np.uint8)
         spans = payload_spans(buf, index, window.start_ns, window.end_ns)
         self.unindexed += spans.dropped
-        columns = _Columns(self.leaves, len(spans.starts))
+        columns = reserve(len(spans.starts))
+        columns.log_times[:] = spans.log_times
+        columns.publish_times[:] = spans.publish_times
         leftover = np.arange(len(spans.starts))
         if self.layout is not None and len(spans.starts):
             groups, leftover = decode_bulk(buf, spans.starts, spans.lengths, self.layout)
@@ -170,22 +201,24 @@ class TopicColumns:
             leftover.tolist(),
             (view[s : s + n] for s, n in zip(starts, lengths, strict=True)),
         )
-        return columns.batch(self.schema, spans.log_times, spans.publish_times)
+        return columns
 
-    def payload_batch(
-        self, payloads: Sequence[bytes], log_times: Sequence[int], publish_times: Sequence[int]
-    ) -> pa.RecordBatch:
+    def decode_payloads(
+        self,
+        payloads: Sequence[bytes],
+        log_times: Sequence[int],
+        publish_times: Sequence[int],
+        reserve: Callable[[int], Rows],
+    ) -> Rows:
         """Messages given one by one (storage without chunks), all through the general path."""
-        columns = _Columns(self.leaves, len(payloads))
+        columns = reserve(len(payloads))
+        columns.log_times[:] = log_times
+        columns.publish_times[:] = publish_times
         self._fill_general(columns, list(range(len(payloads))), payloads)
-        return columns.batch(
-            self.schema,
-            np.array(log_times, dtype=np.int64),
-            np.array(publish_times, dtype=np.int64),
-        )
+        return columns
 
     def _fill_general(
-        self, columns: _Columns, positions: list[int], payloads: Iterable[bytes | memoryview]
+        self, columns: Rows, positions: list[int], payloads: Iterable[bytes | memoryview]
     ) -> None:
         read = self.read_values
         if read is None:
@@ -224,14 +257,14 @@ class TopicColumns:
         return plan
 
     def _fill_group(
-        self, columns: _Columns, buf: np.ndarray, starts: np.ndarray, group: BulkGroup
+        self, columns: Rows, buf: np.ndarray, starts: np.ndarray, group: BulkGroup
     ) -> bool:
         """Fill the rows of one bulk group; False when its strings are not UTF-8."""
         assert self.layout is not None
-        rows = group.indexes
-        strings = self._group_strings(buf, starts[rows])
+        strings = self._group_strings(buf, starts[group.indexes])
         if strings is None:
             return False
+        rows = _as_slice(group.indexes)
         for column, text in strings.items():
             columns.arrays[column][rows] = text
         values = group.values
@@ -239,7 +272,7 @@ class TopicColumns:
             target = columns.arrays[column]
             source = values[name]
             if self.leaves[column].pooled:
-                rows_of = np.empty(len(rows), dtype=object)
+                rows_of = np.empty(len(group.indexes), dtype=object)
                 rows_of[:] = list(source)
                 target[rows] = rows_of
             else:
@@ -283,3 +316,11 @@ class TopicColumns:
                 return None
             found[column] = texts[inverse]
         return found
+
+
+def _as_slice(indexes: np.ndarray) -> slice | np.ndarray:
+    """A slice for ascending consecutive indexes (the usual group: assigning to it is a copy,
+    not a scatter)."""
+    if len(indexes) and int(indexes[-1]) - int(indexes[0]) == len(indexes) - 1:
+        return slice(int(indexes[0]), int(indexes[-1]) + 1)
+    return indexes

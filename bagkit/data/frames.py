@@ -8,12 +8,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import pyarrow as pa
-import pyarrow.compute as pc
 
 from bagkit.bag import BagReader
 from bagkit.data.errors import UndecodableTopicError
 from bagkit.data.scan import plan_scan
 from bagkit.data.select import TimeLike, window
+from bagkit.data.table import ColumnTable
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -51,19 +51,27 @@ def read_arrow(
         BagError: the bag cannot be opened. UnknownTopicError, UnknownFieldError,
         UndecodableTopicError.
     """
+    table, schema = _read(bag, topic, fields, start, end, bulk=bulk)
+    return table.to_arrow(schema)
+
+
+def _read(
+    bag: str | Path,
+    topic: str,
+    fields: Sequence[str] | None,
+    start: TimeLike | None,
+    end: TimeLike | None,
+    *,
+    bulk: bool,
+) -> tuple[ColumnTable, pa.Schema]:
     with BagReader(bag, allow_empty=True) as reader:
         scan = plan_scan(reader, [topic], fields, window(start, end, reader.start_ns), bulk=bulk)
         if topic in scan.skipped:
             raise UndecodableTopicError(f"{topic} cannot be decoded: {scan.skipped[topic]}")
-        schema = scan.topics[topic].schema
-        table = pa.Table.from_batches([batch for _, batch in scan.batches()], schema=schema)
+        table = scan.table(topic)
         for problem in scan.problems:
-            warnings.warn(f"{reader.path}: {problem}", DataLossWarning, stacklevel=2)
-    log_times = table.column("log_time")
-    if len(log_times) > 1 and not pc.all(pc.greater_equal(log_times[1:], log_times[:-1])).as_py():
-        # Chunks overlap in time (or split files do): order like every reader does.
-        table = table.take(pc.sort_indices(log_times, sort_keys=[("", "ascending")]))
-    return table
+            warnings.warn(f"{reader.path}: {problem}", DataLossWarning, stacklevel=3)
+    return table, scan.topics[topic].schema
 
 
 def read_dataframe(
@@ -84,14 +92,5 @@ def read_dataframe(
         >>> imu = bagkit.read_dataframe("flight1", "/imu/data", ["linear_acceleration.*"])
         >>> imu["linear_acceleration.z"].resample("1s").mean()
     """
-    import pandas as pd
-
-    table = read_arrow(bag, topic, fields, start, end, bulk=bulk)
-    # split_blocks + self_destruct: each column's Arrow memory is freed once converted, so the
-    # peak stays near one copy of the data.
-    frame = table.to_pandas(split_blocks=True, self_destruct=True)
-    del table
-    frame.index = pd.DatetimeIndex(
-        frame["log_time"].to_numpy().astype("datetime64[ns]"), name="time"
-    )
-    return frame
+    table, schema = _read(bag, topic, fields, start, end, bulk=bulk)
+    return table.to_pandas(schema)

@@ -2,16 +2,18 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import closing
 from dataclasses import dataclass, field
+from functools import partial
 
 import pyarrow as pa
 
 from bagkit.bag import BagReader
-from bagkit.data.columns import TopicColumns
+from bagkit.data.columns import Rows, TopicColumns
 from bagkit.data.errors import UnknownFieldError
 from bagkit.data.select import Window, check_topics, select_fields
+from bagkit.data.table import ColumnTable
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
 from bagkit.stats.prefetch import prefetch
 
@@ -33,10 +35,23 @@ class Scan:
 
     def batches(self) -> Iterator[tuple[str, pa.RecordBatch]]:
         """(topic, batch) per topic and chunk, in file order (``.db3``: in log-time order)."""
+        for topic, rows in self._decode(lambda t, n: Rows.empty(self.topics[t].leaves, n)):
+            yield topic, rows.batch(self.topics[topic].schema)
+
+    def table(self, topic: str) -> ColumnTable:
+        """Every selected message of ``topic`` (the only topic of the scan) in one table."""
+        capacity = self.reader.topic_counts.get(topic, 0)
+        table = ColumnTable(self.topics[topic].leaves, capacity)
+        for _ in self._decode(lambda _topic, n: table.reserve(n)):
+            pass
+        return table
+
+    def _decode(self, reserve: Callable[[str, int], Rows]) -> Iterator[tuple[str, Rows]]:
+        """(topic, rows) per topic and chunk, rows from ``reserve(topic, count)``."""
         if not self.topics:
             return
         if "sqlite3" in self.reader.storage.split(","):
-            yield from self._message_batches()
+            yield from self._message_rows(reserve)
             return
         # closing(): the reading thread stops before the reader is closed, also on error.
         with closing(prefetch(self.reader.chunks(self.topics))) as chunks:
@@ -44,11 +59,13 @@ class Scan:
                 for topic, index in chunk.message_index.items():
                     columns = self.topics.get(topic)
                     if columns is not None:
-                        batch = columns.chunk_batch(chunk.records, index, self.window)
-                        if batch.num_rows:
-                            yield topic, batch
+                        rows = columns.decode_chunk(
+                            chunk.records, index, self.window, partial(reserve, topic)
+                        )
+                        if len(rows.ok):
+                            yield topic, rows
 
-    def _message_batches(self) -> Iterator[tuple[str, pa.RecordBatch]]:
+    def _message_rows(self, reserve: Callable[[str, int], Rows]) -> Iterator[tuple[str, Rows]]:
         pending: dict[str, tuple[list[bytes], list[int], list[int]]] = {}
         messages = self.reader.messages(self.topics, self.window.start_ns, self.window.end_ns)
         for message in messages:
@@ -57,12 +74,11 @@ class Scan:
             logs.append(message.log_time)
             publishes.append(message.publish_time)
             if len(datas) >= ROWS_PER_BATCH:
-                yield (
-                    message.topic,
-                    self.topics[message.topic].payload_batch(*pending.pop(message.topic)),
-                )
+                topic = message.topic
+                parts = pending.pop(topic)
+                yield topic, self.topics[topic].decode_payloads(*parts, partial(reserve, topic))
         for topic, parts in pending.items():
-            yield topic, self.topics[topic].payload_batch(*parts)
+            yield topic, self.topics[topic].decode_payloads(*parts, partial(reserve, topic))
 
     @property
     def problems(self) -> list[str]:
