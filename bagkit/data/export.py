@@ -179,7 +179,12 @@ class _Sink:
         if self.format is ExportFormat.CSV:
             self._writer = pa_csv.CSVWriter(path, _json_lists_schema(self.schema))
         else:
-            self._writer = pq.ParquetWriter(path, self.schema, compression="zstd")
+            # Dictionaries for strings only: trying one on every float column (pyarrow's
+            # default) makes writing several times slower, and zstd packs them anyway.
+            strings = [f.name for f in self.schema if f.type == pa.string()]
+            self._writer = pq.ParquetWriter(
+                path, self.schema, compression="zstd", use_dictionary=strings
+            )
         self.files.append(path)
         self._part_rows = 0
 
