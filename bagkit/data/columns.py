@@ -61,6 +61,7 @@ def arrow_schema(leaves: Sequence[LeafField]) -> pa.Schema:
 
 
 def numpy_dtype(leaf: LeafField) -> np.dtype:
+    """The numpy dtype a leaf's values are gathered in (object for strings and lists)."""
     if leaf.base in STRING_TYPES or leaf.pooled:
         return np.dtype(object)
     return np.dtype(bool) if leaf.base == "bool" else np.dtype(PRIMITIVE_FORMATS[leaf.base])
@@ -124,6 +125,7 @@ def arrow_arrays(
 
 
 def list_array(items: np.ndarray, leaf: LeafField, type_: pa.ListType) -> pa.Array:
+    """A list column from per-message sequences (numpy arrays or lists), values copied."""
     if leaf.base in STRING_TYPES:
         return pa.array([list(x) for x in items], type=type_)
     dtype = np.dtype(PRIMITIVE_FORMATS[leaf.base])
