@@ -6,8 +6,11 @@ import typer
 
 from bagkit import __version__
 from bagkit.cli import compare as _compare
+from bagkit.cli import echo as _echo
+from bagkit.cli import export as _export
 from bagkit.cli import golden as _golden
 from bagkit.cli import info as _info
+from bagkit.cli import plot as _plot
 from bagkit.cli import record as _record
 from bagkit.cli import replay as _replay
 from bagkit.cli import stats as _stats
@@ -39,7 +42,10 @@ def main(
 
 # Command groups register themselves here, one module each (bagkit/cli/<group>.py).
 app.command("compare", help=_compare.HELP, no_args_is_help=True)(_compare.compare)
+app.command("echo", help=_echo.HELP, no_args_is_help=True)(_echo.echo)
+app.command("export", help=_export.HELP, no_args_is_help=True)(_export.export)
 app.command("info", help=_info.HELP, no_args_is_help=True)(_info.info)
+app.command("plot", help=_plot.HELP, no_args_is_help=True)(_plot.plot)
 app.command("record", help=_record.HELP, no_args_is_help=True)(_record.record)
 app.add_typer(_replay.app)
 app.add_typer(_stats.app)

@@ -1,0 +1,126 @@
+"""``bagkit echo``: the messages of a topic of a bag, like ``ros2 topic echo`` (YAML) or
+``mcap cat --json`` (one JSON object per line). Streams; needs no ROS install."""
+
+from __future__ import annotations
+
+import enum
+import os
+import signal
+import sys
+from pathlib import Path
+
+import typer
+
+from bagkit.cli.common import EXIT_INTERRUPTED, handle_errors, warn
+
+HELP = """Print the messages of TOPIC of BAG as they are read, each with its log time.
+
+YAML by default (a '# TOPIC at SEC s' comment, then topic, log_time, publish_time in ns and the
+message under data, documents separated by ---); --format json prints one object per line with
+the same keys. --fields prints only those leaves as {dotted.path: value}. Decoded from the
+definitions stored in the bag; the first message appears at once on any bag size.
+
+Examples:
+
+  bagkit echo flight1 /imu/data -n 3
+
+  bagkit echo flight1 /gps/fix --format json --start 10 --end 20 | jq .data.latitude
+
+  bagkit echo flight1 /imu/data --fields 'linear_acceleration.*' --fields header.stamp
+"""
+
+# ros2 topic echo cuts arrays and strings after this many elements by default.
+DEFAULT_TRUNCATE_LENGTH = 128
+
+
+class EchoFormat(enum.StrEnum):
+    """Output formats of ``echo``."""
+
+    YAML = "yaml"
+    JSON = "json"
+
+
+@handle_errors
+def echo(  # noqa: PLR0917 (typer maps parameters to options)
+    bag: Path = typer.Argument(
+        ..., help="Bag directory or single .mcap/.db3 file.", show_default=False, metavar="BAG"
+    ),
+    topic: str = typer.Argument(
+        ..., help="The topic to print.", show_default=False, metavar="TOPIC"
+    ),
+    count: int | None = typer.Option(
+        None, "--count", "-n", help="Stop after N messages.", metavar="N", min=0
+    ),
+    start: str | None = typer.Option(
+        None,
+        "--start",
+        help="From SEC seconds after the bag start (or an absolute time: epoch seconds, ISO 8601).",
+        metavar="SEC",
+    ),
+    end: str | None = typer.Option(
+        None, "--end", help="Until SEC (exclusive), read as --start.", metavar="SEC"
+    ),
+    fields: list[str] | None = typer.Option(
+        None,
+        "--fields",
+        "-f",
+        help="Only these fields: dotted paths or globs as in stats summary "
+        "('linear_acceleration.*', 'orientation_covariance[0]', 'header').",
+    ),
+    output: EchoFormat = typer.Option(
+        EchoFormat.YAML, "--format", help="yaml or json (one per line)."
+    ),
+    full_length: bool = typer.Option(
+        False,
+        "--full-length",
+        help=f"YAML: print sequences whole (by default cut after {DEFAULT_TRUNCATE_LENGTH} "
+        "elements, as ros2 topic echo does). JSON is always whole.",
+    ),
+) -> None:
+    from bagkit.bag import BagReader
+    from bagkit.data.echo import echo as read_messages
+    from bagkit.data.echo import to_json, to_yaml
+
+    # Output is a stream: a closed pipe (| head) or Ctrl-C ends it quietly.
+    signal.signal(signal.SIGPIPE, signal.SIG_DFL)
+    limit = None if full_length or output is EchoFormat.JSON else DEFAULT_TRUNCATE_LENGTH
+    out = sys.stdout
+    try:
+        with BagReader(bag, allow_empty=True) as reader:
+            bag_start = reader.start_ns
+        records = read_messages(
+            bag,
+            topic,
+            fields=fields,
+            start=start,
+            end=end,
+            count=count,
+            limit=limit,
+            on_failure=warn,
+        )
+        for record in records:
+            out.write(
+                to_json(record) + "\n" if output is EchoFormat.JSON else to_yaml(record, bag_start)
+            )
+            out.flush()
+    except KeyboardInterrupt:
+        # No "interrupted" line: the reader asked for it, the output so far is complete.
+        _quiet_exit(EXIT_INTERRUPTED)
+
+
+def _quiet_exit(code: int) -> None:
+    # Point stdout at /dev/null so that the interpreter's final flush cannot fail again.
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+    raise typer.Exit(code)
+
+
+def run_alone() -> None:
+    """Run ``bagkit echo ARGS`` as a one-command app (see :mod:`bagkit.cli.launch`)."""
+    from bagkit.cli.common import run_app
+
+    app = typer.Typer(add_completion=False, pretty_exceptions_enable=False)
+    app.command(help=HELP, no_args_is_help=True)(echo)
+    # click names the program after argv[0]: usage and errors then read "bagkit echo".
+    sys.argv = [f"{sys.argv[0]} echo", *sys.argv[2:]]
+    run_app(app)

@@ -1,0 +1,64 @@
+"""``bagkit plot``: fields over time as a PNG or a self-contained interactive HTML page."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from bagkit.cli import common
+from bagkit.cli.common import console, handle_errors
+
+HELP = """Plot fields of BAG over time into OUT: .png (matplotlib) or .html (an interactive page
+with zoom, hover and series toggled in the legend, that opens with no network access).
+
+SERIES are TOPIC:FIELD, the field a dotted path or glob (/imu/data:linear_acceleration.*):
+one panel per field, labelled with its unit where the message definition or the type implies
+one. --bag adds bags drawn over the first (golden against candidate), aligned on each bag's
+start; --absolute puts every bag on UTC log time instead.
+
+Examples:
+
+  bagkit plot flight1 /imu/data:linear_acceleration.z /barometer/pressure:fluid_pressure -o p.png
+
+  bagkit plot golden /fusion/odometry:pose.pose.position.z --bag candidate -o altitude.html
+"""
+
+
+@handle_errors
+def plot(
+    bag: Path = typer.Argument(
+        ..., help="Bag directory or single .mcap/.db3 file.", metavar="BAG", show_default=False
+    ),
+    series: list[str] = typer.Argument(
+        ..., help="TOPIC:FIELD, field paths or globs.", metavar="SERIES...", show_default=False
+    ),
+    out: Path = typer.Option(..., "--output", "-o", help="The .png or .html file to write."),
+    more_bags: list[Path] | None = typer.Option(
+        None, "--bag", help="Another bag to overlay (repeat for several)."
+    ),
+    absolute: bool = typer.Option(
+        False, "--absolute", help="X axis in UTC log time (default: seconds from each bag's start)."
+    ),
+) -> None:
+    from bagkit.data.errors import DataError
+    from bagkit.data.series import load_series
+
+    suffix = out.suffix.lower()
+    if suffix not in (".png", ".html"):
+        raise DataError(f"{out}: the output must end in .png or .html")
+    bags = [bag, *(more_bags or [])]
+    with common.err_console.status("reading ..."):
+        found = load_series(bags, series, absolute=absolute)
+    if not found:
+        raise DataError("no message of the requested topics in the bag")
+    if suffix == ".png":
+        from bagkit.data.plot_png import write_png
+
+        write_png(found, out, absolute=absolute)
+    else:
+        from bagkit.data.plot_html import write_html
+
+        title = " vs ".join(dict.fromkeys(s.bag for s in found))
+        write_html(found, out, title=title, absolute=absolute)
+    console.print(f"{len(found)} series -> {out}", highlight=False, soft_wrap=True)

@@ -1,0 +1,328 @@
+"""One topic's messages as Arrow record batches: ``log_time``, ``publish_time``, leaf fields.
+
+The same engine as ``stats summary``: payloads of fixed-layout types are decoded a chunk at a
+time with numpy structured dtypes (:func:`~bagkit.data.engine.decode_bulk`), and columns are
+sliced straight out of them; every other payload (other types, messages the bulk decoder hands
+back) goes through the general decoder (``MessageTypes.value_reader``). Columns:
+
+- scalar leaves by their dotted path, in their ROS type (``float32`` stays ``float32``, ``bool``
+  is boolean, ``byte``/``char`` are ``uint8``, strings are strings);
+- fixed arrays one column per element (``orientation_covariance[0]``);
+- variable-length sequences as list columns (``ranges[]``; ``status[].level`` holds the levels
+  of every element of ``status``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Sequence
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+
+from bagkit.data.engine import BulkGroup, decode_bulk, gather, payload_spans, read_u32
+from bagkit.data.select import Window
+from bagkit.decode import DecodeError, LeafField, MessageTypes
+from bagkit.decode.flatten import STRING_TYPES
+from bagkit.decode.layout import PRIMITIVE_FORMATS, CdrLayout, NeedLength
+
+_ARROW_TYPES: dict[str, pa.DataType] = {
+    "bool": pa.bool_(),
+    "byte": pa.uint8(),
+    "char": pa.uint8(),
+    "int8": pa.int8(),
+    "uint8": pa.uint8(),
+    "int16": pa.int16(),
+    "uint16": pa.uint16(),
+    "int32": pa.int32(),
+    "uint32": pa.uint32(),
+    "int64": pa.int64(),
+    "uint64": pa.uint64(),
+    "float32": pa.float32(),
+    "float64": pa.float64(),
+    "string": pa.string(),
+    "wstring": pa.string(),
+}
+TIME_COLUMNS = ("log_time", "publish_time")
+
+
+def arrow_type(leaf: LeafField) -> pa.DataType:
+    """The Arrow type of a leaf's column (a list type for a pooled leaf)."""
+    scalar = _ARROW_TYPES[leaf.base]
+    return pa.list_(scalar) if leaf.pooled else scalar
+
+
+def arrow_schema(leaves: Sequence[LeafField]) -> pa.Schema:
+    """``log_time``, ``publish_time`` (int64 ns), then one column per leaf."""
+    return pa.schema(
+        [pa.field(name, pa.int64(), nullable=False) for name in TIME_COLUMNS]
+        + [pa.field(leaf.path, arrow_type(leaf)) for leaf in leaves]
+    )
+
+
+def numpy_dtype(leaf: LeafField) -> np.dtype:
+    """The numpy dtype a leaf's values are gathered in (object for strings and lists)."""
+    if leaf.base in STRING_TYPES or leaf.pooled:
+        return np.dtype(object)
+    return np.dtype(bool) if leaf.base == "bool" else np.dtype(PRIMITIVE_FORMATS[leaf.base])
+
+
+class Rows:
+    """``n`` rows being filled (some from bulk groups, the rest one by one): times, one array
+    per leaf, and which rows decoded (``ok``). The arrays may be views of a larger table."""
+
+    def __init__(
+        self,
+        leaves: Sequence[LeafField],
+        arrays: list[np.ndarray],
+        times: tuple[np.ndarray, np.ndarray],
+        ok: np.ndarray,
+    ) -> None:
+        self.leaves = leaves
+        self.arrays = arrays
+        self.log_times, self.publish_times = times
+        self.ok = ok
+
+    @classmethod
+    def empty(cls, leaves: Sequence[LeafField], n: int) -> Rows:
+        """Rows of their own (not part of a table)."""
+        arrays = [np.empty(n, dtype=numpy_dtype(leaf)) for leaf in leaves]
+        times = (np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64))
+        return cls(leaves, arrays, times, np.ones(n, dtype=bool))
+
+    def fill_rows(self, rows: list[list[Any]], positions: list[int]) -> None:
+        """Set the rows at ``positions`` from per-message value lists."""
+        if not rows:
+            return
+        where = np.array(positions, dtype=np.int64)
+        for array, values in zip(self.arrays, zip(*rows, strict=True), strict=True):
+            if array.dtype == object:
+                column = np.empty(len(values), dtype=object)
+                column[:] = values
+                array[where] = column
+            else:
+                array[where] = np.array(values, dtype=array.dtype)
+
+    def batch(self, schema: pa.Schema) -> pa.RecordBatch:
+        """The rows that decoded, as a record batch of ``schema``."""
+        ok = self.ok if not self.ok.all() else slice(None)
+        arrays = [self.log_times[ok], self.publish_times[ok], *(a[ok] for a in self.arrays)]
+        return pa.RecordBatch.from_arrays(arrow_arrays(self.leaves, arrays, schema), schema=schema)
+
+
+def arrow_arrays(
+    leaves: Sequence[LeafField], arrays: Sequence[np.ndarray], schema: pa.Schema
+) -> list[pa.Array]:
+    """``log_time``, ``publish_time`` and the leaf arrays as Arrow arrays of ``schema``
+    (numbers without a copy)."""
+    out = [pa.array(arrays[0]), pa.array(arrays[1])]
+    for leaf, array, field in zip(leaves, arrays[2:], list(schema)[2:], strict=True):
+        if leaf.pooled:
+            out.append(list_array(array, leaf, field.type))
+        else:
+            out.append(pa.array(array, type=field.type))
+    return out
+
+
+def list_array(items: np.ndarray, leaf: LeafField, type_: pa.ListType) -> pa.Array:
+    """A list column from per-message sequences (numpy arrays or lists), values copied."""
+    if leaf.base in STRING_TYPES:
+        return pa.array([list(x) for x in items], type=type_)
+    dtype = np.dtype(PRIMITIVE_FORMATS[leaf.base])
+    lengths = np.fromiter((len(x) for x in items), dtype=np.int64, count=len(items))
+    offsets = np.zeros(len(items) + 1, dtype=np.int32)
+    np.cumsum(lengths, out=offsets[1:])
+    parts = [np.asarray(x, dtype=dtype) for x in items]
+    values = np.concatenate(parts) if parts else np.empty(0, dtype=dtype)
+    flat = pa.array(values != 0 if leaf.base == "bool" else values, type=type_.value_type)
+    return pa.ListArray.from_arrays(pa.array(offsets), flat, type=type_)
+
+
+class TopicColumns:
+    """Decodes the messages of one topic into record batches of :attr:`schema`.
+
+    Args:
+        types: the bag's message types.
+        topic: the topic name (to find its message-index entries in chunks).
+        type_name: its type as the bag names it.
+        leaves: the fields to read (``leaf_fields`` of the type, maybe a selection).
+        bulk: decode fixed-layout payloads with numpy (False: all through the general decoder).
+
+    Raises:
+        SchemaError: the type cannot be decoded.
+    """
+
+    def __init__(
+        self,
+        types: MessageTypes,
+        topic: str,
+        type_name: str,
+        leaves: Sequence[LeafField],
+        *,
+        bulk: bool = True,
+    ) -> None:
+        canonical = types.resolve(type_name)
+        self.topic = topic
+        self.type_name = type_name
+        self.leaves = list(leaves)
+        self.schema = arrow_schema(self.leaves)
+        paths = [leaf.path for leaf in self.leaves]
+        self.read_values = types.value_reader(type_name, paths) if paths else None
+        self.layout = CdrLayout.of(types.typestore, canonical) if bulk and paths else None
+        self._column_of = {leaf.path: j for j, leaf in enumerate(self.leaves)}
+        self._plans: dict[np.dtype, list[tuple[int, str, int | None]]] = {}
+        self.failures = 0
+        self.first_failure = ""
+        self.unindexed = 0
+
+    def chunk_batch(self, records: bytes, index: np.ndarray, window: Window) -> pa.RecordBatch:
+        """The messages of this topic in one decompressed chunk (``index``: its entries)."""
+        rows = self.decode_chunk(records, index, window, lambda n: Rows.empty(self.leaves, n))
+        return rows.batch(self.schema)
+
+    def decode_chunk(
+        self, records: bytes, index: np.ndarray, window: Window, reserve: Callable[[int], Rows]
+    ) -> Rows:
+        """Decode the messages of this topic in one chunk into ``reserve(count)``."""
+        buf = np.frombuffer(records, dtype=np.uint8)
+        spans = payload_spans(buf, index, window.start_ns, window.end_ns)
+        self.unindexed += spans.dropped
+        columns = reserve(len(spans.starts))
+        columns.log_times[:] = spans.log_times
+        columns.publish_times[:] = spans.publish_times
+        leftover = np.arange(len(spans.starts))
+        if self.layout is not None and len(spans.starts):
+            groups, leftover = decode_bulk(buf, spans.starts, spans.lengths, self.layout)
+            for group in groups:
+                if not self._fill_group(columns, buf, spans.starts, group):
+                    leftover = np.union1d(leftover, group.indexes)
+        view = memoryview(records)
+        starts, lengths = spans.starts[leftover].tolist(), spans.lengths[leftover].tolist()
+        self._fill_general(
+            columns,
+            leftover.tolist(),
+            (view[s : s + n] for s, n in zip(starts, lengths, strict=True)),
+        )
+        return columns
+
+    def decode_payloads(
+        self,
+        payloads: Sequence[bytes],
+        log_times: Sequence[int],
+        publish_times: Sequence[int],
+        reserve: Callable[[int], Rows],
+    ) -> Rows:
+        """Messages given one by one (storage without chunks), all through the general path."""
+        columns = reserve(len(payloads))
+        columns.log_times[:] = log_times
+        columns.publish_times[:] = publish_times
+        self._fill_general(columns, list(range(len(payloads))), payloads)
+        return columns
+
+    def _fill_general(
+        self, columns: Rows, positions: list[int], payloads: Iterable[bytes | memoryview]
+    ) -> None:
+        read = self.read_values
+        if read is None:
+            return
+        rows: list[list[Any]] = []
+        done: list[int] = []
+        for position, data in zip(positions, payloads, strict=True):
+            try:
+                rows.append(read(data))
+                done.append(position)
+            except DecodeError as exc:
+                columns.ok[position] = False
+                self.failures += 1
+                self.first_failure = self.first_failure or str(exc)
+        columns.fill_rows(rows, done)
+
+    def _plan(
+        self, dtype: np.dtype, slot_indexes: tuple[int, ...]
+    ) -> list[tuple[int, str, int | None]]:
+        """(column, dtype field, element or None) for every selected numeric leaf in ``dtype``."""
+        plan = self._plans.get(dtype)
+        if plan is not None:
+            return plan
+        assert self.layout is not None
+        plan = []
+        for index in slot_indexes:
+            slot = self.layout.slots[index]
+            if slot.array:
+                for i in range(slot.count or 0):
+                    column = self._column_of.get(f"{slot.path}[{i}]")
+                    if column is not None:
+                        plan.append((column, str(index), i))
+            elif slot.path in self._column_of:
+                plan.append((self._column_of[slot.path], str(index), None))
+        self._plans[dtype] = plan
+        return plan
+
+    def _fill_group(
+        self, columns: Rows, buf: np.ndarray, starts: np.ndarray, group: BulkGroup
+    ) -> bool:
+        """Fill the rows of one bulk group; False when its strings are not UTF-8."""
+        assert self.layout is not None
+        strings = self._group_strings(buf, starts[group.indexes])
+        if strings is None:
+            return False
+        rows = _as_slice(group.indexes)
+        for column, text in strings.items():
+            columns.arrays[column][rows] = text
+        values = group.values
+        for column, name, element in self._plan(group.layout.dtype, group.layout.slot_indexes):
+            target = columns.arrays[column]
+            source = values[name]
+            if self.leaves[column].pooled:
+                rows_of = np.empty(len(group.indexes), dtype=object)
+                rows_of[:] = list(source)
+                target[rows] = rows_of
+            else:
+                picked = source if element is None else source[:, element]
+                target[rows] = picked != 0 if target.dtype == bool else picked
+        return True
+
+    def _group_strings(self, buf: np.ndarray, starts: np.ndarray) -> dict[int, Any] | None:
+        """Column -> the value (or per-row values) of each selected string of a bulk group.
+
+        The members of a group share their length prefixes, so each string is at the same
+        offset in all of them: read the prefixes of the first, then the bytes of all at once.
+        """
+        assert self.layout is not None
+        wanted = [
+            (position, self._column_of[slot.path])
+            for position, slot in enumerate(s for s in self.layout.slots if s.count is None)
+            if slot.base in STRING_TYPES and slot.path in self._column_of
+        ]
+        if not wanted:
+            return {}
+        prefixes: list[tuple[int, int]] = []  # (offset of the length prefix, its value)
+        while isinstance(step := self.layout.resolve(tuple(v for _, v in prefixes)), NeedLength):
+            value = int(read_u32(buf, np.array([starts[0] + step.offset]))[0])
+            prefixes.append((step.offset, value))
+        found: dict[int, Any] = {}
+        for position, column in wanted:
+            offset, count = prefixes[position]
+            size = max(count - 1, 0)  # CDR counts the terminating NUL
+            if size == 0:
+                found[column] = ""
+                continue
+            raw = gather(buf, starts + offset + 4, np.dtype(f"S{size}"))
+            try:
+                if (raw == raw[0]).all():
+                    found[column] = bytes(raw[0]).decode()
+                    continue
+                unique, inverse = np.unique(raw, return_inverse=True)
+                texts = np.array([bytes(u).decode() for u in unique], dtype=object)
+            except UnicodeDecodeError:
+                return None
+            found[column] = texts[inverse]
+        return found
+
+
+def _as_slice(indexes: np.ndarray) -> slice | np.ndarray:
+    """A slice for ascending consecutive indexes (the usual group: assigning to it is a copy,
+    not a scatter)."""
+    if len(indexes) and int(indexes[-1]) - int(indexes[0]) == len(indexes) - 1:
+        return slice(int(indexes[0]), int(indexes[-1]) + 1)
+    return indexes

@@ -1,0 +1,158 @@
+"""Messages of a topic as plain data (for ``bagkit echo``), streamed in log-time order.
+
+Each message becomes ``{"topic", "log_time", "publish_time", "data"}`` (times in ns), like a
+line of ``mcap cat --json``; ``data`` is the message as nested dicts and lists, the shape
+``ros2 topic echo`` prints, or, when fields are selected, ``{dotted path: value}``.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from rosbags.interfaces import Nodetype
+from rosbags.typesys.base import normalize_fieldname
+from rosbags.typesys.store import Typestore
+
+from bagkit.bag import BagReader
+from bagkit.data.errors import UndecodableTopicError
+from bagkit.data.select import TimeLike, check_topics, select_fields, window
+from bagkit.decode import DecodeError, MessageTypes, leaf_fields
+
+Plain = dict[str, Any]
+
+
+def echo(
+    bag: str | Path,
+    topic: str,
+    *,
+    fields: Sequence[str] | None = None,
+    start: TimeLike | None = None,
+    end: TimeLike | None = None,
+    count: int | None = None,
+    limit: int | None = None,
+    on_failure: Callable[[str], None] | None = None,
+) -> Iterator[Plain]:
+    """Yield the messages of ``topic`` one at a time, decoded as they are read.
+
+    Args:
+        fields: paths or globs; the data is then flat ``{path: value}`` of those leaves.
+        start, end: as in :func:`bagkit.read_dataframe`.
+        count: stop after this many messages.
+        limit: sequences longer than this are cut to their first ``limit`` elements followed
+            by ``"... (N more)"`` (None: whole).
+        on_failure: called with a message that does not decode (skipped); None raises.
+
+    Raises:
+        BagError, UnknownTopicError, UnknownFieldError, UndecodableTopicError, DecodeError.
+    """
+    with BagReader(bag, allow_empty=True) as reader:
+        check_topics([topic], reader.topics)
+        info = reader.topics[topic]
+        types = MessageTypes.from_definitions(reader.definitions)
+        try:
+            if info.serialization_format != "cdr":
+                raise DecodeError(f"serialization format {info.serialization_format!r} is not CDR")
+            canonical = types.resolve(info.type)
+        except DecodeError as exc:
+            raise UndecodableTopicError(f"{topic} cannot be decoded: {exc}") from None
+        convert = _converter(types, info.type, canonical, fields, topic, limit)
+        span = window(start, end, reader.start_ns)
+        done = 0
+        for message in reader.messages([topic], span.start_ns, span.end_ns):
+            if count is not None and done >= count:
+                return
+            try:
+                data = convert(message.data)
+            except DecodeError as exc:
+                if on_failure is None:
+                    raise
+                on_failure(f"{topic} at {message.log_time}: {exc}")
+                continue
+            done += 1
+            yield {
+                "topic": topic,
+                "log_time": message.log_time,
+                "publish_time": message.publish_time,
+                "data": data,
+            }
+
+
+def _converter(  # noqa: PLR0917 (private, called once)
+    types: MessageTypes,
+    type_name: str,
+    canonical: str,
+    fields: Sequence[str] | None,
+    topic: str,
+    limit: int | None,
+) -> Callable[[bytes], Any]:
+    if fields:
+        leaves = select_fields(leaf_fields(types.typestore, canonical), fields, topic=topic)
+        paths = [leaf.path for leaf in leaves]
+        read = types.value_reader(type_name, paths)
+        return lambda data: {p: _plain(v, limit) for p, v in zip(paths, read(data), strict=True)}
+    decode = types.decoder(type_name)
+    store = types.typestore
+    return lambda data: _message(decode(data), store, canonical, limit)
+
+
+def _message(msg: Any, store: Typestore, typename: str, limit: int | None) -> Plain:
+    return {
+        name: _field(getattr(msg, normalize_fieldname(name)), desc, store, limit)
+        for name, desc in store.fielddefs[typename][1]
+    }
+
+
+def _field(value: Any, desc: Any, store: Typestore, limit: int | None) -> Any:
+    kind, rest = desc
+    if kind == Nodetype.BASE:
+        return _scalar(value, rest[0])
+    if kind == Nodetype.NAME:
+        return _message(value, store, rest, limit)
+    sub = rest[0]
+    if sub[0] != Nodetype.BASE:
+        return _plain([_field(v, sub, store, limit) for v in value], limit)
+    return _plain(value, limit, base=sub[1][0])
+
+
+def _scalar(value: Any, base: str | None) -> Any:
+    if base == "bool":
+        return bool(value)
+    if base in ("byte", "char"):
+        return int(value) & 0xFF  # an octet, whatever sign the decoder gave it
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def _plain(value: Any, limit: int | None, base: str | None = None) -> Any:
+    """Numpy values as Python ones; long sequences cut to ``limit`` elements."""
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if isinstance(value, list):
+        # Octets and booleans need converting; other numbers are Python's after tolist().
+        items = [_scalar(v, base) for v in value] if base in ("bool", "byte", "char") else value
+        if limit is not None and len(items) > limit:
+            return [*items[:limit], f"... ({len(items) - limit} more)"]
+        return items
+    return _scalar(value, base)
+
+
+def to_json(record: Plain) -> str:
+    """One line of JSON (NaN and infinities as ``NaN``/``Infinity``, as Python and pandas read)."""
+    return json.dumps(record, ensure_ascii=False, separators=(",", ":"))
+
+
+_Dumper = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
+
+
+def to_yaml(record: Plain, bag_start_ns: int) -> str:
+    """A YAML document for people: a comment with the time, then the record; ends with ``---``."""
+    seconds = (record["log_time"] - bag_start_ns) / 1e9
+    head = f"# {record['topic']} at {seconds:.9f} s\n"
+    body = yaml.dump(record, Dumper=_Dumper, sort_keys=False, allow_unicode=True, width=100)
+    return head + body + "---\n"

@@ -1,0 +1,12 @@
+"""File formats of an export (apart from the writer, so that the CLI imports no pyarrow)."""
+
+from __future__ import annotations
+
+import enum
+
+
+class ExportFormat(enum.StrEnum):
+    """File formats of an export."""
+
+    PARQUET = "parquet"
+    CSV = "csv"

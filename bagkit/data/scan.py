@@ -1,0 +1,142 @@
+"""A bag read topic by topic into Arrow record batches, one decompressed chunk at a time."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import closing
+from dataclasses import dataclass, field
+from functools import partial
+
+import pyarrow as pa
+
+from bagkit.bag import BagReader
+from bagkit.data.columns import Rows, TopicColumns
+from bagkit.data.errors import UnknownFieldError
+from bagkit.data.select import Window, check_topics, select_fields
+from bagkit.data.table import ColumnTable
+from bagkit.decode import DecodeError, MessageTypes, leaf_fields
+from bagkit.stats.prefetch import prefetch
+
+# Messages of chunkless storage (.db3) are decoded this many at a time.
+ROWS_PER_BATCH = 8192
+
+
+@dataclass(slots=True)
+class Scan:
+    """The decodable selected topics of one open bag, and why the others are skipped.
+
+    Build with :func:`plan_scan`; :meth:`batches` reads the bag.
+    """
+
+    reader: BagReader
+    window: Window
+    topics: dict[str, TopicColumns]
+    skipped: dict[str, str] = field(default_factory=dict)
+
+    def batches(self) -> Iterator[tuple[str, pa.RecordBatch]]:
+        """(topic, batch) per topic and chunk, in file order (``.db3``: in log-time order)."""
+        for topic, rows in self._decode(lambda t, n: Rows.empty(self.topics[t].leaves, n)):
+            yield topic, rows.batch(self.topics[topic].schema)
+
+    def table(self, topic: str) -> ColumnTable:
+        """Every selected message of ``topic`` (the only topic of the scan) in one table."""
+        capacity = self.reader.topic_counts.get(topic, 0)
+        table = ColumnTable(self.topics[topic].leaves, capacity)
+        for _ in self._decode(lambda _topic, n: table.reserve(n)):
+            pass
+        return table
+
+    def _decode(self, reserve: Callable[[str, int], Rows]) -> Iterator[tuple[str, Rows]]:
+        """(topic, rows) per topic and chunk, rows from ``reserve(topic, count)``."""
+        if not self.topics:
+            return
+        if "sqlite3" in self.reader.storage.split(","):
+            yield from self._message_rows(reserve)
+            return
+        # closing(): the reading thread stops before the reader is closed, also on error.
+        with closing(prefetch(self.reader.chunks(self.topics))) as chunks:
+            for chunk in chunks:
+                for topic, index in chunk.message_index.items():
+                    columns = self.topics.get(topic)
+                    if columns is not None:
+                        rows = columns.decode_chunk(
+                            chunk.records, index, self.window, partial(reserve, topic)
+                        )
+                        if len(rows.ok):
+                            yield topic, rows
+
+    def _message_rows(self, reserve: Callable[[str, int], Rows]) -> Iterator[tuple[str, Rows]]:
+        pending: dict[str, tuple[list[bytes], list[int], list[int]]] = {}
+        messages = self.reader.messages(self.topics, self.window.start_ns, self.window.end_ns)
+        for message in messages:
+            datas, logs, publishes = pending.setdefault(message.topic, ([], [], []))
+            datas.append(message.data)
+            logs.append(message.log_time)
+            publishes.append(message.publish_time)
+            if len(datas) >= ROWS_PER_BATCH:
+                topic = message.topic
+                parts = pending.pop(topic)
+                yield topic, self.topics[topic].decode_payloads(*parts, partial(reserve, topic))
+        for topic, parts in pending.items():
+            yield topic, self.topics[topic].decode_payloads(*parts, partial(reserve, topic))
+
+    @property
+    def problems(self) -> list[str]:
+        """What was lost: unreadable parts of the bag, messages that do not decode."""
+        found = list(self.reader.problems)
+        for topic, columns in self.topics.items():
+            if columns.failures:
+                found.append(
+                    f"{topic}: {columns.failures} messages could not be decoded "
+                    f"({columns.first_failure})"
+                )
+            if columns.unindexed:
+                found.append(
+                    f"{topic}: {columns.unindexed} index entries point outside their chunk"
+                )
+        return found
+
+
+def plan_scan(
+    reader: BagReader,
+    topics: Sequence[str] | None,
+    fields: Sequence[str] | None,
+    window: Window,
+    *,
+    bulk: bool = True,
+) -> Scan:
+    """Which topics of ``reader`` can be decoded, with which fields.
+
+    Args:
+        topics: these topics (all when None); each must be in the bag.
+        fields: path globs (see :func:`~bagkit.data.select.select_fields`); with several topics
+            a topic none of whose fields match is left out, with one topic that is an error.
+
+    Raises:
+        UnknownTopicError, UnknownFieldError.
+    """
+    if topics is not None:
+        check_topics(topics, reader.topics)
+    types = MessageTypes.from_definitions(reader.definitions)
+    scan = Scan(reader, window, {})
+    for name in topics if topics is not None else sorted(reader.topics):
+        info = reader.topics[name]
+        if info.serialization_format != "cdr":
+            scan.skipped[name] = f"serialization format {info.serialization_format!r} is not CDR"
+            continue
+        try:
+            leaves = leaf_fields(types.typestore, types.resolve(info.type))
+        except DecodeError as exc:
+            scan.skipped[name] = str(exc)
+            continue
+        if fields and (topics is None or len(topics) > 1):
+            # Several topics: those with none of the fields are not what was asked for.
+            leaves = select_fields(leaves, fields, topic=name, must_match=False)
+            if not leaves:
+                continue
+        else:
+            leaves = select_fields(leaves, fields, topic=name)
+        scan.topics[name] = TopicColumns(types, name, info.type, leaves, bulk=bulk)
+    if fields and not scan.topics and not scan.skipped:
+        raise UnknownFieldError(f"no topic of {reader.path} has a field {', '.join(fields)}")
+    return scan

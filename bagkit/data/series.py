@@ -1,0 +1,143 @@
+"""Time series to plot: ``TOPIC:FIELD`` specs read from one or more bags, on a common axis."""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from bagkit.bag import BagReader
+from bagkit.data.errors import DataError, UndecodableTopicError
+from bagkit.data.scan import plan_scan
+from bagkit.data.select import Window
+from bagkit.data.units import field_unit
+from bagkit.decode import MessageTypes
+from bagkit.decode.flatten import STRING_TYPES
+
+
+@dataclass(frozen=True, slots=True)
+class Series:
+    """One field of one topic of one bag over time.
+
+    Attributes:
+        bag: the bag's label (its name, or its path when names repeat).
+        topic, field: what is plotted; ``unit`` is ``""`` where nothing says.
+        times: seconds from the bag's start, or absolute ``datetime64[ns]`` (UTC).
+        values: float64.
+    """
+
+    bag: str
+    topic: str
+    field: str
+    unit: str
+    times: np.ndarray
+    values: np.ndarray
+
+    @property
+    def key(self) -> str:
+        """``topic:field``: the panel the series goes in (bags overlaid)."""
+        return f"{self.topic}:{self.field}"
+
+
+def parse_spec(spec: str) -> tuple[str, str]:
+    """``/imu/data:linear_acceleration.z`` -> (topic, field glob).
+
+    Raises:
+        DataError: no ``:`` or an empty part.
+    """
+    topic, sep, field = spec.partition(":")
+    if not sep or not topic or not field:
+        raise DataError(f"{spec!r} is not TOPIC:FIELD (e.g. /imu/data:linear_acceleration.z)")
+    return topic, field
+
+
+def bag_labels(bags: Sequence[Path]) -> list[str]:
+    """Each bag's name, or its path where two bags share a name."""
+    names = [bag.name for bag in bags]
+    return [str(bag) if names.count(bag.name) > 1 else bag.name for bag in bags]
+
+
+def load_series(
+    bags: Sequence[str | Path], specs: Sequence[str], *, absolute: bool = False
+) -> list[Series]:
+    """Every numeric field that ``specs`` name, from every bag, in spec order, bag order.
+
+    Raises:
+        BagError, UnknownTopicError, UnknownFieldError, UndecodableTopicError; DataError for
+        a field that is not a number (a string, a variable-length sequence).
+    """
+    wanted = [parse_spec(spec) for spec in specs]
+    paths = [Path(bag) for bag in bags]
+    per_spec: list[list[Series]] = [[] for _ in wanted]
+    for label, path in zip(bag_labels(paths), paths, strict=True):
+        with BagReader(path, allow_empty=True) as reader:
+            types = MessageTypes.from_definitions(reader.definitions)
+            for found, (topic, field) in zip(per_spec, wanted, strict=True):
+                found.extend(_topic_series(reader, types, label, topic, field, absolute=absolute))
+    return [s for found in per_spec for s in found]
+
+
+def _topic_series(
+    reader: BagReader, types: MessageTypes, label: str, topic: str, field: str, *, absolute: bool
+) -> list[Series]:
+    scan = plan_scan(reader, [topic], [field], Window())
+    if topic in scan.skipped:
+        raise UndecodableTopicError(f"{topic} cannot be decoded: {scan.skipped[topic]}")
+    columns = scan.topics[topic]
+    for leaf in columns.leaves:
+        if leaf.pooled or leaf.base in STRING_TYPES:
+            kind = "a variable-length sequence" if leaf.pooled else "a string"
+            raise DataError(f"{topic}:{leaf.path} is {kind}, not a number over time")
+    batches = [batch for _, batch in scan.batches()]
+    if not batches:
+        return []
+    log_times = np.concatenate([b.column("log_time").to_numpy() for b in batches])
+    order = np.argsort(log_times, kind="stable")
+    times = (
+        log_times[order].astype("datetime64[ns]")
+        if absolute
+        else (log_times[order] - reader.start_ns) / 1e9
+    )
+    canonical = types.resolve(columns.type_name)
+    return [
+        Series(
+            label,
+            topic,
+            leaf.path,
+            field_unit(types.typestore, canonical, leaf.path, reader.definitions),
+            times,
+            np.concatenate(
+                [b.column(leaf.path).to_numpy(zero_copy_only=False) for b in batches]
+            ).astype(np.float64)[order],
+        )
+        for leaf in columns.leaves
+    ]
+
+
+def decimate(times: np.ndarray, values: np.ndarray, points: int) -> tuple[np.ndarray, np.ndarray]:
+    """At most about ``points`` points that keep every bucket's minimum and maximum (spikes
+    stay visible, as in PlotJuggler), in time order."""
+    n = len(values)
+    if n <= points:
+        return times, values
+    buckets = max(points // 2, 1)
+    edges = np.linspace(0, n, buckets + 1).astype(np.int64)
+    keep = []
+    for low, high in itertools.pairwise(edges):
+        if high <= low:
+            continue
+        part = values[low:high]
+        if np.isnan(part).all():
+            keep.append(low)
+            continue
+        keep.extend(sorted({low + int(np.nanargmin(part)), low + int(np.nanargmax(part))}))
+    index = np.array(keep, dtype=np.int64)
+    return times[index], values[index]
+
+
+def axis_label(series: Series) -> str:
+    """``linear_acceleration.z [m/s²]``."""
+    return f"{series.field} [{series.unit}]" if series.unit else series.field
