@@ -20,11 +20,11 @@ from typing import Any
 import numpy as np
 import pyarrow as pa
 
-from bagkit.data.engine import BulkGroup, decode_bulk, gather, payload_spans, read_u32
+from bagkit.data.engine import BulkGroup, decode_bulk, payload_spans
 from bagkit.data.select import Window
 from bagkit.decode import DecodeError, LeafField, MessageTypes
 from bagkit.decode.flatten import STRING_TYPES
-from bagkit.decode.layout import PRIMITIVE_FORMATS, CdrLayout, NeedLength
+from bagkit.decode.layout import PRIMITIVE_FORMATS, CdrLayout
 
 _ARROW_TYPES: dict[str, pa.DataType] = {
     "bool": pa.bool_(),
@@ -170,7 +170,6 @@ class TopicColumns:
         self.read_values = types.value_reader(type_name, paths) if paths else None
         self.layout = CdrLayout.of(types.typestore, canonical) if bulk and paths else None
         self._column_of = {leaf.path: j for j, leaf in enumerate(self.leaves)}
-        self._plans: dict[np.dtype, list[tuple[int, str, int | None]]] = {}
         self.failures = 0
         self.first_failure = ""
         self.unindexed = 0
@@ -185,7 +184,7 @@ class TopicColumns:
     ) -> Rows:
         """Decode the messages of this topic in one chunk into ``reserve(count)``."""
         buf = np.frombuffer(records, dtype=np.uint8)
-        spans = payload_spans(buf, index, window.start_ns, window.end_ns)
+        spans = payload_spans(records, index, window.start_ns, window.end_ns)
         self.unindexed += spans.dropped
         columns = reserve(len(spans.starts))
         columns.log_times[:] = spans.log_times
@@ -194,7 +193,7 @@ class TopicColumns:
         if self.layout is not None and len(spans.starts):
             groups, leftover = decode_bulk(buf, spans.starts, spans.lengths, self.layout)
             for group in groups:
-                if not self._fill_group(columns, buf, spans.starts, group):
+                if not self._fill_group(columns, group):
                     leftover = np.union1d(leftover, group.indexes)
         view = memoryview(records)
         starts, lengths = spans.starts[leftover].tolist(), spans.lengths[leftover].tolist()
@@ -237,87 +236,41 @@ class TopicColumns:
                 self.first_failure = self.first_failure or str(exc)
         columns.fill_rows(rows, done)
 
-    def _plan(
-        self, dtype: np.dtype, slot_indexes: tuple[int, ...]
-    ) -> list[tuple[int, str, int | None]]:
-        """(column, dtype field, element or None) for every selected numeric leaf in ``dtype``."""
-        plan = self._plans.get(dtype)
-        if plan is not None:
-            return plan
-        assert self.layout is not None
-        plan = []
-        for index in slot_indexes:
-            slot = self.layout.slots[index]
-            if slot.array:
-                for i in range(slot.count or 0):
-                    column = self._column_of.get(f"{slot.path}[{i}]")
-                    if column is not None:
-                        plan.append((column, str(index), i))
-            elif slot.path in self._column_of:
-                plan.append((self._column_of[slot.path], str(index), None))
-        self._plans[dtype] = plan
-        return plan
-
-    def _fill_group(
-        self, columns: Rows, buf: np.ndarray, starts: np.ndarray, group: BulkGroup
-    ) -> bool:
-        """Fill the rows of one bulk group; False when its strings are not UTF-8."""
-        assert self.layout is not None
-        strings = self._group_strings(buf, starts[group.indexes])
-        if strings is None:
-            return False
+    def _fill_group(self, columns: Rows, group: BulkGroup) -> bool:
+        """Fill the rows of one bulk group; False when one of its strings is not UTF-8."""
         rows = _as_slice(group.indexes)
-        for column, text in strings.items():
-            columns.arrays[column][rows] = text
-        values = group.values
-        for column, name, element in self._plan(group.layout.dtype, group.layout.slot_indexes):
+        found = group.columns(self._column_of)
+        for path, column in self._column_of.items():
             target = columns.arrays[column]
-            source = values[name]
-            if self.leaves[column].pooled:
+            leaf = self.leaves[column]
+            source = found.get(path)
+            if leaf.base in STRING_TYPES:
+                # A layout holds no values for empty strings.
+                texts = "" if source is None else _utf8(source)
+                if texts is None:
+                    return False
+                target[rows] = texts
+            elif source is None:
+                continue
+            elif leaf.pooled:
                 rows_of = np.empty(len(group.indexes), dtype=object)
                 rows_of[:] = list(source)
                 target[rows] = rows_of
             else:
-                picked = source if element is None else source[:, element]
-                target[rows] = picked != 0 if target.dtype == bool else picked
+                target[rows] = source != 0 if target.dtype == bool else source
         return True
 
-    def _group_strings(self, buf: np.ndarray, starts: np.ndarray) -> dict[int, Any] | None:
-        """Column -> the value (or per-row values) of each selected string of a bulk group.
 
-        The members of a group share their length prefixes, so each string is at the same
-        offset in all of them: read the prefixes of the first, then the bytes of all at once.
-        """
-        assert self.layout is not None
-        wanted = [
-            (position, self._column_of[slot.path])
-            for position, slot in enumerate(s for s in self.layout.slots if s.count is None)
-            if slot.base in STRING_TYPES and slot.path in self._column_of
-        ]
-        if not wanted:
-            return {}
-        prefixes: list[tuple[int, int]] = []  # (offset of the length prefix, its value)
-        while isinstance(step := self.layout.resolve(tuple(v for _, v in prefixes)), NeedLength):
-            value = int(read_u32(buf, np.array([starts[0] + step.offset]))[0])
-            prefixes.append((step.offset, value))
-        found: dict[int, Any] = {}
-        for position, column in wanted:
-            offset, count = prefixes[position]
-            size = max(count - 1, 0)  # CDR counts the terminating NUL
-            if size == 0:
-                found[column] = ""
-                continue
-            raw = gather(buf, starts + offset + 4, np.dtype(f"S{size}"))
-            try:
-                if (raw == raw[0]).all():
-                    found[column] = bytes(raw[0]).decode()
-                    continue
-                unique, inverse = np.unique(raw, return_inverse=True)
-                texts = np.array([bytes(u).decode() for u in unique], dtype=object)
-            except UnicodeDecodeError:
-                return None
-            found[column] = texts[inverse]
-        return found
+def _utf8(raw: np.ndarray) -> str | np.ndarray | None:
+    """The texts of ``S`` bytes ``raw`` (one str when all are equal); None if one is not UTF-8."""
+    try:
+        if (raw == raw[0]).all():
+            return bytes(raw[0]).decode()
+        unique, inverse = np.unique(raw, return_inverse=True)
+        texts = np.array([bytes(u).decode() for u in unique], dtype=object)
+    except UnicodeDecodeError:
+        return None
+    return texts[inverse]
 
 
 def _as_slice(indexes: np.ndarray) -> slice | np.ndarray:

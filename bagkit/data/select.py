@@ -9,9 +9,9 @@ from typing import Any
 
 import numpy as np
 
-from bagkit.data.engine import field_matcher
 from bagkit.data.errors import UnknownFieldError, UnknownTopicError
 from bagkit.decode import LeafField
+from bagkit.decode.paths import path_matches
 
 # Times at or beyond this many seconds are read as absolute (Unix epoch) times; below it, as
 # seconds from the bag's first message (about 31.7 years of recording).
@@ -92,17 +92,12 @@ def select_fields(
     """
     if not patterns:
         return list(leaves)
-    matchers = [field_matcher([p, f"{p}.*", f"{p}[*"]) for p in patterns]
-    unmatched = [
-        p
-        for p, match in zip(patterns, matchers, strict=True)
-        if not any(match(leaf.path) for leaf in leaves)
-    ]
+    unmatched = [p for p in patterns if not any(path_matches(leaf.path, p) for leaf in leaves)]
     if unmatched and must_match:
         raise UnknownFieldError(
             f"{topic} has no field {', '.join(unmatched)} (it has {describe_fields(leaves)})"
         )
-    return [leaf for leaf in leaves if any(match(leaf.path) for match in matchers)]
+    return [leaf for leaf in leaves if any(path_matches(leaf.path, p) for p in patterns)]
 
 
 def describe_fields(leaves: Sequence[LeafField], limit: int = 40) -> str:

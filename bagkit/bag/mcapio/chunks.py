@@ -282,3 +282,17 @@ def payload_spans(
         lengths.astype(np.int64) - MESSAGE_PREFIX.size,
         dropped,
     )
+
+
+# publish_time (u64) is the Message record's last field before its payload.
+_PUBLISH_TIME_SIZE = 8
+
+
+def payload_publish_times(records: bytes, starts: np.ndarray) -> np.ndarray:
+    """The ``publish_time`` (int64 ns) of the messages whose payloads :func:`payload_spans`
+    found at ``starts``: the last field of the Message record before its payload."""
+    if not len(starts):
+        return np.empty(0, dtype=np.int64)
+    buf = np.frombuffer(records, dtype=np.uint8)
+    before = starts - _PUBLISH_TIME_SIZE
+    return sliding_window_view(buf, _PUBLISH_TIME_SIZE)[before].view("<u8").ravel().astype(np.int64)
