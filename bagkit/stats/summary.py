@@ -177,6 +177,12 @@ class _TopicAccumulator:
         self._pooled_size = 0
         self._plans: dict[np.dtype, list[tuple[str, np.ndarray | None, np.ndarray | str]]] = {}
 
+    def __getstate__(self) -> dict[str, Any]:
+        """The figures only (bagkit.fleet ships them between processes): no decoder, no buffer."""
+        self.flush()
+        caches = ("read_values", "layout", "_plans")
+        return {k: v for k, v in self.__dict__.items() if k not in caches}
+
     def value_reader(self, types: MessageTypes) -> ValueReader:
         """payload -> the values of ``scalar_paths``, then of the pooled paths."""
         pooled = [leaf.path for leaf in self.leaves if leaf.pooled]
@@ -335,6 +341,10 @@ class _Run:
                     f"topic {topic} has type {existing.type_name} in one bag "
                     f"and {type_name} in another"
                 )
+            if encoding != "cdr":
+                why = f"serialization format {encoding!r} is not CDR"
+                self.problems.append(f"{bag}: messages on {topic} not read: {why}")
+                return None
             try:
                 canonical = self.types.resolve(type_name)
             except DecodeError as exc:
@@ -447,59 +457,69 @@ def summarize(
     try:
         for path in paths:
             readers.append(BagReader(path, allow_empty=True))
-        _check_topics(readers, topics)
-        total = sum(
-            count
-            for reader in readers
-            for topic, count in reader.topic_counts.items()
-            if topics is None or topic in topics
-        )
-        done = 0
-        for reader in readers:
-            # Each bag is decoded with its own definitions (pooled bags must agree on them).
-            run.types = MessageTypes.from_definitions(reader.definitions)
-            wanted: dict[str, _TopicAccumulator] = {}
-            for name, info in reader.topics.items():
-                if topics is not None and name not in topics:
-                    continue
-                accumulator = run.accumulator(
-                    name, info.type, info.serialization_format, str(reader.path)
-                )
-                if accumulator is not None:
-                    wanted[name] = accumulator
-                else:  # skipped: its messages are not read
-                    total -= reader.topic_counts.get(name, 0)
-            if not wanted:
-                continue
-            if reader.storage == "mcap":
-                # closing(): the reading thread stops before the reader is closed, also on error.
-                with closing(prefetch(reader.chunks(wanted))) as chunks:
-                    for chunk in chunks:
-                        done += run.add_chunk(chunk, wanted)
-                        if progress is not None:
-                            progress(done, total)
-            else:
-                for message in reader.messages(wanted, start_ns, end_ns):
-                    accumulator = wanted[message.topic]
-                    accumulator.add_times(np.array([message.log_time]))
-                    if accumulator.leaves:
-                        accumulator.add_payloads((message.data,))
-                    done += 1
-                    if progress is not None and done % ROW_BATCH == 0:
-                        progress(done, total)
-            run.problems.extend(reader.problems)
+        _check_topics({name for reader in readers for name in reader.topics}, topics)
+        _accumulate(run, readers, topics, progress)
     finally:
         for reader in readers:
             reader.close()
-    if progress is not None:
-        progress(total, total)
     return _finish(run, paths)
 
 
-def _check_topics(readers: list[BagReader], topics: Sequence[str] | None) -> None:
+def _accumulate(
+    run: _Run,
+    readers: list[BagReader],
+    topics: Sequence[str] | None,
+    progress: ProgressCallback | None,
+) -> None:
+    """Add the messages of ``readers`` on ``topics`` to ``run`` (also one bag of a fleet run)."""
+    total = sum(
+        count
+        for reader in readers
+        for topic, count in reader.topic_counts.items()
+        if topics is None or topic in topics
+    )
+    done = 0
+    for reader in readers:
+        # Each bag is decoded with its own definitions (pooled bags must agree on them).
+        run.types = MessageTypes.from_definitions(reader.definitions)
+        wanted: dict[str, _TopicAccumulator] = {}
+        for name, info in reader.topics.items():
+            if topics is not None and name not in topics:
+                continue
+            accumulator = run.accumulator(
+                name, info.type, info.serialization_format, str(reader.path)
+            )
+            if accumulator is not None:
+                wanted[name] = accumulator
+            else:  # skipped: its messages are not read
+                total -= reader.topic_counts.get(name, 0)
+        if not wanted:
+            continue
+        if reader.storage == "mcap":
+            # closing(): the reading thread stops before the reader is closed, also on error.
+            with closing(prefetch(reader.chunks(wanted))) as chunks:
+                for chunk in chunks:
+                    done += run.add_chunk(chunk, wanted)
+                    if progress is not None:
+                        progress(done, total)
+        else:
+            for message in reader.messages(wanted, run.start_ns, run.end_ns):
+                accumulator = wanted[message.topic]
+                accumulator.add_times(np.array([message.log_time]))
+                if accumulator.leaves:
+                    accumulator.add_payloads((message.data,))
+                done += 1
+                if progress is not None and done % ROW_BATCH == 0:
+                    progress(done, total)
+        run.problems.extend(reader.problems)
+    if progress is not None:
+        progress(total, total)
+
+
+def _check_topics(known: set[str], topics: Sequence[str] | None) -> None:
+    """Raise UnknownTopicError unless every topic of ``topics`` is among the ``known`` ones."""
     if topics is None:
         return
-    known = {name for reader in readers for name in reader.topics}
     missing = [topic for topic in topics if topic not in known]
     if missing:
         raise UnknownTopicError(
