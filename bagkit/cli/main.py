@@ -5,6 +5,7 @@ from __future__ import annotations
 import typer
 
 from bagkit import __version__
+from bagkit.cli import catalog as _catalog
 from bagkit.cli import compare as _compare
 from bagkit.cli import golden as _golden
 from bagkit.cli import info as _info
@@ -44,6 +45,7 @@ app.command("record", help=_record.HELP, no_args_is_help=True)(_record.record)
 app.add_typer(_replay.app)
 app.add_typer(_stats.app)
 app.add_typer(_golden.app)
+app.add_typer(_catalog.app)
 
 
 def run() -> None:

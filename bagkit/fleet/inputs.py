@@ -21,13 +21,19 @@ MAX_LISTING_BYTES = 64 << 20
 
 
 def is_bag_directory(path: Path) -> bool:
-    """A rosbag2 bag directory: it holds ``metadata.yaml`` or storage files of its own."""
+    """A rosbag2 bag directory: it holds ``metadata.yaml``, or storage files and no directory.
+
+    (A directory of loose ``.mcap`` files beside sub-directories is a root of several bags.)
+    """
     if (path / "metadata.yaml").is_file():
         return True
     try:
-        return any(p.suffix in STORAGE_SUFFIXES and p.is_file() for p in path.iterdir())
+        entries = list(path.iterdir())
     except OSError:
         return False
+    if any(entry.is_dir() for entry in entries):
+        return False
+    return any(entry.suffix in STORAGE_SUFFIXES and entry.is_file() for entry in entries)
 
 
 def find_bags(root: Path) -> Iterator[Path]:
