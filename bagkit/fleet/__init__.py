@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from bagkit.fleet.cluster import fleet_client, local_cluster
 from bagkit.fleet.errors import CatalogError, FleetError, NoBagsError, SchedulerError
+from bagkit.fleet.frames import dataframe
 from bagkit.fleet.inputs import expand_bags
 from bagkit.fleet.stats import summarize_fleet
 
@@ -15,6 +16,7 @@ __all__ = [
     "FleetError",
     "NoBagsError",
     "SchedulerError",
+    "dataframe",
     "expand_bags",
     "fleet_client",
     "local_cluster",
