@@ -21,7 +21,6 @@ if TYPE_CHECKING:
     from distributed import Client, LocalCluster
 
 LOOPBACK = "127.0.0.1"
-CONNECT_TIMEOUT_S = 10
 
 
 def default_workers() -> int:
@@ -36,17 +35,21 @@ def dashboard_available() -> bool:
 
 def local_cluster(n_workers: int) -> LocalCluster:
     """A started LocalCluster of ``n_workers`` single-threaded processes on 127.0.0.1."""
+    import dask
     from distributed import LocalCluster
 
-    return LocalCluster(
-        host=LOOPBACK,
-        dashboard_address=f"{LOOPBACK}:0" if dashboard_available() else None,
-        processes=True,
-        n_workers=n_workers,
-        threads_per_worker=1,
-        silence_logs=logging.ERROR,
-        preload=["bagkit.fleet.worker"],
-    )
+    # Dask sets MALLOC_TRIM_THRESHOLD_ in its workers to give memory back sooner; with it glibc
+    # maps and unmaps every large buffer afresh, and summaries run 1.6-2x slower.
+    with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}):
+        return LocalCluster(
+            host=LOOPBACK,
+            dashboard_address=f"{LOOPBACK}:0" if dashboard_available() else None,
+            processes=True,
+            n_workers=n_workers,
+            threads_per_worker=1,
+            silence_logs=logging.ERROR,
+            preload=["bagkit.fleet.worker"],
+        )
 
 
 @contextmanager
@@ -74,7 +77,8 @@ def fleet_client(
 
     if scheduler is not None:
         try:
-            client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
+            # Waits up to Dask's connect timeout (distributed.comm.timeouts.connect, 30 s).
+            client = Client(scheduler)
         except (OSError, TimeoutError) as exc:
             raise SchedulerError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
         with client:

@@ -50,6 +50,7 @@ class BagProgress:
             TimeRemainingColumn(),
             console=console,
             transient=True,
+            disable=not console.is_terminal,
         )
         self._task = self._bar.add_task(label, total=sum(self._sizes), bags=self._bags())
 

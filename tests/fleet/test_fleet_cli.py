@@ -75,3 +75,28 @@ def test_ctrl_c_stops_the_local_cluster(fleet_bags: list[Path], tmp_path: Path) 
         if proc.poll() is None:
             proc.kill()
             proc.wait()
+
+
+def test_unreachable_scheduler_is_one_error_line(fleet_bags: list[Path]) -> None:
+    done = subprocess.run(
+        [BAGKIT, "stats", "summary", *map(str, fleet_bags[:2]), "--scheduler", "tcp://127.0.0.1:9"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+        env={**os.environ, "DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT": "1s"},
+    )
+    assert done.returncode == 2
+    assert done.stderr.startswith("error: cannot reach the Dask scheduler at tcp://127.0.0.1:9")
+    assert len(done.stderr.strip().splitlines()) == 1, done.stderr
+
+
+def test_no_bag_in_the_inputs_is_one_error_line(tmp_path: Path) -> None:
+    done = subprocess.run(
+        [BAGKIT, "stats", "summary", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert (done.returncode, done.stderr.strip()) == (2, f"error: no bag in {tmp_path}")
