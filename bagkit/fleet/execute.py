@@ -10,6 +10,8 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, TypeVar
 
+from bagkit.fleet.errors import FleetError
+
 if TYPE_CHECKING:
     from distributed import Client
 
@@ -38,7 +40,7 @@ def run_each(
             if done is not None:
                 done(index)
         return results
-    from distributed import as_completed
+    from distributed import KilledWorker, as_completed
 
     # pure=False: a bag read twice is read again (it may have changed on disk).
     futures = client.map(func, items, pure=False)
@@ -51,6 +53,9 @@ def run_each(
             future.release()
             if done is not None:
                 done(index)
+    except KilledWorker as exc:
+        client.cancel(futures)
+        raise FleetError(f"a task killed every worker that ran it, given up: {exc}") from None
     except BaseException:
         client.cancel(futures)
         raise
