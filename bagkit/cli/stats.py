@@ -15,7 +15,7 @@ from rich.measure import Measurement
 from rich.progress import BarColumn, Progress, TaskID, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
-from bagkit.bag import BagReader
+from bagkit.bag import BagError, BagReader
 from bagkit.cli.common import (
     OutputFormat,
     console,
@@ -75,9 +75,12 @@ def _offset_ns(bags: list[Path], seconds: float | None) -> int | None:
         return None
     first = []
     for bag in bags:
-        with BagReader(bag, allow_empty=True) as reader:
-            if reader.message_count:
-                first.append(reader.start_ns)
+        try:
+            with BagReader(bag, allow_empty=True) as reader:
+                if reader.message_count:
+                    first.append(reader.start_ns)
+        except BagError:
+            continue  # reported by the summary (an error for one bag, a problem among many)
     return min(first, default=0) + round(seconds * 1e9)
 
 
