@@ -11,8 +11,8 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-from conftest import T0, write_bag
 from distributed import Client
+from fleet_bags import T0, write_bag
 from mcap.reader import make_reader
 
 from bagkit.fleet import describe as describe_module

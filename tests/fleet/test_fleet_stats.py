@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import psutil
 import pytest
-from conftest import worker_pids
 from distributed import Client
+from fleet_bags import worker_pids
 
 from bagkit.fleet import expand_bags, summarize_fleet
 from bagkit.stats import StatsError, Summary, UnknownTopicError, summarize
