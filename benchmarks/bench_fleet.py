@@ -181,15 +181,15 @@ def main() -> bool:
                         write_catalog(frame, output)
                     return len(plan.to_open)
 
-                alone_start = time.perf_counter()
-                complete_update(plan_update([small_root], output), None)
-                alone = time.perf_counter() - alone_start
                 first_start = time.perf_counter()
                 opened = catalogue()
                 first = time.perf_counter() - first_start
                 second_start = time.perf_counter()
                 reopened = catalogue()
                 second = time.perf_counter() - second_start
+                alone_start = time.perf_counter()  # last: the first run is not given a warm cache
+                complete_update(plan_update([small_root], Path(tmp) / "alone.parquet"), None)
+                alone = time.perf_counter() - alone_start
             assert (opened, reopened) == (SMALL_BAGS, 0)
             rate = SMALL_BAGS / first
             print(

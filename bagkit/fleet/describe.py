@@ -6,6 +6,7 @@ pandas.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -29,12 +30,12 @@ COLUMNS = [
 
 def bag_stamp(path: str | Path) -> tuple[int, int]:
     """(total bytes, latest mtime in ns) of a bag's files: what changes when a bag does."""
-    path = Path(path)
     try:
-        if path.is_dir():
-            stats = [f.stat() for f in path.iterdir() if f.is_file()]
+        if os.path.isdir(path):
+            with os.scandir(path) as entries:
+                stats = [entry.stat() for entry in entries if entry.is_file()]
         else:
-            stats = [path.stat()]
+            stats = [os.stat(path)]
     except OSError:
         return (0, 0)
     return sum(s.st_size for s in stats), max((s.st_mtime_ns for s in stats), default=0)

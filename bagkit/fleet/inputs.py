@@ -27,13 +27,16 @@ def is_bag_directory(path: Path) -> bool:
     """
     if (path / "metadata.yaml").is_file():
         return True
+    storage = False
     try:
-        entries = list(path.iterdir())
+        with os.scandir(path) as entries:
+            for entry in entries:
+                if entry.is_dir():
+                    return False
+                storage = storage or (entry.name.endswith(STORAGE_SUFFIXES) and entry.is_file())
     except OSError:
         return False
-    if any(entry.is_dir() for entry in entries):
-        return False
-    return any(entry.suffix in STORAGE_SUFFIXES and entry.is_file() for entry in entries)
+    return storage
 
 
 def find_bags(root: Path) -> Iterator[Path]:
