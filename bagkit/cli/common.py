@@ -47,6 +47,11 @@ def warn(message: str) -> None:
     err_console.print(f"[yellow]warning:[/] {message}", highlight=False, soft_wrap=True)
 
 
+def note(message: str) -> None:
+    """Print an informational line on stderr (dim: what a run is doing, not a result)."""
+    err_console.print(f"[dim]{message}[/]", highlight=False, soft_wrap=True)
+
+
 def print_json(data: Any) -> None:
     """Write ``data`` as JSON on stdout (plain, no colour, so scripts can parse it)."""
     sys.stdout.write(json.dumps(data, indent=2, allow_nan=True) + "\n")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import typer
 
 from bagkit import __version__
+from bagkit.cli import catalog as _catalog
 from bagkit.cli import compare as _compare
 from bagkit.cli import echo as _echo
 from bagkit.cli import export as _export
@@ -50,6 +51,7 @@ app.command("record", help=_record.HELP, no_args_is_help=True)(_record.record)
 app.add_typer(_replay.app)
 app.add_typer(_stats.app)
 app.add_typer(_golden.app)
+app.add_typer(_catalog.app)
 
 
 def run() -> None:

@@ -15,8 +15,16 @@ from rich.measure import Measurement
 from rich.progress import BarColumn, Progress, TaskID, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
-from bagkit.bag import BagReader
-from bagkit.cli.common import OutputFormat, console, err_console, handle_errors, print_json, warn
+from bagkit.bag import BagError, BagReader
+from bagkit.cli.common import (
+    OutputFormat,
+    console,
+    err_console,
+    handle_errors,
+    note,
+    print_json,
+    warn,
+)
 
 if TYPE_CHECKING:
     from bagkit.stats import Summary
@@ -67,18 +75,22 @@ def _offset_ns(bags: list[Path], seconds: float | None) -> int | None:
         return None
     first = []
     for bag in bags:
-        with BagReader(bag, allow_empty=True) as reader:
-            if reader.message_count:
-                first.append(reader.start_ns)
+        try:
+            with BagReader(bag, allow_empty=True) as reader:
+                if reader.message_count:
+                    first.append(reader.start_ns)
+        except BagError:
+            continue  # reported by the summary (an error for one bag, a problem among many)
     return min(first, default=0) + round(seconds * 1e9)
 
 
 @app.command("summary", no_args_is_help=True)
 @handle_errors
 def summary(  # noqa: PLR0917 (typer maps parameters to options)
-    bags: list[Path] = typer.Argument(
+    inputs: list[Path] = typer.Argument(
         ...,
-        help="Bag directories or single .mcap/.db3 files; several are pooled.",
+        help="Bags, directories searched for bags, globs, or .txt files listing bag paths; "
+        "several bags are pooled.",
         metavar="BAG",
         show_default=False,
     ),
@@ -113,6 +125,21 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
         help="Decode fixed-layout messages in bulk with numpy (--no-bulk: one by one, slower, "
         "to cross-check).",
     ),
+    workers: int | None = typer.Option(
+        None,
+        "--workers",
+        min=0,
+        help="Local Dask worker processes (default: one per core for several bags; "
+        "0: in this process).",
+        metavar="N",
+    ),
+    scheduler: str | None = typer.Option(
+        None,
+        "--scheduler",
+        help="Run on an existing dask.distributed scheduler, e.g. tcp://10.0.0.5:8786 "
+        "(the bags must be readable at the same paths on its workers).",
+        metavar="ADDRESS",
+    ),
     check_crc: bool = typer.Option(
         True, "--crc/--no-crc", help="Check each chunk's CRC as it is read (--no-crc: skip it)."
     ),
@@ -123,23 +150,48 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
     (orientation_covariance[0]), variable-length arrays pooled over their elements (ranges[]);
     booleans count as 0/1 and strings are left out. std is the sample standard deviation
     (ddof=1, as pandas). Messages are decoded from the definitions stored in the bag.
+
+    Several bags run on a local Dask cluster (or --scheduler), one task per bag, with the
+    same results as in one process; see docs/fleet.md.
+
+    Example: bagkit stats summary 'flights/2026-11-*' -t /imu/data --workers 4
     """
+    from bagkit.fleet import expand_bags, fleet_client, summarize_fleet
+    from bagkit.fleet.progress import BagProgress
     from bagkit.stats import summarize
 
-    progress = _DelayedProgress()
-    try:
-        result = summarize(
-            bags,
-            topics=topics or None,
-            fields=fields or None,
-            start_ns=_offset_ns(bags, start),
-            end_ns=_offset_ns(bags, end),
-            progress=progress,
-            bulk=bulk,
-            check_crc=check_crc,
-        )
-    finally:
-        progress.close()
+    bags = expand_bags(inputs)
+    start_ns, end_ns = _offset_ns(bags, start), _offset_ns(bags, end)
+    selection = {"topics": topics or None, "fields": fields or None}
+    with fleet_client(
+        workers=workers, scheduler=scheduler, bags=len(bags), announce=note
+    ) as client:
+        if client is None:
+            progress = _DelayedProgress()
+            try:
+                result = summarize(
+                    bags,
+                    **selection,
+                    start_ns=start_ns,
+                    end_ns=end_ns,
+                    progress=progress,
+                    bulk=bulk,
+                    check_crc=check_crc,
+                )
+            finally:
+                progress.close()
+        else:
+            with BagProgress(bags, err_console, label="summarizing") as done:
+                result = summarize_fleet(
+                    bags,
+                    **selection,
+                    client=client,
+                    start_ns=start_ns,
+                    end_ns=end_ns,
+                    bulk=bulk,
+                    check_crc=check_crc,
+                    done=done,
+                )
     for topic, reason in result.skipped.items():
         warn(f"topic {topic} skipped: {reason}")
     for problem in result.problems:

@@ -55,6 +55,11 @@ class TopicAccumulator:
         self._pooled_rows: list[list[Any]] = []
         self._pooled_size = 0
 
+    def __getstate__(self) -> dict[str, Any]:
+        """The figures only (bagkit.fleet ships them between processes): no decoder, no buffer."""
+        self.flush()
+        return {k: v for k, v in self.__dict__.items() if k not in ("read_values", "layout")}
+
     def value_reader(self, types: MessageTypes) -> ValueReader:
         """payload -> the values of ``scalar_paths``, then of the pooled paths."""
         pooled = [leaf.path for leaf in self.leaves if leaf.pooled]

@@ -84,6 +84,20 @@ class Moments:
         self.min = np.fmin(self.min, np.fmin.reduce(x, axis=0))
         self.max = np.fmax(self.max, np.fmax.reduce(x, axis=0))
 
+    def merge(self, other: Moments) -> None:
+        """Add the values summarized by ``other`` (another bag's moments, bagkit.fleet).
+
+        ``other``'s mean is re-expressed around this shift before Chan's formula: the two shifts
+        are values of the same field, so their difference loses nothing that matters.
+        """
+        self.shift = np.where(self.finite_count == 0, other.shift, self.shift)
+        self._merge(other.finite_count, other.shifted_mean + (other.shift - self.shift), other.m2)
+        self.nan_count = self.nan_count + other.nan_count
+        self.positive_inf = self.positive_inf + other.positive_inf
+        self.negative_inf = self.negative_inf + other.negative_inf
+        self.min = np.fmin(self.min, other.min)
+        self.max = np.fmax(self.max, other.max)
+
     def _merge(self, count: np.ndarray, mean: np.ndarray, m2: np.ndarray) -> None:
         n_a = self.finite_count.astype(np.float64)
         n = n_a + count

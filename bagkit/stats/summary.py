@@ -61,6 +61,10 @@ class _Run:
                     f"topic {topic} has type {existing.type_name} in one bag "
                     f"and {type_name} in another"
                 )
+            if encoding != "cdr":
+                why = f"serialization format {encoding!r} is not CDR"
+                self.problems.append(f"{bag}: messages on {topic} not read: {why}")
+                return None
             try:
                 canonical = self.types.resolve(type_name)
             except DecodeError as exc:
@@ -195,7 +199,7 @@ def summarize(
     try:
         for path in paths:
             readers.append(BagReader(path, allow_empty=True, check_crc=check_crc).open())
-        _check_topics(readers, topics)
+        _check_topics({name for reader in readers for name in reader.topics}, topics)
         run.total = sum(
             count
             for reader in readers
@@ -212,10 +216,10 @@ def summarize(
     return _finish(run, paths)
 
 
-def _check_topics(readers: list[BagReader], topics: Sequence[str] | None) -> None:
+def _check_topics(known: set[str], topics: Sequence[str] | None) -> None:
+    """Raise UnknownTopicError unless every topic of ``topics`` is among the ``known`` ones."""
     if topics is None:
         return
-    known = {name for reader in readers for name in reader.topics}
     missing = [topic for topic in topics if topic not in known]
     if missing:
         raise UnknownTopicError(

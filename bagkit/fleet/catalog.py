@@ -1,0 +1,170 @@
+"""``bagkit catalog``: one row per bag and topic, in a Parquet file that is updated in place.
+
+Each bag is described from its summary (MCAP summary section, ``metadata.yaml``), never from
+its messages. A bag already in the catalogue whose files have the same total size and latest
+modification time as when it was described is not reopened: its rows are carried over.
+The catalogue describes exactly the bags found under the roots of the last update.
+
+Columns: path, topic, type, count, start, end (UTC timestamps of the bag's first and last
+message), duration (s), size (bytes of the bag's files), compression, problems (``""`` when
+none), mtime_ns (with size, what tells an unchanged bag). A bag without topics, or that cannot
+be read, has one row whose topic is empty and whose problems say why.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import math
+import os
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pandas as pd
+
+from bagkit.fleet.describe import COLUMNS, bag_stamp, describe_bags
+from bagkit.fleet.errors import CatalogError
+from bagkit.fleet.execute import ItemDone, run_each
+from bagkit.fleet.inputs import expand_bags
+
+if TYPE_CHECKING:
+    from distributed import Client
+
+NAT_NS = np.iinfo(np.int64).min
+# Bags described per task: enough to make the scheduler's per-task cost small against the
+# reads (a summary read is a few milliseconds), few enough to balance the workers.
+MAX_BATCH = 64
+TASKS_PER_WORKER = 4
+
+
+def _utc(values: list[Any]) -> pd.Series:
+    # Through int64 (NaT is its minimum): a float column would round the nanoseconds away.
+    ns = np.array([NAT_NS if v is None else v for v in values], dtype=np.int64)
+    return pd.Series(ns.view("datetime64[ns]")).dt.tz_localize("UTC")
+
+
+def to_frame(rows: Iterable[dict[str, Any]]) -> pd.DataFrame:
+    """The catalogue DataFrame of ``rows``, with its column types."""
+    rows = list(rows)
+    columns = {name: [row[name] for row in rows] for name in COLUMNS}
+    types = {
+        "path": "string",
+        "topic": "string",
+        "type": "string",
+        "count": "Int64",
+        "duration": "float64",
+        "size": "int64",
+        "compression": "string",
+        "problems": "string",
+        "mtime_ns": "int64",
+    }
+    data = {
+        name: _utc(values) if name in ("start", "end") else pd.Series(values, dtype=types[name])
+        for name, values in columns.items()
+    }
+    return pd.DataFrame(data, columns=COLUMNS)
+
+
+def read_catalog(path: str | Path) -> pd.DataFrame:
+    """A catalogue written by :func:`write_catalog`.
+
+    Raises:
+        CatalogError: the file is not a readable catalogue.
+    """
+    try:
+        frame = pd.read_parquet(path)
+    except (OSError, ValueError) as exc:
+        raise CatalogError(f"{path}: not a readable Parquet catalogue ({exc})") from None
+    missing = [c for c in COLUMNS if c not in frame.columns]
+    if missing:
+        raise CatalogError(f"{path}: not a bagkit catalogue (no column {', '.join(missing)})")
+    return frame
+
+
+def write_catalog(frame: pd.DataFrame, path: str | Path) -> None:
+    """Write ``frame`` to ``path`` atomically (a reader never sees half a file)."""
+    path = Path(path)
+    partial = path.with_name(f".{path.name}.partial")
+    try:
+        frame.to_parquet(partial, index=False)
+        os.replace(partial, path)
+    except OSError as exc:
+        partial.unlink(missing_ok=True)
+        raise CatalogError(f"cannot write {path}: {exc.strerror or exc}") from None
+
+
+@dataclass(frozen=True, slots=True)
+class CatalogPlan:
+    """What an update has to do: the bags found, the rows kept, the bags to (re)open."""
+
+    bags: list[str]
+    kept: pd.DataFrame
+    to_open: list[str]
+    removed: int
+
+
+def plan_update(roots: Iterable[str | Path], output: str | Path) -> CatalogPlan:
+    """Find the bags under ``roots`` and those of them the catalogue at ``output`` lacks or
+    describes as they were before a change."""
+    bags = [str(bag) for bag in expand_bags(roots)]
+    old = read_catalog(output) if Path(output).exists() else to_frame([])
+    stamps = old.groupby("path", sort=False)[["size", "mtime_ns"]].first()
+    known = {
+        str(path): (int(size), int(mtime))
+        for path, size, mtime in zip(stamps.index, stamps["size"], stamps["mtime_ns"], strict=True)
+    }
+    unchanged = {bag for bag in bags if known.get(bag) == bag_stamp(bag)}
+    kept = old[old["path"].isin(unchanged)]
+    to_open = [bag for bag in bags if bag not in unchanged]
+    removed = len(set(known) - set(bags))
+    return CatalogPlan(bags, kept, to_open, removed)
+
+
+def _batches(paths: list[str], workers: int) -> list[list[str]]:
+    size = max(1, min(MAX_BATCH, math.ceil(len(paths) / max(1, workers * TASKS_PER_WORKER))))
+    return [paths[i : i + size] for i in range(0, len(paths), size)]
+
+
+def complete_update(
+    plan: CatalogPlan, client: Client | None, done: ItemDone | None = None
+) -> pd.DataFrame:
+    """The updated catalogue: ``plan``'s kept rows and those of the bags it opens, in bag order.
+
+    Args:
+        done: called with the index (in ``plan.to_open``) of each bag described.
+    """
+    workers = len(client.scheduler_info()["workers"]) if client is not None else 1
+    batches = _batches(plan.to_open, workers)
+    starts = [sum(len(b) for b in batches[:i]) for i in range(len(batches))]
+
+    def batch_done(index: int) -> None:
+        if done is not None:
+            for offset in range(len(batches[index])):
+                done(starts[index] + offset)
+
+    described = run_each(describe_bags, batches, client, batch_done)
+    new = to_frame(row for batch in described for rows in batch for row in rows)
+    frame = pd.concat([plan.kept, new], ignore_index=True) if len(plan.kept) else new
+    order = {bag: i for i, bag in enumerate(plan.bags)}
+    frame = frame.sort_values("path", key=lambda p: p.map(order), kind="stable")
+    return frame.reset_index(drop=True)
+
+
+def query(
+    frame: pd.DataFrame,
+    *,
+    topic: str | None = None,
+    start: pd.Timestamp | None = None,
+    end: pd.Timestamp | None = None,
+) -> pd.DataFrame:
+    """Rows of bags holding messages on ``topic`` (a glob) within [``start``, ``end``]."""
+    keep = frame["count"].fillna(0) > 0
+    if topic is not None:
+        keep &= frame["topic"].fillna("").map(lambda name: fnmatch.fnmatchcase(name, topic))
+    if start is not None:
+        keep &= frame["end"] >= start
+    if end is not None:
+        keep &= frame["start"] <= end
+    return frame[keep].reset_index(drop=True)

@@ -1,0 +1,97 @@
+"""Many-bag inputs: bag directories, bare ``.mcap``/``.db3`` files, globs, roots searched for
+bags, and text files listing one path a line.
+
+The result is a list of bags in a stable order (the order given; sorted within a directory or a
+glob), each bag once.
+"""
+
+from __future__ import annotations
+
+import glob
+import os
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+
+from bagkit.fleet.errors import NoBagsError
+
+STORAGE_SUFFIXES = (".mcap", ".db3")
+LISTING_SUFFIXES = (".txt", ".list", ".lst")
+# A listing longer than this is not a list of bag paths (bounded memory on a wrong file).
+MAX_LISTING_BYTES = 64 << 20
+
+
+def is_bag_directory(path: Path) -> bool:
+    """A rosbag2 bag directory: it holds ``metadata.yaml``, or storage files and no directory.
+
+    (A directory of loose ``.mcap`` files beside sub-directories is a root of several bags.)
+    """
+    if (path / "metadata.yaml").is_file():
+        return True
+    storage = False
+    try:
+        with os.scandir(path) as entries:
+            for entry in entries:
+                if entry.is_dir():
+                    return False
+                storage = storage or (entry.name.endswith(STORAGE_SUFFIXES) and entry.is_file())
+    except OSError:
+        return False
+    return storage
+
+
+def find_bags(root: Path) -> Iterator[Path]:
+    """Bags under ``root``: bag directories (not searched further) and loose storage files."""
+    if is_bag_directory(root):
+        yield root
+        return
+    for directory, subdirs, files in os.walk(root, followlinks=False):
+        here = Path(directory)
+        subdirs.sort()
+        bags = [d for d in subdirs if is_bag_directory(here / d)]
+        for name in bags:
+            yield here / name
+        subdirs[:] = [d for d in subdirs if d not in bags and not d.startswith(".")]
+        for name in sorted(files):
+            if name.endswith(STORAGE_SUFFIXES):
+                yield here / name
+
+
+def _listing(path: Path) -> list[Path]:
+    """The paths listed in a text file, one a line; ``#`` starts a comment; relative to it."""
+    if path.stat().st_size > MAX_LISTING_BYTES:
+        raise NoBagsError(f"{path}: a listing of bag paths larger than {MAX_LISTING_BYTES} bytes")
+    lines = path.read_text(encoding="utf-8", errors="replace").splitlines()
+    entries = [line.split("#", 1)[0].strip() for line in lines]
+    return [path.parent / entry for entry in entries if entry]
+
+
+def _expand(item: Path, *, listed: bool = False) -> Iterator[Path]:
+    text = str(item)
+    if glob.has_magic(text):
+        for match in sorted(glob.glob(text, recursive=True)):
+            yield from _expand(Path(match), listed=listed)
+    elif item.is_dir():
+        yield from find_bags(item)
+    elif item.suffix in LISTING_SUFFIXES and item.is_file() and not listed:
+        # Listings are not followed from listings: no cycle to guard against.
+        for entry in _listing(item):
+            yield from _expand(entry, listed=True)
+    else:
+        # A storage file, or a path that does not exist: reading it reports what is wrong.
+        yield item
+
+
+def expand_bags(items: Iterable[str | Path]) -> list[Path]:
+    """Every bag named by ``items``, each once, in the order given.
+
+    Raises:
+        NoBagsError: nothing names a bag.
+    """
+    items = list(items)
+    seen: dict[str, Path] = {}
+    for item in items:
+        for bag in _expand(Path(item)):
+            seen.setdefault(os.path.normpath(bag), bag)
+    if not seen:
+        raise NoBagsError(f"no bag in {', '.join(str(i) for i in items) or 'the inputs'}")
+    return list(seen.values())

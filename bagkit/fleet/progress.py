@@ -1,0 +1,74 @@
+"""One progress bar over the bags of a fleet run, in bags and in bytes.
+
+It advances as each bag's task finishes, wherever it ran (here, local workers, a remote
+cluster): the driver learns of each completion from the scheduler.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from types import TracebackType
+
+from rich.console import Console
+from rich.progress import (
+    BarColumn,
+    DownloadColumn,
+    Progress,
+    TextColumn,
+    TimeRemainingColumn,
+)
+
+
+def bag_size(path: str | Path) -> int:
+    """Bytes of a bag (its files for a directory); 0 where it cannot be read."""
+    path = Path(path)
+    try:
+        if path.is_dir():
+            return sum(f.stat().st_size for f in path.iterdir() if f.is_file())
+        return path.stat().st_size
+    except OSError:
+        return 0
+
+
+class BagProgress:
+    """A transient rich progress bar on ``console``: bags done of all, bytes done of all.
+
+    Call the instance with the index of each finished bag; use it as a context manager.
+    """
+
+    def __init__(
+        self, bags: Sequence[str | Path], console: Console, *, label: str = "bags"
+    ) -> None:
+        self._sizes = [bag_size(bag) for bag in bags]
+        self._count = 0
+        self._bar = Progress(
+            TextColumn(label),
+            BarColumn(),
+            TextColumn("{task.fields[bags]}"),
+            DownloadColumn(),
+            TimeRemainingColumn(),
+            console=console,
+            transient=True,
+            disable=not console.is_terminal,
+        )
+        self._task = self._bar.add_task(label, total=sum(self._sizes), bags=self._bags())
+
+    def _bags(self) -> str:
+        return f"{self._count}/{len(self._sizes)} bags"
+
+    def __call__(self, index: int) -> None:
+        self._count += 1
+        self._bar.update(self._task, advance=self._sizes[index], bags=self._bags())
+
+    def __enter__(self) -> BagProgress:
+        self._bar.start()
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self._bar.stop()

@@ -1,0 +1,178 @@
+"""``bagkit stats summary`` over many bags: one task per bag, partial statistics merged exactly.
+
+Each task runs the summary's own accumulation over one bag and returns its accumulators: counts,
+first/last log times and, per field, the running moments (count, NaN and infinity counts,
+min/max, shifted mean and sum of squared deviations). The driver merges them in the order of
+the bags: counts, min and max exactly, mean and M2 with Chan et al.'s parallel formula
+(:meth:`bagkit.stats.moments.Moments.merge`), which agrees with one pass over all the bags to
+rounding. A bag that cannot be read is reported in ``problems``; the others are summarized.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from bagkit.bag import BagError, BagReader
+from bagkit.decode import MessageTypes
+from bagkit.decode.paths import FieldSelection
+from bagkit.fleet.errors import FleetError
+from bagkit.fleet.execute import ItemDone, run_each
+from bagkit.stats import StatsError, Summary
+from bagkit.stats.accumulate import TopicAccumulator
+from bagkit.stats.summary import _check_topics, _finish, _Run
+
+if TYPE_CHECKING:
+    from distributed import Client
+
+
+@dataclass(slots=True)
+class BagPartial:
+    """What one bag contributes to a summary (sent from a worker to the driver).
+
+    Attributes:
+        bag: the bag as given.
+        topics: every topic of the bag (to check ``topics=`` against all the bags).
+        accumulators: the running figures per summarized topic.
+        skipped: topic -> why its messages could not be decoded.
+        problems: what could not be read in the bag.
+        error: why the bag could not be read at all (then nothing else is filled in).
+    """
+
+    bag: str
+    topics: frozenset[str] = frozenset()
+    accumulators: dict[str, TopicAccumulator] = field(default_factory=dict)
+    skipped: dict[str, str] = field(default_factory=dict)
+    problems: list[str] = field(default_factory=list)
+    error: str | None = None
+
+
+def _new_run(
+    fields: Sequence[str] | None, start_ns: int | None, end_ns: int | None, bulk: bool
+) -> _Run:
+    return _Run(MessageTypes(), FieldSelection(fields), start_ns, end_ns, bulk, progress=None)
+
+
+def summarize_bag(
+    bag: str,
+    *,
+    topics: Sequence[str] | None = None,
+    fields: Sequence[str] | None = None,
+    start_ns: int | None = None,
+    end_ns: int | None = None,
+    bulk: bool = True,
+    check_crc: bool = True,
+) -> BagPartial:
+    """The partial summary of one bag (what a worker computes); arguments as ``summarize``."""
+    run = _new_run(fields, start_ns, end_ns, bulk)
+    try:
+        with BagReader(bag, allow_empty=True, check_crc=check_crc) as reader:
+            run.read(reader, topics)
+            names = frozenset(reader.topics)
+    except BagError as exc:
+        return BagPartial(bag, error=str(exc))
+    return BagPartial(bag, names, run.accumulators, run.skipped, run.problems)
+
+
+def _merge_topic(into: TopicAccumulator, other: TopicAccumulator, bag: str) -> None:
+    if into.type_name != other.type_name:
+        raise StatsError(
+            f"topic {into.topic} has type {into.type_name} in one bag "
+            f"and {other.type_name} in another"
+        )
+    if into.signature != other.signature:
+        raise StatsError(
+            f"{into.type_name} of topic {into.topic} is defined differently in {bag} than in "
+            "the bags before it: summarize them separately"
+        )
+    into.count += other.count
+    if other.first_ns is not None and other.last_ns is not None:
+        into.first_ns = (
+            other.first_ns if into.first_ns is None else min(into.first_ns, other.first_ns)
+        )
+        into.last_ns = other.last_ns if into.last_ns is None else max(into.last_ns, other.last_ns)
+    into.scalars.merge(other.scalars)
+    for path, moments in into.pooled.items():
+        moments.merge(other.pooled[path])
+    into.failures += other.failures
+    into.first_failure = into.first_failure or other.first_failure
+
+
+def _merge(run: _Run, part: BagPartial) -> None:
+    """Add one bag's partial to ``run``, as the in-process summary would have read the bag."""
+    for topic, accumulator in part.accumulators.items():
+        existing = run.accumulators.get(topic)
+        if existing is not None:
+            _merge_topic(existing, accumulator, part.bag)
+        elif topic not in run.skipped:  # a topic skipped in an earlier bag stays skipped
+            run.accumulators[topic] = accumulator
+    for topic, reason in part.skipped.items():
+        if topic in run.accumulators:
+            run.problems.append(f"{part.bag}: messages on {topic} not read: {reason}")
+        else:
+            run.skipped.setdefault(topic, reason)
+    run.problems.extend(part.problems)
+
+
+def merge_partials(
+    parts: Sequence[BagPartial],
+    *,
+    topics: Sequence[str] | None = None,
+    fields: Sequence[str] | None = None,
+    start_ns: int | None = None,
+    end_ns: int | None = None,
+) -> Summary:
+    """The summary of the bags of ``parts`` (in their order), as ``summarize`` would give it.
+
+    Raises:
+        FleetError: no bag could be read.
+        UnknownTopicError, NothingToSummarizeError, StatsError: as ``summarize``.
+    """
+    readable = [part for part in parts if part.error is None]
+    if not readable:
+        raise FleetError(f"no bag could be read ({parts[0].error if parts else 'no bag given'})")
+    _check_topics(set().union(*(part.topics for part in readable)), topics)
+    run = _new_run(fields, start_ns, end_ns, bulk=True)
+    for part in parts:
+        if part.error is not None:
+            run.problems.append(f"{part.bag}: not read: {part.error}")
+        else:
+            _merge(run, part)
+    return _finish(run, [part.bag for part in parts])
+
+
+def summarize_fleet(
+    bags: Iterable[str | Path],
+    *,
+    client: Client | None,
+    topics: Sequence[str] | None = None,
+    fields: Sequence[str] | None = None,
+    start_ns: int | None = None,
+    end_ns: int | None = None,
+    bulk: bool = True,
+    check_crc: bool = True,
+    done: ItemDone | None = None,
+) -> Summary:
+    """``bagkit.stats.summarize`` of ``bags``, one task per bag on ``client`` (here when None).
+
+    Args:
+        done: called with the index of each bag once it is summarized.
+
+    Raises:
+        As :func:`merge_partials`.
+    """
+    paths = [str(bag) for bag in bags]
+    task = functools.partial(
+        summarize_bag,
+        topics=topics,
+        fields=fields,
+        start_ns=start_ns,
+        end_ns=end_ns,
+        bulk=bulk,
+        check_crc=check_crc,
+    )
+    parts = run_each(task, paths, client, done)
+    return merge_partials(parts, topics=topics, fields=fields, start_ns=start_ns, end_ns=end_ns)

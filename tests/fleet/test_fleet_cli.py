@@ -1,0 +1,102 @@
+"""``bagkit stats summary`` over many bags in a real ``bagkit`` process: a local cluster gives
+the in-process output; Ctrl-C stops it with exit 130 and leaves no process behind."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import psutil
+from test_fleet_stats import RELATIVE
+
+BAGKIT = str(Path(sys.executable).with_name("bagkit"))
+
+
+def _summary(*args: str) -> tuple[dict[str, object], str]:
+    done = subprocess.run(
+        [BAGKIT, "stats", "summary", *args, "--format", "json"],
+        capture_output=True,
+        text=True,
+        timeout=180,
+        check=True,
+    )
+    return json.loads(done.stdout), done.stderr
+
+
+def test_workers_give_the_in_process_output(fleet_dir: Path) -> None:
+    local, notes = _summary(str(fleet_dir), "--workers", "2")
+    here, _ = _summary(str(fleet_dir), "--workers", "0")
+    assert "local Dask cluster of 2 workers, dashboard http://127.0.0.1:" in notes
+    assert local["bags"] == here["bags"] and len(local["bags"]) == 6  # type: ignore[arg-type]
+    for mine, theirs in zip(local["topics"], here["topics"], strict=True):  # type: ignore[call-overload]
+        assert mine["count"] == theirs["count"]
+        for f, g in zip(mine["fields"], theirs["fields"], strict=True):
+            assert (f["count"], f["min"], f["max"]) == (g["count"], g["min"], g["max"])
+            for key in ("mean", "std"):
+                if isinstance(g[key], float):
+                    assert abs(f[key] - g[key]) <= RELATIVE * abs(g[key])
+                else:
+                    assert f[key] == g[key]
+
+
+def test_one_bag_runs_in_process(fleet_bags: list[Path]) -> None:
+    _, notes = _summary(str(fleet_bags[0]))
+    assert "Dask" not in notes
+
+
+def test_ctrl_c_stops_the_local_cluster(fleet_bags: list[Path], tmp_path: Path) -> None:
+    for i in range(300):  # enough tasks to be interrupted in the middle
+        (tmp_path / f"bag_{i}").symlink_to(fleet_bags[i % len(fleet_bags)])
+    proc = subprocess.Popen(
+        [BAGKIT, "stats", "summary", str(tmp_path), "--workers", "2", "--format", "json"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    try:
+        assert proc.stderr is not None
+        line = proc.stderr.readline()
+        assert "local Dask cluster" in line, line
+        children = psutil.Process(proc.pid).children(recursive=True)
+        assert len(children) >= 2
+        os.killpg(proc.pid, signal.SIGINT)  # as a terminal's Ctrl-C: to the whole group
+        rest = proc.stderr.read()
+        assert proc.wait(timeout=60) == 130, rest
+        assert "interrupted" in rest
+        assert "Traceback" not in rest, rest
+        _, alive = psutil.wait_procs(children, timeout=10)
+        assert not alive, f"left running: {[p.pid for p in alive]}"
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+
+def test_unreachable_scheduler_is_one_error_line(fleet_bags: list[Path]) -> None:
+    done = subprocess.run(
+        [BAGKIT, "stats", "summary", *map(str, fleet_bags[:2]), "--scheduler", "tcp://127.0.0.1:9"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+        env={**os.environ, "DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT": "1s"},
+    )
+    assert done.returncode == 2
+    assert done.stderr.startswith("error: cannot reach the Dask scheduler at tcp://127.0.0.1:9")
+    assert len(done.stderr.strip().splitlines()) == 1, done.stderr
+
+
+def test_no_bag_in_the_inputs_is_one_error_line(tmp_path: Path) -> None:
+    done = subprocess.run(
+        [BAGKIT, "stats", "summary", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert (done.returncode, done.stderr.strip()) == (2, f"error: no bag in {tmp_path}")

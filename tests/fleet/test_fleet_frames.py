@@ -1,0 +1,36 @@
+"""``bagkit.fleet.dataframe``: a lazy Dask DataFrame, one partition per bag, whose compute()
+on the cluster equals ``bagkit.read_dataframe`` of each bag concatenated."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from distributed import Client
+
+from bagkit.fleet import dataframe
+
+try:
+    from bagkit.data import read_dataframe
+except ImportError:
+    pytest.skip("bagkit.data not merged yet", allow_module_level=True)
+
+FIELDS = ["linear_acceleration.z", "angular_velocity.x"]
+
+
+def test_compute_equals_read_dataframe_concatenated(client: Client, fleet_bags: list[Path]) -> None:
+    frame = dataframe(fleet_bags, "/imu/data", FIELDS)
+    assert frame.npartitions == len(fleet_bags)
+    expected = pd.concat([read_dataframe(bag, "/imu/data", fields=FIELDS) for bag in fleet_bags])
+    got = frame.compute()
+    pd.testing.assert_frame_equal(got, expected)
+    assert len(got) == sum(400 + 50 * i for i in range(6))
+
+
+def test_reductions_run_on_the_cluster(client: Client, fleet_bags: list[Path]) -> None:
+    frame = dataframe(fleet_bags, "/imu/data", FIELDS)
+    expected = pd.concat([read_dataframe(bag, "/imu/data", fields=FIELDS) for bag in fleet_bags])
+    column = FIELDS[1]
+    assert frame[column].max().compute() == expected[column].max()
+    assert frame[column].mean().compute() == pytest.approx(expected[column].mean(), rel=1e-12)

@@ -1,0 +1,41 @@
+"""Many-bag inputs: directories searched for bags, globs, listings; each bag once, in order."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from bagkit.fleet import NoBagsError, expand_bags
+
+
+def _bag(path: Path) -> Path:
+    path.mkdir(parents=True)
+    (path / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    (path / f"{path.name}_0.mcap").write_bytes(b"")
+    return path
+
+
+def test_roots_globs_and_listings(tmp_path: Path) -> None:
+    a = _bag(tmp_path / "fleet" / "a")
+    b = _bag(tmp_path / "fleet" / "day2" / "b")
+    loose = tmp_path / "fleet" / "loose.mcap"
+    loose.write_bytes(b"")
+    (tmp_path / "fleet" / "notes.md").write_text("not a bag")
+    assert expand_bags([tmp_path / "fleet"]) == [a, loose, b]
+    assert expand_bags([a]) == [a]  # a bag directory is not searched for bags inside it
+    assert expand_bags([str(tmp_path / "fleet" / "**" / "b")]) == [b]
+    listing = tmp_path / "bags.txt"
+    listing.write_text(f"# flights\n{b}\n\nfleet/a  # relative to the listing\n{b}\n")
+    assert expand_bags([listing]) == [b, a]
+    assert expand_bags([listing, tmp_path / "fleet"]) == [b, a, loose]
+
+
+def test_nothing_to_read_is_an_error(tmp_path: Path) -> None:
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(NoBagsError, match="no bag in"):
+        expand_bags([tmp_path / "empty", str(tmp_path / "*.mcap")])
+
+
+def test_a_missing_path_is_kept_for_the_reader_to_report(tmp_path: Path) -> None:
+    assert expand_bags([tmp_path / "gone"]) == [tmp_path / "gone"]
