@@ -262,6 +262,10 @@ def _throughput(bag: Path, count: int, *, reliable: bool) -> bool:
     )
     complete = len(rows) == count
     print(f"  every message delivered      {'ok' if complete else 'MISSED'}")
+    if not complete:
+        # Tells a publisher that gave up (its subscribers had not acknowledged everything
+        # after 10 s) from a listener that stopped early (idle for 2 s after the first message).
+        print(f"  player's unacknowledged topics: {report['unacknowledged'] or 'none'}")
     return complete
 
 
