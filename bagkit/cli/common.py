@@ -120,9 +120,12 @@ def internal_error_message(exc: BaseException) -> str:
         shown = path.relative_to(_PACKAGE_DIR.parent) if ours else path.name
         where = f" at {shown}:{frame.lineno}"
     kind = "out of memory" if isinstance(exc, MemoryError) else "internal error"
+    name = type(exc).__qualname__
+    if type(exc).__module__ != "builtins":
+        name = f"{type(exc).__module__}.{name}"  # struct.error, not "error"
     detail = " ".join(str(exc).split())[:200]
     return (
-        f"{kind}: {type(exc).__name__}{': ' + detail if detail else ''}{where}; please report it "
+        f"{kind}: {name}{': ' + detail if detail else ''}{where}; please report it "
         f"({TRACEBACK_ENV}=1 prints the traceback)"
     )
 
