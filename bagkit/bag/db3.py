@@ -49,9 +49,22 @@ def connect(path: Path) -> sqlite3.Connection:
     """
     uri = f"file:{pathname2url(str(path.resolve()))}?mode=ro&immutable=1"
     try:
-        return sqlite3.connect(uri, uri=True)
+        db = sqlite3.connect(uri, uri=True)
     except sqlite3.Error as exc:
         raise NotABagError(f"{path}: not a SQLite3 database ({exc})") from exc
+    db.text_factory = _text
+    return db
+
+
+class _NotUtf8(bytes):
+    """TEXT that is not UTF-8: not a str, so the row holding it is skipped as of a wrong type."""
+
+
+def _text(raw: bytes) -> str | _NotUtf8:
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError:
+        return _NotUtf8(raw)
 
 
 def read_contents(db: sqlite3.Connection, path: Path) -> Db3Contents:
@@ -124,7 +137,9 @@ def _read_definitions(db: sqlite3.Connection, columns: set[str], contents: Db3Co
         return
     query = f"SELECT {', '.join(DEFINITION_COLUMNS)} FROM message_definitions"
     for type_name, encoding, text in db.execute(query):
-        if isinstance(type_name, str) and encoding == "ros2msg" and isinstance(text, str) and text:
+        if not all(isinstance(v, str) for v in (type_name, encoding, text)):
+            contents.problems.append(f"message_definitions row of {type_name!r:.60} unusable")
+        elif encoding == "ros2msg" and text:
             contents.definitions.setdefault(canonical_type_name(type_name), text)
 
 

@@ -20,6 +20,7 @@ from typing import Any, NoReturn, ParamSpec, TypeVar
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 
 # typer 0.29 vendors click; its exception classes are only importable from there (typer is pinned).
 from typer._click.exceptions import NoArgsIsHelpError, UsageError
@@ -59,15 +60,21 @@ class OutputFormat(enum.StrEnum):
     CSV = "csv"
 
 
+def _one_line(message: str) -> str:
+    """A message as one line of literal text: names and values from a bag may hold newlines
+    and what rich would take for markup (``[/]``)."""
+    return escape(" ".join(message.splitlines()))
+
+
 def fail(message: str, exit_code: int = 2) -> typer.Exit:
-    """Print ``error: message`` on stderr and return the Exit to raise."""
-    err_console.print(f"[bold red]error:[/] {message}", highlight=False, soft_wrap=True)
+    """Print ``error: message`` on stderr (one line) and return the Exit to raise."""
+    err_console.print(f"[bold red]error:[/] {_one_line(message)}", highlight=False, soft_wrap=True)
     return typer.Exit(exit_code)
 
 
 def warn(message: str) -> None:
-    """Print ``warning: message`` on stderr."""
-    err_console.print(f"[yellow]warning:[/] {message}", highlight=False, soft_wrap=True)
+    """Print ``warning: message`` on stderr (one line)."""
+    err_console.print(f"[yellow]warning:[/] {_one_line(message)}", highlight=False, soft_wrap=True)
 
 
 def print_json(data: Any) -> None:

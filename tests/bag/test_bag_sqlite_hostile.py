@@ -126,6 +126,22 @@ def test_a_blob_topic_name_skips_that_topic(tmp_path: Path) -> None:
         ]
 
 
+def test_text_that_is_not_utf8_skips_its_row(tmp_path: Path) -> None:
+    bag = _alter(
+        write_db3(tmp_path / "latin.db3"),
+        "UPDATE topics SET name = CAST(X'2fe9' AS TEXT) WHERE id = 2;"
+        "UPDATE message_definitions SET encoded_message_definition = CAST(X'ff' AS TEXT)",
+    )
+    with BagReader(bag) as reader:
+        assert list(reader.topics) == ["/a"]
+        assert reader.definitions == {}
+        assert reader.problems == [
+            "latin.db3: topics row 2 has wrong types, skipped",
+            "latin.db3: message_definitions row of 'std_msgs/msg/String' unusable",
+            "latin.db3: 10 messages of no known topic skipped",
+        ]
+
+
 @pytest.mark.parametrize(
     ("script", "missing"),
     [

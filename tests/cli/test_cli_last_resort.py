@@ -51,6 +51,10 @@ def _bag_error() -> None:
     raise BagkitError("the bag is odd")
 
 
+def _markup_error() -> None:
+    raise BagkitError("topic [/]x[bold]\nsecond line")
+
+
 def _interrupt() -> None:
     raise KeyboardInterrupt
 
@@ -63,8 +67,9 @@ def _interrupt() -> None:
         (lambda: (1, 2)[len("abc")], EXIT_INTERNAL, "error: internal error: IndexError: tuple"),
         (_interrupt, EXIT_INTERRUPTED, "error: interrupted"),
         (_bag_error, 2, "error: the bag is odd"),
+        (_markup_error, 2, "error: topic [/]x[bold] second line"),
     ],
-    ids=["recursion", "memory", "index", "ctrl-c", "bagkit-error"],
+    ids=["recursion", "memory", "index", "ctrl-c", "bagkit-error", "markup-newline"],
 )
 def test_one_line_and_a_documented_exit_code(
     capsys: pytest.CaptureFixture[str], action: Callable[[], object], code: int, line: str
