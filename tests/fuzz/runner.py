@@ -187,7 +187,10 @@ def run_in_process(tasks: list[Task], *, jobs: int, timeout: float) -> list[Outc
                 except queue.Empty:
                     return
                 results[index] = worker.run(task, timeout)
-                if worker.proc.poll() is not None:
+                # After a memory bomb the worker keeps its pages (its VmHWM cannot be reset below
+                # them): a fresh one, so that the next task's peak is its own.
+                if worker.proc.poll() is not None or results[index].category == "memory bomb":
+                    worker.stop()
                     worker = _Worker()
         finally:
             worker.stop()
