@@ -49,6 +49,7 @@ EXIT_INTERRUPTED = 130
 EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE, what a shell reports for a process SIGPIPE ended
 # Set (to anything but "" or "0") to print the traceback of an internal error before its line.
 TRACEBACK_ENV = "BAGKIT_TRACEBACK"
+MAX_LINE = 1000  # characters of an error or warning message
 _PACKAGE_DIR = Path(__file__).resolve().parents[1]
 
 
@@ -61,9 +62,12 @@ class OutputFormat(enum.StrEnum):
 
 
 def _one_line(message: str) -> str:
-    """A message as one line of literal text: names and values from a bag may hold newlines
-    and what rich would take for markup (``[/]``)."""
-    return escape(" ".join(message.splitlines()))
+    """A message as one line of literal text, at most ``MAX_LINE`` characters: names and values
+    from a bag may be huge, hold newlines and what rich would take for markup (``[/]``)."""
+    line = " ".join(message.splitlines())
+    if len(line) > MAX_LINE:
+        line = f"{line[:MAX_LINE]}... ({len(line) - MAX_LINE} characters cut)"
+    return escape(line)
 
 
 def fail(message: str, exit_code: int = 2) -> typer.Exit:

@@ -55,6 +55,10 @@ def _markup_error() -> None:
     raise BagkitError("topic [/]x[bold]\nsecond line")
 
 
+def _huge_error() -> None:
+    raise BagkitError("x" * 5000)
+
+
 def _interrupt() -> None:
     raise KeyboardInterrupt
 
@@ -68,8 +72,9 @@ def _interrupt() -> None:
         (_interrupt, EXIT_INTERRUPTED, "error: interrupted"),
         (_bag_error, 2, "error: the bag is odd"),
         (_markup_error, 2, "error: topic [/]x[bold] second line"),
+        (_huge_error, 2, f"error: {'x' * 1000}... (4000 characters cut)"),
     ],
-    ids=["recursion", "memory", "index", "ctrl-c", "bagkit-error", "markup-newline"],
+    ids=["recursion", "memory", "index", "ctrl-c", "bagkit-error", "markup-newline", "huge"],
 )
 def test_one_line_and_a_documented_exit_code(
     capsys: pytest.CaptureFixture[str], action: Callable[[], object], code: int, line: str

@@ -112,7 +112,8 @@ def worker_main() -> None:
             except BaseException as exc:  # escaped run_app: reported, not raised
                 err.write(f"\nTraceback (most recent call last): escaped run_app: {exc!r}\n")
                 code = 1
-        answer = {"exit": code, "stderr": err.getvalue()[-4000:], "peak": _peak_bytes()}
+        lines = [line[:2000] for line in err.getvalue().splitlines()[-50:]]
+        answer = {"exit": code, "stderr": "\n".join(lines), "peak": _peak_bytes()}
         answer["seconds"] = time.monotonic() - start
         answers.write(json.dumps(answer) + "\n")
         answers.flush()
