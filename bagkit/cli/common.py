@@ -1,16 +1,26 @@
-"""What every command shares: error reporting, output formats and consoles."""
+"""What every command shares: error reporting, output formats and consoles.
+
+Exit codes (docs/hostile-input.md): 0 done, 1 the run failed or found differences, 2 unusable
+input or usage, 70 internal error (a bug, whatever the input: please report it), 130
+interrupted, 141 the reader of our output went away (broken pipe).
+"""
 
 from __future__ import annotations
 
 import enum
+import errno
 import functools
 import json
+import os
 import sys
+import traceback
 from collections.abc import Callable
-from typing import Any, ParamSpec, TypeVar
+from pathlib import Path
+from typing import Any, NoReturn, ParamSpec, TypeVar
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 
 # typer 0.29 vendors click; its exception classes are only importable from there (typer is pinned).
 from typer._click.exceptions import NoArgsIsHelpError, UsageError
@@ -20,12 +30,27 @@ from bagkit.errors import BagkitError
 P = ParamSpec("P")
 R = TypeVar("R")
 
+
+class _StdoutConsole(Console):
+    """Rich's console, except that a closed pipe is reported like any other broken pipe."""
+
+    def on_broken_pipe(self) -> None:
+        """Raise BrokenPipeError for handle_errors (rich would exit 1 silently)."""
+        raise BrokenPipeError(errno.EPIPE, os.strerror(errno.EPIPE))
+
+
 # Tables and results go to stdout; progress, warnings and errors to stderr, so that
 # `--format json` output can be piped.
-console = Console()
+console = _StdoutConsole()
 err_console = Console(stderr=True)
 
+EXIT_INTERNAL = 70  # sysexits.h EX_SOFTWARE
 EXIT_INTERRUPTED = 130
+EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE, what a shell reports for a process SIGPIPE ended
+# Set (to anything but "" or "0") to print the traceback of an internal error before its line.
+TRACEBACK_ENV = "BAGKIT_TRACEBACK"
+MAX_LINE = 1000  # characters of an error or warning message
+_PACKAGE_DIR = Path(__file__).resolve().parents[1]
 
 
 class OutputFormat(enum.StrEnum):
@@ -36,15 +61,24 @@ class OutputFormat(enum.StrEnum):
     CSV = "csv"
 
 
+def _one_line(message: str) -> str:
+    """A message as one line of literal text, at most ``MAX_LINE`` characters: names and values
+    from a bag may be huge, hold newlines and what rich would take for markup (``[/]``)."""
+    line = " ".join(message.splitlines())
+    if len(line) > MAX_LINE:
+        line = f"{line[:MAX_LINE]}... ({len(line) - MAX_LINE} characters cut)"
+    return escape(line)
+
+
 def fail(message: str, exit_code: int = 2) -> typer.Exit:
-    """Print ``error: message`` on stderr and return the Exit to raise."""
-    err_console.print(f"[bold red]error:[/] {message}", highlight=False, soft_wrap=True)
+    """Print ``error: message`` on stderr (one line) and return the Exit to raise."""
+    err_console.print(f"[bold red]error:[/] {_one_line(message)}", highlight=False, soft_wrap=True)
     return typer.Exit(exit_code)
 
 
 def warn(message: str) -> None:
-    """Print ``warning: message`` on stderr."""
-    err_console.print(f"[yellow]warning:[/] {message}", highlight=False, soft_wrap=True)
+    """Print ``warning: message`` on stderr (one line)."""
+    err_console.print(f"[yellow]warning:[/] {_one_line(message)}", highlight=False, soft_wrap=True)
 
 
 def note(message: str) -> None:
@@ -58,7 +92,10 @@ def print_json(data: Any) -> None:
 
 
 def handle_errors(func: Callable[P, R]) -> Callable[P, R]:
-    """Turn bagkit errors into one stderr line and their exit code; Ctrl-C into exit 130."""
+    """Turn bagkit errors into one stderr line and their exit code; Ctrl-C into exit 130.
+
+    Anything else is a bug and goes on to :func:`run_app`.
+    """
 
     @functools.wraps(func)
     def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
@@ -67,22 +104,58 @@ def handle_errors(func: Callable[P, R]) -> Callable[P, R]:
         except BagkitError as exc:
             raise fail(str(exc), exc.exit_code) from None
         except KeyboardInterrupt:
-            err_console.print("interrupted")
-            raise typer.Exit(EXIT_INTERRUPTED) from None
+            raise fail("interrupted", EXIT_INTERRUPTED) from None
+        except BrokenPipeError:
+            # Here, not in run_app: typer would turn it into a silent exit 1 on the way.
+            raise _broken_pipe() from None
         except OSError as exc:
             raise fail(f"{exc.strerror or exc}: {exc.filename or ''}".rstrip(": "), 2) from None
 
     return wrapper
 
 
-def run_app(app: typer.Typer) -> None:
-    """Run a typer app as a console script, with usage errors as one ``error:`` line (exit 2).
+def _broken_pipe() -> typer.Exit:
+    """Report that the reader of stdout went away; stdout then points at /dev/null so that the
+    interpreter's final flush does not fail again."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):  # stdout without a file descriptor (captured in-process)
+        pass
+    return fail("output closed before the end (broken pipe)", EXIT_BROKEN_PIPE)
 
-    Click would print a usage block and a boxed message; a wrong flag is bad input like any
-    other, so it gets the same one-line treatment, with a pointer to ``--help``.
+
+def internal_error_message(exc: BaseException) -> str:
+    """One line naming an unexpected exception and the innermost bagkit line it came from."""
+    frames = traceback.extract_tb(exc.__traceback__)
+    ours = [f for f in frames if Path(f.filename).resolve().is_relative_to(_PACKAGE_DIR)]
+    where = ""
+    if ours or frames:
+        frame = (ours or frames)[-1]
+        path = Path(frame.filename).resolve()
+        shown = path.relative_to(_PACKAGE_DIR.parent) if ours else path.name
+        where = f" at {shown}:{frame.lineno}"
+    kind = "out of memory" if isinstance(exc, MemoryError) else "internal error"
+    name = type(exc).__qualname__
+    if type(exc).__module__ != "builtins":
+        name = f"{type(exc).__module__}.{name}"  # struct.error, not "error"
+    detail = " ".join(str(exc).split())[:200]
+    return (
+        f"{kind}: {name}{': ' + detail if detail else ''}{where}; please report it "
+        f"({TRACEBACK_ENV}=1 prints the traceback)"
+    )
+
+
+def run_app(app: typer.Typer, args: list[str] | None = None) -> NoReturn:
+    """Run a typer app as a console script (``args``: sys.argv[1:] when None) and exit.
+
+    Usage errors are one ``error:`` line (exit 2): click would print a usage block and a boxed
+    message; a wrong flag is bad input like any other, so it gets the same one-line treatment,
+    with a pointer to ``--help``. An exception that is not a BagkitError is a bug: one
+    ``error: internal error ...`` line and exit 70, never a traceback (unless asked for).
     """
     try:
-        result = app(standalone_mode=False)
+        result = app(args=args, standalone_mode=False)
     except NoArgsIsHelpError as exc:
         # Help asked for by omission: print it, exit 2 as click does.
         err_console.print(exc.ctx.get_help() if exc.ctx is not None else "", highlight=False)
@@ -93,6 +166,14 @@ def run_app(app: typer.Typer) -> None:
     except typer.TyperException as exc:
         raise SystemExit(fail(exc.format_message(), exc.exit_code).exit_code) from None
     except typer.Abort:
-        err_console.print("interrupted")
-        sys.exit(EXIT_INTERRUPTED)
+        raise SystemExit(fail("interrupted", EXIT_INTERRUPTED).exit_code) from None
+    except Exception as exc:
+        # The last line of defence: a bug, reported as one line and fixed where it was raised.
+        if os.environ.get(TRACEBACK_ENV, "") not in ("", "0"):
+            traceback.print_exception(exc)
+        raise SystemExit(fail(internal_error_message(exc), EXIT_INTERNAL).exit_code) from None
+    try:
+        sys.stdout.flush()  # what is still buffered, while a broken pipe can still be reported
+    except BrokenPipeError:
+        raise SystemExit(_broken_pipe().exit_code) from None
     sys.exit(result if isinstance(result, int) else 0)

@@ -10,7 +10,7 @@ import typer
 import yaml
 from rich.table import Table
 
-from bagkit.bag import BagInfo, bag_info
+from bagkit.bag import BagInfo, bag_info, safe_yaml
 from bagkit.cli.common import OutputFormat, console, err_console, handle_errors, print_json, warn
 
 
@@ -40,7 +40,8 @@ _POLICY_NAMES = {
 def _qos_summary(offered: str) -> str:
     """One line per offered profile: ``reliable, volatile, keep_last(10)``."""
     try:
-        profiles = yaml.safe_load(offered) if offered else []
+        # Channel metadata is untrusted: limits on depth and size, no aliases.
+        profiles = safe_yaml.load(offered) if offered else []
     except yaml.YAMLError:
         return "unparsable"
     if not isinstance(profiles, list):

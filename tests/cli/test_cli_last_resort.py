@@ -1,0 +1,119 @@
+"""run_app, the last line of defence: whatever escapes a command is one line and an exit code."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+import typer
+
+from bagkit.cli.common import (
+    EXIT_BROKEN_PIPE,
+    EXIT_INTERNAL,
+    EXIT_INTERRUPTED,
+    handle_errors,
+    run_app,
+)
+from bagkit.errors import BagkitError
+
+BAGKIT = str(Path(sys.executable).with_name("bagkit"))
+FIXTURE = Path(__file__).resolve().parents[2] / "fixtures" / "nominal" / "golden"
+
+
+def _recurse(depth: int) -> int:
+    return _recurse(depth + 1) + 1
+
+
+def _raises(action: Callable[[], object]) -> typer.Typer:
+    """An app whose one command (wrapped like bagkit's) runs ``action``."""
+    app = typer.Typer(pretty_exceptions_enable=False)
+
+    @app.command()
+    @handle_errors
+    def run() -> None:
+        action()
+
+    return app
+
+
+def _exit(app: typer.Typer, capsys: pytest.CaptureFixture[str]) -> tuple[int, list[str]]:
+    with pytest.raises(SystemExit) as info:
+        run_app(app, [])
+    code = info.value.code
+    assert isinstance(code, int)
+    return code, capsys.readouterr().err.splitlines()
+
+
+def _bag_error() -> None:
+    raise BagkitError("the bag is odd")
+
+
+def _markup_error() -> None:
+    raise BagkitError("topic [/]x[bold]\nsecond line")
+
+
+def _huge_error() -> None:
+    raise BagkitError("x" * 5000)
+
+
+def _interrupt() -> None:
+    raise KeyboardInterrupt
+
+
+@pytest.mark.parametrize(
+    ("action", "code", "line"),
+    [
+        (lambda: _recurse(0), EXIT_INTERNAL, "error: internal error: RecursionError: maximum"),
+        (lambda: bytearray(1 << 62), EXIT_INTERNAL, "error: out of memory: MemoryError"),
+        (lambda: (1, 2)[len("abc")], EXIT_INTERNAL, "error: internal error: IndexError: tuple"),
+        (_interrupt, EXIT_INTERRUPTED, "error: interrupted"),
+        (_bag_error, 2, "error: the bag is odd"),
+        (_markup_error, 2, "error: topic [/]x[bold] second line"),
+        (_huge_error, 2, f"error: {'x' * 1000}... (4000 characters cut)"),
+    ],
+    ids=["recursion", "memory", "index", "ctrl-c", "bagkit-error", "markup-newline", "huge"],
+)
+def test_one_line_and_a_documented_exit_code(
+    capsys: pytest.CaptureFixture[str], action: Callable[[], object], code: int, line: str
+) -> None:
+    exit_code, lines = _exit(_raises(action), capsys)
+    assert exit_code == code
+    assert len(lines) == 1 and lines[0].startswith(line), lines
+
+
+def test_an_internal_error_names_where_it_was_raised_and_asks_for_a_report(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The innermost frame inside the bagkit package: here handle_errors' call of the command."""
+    monkeypatch.delenv("BAGKIT_TRACEBACK", raising=False)
+    _, lines = _exit(_raises(lambda: int("x")), capsys)
+    assert " at bagkit/cli/common.py:" in lines[0]
+    assert lines[0].endswith("; please report it (BAGKIT_TRACEBACK=1 prints the traceback)")
+
+
+def test_bagkit_traceback_prints_the_traceback_first(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("BAGKIT_TRACEBACK", "1")
+    _, lines = _exit(_raises(lambda: int("x")), capsys)
+    assert lines[0] == "Traceback (most recent call last):"
+    assert lines[-2] == "ValueError: invalid literal for int() with base 10: 'x'"
+    assert lines[-1].startswith("error: internal error: ValueError")
+
+
+@pytest.mark.parametrize("command", [["info"], ["stats", "summary"], ["info", "--format", "json"]])
+def test_a_closed_output_pipe_is_one_line_and_exit_141(command: list[str]) -> None:
+    """The reader of stdout is gone before the first write (as `| head` does, sooner)."""
+    proc = subprocess.Popen(
+        [BAGKIT, *command, str(FIXTURE)], stdout=subprocess.PIPE, stderr=subprocess.PIPE
+    )
+    assert proc.stdout is not None and proc.stderr is not None
+    proc.stdout.close()
+    stderr = proc.stderr.read().decode()
+    assert proc.wait(timeout=60) == EXIT_BROKEN_PIPE
+    # Blank lines aside: stats' transient progress bar leaves one on a stderr that is no terminal.
+    lines = [line for line in stderr.splitlines() if line]
+    assert lines == ["error: output closed before the end (broken pipe)"]
