@@ -90,4 +90,3 @@ class Sqlite3File(StorageFile):
             problem = f"{self.path.name}: unreadable after {read} messages ({exc})"
             if problem not in self.problems:
                 self.problems.append(problem)
-
