@@ -55,3 +55,39 @@ def test_rclpy_only_behind_the_ros_shells(path: Path) -> None:
     assert "rclpy" not in top_level(imported_modules(path.read_text())), (
         f"{path.relative_to(REPO)} imports rclpy: move that code under bagkit/ros/ or fusion/nodes/"
     )
+
+
+# bagkit's packages from the bottom up: a package imports only packages of lower layers.
+LAYERS: tuple[frozenset[str], ...] = (
+    frozenset({"errors"}),
+    frozenset({"bag"}),
+    frozenset({"decode", "ros"}),
+    frozenset({"stats", "compare"}),
+    frozenset({"data"}),
+    frozenset({"fleet", "regression"}),
+    frozenset({"cli", "pytest_plugin", "__init__"}),
+)
+LAYER_OF = {package: level for level, packages in enumerate(LAYERS) for package in packages}
+
+
+def bagkit_package(path: Path) -> str:
+    """``bag`` for bagkit/bag/reader.py, ``errors`` for bagkit/errors.py."""
+    return path.relative_to(REPO / "bagkit").parts[0].removesuffix(".py")
+
+
+def test_every_package_has_a_layer() -> None:
+    packages = {bagkit_package(p) for p in modules_under("bagkit")}
+    assert packages <= LAYER_OF.keys(), f"no layer for {sorted(packages - LAYER_OF.keys())}"
+
+
+@pytest.mark.parametrize("path", modules_under("bagkit"), ids=lambda p: str(p.relative_to(REPO)))
+def test_imports_go_down_the_layers(path: Path) -> None:
+    own = bagkit_package(path)
+    upward = sorted(
+        module
+        for module in imported_modules(path.read_text())
+        if module.startswith("bagkit.")
+        and (target := module.split(".")[1]) != own
+        and LAYER_OF.get(target, len(LAYERS)) >= LAYER_OF[own]
+    )
+    assert not upward, f"{path.relative_to(REPO)} ({own}) imports {upward}: against the layering"
