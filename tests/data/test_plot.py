@@ -3,15 +3,13 @@ Chromium with no network, one trace per requested field; series values from the 
 
 from __future__ import annotations
 
-import os
-import shutil
 import subprocess
 import sys
 from html.parser import HTMLParser
 from pathlib import Path
 
 import numpy as np
-import pytest
+from chromium import dump_dom, screenshot
 from matplotlib.image import imread
 
 import bagkit
@@ -22,45 +20,12 @@ BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 REPO = Path(__file__).resolve().parents[2]
 NOMINAL = REPO / "fixtures" / "nominal" / "golden"
 FAULTS = REPO / "fixtures" / "faults" / "golden"
-CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
 
 
 def _plot(*args: str | Path) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
         [BAGKIT, "plot", *map(str, args)], capture_output=True, text=True, timeout=120, check=False
     )
-
-
-@pytest.fixture
-def chromium() -> str:
-    if not Path(CHROMIUM).exists():
-        reason = "headless Chromium not installed (apt-get install chromium; .ci/run does)"
-        if os.environ.get("CI", "").lower() == "true":
-            pytest.fail(reason)
-        pytest.skip(reason)
-    return CHROMIUM
-
-
-def _chromium(binary: str, tmp_path: Path, *args: str) -> str:
-    command = [
-        binary,
-        "--headless",
-        "--no-sandbox",
-        "--disable-gpu",
-        "--disable-quic",
-        "--no-first-run",
-        "--disable-background-networking",
-        "--disable-component-update",
-        "--disable-sync",
-        f"--user-data-dir={tmp_path / 'chromium-profile'}",
-        # Every host name fails to resolve: the page must not need the network.
-        "--host-resolver-rules=MAP * ~NOTFOUND",
-        "--virtual-time-budget=15000",
-        *args,
-    ]
-    result = subprocess.run(command, capture_output=True, text=True, timeout=180, check=False)
-    assert result.returncode == 0, result.stderr[-2000:]
-    return result.stdout
 
 
 def _external_resources(html: str) -> list[str]:
@@ -95,7 +60,7 @@ def test_png_has_the_expected_size_and_is_not_blank(tmp_path: Path) -> None:
     assert (gray < 0.5).mean() > 0.005
 
 
-def test_html_renders_offline_with_one_trace_per_field(tmp_path: Path, chromium: str) -> None:
+def test_html_renders_offline_with_one_trace_per_field(tmp_path: Path) -> None:
     out = tmp_path / "page.html"
     result = _plot(
         NOMINAL,
@@ -108,13 +73,13 @@ def test_html_renders_offline_with_one_trace_per_field(tmp_path: Path, chromium:
     )
     assert result.returncode == 0, result.stderr
     assert _external_resources(out.read_text()) == []
-    dom = _chromium(chromium, tmp_path, "--dump-dom", out.as_uri())
+    dom = dump_dom(out)
     # 4 fields x 2 bags, drawn as SVG by plotly's JavaScript (inlined in the page).
     assert dom.count('class="trace scatter') == 8
     assert "fluid_pressure [Pa]" in dom and "linear_acceleration.z [m/s²]" in dom
     assert "time since bag start [s]" in dom
     shot = tmp_path / "shot.png"
-    _chromium(chromium, tmp_path, "--window-size=1200,1400", f"--screenshot={shot}", out.as_uri())
+    screenshot(out, shot, width=1200, height=1400)
     assert imread(shot)[..., :3].std() > 0.05
 
 
