@@ -24,7 +24,7 @@ from rclpy.qos import (
     ReliabilityPolicy,
 )
 
-from bagkit.bag import TopicInfo
+from bagkit.bag import TopicInfo, safe_yaml
 from bagkit.ros.errors import QosProfileError
 
 # rosbag2's default depth for a profile whose history is not known (Rosbag2QoS default).
@@ -173,7 +173,7 @@ def parse_offered_qos_profiles(text: str) -> list[QoSProfile]:
     if not text.strip():
         return []
     try:
-        items = yaml.safe_load(text)
+        items = safe_yaml.load(text)  # read from a bag: untrusted
     except yaml.YAMLError as exc:
         raise QosProfileError(f"offered_qos_profiles is not YAML: {exc}") from None
     if items is None:

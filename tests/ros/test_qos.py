@@ -236,3 +236,11 @@ def test_replay_history_covers_the_messages_in_flight_only() -> None:
     # What a late subscriber of a latched topic gets is the recorded depth, however fast.
     assert depth(LATCHED, math.inf).depth == 1
     assert depth(_offer(history=HistoryPolicy.KEEP_ALL), 2500.0).history == HistoryPolicy.KEEP_ALL
+
+
+def test_qos_text_from_a_bag_is_parsed_with_the_untrusted_yaml_limits() -> None:
+    bomb = "a: &a [x, x, x, x, x, x, x, x, x]\nb: &b [*a, *a, *a, *a, *a, *a, *a, *a, *a]\n"
+    with pytest.raises(QosProfileError, match="alias"):
+        parse_offered_qos_profiles(bomb)
+    with pytest.raises(QosProfileError, match="nest"):
+        parse_offered_qos_profiles("[" * 30_000)
