@@ -5,9 +5,11 @@ or ``B`` that holds ``A``) or a chain of thousands of nested types would exhaust
 stack in every recursive walk (rosbags' code generation, leaf listing, layouts, flattening,
 direct readers), and fixed arrays of structs multiply leaves (``A[1000]`` of ``B[1000]``). The
 check here is iterative: a type is accepted when it is acyclic, at most ``MAX_TYPE_DEPTH`` types
-deep and has at most ``MAX_LEAF_FIELDS`` leaves (each fixed-array element counted), which bounds
-the recursion and the size of everything generated from it. ROS types are far inside these
-limits (``nav_msgs/msg/Odometry``: 5 deep, 100 leaves).
+deep, has at most ``MAX_LEAF_FIELDS`` leaves (each fixed-array element counted) and declares at
+most ``MAX_DECLARED_FIELDS`` fields with the types it uses, which bounds the recursion and the
+size of everything generated from it (rosbags generates a dataclass and a decoder per type: 10,000
+declared fields took seconds to compile). ROS types are far inside these limits
+(``nav_msgs/msg/Odometry``: 5 deep, 100 leaves, 29 declared fields).
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from bagkit.decode.errors import SchemaError
 
 MAX_TYPE_DEPTH = 100
 MAX_LEAF_FIELDS = 100_000
+MAX_DECLARED_FIELDS = 2_000
 
 # Types already checked in a typestore (registered types never change).
 _CHECKED: weakref.WeakKeyDictionary[Typestore, set[str]] = weakref.WeakKeyDictionary()
@@ -33,7 +36,8 @@ def check_type_graph(definitions: Mapping[str, Any], roots: Iterable[str]) -> No
     definitions ``(consts, fields)``) define them; names it does not define are not followed.
 
     Raises:
-        SchemaError: a type holds itself, is nested too deep or has too many leaves.
+        SchemaError: a type holds itself, is nested too deep, has too many leaves or declares
+            too many fields.
     """
     leaves: dict[str, int] = {}
     for root in roots:
@@ -58,6 +62,10 @@ def check_type_graph(definitions: Mapping[str, Any], roots: Iterable[str]) -> No
             if len(stack) >= MAX_TYPE_DEPTH:
                 raise SchemaError(f"{root} nests types more than {MAX_TYPE_DEPTH} deep")
             stack.append((child, _used_types(definitions[child])))
+        if _declared_fields(definitions, root) > MAX_DECLARED_FIELDS:
+            raise SchemaError(
+                f"{root} declares more than {MAX_DECLARED_FIELDS:,} fields with the types it uses"
+            )
 
 
 def check_registered(typestore: Typestore, typename: str) -> None:
@@ -89,6 +97,21 @@ def _used_types(definition: Any) -> Iterator[str]:
         element, _count = _element(desc)
         if element[0] == Nodetype.NAME:
             yield element[1]
+
+
+def _declared_fields(definitions: Mapping[str, Any], root: str) -> int:
+    """The fields declared by ``root`` and every type it uses (each type counted once)."""
+    seen = {root}
+    todo = [root]
+    total = 0
+    while todo:
+        definition = definitions[todo.pop()]
+        total += len(definition[1])
+        for child in _used_types(definition):
+            if child in definitions and child not in seen:
+                seen.add(child)
+                todo.append(child)
+    return total
 
 
 def _leaf_count(definition: Any, known: Mapping[str, int]) -> int:

@@ -9,7 +9,12 @@ from rosbags.typesys.store import Typestore
 
 from bagkit.decode import MessageTypes, SchemaError, flatten_message, leaf_fields
 from bagkit.decode.layout import CdrLayout
-from bagkit.decode.typegraph import MAX_LEAF_FIELDS, MAX_TYPE_DEPTH, check_registered
+from bagkit.decode.typegraph import (
+    MAX_DECLARED_FIELDS,
+    MAX_LEAF_FIELDS,
+    MAX_TYPE_DEPTH,
+    check_registered,
+)
 
 SEPARATOR = "=" * 80 + "\n"
 
@@ -31,6 +36,8 @@ HOSTILE = {
     "c/msg/Ping": f"c/Pong pong\n{SEPARATOR}MSG: c/Pong\nc/Ping[<=2] ping\n",
     "d/msg/T0": _chain("d", 5000),
     "e/msg/Wide": f"e/Row[1000] rows\n{SEPARATOR}MSG: e/Row\nfloat64[1000] cells\n",
+    "f/msg/Many": "".join(f"float64 f{i}\n" for i in range(MAX_DECLARED_FIELDS - 1))
+    + f"f/Two two\n{SEPARATOR}MSG: f/Two\nfloat64 a\nfloat64 b\n",
 }
 WHY = {
     "a/msg/Self": "a/msg/Self is recursive (a/msg/Self -> a/msg/Self)",
@@ -38,6 +45,9 @@ WHY = {
     "c/msg/Ping": "c/msg/Ping is recursive (c/msg/Ping -> c/msg/Pong -> c/msg/Ping)",
     "d/msg/T0": f"d/msg/T0 nests types more than {MAX_TYPE_DEPTH} deep",
     "e/msg/Wide": f"e/msg/Wide has more than {MAX_LEAF_FIELDS:,} leaf fields",
+    "f/msg/Many": (
+        f"f/msg/Many declares more than {MAX_DECLARED_FIELDS:,} fields with the types it uses"
+    ),
 }
 
 
