@@ -1,0 +1,192 @@
+"""The streaming copy: messages of several MCAP files, in log-time order, into one OutputBag.
+
+Each input file is a stream of blocks (chunks, runs of loose messages) in start-time order.
+The stream whose next message or block comes first goes next. A chunk is copied as it is
+stored when every message in it passes the selection, it is in the output's compression, its
+channel ids are the output's, and no other message (of any input) falls inside its time span;
+otherwise it is opened and its selected messages are merged in one by one. Memory: the chunks
+opened and not yet written out (those overlapping in time), not the bag.
+"""
+
+from __future__ import annotations
+
+import heapq
+from collections import deque
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from bagkit.bag.definitions import canonical_type_name
+from bagkit.bag.errors import ChunkError
+from bagkit.bag.mcapio import Block, FileIndex, Source, count_messages, extent, read_chunk
+from bagkit.bag.mcapio.raw_chunk import read_raw_chunk
+from bagkit.bag.mcapio.records import MESSAGE_RECORD_HEADER, RECORD_HEADER, ChunkIndex, Opcode
+from bagkit.bag.types import TopicInfo
+from bagkit.surgery.output import OutputBag
+from bagkit.surgery.select import Selection
+
+_END = 1 << 64
+# (log_time, order, channel id, payload, publish_time, sequence)
+_Pending = tuple[int, int, int, bytes, int, int]
+
+
+@dataclass
+class InputFile:
+    """One MCAP file being copied: its index, and where its selected channels go."""
+
+    path: Path
+    source: Source
+    index: FileIndex
+    known: dict[str, TopicInfo] = field(default_factory=dict)  # topics as the bag lists them
+    channel_map: dict[int, int] = field(default_factory=dict)  # input id -> output id
+    problems: list[str] = field(default_factory=list)
+
+
+def topics_of(index: FileIndex, known: dict[str, TopicInfo]) -> list[tuple[int, TopicInfo, str]]:
+    """``(channel id, topic, definition)`` of each channel (QoS completed from ``known``)."""
+    found = []
+    for channel in index.channels.values():
+        schema = index.schemas.get(channel.schema_id)
+        type_name = canonical_type_name(schema.name) if schema else ""
+        recorded = known.get(channel.topic)
+        qos = channel.metadata.get("offered_qos_profiles", "") or (
+            recorded.offered_qos_profiles if recorded else ""
+        )
+        topic = TopicInfo(
+            name=channel.topic,
+            type=type_name,
+            serialization_format=channel.message_encoding,
+            offered_qos_profiles=qos,
+            type_description_hash=channel.metadata.get("topic_type_hash", "")
+            or (recorded.type_description_hash if recorded else ""),
+        )
+        definition = schema.data.decode("utf-8", errors="replace") if schema else ""
+        found.append((channel.id, topic, definition))
+    return found
+
+
+class _Stream:
+    """The blocks of one input file not yet written, and the opened messages pending."""
+
+    def __init__(self, file: InputFile, rank: int) -> None:
+        self.file = file
+        blocks: list[Block] = [*file.index.chunk_indexes, *file.index.message_runs]
+        self.blocks = deque(sorted(blocks, key=lambda b: (b.message_start_time, extent(b)[0])))
+        self.pending: list[_Pending] = []
+        self.order = rank << 96  # then block after block, by offset inside it
+
+    def head(self) -> int:
+        """Log time of the next message or block (2**64 when done)."""
+        block = self.blocks[0].message_start_time if self.blocks else _END
+        return min(block, self.pending[0][0]) if self.pending else block
+
+    def next_block_start(self) -> int:
+        return self.blocks[0].message_start_time if self.blocks else _END
+
+
+def copy_files(
+    files: list[InputFile], out: OutputBag, selection: Selection, *, check_crc: bool = True
+) -> None:
+    """Copy the selected messages of ``files`` into ``out`` in log-time order (ties: file order).
+
+    Problems (chunks that cannot be read) are appended to each file's ``problems``.
+    """
+    streams = [_Stream(f, rank) for rank, f in enumerate(files)]
+    while True:
+        live = [s for s in streams if s.blocks or s.pending]
+        if not live:
+            return
+        stream = min(live, key=_Stream.head)
+        others = min((s.head() for s in live if s is not stream), default=_END)
+        if stream.pending and stream.pending[0][0] <= stream.next_block_start():
+            _emit(stream, out, min(others, stream.next_block_start()))
+            continue
+        block = stream.blocks.popleft()
+        bound = min(others, stream.head())
+        if not (_copyable(stream.file, block, selection, out) and block.message_end_time < bound):
+            _open(stream, block, selection, check_crc)
+            continue
+        assert isinstance(block, ChunkIndex)
+        try:
+            chunk = read_raw_chunk(stream.file.source, block, check_crc=check_crc)
+        except ChunkError as exc:
+            _lost(stream.file, block, str(exc))
+            continue
+        out.copy_chunk(chunk)
+
+
+def _emit(stream: _Stream, out: OutputBag, limit: int) -> None:
+    """Write the stream's pending messages before ``limit`` (at least one)."""
+    pending = stream.pending
+    pop = heapq.heappop
+    write = out.write
+    log_time, _, channel_id, data, publish_time, sequence = pop(pending)
+    write(channel_id, data, log_time, publish_time, sequence)
+    while pending and pending[0][0] < limit:
+        log_time, _, channel_id, data, publish_time, sequence = pop(pending)
+        write(channel_id, data, log_time, publish_time, sequence)
+
+
+def _copyable(file: InputFile, block: Block, selection: Selection, out: OutputBag) -> bool:
+    """Whether every message of ``block`` passes and it can go out as it is stored."""
+    if not isinstance(block, ChunkIndex) or not block.message_index_offsets:
+        return False
+    if block.compression != out.compression:
+        return False
+    if not selection.covers(block.message_start_time, block.message_end_time):
+        return False
+    mapping = file.channel_map
+    return all(mapping.get(c) == c for c in block.message_index_offsets)
+
+
+def _open(stream: _Stream, block: Block, selection: Selection, check_crc: bool) -> None:
+    """Read a block and add its selected messages to the stream's pending ones."""
+    file = stream.file
+    mapping = file.channel_map
+    indexed = isinstance(block, ChunkIndex) and block.message_index_offsets
+    if indexed and mapping.keys().isdisjoint(block.message_index_offsets):  # type: ignore[union-attr]
+        return  # nothing selected in it: not even read
+    try:
+        contents = read_chunk(file.source, block, check_crc=check_crc)
+    except ChunkError as exc:
+        _lost(file, block, str(exc))
+        return
+    records = contents.records
+    size = len(records)
+    unpack = MESSAGE_RECORD_HEADER.unpack_from
+    header_size = MESSAGE_RECORD_HEADER.size
+    base = stream.order
+    pending = stream.pending
+    bad = 0
+    for channel_id, entries in contents.message_index.items():
+        out_id = mapping.get(channel_id)
+        if out_id is None:
+            continue
+        for _, offset in entries.tolist():
+            if offset > size - header_size:
+                bad += 1
+                continue
+            opcode, length, _, sequence, log_time, publish_time = unpack(records, offset)
+            end = offset + RECORD_HEADER.size + length
+            if opcode != Opcode.MESSAGE or end > size:
+                bad += 1
+                continue
+            if selection.time_passes(log_time):
+                data = records[offset + header_size : end]
+                heapq.heappush(
+                    pending, (log_time, base + offset, out_id, data, publish_time, sequence)
+                )
+    stream.order = base + (1 << 64)
+    if bad:
+        file.problems.append(
+            f"{file.path.name}: chunk at byte {extent(block)[0]}: {bad} message index entries "
+            "point at no message: those messages are lost"
+        )
+
+
+def _lost(file: InputFile, block: Block, what: str) -> None:
+    offset, length = extent(block)
+    lost = count_messages(file.source, block)
+    file.problems.append(
+        f"{file.path.name}: chunk at byte {offset} ({length} bytes) unreadable: {what}; "
+        + (f"its {lost} messages are lost" if lost is not None else "its messages are lost")
+    )
