@@ -54,6 +54,12 @@ class OutputBag:
         self._force = force
         self._max_size = max_bag_size
         self._max_duration = int(max_bag_duration_s * 1e9)
+        # Files end within one chunk of max_bag_size: small limits get smaller chunks.
+        self._chunk_size = (
+            min(DEFAULT_CHUNK_SIZE, max(max_bag_size // 4, 4096))
+            if max_bag_size
+            else DEFAULT_CHUNK_SIZE
+        )
         self._temp = path.parent / f".{path.name}.partial-{os.getpid()}"
         shutil.rmtree(self._temp, ignore_errors=True)
         self._temp.mkdir()
@@ -105,13 +111,13 @@ class OutputBag:
         self._split_if_due(log_time, len(data))
         chunk = self._chunk
         chunk.add(channel_id, data, log_time, publish_time, sequence)
-        if len(chunk.records) >= DEFAULT_CHUNK_SIZE:
+        if len(chunk.records) >= self._chunk_size:
             self._close_chunk()
 
     def copy_chunk(self, chunk: ClosedChunk) -> None:
         """Append a chunk as it is stored (its channel ids must be this bag's)."""
         self._close_chunk()
-        self._split_if_due(chunk.message_start_time, chunk.length)
+        self._split_if_due(chunk.message_end_time, chunk.length)
         file = self._current_file()
         file.write_chunk(chunk, lost={})
         for channel_id, count in chunk.message_counts.items():
