@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import heapq
 from collections import deque
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -101,8 +102,8 @@ def copy_files(
             _emit(stream, out, min(others, stream.next_block_start()))
             continue
         block = stream.blocks.popleft()
-        bound = min(others, stream.head())
-        if not (_copyable(stream.file, block, selection, out) and block.message_end_time < bound):
+        fits = block.message_end_time < min(others, stream.head())
+        if not (fits and _may_copy(stream.file, block, selection, out)):
             _open(stream, block, selection, check_crc)
             continue
         assert isinstance(block, ChunkIndex)
@@ -111,7 +112,10 @@ def copy_files(
         except ChunkError as exc:
             _lost(stream.file, block, str(exc))
             continue
-        out.copy_chunk(chunk)
+        if _identity(stream.file, chunk.message_counts):
+            out.copy_chunk(chunk)
+        else:  # an index-less chunk holding channels that are not copied as they are
+            _open(stream, block, selection, check_crc)
 
 
 def _emit(stream: _Stream, out: OutputBag, limit: int) -> None:
@@ -126,16 +130,22 @@ def _emit(stream: _Stream, out: OutputBag, limit: int) -> None:
         write(channel_id, data, log_time, publish_time, sequence)
 
 
-def _copyable(file: InputFile, block: Block, selection: Selection, out: OutputBag) -> bool:
-    """Whether every message of ``block`` passes and it can go out as it is stored."""
-    if not isinstance(block, ChunkIndex) or not block.message_index_offsets:
-        return False
-    if block.compression != out.compression:
+def _may_copy(file: InputFile, block: Block, selection: Selection, out: OutputBag) -> bool:
+    """Whether ``block`` can go out as it is stored, as far as its index tells.
+
+    A chunk without Message Index records may: its channels are known once it is read.
+    """
+    if not isinstance(block, ChunkIndex) or block.compression != out.compression:
         return False
     if not selection.covers(block.message_start_time, block.message_end_time):
         return False
+    return _identity(file, block.message_index_offsets)
+
+
+def _identity(file: InputFile, channel_ids: Iterable[int]) -> bool:
+    """Whether every one of ``channel_ids`` is selected and keeps its id in the output."""
     mapping = file.channel_map
-    return all(mapping.get(c) == c for c in block.message_index_offsets)
+    return all(mapping.get(c) == c for c in channel_ids)
 
 
 def _open(stream: _Stream, block: Block, selection: Selection, check_crc: bool) -> None:
