@@ -111,7 +111,8 @@ def _metadata(bag_dir: Path | None, path: Path, report: DoctorReport) -> BagMeta
     try:
         metadata = read_metadata(bag_dir)
     except NotABagError as exc:
-        report.findings.append(Finding(METADATA_FILENAME, str(exc).removeprefix(f"{bag_dir}/")))
+        text = str(exc).removeprefix(f"{bag_dir / METADATA_FILENAME}: ")
+        report.findings.append(Finding(METADATA_FILENAME, " ".join(text.split())))  # one line
         return None
     if metadata is None:
         report.findings.append(

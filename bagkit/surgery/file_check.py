@@ -80,7 +80,7 @@ class FileCheck:
         self.check_message = check_message
         self.facts = FileFacts()
         self.chunks: list[_Chunk] = []
-        self.last_time = 0
+        self.last_time = 0  # of the message stored last
         self.out_of_order = 0
         self.data_end: tuple[int, int] | None = None  # (offset, data section CRC)
         self.damaged: set[int] = set()  # offsets of chunks that are reported already
@@ -220,7 +220,7 @@ class FileCheck:
         facts.end = max(facts.end, int(times.max()))
         previous = np.concatenate([[self.last_time], times[:-1]])
         self.out_of_order += int((times < previous).sum())
-        self.last_time = max(self.last_time, int(times.max()))
+        self.last_time = int(times[-1])
         if self.check_message is not None:
             view = memoryview(records)
             for log_time, offset in merged.tolist():
