@@ -66,21 +66,16 @@ def topics_of(index: FileIndex, known: dict[str, TopicInfo]) -> list[tuple[int, 
 
 
 class _Stream:
-    """The blocks of one input file not yet written, and the opened messages pending."""
+    """The blocks of one input file not yet read."""
 
     def __init__(self, file: InputFile, rank: int) -> None:
         self.file = file
         blocks: list[Block] = [*file.index.chunk_indexes, *file.index.message_runs]
         self.blocks = deque(sorted(blocks, key=lambda b: (b.message_start_time, extent(b)[0])))
-        self.pending: list[_Pending] = []
         self.order = rank << 96  # then block after block, by offset inside it
 
-    def head(self) -> int:
-        """Log time of the next message or block (2**64 when done)."""
-        block = self.blocks[0].message_start_time if self.blocks else _END
-        return min(block, self.pending[0][0]) if self.pending else block
-
     def next_block_start(self) -> int:
+        """Log time the next block starts at (2**64 when done)."""
         return self.blocks[0].message_start_time if self.blocks else _END
 
 
@@ -89,45 +84,52 @@ def copy_files(
 ) -> None:
     """Copy the selected messages of ``files`` into ``out`` in log-time order (ties: file order).
 
+    Opened messages wait in one heap until no block still to be read may hold an earlier one.
     Problems (chunks that cannot be read) are appended to each file's ``problems``.
     """
     streams = [_Stream(f, rank) for rank, f in enumerate(files)]
-    while True:
-        live = [s for s in streams if s.blocks or s.pending]
-        if not live:
-            return
-        stream = min(live, key=_Stream.head)
-        others = min((s.head() for s in live if s is not stream), default=_END)
-        if stream.pending and stream.pending[0][0] <= stream.next_block_start():
-            _emit(stream, out, min(others, stream.next_block_start()))
-            continue
-        block = stream.blocks.popleft()
-        fits = block.message_end_time < min(others, stream.head())
-        if not (fits and _may_copy(stream.file, block, selection, out)):
-            _open(stream, block, selection, check_crc)
-            continue
-        assert isinstance(block, ChunkIndex)
-        try:
-            chunk = read_raw_chunk(stream.file.source, block, check_crc=check_crc)
-        except ChunkError as exc:
-            _lost(stream.file, block, str(exc))
-            continue
-        if _identity(stream.file, chunk.message_counts):
-            out.copy_chunk(chunk)
-        else:  # an index-less chunk holding channels that are not copied as they are
-            _open(stream, block, selection, check_crc)
-
-
-def _emit(stream: _Stream, out: OutputBag, limit: int) -> None:
-    """Write the stream's pending messages before ``limit`` (at least one)."""
-    pending = stream.pending
+    pending: list[_Pending] = []
     pop = heapq.heappop
     write = out.write
-    log_time, _, channel_id, data, publish_time, sequence = pop(pending)
-    write(channel_id, data, log_time, publish_time, sequence)
-    while pending and pending[0][0] < limit:
-        log_time, _, channel_id, data, publish_time, sequence = pop(pending)
-        write(channel_id, data, log_time, publish_time, sequence)
+    while True:
+        waiting = [s for s in streams if s.blocks]
+        stream = min(waiting, key=_Stream.next_block_start) if waiting else None
+        # Messages before the block (equal times: those of earlier blocks or inputs) go first.
+        block_key = (stream.next_block_start(), stream.order) if stream is not None else (_END, 0)
+        while pending and pending[0][:2] < block_key:
+            log_time, _, channel_id, data, publish_time, sequence = pop(pending)
+            write(channel_id, data, log_time, publish_time, sequence)
+        if stream is None:
+            return
+        block = stream.blocks.popleft()
+        bound = min(s.next_block_start() for s in streams)
+        if pending:
+            bound = min(bound, pending[0][0])
+        if block.message_end_time < bound and _may_copy(stream.file, block, selection, out):
+            _copy(stream, block, selection, out, pending, check_crc)
+        else:
+            _open(stream, block, selection, check_crc, pending)
+
+
+def _copy(  # noqa: PLR0917 (the loop's state, passed as it is)
+    stream: _Stream,
+    block: Block,
+    selection: Selection,
+    out: OutputBag,
+    pending: list[_Pending],
+    check_crc: bool,
+) -> None:
+    """Copy a chunk as it is stored (or open it when its records show it cannot be)."""
+    assert isinstance(block, ChunkIndex)
+    try:
+        chunk = read_raw_chunk(stream.file.source, block, check_crc=check_crc)
+    except ChunkError as exc:
+        _lost(stream.file, block, str(exc))
+        return
+    if _identity(stream.file, chunk.message_counts):
+        out.copy_chunk(chunk)
+    else:  # an index-less chunk holding channels that are not copied as they are
+        _open(stream, block, selection, check_crc, pending)
 
 
 def _may_copy(file: InputFile, block: Block, selection: Selection, out: OutputBag) -> bool:
@@ -148,8 +150,10 @@ def _identity(file: InputFile, channel_ids: Iterable[int]) -> bool:
     return all(mapping.get(c) == c for c in channel_ids)
 
 
-def _open(stream: _Stream, block: Block, selection: Selection, check_crc: bool) -> None:
-    """Read a block and add its selected messages to the stream's pending ones."""
+def _open(
+    stream: _Stream, block: Block, selection: Selection, check_crc: bool, pending: list[_Pending]
+) -> None:
+    """Read a block and add its selected messages to the pending ones."""
     file = stream.file
     mapping = file.channel_map
     indexed = isinstance(block, ChunkIndex) and block.message_index_offsets
@@ -165,7 +169,6 @@ def _open(stream: _Stream, block: Block, selection: Selection, check_crc: bool) 
     unpack = MESSAGE_RECORD_HEADER.unpack_from
     header_size = MESSAGE_RECORD_HEADER.size
     base = stream.order
-    pending = stream.pending
     bad = 0
     for channel_id, entries in contents.message_index.items():
         out_id = mapping.get(channel_id)
