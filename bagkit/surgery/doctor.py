@@ -14,7 +14,7 @@ from pathlib import Path
 
 from bagkit.bag.definitions import canonical_type_name
 from bagkit.bag.errors import BagError, BagNotFoundError, NotABagError
-from bagkit.bag.mcapio import MAGIC, Source
+from bagkit.bag.mcapio import MAGIC, Source, read_file_index
 from bagkit.bag.metadata import METADATA_FILENAME, BagMetadata, read_metadata
 from bagkit.decode import DecodeError, MessageTypes, SchemaError
 from bagkit.surgery.file_check import FileCheck, FileFacts
@@ -195,7 +195,7 @@ def _check_file(file: Path, decoders: _Decoders, report: DoctorReport) -> FileFa
             source = Source(handle, file.name)
             # Schemas and channels first (from a shallow walk) so that deep checks can decode.
             check = FileCheck(source)
-            pre = _Prescan(source).facts if decoders.deep else None
+            pre = _prescan(source) if decoders.deep else None
             if pre is not None:
                 decoders.add_schemas(pre)
                 check.check_message = decoders.for_file(pre)
@@ -209,14 +209,10 @@ def _check_file(file: Path, decoders: _Decoders, report: DoctorReport) -> FileFa
     return facts
 
 
-class _Prescan:
-    """Schemas and channels of a file from its summary, or by a walk that opens no chunk."""
-
-    def __init__(self, source: Source) -> None:
-        from bagkit.bag.mcapio.salvage import read_file_index
-
-        index = read_file_index(source)
-        self.facts = FileFacts(schemas=dict(index.schemas), channels=dict(index.channels))
+def _prescan(source: Source) -> FileFacts:
+    """Schemas and channels of a file, from its summary or a scan (for decoding while walking)."""
+    index = read_file_index(source)
+    return FileFacts(schemas=dict(index.schemas), channels=dict(index.channels))
 
 
 def _metadata_problems(
