@@ -4,13 +4,13 @@ Each input file is a stream of blocks (chunks, runs of loose messages) in start-
 The stream whose next message or block comes first goes next. A chunk is copied as it is
 stored when every message in it passes the selection, it is in the output's compression, its
 channel ids are the output's, and no other message (of any input) falls inside its time span;
-otherwise it is opened and its selected messages are merged in one by one. Memory: the chunks
-opened and not yet written out (those overlapping in time), not the bag.
+otherwise it is opened and its selected Message records join the runs waiting to be written
+(:mod:`~bagkit.surgery.runs`). Memory: the chunks opened and not yet written out (those
+overlapping in time), not the bag.
 """
 
 from __future__ import annotations
 
-import heapq
 from collections import deque
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -20,14 +20,13 @@ from bagkit.bag.definitions import canonical_type_name
 from bagkit.bag.errors import ChunkError
 from bagkit.bag.mcapio import Block, FileIndex, Source, count_messages, extent, read_chunk
 from bagkit.bag.mcapio.raw_chunk import read_raw_chunk
-from bagkit.bag.mcapio.records import MESSAGE_RECORD_HEADER, RECORD_HEADER, ChunkIndex, Opcode
+from bagkit.bag.mcapio.records import ChunkIndex
 from bagkit.bag.types import TopicInfo
 from bagkit.surgery.output import OutputBag
+from bagkit.surgery.runs import Run, emit, open_run
 from bagkit.surgery.select import Selection
 
 _END = 1 << 64
-# (log_time, order, channel id, payload, publish_time, sequence)
-_Pending = tuple[int, int, int, bytes, int, int]
 
 
 @dataclass
@@ -88,23 +87,19 @@ def copy_files(
     Problems (chunks that cannot be read) are appended to each file's ``problems``.
     """
     streams = [_Stream(f, rank) for rank, f in enumerate(files)]
-    pending: list[_Pending] = []
-    pop = heapq.heappop
-    write = out.write
+    pending: list[Run] = []
     while True:
         waiting = [s for s in streams if s.blocks]
-        stream = min(waiting, key=_Stream.next_block_start) if waiting else None
-        # Messages before the block (equal times: those of earlier blocks or inputs) go first.
-        block_key = (stream.next_block_start(), stream.order) if stream is not None else (_END, 0)
-        while pending and pending[0][:2] < block_key:
-            log_time, _, channel_id, data, publish_time, sequence = pop(pending)
-            write(channel_id, data, log_time, publish_time, sequence)
-        if stream is None:
+        if not waiting:
+            emit(pending, _END, 0, out)
             return
+        stream = min(waiting, key=_Stream.next_block_start)
+        # Messages before the block (equal times: those of earlier blocks or inputs) go first.
+        emit(pending, stream.next_block_start(), stream.order, out)
         block = stream.blocks.popleft()
         bound = min(s.next_block_start() for s in streams)
         if pending:
-            bound = min(bound, pending[0][0])
+            bound = min(bound, *(run.head() for run in pending))
         if block.message_end_time < bound and _may_copy(stream.file, block, selection, out):
             _copy(stream, block, selection, out, pending, check_crc)
         else:
@@ -116,7 +111,7 @@ def _copy(  # noqa: PLR0917 (the loop's state, passed as it is)
     block: Block,
     selection: Selection,
     out: OutputBag,
-    pending: list[_Pending],
+    pending: list[Run],
     check_crc: bool,
 ) -> None:
     """Copy a chunk as it is stored (or open it when its records show it cannot be)."""
@@ -151,7 +146,7 @@ def _identity(file: InputFile, channel_ids: Iterable[int]) -> bool:
 
 
 def _open(
-    stream: _Stream, block: Block, selection: Selection, check_crc: bool, pending: list[_Pending]
+    stream: _Stream, block: Block, selection: Selection, check_crc: bool, pending: list[Run]
 ) -> None:
     """Read a block and add its selected messages to the pending ones."""
     file = stream.file
@@ -164,31 +159,10 @@ def _open(
     except ChunkError as exc:
         _lost(file, block, str(exc))
         return
-    records = contents.records
-    size = len(records)
-    unpack = MESSAGE_RECORD_HEADER.unpack_from
-    header_size = MESSAGE_RECORD_HEADER.size
-    base = stream.order
-    bad = 0
-    for channel_id, entries in contents.message_index.items():
-        out_id = mapping.get(channel_id)
-        if out_id is None:
-            continue
-        for _, offset in entries.tolist():
-            if offset > size - header_size:
-                bad += 1
-                continue
-            opcode, length, _, sequence, log_time, publish_time = unpack(records, offset)
-            end = offset + RECORD_HEADER.size + length
-            if opcode != Opcode.MESSAGE or end > size:
-                bad += 1
-                continue
-            if selection.time_passes(log_time):
-                data = records[offset + header_size : end]
-                heapq.heappush(
-                    pending, (log_time, base + offset, out_id, data, publish_time, sequence)
-                )
-    stream.order = base + (1 << 64)
+    run, bad = open_run(contents.records, contents.message_index, mapping, selection, stream.order)
+    stream.order += 1 << 64
+    if run is not None:
+        pending.append(run)
     if bad:
         file.problems.append(
             f"{file.path.name}: chunk at byte {extent(block)[0]}: {bad} message index entries "

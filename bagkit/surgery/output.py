@@ -11,6 +11,7 @@ import os
 import shutil
 from pathlib import Path
 
+import numpy as np
 from mcap.well_known import Profile, SchemaEncoding
 
 from bagkit.bag.mcapio.chunk_builder import ChunkBuilder, ClosedChunk
@@ -104,15 +105,31 @@ class OutputBag:
         self.counts[channel_id] = 0
         return channel_id
 
-    def write(
-        self, channel_id: int, data: bytes, log_time: int, publish_time: int, sequence: int
+    def write_records(
+        self,
+        data: bytes | bytearray,
+        offsets: np.ndarray,
+        lengths: np.ndarray,
+        channels: np.ndarray,
+        times: np.ndarray,
     ) -> None:
-        """Append one message to the open chunk."""
-        self._split_if_due(log_time, len(data))
-        chunk = self._chunk
-        chunk.add(channel_id, data, log_time, publish_time, sequence)
-        if len(chunk.records) >= self._chunk_size:
-            self._close_chunk()
+        """Append whole Message records (channel ids already this bag's), chunk by chunk."""
+        ends = offsets + lengths
+        i, n = 0, len(offsets)
+        while i < n:
+            self._split_if_due(int(times[i]), int(lengths[i]))
+            chunk = self._chunk
+            room = self._chunk_size - len(chunk.records)
+            j = max(i + 1, int(np.searchsorted(ends, offsets[i] + room, side="right")))
+            chunk.add_records(
+                data[offsets[i] : ends[j - 1]],
+                channels[i:j],
+                times[i:j],
+                offsets[i:j] - offsets[i],
+            )
+            if len(chunk.records) >= self._chunk_size:
+                self._close_chunk()
+            i = j
 
     def copy_chunk(self, chunk: ClosedChunk) -> None:
         """Append a chunk as it is stored (its channel ids must be this bag's)."""
