@@ -7,12 +7,16 @@ import typer
 from bagkit import __version__
 from bagkit.cli import catalog as _catalog
 from bagkit.cli import compare as _compare
+from bagkit.cli import doctor as _doctor
 from bagkit.cli import echo as _echo
 from bagkit.cli import export as _export
+from bagkit.cli import filter as _filter
 from bagkit.cli import golden as _golden
 from bagkit.cli import info as _info
+from bagkit.cli import merge as _merge
 from bagkit.cli import plot as _plot
 from bagkit.cli import record as _record
+from bagkit.cli import recover as _recover
 from bagkit.cli import replay as _replay
 from bagkit.cli import stats as _stats
 from bagkit.cli.common import run_app
@@ -49,6 +53,12 @@ app.command("info", help=_info.HELP, no_args_is_help=True)(_info.info)
 app.command("plot", help=_plot.HELP, no_args_is_help=True)(_plot.plot)
 app.command("record", help=_record.HELP, no_args_is_help=True)(_record.record)
 app.add_typer(_replay.app)
+# Bag surgery (bagkit/surgery): one module each.
+app.command("doctor", help=_doctor.HELP, no_args_is_help=True)(_doctor.doctor)
+app.command("recover", help=_recover.HELP, no_args_is_help=True)(_recover.recover)
+app.command("reindex", help=_recover.HELP, no_args_is_help=True)(_recover.recover)
+app.command("filter", help=_filter.HELP, no_args_is_help=True)(_filter.filter_command)
+app.command("merge", help=_merge.HELP, no_args_is_help=True)(_merge.merge)
 app.add_typer(_stats.app)
 app.add_typer(_golden.app)
 app.add_typer(_catalog.app)

@@ -12,6 +12,7 @@ from array import array
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import numpy as np
 from zlib_ng.zlib_ng import crc32
 
 from bagkit.bag.mcapio.records import (
@@ -98,6 +99,36 @@ class ChunkBuilder:
         if log_time > self.end:  # noqa: PLR1730
             self.end = log_time
         self.count += 1
+
+    def add_records(
+        self,
+        records: bytes | bytearray,
+        channel_ids: np.ndarray,
+        log_times: np.ndarray,
+        offsets: np.ndarray,
+    ) -> None:
+        """Append whole Message records at once (as stored elsewhere; their channel ids already
+        this chunk's), with their index entries.
+
+        Args:
+            records: the Message records back to back.
+            channel_ids, log_times, offsets: of each record (offsets relative to ``records``).
+        """
+        if not len(offsets):
+            return
+        base = len(self.records)
+        self.records += records
+        entries = np.empty((len(offsets), 2), np.uint64)
+        entries[:, 0] = log_times
+        entries[:, 1] = offsets + base
+        for channel_id in np.unique(channel_ids).tolist():
+            index = self.index.get(channel_id)
+            if index is None:
+                index = self.index[channel_id] = array("Q")
+            index.frombytes(entries[channel_ids == channel_id].tobytes())
+        self.start = min(self.start, int(log_times.min()))
+        self.end = max(self.end, int(log_times.max()))
+        self.count += len(offsets)
 
     def message_counts(self) -> dict[int, int]:
         """Messages per channel so far."""

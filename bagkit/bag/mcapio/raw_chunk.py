@@ -1,0 +1,99 @@
+"""A chunk as stored, ready to be written into another file without recompression.
+
+Surgery (``bagkit filter``/``merge``/``recover``) copies a chunk whose messages all pass: the
+Chunk record's bytes go out unchanged, its Message Index records are re-encoded from the entries
+(the offsets inside the chunk do not change).
+"""
+
+from __future__ import annotations
+
+from zlib_ng.zlib_ng import crc32
+
+from bagkit.bag.errors import ChunkError, CorruptBagError
+from bagkit.bag.mcapio.chunk_builder import ClosedChunk
+from bagkit.bag.mcapio.chunks import (
+    DEFAULT_MAX_CHUNK_SIZE,
+    decompress,
+    read_message_indexes,
+    walk_message_index,
+)
+from bagkit.bag.mcapio.records import (
+    RECORD_HEADER,
+    ChunkIndex,
+    Opcode,
+    encode_message_index,
+    parse_chunk,
+)
+from bagkit.bag.mcapio.source import Source
+
+_MAX_COMPRESSED_RATIO = 2
+
+
+def read_raw_chunk(
+    source: Source,
+    chunk_index: ChunkIndex,
+    *,
+    check_crc: bool = True,
+    max_size: int = DEFAULT_MAX_CHUNK_SIZE,
+) -> ClosedChunk:
+    """The Chunk record at ``chunk_index`` as it is stored, with its Message Index records.
+
+    With ``check_crc`` the records are decompressed to check the CRC (they are not recompressed:
+    the stored bytes are what is returned). Message indexes come from the records after the
+    chunk when they are where the index says, otherwise from walking the decompressed records.
+
+    Raises:
+        ChunkError: no chunk record there, one over ``max_size``, data that does not
+            decompress to its declared size, a CRC mismatch, damaged records.
+    """
+    offset = chunk_index.chunk_start_offset
+    try:
+        opcode, length = RECORD_HEADER.unpack(source.read(offset, RECORD_HEADER.size))
+        if opcode != Opcode.CHUNK or length > _MAX_COMPRESSED_RATIO * max_size:
+            raise ChunkError("no chunk record of a readable size there")
+        record = source.read(offset, RECORD_HEADER.size + length)
+        chunk = parse_chunk(memoryview(record)[RECORD_HEADER.size :])
+    except ChunkError:
+        raise
+    except CorruptBagError as exc:
+        raise ChunkError(str(exc)) from None
+    records: bytes | None = None
+    if check_crc or not chunk_index.message_index_offsets:
+        records = decompress(chunk.compression, chunk.data, chunk.uncompressed_size, max_size)
+        if check_crc and chunk.uncompressed_crc and crc32(records) != chunk.uncompressed_crc:
+            raise ChunkError("CRC mismatch (the chunk is damaged)")
+    try:
+        indexes = (
+            read_message_indexes(source, chunk_index) if chunk_index.message_index_offsets else {}
+        )
+    except CorruptBagError:
+        indexes = {}
+    try:
+        if not indexes:
+            if records is None:
+                records = decompress(
+                    chunk.compression, chunk.data, chunk.uncompressed_size, max_size
+                )
+            indexes = walk_message_index(records)
+    except CorruptBagError as exc:
+        raise ChunkError(str(exc)) from None
+    header_length = len(record) - len(chunk.data)
+    parts = []
+    offsets: dict[int, int] = {}
+    position = 0
+    for channel_id, entries in sorted(indexes.items()):
+        part = encode_message_index(channel_id, entries.tobytes())
+        offsets[channel_id] = position
+        position += len(part)
+        parts.append(part)
+    return ClosedChunk(
+        header=record[:header_length],
+        data=record[header_length:],
+        message_indexes=b"".join(parts),
+        index_offsets=offsets,
+        message_start_time=chunk.message_start_time,
+        message_end_time=chunk.message_end_time,
+        compression=chunk.compression,
+        uncompressed_size=chunk.uncompressed_size,
+        message_counts={c: len(e) for c, e in indexes.items()},
+    )

@@ -1,0 +1,77 @@
+"""``bagkit filter``: a new bag with some topics and/or a time range (like ``ros2 bag convert``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from bagkit.cli.common import err_console, handle_errors
+from bagkit.cli.recover import (
+    CRC_HELP,
+    FORCE_HELP,
+    FORMAT_OPTION,
+    OUTPUT_HELP,
+    ReportFormat,
+    print_report,
+)
+from bagkit.surgery.rewrite import OutputOptions, filter_bag
+from bagkit.surgery.select import Selection, parse_time, split_list
+
+HELP = """Write the messages of BAG that pass the selection to a new bag OUT, in log-time
+order, with their definitions and QoS. Topics are selected like ros2 bag: --topics and
+--regex include (all topics when neither is given), --exclude-topics and --exclude-regex
+remove. Chunks whose messages all pass are copied as stored (not decoded or recompressed).
+Times: seconds since the epoch (1700000000.5), nanoseconds (1700000000500000000ns) or
+ISO 8601 (2026-11-23T12:00:00Z).
+
+Example: bagkit filter drive -o imu_only --topics /imu/data,/gps/fix --start 1763850000
+"""
+
+TOPICS_HELP = "Topics to keep (repeat or comma-separate)."
+REGEX_HELP = "Keep topics matching this regular expression (re.search)."
+EXCLUDE_TOPICS_HELP = "Topics to drop (repeat or comma-separate)."
+EXCLUDE_REGEX_HELP = "Drop topics matching this regular expression."
+COMPRESSION_HELP = "Chunk compression of OUT: zstd, lz4 or none."
+SIZE_HELP = "Split OUT into files of at most this many bytes (0: never), like ros2 bag."
+DURATION_HELP = "Split OUT into files spanning at most this many seconds (0: never)."
+
+
+@handle_errors
+def filter_command(  # noqa: PLR0917 (typer maps parameters to options)
+    bag: Path = typer.Argument(..., help="The bag to read (directory or .mcap file)."),
+    output: Path = typer.Option(..., "--output", "-o", help=OUTPUT_HELP),
+    topics: list[str] | None = typer.Option(None, "--topics", help=TOPICS_HELP),
+    regex: str = typer.Option("", "--regex", "-e", help=REGEX_HELP),
+    exclude_topics: list[str] | None = typer.Option(
+        None, "--exclude-topics", help=EXCLUDE_TOPICS_HELP
+    ),
+    exclude_regex: str = typer.Option("", "--exclude-regex", help=EXCLUDE_REGEX_HELP),
+    start: str | None = typer.Option(None, "--start", help="Keep messages logged at or after."),
+    end: str | None = typer.Option(None, "--end", help="Keep messages logged before."),
+    compression: str = typer.Option("zstd", "--compression", help=COMPRESSION_HELP),
+    max_bag_size: int = typer.Option(0, "--max-bag-size", "-b", help=SIZE_HELP),
+    max_bag_duration: float = typer.Option(0, "--max-bag-duration", "-d", help=DURATION_HELP),
+    force: bool = typer.Option(False, "--force", help=FORCE_HELP),
+    check_crc: bool = typer.Option(True, "--crc/--no-crc", help=CRC_HELP),
+    output_format: ReportFormat = FORMAT_OPTION,
+) -> None:
+    """Write the selected messages of a bag to a new bag."""
+    selection = Selection(
+        topics=split_list(topics),
+        regex=regex,
+        exclude_topics=split_list(exclude_topics),
+        exclude_regex=exclude_regex,
+        start_ns=parse_time(start) if start is not None else None,
+        end_ns=parse_time(end) if end is not None else None,
+    )
+    options = OutputOptions(
+        compression=compression,
+        max_bag_size=max_bag_size,
+        max_bag_duration_s=max_bag_duration,
+        force=force,
+        check_crc=check_crc,
+    )
+    with err_console.status(f"filtering {bag}"):
+        report = filter_bag(bag, output, selection, options)
+    print_report(report, output_format)

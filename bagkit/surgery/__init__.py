@@ -1,0 +1,27 @@
+"""Bag surgery: ``doctor`` (check), ``recover`` (rewrite a crashed bag), ``filter``, ``merge``.
+
+Built on the MCAP record layer (:mod:`bagkit.bag.mcapio`): a chunk whose messages all pass
+and whose compression is the one asked for is copied as it is, without decompressing it.
+
+- :mod:`~bagkit.surgery.select`: which messages pass (topics, exclusions, regexes, time range)
+- :mod:`~bagkit.surgery.output`: the bag being written (temp name, split, raw chunk copies)
+- :mod:`~bagkit.surgery.copy`: the streaming, log-time ordered copy of input files
+- :mod:`~bagkit.surgery.rewrite`: ``filter``, ``merge`` and ``recover`` on top of it
+- :mod:`~bagkit.surgery.doctor`: every check, one problem per line
+"""
+
+from __future__ import annotations
+
+from bagkit.surgery.doctor import Finding, diagnose
+from bagkit.surgery.rewrite import RewriteReport, filter_bag, merge_bags, recover_bag
+from bagkit.surgery.select import Selection
+
+__all__ = [
+    "Finding",
+    "RewriteReport",
+    "Selection",
+    "diagnose",
+    "filter_bag",
+    "merge_bags",
+    "recover_bag",
+]

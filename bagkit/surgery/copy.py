@@ -1,0 +1,179 @@
+"""The streaming copy: messages of several MCAP files, in log-time order, into one OutputBag.
+
+Each input file is a stream of blocks (chunks, runs of loose messages) in start-time order.
+The stream whose next message or block comes first goes next. A chunk is copied as it is
+stored when every message in it passes the selection, it is in the output's compression, its
+channel ids are the output's, and no other message (of any input) falls inside its time span;
+otherwise it is opened and its selected Message records join the runs waiting to be written
+(:mod:`~bagkit.surgery.runs`). Memory: the chunks opened and not yet written out (those
+overlapping in time), not the bag.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from bagkit.bag.definitions import canonical_type_name
+from bagkit.bag.errors import ChunkError
+from bagkit.bag.mcapio import Block, FileIndex, Source, count_messages, extent, read_chunk
+from bagkit.bag.mcapio.raw_chunk import read_raw_chunk
+from bagkit.bag.mcapio.records import ChunkIndex
+from bagkit.bag.types import TopicInfo
+from bagkit.surgery.output import OutputBag
+from bagkit.surgery.runs import Run, emit, open_run
+from bagkit.surgery.select import Selection
+
+_END = 1 << 64
+
+
+@dataclass
+class InputFile:
+    """One MCAP file being copied: its index, and where its selected channels go."""
+
+    path: Path
+    source: Source
+    index: FileIndex
+    known: dict[str, TopicInfo] = field(default_factory=dict)  # topics as the bag lists them
+    channel_map: dict[int, int] = field(default_factory=dict)  # input id -> output id
+    problems: list[str] = field(default_factory=list)
+
+
+def topics_of(index: FileIndex, known: dict[str, TopicInfo]) -> list[tuple[int, TopicInfo, str]]:
+    """``(channel id, topic, definition)`` of each channel (QoS completed from ``known``)."""
+    found = []
+    for channel in index.channels.values():
+        schema = index.schemas.get(channel.schema_id)
+        type_name = canonical_type_name(schema.name) if schema else ""
+        recorded = known.get(channel.topic)
+        qos = channel.metadata.get("offered_qos_profiles", "") or (
+            recorded.offered_qos_profiles if recorded else ""
+        )
+        topic = TopicInfo(
+            name=channel.topic,
+            type=type_name,
+            serialization_format=channel.message_encoding,
+            offered_qos_profiles=qos,
+            type_description_hash=channel.metadata.get("topic_type_hash", "")
+            or (recorded.type_description_hash if recorded else ""),
+        )
+        definition = schema.data.decode("utf-8", errors="replace") if schema else ""
+        found.append((channel.id, topic, definition))
+    return found
+
+
+class _Stream:
+    """The blocks of one input file not yet read."""
+
+    def __init__(self, file: InputFile, rank: int) -> None:
+        self.file = file
+        blocks: list[Block] = [*file.index.chunk_indexes, *file.index.message_runs]
+        self.blocks = deque(sorted(blocks, key=lambda b: (b.message_start_time, extent(b)[0])))
+        self.order = rank << 96  # then block after block, by offset inside it
+
+    def next_block_start(self) -> int:
+        """Log time the next block starts at (2**64 when done)."""
+        return self.blocks[0].message_start_time if self.blocks else _END
+
+
+def copy_files(
+    files: list[InputFile], out: OutputBag, selection: Selection, *, check_crc: bool = True
+) -> None:
+    """Copy the selected messages of ``files`` into ``out`` in log-time order (ties: file order).
+
+    Opened messages wait in one heap until no block still to be read may hold an earlier one.
+    Problems (chunks that cannot be read) are appended to each file's ``problems``.
+    """
+    streams = [_Stream(f, rank) for rank, f in enumerate(files)]
+    pending: list[Run] = []
+    while True:
+        waiting = [s for s in streams if s.blocks]
+        if not waiting:
+            emit(pending, _END, 0, out)
+            return
+        stream = min(waiting, key=_Stream.next_block_start)
+        # Messages before the block (equal times: those of earlier blocks or inputs) go first.
+        emit(pending, stream.next_block_start(), stream.order, out)
+        block = stream.blocks.popleft()
+        bound = min(s.next_block_start() for s in streams)
+        if pending:
+            bound = min(bound, *(run.head() for run in pending))
+        if block.message_end_time < bound and _may_copy(stream.file, block, selection, out):
+            _copy(stream, block, selection, out, pending, check_crc)
+        else:
+            _open(stream, block, selection, check_crc, pending)
+
+
+def _copy(  # noqa: PLR0917 (the loop's state, passed as it is)
+    stream: _Stream,
+    block: Block,
+    selection: Selection,
+    out: OutputBag,
+    pending: list[Run],
+    check_crc: bool,
+) -> None:
+    """Copy a chunk as it is stored (or open it when its records show it cannot be)."""
+    assert isinstance(block, ChunkIndex)
+    try:
+        chunk = read_raw_chunk(stream.file.source, block, check_crc=check_crc)
+    except ChunkError as exc:
+        _lost(stream.file, block, str(exc))
+        return
+    if _identity(stream.file, chunk.message_counts):
+        out.copy_chunk(chunk)
+    else:  # an index-less chunk holding channels that are not copied as they are
+        _open(stream, block, selection, check_crc, pending)
+
+
+def _may_copy(file: InputFile, block: Block, selection: Selection, out: OutputBag) -> bool:
+    """Whether ``block`` can go out as it is stored, as far as its index tells.
+
+    A chunk without Message Index records may: its channels are known once it is read.
+    """
+    if not isinstance(block, ChunkIndex) or block.compression != out.compression:
+        return False
+    if not selection.covers(block.message_start_time, block.message_end_time):
+        return False
+    return _identity(file, block.message_index_offsets)
+
+
+def _identity(file: InputFile, channel_ids: Iterable[int]) -> bool:
+    """Whether every one of ``channel_ids`` is selected and keeps its id in the output."""
+    mapping = file.channel_map
+    return all(mapping.get(c) == c for c in channel_ids)
+
+
+def _open(
+    stream: _Stream, block: Block, selection: Selection, check_crc: bool, pending: list[Run]
+) -> None:
+    """Read a block and add its selected messages to the pending ones."""
+    file = stream.file
+    mapping = file.channel_map
+    indexed = isinstance(block, ChunkIndex) and block.message_index_offsets
+    if indexed and mapping.keys().isdisjoint(block.message_index_offsets):  # type: ignore[union-attr]
+        return  # nothing selected in it: not even read
+    try:
+        contents = read_chunk(file.source, block, check_crc=check_crc)
+    except ChunkError as exc:
+        _lost(file, block, str(exc))
+        return
+    run, bad = open_run(contents.records, contents.message_index, mapping, selection, stream.order)
+    stream.order += 1 << 64
+    if run is not None:
+        pending.append(run)
+    if bad:
+        file.problems.append(
+            f"{file.path.name}: chunk at byte {extent(block)[0]}: {bad} message index entries "
+            "point at no message: those messages are lost"
+        )
+
+
+def _lost(file: InputFile, block: Block, what: str) -> None:
+    offset, length = extent(block)
+    lost = count_messages(file.source, block)
+    file.problems.append(
+        f"{file.path.name}: chunk at byte {offset} ({length} bytes) unreadable: {what}; "
+        + (f"its {lost} messages are lost" if lost is not None else "its messages are lost")
+    )

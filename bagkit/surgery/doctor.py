@@ -1,0 +1,285 @@
+"""``bagkit doctor``: check a bag the way ``mcap doctor`` checks a file, for whole rosbag2 bags.
+
+Per MCAP file (:mod:`~bagkit.surgery.file_check`): CRCs, indexes against records, summary
+against content, time order. Per bag: metadata.yaml against the files (file list, counts,
+times, topics), every schema decodable (:class:`bagkit.decode.MessageTypes`) and, with
+``deep``, every message.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from bagkit.bag.definitions import canonical_type_name
+from bagkit.bag.errors import BagError, BagNotFoundError, NotABagError
+from bagkit.bag.mcapio import MAGIC, Source, read_file_index
+from bagkit.bag.metadata import METADATA_FILENAME, BagMetadata, read_metadata
+from bagkit.decode import DecodeError, MessageTypes, SchemaError
+from bagkit.surgery.file_check import FileCheck, FileFacts
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One problem (or, ``note``, a fact about valid data): where (a file, the bag) and what."""
+
+    where: str
+    problem: str
+    note: bool = False
+
+    @property
+    def line(self) -> str:
+        """``where: problem`` (``note: where: ...`` for a note)."""
+        return f"{'note: ' if self.note else ''}{self.where}: {self.problem}"
+
+
+@dataclass
+class DoctorReport:
+    """What ``doctor`` checked and found."""
+
+    path: Path
+    files: list[str] = field(default_factory=list)
+    message_count: int = 0
+    deep: bool = False
+    findings: list[Finding] = field(default_factory=list)
+
+    @property
+    def healthy(self) -> bool:
+        """No problem found (notes aside)."""
+        return not any(not f.note for f in self.findings)
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-ready form."""
+        return {
+            "path": str(self.path),
+            "files": self.files,
+            "message_count": self.message_count,
+            "deep": self.deep,
+            "healthy": self.healthy,
+            "problems": [
+                {"where": f.where, "problem": f.problem} for f in self.findings if not f.note
+            ],
+            "notes": [{"where": f.where, "note": f.problem} for f in self.findings if f.note],
+        }
+
+
+def diagnose(path: Path, *, deep: bool = False) -> DoctorReport:
+    """Check the bag at ``path`` (a bag directory, its metadata.yaml, or one ``.mcap`` file).
+
+    Raises:
+        BagNotFoundError: no such path.
+        NotABagError: no MCAP file could be opened at all.
+    """
+    bag_dir, files = _storage_files(path)
+    report = DoctorReport(path=path, deep=deep)
+    metadata = _metadata(bag_dir, path, report)
+    facts: dict[str, FileFacts] = {}
+    decoders = _Decoders(deep)
+    for file in files:
+        checked = _check_file(file, decoders, report)
+        if checked is not None:
+            facts[file.name] = checked
+            report.files.append(file.name)
+    if not facts:
+        raise NotABagError(f"{path}: no readable MCAP file")
+    report.message_count = sum(f.message_count for f in facts.values())
+    if metadata is not None:
+        report.findings.extend(
+            Finding(METADATA_FILENAME, p) for p in _metadata_problems(metadata, facts, bag_dir)
+        )
+    report.findings.extend(Finding("bag", p) for p in decoders.problems())
+    return report
+
+
+def _storage_files(path: Path) -> tuple[Path | None, list[Path]]:
+    if not path.exists():
+        raise BagNotFoundError(f"{path}: no such file or directory")
+    if path.is_file() and path.name == METADATA_FILENAME:
+        path = path.parent
+    if path.is_file():
+        return None, [path]
+    files = sorted(p for p in path.iterdir() if p.suffix == ".mcap" and p.is_file())
+    if not files:
+        raise NotABagError(f"{path}: no .mcap file")
+    return path, files
+
+
+def _metadata(bag_dir: Path | None, path: Path, report: DoctorReport) -> BagMetadata | None:
+    if bag_dir is None:
+        return None
+    try:
+        metadata = read_metadata(bag_dir)
+    except NotABagError as exc:
+        text = str(exc).removeprefix(f"{bag_dir / METADATA_FILENAME}: ")
+        report.findings.append(Finding(METADATA_FILENAME, " ".join(text.split())))  # one line
+        return None
+    if metadata is None:
+        report.findings.append(
+            Finding("bag", f"no {METADATA_FILENAME} (`bagkit recover` writes one)")
+        )
+    return metadata
+
+
+class _Decoders:
+    """Schemas of all files, and (deep) a decode of every message."""
+
+    def __init__(self, deep: bool) -> None:
+        self.deep = deep
+        self.types = MessageTypes()
+        self.type_of: dict[str, str] = {}  # topic -> type
+        self.failures: dict[str, tuple[int, int, str]] = {}  # topic -> (count, first time, why)
+
+    def for_file(self, facts: FileFacts) -> Callable[[int, int, memoryview], None] | None:
+        """The per-message check of one file (None unless deep)."""
+        if not self.deep:
+            return None
+        cache: dict[int, tuple[str, Callable[[bytes | memoryview], object] | None]] = {}
+
+        def check(channel_id: int, log_time: int, payload: memoryview) -> None:
+            if channel_id not in cache:
+                cache[channel_id] = self._decoder(facts, channel_id)
+            topic, decode = cache[channel_id]
+            if decode is None:
+                return
+            try:
+                decode(payload)
+            except DecodeError as exc:
+                count, first, why = self.failures.get(topic, (0, log_time, str(exc)))
+                self.failures[topic] = (count + 1, first, why)
+
+        return check
+
+    def _decoder(
+        self, facts: FileFacts, channel_id: int
+    ) -> tuple[str, Callable[[bytes | memoryview], object] | None]:
+        channel = facts.channels.get(channel_id)
+        if channel is None:
+            return f"channel {channel_id}", None
+        schema = facts.schemas.get(channel.schema_id)
+        if schema is None:
+            return channel.topic, None
+        try:
+            return channel.topic, self.types.decoder(schema.name)
+        except SchemaError:
+            return channel.topic, None
+
+    def add_schemas(self, facts: FileFacts) -> None:
+        for channel in facts.channels.values():
+            schema = facts.schemas.get(channel.schema_id)
+            if schema is None:
+                continue
+            self.types.add(schema.name, schema.data.decode("utf-8", errors="replace"))
+            self.type_of[channel.topic] = schema.name
+
+    def problems(self) -> list[str]:
+        found = []
+        for topic, type_name in sorted(self.type_of.items()):
+            try:
+                self.types.resolve(type_name)
+            except SchemaError as exc:
+                found.append(f"{topic}: {exc}")
+        for topic, (count, first, why) in sorted(self.failures.items()):
+            found.append(
+                f"{topic}: {count} messages do not decode (first at log time {first}: {why})"
+            )
+        return found
+
+
+def _check_file(file: Path, decoders: _Decoders, report: DoctorReport) -> FileFacts | None:
+    try:
+        with open(file, "rb") as handle:
+            if handle.read(len(MAGIC)) != MAGIC:
+                report.findings.append(Finding(file.name, "not an MCAP file (bad magic)"))
+                return None
+            source = Source(handle, file.name)
+            # Schemas and channels first (from a shallow walk) so that deep checks can decode.
+            check = FileCheck(source)
+            pre = _prescan(source) if decoders.deep else None
+            if pre is not None:
+                decoders.add_schemas(pre)
+                check.check_message = decoders.for_file(pre)
+            facts = check.run()
+    except (BagError, OSError) as exc:
+        report.findings.append(Finding(file.name, f"unreadable ({exc})"))
+        return None
+    decoders.add_schemas(facts)
+    report.findings.extend(Finding(file.name, p) for p in facts.problems)
+    report.findings.extend(Finding(file.name, n, note=True) for n in facts.notes)
+    return facts
+
+
+def _prescan(source: Source) -> FileFacts:
+    """Schemas and channels of a file, from its summary or a scan (for decoding while walking)."""
+    index = read_file_index(source)
+    return FileFacts(schemas=dict(index.schemas), channels=dict(index.channels))
+
+
+def _metadata_problems(
+    metadata: BagMetadata, facts: dict[str, FileFacts], bag_dir: Path | None
+) -> list[str]:
+    problems = []
+    listed = [Path(p).name for p in metadata.relative_file_paths]
+    for name in listed:
+        if name not in facts:
+            problems.append(f"lists {name}, which is missing or unreadable")
+    for name in facts:
+        if name not in listed:
+            problems.append(f"does not list {name}")
+    total = sum(f.message_count for f in facts.values())
+    if metadata.message_count != total:
+        problems.append(f"message_count is {metadata.message_count}, the files hold {total}")
+    problems.extend(_topic_problems(metadata, facts))
+    problems.extend(_time_problems(metadata, facts))
+    for entry in metadata.files:
+        found = facts.get(Path(entry.path).name)
+        if found is not None and entry.message_count != found.message_count:
+            problems.append(
+                f"files: {entry.path} has message_count {entry.message_count}, "
+                f"the file holds {found.message_count}"
+            )
+    return problems
+
+
+def _topic_problems(metadata: BagMetadata, facts: dict[str, FileFacts]) -> list[str]:
+    counts: dict[str, int] = {}
+    types: dict[str, str] = {}
+    for file in facts.values():
+        for channel in file.channels.values():
+            counts.setdefault(channel.topic, 0)
+            schema = file.schemas.get(channel.schema_id)
+            if schema is not None:
+                types[channel.topic] = canonical_type_name(schema.name)
+        for channel_id, count in file.counts.items():
+            holder = file.channels.get(channel_id)
+            if holder is not None:
+                counts[holder.topic] = counts.get(holder.topic, 0) + count
+    problems = []
+    recorded = {topic.name: (topic, count) for topic, count in metadata.topics}
+    for name, (topic, count) in sorted(recorded.items()):
+        if name not in counts:
+            if count:
+                problems.append(f"{name}: message_count is {count}, no file holds the topic")
+            continue
+        if count != counts[name]:
+            problems.append(f"{name}: message_count is {count}, the files hold {counts[name]}")
+        if name in types and canonical_type_name(topic.type) != types[name]:
+            problems.append(f"{name}: type is {topic.type}, the files store {types[name]}")
+    for name in sorted(counts.keys() - recorded.keys()):
+        problems.append(f"does not list topic {name}")
+    return problems
+
+
+def _time_problems(metadata: BagMetadata, facts: dict[str, FileFacts]) -> list[str]:
+    starts = [f.start for f in facts.values() if f.start is not None]
+    if not starts:
+        return []
+    start, end = min(starts), max(f.end for f in facts.values() if f.start is not None)
+    problems = []
+    if metadata.starting_time != start:
+        problems.append(
+            f"starting_time is {metadata.starting_time}, the first message is at {start}"
+        )
+    if metadata.duration != end - start:
+        problems.append(f"duration is {metadata.duration} ns, the messages span {end - start} ns")
+    return problems

@@ -1,0 +1,238 @@
+"""The bag a surgery writes: a temp directory renamed at the end, split files, raw chunk copies.
+
+Nothing appears under the output name before :meth:`OutputBag.commit`: files are written to a
+hidden sibling directory that is renamed into place, so an error never leaves a half-written
+bag, and an existing output is replaced only with ``force``.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+import numpy as np
+from mcap.well_known import Profile, SchemaEncoding
+
+from bagkit.bag.mcapio.chunk_builder import ChunkBuilder, ClosedChunk
+from bagkit.bag.mcapio.file_writer import McapFileWriter
+from bagkit.bag.mcapio.records import Channel, Header, Metadata, Schema
+from bagkit.bag.metadata import BagMetadata, FileInformation, write_metadata
+from bagkit.bag.types import TopicInfo
+from bagkit.bag.writer import DEFAULT_CHUNK_SIZE, LIBRARY, _compressor
+from bagkit.surgery.errors import SurgeryError
+
+
+class OutputBag:
+    """A rosbag2 MCAP bag written message by message or chunk by chunk.
+
+    Args:
+        path: the bag directory to create.
+        compression: ``zstd``, ``lz4`` or ``none`` for the chunks built here.
+        max_bag_size: split when a file reaches this many bytes (0: never).
+        max_bag_duration_s: split when a file spans this much log time (0: never).
+        force: replace ``path`` if it exists.
+
+    Raises:
+        SurgeryError: ``path`` exists without ``force``, or its parent does not.
+    """
+
+    def __init__(
+        self,
+        path: Path,
+        *,
+        compression: str = "zstd",
+        max_bag_size: int = 0,
+        max_bag_duration_s: float = 0,
+        force: bool = False,
+    ) -> None:
+        if path.exists() and not force:
+            raise SurgeryError(f"{path} already exists (use --force to replace it)")
+        if not path.parent.is_dir():
+            raise SurgeryError(f"{path.parent}: no such directory")
+        self.path = path
+        self.compression, self._compress = _compressor(compression)
+        self._force = force
+        self._max_size = max_bag_size
+        self._max_duration = int(max_bag_duration_s * 1e9)
+        # Files end within one chunk of max_bag_size: small limits get smaller chunks.
+        self._chunk_size = (
+            min(DEFAULT_CHUNK_SIZE, max(max_bag_size // 4, 4096))
+            if max_bag_size
+            else DEFAULT_CHUNK_SIZE
+        )
+        self._temp = path.parent / f".{path.name}.partial-{os.getpid()}"
+        shutil.rmtree(self._temp, ignore_errors=True)
+        self._temp.mkdir()
+        self.schemas: dict[str, Schema] = {}
+        self.channels: dict[str, Channel] = {}
+        self.topics: dict[str, TopicInfo] = {}
+        self.counts: dict[int, int] = {}
+        self.chunks_copied = 0
+        self._files: list[FileInformation] = []
+        self._file: McapFileWriter | None = None
+        self._chunk = ChunkBuilder()
+
+    def add_topic(self, topic: TopicInfo, definition: str, preferred_id: int) -> int:
+        """Add a topic (once per name); return its channel id (``preferred_id`` when free)."""
+        channel = self.channels.get(topic.name)
+        if channel is not None:
+            return channel.id
+        schema = self.schemas.get(topic.type)
+        if schema is None:
+            schema = Schema(
+                id=len(self.schemas) + 1,
+                name=topic.type,
+                encoding=SchemaEncoding.ROS2,
+                data=definition.encode("utf-8"),
+            )
+            self.schemas[topic.type] = schema
+        used = {c.id for c in self.channels.values()}
+        channel_id = preferred_id if 0 < preferred_id < 1 << 16 and preferred_id not in used else 0
+        if not channel_id:
+            channel_id = max(used, default=0) + 1
+        metadata = {"offered_qos_profiles": topic.offered_qos_profiles}
+        if topic.type_description_hash:
+            metadata["topic_type_hash"] = topic.type_description_hash
+        self.channels[topic.name] = Channel(
+            id=channel_id,
+            schema_id=schema.id,
+            topic=topic.name,
+            message_encoding=topic.serialization_format,
+            metadata=metadata,
+        )
+        self.topics[topic.name] = topic
+        self.counts[channel_id] = 0
+        return channel_id
+
+    def write_records(
+        self,
+        data: bytes | bytearray,
+        offsets: np.ndarray,
+        lengths: np.ndarray,
+        channels: np.ndarray,
+        times: np.ndarray,
+    ) -> None:
+        """Append whole Message records (channel ids already this bag's), chunk by chunk."""
+        ends = offsets + lengths
+        i, n = 0, len(offsets)
+        while i < n:
+            self._split_if_due(int(times[i]), int(lengths[i]))
+            chunk = self._chunk
+            room = self._chunk_size - len(chunk.records)
+            j = max(i + 1, int(np.searchsorted(ends, offsets[i] + room, side="right")))
+            chunk.add_records(
+                data[offsets[i] : ends[j - 1]],
+                channels[i:j],
+                times[i:j],
+                offsets[i:j] - offsets[i],
+            )
+            if len(chunk.records) >= self._chunk_size:
+                self._close_chunk()
+            i = j
+
+    def copy_chunk(self, chunk: ClosedChunk) -> None:
+        """Append a chunk as it is stored (its channel ids must be this bag's)."""
+        self._close_chunk()
+        self._split_if_due(chunk.message_end_time, chunk.length)
+        file = self._current_file()
+        file.write_chunk(chunk, lost={})
+        for channel_id, count in chunk.message_counts.items():
+            self.counts[channel_id] += count
+        self.chunks_copied += 1
+
+    def commit(self) -> list[Path]:
+        """Finish the last file and metadata.yaml, move the bag into place; return its files."""
+        self._close_chunk()
+        if self._file is None and not self._files:
+            self._current_file()
+        self._finish_file()
+        write_metadata(self._temp, self._metadata())
+        if self.path.exists() or self.path.is_symlink():
+            if self.path.is_dir() and not self.path.is_symlink():
+                shutil.rmtree(self.path)
+            else:
+                self.path.unlink()
+        self._temp.rename(self.path)
+        return [self.path / f.path for f in self._files]
+
+    def abort(self) -> None:
+        """Remove what was written (the output name is left untouched)."""
+        if self._file is not None:
+            self._file.close()
+            self._file = None
+        shutil.rmtree(self._temp, ignore_errors=True)
+
+    # -- internals --------------------------------------------------------------------------
+
+    def _current_file(self) -> McapFileWriter:
+        if self._file is None:
+            name = f"{self.path.name}_{len(self._files)}.mcap"
+            self._file = McapFileWriter.create(
+                self._temp / name,
+                Header(profile=Profile.ROS2, library=LIBRARY),
+                self.schemas.values(),
+                self.channels.values(),
+            )
+        return self._file
+
+    def _split_if_due(self, log_time: int, size: int) -> None:
+        file = self._file
+        if file is None or not (self._max_size or self._max_duration):
+            return
+        chunk = self._chunk
+        if file.message_count + chunk.count == 0:
+            return
+        due = bool(self._max_size) and file.offset + len(chunk.records) + size >= self._max_size
+        if self._max_duration:
+            start = min(file.start_time or chunk.start, chunk.start)
+            due = due or log_time - start >= self._max_duration
+        if due:
+            self._close_chunk()
+            self._finish_file()
+
+    def _close_chunk(self) -> None:
+        chunk = self._chunk
+        if not chunk.count:
+            return
+        self._chunk = ChunkBuilder()
+        self._current_file().write_chunk(chunk.close(self.compression, self._compress), lost={})
+        for channel_id, count in chunk.message_counts().items():
+            self.counts[channel_id] += count
+
+    def _finish_file(self) -> None:
+        file = self._file
+        if file is None:
+            return
+        start = file.start_time or 0
+        self._files.append(
+            FileInformation(
+                path=file.path.name,
+                starting_time=start,
+                duration=file.end_time - start if file.message_count else 0,
+                message_count=file.message_count,
+            )
+        )
+        file.add_metadata(
+            Metadata(
+                name="rosbag2", metadata={"serialized_metadata": self._metadata().dump(root=False)}
+            )
+        )
+        file.finish(list(self.schemas.values()), list(self.channels.values()))
+        file.close()
+        self._file = None
+
+    def _metadata(self) -> BagMetadata:
+        files = list(self._files)
+        with_messages = [f for f in files if f.message_count]
+        start = min((f.starting_time for f in with_messages), default=0)
+        end = max((f.starting_time + f.duration for f in with_messages), default=0)
+        return BagMetadata(
+            storage_identifier="mcap",
+            relative_file_paths=[f.path for f in files],
+            starting_time=start,
+            duration=end - start,
+            message_count=sum(f.message_count for f in files),
+            topics=[(t, self.counts[self.channels[n].id]) for n, t in self.topics.items()],
+            files=files,
+        )

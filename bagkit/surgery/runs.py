@@ -1,0 +1,136 @@
+"""Opened chunks waiting to be written: their selected Message records as sorted numpy runs.
+
+Messages are never handled one object at a time: a chunk's selected records are located,
+checked and sorted with numpy, and the records due are copied whole (header, times, sequence
+and payload as stored) into the output's chunk, the channel id rewritten in place.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+
+from bagkit.bag.mcapio.records import MESSAGE_PREFIX, MESSAGE_RECORD_HEADER, RECORD_HEADER, Opcode
+from bagkit.surgery.output import OutputBag
+from bagkit.surgery.select import Selection
+
+_LOG_TIME_AT = RECORD_HEADER.size + 2 + 4  # channel id (u16), sequence (u32), then log time
+_CHANNEL_AT = RECORD_HEADER.size
+_MAX_TIME = (1 << 64) - 1
+
+
+@dataclass
+class Run:
+    """The selected messages of one opened chunk, in (log time, offset) order.
+
+    ``rank`` orders runs whose messages have equal log times (input, then block in the file).
+    """
+
+    records: bytes
+    times: np.ndarray  # uint64
+    starts: np.ndarray  # int64, Message record starts in ``records``
+    ends: np.ndarray  # int64
+    channels: np.ndarray  # uint16, output channel ids
+    rank: int
+    cursor: int = 0
+
+    def head(self) -> int:
+        """Log time of the next message."""
+        return int(self.times[self.cursor])
+
+    @property
+    def done(self) -> bool:
+        """All written."""
+        return self.cursor >= len(self.times)
+
+
+def open_run(
+    records: bytes,
+    message_index: dict[int, np.ndarray],
+    mapping: dict[int, int],
+    selection: Selection,
+    rank: int,
+) -> tuple[Run | None, int]:
+    """The selected, whole Message records of a chunk as a run, and how many entries pointed at
+    no whole Message record."""
+    parts = [(e, mapping[c]) for c, e in message_index.items() if c in mapping and len(e)]
+    if not parts:
+        return None, 0
+    offsets = np.concatenate([e["offset"] for e, _ in parts]).astype(np.int64)
+    channels = np.concatenate([np.full(len(e), c, np.uint16) for e, c in parts])
+    size = len(records)
+    valid = offsets <= size - MESSAGE_RECORD_HEADER.size
+    buf = np.frombuffer(records, np.uint8)
+    if size >= MESSAGE_RECORD_HEADER.size:
+        words = sliding_window_view(buf, 8)
+        safe = np.where(valid, offsets, 0)
+        lengths = words[safe + 1].view("<u8").ravel().astype(np.int64)
+        lengths = np.where(lengths < 0, size, lengths)  # lengths past 2**63: never whole
+        times = words[safe + _LOG_TIME_AT].view("<u8").ravel()
+        ends = safe + RECORD_HEADER.size + np.minimum(lengths, size)
+        valid &= (buf[safe] == Opcode.MESSAGE) & (lengths >= MESSAGE_PREFIX.size) & (ends <= size)
+    else:
+        times = ends = np.zeros(len(offsets), np.int64)
+    bad = int(len(offsets) - valid.sum())
+    keep = valid.copy()
+    if selection.start_ns is not None:
+        keep &= times >= np.uint64(selection.start_ns)
+    if selection.end_ns is not None:
+        keep &= times < np.uint64(min(selection.end_ns, _MAX_TIME))
+    order = np.flatnonzero(keep)
+    order = order[np.lexsort((offsets[order], times[order]))]
+    if not len(order):
+        return None, bad
+    run = Run(
+        records, times[order].astype(np.uint64), offsets[order], ends[order], channels[order], rank
+    )
+    return run, bad
+
+
+def emit(runs: list[Run], before_time: int, before_rank: int, out: OutputBag) -> None:
+    """Write the messages of ``runs`` that come before ``(before_time, before_rank)``."""
+    runs.sort(key=lambda r: r.rank)
+    key = np.uint64(min(before_time, _MAX_TIME))
+    taken = []
+    for run in runs:
+        side: Literal["left", "right"] = (
+            "right" if run.rank < before_rank or before_time > _MAX_TIME else "left"
+        )
+        stop = run.cursor + int(np.searchsorted(run.times[run.cursor :], key, side=side))
+        if stop > run.cursor:
+            taken.append((run, run.cursor, stop))
+            run.cursor = stop
+    runs[:] = [r for r in runs if not r.done]
+    if not taken:
+        return
+    if len(taken) == 1:
+        run, a, b = taken[0]
+        pieces = [
+            run.records[s:e]
+            for s, e in zip(run.starts[a:b].tolist(), run.ends[a:b].tolist(), strict=True)
+        ]
+        _write(out, pieces, run.times[a:b], run.channels[a:b])
+        return
+    times = np.concatenate([r.times[a:b] for r, a, b in taken])
+    which = np.concatenate([np.full(b - a, i, np.int64) for i, (_, a, b) in enumerate(taken)])
+    order = np.lexsort((which, times))  # stable: within a run, its own order
+    starts = np.concatenate([r.starts[a:b] for r, a, b in taken])[order].tolist()
+    ends = np.concatenate([r.ends[a:b] for r, a, b in taken])[order].tolist()
+    buffers = [r.records for r, _, _ in taken]
+    pieces = [buffers[w][s:e] for w, s, e in zip(which[order].tolist(), starts, ends, strict=True)]
+    channels = np.concatenate([r.channels[a:b] for r, a, b in taken])[order]
+    _write(out, pieces, times[order], channels)
+
+
+def _write(out: OutputBag, pieces: list[bytes], times: np.ndarray, channels: np.ndarray) -> None:
+    lengths = np.fromiter(map(len, pieces), np.int64, len(pieces))
+    data = bytearray(b"".join(pieces))
+    offsets = np.zeros(len(pieces), np.int64)
+    np.cumsum(lengths[:-1], out=offsets[1:])
+    view = np.frombuffer(data, np.uint8)
+    view[offsets + _CHANNEL_AT] = (channels & 0xFF).astype(np.uint8)
+    view[offsets + _CHANNEL_AT + 1] = (channels >> 8).astype(np.uint8)
+    out.write_records(data, offsets, lengths, channels, times)
