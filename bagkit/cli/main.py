@@ -49,6 +49,14 @@ app.command("info", help=_info.HELP, no_args_is_help=True)(_info.info)
 app.command("plot", help=_plot.HELP, no_args_is_help=True)(_plot.plot)
 app.command("record", help=_record.HELP, no_args_is_help=True)(_record.record)
 app.add_typer(_replay.app)
+# `ros2 bag play`'s name for the same command.
+app.command(
+    "play",
+    cls=_replay.ReplayCommand,
+    help=_replay.HELP,
+    no_args_is_help=True,
+    context_settings=_replay.HELP_OPTIONS,
+)(_replay.replay)
 app.add_typer(_stats.app)
 app.add_typer(_golden.app)
 app.add_typer(_catalog.app)

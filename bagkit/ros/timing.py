@@ -14,8 +14,8 @@ SPIN_WINDOW_NS = 500_000
 # A message published more than this after its scheduled time counts as late.
 LATE_THRESHOLD_NS = 1_000_000
 
-# /clock rate of `--clock` given without a value (as rosbag2's default).
-DEFAULT_CLOCK_HZ = 100.0
+# /clock rate of `--clock` given without a value (as `ros2 bag play --clock` in Jazzy).
+DEFAULT_CLOCK_HZ = 40.0
 # How long the player watches the graph for subscriptions that existed before it: Fast DDS
 # announces a participant every 3 s, and a new participant is often found only at the next one.
 DEFAULT_DISCOVERY_TIME_S = 3.0
