@@ -255,7 +255,7 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
         clock_hz=clock,
         start_paused=start_paused,
         services=True,
-        remap=parse_remaps(_names(remap)),
+        remap=parse_remaps(rule for value in remap for rule in value.split(",") if rule),
         wait_for_subscribers=wait_for_subscribers,
         wait_for=wait_for,
         wait_timeout=wait_timeout,

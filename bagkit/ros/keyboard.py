@@ -18,7 +18,7 @@ import termios
 import threading
 import tty
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from types import FrameType
 
 from bagkit.ros.play_controls import RATE_STEP, PlayControls
@@ -67,14 +67,15 @@ def terminal_controls(controls: PlayControls, *, keyboard: bool) -> Iterator[Non
 
     def restore() -> None:
         if fd is not None and saved is not None:
-            termios.tcsetattr(fd, termios.TCSANOW, saved)
+            with suppress(termios.error):  # the terminal hung up: nothing to restore
+                termios.tcsetattr(fd, termios.TCSANOW, saved)
 
     def on_stop(_signum: int, _frame: FrameType | None) -> None:
         controls.suspend()
         restore()
-        signal.signal(signal.SIGTSTP, signal.SIG_DFL)
-        os.kill(os.getpid(), signal.SIGTSTP)  # stops here until SIGCONT
-        signal.signal(signal.SIGTSTP, on_stop)
+        # SIGSTOP, not SIGTSTP again: the kernel ignores SIGTSTP in an orphaned process group
+        # (a replay started in a session of its own), which would leave the replay held.
+        os.kill(os.getpid(), signal.SIGSTOP)  # stops here until SIGCONT
         enter_raw()
         controls.unsuspend()
 
