@@ -229,6 +229,7 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
     from bagkit.ros.keyboard import terminal_controls
     from bagkit.ros.player import Player
     from bagkit.ros.selection import parse_remaps
+    from bagkit.ros.timing import precise_timers
 
     if output_format is OutputFormat.CSV:
         raise fail("replay prints its report as a table or as JSON (--format json), not CSV")
@@ -275,6 +276,7 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
         stack.enter_context(
             terminal_controls(player.controls, keyboard=not disable_keyboard_controls)
         )
+        precise_timers()  # this thread publishes: its sleeps must end on time
         report = player.play()
     progress.finish()
 

@@ -23,12 +23,12 @@ from rclpy.qos import QoSProfile
 from rclpy.signals import SignalHandlerOptions
 
 from bagkit.bag import BagReader, TopicInfo
-from bagkit.ros.clock import CLOCK_TOPIC
-from bagkit.ros.errors import MessageClassNotFoundError, PlayerError
+from bagkit.ros.errors import PlayerError
 from bagkit.ros.lateness import LatenessSamples
 from bagkit.ros.play_controls import PlayControls
 from bagkit.ros.playback_report import PlayProgress, PlayReport, TopicPlayback
 from bagkit.ros.player_services import serve_controls
+from bagkit.ros.player_topics import publishable_topics
 from bagkit.ros.publish_loop import PassPublisher
 from bagkit.ros.publishers import (
     TopicOutput,
@@ -41,7 +41,6 @@ from bagkit.ros.publishers import (
 from bagkit.ros.qos import load_qos_overrides, replay_publisher_qos
 from bagkit.ros.selection import TopicSelection, absolute_topic_name
 from bagkit.ros.timing import DEFAULT_DISCOVERY_TIME_S
-from bagkit.ros.types import import_message_type
 
 
 class Player:
@@ -256,37 +255,15 @@ class Player:
 
     def _select_topics(self, topics: Mapping[str, TopicInfo]) -> list[tuple[TopicInfo, Any]]:
         self.missing_topics = self.selection.missing(topics)
-        selected = []
-        for name, info in sorted(topics.items()):
-            if not self.selection.matches(name) or name in self.exclude_topics:
-                continue
-            if self.clock_hz is not None and name == CLOCK_TOPIC:
-                continue
-            if info.serialization_format != "cdr":
-                self.skipped_formats[name] = info.serialization_format
-                continue
-            try:
-                message_class = import_message_type(info.type)
-            except MessageClassNotFoundError:
-                self.skipped_types[name] = info.type
-                continue
-            selected.append((info, message_class))
-        if not selected:
-            if self.skipped_types or self.skipped_formats:
-                reason = "no selected topic can be published: " + "; ".join(
-                    [
-                        f"{name}: {type_name} not installed"
-                        for name, type_name in sorted(self.skipped_types.items())
-                    ]
-                    + [
-                        f"{name}: serialization format {fmt!r} is not cdr"
-                        for name, fmt in sorted(self.skipped_formats.items())
-                    ]
-                )
-            else:
-                reason = "no topic of the bag matches the topic selection"
-            raise PlayerError(f"nothing to replay in {self.bag_path}: {reason}")
-        return selected
+        found = publishable_topics(
+            topics,
+            self.selection,
+            exclude_topics=self.exclude_topics,
+            clock_published=self.clock_hz is not None,
+            bag_path=self.bag_path,
+        )
+        self.skipped_types, self.skipped_formats = found.skipped_types, found.skipped_formats
+        return found.selected
 
     def play(self) -> PlayReport:
         """Replay the bag (``loops`` passes); Ctrl-C stops between two messages.

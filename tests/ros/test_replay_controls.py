@@ -102,7 +102,7 @@ def check_pause_step_resume(
     assert len(listener.messages()) == paused_count, "published while paused"
     for stepped in (paused_count + 1, paused_count + 2):
         step()
-        wait_for(lambda count=stepped: len(listener.messages()) == count)  # type: ignore[misc]
+        wait_for(lambda count=stepped: len(listener.messages()) == count)
         time.sleep(0.3)
         assert len(listener.messages()) == stepped, "a step published more than one"
     paused_count += 2
