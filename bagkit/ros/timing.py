@@ -7,12 +7,12 @@ import math
 import time
 from dataclasses import dataclass
 
-# A sleeping thread wakes up tens of microseconds late (timer slack, a busy machine); the last
-# stretch before a deadline is spun instead, so timing does not depend on that latency. Short:
-# a thread that spins most of the time is, to the scheduler, a CPU hog that it preempts for whole
-# time slices on a busy machine. With 0.5 ms, a replay at 2 kHz (1 kHz at rate 2) never slept at
-# all and its p99 lateness was several times a plain sleeping loop's; 0.1 ms spins ~10 % of the
-# time at 2 kHz and still covers the wake-up latency (benchmarks/README.md).
+# A sleeping thread wakes up late (50 us of default timer slack, more on a busy machine); the
+# last stretch before a deadline is spun instead. Short: a thread that spins most of the time is,
+# to the scheduler, a CPU hog that it preempts for whole time slices on a busy machine. With
+# 0.5 ms, a 2 kHz replay (1 kHz at rate 2) never slept and its p99 lateness was worse than a
+# plain sleeping loop's; the CLI lowers the publishing thread's timer slack (precise_timers) so
+# that a short spin covers the wake-up (benchmarks/README.md).
 SPIN_WINDOW_NS = 50_000
 # prctl(2) option: the thread's timer slack in ns (see precise_timers).
 PR_SET_TIMERSLACK = 29
