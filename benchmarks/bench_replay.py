@@ -40,6 +40,11 @@ THROUGHPUT_MESSAGES = 100_000
 # A timed replay is run again when it misses (this VM has millisecond stalls of its own; the
 # machine floor printed before it shows them); every attempt is printed.
 TIMING_ATTEMPTS = 3
+# The player against the simplest peer (a loop that sleeps until each message is due and
+# publishes it), same bag, same listener, same run: at rates 1 and 2, median of 3 runs each.
+PEER_RATES = (1.0, 2.0)
+PEER_RUNS = 3
+PEER_SECONDS = 5.0
 
 
 def write_bag(path: Path, seconds: float, *, reliable: bool = True) -> None:
@@ -111,10 +116,10 @@ def listen(out: str, expected: int, timeout: float, reliable: bool = True) -> No
     context.try_shutdown()
 
 
-def _replay(
-    bag: Path, expected: int, *options: str, reliable: bool = True
-) -> tuple[np.ndarray, dict[str, object]]:
-    """Run a listener process and ``bagkit replay``; return the listener's rows and the report."""
+def _with_listener(
+    expected: int, command: list[str], *, reliable: bool = True
+) -> tuple[np.ndarray, str]:
+    """Run a listener process and ``command``; return the listener's rows and its stdout."""
     with tempfile.TemporaryDirectory() as tmp:
         out = str(Path(tmp) / "rows.json")
         listener = subprocess.Popen(
@@ -129,30 +134,96 @@ def _replay(
         try:
             while not Path(out + ".ready").exists():
                 time.sleep(0.05)
-            replay = subprocess.run(
-                [
-                    str(Path(sys.executable).with_name("bagkit")),
-                    "replay",
-                    str(bag),
-                    "--format",
-                    "json",
-                    "--discovery-time",
-                    "0",
-                    *(arg for topic in TOPICS for arg in ("--wait-for", topic)),
-                    *options,
-                ],
-                capture_output=True,
-                text=True,
-                check=True,
-            )
+            run = subprocess.run(command, capture_output=True, text=True, check=True)
             listener.wait(timeout=70)
         finally:
             if listener.poll() is None:
                 listener.kill()
                 listener.wait()
-        return np.array(json.loads(Path(out).read_text()), dtype=np.int64), json.loads(
-            replay.stdout
+        return np.array(json.loads(Path(out).read_text()), dtype=np.int64), run.stdout
+
+
+def _replay(
+    bag: Path, expected: int, *options: str, reliable: bool = True
+) -> tuple[np.ndarray, dict[str, object]]:
+    """Run a listener process and ``bagkit replay``; return the listener's rows and the report."""
+    command = [
+        str(Path(sys.executable).with_name("bagkit")),
+        "replay",
+        str(bag),
+        "--format",
+        "json",
+        "--discovery-time",
+        "0",
+        *(arg for topic in TOPICS for arg in ("--wait-for", topic)),
+        *options,
+    ]
+    rows, stdout = _with_listener(expected, command, reliable=reliable)
+    return rows, json.loads(stdout)
+
+
+def plain_loop(bag: str, rate: float, seconds: float) -> None:
+    """The simplest peer: sleep until each message is due, publish its bytes; print lateness.
+
+    Prints ``{"p99_ms": ...}``: the p99 of (time the wait returned - due time), early ones as 0,
+    as the player's own report measures it.
+    """
+    import rclpy
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import String
+
+    from bagkit.bag import BagReader
+
+    with BagReader(bag) as reader:
+        end = reader.start_ns + int(seconds * 1e9)
+        messages = [(m.log_time, m.topic, m.data) for m in reader.messages(end_ns=end)]
+    context = rclpy.Context()
+    rclpy.init(args=[], context=context)
+    node = rclpy.create_node("bench_plain_loop", context=context)
+    qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+    publishers = {topic: node.create_publisher(String, topic, qos) for topic in TOPICS}
+    while any(p.get_subscription_count() == 0 for p in publishers.values()):
+        time.sleep(0.01)
+    time.sleep(0.1)
+    lateness = []
+    first = messages[0][0]
+    start = time.monotonic_ns()
+    for log_time, topic, data in messages:
+        due = start + int((log_time - first) / rate)
+        remaining = due - time.monotonic_ns()
+        if remaining > 0:
+            time.sleep(remaining / 1e9)
+        lateness.append(max(0, time.monotonic_ns() - due))
+        publishers[topic].publish(data)
+    for publisher in publishers.values():
+        publisher.wait_for_all_acked()
+    print(json.dumps({"p99_ms": float(np.percentile(lateness, 99)) / 1e6}))
+    node.destroy_node()
+    context.try_shutdown()
+
+
+def _against_plain_loop(bag: Path, rate: float, seconds: float) -> bool:
+    """Player's p99 lateness against the plain loop's, each the median of PEER_RUNS runs."""
+    expected = int(seconds * 1e9 / PERIOD_NS) * len(TOPICS)
+    player, peer = [], []
+    for _ in range(PEER_RUNS):
+        _, report = _replay(bag, expected, "--rate", f"{rate:g}", "--duration", f"{seconds:g}")
+        lateness = report["lateness"]
+        assert isinstance(lateness, dict)
+        player.append(float(lateness["p99_ms"]))
+        code = (
+            "from benchmarks.bench_replay import plain_loop; "
+            f"plain_loop({str(bag)!r}, {rate}, {seconds})"
         )
+        _, stdout = _with_listener(expected, [sys.executable, "-c", code])
+        peer.append(float(json.loads(stdout)["p99_ms"]))
+    print(
+        f"--rate {rate:g}, own p99 lateness (ms) over {PEER_RUNS} runs: player "
+        f"{', '.join(f'{v:.4f}' for v in player)}; plain loop {', '.join(f'{v:.4f}' for v in peer)}"
+    )
+    return _ratio(
+        "player p99 / plain loop's", float(np.median(player)), float(np.median(peer)), "ms"
+    )
 
 
 def _ratio(name: str, value: float, ceiling: float, unit: str, *, floor: bool = False) -> bool:
@@ -281,6 +352,7 @@ def main() -> bool:
         write_bag(reliable_bag, throughput_s)
         write_bag(best_effort_bag, throughput_s, reliable=False)
         results = [
+            *(_against_plain_loop(timing_bag, rate, PEER_SECONDS) for rate in PEER_RATES),
             _timing_best_of(timing_bag, 1.0, 5.0),
             _timing_best_of(timing_bag, 10.0, 20.0),
             _throughput(reliable_bag, THROUGHPUT_MESSAGES, reliable=True),

@@ -59,6 +59,14 @@ app.command("recover", help=_recover.HELP, no_args_is_help=True)(_recover.recove
 app.command("reindex", help=_recover.HELP, no_args_is_help=True)(_recover.recover)
 app.command("filter", help=_filter.HELP, no_args_is_help=True)(_filter.filter_command)
 app.command("merge", help=_merge.HELP, no_args_is_help=True)(_merge.merge)
+# `ros2 bag play`'s name for the same command.
+app.command(
+    "play",
+    cls=_replay.ReplayCommand,
+    help=_replay.HELP,
+    no_args_is_help=True,
+    context_settings=_replay.HELP_OPTIONS,
+)(_replay.replay)
 app.add_typer(_stats.app)
 app.add_typer(_golden.app)
 app.add_typer(_catalog.app)

@@ -29,30 +29,83 @@ if TYPE_CHECKING:
     from bagkit.ros.player import Player
 
 _NUMBER = re.compile(r"[0-9]*\.?[0-9]+([eE][-+]?[0-9]+)?")
+# Options that take several values, as `ros2 bag play`'s nargs='+' ones: `--topics a b c`.
+_MULTI_VALUE = frozenset({"--topics", "--exclude-topics", "--remap", "-m"})
 
 
-class _ReplayCommand(TyperCommand):
-    """Lets ``--clock`` take an optional value: a bare ``--clock`` means 100 Hz.
+class ReplayCommand(TyperCommand):
+    """Parses ``ros2 bag play``'s option forms that typer lacks.
 
-    Typer options either always or never take a value, so a bare ``--clock`` (followed by
-    nothing, an option or the bag path) is rewritten to ``--clock=100`` before parsing.
+    A bare ``--clock`` (followed by nothing, an option or the bag path) becomes ``--clock=40``;
+    ``--topics a b c`` becomes ``--topics=a --topics=b --topics=c`` (the values run up to the
+    next option; before the bag is given, an existing path ends them: it is the bag).
     """
 
     def parse_args(self, ctx: Any, args: list[str]) -> list[str]:
-        following = [*args[1:], ""]
-        rewritten = [
-            f"--clock={DEFAULT_CLOCK_HZ:g}"
-            if arg == "--clock" and not _NUMBER.fullmatch(after)
-            else arg
-            for arg, after in zip(args, following, strict=True)
-        ]
-        return list(super().parse_args(ctx, rewritten))
+        return list(super().parse_args(ctx, _expand_args(args, self._value_options())))
 
+    def _value_options(self) -> set[str]:
+        return {
+            name
+            for param in self.params
+            if not getattr(param, "is_flag", True) and param.param_type_name == "option"
+            for name in param.opts
+        }
+
+
+def _expand_args(args: list[str], value_options: set[str]) -> list[str]:
+    """Rewrite ``--clock`` without a value and the values of multi-value options."""
+    out: list[str] = []
+    bag_seen = False
+    index = 0
+    while index < len(args):
+        arg = args[index]
+        index += 1
+        if arg == "--clock":
+            after = args[index] if index < len(args) else ""
+            out.append(arg if _NUMBER.fullmatch(after) else f"--clock={DEFAULT_CLOCK_HZ:g}")
+        elif arg in _MULTI_VALUE:
+            values: list[str] = []
+            while index < len(args) and not args[index].startswith("-"):
+                if not bag_seen and values and Path(args[index]).exists():
+                    break
+                values.append(args[index])
+                index += 1
+            out.extend(f"{arg}={value}" for value in values or [""])
+        elif arg in value_options:
+            out.extend(args[index - 1 : index + 1])
+            index += 1
+        else:
+            bag_seen = bag_seen or not arg.startswith("-")
+            out.append(arg)
+    return out
+
+
+def _names(values: list[str]) -> list[str]:
+    """Names given repeated, several per option, or as comma lists."""
+    return [name for value in values for name in re.split(r"[,\s]+", value) if name]
+
+
+HELP = """Replay BAG over ROS 2 with its recorded timing, scaled by --rate (alias: play).
+
+Publishes each message's stored bytes at start + (log time - start) / rate, after waiting
+until the subscribers known to the graph have matched. In a terminal, space pauses and
+resumes, the right arrow publishes the next message while paused, up/down change the rate
+by 0.1; the player node offers rosbag2's services (~/pause, ~/resume, ~/toggle_paused,
+~/play_next, ~/is_paused, ~/get_rate) and a `rate` parameter.
+
+Progress goes to stderr; per-topic counts and the timing error go to stdout.
+
+Example: bagkit play drive/ --clock -r 2 --topics /imu/data /gps/fix
+"""
 
 app = typer.Typer()
+HELP_OPTIONS = {"help_option_names": ["-h", "--help"]}
 
 
-@app.command("replay", cls=_ReplayCommand, no_args_is_help=True)
+@app.command(
+    "replay", cls=ReplayCommand, no_args_is_help=True, help=HELP, context_settings=HELP_OPTIONS
+)
 @handle_errors
 def replay(  # noqa: PLR0917 (typer maps parameters to options)
     bag: Path = typer.Argument(..., help="Bag directory or .mcap file.", show_default=False),
@@ -62,19 +115,39 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
     topics: list[str] = typer.Option(
         [],
         "--topics",
-        help="Replay only these topics; repeat the option or separate names by commas/spaces.",
+        help="Replay only these topics: several after one --topics, repeated, or comma lists.",
     ),
     regex: str | None = typer.Option(
         None, "--regex", "-e", help="Replay topics whose name matches this regex (re.search)."
     ),
     exclude: str | None = typer.Option(
-        None, "--exclude", "-x", help="Do not replay topics whose name matches this regex."
+        None,
+        "--exclude-regex",
+        "-x",
+        "--exclude",
+        help="Do not replay topics whose name matches this regex.",
+    ),
+    exclude_topics: list[str] = typer.Option(
+        [], "--exclude-topics", help="Do not replay these topics (as --topics)."
     ),
     start_offset: float = typer.Option(
         0.0, "--start-offset", help="Start this many seconds after the bag's first message."
     ),
     duration: float | None = typer.Option(
-        None, "--duration", help="Replay only this many seconds of bag time."
+        None,
+        "--playback-duration",
+        "--duration",
+        help="Replay only this many seconds of bag time.",
+    ),
+    until_sec: float | None = typer.Option(
+        None,
+        "--playback-until-sec",
+        help="Replay messages logged up to this time (seconds since the epoch).",
+    ),
+    until_nsec: int | None = typer.Option(
+        None,
+        "--playback-until-nsec",
+        help="Replay messages logged up to this time (nanoseconds since the epoch).",
     ),
     loop: bool = typer.Option(False, "--loop", "-l", help="Replay again and again until Ctrl-C."),
     delay: float = typer.Option(
@@ -85,13 +158,20 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
         "--clock",
         metavar="[HZ]",
         help=(
-            "Publish rosgraph_msgs/Clock on /clock at HZ (100 when given without a value) and "
-            "before each message; a /clock topic in the bag is then not replayed."
+            f"Publish rosgraph_msgs/Clock on /clock at HZ ({DEFAULT_CLOCK_HZ:g} when given "
+            "without a value) and before each message; a /clock topic in the bag is then not "
+            "replayed."
         ),
         show_default=False,
     ),
+    start_paused: bool = typer.Option(
+        False, "--start-paused", "-p", help="Start paused (space, or the ~/resume service)."
+    ),
+    disable_keyboard_controls: bool = typer.Option(
+        False, "--disable-keyboard-controls", help="Do not read keys from the terminal."
+    ),
     remap: list[str] = typer.Option(
-        [], "--remap", "-m", help="Publish topic OLD as NEW (OLD:=NEW); repeatable."
+        [], "--remap", "-m", help="Publish topic OLD as NEW (OLD:=NEW); several or repeated."
     ),
     wait_for_subscribers: bool = typer.Option(
         True,
@@ -117,50 +197,75 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
             "announces participants every 3 s); 0 with --wait-for when the consumers are known."
         ),
     ),
+    wait_for_all_acked: int = typer.Option(
+        10_000,
+        "--wait-for-all-acked",
+        metavar="TIMEOUT",
+        help="At the end, wait up to TIMEOUT ms for reliable subscribers to acknowledge "
+        "every message (0 = as long as it takes).",
+    ),
     qos_overrides: Path | None = typer.Option(
         None,
+        "--qos-profile-overrides-path",
         "--qos-overrides",
         help="rosbag2 QoS overrides file (YAML: topic -> reliability, durability, history, depth).",
+    ),
+    read_ahead_queue_size: int = typer.Option(
+        1000,
+        "--read-ahead-queue-size",
+        help="Accepted for ros2 bag; bagkit reads chunk by chunk as the replay reaches them.",
+    ),
+    storage: str | None = typer.Option(
+        None,
+        "--storage",
+        "-s",
+        help="Accepted for ros2 bag (mcap or sqlite3); bagkit detects the storage itself.",
     ),
     output_format: OutputFormat = typer.Option(
         OutputFormat.TABLE, "--format", "-f", help="Final report as a table or as JSON."
     ),
 ) -> None:
-    """Replay BAG over ROS 2 with its recorded timing, scaled by --rate.
-
-    Publishes each message's stored bytes at start + (log time - start) / rate.
-
-    First waits until the subscribers known to the graph have matched.
-
-    Progress goes to stderr; per-topic counts and the timing error go to stdout.
-    """
     from bagkit.ros.fastdds import large_receive_queue
+    from bagkit.ros.keyboard import terminal_controls
     from bagkit.ros.player import Player
     from bagkit.ros.selection import parse_remaps
+    from bagkit.ros.timing import precise_timers
 
     if output_format is OutputFormat.CSV:
         raise fail("replay prints its report as a table or as JSON (--format json), not CSV")
+    if until_sec is not None and until_nsec is not None:
+        raise fail("--playback-until-sec and --playback-until-nsec exclude each other")
+    if storage not in {None, "mcap", "sqlite3"}:
+        raise fail(f"--storage {storage}: bagkit reads mcap and sqlite3 bags")
+    if read_ahead_queue_size < 1 or wait_for_all_acked < 0:
+        raise fail("--read-ahead-queue-size must be positive, --wait-for-all-acked not negative")
     interactive = sys.stderr.isatty()
     progress = _ProgressLine(interactive=interactive)
     player = Player(
         bag,
         rate=rate,
-        topics=[name for value in topics for name in re.split(r"[,\s]+", value) if name] or None,
+        topics=_names(topics) or None,
         regex=regex,
         exclude=exclude,
+        exclude_topics=_names(exclude_topics),
         start_offset=start_offset,
         duration=duration,
+        playback_until_ns=until_nsec if until_sec is None else int(until_sec * 1e9),
         loops=0 if loop else 1,
         delay=delay,
         clock_hz=clock,
-        remap=parse_remaps(remap),
+        start_paused=start_paused,
+        services=True,
+        remap=parse_remaps(rule for value in remap for rule in value.split(",") if rule),
         wait_for_subscribers=wait_for_subscribers,
         wait_for=wait_for,
         wait_timeout=wait_timeout,
         discovery_time=discovery_time,
+        ack_timeout=wait_for_all_acked / 1e3 if wait_for_all_acked else _FOREVER_S,
         qos_overrides=qos_overrides,
         on_progress=progress.update,
         progress_period=0.25 if interactive else 5.0,
+        on_live_publishers=_warn_live_publishers,
     )
     with ExitStack() as stack:
         # The same Fast DDS shared-memory sizing as `bagkit record`: the profile's queue
@@ -168,6 +273,10 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
         with large_receive_queue():
             stack.enter_context(player)
         _warn_skipped(player)
+        stack.enter_context(
+            terminal_controls(player.controls, keyboard=not disable_keyboard_controls)
+        )
+        precise_timers()  # this thread publishes: its sleeps must end on time
         report = player.play()
     progress.finish()
 
@@ -176,6 +285,18 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
     else:
         _print_report(report)
     _finish(report, bag)
+
+
+# --wait-for-all-acked 0: wait "forever" (a year).
+_FOREVER_S = 365 * 24 * 3600.0
+
+
+def _warn_live_publishers(found: dict[str, list[str]]) -> None:
+    listed = "; ".join(f"{topic} (by {', '.join(nodes)})" for topic, nodes in found.items())
+    warn(
+        "replayed topics are also published by running nodes, whose subscribers will get "
+        f"both: {listed}"
+    )
 
 
 def _warn_skipped(player: Player) -> None:

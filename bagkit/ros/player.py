@@ -23,22 +23,24 @@ from rclpy.qos import QoSProfile
 from rclpy.signals import SignalHandlerOptions
 
 from bagkit.bag import BagReader, TopicInfo
-from bagkit.ros.clock import CLOCK_TOPIC
-from bagkit.ros.errors import MessageClassNotFoundError, PlayerError
+from bagkit.ros.errors import PlayerError
 from bagkit.ros.lateness import LatenessSamples
+from bagkit.ros.play_controls import PlayControls
 from bagkit.ros.playback_report import PlayProgress, PlayReport, TopicPlayback
+from bagkit.ros.player_services import serve_controls
+from bagkit.ros.player_topics import publishable_topics
 from bagkit.ros.publish_loop import PassPublisher
 from bagkit.ros.publishers import (
     TopicOutput,
     create_clock_output,
     create_output,
+    other_publishers,
     wait_until_acknowledged,
     wait_until_matched,
 )
 from bagkit.ros.qos import load_qos_overrides, replay_publisher_qos
-from bagkit.ros.selection import TopicSelection
+from bagkit.ros.selection import TopicSelection, absolute_topic_name
 from bagkit.ros.timing import DEFAULT_DISCOVERY_TIME_S
-from bagkit.ros.types import import_message_type
 
 
 class Player:
@@ -59,9 +61,13 @@ class Player:
         exclude: str | None = None,
         start_offset: float = 0.0,
         duration: float | None = None,
+        playback_until_ns: int | None = None,
+        exclude_topics: Sequence[str] = (),
         loops: int = 1,
         delay: float = 0.0,
         clock_hz: float | None = None,
+        start_paused: bool = False,
+        services: bool = False,
         remap: Mapping[str, str] | None = None,
         wait_for_subscribers: bool = True,
         wait_for: Sequence[str] = (),
@@ -73,6 +79,7 @@ class Player:
         node_name: str = "bagkit_player",
         on_progress: Callable[[PlayProgress], None] | None = None,
         progress_period: float = 0.5,
+        on_live_publishers: Callable[[dict[str, list[str]]], None] | None = None,
     ) -> None:
         """Set up a replay; nothing is opened until the player is entered.
 
@@ -84,9 +91,15 @@ class Player:
             exclude: do not replay topics whose name matches this regular expression.
             start_offset: skip this many seconds from the start of the bag.
             duration: replay only this many seconds of bag time (after ``start_offset``).
+            playback_until_ns: replay only messages logged at or before this time (ns since the
+                epoch); with ``duration``, the later of the two ends the replay (as rosbag2).
+            exclude_topics: do not replay these topics.
             loops: passes over the bag; 0 = until interrupted.
             delay: seconds to sleep before each pass.
             clock_hz: publish ``/clock`` at this rate (and before each message); None = off.
+            start_paused: start paused (``player.controls.resume()`` or a service resumes).
+            services: offer rosbag2's control services and a ``rate`` parameter on the node
+                (:mod:`bagkit.ros.player_services`).
             remap: topic renames, recorded name -> published name.
             wait_for_subscribers: before the first message, wait until every subscription that
                 the graph shows on a replayed topic has matched.
@@ -102,10 +115,16 @@ class Player:
             node_name: name of the player's node.
             on_progress: called with a ``PlayProgress`` about every ``progress_period`` seconds.
             progress_period: seconds between progress reports.
+            on_live_publishers: called once before the first message with the replayed topics
+                that other nodes publish too (published name -> those nodes).
         """
         _check_options(rate, start_offset, duration, delay, clock_hz, loops)
         self.bag_path = Path(bag)
         self.rate = rate
+        self.controls = PlayControls(rate, paused=start_paused)
+        self.services = services
+        self.playback_until_ns = playback_until_ns
+        self.exclude_topics = {absolute_topic_name(name) for name in exclude_topics}
         # A bag's topics were chosen when it was recorded: hidden ones replay like the others.
         self.selection = TopicSelection.create(
             topics or (),
@@ -128,6 +147,7 @@ class Player:
         self.ack_timeout = ack_timeout
         self.qos_overrides_path = Path(qos_overrides) if qos_overrides is not None else None
         self.on_progress = on_progress
+        self.on_live_publishers = on_live_publishers
         self.progress_period_ns = int(progress_period * 1e9)
         self._context = context
         self._node_name = node_name
@@ -137,6 +157,8 @@ class Player:
         self._outputs: dict[str, TopicOutput] = {}
         self._clock: TopicOutput | None = None
         self._node_created = 0.0
+        self.live_publishers: dict[str, list[str]] = {}
+        """Published topic -> other nodes publishing it, found when the replay starts."""
         self.skipped_types: dict[str, str] = {}
         self.skipped_formats: dict[str, str] = {}
         self.missing_topics: list[str] = []
@@ -192,6 +214,8 @@ class Player:
             self._outputs[info.name] = create_output(node, info, message_class, name, qos)
         if self.clock_hz is not None:
             self._clock = create_clock_output(node)
+        if self.services:
+            self._stack.enter_context(serve_controls(node, self.controls))
 
     def _check_window(self, reader: BagReader) -> None:
         """An offset past the last message leaves nothing to replay: say so before starting."""
@@ -208,12 +232,14 @@ class Player:
             context = Context()
             # No signal handlers: Ctrl-C must reach play() as KeyboardInterrupt so that it can
             # stop between two messages and still report.
-            rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
+            # args=[]: not sys.argv, whose --remap is bagkit's (applied to the publishers'
+            # names), not a ROS remap rule for rcl to parse and warn about.
+            rclpy.init(args=[], context=context, signal_handler_options=SignalHandlerOptions.NO)
             self._stack.callback(context.try_shutdown)
         node = Node(
             self._node_name,
             context=context,
-            start_parameter_services=False,
+            start_parameter_services=self.services,
             enable_rosout=False,
         )
         self._stack.callback(node.destroy_node)
@@ -229,37 +255,15 @@ class Player:
 
     def _select_topics(self, topics: Mapping[str, TopicInfo]) -> list[tuple[TopicInfo, Any]]:
         self.missing_topics = self.selection.missing(topics)
-        selected = []
-        for name, info in sorted(topics.items()):
-            if not self.selection.matches(name):
-                continue
-            if self.clock_hz is not None and name == CLOCK_TOPIC:
-                continue
-            if info.serialization_format != "cdr":
-                self.skipped_formats[name] = info.serialization_format
-                continue
-            try:
-                message_class = import_message_type(info.type)
-            except MessageClassNotFoundError:
-                self.skipped_types[name] = info.type
-                continue
-            selected.append((info, message_class))
-        if not selected:
-            if self.skipped_types or self.skipped_formats:
-                reason = "no selected topic can be published: " + "; ".join(
-                    [
-                        f"{name}: {type_name} not installed"
-                        for name, type_name in sorted(self.skipped_types.items())
-                    ]
-                    + [
-                        f"{name}: serialization format {fmt!r} is not cdr"
-                        for name, fmt in sorted(self.skipped_formats.items())
-                    ]
-                )
-            else:
-                reason = "no topic of the bag matches the topic selection"
-            raise PlayerError(f"nothing to replay in {self.bag_path}: {reason}")
-        return selected
+        found = publishable_topics(
+            topics,
+            self.selection,
+            exclude_topics=self.exclude_topics,
+            clock_published=self.clock_hz is not None,
+            bag_path=self.bag_path,
+        )
+        self.skipped_types, self.skipped_formats = found.skipped_types, found.skipped_formats
+        return found.selected
 
     def play(self) -> PlayReport:
         """Replay the bag (``loops`` passes); Ctrl-C stops between two messages.
@@ -282,6 +286,9 @@ class Player:
         try:
             if self.wait_for_subscribers or self.wait_for:
                 self.wait_until_matched()
+            self.live_publishers = other_publishers(self.node, list(self._outputs.values()))
+            if self.live_publishers and self.on_live_publishers is not None:
+                self.on_live_publishers(self.live_publishers)
             wall_start = time.monotonic_ns()
             while self.loops == 0 or passes < self.loops:
                 if self.delay > 0:
@@ -331,7 +338,7 @@ class Player:
         assert self._reader is not None
         reader = self._reader
         window_start = reader.start_ns + self.start_offset_ns
-        window_end = window_start + self.duration_ns if self.duration_ns is not None else None
+        window_end = self._window_end(window_start)
         messages = iter(
             reader.messages(topics=list(self._outputs), start_ns=window_start, end_ns=window_end)
         )
@@ -344,14 +351,23 @@ class Player:
         publisher = PassPublisher(
             self._outputs,
             self._clock,
-            rate=self.rate,
             clock_hz=self.clock_hz,
             lateness=lateness,
             on_progress=self.on_progress,
             progress_period_ns=self.progress_period_ns,
             loop=loop,
+            controls=self.controls,
         )
         return publisher.run(itertools.chain([first], messages), window_start)
+
+    def _window_end(self, window_start: int) -> int | None:
+        """Exclusive end of the replayed window: the later of ``duration`` and the until time."""
+        ends = []
+        if self.duration_ns is not None:
+            ends.append(window_start + self.duration_ns)
+        if self.playback_until_ns is not None:
+            ends.append(self.playback_until_ns + 1)
+        return max(ends) if ends else None
 
     def wait_until_acknowledged(self) -> list[str]:
         """Wait until the subscribers of reliable topics have every message; return the others.

@@ -1,8 +1,8 @@
 """One pass of a replay: publish each message when the monotonic clock reaches its time.
 
-Replay controls (pause, resume, step, a rate change) belong between two messages: they
-re-anchor :attr:`PassPublisher.timeline` (``Timeline(bag_now, wall_now, new_rate)``) so that
-the next deadline follows from the new anchor; nothing else in the loop keeps timing state.
+The timeline is the :class:`~bagkit.ros.play_controls.PlayControls`' own: a pause, resume, step
+or rate change re-anchors it between two messages, and the loop waits on the controls (woken by
+any change) instead of sleeping; nothing else in the loop keeps timing state.
 """
 
 from __future__ import annotations
@@ -13,9 +13,10 @@ from collections.abc import Callable, Iterator
 from bagkit.bag import BagMessage
 from bagkit.ros.clock import clock_message
 from bagkit.ros.lateness import LatenessSamples
+from bagkit.ros.play_controls import PlayControls
 from bagkit.ros.playback_report import PlayProgress
 from bagkit.ros.publishers import TopicOutput
-from bagkit.ros.timing import LATE_THRESHOLD_NS, Timeline, wait_until
+from bagkit.ros.timing import LATE_THRESHOLD_NS, SPIN_WINDOW_NS, wait_until
 
 # Lateness samples are handed to LatenessSamples in blocks, when the next message is at least
 # LATENESS_SLACK_NS away (a block of 4096 takes about 0.1 ms), or at the latest at
@@ -35,11 +36,11 @@ class PassPublisher:
     Args:
         outputs: recorded topic -> its publisher.
         clock: the ``/clock`` publisher, or None.
-        rate: playback speed factor.
         clock_hz: ``/clock`` rate (with ``clock``).
         lateness: where each message's lateness goes (shared by the passes).
         on_progress: called with a :class:`PlayProgress` about every ``progress_period_ns``.
         loop: the number of this pass (0 first), for progress.
+        controls: pause, step and rate (and the timeline they anchor).
     """
 
     def __init__(
@@ -47,7 +48,7 @@ class PassPublisher:
         outputs: dict[str, TopicOutput],
         clock: TopicOutput | None,
         *,
-        rate: float,
+        controls: PlayControls,
         clock_hz: float | None,
         lateness: LatenessSamples,
         on_progress: Callable[[PlayProgress], None] | None,
@@ -56,13 +57,13 @@ class PassPublisher:
     ) -> None:
         self.outputs = outputs
         self.clock = clock
-        self.rate = rate
         self.tick_ns = int(1e9 / clock_hz) if clock_hz else 0
         self.lateness = lateness
         self.on_progress = on_progress
         self.progress_period_ns = progress_period_ns
         self.loop = loop
-        self.timeline = Timeline(0, 0, rate)
+        self.controls = controls
+        self._wall_start = 0
         self._window_start = 0
         self._next_tick = 0
         self._next_progress = 0
@@ -70,10 +71,12 @@ class PassPublisher:
 
     def run(self, messages: Iterator[BagMessage], window_start: int) -> int:
         """Publish ``messages`` on schedule from now; return the bag time they covered (ns)."""
-        self.timeline = Timeline(window_start, time.monotonic_ns(), self.rate)
+        controls = self.controls
+        self._wall_start = time.monotonic_ns()
+        controls.start(window_start, self._wall_start)
         self._window_start = last_log_time = window_start
-        self._next_tick = self.timeline.wall_start_ns + self.tick_ns
-        self._next_progress = self.timeline.wall_start_ns + self.progress_period_ns
+        self._next_tick = self._wall_start + self.tick_ns
+        self._next_progress = self._wall_start + self.progress_period_ns
         self._counted_before = (self.lateness.count, self.lateness.late)
         clock = self.clock
         if clock is not None:
@@ -83,7 +86,7 @@ class PassPublisher:
         delays: list[int] = []
         for message in messages:
             log_time = message.log_time
-            deadline = self.timeline.deadline(log_time)
+            deadline = controls.timeline.deadline(log_time)
             if clock is not None:
                 self._tick_clock_until(deadline)
             if on_progress is not None:
@@ -94,7 +97,7 @@ class PassPublisher:
             ):
                 self.lateness.add_many(delays)
                 delays = []
-            now = wait_until(deadline)
+            now, deadline = self._wait_controlled(log_time)
             if clock is not None:
                 clock.publish(clock_message(log_time))
             output = outputs[message.topic]
@@ -107,12 +110,34 @@ class PassPublisher:
             self._report_progress(time.monotonic_ns(), last_log_time, [])
         return last_log_time - window_start
 
+    def _wait_controlled(self, log_time: int) -> tuple[int, int]:
+        """Wait until the message logged at ``log_time`` is due, paused while the controls hold.
+
+        Returns:
+            The time of return and the deadline met (a stepped message's is its step's time).
+        """
+        controls = self.controls
+        while True:
+            generation = controls.generation
+            if controls.holding:
+                if controls.take_step(log_time):
+                    now = time.monotonic_ns()
+                    return now, now
+                controls.wait_for_change(generation)
+                continue
+            deadline = controls.timeline.deadline(log_time)
+            remaining = deadline - time.monotonic_ns()
+            if remaining > SPIN_WINDOW_NS:
+                controls.wait_for_change(generation, (remaining - SPIN_WINDOW_NS) / 1e9)
+                continue
+            return wait_until(deadline), deadline
+
     def _tick_clock_until(self, deadline: int) -> None:
         """Publish ``/clock`` at ``clock_hz`` up to ``deadline``."""
         assert self.clock is not None
         while self._next_tick < deadline:
             wait_until(self._next_tick)
-            self.clock.publish(clock_message(self.timeline.bag_time(self._next_tick)))
+            self.clock.publish(clock_message(self.controls.timeline.bag_time(self._next_tick)))
             # After a stall, resume ticking from now instead of bursting the backlog.
             self._next_tick = max(self._next_tick + self.tick_ns, time.monotonic_ns())
 
@@ -129,7 +154,7 @@ class PassPublisher:
         assert self.on_progress is not None
         count_before, late_before = self._counted_before
         bag_s = (last_log_time - self._window_start) / 1e9
-        wall_s = (now - self.timeline.wall_start_ns) / 1e9
+        wall_s = (now - self._wall_start) / 1e9
         self.on_progress(
             PlayProgress(
                 bag_time_s=bag_s,

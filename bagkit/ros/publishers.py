@@ -153,3 +153,20 @@ def _compatible_subscriptions(node: Node, output: TopicOutput) -> int:
         if compatibility != QoSCompatibility.ERROR:
             count += 1
     return count
+
+
+def other_publishers(node: Node, outputs: Sequence[TopicOutput]) -> dict[str, list[str]]:
+    """Published topic -> the other nodes publishing it (replaying it too would double it)."""
+    own = (node.get_name(), node.get_namespace())
+    found = {}
+    for output in outputs:
+        others = sorted(
+            {
+                f"{p.node_namespace.rstrip('/')}/{p.node_name}"
+                for p in node.get_publishers_info_by_topic(output.name)
+                if (p.node_name, p.node_namespace) != own
+            }
+        )
+        if others:
+            found[output.name] = others
+    return found

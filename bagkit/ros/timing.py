@@ -2,20 +2,25 @@
 
 from __future__ import annotations
 
+import ctypes
 import math
 import time
 from dataclasses import dataclass
 
-# A sleeping thread wakes up tens to hundreds of microseconds late (timer slack, a busy machine);
-# the last stretch before a deadline is spun instead, so timing does not depend on that latency.
-# 0.5 ms: measured here, 0.2 ms already gave a median lateness of 0.1 us; 1 ms kept the CPU
-# busy 40 % of the time at 500 messages/s for no gain.
-SPIN_WINDOW_NS = 500_000
+# A sleeping thread wakes up late (50 us of default timer slack, more on a busy machine); the
+# last stretch before a deadline is spun instead. Short: a thread that spins most of the time is,
+# to the scheduler, a CPU hog that it preempts for whole time slices on a busy machine. With
+# 0.5 ms, a 2 kHz replay (1 kHz at rate 2) never slept and its p99 lateness was worse than a
+# plain sleeping loop's; the CLI lowers the publishing thread's timer slack (precise_timers) so
+# that a short spin covers the wake-up (benchmarks/README.md).
+SPIN_WINDOW_NS = 50_000
+# prctl(2) option: the thread's timer slack in ns (see precise_timers).
+PR_SET_TIMERSLACK = 29
 # A message published more than this after its scheduled time counts as late.
 LATE_THRESHOLD_NS = 1_000_000
 
-# /clock rate of `--clock` given without a value (as rosbag2's default).
-DEFAULT_CLOCK_HZ = 100.0
+# /clock rate of `--clock` given without a value (as `ros2 bag play --clock` in Jazzy).
+DEFAULT_CLOCK_HZ = 40.0
 # How long the player watches the graph for subscriptions that existed before it: Fast DDS
 # announces a participant every 3 s, and a new participant is often found only at the next one.
 DEFAULT_DISCOVERY_TIME_S = 3.0
@@ -36,6 +41,19 @@ class Timeline:
     def bag_time(self, wall_ns: int) -> int:
         """Bag time (ns) that corresponds to the monotonic time ``wall_ns``."""
         return self.bag_start_ns + int((wall_ns - self.wall_start_ns) * self.rate)
+
+
+def precise_timers() -> None:
+    """Have the calling thread's sleeps end on time, not up to 50 us late (Linux timer slack).
+
+    With the slack at its minimum, a sleep wakes within a few microseconds of its deadline on an
+    idle machine, so the spin window can stay short. A no-op where prctl is unavailable.
+    """
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(PR_SET_TIMERSLACK, 1, 0, 0, 0)
+    except (OSError, AttributeError):
+        pass
 
 
 def wait_until(deadline_ns: int, *, spin_window_ns: int = SPIN_WINDOW_NS) -> int:

@@ -79,17 +79,17 @@ def test_parse_remaps() -> None:
 @pytest.mark.parametrize(
     ("args", "expected"),
     [
-        (["BAG", "--clock"], "100"),
-        (["--clock", "BAG"], "100"),
+        (["BAG", "--clock"], "40"),
+        (["--clock", "BAG"], "40"),
         (["BAG", "--clock", "25"], "25"),
         (["BAG", "--clock=2.5e1"], "25"),
-        (["BAG", "--clock", "--rate", "2"], "100"),
+        (["BAG", "--clock", "--rate", "2"], "40"),
     ],
 )
 def test_clock_takes_an_optional_value(
     args: list[str], expected: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """A bare --clock means 100 Hz wherever it stands; the value reaches the Player."""
+    """A bare --clock means 40 Hz (as ros2 bag play) wherever it stands; it reaches the Player."""
     seen: dict[str, object] = {}
 
     class FakePlayer:

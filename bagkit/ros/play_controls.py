@@ -1,0 +1,166 @@
+"""Replay controls without rclpy: pause, resume, step and rate, and the timeline they re-anchor.
+
+The keyboard thread, the service callbacks and a SIGTSTP handler call the methods of
+:class:`PlayControls`; the publishing loop reads :attr:`PlayControls.timeline` before each
+message and waits on the controls (not on a plain sleep) so that a change wakes it. Every change
+re-anchors the timeline at the bag time reached at that moment, so playback continues from
+there with the bag's spacing: nothing overdue is published in a burst after a pause.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+
+from bagkit.ros.timing import Timeline
+
+# Up and down arrows change the rate by this much, as `ros2 bag play` (Jazzy) does.
+RATE_STEP = 0.1
+# How long a step request waits for the publishing loop to take it.
+STEP_TIMEOUT_S = 2.0
+
+
+class PlayControls:
+    """Paused state, rate and single steps of one replay, shared between threads.
+
+    Args:
+        rate: initial playback speed factor (> 0).
+        paused: start paused (``--start-paused``).
+    """
+
+    def __init__(self, rate: float = 1.0, *, paused: bool = False) -> None:
+        if not rate > 0:
+            raise ValueError(f"rate must be positive, got {rate}")
+        # Reentrant: a SIGTSTP handler runs on the main thread, possibly inside a method.
+        self._changed = threading.Condition(threading.RLock())
+        self.rate = rate
+        self.paused = paused
+        self.timeline = Timeline(0, 0, rate)
+        self.generation = 0
+        """Incremented by every change; the publishing loop waits for it to move."""
+        self._frozen_bag_ns = 0  # bag time reached when paused
+        self._suspended = False
+        self._steps_requested = 0
+        self._steps_taken = 0
+        self.on_rate_change: Callable[[float], None] | None = None
+        """Called (outside the lock) with the new rate after each change."""
+
+    def start(self, bag_start_ns: int, wall_ns: int) -> None:
+        """Anchor a new pass: bag time ``bag_start_ns`` is due at ``wall_ns`` (if not paused)."""
+        with self._changed:
+            self.timeline = Timeline(bag_start_ns, wall_ns, self.rate)
+            self._frozen_bag_ns = bag_start_ns
+            self._notify()
+
+    @property
+    def holding(self) -> bool:
+        """Whether no message may be published on schedule (paused by a user or suspended)."""
+        return self.paused or self._suspended
+
+    def pause(self, now_ns: int | None = None) -> bool:
+        """Pause; return False if already paused."""
+        with self._changed:
+            if self.paused:
+                return False
+            self._freeze(now_ns)
+            self.paused = True
+            self._notify()
+            return True
+
+    def resume(self, now_ns: int | None = None) -> bool:
+        """Resume from the bag time reached when paused; return False if not paused."""
+        with self._changed:
+            if not self.paused:
+                return False
+            self.paused = False
+            self._thaw(now_ns)
+            self._notify()
+            return True
+
+    def toggle_paused(self, now_ns: int | None = None) -> bool:
+        """Pause if playing, resume if paused; return whether it is paused now."""
+        with self._changed:
+            if not self.resume(now_ns):
+                self.pause(now_ns)
+            return self.paused
+
+    def set_rate(self, rate: float, now_ns: int | None = None) -> bool:
+        """Change the rate from now on; return False (and change nothing) unless ``rate > 0``."""
+        if not rate > 0:
+            return False
+        with self._changed:
+            if rate == self.rate:
+                return True
+            if not self.holding:
+                now = _now(now_ns)
+                self.timeline = Timeline(self.timeline.bag_time(now), now, rate)
+            self.rate = rate
+            self._notify()
+        if self.on_rate_change is not None:
+            self.on_rate_change(rate)
+        return True
+
+    def change_rate(self, step: float) -> bool:
+        """Add ``step`` to the rate (the up and down arrows); False if the result is not > 0."""
+        return self.set_rate(round(self.rate + step, 9))
+
+    def suspend(self, now_ns: int | None = None) -> None:
+        """The process is about to stop (SIGTSTP): hold playback without changing ``paused``."""
+        with self._changed:
+            if not self.holding:
+                self._freeze(now_ns)
+            self._suspended = True
+
+    def unsuspend(self, now_ns: int | None = None) -> None:
+        """The process continues (after SIGCONT): re-anchor at the bag time it stopped at."""
+        with self._changed:
+            self._suspended = False
+            if not self.paused:
+                self._thaw(now_ns)
+            self._notify()
+
+    def play_next(self, timeout_s: float = STEP_TIMEOUT_S) -> bool:
+        """While paused, have the next message published; True once the loop has published it."""
+        with self._changed:
+            if not self.paused:
+                return False
+            self._steps_requested += 1
+            wanted = self._steps_requested
+            self._notify()
+            taken = self._changed.wait_for(lambda: self._steps_taken >= wanted, timeout_s)
+            if not taken:
+                self._steps_requested = self._steps_taken  # the loop ended; forget the request
+            return taken
+
+    def take_step(self, log_time_ns: int) -> bool:
+        """For the publishing loop: whether a step was requested; if so, it is taken now.
+
+        The paused bag time moves to the stepped message, so resuming continues after it.
+        """
+        with self._changed:
+            if not self.paused or self._steps_taken >= self._steps_requested:
+                return False
+            self._steps_taken += 1
+            self._frozen_bag_ns = log_time_ns
+            self._notify()
+            return True
+
+    def wait_for_change(self, generation: int, timeout_s: float | None = None) -> None:
+        """Block until a change after ``generation``, or ``timeout_s`` seconds have passed."""
+        with self._changed:
+            self._changed.wait_for(lambda: self.generation != generation, timeout_s)
+
+    def _freeze(self, now_ns: int | None) -> None:
+        self._frozen_bag_ns = max(self._frozen_bag_ns, self.timeline.bag_time(_now(now_ns)))
+
+    def _thaw(self, now_ns: int | None) -> None:
+        self.timeline = Timeline(self._frozen_bag_ns, _now(now_ns), self.rate)
+
+    def _notify(self) -> None:
+        self.generation += 1
+        self._changed.notify_all()
+
+
+def _now(now_ns: int | None) -> int:
+    return time.monotonic_ns() if now_ns is None else now_ns

@@ -1,0 +1,217 @@
+"""PlayControls, the keyboard's key table and the CLI's ros2-bag-play argument forms (no DDS)."""
+
+from __future__ import annotations
+
+import threading
+
+import pytest
+from typer.testing import CliRunner
+
+from bagkit.cli.main import app
+from bagkit.ros.errors import PlayerError
+from bagkit.ros.keyboard import DOWN, RIGHT, SPACE, UP, key_actions, split_keys
+from bagkit.ros.play_controls import RATE_STEP, PlayControls
+
+MS = 1_000_000
+
+
+def test_pause_then_resume_continues_from_the_bag_time_reached() -> None:
+    controls = PlayControls(2.0)
+    controls.start(bag_start_ns=1000 * MS, wall_ns=0)
+    assert controls.timeline.deadline(1100 * MS) == 50 * MS
+    assert controls.pause(now_ns=30 * MS)  # bag time reached: 1000 + 30 * 2 = 1060 ms
+    assert controls.holding and not controls.pause(now_ns=31 * MS)
+    assert controls.resume(now_ns=5030 * MS)  # 5 s later
+    # The message due 20 ms of wall time after the pause is due 20 ms after the resume.
+    assert controls.timeline.deadline(1100 * MS) == 5050 * MS
+    assert not controls.resume(now_ns=5031 * MS)
+
+
+def test_a_rate_change_re_anchors_at_the_current_bag_time() -> None:
+    controls = PlayControls(1.0)
+    controls.start(bag_start_ns=0, wall_ns=0)
+    assert controls.set_rate(4.0, now_ns=100 * MS)  # bag time 100 ms at wall 100 ms
+    assert controls.timeline.deadline(500 * MS) == 200 * MS  # 400 ms of bag at 4x
+    assert not controls.set_rate(0.0) and not controls.set_rate(-1.0)
+    assert controls.rate == 4.0
+
+
+def test_a_rate_change_while_paused_applies_on_resume() -> None:
+    controls = PlayControls(1.0, paused=True)
+    controls.start(bag_start_ns=0, wall_ns=0)
+    controls.set_rate(2.0, now_ns=10 * MS)
+    controls.resume(now_ns=100 * MS)
+    assert controls.timeline.deadline(50 * MS) == 125 * MS
+
+
+def test_changed_rate_is_reported_once_and_arrows_step_by_a_tenth() -> None:
+    controls = PlayControls(1.0)
+    seen: list[float] = []
+    controls.on_rate_change = seen.append
+    actions = key_actions(controls)
+    actions[UP]()
+    actions[UP]()
+    actions[DOWN]()
+    assert controls.rate == pytest.approx(1.0 + RATE_STEP)
+    assert seen == pytest.approx([1.1, 1.2, 1.1])
+    controls.set_rate(controls.rate)
+    assert len(seen) == 3  # no change, no report
+    slow = PlayControls(0.1)
+    assert not key_actions(slow)[DOWN]()  # the rate never reaches 0
+    assert slow.rate == 0.1
+
+
+def test_space_toggles_and_a_step_is_taken_once_by_the_loop() -> None:
+    controls = PlayControls(1.0)
+    controls.start(bag_start_ns=0, wall_ns=0)
+    actions = key_actions(controls)
+    assert not controls.play_next(timeout_s=0.01)  # only while paused
+    actions[SPACE]()
+    assert controls.paused
+    assert not controls.take_step(10 * MS)  # nothing requested
+    results: list[bool] = []
+    stepper = threading.Thread(target=lambda: results.append(bool(actions[RIGHT]())))
+    stepper.start()
+    generation = controls.generation
+    while not controls.take_step(70 * MS):
+        controls.wait_for_change(generation, 1.0)
+        generation = controls.generation
+    stepper.join(2.0)
+    assert results == [True]
+    assert not controls.take_step(80 * MS)
+    controls.resume(now_ns=1000 * MS)  # continues after the stepped message
+    assert controls.timeline.deadline(90 * MS) == 1020 * MS
+
+
+def test_a_step_nobody_takes_times_out_and_is_forgotten() -> None:
+    controls = PlayControls(1.0, paused=True)
+    assert not controls.play_next(timeout_s=0.05)
+    assert not controls.take_step(0)
+
+
+def test_suspension_holds_without_touching_the_users_pause() -> None:
+    controls = PlayControls(1.0)
+    controls.start(bag_start_ns=0, wall_ns=0)
+    controls.suspend(now_ns=100 * MS)
+    assert controls.holding and not controls.paused
+    controls.unsuspend(now_ns=3100 * MS)  # stopped 3 s: no message is overdue
+    assert not controls.holding
+    assert controls.timeline.deadline(150 * MS) == 3150 * MS
+    controls.pause(now_ns=3200 * MS)
+    controls.suspend(now_ns=3300 * MS)
+    controls.unsuspend(now_ns=9000 * MS)
+    assert controls.paused  # still paused by the user
+
+
+def test_keys_split_escape_sequences() -> None:
+    assert split_keys(b" \x1b[C\x1b[Ax\x1b[B") == [SPACE, RIGHT, UP, b"x", DOWN]
+
+
+def _options(args: list[str], monkeypatch: pytest.MonkeyPatch, command: str = "play") -> dict:
+    seen: dict[str, object] = {}
+
+    class FakePlayer:
+        def __init__(self, bag: object, **options: object) -> None:
+            seen.update(options, bag=str(bag))
+            raise PlayerError("stop here")
+
+    monkeypatch.setattr("bagkit.ros.player.Player", FakePlayer)
+    result = CliRunner().invoke(app, [command, *args])
+    assert result.exit_code == 2, result.output
+    return seen
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["BAG", "--clock", "--topics", "/a", "/b", "/c"],  # README's example
+        ["--topics", "/a", "/b", "/c", "BAG"],
+        ["BAG", "--topics", "/a,/b", "--topics", "/c"],
+        ["BAG", "--topics", "/a", "/b", "-r", "1", "--topics=/c"],
+    ],
+)
+def test_topics_take_several_values_comma_lists_and_repeats(
+    args: list[str], monkeypatch: pytest.MonkeyPatch, tmp_path: object
+) -> None:
+    monkeypatch.chdir(tmp_path)  # type: ignore[arg-type]
+    (tmp_path / "BAG").mkdir()  # type: ignore[operator]
+    seen = _options(args, monkeypatch)
+    assert seen["topics"] == ["/a", "/b", "/c"]
+    assert seen["bag"] == "BAG"
+
+
+def test_ros2_bag_play_options_reach_the_player(monkeypatch: pytest.MonkeyPatch) -> None:
+    seen = _options(
+        [
+            "BAG",
+            "-x",
+            "^/tf",
+            "--exclude-topics",
+            "/a",
+            "/b",
+            "-p",
+            "-l",
+            "-d",
+            "2",
+            "--playback-duration",
+            "3",
+            "--playback-until-nsec",
+            "17",
+            "--remap",
+            "/a:=/x",
+            "/b:=/y",
+            "--wait-for-all-acked",
+            "0",
+            "--qos-profile-overrides-path",
+            "q.yaml",
+            "-s",
+            "mcap",
+            "--read-ahead-queue-size",
+            "10",
+            "--disable-keyboard-controls",
+        ],
+        monkeypatch,
+    )
+    assert seen["exclude"] == "^/tf"
+    assert seen["exclude_topics"] == ["/a", "/b"]
+    assert seen["start_paused"] is True
+    assert seen["loops"] == 0
+    assert seen["delay"] == 2.0
+    assert seen["duration"] == 3.0
+    assert seen["playback_until_ns"] == 17
+    assert seen["remap"] == {"/a": "/x", "/b": "/y"}
+    assert seen["ack_timeout"] > 3600  # type: ignore[operator]
+    assert str(seen["qos_overrides"]) == "q.yaml"
+
+
+def test_old_spellings_still_work(monkeypatch: pytest.MonkeyPatch) -> None:
+    seen = _options(
+        ["BAG", "--exclude", "^/tf", "--duration", "3", "--qos-overrides", "q.yaml"],
+        monkeypatch,
+        command="replay",
+    )
+    assert (seen["exclude"], seen["duration"]) == ("^/tf", 3.0)
+    assert str(seen["qos_overrides"]) == "q.yaml"
+    assert _options(["BAG", "--playback-until-sec", "1.5"], monkeypatch)["playback_until_ns"] == (
+        1_500_000_000
+    )
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--playback-until-sec", "1", "--playback-until-nsec", "1"], "exclude each other"),
+        (["-s", "rosbag_v1"], "mcap and sqlite3"),
+    ],
+)
+def test_conflicting_or_unknown_options_are_one_line(args: list[str], message: str) -> None:
+    result = CliRunner().invoke(app, ["play", "BAG", *args])
+    assert result.exit_code == 2
+    assert message in result.output
+
+
+@pytest.mark.parametrize("command", ["play", "replay"])
+def test_help_answers_h(command: str) -> None:
+    result = CliRunner().invoke(app, [command, "-h"])
+    assert result.exit_code == 0
+    assert "--start-paused" in result.output and "--exclude-regex" in result.output
