@@ -78,7 +78,7 @@ def test_wrong_types_and_values_are_one_clean_error(
     bag = write_sample_bag(n_imu=5)
     _edit(bag, change)
     with pytest.raises(NotABagError, match="malformed rosbag2 metadata") as info:
-        BagReader(bag)
+        BagReader(bag).open()
     assert expected in str(info.value)
     assert str(bag / "metadata.yaml") in str(info.value)
 
@@ -99,7 +99,7 @@ def test_listed_paths_leaving_the_bag_are_refused(
     bag = write_sample_bag(n_imu=5)
     _edit(bag, _set("relative_file_paths", [path]))
     with pytest.raises(NotABagError, match=expected):
-        BagReader(bag)
+        BagReader(bag).open()
 
 
 def test_a_listed_symlink_to_outside_is_refused(
@@ -110,7 +110,7 @@ def test_a_listed_symlink_to_outside_is_refused(
     (bag / "sample_0.mcap").rename(outside)
     (bag / "sample_0.mcap").symlink_to(outside)
     with pytest.raises(NotABagError, match=r"'sample_0\.mcap' resolves outside"):
-        BagReader(bag)
+        BagReader(bag).open()
 
 
 def test_a_symlink_inside_the_bag_and_a_linked_bag_directory_are_read(
@@ -132,7 +132,7 @@ def test_a_symlink_loop_is_one_clean_error(write_sample_bag: Callable[..., Path]
     (bag / "sample_0.mcap").symlink_to("loop.mcap")
     (bag / "loop.mcap").symlink_to("sample_0.mcap")
     with pytest.raises(NotABagError, match="cannot resolve the listed files"):
-        BagReader(bag)
+        BagReader(bag).open()
 
 
 def test_quoted_integers_and_plain_scalars_are_accepted() -> None:

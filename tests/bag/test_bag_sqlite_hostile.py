@@ -171,7 +171,7 @@ def test_missing_tables_and_columns_are_one_clean_error(
 ) -> None:
     bag = _alter(write_db3(tmp_path / "schema.db3"), script)
     with pytest.raises(NotABagError, match="SQLite3 file without rosbag2") as info:
-        BagReader(bag)
+        BagReader(bag).open()
     assert missing in str(info.value)
 
 
@@ -184,14 +184,14 @@ def test_a_non_sqlite_file_named_db3_is_not_a_bag(tmp_path: Path, content: bytes
     bag = tmp_path / "fake.db3"
     bag.write_bytes(content)
     with pytest.raises(NotABagError):
-        BagReader(bag)
+        BagReader(bag).open()
 
 
 def test_a_truncated_db3_is_one_clean_error(tmp_path: Path) -> None:
     bag = write_db3(tmp_path / "cut.db3", n=200, text_size=100)
     bag.write_bytes(bag.read_bytes()[:8192])
     with pytest.raises(CorruptBagError, match="database disk image is malformed"):
-        BagReader(bag)
+        BagReader(bag).open()
 
 
 def test_every_damaged_page_is_an_error_or_a_reported_problem(tmp_path: Path) -> None:
