@@ -36,6 +36,49 @@ class OutputFormat(enum.StrEnum):
     CSV = "csv"
 
 
+class ReportFormat(enum.StrEnum):
+    """Output format of a command whose output is a report, not rows: no csv."""
+
+    TABLE = "table"
+    JSON = "json"
+
+
+# Every command answers -h as well as --help (ros2 bag's habit).
+CONTEXT_SETTINGS: dict[str, Any] = {"help_option_names": ["-h", "--help"]}
+
+
+def split_list(values: list[str] | tuple[str, ...] | None) -> list[str]:
+    """A list option's values, given repeated (``-t a -t b``) or as comma lists (``-t a,b``).
+
+    Every list option of every command goes through here, so both spellings work everywhere.
+    """
+    return [v.strip() for value in values or () for v in value.split(",") if v.strip()]
+
+
+def expand_multi_value_options(args: list[str], options: frozenset[str]) -> list[str]:
+    """``--topics a b c`` -> ``--topics a --topics b --topics c`` (argparse's ``nargs='+'``).
+
+    ``ros2 bag`` takes several values after one option; click takes one. Values run until the
+    next token that starts with ``-``, as in argparse.
+    """
+    expanded: list[str] = []
+    current: str | None = None
+    for arg in args:
+        if arg == "--":
+            current = None
+        elif arg.startswith("-"):
+            current = arg if arg in options else None
+        elif current is not None and expanded[-1] != current:
+            expanded.append(current)
+        expanded.append(arg)
+    return expanded
+
+
+def format_rate(rate_hz: float | None, digits: int = 2) -> str:
+    """A topic's rate for a table: ``10.00 Hz``, or ``-`` when it cannot be measured."""
+    return "-" if rate_hz is None else f"{rate_hz:.{digits}f} Hz"
+
+
 def fail(message: str, exit_code: int = 2) -> typer.Exit:
     """Print ``error: message`` on stderr and return the Exit to raise."""
     err_console.print(f"[bold red]error:[/] {message}", highlight=False, soft_wrap=True)

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import typer
 
-from bagkit.cli.common import EXIT_INTERRUPTED, handle_errors, warn
+from bagkit.cli.common import EXIT_INTERRUPTED, handle_errors, split_list, warn
 
 HELP = """Print the messages of TOPIC of BAG as they are read, each with its log time.
 
@@ -91,7 +91,7 @@ def echo(  # noqa: PLR0917 (typer maps parameters to options)
         records = read_messages(
             bag,
             topic,
-            fields=fields,
+            fields=split_list(fields) or None,
             start=start,
             end=end,
             count=count,

@@ -1,0 +1,78 @@
+"""The tables and progress line of ``bagkit record``, readable at 80 columns."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from rich import box
+from rich.table import Table
+
+from bagkit.cli.common import console, format_rate
+
+if TYPE_CHECKING:
+    from bagkit.ros.record_report import RecordProgress, RecordReport
+
+
+def _human_bytes(count: float) -> str:
+    for unit in ("B", "KiB", "MiB", "GiB"):
+        if count < 1024 or unit == "GiB":
+            return f"{count:.0f} {unit}" if unit == "B" else f"{count:.1f} {unit}"
+        count /= 1024
+    raise AssertionError("unreachable")
+
+
+def print_record_table(report: RecordReport) -> None:
+    """The end-of-recording table: per topic messages, lost, rate, bytes and type."""
+    discovery = (
+        f", topics subscribed after {report.discovery_s:.1f} s"
+        if report.discovery_s is not None
+        else ", a named topic never appeared"
+    )
+    table = Table(
+        title=f"{report.path} ({report.duration_s:.1f} s{discovery})",
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+    )
+    # Topic names and numbers never wrap; on a narrow terminal (80 columns when piped) the
+    # type, last, folds.
+    table.add_column("topic", no_wrap=True)
+    for column in ("messages", "lost", "rate", "bytes"):
+        table.add_column(column, justify="right", no_wrap=True)
+    table.add_column("type", overflow="fold")
+    for topic in report.topics:
+        lost = f"[red]{topic.lost}[/]" if topic.lost else "0"
+        table.add_row(
+            topic.topic,
+            str(topic.messages),
+            lost,
+            format_rate(topic.rate_hz, digits=1),
+            _human_bytes(topic.bytes),
+            topic.type,
+        )
+    table.add_section()
+    table.add_row(
+        "total", str(report.messages), str(report.lost), "", _human_bytes(report.bytes), ""
+    )
+    console.print(table)
+    for topic in report.topics:
+        notes = []
+        if topic.lost:
+            notes.append(
+                f"{topic.gaps} lost in the middleware (sequence gaps), {topic.overflow} in "
+                f"queue overflows, {topic.write_failed} in write failures"
+            )
+        if topic.before_clock:
+            notes.append(f"{topic.before_clock} taken before the first /clock, not written")
+        for note in notes:
+            console.print(f"  {topic.topic}: {note}", highlight=False, markup=False)
+
+
+def progress_line(progress: RecordProgress, *, subscribed: bool) -> str:
+    """The status line while recording (waiting for topics, then counts)."""
+    if not subscribed:
+        return f"waiting for topics ({progress.topics} subscribed, {progress.elapsed_s:.0f} s)"
+    lost = f", [red]{progress.lost} lost[/]" if progress.lost else ""
+    return (
+        f"recording {progress.topics} topics: {progress.messages} messages, "
+        f"{_human_bytes(progress.bytes)}{lost} ({progress.elapsed_s:.0f} s)"
+    )
