@@ -7,23 +7,41 @@ import functools
 import json
 import sys
 from collections.abc import Callable
-from typing import Any, ParamSpec, TypeVar
+from typing import TYPE_CHECKING, Any, ParamSpec, TypeVar, cast
 
 import typer
-from rich.console import Console
 
 # typer 0.29 vendors click; its exception classes are only importable from there (typer is pinned).
 from typer._click.exceptions import NoArgsIsHelpError, UsageError
 
 from bagkit.errors import BagkitError
 
+if TYPE_CHECKING:
+    from rich.console import Console
+
 P = ParamSpec("P")
 R = TypeVar("R")
 
+
 # Tables and results go to stdout; progress, warnings and errors to stderr, so that
 # `--format json` output can be piped.
-console = Console()
-err_console = Console(stderr=True)
+class _LazyConsole:
+    """A rich Console made on first use: ``bagkit --help`` prints none and need not import rich."""
+
+    def __init__(self, **options: Any) -> None:
+        self._options = options
+        self._console: Console | None = None
+
+    def __getattr__(self, name: str) -> Any:
+        if self._console is None:
+            from rich.console import Console
+
+            self._console = Console(**self._options)
+        return getattr(self._console, name)
+
+
+console = cast("Console", _LazyConsole())
+err_console = cast("Console", _LazyConsole(stderr=True))
 
 EXIT_INTERRUPTED = 130
 
@@ -77,6 +95,21 @@ def expand_multi_value_options(args: list[str], options: frozenset[str]) -> list
 def format_rate(rate_hz: float | None, digits: int = 2) -> str:
     """A topic's rate for a table: ``10.00 Hz``, or ``-`` when it cannot be measured."""
     return "-" if rate_hz is None else f"{rate_hz:.{digits}f} Hz"
+
+
+# Narrowest a folding type column may get before a table is given up for stacked lines.
+MIN_TYPE_WIDTH = 16
+
+
+def topic_table_fits(topics: list[str], other_columns: int) -> bool:
+    """Whether a table of whole topic names, ``other_columns`` characters of numbers and
+    padding, and a type column folded to :data:`MIN_TYPE_WIDTH` fits the terminal.
+
+    Topic names are never cut (they are what users copy into ``--topics``); when a table
+    cannot hold them whole, commands print one topic per line instead.
+    """
+    longest = max((len(t) for t in topics), default=0)
+    return longest + other_columns + MIN_TYPE_WIDTH <= console.width
 
 
 def fail(message: str, exit_code: int = 2) -> typer.Exit:

@@ -20,6 +20,7 @@ from bagkit.cli.common import (
     format_rate,
     handle_errors,
     print_json,
+    topic_table_fits,
     warn,
 )
 
@@ -33,6 +34,9 @@ A topic's rate is (count - 1) / (last - first log time), "-" below two messages.
 
 Example: bagkit info my_bag -v
 """
+
+# Count and rate columns, with the table's padding.
+_NUMBER_COLUMNS = 28
 
 # rosbag2 metadata versions < 9 store QoS policies as rmw enum integers.
 _POLICY_NAMES = {
@@ -126,15 +130,10 @@ def _print_table(info: BagInfo, verbose: bool) -> None:
     for key, value in rows:
         overview.add_row(f"{key}:", value)
     console.print(overview)
-    topics = Table(title="Topics", title_justify="left", box=box.SIMPLE_HEAD)
-    # Topic names are never cut (scripts and --topics refer to them); the type folds.
-    topics.add_column("Topic", style="cyan", no_wrap=True)
-    topics.add_column("Type", overflow="fold")
-    topics.add_column("Count", justify="right", no_wrap=True)
-    topics.add_column("Rate", justify="right", no_wrap=True)
-    for topic in info.topics:
-        topics.add_row(topic.topic, topic.type, f"{topic.count:,}", format_rate(topic.rate_hz))
-    console.print(topics)
+    if not topic_table_fits([t.topic for t in info.topics], _NUMBER_COLUMNS):
+        _print_stacked(info)
+    else:
+        _print_topic_table(info)
     if verbose:
         # One line per topic (and offered profile) rather than two more columns: at 80
         # columns those would fold every type name.
@@ -146,6 +145,27 @@ def _print_table(info: BagInfo, verbose: bool) -> None:
                 highlight=False,
                 markup=False,
             )
+
+
+def _print_stacked(info: BagInfo) -> None:
+    """One topic per line, its figures on the next: for names too long for a table row."""
+    console.print("Topics:", style="bold")
+    for topic in info.topics:
+        console.print(f"  {topic.topic}", style="cyan", highlight=False, soft_wrap=True)
+        figures = f"{topic.count:,} messages, {format_rate(topic.rate_hz)}, {topic.type}"
+        console.print(f"      {figures}", highlight=False, markup=False)
+
+
+def _print_topic_table(info: BagInfo) -> None:
+    topics = Table(title="Topics", title_justify="left", box=box.SIMPLE_HEAD)
+    # Topic names are never cut (scripts and --topics refer to them); the type folds.
+    topics.add_column("Topic", style="cyan", no_wrap=True)
+    topics.add_column("Type", overflow="fold")
+    topics.add_column("Count", justify="right", no_wrap=True)
+    topics.add_column("Rate", justify="right", no_wrap=True)
+    for topic in info.topics:
+        topics.add_row(topic.topic, topic.type, f"{topic.count:,}", format_rate(topic.rate_hz))
+    console.print(topics)
 
 
 @handle_errors

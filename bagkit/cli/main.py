@@ -18,6 +18,7 @@ from typer.core import TyperCommand, TyperGroup
 
 from bagkit import __version__
 from bagkit.cli.common import CONTEXT_SETTINGS, run_app
+from bagkit.cli.plain_params import use_plain_coercion, use_plain_params
 
 
 @dataclass(frozen=True, slots=True)
@@ -68,11 +69,19 @@ def load_command(name: str) -> Command | None:
     holder.command("_", hidden=True)(lambda: None)
     group = typer.main.get_command(holder)
     assert isinstance(group, TyperGroup)
-    return group.commands.get(name)
+    command = group.commands.get(name)
+    if command is not None:
+        use_plain_coercion(command)
+    return command
 
 
 class _LazyGroup(TyperGroup):
     """The top-level group: commands from :data:`_COMMANDS`, imported when they run."""
+
+    def parse_args(self, ctx: Context, args: list[str]) -> list[str]:
+        # Loaded commands get plain coercion in load_command; this is the top level's.
+        use_plain_params(self.get_params(ctx))
+        return super().parse_args(ctx, args)
 
     def list_commands(self, ctx: Context) -> list[str]:
         return sorted({*self.commands, *_COMMANDS})

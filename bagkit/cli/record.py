@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import enum
+import re
 import signal
 import threading
 import time
@@ -84,9 +85,13 @@ def chunk_compression(mode: CompressionMode | None, fmt: CompressionFormat | Non
     return (fmt or CompressionFormat.ZSTD).value
 
 
-def parse_custom_data(pairs: list[str]) -> dict[str, str]:
-    """``KEY=VALUE`` pairs (``--custom-data``) -> dict; a pair without ``=`` is bad input."""
+def parse_custom_data(values: list[str]) -> dict[str, str]:
+    """``KEY=VALUE`` pairs (``--custom-data``) -> dict; a pair without ``=`` is bad input.
+
+    Comma lists split only before a ``KEY=``: ``a=1,b=2`` is two pairs, ``a=1,2`` one.
+    """
     data = {}
+    pairs = [pair for value in values for pair in re.split(r",(?=[^,=]+=)", value)]
     for pair in pairs:
         key, sep, value = pair.partition("=")
         if not sep or not key:

@@ -7,10 +7,14 @@ from typing import TYPE_CHECKING
 from rich import box
 from rich.table import Table
 
-from bagkit.cli.common import console, format_rate
+from bagkit.cli.common import console, format_rate, topic_table_fits
 
 if TYPE_CHECKING:
     from bagkit.ros.record_report import RecordProgress, RecordReport
+
+
+# messages, lost, rate and bytes, with the table's padding.
+_NUMBER_COLUMNS = 48
 
 
 def _human_bytes(count: float) -> str:
@@ -28,11 +32,30 @@ def print_record_table(report: RecordReport) -> None:
         if report.discovery_s is not None
         else ", a named topic never appeared"
     )
-    table = Table(
-        title=f"{report.path} ({report.duration_s:.1f} s{discovery})",
-        title_justify="left",
-        box=box.SIMPLE_HEAD,
-    )
+    title = f"{report.path} ({report.duration_s:.1f} s{discovery})"
+    if not topic_table_fits([t.topic for t in report.topics], _NUMBER_COLUMNS):
+        _print_stacked(report, title)
+    else:
+        _print_table(report, title)
+    _print_notes(report)
+
+
+def _print_stacked(report: RecordReport, title: str) -> None:
+    """One topic per line, its figures on the next: for names too long for a table row."""
+    console.print(title, highlight=False, markup=False)
+    for topic in [*report.topics, None]:
+        name = topic.topic if topic else "total"
+        messages, lost = (topic.messages, topic.lost) if topic else (report.messages, report.lost)
+        size = _human_bytes(topic.bytes if topic else report.bytes)
+        figures = f"{messages} messages, {lost} lost, {size}"
+        if topic:
+            figures += f", {format_rate(topic.rate_hz, digits=1)}, {topic.type}"
+        console.print(f"  {name}", style="bold", highlight=False, markup=False, soft_wrap=True)
+        console.print(f"      {figures}", highlight=False, markup=False)
+
+
+def _print_table(report: RecordReport, title: str) -> None:
+    table = Table(title=title, title_justify="left", box=box.SIMPLE_HEAD)
     # Topic names and numbers never wrap; on a narrow terminal (80 columns when piped) the
     # type, last, folds.
     table.add_column("topic", no_wrap=True)
@@ -54,6 +77,9 @@ def print_record_table(report: RecordReport) -> None:
         "total", str(report.messages), str(report.lost), "", _human_bytes(report.bytes), ""
     )
     console.print(table)
+
+
+def _print_notes(report: RecordReport) -> None:
     for topic in report.topics:
         notes = []
         if topic.lost:

@@ -112,6 +112,7 @@ class RecordProgress:
     messages: int
     bytes: int
     lost: int
+    before_clock: int = 0
 
 
 def loss_summary(records: list[TopicRecord]) -> str:

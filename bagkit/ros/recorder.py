@@ -324,6 +324,7 @@ class Recorder:
             messages=sum(r.messages for r in records),
             bytes=sum(r.bytes for r in records),
             lost=sum(r.lost for r in records),
+            before_clock=sum(r.before_clock for r in records),
         )
 
 
