@@ -20,10 +20,16 @@ from typer._coercion import RuntimeParam
 from typer.core import TyperGroup
 
 
-def _flag(value: Any) -> bool:
-    """A flag's value: click gives flags as bools, environment values as text."""
+def _flag(value: Any) -> Any:
+    """A flag's value: click gives flags as bools, environment values as text.
+
+    Other text passes through: ``--install-completion SHELL`` is a flag that takes a value.
+    """
     if isinstance(value, str):
-        return value.strip().lower() in ("1", "true", "yes", "on")
+        word = value.strip().lower()
+        if word in ("1", "true", "yes", "on", "0", "false", "no", "off", ""):
+            return word in ("1", "true", "yes", "on")
+        return value
     return bool(value)
 
 
