@@ -25,23 +25,28 @@ R = TypeVar("R")
 
 # Tables and results go to stdout; progress, warnings and errors to stderr, so that
 # `--format json` output can be piped.
-class _LazyConsole:
-    """A rich Console made on first use: ``bagkit --help`` prints none and need not import rich."""
-
-    def __init__(self, **options: Any) -> None:
-        self._options = options
-        self._console: Console | None = None
-
-    def __getattr__(self, name: str) -> Any:
-        if self._console is None:
-            from rich.console import Console
-
-            self._console = Console(**self._options)
-        return getattr(self._console, name)
+if TYPE_CHECKING:
+    console: Console
+    err_console: Console
 
 
-console = cast("Console", _LazyConsole())
-err_console = cast("Console", _LazyConsole(stderr=True))
+def __getattr__(name: str) -> Any:
+    """``console`` and ``err_console``, made on first use (PEP 562).
+
+    Importing rich costs more than ``bagkit --help`` itself; commands that print import them.
+    """
+    if name not in ("console", "err_console"):
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    from rich.console import Console
+
+    made = globals()[name] = Console(stderr=name == "err_console")
+    return made
+
+
+def _made(name: str) -> Console:
+    """The console ``name`` from inside this module (``__getattr__`` serves importers only)."""
+    return cast("Console", globals()[name] if name in globals() else __getattr__(name))
+
 
 EXIT_INTERRUPTED = 130
 
@@ -109,23 +114,23 @@ def topic_table_fits(topics: list[str], other_columns: int) -> bool:
     cannot hold them whole, commands print one topic per line instead.
     """
     longest = max((len(t) for t in topics), default=0)
-    return longest + other_columns + MIN_TYPE_WIDTH <= console.width
+    return longest + other_columns + MIN_TYPE_WIDTH <= _made("console").width
 
 
 def fail(message: str, exit_code: int = 2) -> typer.Exit:
     """Print ``error: message`` on stderr and return the Exit to raise."""
-    err_console.print(f"[bold red]error:[/] {message}", highlight=False, soft_wrap=True)
+    _made("err_console").print(f"[bold red]error:[/] {message}", highlight=False, soft_wrap=True)
     return typer.Exit(exit_code)
 
 
 def warn(message: str) -> None:
     """Print ``warning: message`` on stderr."""
-    err_console.print(f"[yellow]warning:[/] {message}", highlight=False, soft_wrap=True)
+    _made("err_console").print(f"[yellow]warning:[/] {message}", highlight=False, soft_wrap=True)
 
 
 def note(message: str) -> None:
     """Print an informational line on stderr (dim: what a run is doing, not a result)."""
-    err_console.print(f"[dim]{message}[/]", highlight=False, soft_wrap=True)
+    _made("err_console").print(f"[dim]{message}[/]", highlight=False, soft_wrap=True)
 
 
 def print_json(data: Any) -> None:
@@ -143,7 +148,7 @@ def handle_errors(func: Callable[P, R]) -> Callable[P, R]:
         except BagkitError as exc:
             raise fail(str(exc), exc.exit_code) from None
         except KeyboardInterrupt:
-            err_console.print("interrupted")
+            _made("err_console").print("interrupted")
             raise typer.Exit(EXIT_INTERRUPTED) from None
         except OSError as exc:
             raise fail(f"{exc.strerror or exc}: {exc.filename or ''}".rstrip(": "), 2) from None
@@ -161,7 +166,9 @@ def run_app(app: typer.Typer) -> None:
         result = app(standalone_mode=False)
     except NoArgsIsHelpError as exc:
         # Help asked for by omission: print it, exit 2 as click does.
-        err_console.print(exc.ctx.get_help() if exc.ctx is not None else "", highlight=False)
+        _made("err_console").print(
+            exc.ctx.get_help() if exc.ctx is not None else "", highlight=False
+        )
         sys.exit(2)
     except UsageError as exc:
         hint = f" (see '{exc.ctx.command_path} --help')" if exc.ctx is not None else ""
@@ -169,6 +176,6 @@ def run_app(app: typer.Typer) -> None:
     except typer.TyperException as exc:
         raise SystemExit(fail(exc.format_message(), exc.exit_code).exit_code) from None
     except typer.Abort:
-        err_console.print("interrupted")
+        _made("err_console").print("interrupted")
         sys.exit(EXIT_INTERRUPTED)
     sys.exit(result if isinstance(result, int) else 0)
