@@ -98,6 +98,8 @@ def progress_line(progress: RecordProgress, *, subscribed: bool) -> str:
     if not subscribed:
         return f"waiting for topics ({progress.topics} subscribed, {progress.elapsed_s:.0f} s)"
     lost = f", [red]{progress.lost} lost[/]" if progress.lost else ""
+    if progress.before_clock:
+        lost += f", {progress.before_clock} before the first /clock (not written)"
     return (
         f"recording {progress.topics} topics: {progress.messages} messages, "
         f"{_human_bytes(progress.bytes)}{lost} ({progress.elapsed_s:.0f} s)"
