@@ -63,7 +63,7 @@ LAYERS: tuple[frozenset[str], ...] = (
     frozenset({"bag"}),
     frozenset({"decode", "ros"}),
     frozenset({"stats", "compare"}),
-    frozenset({"data"}),
+    frozenset({"data", "surgery"}),
     frozenset({"fleet", "regression"}),
     frozenset({"cli", "pytest_plugin", "__init__"}),
 )

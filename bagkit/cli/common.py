@@ -16,33 +16,53 @@ import sys
 import traceback
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, NoReturn, ParamSpec, TypeVar
+from typing import TYPE_CHECKING, Any, NoReturn, ParamSpec, TypeVar, cast
 
 import typer
-from rich.console import Console
-from rich.markup import escape
 
 # typer 0.29 vendors click; its exception classes are only importable from there (typer is pinned).
 from typer._click.exceptions import NoArgsIsHelpError, UsageError
 
 from bagkit.errors import BagkitError
 
+if TYPE_CHECKING:
+    from rich.console import Console
+
 P = ParamSpec("P")
 R = TypeVar("R")
 
 
-class _StdoutConsole(Console):
-    """Rich's console, except that a closed pipe is reported like any other broken pipe."""
-
-    def on_broken_pipe(self) -> None:
-        """Raise BrokenPipeError for handle_errors (rich would exit 1 silently)."""
-        raise BrokenPipeError(errno.EPIPE, os.strerror(errno.EPIPE))
-
-
 # Tables and results go to stdout; progress, warnings and errors to stderr, so that
 # `--format json` output can be piped.
-console = _StdoutConsole()
-err_console = Console(stderr=True)
+if TYPE_CHECKING:
+    console: Console
+    err_console: Console
+
+
+def __getattr__(name: str) -> Any:
+    """``console`` and ``err_console``, made on first use (PEP 562).
+
+    Importing rich costs more than ``bagkit --help`` itself; commands that print import them.
+    """
+    if name not in ("console", "err_console"):
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    from rich.console import Console
+
+    class StdoutConsole(Console):
+        """Rich's console, except that a closed pipe is reported like any other broken pipe."""
+
+        def on_broken_pipe(self) -> None:
+            """Raise BrokenPipeError for handle_errors (rich would exit 1 silently)."""
+            raise BrokenPipeError(errno.EPIPE, os.strerror(errno.EPIPE))
+
+    made = globals()[name] = Console(stderr=True) if name == "err_console" else StdoutConsole()
+    return made
+
+
+def _made(name: str) -> Console:
+    """The console ``name`` from inside this module (``__getattr__`` serves importers only)."""
+    return cast("Console", globals()[name] if name in globals() else __getattr__(name))
+
 
 EXIT_INTERNAL = 70  # sysexits.h EX_SOFTWARE
 EXIT_INTERRUPTED = 130
@@ -64,26 +84,90 @@ class OutputFormat(enum.StrEnum):
 def _one_line(message: str) -> str:
     """A message as one line of literal text, at most ``MAX_LINE`` characters: names and values
     from a bag may be huge, hold newlines and what rich would take for markup (``[/]``)."""
+    from rich.markup import escape
+
     line = " ".join(message.splitlines())
     if len(line) > MAX_LINE:
         line = f"{line[:MAX_LINE]}... ({len(line) - MAX_LINE} characters cut)"
     return escape(line)
 
 
+class ReportFormat(enum.StrEnum):
+    """Output format of a command whose output is a report, not rows: no csv."""
+
+    TABLE = "table"
+    JSON = "json"
+
+
+# Every command answers -h as well as --help (ros2 bag's habit).
+CONTEXT_SETTINGS: dict[str, Any] = {"help_option_names": ["-h", "--help"]}
+
+
+def split_list(values: list[str] | tuple[str, ...] | None) -> list[str]:
+    """A list option's values, given repeated (``-t a -t b``) or as comma lists (``-t a,b``).
+
+    Every list option of every command goes through here, so both spellings work everywhere.
+    """
+    return [v.strip() for value in values or () for v in value.split(",") if v.strip()]
+
+
+def expand_multi_value_options(args: list[str], options: frozenset[str]) -> list[str]:
+    """``--topics a b c`` -> ``--topics a --topics b --topics c`` (argparse's ``nargs='+'``).
+
+    ``ros2 bag`` takes several values after one option; click takes one. Values run until the
+    next token that starts with ``-``, as in argparse.
+    """
+    expanded: list[str] = []
+    current: str | None = None
+    for arg in args:
+        if arg == "--":
+            current = None
+        elif arg.startswith("-"):
+            current = arg if arg in options else None
+        elif current is not None and expanded[-1] != current:
+            expanded.append(current)
+        expanded.append(arg)
+    return expanded
+
+
+def format_rate(rate_hz: float | None, digits: int = 2) -> str:
+    """A topic's rate for a table: ``10.00 Hz``, or ``-`` when it cannot be measured."""
+    return "-" if rate_hz is None else f"{rate_hz:.{digits}f} Hz"
+
+
+# Narrowest a folding type column may get before a table is given up for stacked lines.
+MIN_TYPE_WIDTH = 16
+
+
+def topic_table_fits(topics: list[str], other_columns: int) -> bool:
+    """Whether a table of whole topic names, ``other_columns`` characters of numbers and
+    padding, and a type column folded to :data:`MIN_TYPE_WIDTH` fits the terminal.
+
+    Topic names are never cut (they are what users copy into ``--topics``); when a table
+    cannot hold them whole, commands print one topic per line instead.
+    """
+    longest = max((len(t) for t in topics), default=0)
+    return longest + other_columns + MIN_TYPE_WIDTH <= _made("console").width
+
+
 def fail(message: str, exit_code: int = 2) -> typer.Exit:
     """Print ``error: message`` on stderr (one line) and return the Exit to raise."""
-    err_console.print(f"[bold red]error:[/] {_one_line(message)}", highlight=False, soft_wrap=True)
+    _made("err_console").print(
+        f"[bold red]error:[/] {_one_line(message)}", highlight=False, soft_wrap=True
+    )
     return typer.Exit(exit_code)
 
 
 def warn(message: str) -> None:
     """Print ``warning: message`` on stderr (one line)."""
-    err_console.print(f"[yellow]warning:[/] {_one_line(message)}", highlight=False, soft_wrap=True)
+    _made("err_console").print(
+        f"[yellow]warning:[/] {_one_line(message)}", highlight=False, soft_wrap=True
+    )
 
 
 def note(message: str) -> None:
     """Print an informational line on stderr (dim: what a run is doing, not a result)."""
-    err_console.print(f"[dim]{message}[/]", highlight=False, soft_wrap=True)
+    _made("err_console").print(f"[dim]{message}[/]", highlight=False, soft_wrap=True)
 
 
 def print_json(data: Any) -> None:
@@ -158,7 +242,9 @@ def run_app(app: typer.Typer, args: list[str] | None = None) -> NoReturn:
         result = app(args=args, standalone_mode=False)
     except NoArgsIsHelpError as exc:
         # Help asked for by omission: print it, exit 2 as click does.
-        err_console.print(exc.ctx.get_help() if exc.ctx is not None else "", highlight=False)
+        _made("err_console").print(
+            exc.ctx.get_help() if exc.ctx is not None else "", highlight=False
+        )
         sys.exit(2)
     except UsageError as exc:
         hint = f" (see '{exc.ctx.command_path} --help')" if exc.ctx is not None else ""

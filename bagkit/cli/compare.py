@@ -9,7 +9,15 @@ import typer
 from rich import box
 from rich.table import Table
 
-from bagkit.cli.common import OutputFormat, console, err_console, handle_errors, print_json, warn
+from bagkit.cli.common import (
+    ReportFormat,
+    console,
+    err_console,
+    handle_errors,
+    print_json,
+    split_list,
+    warn,
+)
 from bagkit.compare import CompareOptions, CompareReport, Tolerance, compare_bags, replace_options
 
 HELP = (
@@ -21,13 +29,6 @@ HELP = (
     "--include-times.\n\n"
     "Exit status: 0 identical within tolerance, 1 different, 2 unusable input."
 )
-
-
-def _split(values: list[str] | None) -> tuple[str, ...] | None:
-    # Accept both `--topics /a --topics /b` and `--topics /a,/b`.
-    if not values:
-        return None
-    return tuple(v for value in values for v in value.split(",") if v)
 
 
 def _print_table(report: CompareReport, limit: int) -> None:
@@ -126,8 +127,8 @@ def compare(
         False, "--include-times", help="Also compare receive and publish times."
     ),
     report: Path | None = typer.Option(None, help="Write the JSON verdict to this file."),
-    output_format: OutputFormat = typer.Option(
-        OutputFormat.TABLE, "--format", help="table, or json (the verdict on stdout)."
+    output_format: ReportFormat = typer.Option(
+        ReportFormat.TABLE, "--format", help="table, or json (the verdict on stdout)."
     ),
     show: int = typer.Option(10, help="How many divergences to print and keep per topic."),
     check_crc: bool = typer.Option(
@@ -135,15 +136,13 @@ def compare(
     ),
 ) -> None:
     """Compare CANDIDATE with GOLDEN within tolerances (exit 0 same, 1 different, 2 bad input)."""
-    if output_format is OutputFormat.CSV:
-        raise typer.BadParameter("compare prints table or json", param_hint="--format")
     if spec is not None:
         from bagkit.regression.spec import load_spec
 
         options = load_spec(spec).compare_options("live" if live else "lockstep")
     else:
         options = CompareOptions()
-    extra_ignores = _split(ignore_fields) or ()
+    extra_ignores = tuple(split_list(ignore_fields))
     tolerance = None
     if atol is not None or rtol is not None:
         tolerance = Tolerance(
@@ -152,7 +151,7 @@ def compare(
         )
     options = replace_options(
         options,
-        topics=_split(topics),
+        topics=tuple(split_list(topics)) or None,
         tolerance=tolerance,
         ignore_fields=options.ignore_fields + extra_ignores,
         event_window_ns=None if event_window is None else round(event_window * 1e9),
@@ -174,7 +173,7 @@ def compare(
         warn(warning)
     if report is not None:
         report.write_text(json.dumps(result.to_dict(), indent=2) + "\n")
-    if output_format is OutputFormat.JSON:
+    if output_format is ReportFormat.JSON:
         print_json(result.to_dict())
     else:
         _print_table(result, show)

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import typer
 
-from bagkit.cli.common import EXIT_INTERRUPTED, handle_errors, warn
+from bagkit.cli.common import EXIT_INTERRUPTED, handle_errors, split_list, warn
 
 HELP = """Print the messages of TOPIC of BAG as they are read, each with its log time.
 
@@ -91,7 +91,7 @@ def echo(  # noqa: PLR0917 (typer maps parameters to options)
         records = read_messages(
             bag,
             topic,
-            fields=fields,
+            fields=split_list(fields) or None,
             start=start,
             end=end,
             count=count,
@@ -117,9 +117,11 @@ def _quiet_exit(code: int) -> None:
 
 def run_alone() -> None:
     """Run ``bagkit echo ARGS`` as a one-command app (see :mod:`bagkit.cli.launch`)."""
-    from bagkit.cli.common import run_app
+    from bagkit.cli.common import CONTEXT_SETTINGS, run_app
 
-    app = typer.Typer(add_completion=False, pretty_exceptions_enable=False)
+    app = typer.Typer(
+        add_completion=False, pretty_exceptions_enable=False, context_settings=CONTEXT_SETTINGS
+    )
     app.command(help=HELP, no_args_is_help=True)(echo)
     # click names the program after argv[0]: usage and errors then read "bagkit echo".
     sys.argv = [f"{sys.argv[0]} echo", *sys.argv[2:]]

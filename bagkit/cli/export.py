@@ -8,7 +8,7 @@ from pathlib import Path
 import typer
 from rich.progress import BarColumn, Progress, TaskID, TextColumn, TimeRemainingColumn
 
-from bagkit.cli.common import console, err_console, handle_errors, warn
+from bagkit.cli.common import console, err_console, handle_errors, split_list, warn
 from bagkit.data.formats import ExportFormat
 
 HELP = """Write topics of BAG to Parquet (zstd) or CSV files, one per topic, for pandas, polars,
@@ -100,8 +100,8 @@ def export(  # noqa: PLR0917 (typer maps parameters to options)
             bag,
             out,
             file_format=file_format,
-            topics=topics or None,
-            fields=fields or None,
+            topics=split_list(topics) or None,
+            fields=split_list(fields) or None,
             start=start,
             end=end,
             dataset=dataset,

@@ -3,23 +3,26 @@
 from __future__ import annotations
 
 import datetime
-import enum
+import json
 from pathlib import Path
 
 import typer
 import yaml
+from rich import box
 from rich.table import Table
 
 from bagkit.bag import BagInfo, bag_info, safe_yaml
-from bagkit.cli.common import OutputFormat, console, err_console, handle_errors, print_json, warn
-
-
-class InfoFormat(enum.StrEnum):
-    """Output formats of ``info`` (the table/json subset of :class:`OutputFormat`)."""
-
-    TABLE = OutputFormat.TABLE.value
-    JSON = OutputFormat.JSON.value
-
+from bagkit.cli.common import (
+    ReportFormat,
+    console,
+    err_console,
+    fail,
+    format_rate,
+    handle_errors,
+    print_json,
+    topic_table_fits,
+    warn,
+)
 
 HELP = """Show what a bag holds: files, size, storage, duration, start and end, message count,
 and per topic its type, count, rate, serialization format and offered QoS.
@@ -27,7 +30,13 @@ and per topic its type, count, rate, serialization format and offered QoS.
 BAG is a bag directory (split or not, with or without metadata.yaml), a single .mcap file or a
 single .db3 file. Only summaries and indexes are read, so this is instant on multi-GB bags; a
 crashed recording without a summary is salvaged and what could not be read is reported.
+A topic's rate is (count - 1) / (last - first log time), "-" below two messages.
+
+Example: bagkit info my_bag -v
 """
+
+# Count and rate columns, with the table's padding.
+_NUMBER_COLUMNS = 28
 
 # rosbag2 metadata versions < 9 store QoS policies as rmw enum integers.
 _POLICY_NAMES = {
@@ -81,7 +90,20 @@ def _time(ns: int) -> str:
     return f"{stamp:%b %d %Y %H:%M:%S}.{fraction:09d} UTC ({seconds}.{fraction:09d})"
 
 
-def _print_table(info: BagInfo) -> None:
+def _custom_data_value(value: str, verbose: bool) -> str:
+    """A custom_data value for the table: a long JSON document is summarized unless -v."""
+    if verbose or len(value) <= 60:
+        return value
+    try:
+        document = json.loads(value)
+    except ValueError:
+        return value
+    if isinstance(document, dict):
+        return f"JSON, {len(document)} entries (-v or --format json to see them)"
+    return value
+
+
+def _print_table(info: BagInfo, verbose: bool) -> None:
     directory = Path(info.path) if Path(info.path).is_dir() else None
     files = [str(Path(f).relative_to(directory)) if directory else f for f in info.files]
     rows = [
@@ -102,48 +124,85 @@ def _print_table(info: BagInfo) -> None:
     if not info.summary:
         rows.append(("Summary", "missing: the recording did not finish, salvaged"))
     for key, value in info.custom_data.items():
-        rows.append((f"custom_data {key}", value))
+        rows.append((f"custom_data {key}", _custom_data_value(value, verbose)))
     overview = Table.grid(padding=(0, 2))
-    overview.add_column(style="bold")
-    overview.add_column()
+    overview.add_column(style="bold", no_wrap=True)
+    overview.add_column(overflow="fold")
     for key, value in rows:
         overview.add_row(f"{key}:", value)
     console.print(overview)
-    topics = Table(title="Topics", title_justify="left")
-    topics.add_column("Topic", style="cyan", overflow="fold")
-    topics.add_column("Type", overflow="fold")
-    topics.add_column("Count", justify="right")
-    topics.add_column("Rate (Hz)", justify="right")
-    topics.add_column("Serialization")
-    topics.add_column("Offered QoS")
+    if not topic_table_fits([t.topic for t in info.topics], _NUMBER_COLUMNS):
+        _print_stacked(info)
+    else:
+        _print_topic_table(info)
+    if verbose:
+        # One line per topic (and offered profile) rather than two more columns: at 80
+        # columns those would fold every type name.
+        console.print("Serialization and offered QoS:", style="bold")
+        for topic in info.topics:
+            qos = _qos_summary(topic.offered_qos_profiles).replace("\n", "; ")
+            console.print(
+                f"  {topic.topic}: {topic.serialization_format}, {qos}",
+                highlight=False,
+                markup=False,
+            )
+
+
+def _print_stacked(info: BagInfo) -> None:
+    """One topic per line, its figures on the next: for names too long for a table row."""
+    console.print("Topics:", style="bold")
     for topic in info.topics:
-        topics.add_row(
-            topic.topic,
-            topic.type,
-            f"{topic.count:,}",
-            f"{topic.rate_hz:.2f}",
-            topic.serialization_format,
-            _qos_summary(topic.offered_qos_profiles),
-        )
+        console.print(f"  {topic.topic}", style="cyan", highlight=False, soft_wrap=True)
+        figures = f"{topic.count:,} messages, {format_rate(topic.rate_hz)}, {topic.type}"
+        console.print(f"      {figures}", highlight=False, markup=False)
+
+
+def _print_topic_table(info: BagInfo) -> None:
+    topics = Table(title="Topics", title_justify="left", box=box.SIMPLE_HEAD)
+    # Topic names are never cut (scripts and --topics refer to them); the type folds.
+    topics.add_column("Topic", style="cyan", no_wrap=True)
+    topics.add_column("Type", overflow="fold")
+    topics.add_column("Count", justify="right", no_wrap=True)
+    topics.add_column("Rate", justify="right", no_wrap=True)
+    for topic in info.topics:
+        topics.add_row(topic.topic, topic.type, f"{topic.count:,}", format_rate(topic.rate_hz))
     console.print(topics)
 
 
 @handle_errors
-def info(
-    bag: Path = typer.Argument(..., help="Bag directory, .mcap file or .db3 file."),
-    output_format: InfoFormat = typer.Option(
-        InfoFormat.TABLE, "--format", "-f", help="table (for people) or json (for scripts)."
+def info(  # noqa: PLR0917 (typer maps parameters to options)
+    bag: str = typer.Argument(
+        ..., help="Bag directory, .mcap file or .db3 file.", metavar="BAG", show_default=False
+    ),
+    topic_name: bool = typer.Option(
+        False, "--topic-name", "-t", help="Only print the topic names, one per line."
+    ),
+    verbose: bool = typer.Option(
+        False, "--verbose", "-v", help="Also serialization, offered QoS and custom data in full."
+    ),
+    storage: str | None = typer.Option(
+        None, "--storage", "-s", help="mcap or sqlite3: fail if the bag is stored otherwise."
+    ),
+    output_format: ReportFormat = typer.Option(
+        ReportFormat.TABLE, "--format", help="table (for people) or json (for scripts)."
     ),
     check_crc: bool = typer.Option(
         True, "--crc/--no-crc", help="Check the CRC of chunks a salvage scan opens."
     ),
 ) -> None:
     """Show what a bag holds (like ros2 bag info)."""
+    if storage not in (None, "mcap", "sqlite3"):
+        raise fail(f"--storage {storage}: bagkit reads mcap and sqlite3 bags")
     with err_console.status(f"reading {bag}"):
         result = bag_info(bag, check_crc=check_crc)
-    if output_format == InfoFormat.JSON:
+    if storage is not None and result.storage != storage:
+        raise fail(f"{bag} is a {result.storage} bag, not {storage}")
+    if topic_name:
+        for topic in result.topics:
+            console.print(topic.topic, highlight=False, markup=False, soft_wrap=True)
+    elif output_format is ReportFormat.JSON:
         print_json(result.to_dict())
     else:
-        _print_table(result)
+        _print_table(result, verbose)
     for problem in result.problems:
         warn(problem)

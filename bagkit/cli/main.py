@@ -1,32 +1,125 @@
-"""The ``bagkit`` command: one typer sub-app or command per module in this package."""
+"""The ``bagkit`` command: one typer sub-app or command per module in this package.
+
+Command modules are imported when their command runs, not before: ``bagkit --help`` and
+``bagkit info BAG`` would otherwise pay for numpy, pandas, dask and rclpy-adjacent imports
+that only other commands use. The list below carries each command's one-line help, so the
+top-level help is printed without importing any of them.
+"""
 
 from __future__ import annotations
 
+import importlib
+from dataclasses import dataclass
+from typing import Any
+
 import typer
+from typer._click import Command, Context
+from typer.core import TyperCommand, TyperGroup
 
 from bagkit import __version__
-from bagkit.cli import catalog as _catalog
-from bagkit.cli import compare as _compare
-from bagkit.cli import doctor as _doctor
-from bagkit.cli import echo as _echo
-from bagkit.cli import export as _export
-from bagkit.cli import filter as _filter
-from bagkit.cli import golden as _golden
-from bagkit.cli import info as _info
-from bagkit.cli import merge as _merge
-from bagkit.cli import plot as _plot
-from bagkit.cli import record as _record
-from bagkit.cli import recover as _recover
-from bagkit.cli import replay as _replay
-from bagkit.cli import stats as _stats
-from bagkit.cli.common import run_app
+from bagkit.cli.common import CONTEXT_SETTINGS, run_app
+from bagkit.cli.plain_params import use_plain_coercion, use_plain_params
+
+
+@dataclass(frozen=True, slots=True)
+class _Lazy:
+    """A command whose module is imported on first use.
+
+    ``attribute`` is a command function (with ``HELP`` beside it in its module) or a
+    ``typer.Typer``: named, it is a command group; unnamed, its command ``name`` is taken.
+    """
+
+    module: str
+    attribute: str
+    summary: str
+
+
+# Command groups register themselves here, one module each (bagkit/cli/<group>.py).
+_COMMANDS = {
+    "catalog": _Lazy("bagkit.cli.catalog", "app", "A Parquet catalogue of many bags."),
+    "compare": _Lazy("bagkit.cli.compare", "compare", "Compare a candidate bag to a golden."),
+    "doctor": _Lazy("bagkit.cli.doctor", "doctor", "Check a bag for problems (like mcap doctor)."),
+    "echo": _Lazy("bagkit.cli.echo", "echo", "Print the messages of a topic."),
+    "export": _Lazy("bagkit.cli.export", "export", "Write topics to Parquet or CSV files."),
+    "filter": _Lazy("bagkit.cli.filter", "filter_command", "Copy a selection of a bag."),
+    "golden": _Lazy("bagkit.cli.golden", "app", "Golden-bag regression checks."),
+    "info": _Lazy("bagkit.cli.info", "info", "Show what a bag holds (like ros2 bag info)."),
+    "merge": _Lazy("bagkit.cli.merge", "merge", "Merge bags into one, in log-time order."),
+    "play": _Lazy("bagkit.cli.replay", "app", "The same command as replay (ros2 bag's name)."),
+    "plot": _Lazy("bagkit.cli.plot", "plot", "Plot fields of a bag over time."),
+    "record": _Lazy("bagkit.cli.record", "record", "Record topics into an MCAP bag."),
+    "recover": _Lazy("bagkit.cli.recover", "recover", "Rewrite a crashed or cut bag whole."),
+    "reindex": _Lazy("bagkit.cli.recover", "recover", "The same command as recover."),
+    "replay": _Lazy("bagkit.cli.replay", "app", "Publish a bag's messages on their topics."),
+    "stats": _Lazy("bagkit.cli.stats", "app", "Statistics of the numeric fields of bags."),
+}
+
+
+def load_command(name: str) -> Command | None:
+    """Import command ``name``'s module and build its click command (None if unknown)."""
+    lazy = _COMMANDS.get(name)
+    if lazy is None:
+        return None
+    module = importlib.import_module(lazy.module)
+    target: Any = getattr(module, lazy.attribute)
+    holder = typer.Typer(add_completion=False, context_settings=CONTEXT_SETTINGS)
+    if isinstance(target, typer.Typer):
+        # A named app is a command group; an unnamed one's commands sit at the top level
+        # (replay and its alias). Added under a holder as `bagkit` would add it, so that a
+        # group of one command stays a group.
+        holder.add_typer(target)
+    else:
+        holder.command(name, help=module.HELP, no_args_is_help=True)(target)
+    # With a second command beside it the holder is always a group.
+    holder.command("_", hidden=True)(lambda: None)
+    group = typer.main.get_command(holder)
+    assert isinstance(group, TyperGroup)
+    command = group.commands.get(name)
+    if command is not None:
+        use_plain_coercion(command)
+    return command
+
+
+class _LazyGroup(TyperGroup):
+    """The top-level group: commands from :data:`_COMMANDS`, imported when they run."""
+
+    def parse_args(self, ctx: Context, args: list[str]) -> list[str]:
+        # Loaded commands get plain coercion in load_command; this is the top level's.
+        use_plain_params(self.get_params(ctx))
+        return super().parse_args(ctx, args)
+
+    def list_commands(self, ctx: Context) -> list[str]:
+        return sorted({*self.commands, *_COMMANDS})
+
+    def get_command(self, ctx: Context, cmd_name: str) -> Command | None:
+        if cmd_name in self.commands:
+            return self.commands[cmd_name]
+        if getattr(ctx, "_listing_help", False):
+            lazy = _COMMANDS.get(cmd_name)
+            return TyperCommand(name=cmd_name, help=lazy.summary) if lazy else None
+        command = load_command(cmd_name)
+        if command is not None:
+            self.commands[cmd_name] = command
+        return command
+
+    def format_help(self, ctx: Context, formatter: Any) -> None:
+        # Listing the commands needs only their one-line help, not their modules.
+        ctx._listing_help = True  # type: ignore[attr-defined]
+        try:
+            super().format_help(ctx, formatter)
+        finally:
+            ctx._listing_help = False  # type: ignore[attr-defined]
+
 
 app = typer.Typer(
     name="bagkit",
-    help="Record, replay, inspect and compare ROS 2 MCAP bags.",
+    cls=_LazyGroup,
+    help="Record, replay, inspect and compare ROS 2 MCAP bags.\n\n"
+    "Example: bagkit info my_bag; bagkit COMMAND -h for a command's options.",
     no_args_is_help=True,
-    add_completion=False,
     pretty_exceptions_enable=False,
+    rich_markup_mode=None,
+    context_settings=CONTEXT_SETTINGS,
 )
 
 
@@ -43,33 +136,6 @@ def main(
     ),
 ) -> None:
     """Record, replay, inspect and compare ROS 2 MCAP bags."""
-
-
-# Command groups register themselves here, one module each (bagkit/cli/<group>.py).
-app.command("compare", help=_compare.HELP, no_args_is_help=True)(_compare.compare)
-app.command("echo", help=_echo.HELP, no_args_is_help=True)(_echo.echo)
-app.command("export", help=_export.HELP, no_args_is_help=True)(_export.export)
-app.command("info", help=_info.HELP, no_args_is_help=True)(_info.info)
-app.command("plot", help=_plot.HELP, no_args_is_help=True)(_plot.plot)
-app.command("record", help=_record.HELP, no_args_is_help=True)(_record.record)
-app.add_typer(_replay.app)
-# Bag surgery (bagkit/surgery): one module each.
-app.command("doctor", help=_doctor.HELP, no_args_is_help=True)(_doctor.doctor)
-app.command("recover", help=_recover.HELP, no_args_is_help=True)(_recover.recover)
-app.command("reindex", help=_recover.HELP, no_args_is_help=True)(_recover.recover)
-app.command("filter", help=_filter.HELP, no_args_is_help=True)(_filter.filter_command)
-app.command("merge", help=_merge.HELP, no_args_is_help=True)(_merge.merge)
-# `ros2 bag play`'s name for the same command.
-app.command(
-    "play",
-    cls=_replay.ReplayCommand,
-    help=_replay.HELP,
-    no_args_is_help=True,
-    context_settings=_replay.HELP_OPTIONS,
-)(_replay.replay)
-app.add_typer(_stats.app)
-app.add_typer(_golden.app)
-app.add_typer(_catalog.app)
 
 
 def run() -> None:

@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 
 from bagkit.cli import common
-from bagkit.cli.common import console, handle_errors
+from bagkit.cli.common import console, handle_errors, split_list
 
 HELP = """Plot fields of BAG over time into OUT: .png (matplotlib) or .html (an interactive page
 with zoom, hover and series toggled in the legend, that opens with no network access).
@@ -34,8 +34,8 @@ def plot(
         ..., help="TOPIC:FIELD, field paths or globs.", metavar="SERIES...", show_default=False
     ),
     out: Path = typer.Option(..., "--output", "-o", help="The .png or .html file to write."),
-    more_bags: list[Path] | None = typer.Option(
-        None, "--bag", help="Another bag to overlay (repeat for several)."
+    more_bags: list[str] | None = typer.Option(
+        None, "--bag", help="Other bags to overlay (repeat, or a comma list).", metavar="BAG"
     ),
     absolute: bool = typer.Option(
         False, "--absolute", help="X axis in UTC log time (default: seconds from each bag's start)."
@@ -47,7 +47,7 @@ def plot(
     suffix = out.suffix.lower()
     if suffix not in (".png", ".html"):
         raise DataError(f"{out}: the output must end in .png or .html")
-    bags = [bag, *(more_bags or [])]
+    bags = [bag, *(Path(b) for b in split_list(more_bags))]
     with common.err_console.status("reading ..."):
         found = load_series(bags, series, absolute=absolute)
     if not found:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import enum
+import re
 import signal
 import threading
 import time
@@ -11,110 +12,125 @@ from types import FrameType
 from typing import TYPE_CHECKING
 
 import typer
-from rich import box
-from rich.table import Table
 
 from bagkit.cli.common import (
     EXIT_INTERRUPTED,
-    OutputFormat,
-    console,
+    ReportFormat,
     err_console,
     fail,
     handle_errors,
     print_json,
+    split_list,
     warn,
 )
+from bagkit.cli.record_table import print_record_table, progress_line
 
 if TYPE_CHECKING:
     # The recorder imports rclpy: only `bagkit record` itself pays for that import.
-    from bagkit.ros.record_report import RecordProgress, RecordReport
+    from bagkit.ros.record_report import RecordReport
     from bagkit.ros.recorder import Recorder
 
 HELP = (
-    "Record TOPICS (or --all, or --regex) into an MCAP bag that ros2 bag, Foxglove and rosbags "
-    "read.\n\n"
-    "Topics are discovered at start and while recording (the graph is polled every 100 ms); "
-    "each is subscribed with QoS adapted to its publishers (reliable / transient-local only if "
-    "every publisher is). Stops on Ctrl-C, SIGTERM or --duration, finishes the bag and prints "
-    "per topic: messages, lost, rate and bytes. Lost counts gaps in the publishers' sequence "
-    "numbers (loss inside the middleware), write-queue overflows and write failures.\n\n"
+    "Record TOPICS (or --topics, --all, --regex, --topic-types) into an MCAP bag that ros2 bag, "
+    "Foxglove and rosbags read. Options are ros2 bag record's (docs/cli.md).\n\n"
+    "Topics are discovered at start and while recording (--polling-interval); each is "
+    "subscribed with QoS adapted to its publishers (reliable / transient-local only if every "
+    "publisher is). Stops on Ctrl-C, SIGTERM or --duration (counted from when the topics are "
+    "subscribed), finishes the bag and prints per topic: messages, lost, rate and bytes. Lost "
+    "counts gaps in the publishers' sequence numbers (loss inside the middleware), write-queue "
+    "overflows and write failures. -d/--max-bag-duration splits the bag, as in ros2 bag.\n\n"
+    "Example: bagkit record --topics /imu/data /gps/fix -o run1 --duration 60\n\n"
     "Exit status: 0 after --duration, 130 after Ctrl-C, 143 after SIGTERM (the bag is complete "
     "in all three), 1 when recording failed (disk full: the bag keeps what was written), "
     "2 for bad options or an existing output."
 )
 
 
-class Compression(enum.StrEnum):
-    """Chunk compression."""
+class CompressionMode(enum.StrEnum):
+    """``ros2 bag record --compression-mode``: bagkit compresses MCAP chunks in either mode."""
+
+    NONE = "none"
+    FILE = "file"
+    MESSAGE = "message"
+
+
+class CompressionFormat(enum.StrEnum):
+    """``--compression-format``: the MCAP chunk compression."""
 
     ZSTD = "zstd"
     LZ4 = "lz4"
-    NONE = "none"
 
 
-def _human_bytes(count: float) -> str:
-    for unit in ("B", "KiB", "MiB", "GiB"):
-        if count < 1024 or unit == "GiB":
-            return f"{count:.0f} {unit}" if unit == "B" else f"{count:.1f} {unit}"
-        count /= 1024
-    raise AssertionError("unreachable")
+class LogLevel(enum.StrEnum):
+    """``--log-level``: warnings are printed at ``warn`` and below, progress at ``info``."""
+
+    DEBUG = "debug"
+    INFO = "info"
+    WARN = "warn"
+    ERROR = "error"
+    FATAL = "fatal"
 
 
-def _print_table(report: RecordReport) -> None:
-    table = Table(
-        title=f"{report.path} ({report.duration_s:.1f} s)",
-        title_justify="left",
-        box=box.SIMPLE_HEAD,
-    )
-    # Numbers never wrap; on a narrow terminal (80 columns when piped) the type, last, folds.
-    table.add_column("topic", no_wrap=True)
-    for column in ("messages", "lost", "rate", "bytes"):
-        table.add_column(column, justify="right", no_wrap=True)
-    table.add_column("type", overflow="fold", min_width=16)
-    for topic in report.topics:
-        lost = f"[red]{topic.lost}[/]" if topic.lost else "0"
-        table.add_row(
-            topic.topic,
-            str(topic.messages),
-            lost,
-            f"{topic.rate_hz:.1f} Hz",
-            _human_bytes(topic.bytes),
-            topic.type,
-        )
-    table.add_section()
-    table.add_row(
-        "total", str(report.messages), str(report.lost), "", _human_bytes(report.bytes), ""
-    )
-    console.print(table)
-    lossy = [t for t in report.topics if t.lost]
-    for topic in lossy:
-        console.print(
-            f"  {topic.topic}: {topic.gaps} lost in the middleware (sequence gaps), "
-            f"{topic.overflow} in queue overflows, {topic.write_failed} in write failures",
-            highlight=False,
-            markup=False,
-        )
+def chunk_compression(mode: CompressionMode | None, fmt: CompressionFormat | None) -> str:
+    """ros2 bag's compression options -> bagkit's chunk compression (zstd, lz4 or none).
+
+    rosbag2's ``file`` mode compresses whole files (``.mcap.zstd``, which MCAP readers
+    cannot open) and ``message`` each message; bagkit compresses MCAP chunks in both, which
+    every MCAP reader decompresses. Without either option bagkit keeps its zstd default.
+    """
+    if mode is CompressionMode.NONE:
+        if fmt is not None:
+            raise fail("--compression-format needs a --compression-mode other than none")
+        return "none"
+    return (fmt or CompressionFormat.ZSTD).value
 
 
-def _progress_line(progress: RecordProgress) -> str:
-    lost = f", [red]{progress.lost} lost[/]" if progress.lost else ""
-    return (
-        f"recording {progress.topics} topics: {progress.messages} messages, "
-        f"{_human_bytes(progress.bytes)}{lost} ({progress.elapsed_s:.0f} s)"
-    )
+def parse_custom_data(values: list[str]) -> dict[str, str]:
+    """``KEY=VALUE`` pairs (``--custom-data``) -> dict; a pair without ``=`` is bad input.
+
+    Comma lists split only before a ``KEY=``: ``a=1,b=2`` is two pairs, ``a=1,2`` one.
+    """
+    data = {}
+    pairs = [pair for value in values for pair in re.split(r",(?=[^,=]+=)", value)]
+    for pair in pairs:
+        key, sep, value = pair.partition("=")
+        if not sep or not key:
+            raise fail(f"--custom-data {pair!r} is not KEY=VALUE")
+        data[key] = value
+    return data
 
 
 @handle_errors
-def record(  # noqa: PLR0917 (typer maps parameters to options)
-    topics: list[str] = typer.Argument(
-        None, help="Topics to record (always recorded, even hidden ones).", show_default=False
+def record(  # noqa: PLR0917 (typer maps parameters to options; ros2 bag has them all)
+    topics_positional: list[str] = typer.Argument(
+        None, help="Topics to record (as --topics).", show_default=False, metavar="[TOPIC]..."
     ),
-    all_topics: bool = typer.Option(False, "--all", "-a", help="Record every topic."),
+    topics: list[str] = typer.Option(
+        None, "--topics", help="Topics to record (always, hidden ones too).", metavar="TOPIC..."
+    ),
+    topic_types: list[str] = typer.Option(
+        None, "--topic-types", help="Record topics of these types.", metavar="TYPE..."
+    ),
+    all_topics: bool = typer.Option(
+        False, "--all", "-a", "--all-topics", help="Record every topic (not hidden ones)."
+    ),
     regex: str | None = typer.Option(
-        None, "--regex", "-e", help="Also record topics whose name contains a match of RE."
+        None, "--regex", "-e", help="Record topics whose name contains a match of RE."
     ),
-    exclude: str | None = typer.Option(
-        None, "--exclude", "-x", help="Leave out every topic matching RE, named ones too."
+    exclude_regex: str | None = typer.Option(
+        None, "--exclude-regex", "-x", help="Leave out topics matching RE, named ones too."
+    ),
+    exclude_topics: list[str] = typer.Option(
+        None, "--exclude-topics", help="Leave out these topics.", metavar="TOPIC..."
+    ),
+    exclude_topic_types: list[str] = typer.Option(
+        None, "--exclude-topic-types", help="Leave out topics of these types.", metavar="TYPE..."
+    ),
+    include_hidden: bool = typer.Option(
+        False, "--include-hidden-topics", help="Let --all/--regex select hidden topics (/_x)."
+    ),
+    include_unpublished: bool = typer.Option(
+        False, "--include-unpublished-topics", help="Also record topics without a publisher."
     ),
     output: Path | None = typer.Option(
         None,
@@ -123,9 +139,7 @@ def record(  # noqa: PLR0917 (typer maps parameters to options)
         help="Bag directory to create (default: rosbag2_YYYY_MM_DD-HH_MM_SS); never overwritten.",
         show_default=False,
     ),
-    duration: float | None = typer.Option(
-        None, "--duration", "-d", help="Stop after this many seconds.", min=0.0
-    ),
+    storage: str = typer.Option("mcap", "--storage", "-s", help="Storage: mcap only."),
     max_bag_size: int = typer.Option(
         0,
         "--max-bag-size",
@@ -134,63 +148,101 @@ def record(  # noqa: PLR0917 (typer maps parameters to options)
         min=0,
     ),
     max_bag_duration: float = typer.Option(
-        0, "--max-bag-duration", help="Split when a file spans this many seconds (0: never).", min=0
+        0,
+        "--max-bag-duration",
+        "-d",
+        help="Split into a new file every this many seconds (0: never); keeps recording.",
+        min=0,
     ),
-    compression: Compression = typer.Option(
-        Compression.ZSTD, "--compression", help="Chunk compression."
+    duration: float | None = typer.Option(
+        None,
+        "--duration",
+        help="Stop after this many seconds, counted from when the topics are subscribed.",
+        min=0.0,
+        metavar="SEC",
+    ),
+    compression_mode: CompressionMode | None = typer.Option(
+        None, "--compression-mode", help="none: no compression; file or message: chunks."
+    ),
+    compression_format: CompressionFormat | None = typer.Option(
+        None, "--compression-format", help="Chunk compression (default zstd)."
     ),
     qos_overrides: Path | None = typer.Option(
         None,
-        "--qos-overrides",
+        "--qos-profile-overrides-path",
         help="YAML {topic: {reliability: ..., durability: ..., ...}} (ros2 bag's format): "
         "subscribe with these profiles instead of the adapted ones.",
     ),
     use_sim_time: bool = typer.Option(
-        False, "--use-sim-time", help="Stamp messages (log time) with the latest /clock time."
+        False, "--use-sim-time", help="Stamp with /clock time; nothing is written before it."
     ),
-    include_hidden: bool = typer.Option(
-        False, "--include-hidden", help="Let --all/--regex select hidden topics (/_name)."
+    node_name: str = typer.Option("bagkit_recorder", "--node-name", help="The recorder's node."),
+    custom_data: list[str] = typer.Option(
+        None, "--custom-data", help="KEY=VALUE pairs for metadata.yaml.", metavar="KEY=VALUE..."
     ),
-    output_format: OutputFormat = typer.Option(
-        OutputFormat.TABLE, "--format", "-f", help="Final report as a table or JSON (no csv)."
+    max_cache_size: int | None = typer.Option(
+        None,
+        "--max-cache-size",
+        help="Bytes held between taking and writing messages (default 64 MiB).",
+        min=1 << 20,
+        show_default=False,
+    ),
+    polling_interval: int = typer.Option(
+        100, "--polling-interval", help="Milliseconds between looks for new topics.", min=1
+    ),
+    log_level: LogLevel = typer.Option(LogLevel.INFO, "--log-level", help="error: no warnings."),
+    output_format: ReportFormat = typer.Option(
+        ReportFormat.TABLE, "--format", help="Final report as a table or JSON."
     ),
 ) -> None:
     from bagkit.ros.memory import keep_freed_memory
     from bagkit.ros.qos import load_qos_overrides
-    from bagkit.ros.recorder import Recorder, default_output_name
+    from bagkit.ros.recorder import DEFAULT_QUEUE_BYTES, Recorder, default_output_name
     from bagkit.ros.selection import absolute_topic_name
 
-    if output_format == OutputFormat.CSV:
-        raise fail("--format csv is not supported by record (table or json)")
+    if storage != "mcap":
+        raise fail(f"--storage {storage}: bagkit records MCAP only (it reads sqlite3 bags)")
     overrides = {}
     if qos_overrides is not None:
         overrides = {
             absolute_topic_name(k): v for k, v in load_qos_overrides(qos_overrides).items()
         }
+    quiet = log_level in (LogLevel.ERROR, LogLevel.FATAL)
     recorder = Recorder(
         output or Path(default_output_name()),
-        topics=topics or [],
+        topics=split_list(topics_positional) + split_list(topics),
         all_topics=all_topics,
         regex=regex,
-        exclude=exclude,
+        exclude=exclude_regex,
         include_hidden=include_hidden,
-        compression=compression.value,
+        topic_types=split_list(topic_types),
+        exclude_topics=split_list(exclude_topics),
+        exclude_topic_types=split_list(exclude_topic_types),
+        include_unpublished=include_unpublished,
+        custom_data=parse_custom_data(custom_data or []),
+        compression=chunk_compression(compression_mode, compression_format),
         max_bag_size=max_bag_size,
         max_bag_duration_s=max_bag_duration,
         qos_overrides=overrides,
         use_sim_time=use_sim_time,
-        on_warning=warn,
+        node_name=node_name,
+        discovery_period_s=polling_interval / 1000,
+        on_warning=(lambda _message: None) if quiet else warn,
+        queue_bytes=max_cache_size or DEFAULT_QUEUE_BYTES,
     )
 
     keep_freed_memory()
     report, received = _record_until_stopped(recorder, duration)
 
-    if output_format == OutputFormat.JSON:
+    if output_format is ReportFormat.JSON:
         print_json(report.to_dict())
     else:
-        _print_table(report)
-    for topic, reason in report.skipped.items():
-        warn(f"not recorded: {topic}: {reason}")
+        print_record_table(report)
+    if not quiet:
+        for topic, reason in report.skipped.items():
+            warn(f"not recorded: {topic}: {reason}")
+        if not report.messages and received == [] and report.error is None:
+            warn("no message was recorded")
     if report.error is not None:
         raise fail(report.error, 1)
     if received:
@@ -219,14 +271,19 @@ def _record_until_stopped(
         with large_receive_queue():  # read when the participant is created
             recorder.start()
         err_console.print(f"recording to {recorder.path} (Ctrl-C to stop)", highlight=False)
-        deadline = None if duration is None else time.monotonic() + duration
-        with err_console.status(_progress_line(recorder.progress())) as status:
+        deadline = None
+        with err_console.status(progress_line(recorder.progress(), subscribed=False)) as status:
             while not stop.is_set() and not recorder.stopped.is_set():
+                subscribed = recorder.subscribed.is_set()
+                if duration is not None and deadline is None and subscribed:
+                    # The duration counts from when the topics are subscribed, not from start.
+                    deadline = time.monotonic() + duration
                 remaining = None if deadline is None else deadline - time.monotonic()
                 if remaining is not None and remaining <= 0:
                     break
-                stop.wait(0.5 if remaining is None else min(0.5, remaining))
-                status.update(_progress_line(recorder.progress()))
+                wait = 0.05 if not subscribed else 0.5
+                stop.wait(wait if remaining is None else min(wait, remaining))
+                status.update(progress_line(recorder.progress(), subscribed=subscribed))
     finally:
         report = recorder.stop()
         for sig, handler in previous.items():

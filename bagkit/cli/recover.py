@@ -32,7 +32,7 @@ class ReportFormat(enum.StrEnum):
 
 
 FORMAT_OPTION = typer.Option(
-    ReportFormat.TEXT, "--format", "-f", help="text (for people) or json (for scripts)."
+    ReportFormat.TEXT, "--format", help="text (for people) or json (for scripts)."
 )
 
 

@@ -13,8 +13,9 @@ from rich.table import Table
 from typer.core import TyperCommand
 
 from bagkit.cli.common import (
+    CONTEXT_SETTINGS,
     EXIT_INTERRUPTED,
-    OutputFormat,
+    ReportFormat,
     console,
     fail,
     handle_errors,
@@ -100,7 +101,7 @@ Example: bagkit play drive/ --clock -r 2 --topics /imu/data /gps/fix
 """
 
 app = typer.Typer()
-HELP_OPTIONS = {"help_option_names": ["-h", "--help"]}
+HELP_OPTIONS = CONTEXT_SETTINGS
 
 
 @app.command(
@@ -221,8 +222,8 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
         "-s",
         help="Accepted for ros2 bag (mcap or sqlite3); bagkit detects the storage itself.",
     ),
-    output_format: OutputFormat = typer.Option(
-        OutputFormat.TABLE, "--format", "-f", help="Final report as a table or as JSON."
+    output_format: ReportFormat = typer.Option(
+        ReportFormat.TABLE, "--format", help="Final report as a table or as JSON."
     ),
 ) -> None:
     from bagkit.ros.fastdds import large_receive_queue
@@ -231,8 +232,6 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
     from bagkit.ros.selection import parse_remaps
     from bagkit.ros.timing import precise_timers
 
-    if output_format is OutputFormat.CSV:
-        raise fail("replay prints its report as a table or as JSON (--format json), not CSV")
     if until_sec is not None and until_nsec is not None:
         raise fail("--playback-until-sec and --playback-until-nsec exclude each other")
     if storage not in {None, "mcap", "sqlite3"}:
@@ -280,7 +279,7 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
         report = player.play()
     progress.finish()
 
-    if output_format is OutputFormat.JSON:
+    if output_format is ReportFormat.JSON:
         print_json(report.to_dict())
     else:
         _print_report(report)
@@ -289,6 +288,12 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
 
 # --wait-for-all-acked 0: wait "forever" (a year).
 _FOREVER_S = 365 * 24 * 3600.0
+
+
+# `ros2 bag play`'s name for the same command.
+app.command(
+    "play", cls=ReplayCommand, no_args_is_help=True, help=HELP, context_settings=HELP_OPTIONS
+)(replay)
 
 
 def _warn_live_publishers(found: dict[str, list[str]]) -> None:

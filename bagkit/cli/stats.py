@@ -20,9 +20,11 @@ from bagkit.cli.common import (
     OutputFormat,
     console,
     err_console,
+    format_rate,
     handle_errors,
     note,
     print_json,
+    split_list,
     warn,
 )
 
@@ -95,7 +97,7 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
         show_default=False,
     ),
     topics: list[str] | None = typer.Option(
-        None, "--topics", "-t", help="Only these topics (repeat the option for several)."
+        None, "--topics", "-t", help="Only these topics (repeat, or a comma list)."
     ),
     fields: list[str] | None = typer.Option(
         None,
@@ -162,7 +164,7 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
 
     bags = expand_bags(inputs)
     start_ns, end_ns = _offset_ns(bags, start), _offset_ns(bags, end)
-    selection = {"topics": topics or None, "fields": fields or None}
+    selection = {"topics": split_list(topics) or None, "fields": split_list(fields) or None}
     with fleet_client(
         workers=workers, scheduler=scheduler, bags=len(bags), announce=note
     ) as client:
@@ -238,7 +240,7 @@ def _print_tables(result: Summary) -> None:
         soft_wrap=True,
     )
     for topic in result.topics:
-        rate = f"{topic.rate_hz:.3f} Hz" if topic.rate_hz is not None else "- Hz"
+        rate = format_rate(topic.rate_hz, digits=3)
         console.print(
             f"\n[bold]{topic.topic}[/]  {topic.type}  {topic.count} msgs  {rate}",
             highlight=False,

@@ -7,6 +7,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from bagkit.bag.info import message_rate
+
 
 @dataclass(slots=True)
 class TopicRecord:
@@ -22,6 +24,8 @@ class TopicRecord:
     publishers: int = 0
     first_ns: int = 0
     last_ns: int = 0
+    # Taken before the first /clock with --use-sim-time: not written (no time to stamp with).
+    before_clock: int = 0
 
     @property
     def lost(self) -> int:
@@ -29,10 +33,9 @@ class TopicRecord:
         return self.gaps + self.overflow + self.write_failed
 
     @property
-    def rate_hz(self) -> float:
-        """Average message rate between the first and the last message (receive time)."""
-        span = self.last_ns - self.first_ns
-        return (self.messages - 1) / span * 1e9 if self.messages > 1 and span > 0 else 0.0
+    def rate_hz(self) -> float | None:
+        """Message rate between the first and the last message (log time); see message_rate."""
+        return message_rate(self.messages, self.first_ns, self.last_ns)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready view, with ``lost`` and ``rate_hz``."""
@@ -47,6 +50,7 @@ class TopicRecord:
             "publishers": self.publishers,
             "rate_hz": self.rate_hz,
             "bytes": self.bytes,
+            "before_clock": self.before_clock,
         }
 
 
@@ -56,6 +60,8 @@ class RecordReport:
 
     path: Path
     duration_s: float = 0.0
+    # From start until every named topic (or, none named, the first topic) was subscribed.
+    discovery_s: float | None = None
     topics: list[TopicRecord] = field(default_factory=list)
     skipped: dict[str, str] = field(default_factory=dict)
     error: str | None = None
@@ -87,6 +93,7 @@ class RecordReport:
         return {
             "path": str(self.path),
             "duration_s": self.duration_s,
+            "discovery_s": self.discovery_s,
             "messages": self.messages,
             "lost": self.lost,
             "bytes": self.bytes,
@@ -105,6 +112,7 @@ class RecordProgress:
     messages: int
     bytes: int
     lost: int
+    before_clock: int = 0
 
 
 def loss_summary(records: list[TopicRecord]) -> str:

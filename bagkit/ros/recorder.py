@@ -67,12 +67,18 @@ class Recorder:
         regex: also record topics whose name contains a match of this regular expression.
         exclude: do not record topics matching this (named ones included).
         include_hidden: let ``all_topics``/``regex`` select hidden topics.
+        topic_types: also record topics of these types (``pkg/msg/Name``).
+        exclude_topics: do not record these topics (named ones included).
+        exclude_topic_types: do not record topics of these types.
+        include_unpublished: also subscribe to selected topics that have no publisher.
+        custom_data: key -> value pairs for metadata.yaml's ``custom_data``.
         compression: ``zstd`` (default), ``lz4`` or ``none``.
         max_bag_size: split into a new file at this many bytes (0: never).
         max_bag_duration_s: split when a file spans this many seconds (0: never).
         qos_overrides: topic -> subscription profile, instead of the adapted one.
-        use_sim_time: ``log_time`` is the latest ``/clock`` time when the message was taken
-            (0 before the first), as ``ros2 bag record --use-sim-time``.
+        use_sim_time: ``log_time`` is the latest ``/clock`` time when the message was taken,
+            as ``ros2 bag record --use-sim-time``; messages taken before the first ``/clock``
+            are not written (counted in ``TopicRecord.before_clock``).
         context: an initialized rclpy context to use; default: a private one.
         node_name: the recorder node's name.
         queue_bytes: bound of the queue between taking and writing.
@@ -93,6 +99,11 @@ class Recorder:
         regex: str | None = None,
         exclude: str | None = None,
         include_hidden: bool = False,
+        topic_types: tuple[str, ...] | list[str] = (),
+        exclude_topics: tuple[str, ...] | list[str] = (),
+        exclude_topic_types: tuple[str, ...] | list[str] = (),
+        include_unpublished: bool = False,
+        custom_data: Mapping[str, str] | None = None,
         compression: str = "zstd",
         max_bag_size: int = 0,
         max_bag_duration_s: float = 0,
@@ -111,9 +122,14 @@ class Recorder:
             regex=regex,
             exclude=exclude,
             include_hidden=include_hidden,
+            topic_types=topic_types,
+            exclude_topics=exclude_topics,
+            exclude_topic_types=exclude_topic_types,
         )
         if self.selection.empty:
-            raise RecorderOptionsError("nothing to record: name topics, or use --all or --regex")
+            raise RecorderOptionsError(
+                "nothing to record: name topics, or use --all, --regex or --topic-types"
+            )
         if self.path.exists():
             raise RecorderOptionsError(
                 f"{self.path} already exists (bagkit never overwrites a bag)"
@@ -125,6 +141,8 @@ class Recorder:
         self.max_bag_duration_s = max_bag_duration_s
         self.qos_overrides = dict(qos_overrides or {})
         self.use_sim_time = use_sim_time
+        self.include_unpublished = include_unpublished
+        self.custom_data = dict(custom_data or {})
         self.discovery_period_s = discovery_period_s
         self.report = RecordReport(self.path)
         self._context = context
@@ -158,6 +176,15 @@ class Recorder:
     def stopped(self) -> threading.Event:
         """Set when the bag is finished: after ``stop``, or on an error such as a full disk."""
         return self._stopped
+
+    @property
+    def subscribed(self) -> threading.Event:
+        """Set once every named topic (none named: the first topic) is subscribed or skipped.
+
+        A recording's duration counts from here; ``report.discovery_s`` is the wait.
+        """
+        assert self._subscriptions is not None, "start() first"
+        return self._subscriptions.complete
 
     def start(self) -> None:
         """Create the bag and the node, subscribe to the topics found, and start recording.
@@ -193,13 +220,15 @@ class Recorder:
 
     def _create_bag(self) -> BagWriter:
         try:
-            return BagWriter(
+            bag = BagWriter(
                 self.path,
                 compression=self.compression,
                 max_bag_size=self.max_bag_size,
                 max_bag_duration_s=self.max_bag_duration_s,
                 chunk_interval_s=FLUSH_PERIOD_S,
             ).open()
+            bag.custom_data.update(self.custom_data)
+            return bag
         except BagWriteError as exc:
             cause = exc.__cause__
             if isinstance(cause, OSError) and cause.errno in _DISK_FULL:
@@ -231,6 +260,7 @@ class Recorder:
             queue=self._queue,
             skipped=self.report.skipped,
             on_warning=self._on_warning,
+            include_unpublished=self.include_unpublished,
         )
         clock = None
         if self.use_sim_time:
@@ -254,6 +284,9 @@ class Recorder:
         self._writer.run()
         report = self.report
         report.duration_s = time.monotonic() - self._started
+        assert self._subscriptions is not None
+        if self._subscriptions.complete.is_set():
+            report.discovery_s = self._subscriptions.complete_at - self._started
         report.topics = sorted(self._writer.records.values(), key=lambda r: r.topic)
         errors = self._stop.errors
         report.error = errors[0] if errors else None
@@ -291,6 +324,7 @@ class Recorder:
             messages=sum(r.messages for r in records),
             bytes=sum(r.bytes for r in records),
             lost=sum(r.lost for r in records),
+            before_clock=sum(r.before_clock for r in records),
         )
 
 

@@ -1,8 +1,10 @@
 """Which topics to record or replay: one set of rules for both, as ``ros2 bag`` selects them.
 
 A topic is selected when it is named, or when ``all_topics`` is set, or when ``regex`` matches
-somewhere in its name; then every topic that ``exclude`` matches is left out, named ones too
-(``ros2 bag``'s ``--exclude-regex`` works on top of ``--topics``, ``--all`` and ``--regex``).
+somewhere in its name, or when its type is one of ``topic_types``; then every topic that
+``exclude`` matches, that ``exclude_topics`` names or whose type ``exclude_topic_types`` names is
+left out, named ones too (``ros2 bag``'s ``--exclude-regex`` works on top of ``--topics``,
+``--all`` and ``--regex``).
 Hidden topics (a name component starting with ``_``) are selected by ``all_topics`` or
 ``regex`` only with ``include_hidden``; a named hidden topic is always selected. Names are
 absolute: ``imu/data`` means ``/imu/data``. No rclpy import.
@@ -21,6 +23,12 @@ from bagkit.ros.errors import PlayerError, RecorderOptionsError
 def absolute_topic_name(name: str) -> str:
     """``imu/data`` -> ``/imu/data``: bagkit's nodes live in the root namespace."""
     return name if name.startswith("/") else f"/{name}"
+
+
+def canonical_type(name: str) -> str:
+    """``std_msgs/String`` -> ``std_msgs/msg/String``: types compare in their full form."""
+    parts = name.split("/")
+    return f"{parts[0]}/msg/{parts[1]}" if len(parts) == 2 else name
 
 
 def is_hidden(name: str) -> bool:
@@ -42,13 +50,16 @@ def compile_topic_pattern(
 
 @dataclass(frozen=True, slots=True)
 class TopicSelection:
-    """The topics chosen by names, ``--all``, ``--regex``, ``--exclude`` and hidden-ness."""
+    """The topics chosen by names, types, ``--all``, ``--regex``, exclusions and hidden-ness."""
 
     topics: frozenset[str] = frozenset()
     all_topics: bool = False
     regex: re.Pattern[str] | None = None
     exclude: re.Pattern[str] | None = None
     include_hidden: bool = False
+    topic_types: frozenset[str] = frozenset()
+    exclude_topics: frozenset[str] = frozenset()
+    exclude_topic_types: frozenset[str] = frozenset()
 
     @classmethod
     def create(
@@ -59,6 +70,9 @@ class TopicSelection:
         regex: str | None = None,
         exclude: str | None = None,
         include_hidden: bool = False,
+        topic_types: Iterable[str] = (),
+        exclude_topics: Iterable[str] = (),
+        exclude_topic_types: Iterable[str] = (),
         error: type[BagkitError] = RecorderOptionsError,
     ) -> TopicSelection:
         """Build a selection from command-line style options.
@@ -70,22 +84,34 @@ class TopicSelection:
             topics=frozenset(absolute_topic_name(t) for t in topics),
             all_topics=all_topics,
             regex=compile_topic_pattern(regex, "--regex", error=error),
-            exclude=compile_topic_pattern(exclude, "--exclude", error=error),
+            exclude=compile_topic_pattern(exclude, "--exclude-regex", error=error),
             include_hidden=include_hidden,
+            topic_types=frozenset(canonical_type(t) for t in topic_types),
+            exclude_topics=frozenset(absolute_topic_name(t) for t in exclude_topics),
+            exclude_topic_types=frozenset(canonical_type(t) for t in exclude_topic_types),
         )
 
     @property
     def empty(self) -> bool:
-        """Whether nothing can be selected: no name, no ``--all``, no ``--regex``."""
-        return not self.topics and not self.all_topics and self.regex is None
+        """Whether nothing can be selected: no name, no type, no ``--all``, no ``--regex``."""
+        return (
+            not self.topics and not self.topic_types and not self.all_topics and self.regex is None
+        )
 
-    def matches(self, name: str) -> bool:
-        """Whether topic ``name`` is selected."""
+    def matches(self, name: str, types: Iterable[str] = ()) -> bool:
+        """Whether topic ``name`` (of ``types``, where known) is selected."""
+        types = {canonical_type(t) for t in types}
+        if name in self.exclude_topics or not self.exclude_topic_types.isdisjoint(types):
+            return False
         if self.exclude is not None and self.exclude.search(name):
             return False
         if name in self.topics:
             return True
-        if not (self.all_topics or (self.regex is not None and self.regex.search(name))):
+        if not (
+            self.all_topics
+            or (self.regex is not None and self.regex.search(name))
+            or not self.topic_types.isdisjoint(types)
+        ):
             return False
         return self.include_hidden or not is_hidden(name)
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -72,6 +73,11 @@ class Subscriptions:
         queue: where new topics are announced to the writer.
         skipped: topic -> reason it is not recorded (the report's, filled here).
         on_warning: called with each warning; default: logging.
+        include_unpublished: also subscribe to selected topics that have no publisher yet.
+
+    ``complete`` is set after the discovery that subscribed every named topic (skipped ones
+    count as done) or, when no topic is named, the first topic; ``complete_at`` is then its
+    ``time.monotonic()``: a recording's duration counts from there.
     """
 
     def __init__(
@@ -83,8 +89,12 @@ class Subscriptions:
         queue: HandoffQueue,
         skipped: dict[str, str],
         on_warning: Callable[[str], None] | None,
+        include_unpublished: bool = False,
     ) -> None:
         self.node = node
+        self.include_unpublished = include_unpublished
+        self.complete = threading.Event()
+        self.complete_at = 0.0
         self.selection = selection
         self.qos_overrides = qos_overrides
         self.topics: dict[str, RecordedTopic] = {}
@@ -105,12 +115,25 @@ class Subscriptions:
 
         ``drain`` queues what an old subscription holds before it is replaced.
         """
-        for found in discover_topics(self.node, self.selection):
+        found_topics = discover_topics(
+            self.node, self.selection, include_unpublished=self.include_unpublished
+        )
+        for found in found_topics:
             known = self.topics.get(found.name)
             if known is None:
                 self._subscribe(found)
             elif found.name not in self.qos_overrides:
                 self._adapt(known, found, drain)
+        if not self.complete.is_set() and self._covers_selection():
+            self.complete_at = time.monotonic()
+            self.complete.set()
+
+    def _covers_selection(self) -> bool:
+        """Whether every named topic is subscribed or skipped (any topic, if none is named)."""
+        with self.lock:
+            done = set(self.topics) | set(self._skipped)
+        named = self.selection.topics
+        return named <= done if named else bool(self.topics)
 
     def skip(self, topic: str, reason: str) -> None:
         """Leave ``topic`` out of the recording, with one warning (however often it is seen)."""

@@ -48,12 +48,15 @@ class SimClock:
     def __init__(self, subscription: Subscription) -> None:
         self.subscription = subscription
         self.now_ns = 0
+        # Until the first /clock there is no time to stamp with: messages are left out.
+        self.started = False
 
     def update(self) -> None:
         """Take every waiting clock message; the last one is the time."""
         handle, msg_type = self.subscription.handle, self.subscription.msg_type
         while (taken := handle.take_message(msg_type, True)) is not None:
             self.now_ns = clock_ns(taken[0])
+            self.started = True
 
 
 @dataclass(slots=True)
@@ -205,12 +208,18 @@ class TakeLoop:
             taken = take_serialized(
                 topic.subscription, max_count=TAKE_BURST, max_bytes=TAKE_BURST_BYTES
             )
-            if taken.payloads:
+            if taken.payloads and not self._clock_started():
+                # As rosbag2: nothing is written before the first /clock (it has no time).
+                topic.record.before_clock += len(taken)
+            elif taken.payloads:
                 pending.add(topic, taken)
                 taken_total += len(taken)
                 full |= len(taken) == TAKE_BURST or taken.nbytes >= TAKE_BURST_BYTES
         self._taken_last_round = taken_total
         self._full_last_round = full
+
+    def _clock_started(self) -> bool:
+        return self.clock is None or self.clock.started
 
     def _sim_time(self) -> int | None:
         return self.clock.now_ns if self.clock is not None else None
@@ -233,4 +242,7 @@ class TakeLoop:
             )
             if not taken.payloads:
                 return
+            if not self._clock_started():
+                topic.record.before_clock += len(taken)
+                continue
             self.queue.put_batch(Batch([(topic, taken)], self._sim_time()), taken.nbytes)

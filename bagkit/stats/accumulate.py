@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 
 from bagkit.bag.definitions import INTEGER_TYPES
+from bagkit.bag.info import message_rate
 from bagkit.decode import DecodeError, LeafField, MessageTypes
 from bagkit.decode.bulk import decode_bulk, spans_inside
 from bagkit.decode.direct import ValueReader
@@ -175,10 +176,7 @@ class TopicAccumulator:
                 moments, column = self.scalars, self.column[leaf.path]
                 leaf_std = std[column]
             fields.append(_field_stats(leaf, moments, column, float(leaf_std)))
-        rate = None
-        if self.count > 1 and self.first_ns is not None and self.last_ns is not None:
-            span = (self.last_ns - self.first_ns) / 1e9
-            rate = (self.count - 1) / span if span > 0 else None
+        rate = message_rate(self.count, self.first_ns, self.last_ns)
         return TopicStats(
             self.topic, self.type_name, self.count, rate, tuple(fields), self.failures
         )

@@ -77,11 +77,13 @@ def test_json_reports_the_bag(two_topic_bag: Path) -> None:
         "topic": "/fast",
         "type": STRING,
         "count": 201,
-        "rate_hz": pytest.approx(20.1, rel=1e-6),
+        # 200 intervals of 50 ms between the first and the last message.
+        "rate_hz": pytest.approx(200 / (200 * 0.05), rel=1e-9),
         "serialization_format": "cdr",
         "offered_qos_profiles": QOS,
     }
     assert topics["/slow"]["count"] == 11
+    assert topics["/slow"]["rate_hz"] == pytest.approx(10 / (200 * 0.05), rel=1e-9)
     assert info["compression"] == "zstd"
     assert info["compression_ratio"] > 1.0
     assert info["summary"] is True
@@ -95,8 +97,89 @@ def test_table_is_for_people(two_topic_bag: Path) -> None:
     assert "drive_0.mcap" in out and "drive_1.mcap" in out
     assert "212" in out
     assert "10.000000001s" in out
-    assert "best_effort, transient_local, keep_last(5)" in out
-    assert "20.10" in out
+    assert "best_effort, transient_local, keep_last(5)" not in out
+    assert "20.00 Hz" in out
+    verbose = _run(str(two_topic_bag), "-v").stdout
+    assert "/fast: cdr, best_effort, transient_local, keep_last(5)" in verbose
+
+
+def test_rate_is_the_one_stats_summary_reports(tmp_path: Path) -> None:
+    """info and stats summary: (count - 1) / (last - first), "-" with one message."""
+    path = tmp_path / "rates"
+    data = bytes(TYPESTORE.serialize_cdr(TYPESTORE.types[STRING](data="x"), STRING))
+    with BagWriter(path) as bag:
+        bag.add_topic(TopicInfo("/ten_hz", STRING))
+        bag.add_topic(TopicInfo("/once", STRING))
+        for i in range(31):  # 10 Hz with jitter, over a bag longer than the topic
+            bag.write("/ten_hz", data, log_time=START + i * 100_000_000 + (i % 3) * 1_000_000)
+        bag.write("/once", data, log_time=START + 5_000_000_000)
+    info = {t["topic"]: t for t in json.loads(_run(str(path), "--format", "json").stdout)["topics"]}
+    stats = subprocess.run(
+        [BAGKIT, "stats", "summary", str(path), "--format", "json"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=True,
+    )
+    by_stats = {t["topic"]: t["rate_hz"] for t in json.loads(stats.stdout)["topics"]}
+    last = 30 * 100_000_000 + (30 % 3) * 1_000_000
+    assert info["/ten_hz"]["rate_hz"] == by_stats["/ten_hz"] == pytest.approx(30 / (last / 1e9))
+    assert info["/once"]["rate_hz"] is None and by_stats["/once"] is None
+    table = _run(str(path)).stdout
+    once = next(line for line in table.splitlines() if "/once" in line)
+    assert once.split()[-1] == "-"
+
+
+def test_info_options_of_ros2_bag(two_topic_bag: Path, tmp_path: Path) -> None:
+    names = _run("-t", str(two_topic_bag))
+    assert names.returncode == 0, names.stderr
+    assert names.stdout.splitlines() == ["/fast", "/slow"]
+    assert _run("--topic-name", str(two_topic_bag)).stdout == names.stdout
+    assert _run("-s", "mcap", str(two_topic_bag)).returncode == 0
+    wrong = _run("-s", "sqlite3", str(two_topic_bag))
+    assert wrong.returncode == 2
+    assert wrong.stderr.strip() == f"error: {two_topic_bag} is a mcap bag, not sqlite3"
+    unknown = _run("--storage", "hdf5", str(two_topic_bag))
+    assert unknown.returncode == 2 and "hdf5" in unknown.stderr
+    for help_flag in ("-h", "--help"):
+        helped = _run(help_flag)
+        assert helped.returncode == 0 and "--topic-name" in helped.stdout
+    # --format has no short form: -f is --fields wherever it exists.
+    assert _run("-f", "json", str(two_topic_bag)).returncode == 2
+
+
+def test_table_fits_80_columns_with_topic_names_whole(tmp_path: Path) -> None:
+    path = tmp_path / "narrow"
+    names = [
+        "/vehicle/front_left_camera/image_rect_color/compressed",
+        "/perception/obstacle_tracker/tracked_objects",
+        "/x",
+    ]
+    data = bytes(TYPESTORE.serialize_cdr(TYPESTORE.types[STRING](data="x"), STRING))
+    with BagWriter(path) as bag:
+        for name in names:
+            bag.add_topic(TopicInfo(name, STRING, offered_qos_profiles=QOS))
+            for i in range(3):
+                bag.write(name, data, log_time=START + i * 10_000_000)
+        long_json = json.dumps({f"/topic/{i}": {"messages": i, "gaps": 0} for i in range(30)})
+        bag.custom_data["bagkit.record.loss"] = long_json
+    env = {**os.environ, "COLUMNS": "80"}
+    for extra in ([], ["-v"]):
+        out = subprocess.run(
+            [BAGKIT, "info", str(path), *extra],
+            capture_output=True,
+            text=True,
+            timeout=60,
+            check=True,
+            env=env,
+        ).stdout
+        lines = out.splitlines()
+        assert all(len(line) <= 80 for line in lines), out
+        for name in names:
+            assert any(name in line.split() for line in lines), (name, out)
+        loss_lines = [line for line in lines if "bagkit.record.loss" in line]
+        assert len(loss_lines) == 1
+    assert "JSON, 30 entries" in _run(str(path)).stdout
 
 
 def test_salvaged_bag_is_reported_with_its_problem(two_topic_bag: Path, tmp_path: Path) -> None:
@@ -170,6 +253,23 @@ def _storage_counts(bag_dir: Path) -> dict[str, int]:
     return counts
 
 
+def _storage_times(bag_dir: Path) -> dict[str, tuple[int, int]]:
+    """First and last log time per topic as the storage files hold them."""
+    times: dict[str, list[int]] = {}
+    for file in sorted(bag_dir.iterdir()):
+        if file.suffix == ".mcap":
+            with open(file, "rb") as f:
+                for _, channel, message in make_reader(f).iter_messages():
+                    times.setdefault(channel.topic, []).append(message.log_time)
+        elif file.suffix == ".db3":
+            db = sqlite3.connect(f"file:{file}?mode=ro&immutable=1", uri=True)
+            query = "SELECT t.name, m.timestamp FROM messages m JOIN topics t ON m.topic_id = t.id"
+            for name, stamp in db.execute(query):
+                times.setdefault(name, []).append(stamp)
+            db.close()
+    return {topic: (min(t), max(t)) for topic, t in times.items()}
+
+
 @pytest.mark.parametrize(
     "relative",
     [
@@ -187,5 +287,12 @@ def test_interop_bags(interop_dir: Path, relative: str) -> None:
     counted = {t["topic"]: t["count"] for t in info["topics"]}
     assert {t: c for t, c in counted.items() if c or t in expected} == expected
     assert info["message_count"] == sum(expected.values())
+    for topic in info["topics"]:
+        first_last = _storage_times(interop_dir / relative).get(topic["topic"])
+        if topic["count"] > 1 and first_last and first_last[1] > first_last[0]:
+            expected_rate = (topic["count"] - 1) / ((first_last[1] - first_last[0]) / 1e9)
+            assert topic["rate_hz"] == pytest.approx(expected_rate, rel=1e-9)
+        else:
+            assert topic["rate_hz"] is None
     if "wrong_rmw" in relative:
         assert {t["serialization_format"] for t in info["topics"]} == {"wrong_format"}

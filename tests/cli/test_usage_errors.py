@@ -14,7 +14,7 @@ import pytest
     [
         (["bagkit", "info", "--bogus", "x"], "No such option: --bogus"),
         (["bagkit", "nosuch"], "No such command 'nosuch'"),
-        (["bagkit", "record", "--compression", "brotli", "/x"], "'--compression'"),
+        (["bagkit", "record", "--compression-format", "brotli", "/x"], "'--compression-format'"),
         (["bagkit", "replay", "--rate", "fast", "bag"], "'--rate'"),
         (["fusion", "launch", "--bogus"], "No such option: --bogus"),
     ],

@@ -53,7 +53,7 @@ def test_record_live_fusion_system(processes: object, tmp_path: Path) -> None:
     )
     bag = tmp_path / "fusion"
     recorder = processes.start(  # type: ignore[attr-defined]
-        ["bagkit", "record", "-a", "-o", str(bag), "-d", str(RECORD_S), "-f", "json"],
+        ["bagkit", "record", "-a", "-o", str(bag), "--duration", str(RECORD_S), "--format", "json"],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
     )

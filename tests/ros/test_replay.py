@@ -701,7 +701,9 @@ def test_cli_chunk_that_does_not_decompress_is_named_and_counted(
         chunk_count = sum(1 for _ in reader.chunks())
     which = [2] if broken == "one chunk" else list(range(chunk_count))
     total, lost = _corrupt_chunks(bag, which)
-    result = _bagkit("replay", str(bag), "--rate", "100", "--no-wait-for-subscribers", "-f", "json")
+    result = _bagkit(
+        "replay", str(bag), "--rate", "100", "--no-wait-for-subscribers", "--format", "json"
+    )
     assert "Traceback" not in result.stderr
     assert "no message of the selected topics" not in result.stderr
     if broken == "every chunk":

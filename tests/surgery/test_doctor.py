@@ -34,7 +34,7 @@ def stored_out_of_order(files: list[Path]) -> int:
 @pytest.mark.parametrize("name", ["nominal", "faults", "fast"])
 def test_golden_fixtures_are_healthy(name: str) -> None:
     bag = FIXTURES / name / "golden"
-    result = run("doctor", str(bag), "--deep", "-f", "json")
+    result = run("doctor", str(bag), "--deep", "--format", "json")
     assert result.returncode == 0, result.stdout
     report = json.loads(result.stdout)
     assert report["healthy"] and report["problems"] == []
@@ -77,7 +77,7 @@ def test_every_interop_bag(interop_dir: Path) -> None:
                 reader = make_reader(f, validate_crcs=True)
                 count = sum(1 for _ in reader.iter_messages())
                 assert reader.get_summary().statistics.message_count == count
-        result = run("doctor", str(bag), "--deep", "-f", "json")
+        result = run("doctor", str(bag), "--deep", "--format", "json")
         report = json.loads(result.stdout)
         file_problems = [p for p in report["problems"] if p["where"] != "metadata.yaml"]
         assert file_problems == [], bag
@@ -186,6 +186,6 @@ def test_json_matches_text(bag: Path) -> None:
     shutil.copy(bag / "metadata.yaml", bag / "metadata.bak")
     (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: [")
     text = _lines(run("doctor", str(bag)))
-    report = json.loads(run("doctor", str(bag), "-f", "json").stdout)
+    report = json.loads(run("doctor", str(bag), "--format", "json").stdout)
     assert [f"{p['where']}: {p['problem']}" for p in report["problems"]] == text
     assert text[0].startswith("metadata.yaml: not valid YAML (while parsing a flow node did not")

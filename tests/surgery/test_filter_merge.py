@@ -63,7 +63,7 @@ def test_filter_equals_rosbags_selection(
     mixed: Path, tmp_path: Path, args: list[str], keep: object
 ) -> None:
     out = tmp_path / "out"
-    result = run("filter", str(mixed), "-o", str(out), *args, "-f", "json")
+    result = run("filter", str(mixed), "-o", str(out), *args, "--format", "json")
     assert result.returncode == 0, result.stderr
     expected = _expected(mixed, keep)
     assert expected  # the case selects something
@@ -172,7 +172,7 @@ def test_merge_interleaved_equals_sorted_union(tmp_path: Path) -> None:
     a = write_mixed_bag(tmp_path / "a", 600)
     b = write_mixed_bag(tmp_path / "b", 500, offset_ns=3_333_333, step_ns=13_000_000)
     out = tmp_path / "merged"
-    result = run("merge", str(a), str(b), "-o", str(out), "-f", "json")
+    result = run("merge", str(a), str(b), "-o", str(out), "--format", "json")
     assert result.returncode == 0, result.stderr
     union = sorted(rosbags_messages(a) + rosbags_messages(b), key=key)
     merged = mcap_messages(sorted(out.glob("*.mcap")))

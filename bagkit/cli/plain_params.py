@@ -1,0 +1,106 @@
+"""Plain coercion of string, path, flag and choice parameters, without importing pydantic.
+
+typer (0.29, pinned) coerces every parameter through a pydantic ``TypeAdapter``: importing
+pydantic for that costs a command like ``bagkit info BAG`` more than reading the bag. Strings,
+paths, lists of them and enum choices need no validation library; this gives those parameters
+a plain coercion (``_runtime_param``, typer's own lazily built slot) and leaves every other
+parameter (numbers with bounds, ...) to typer.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from typer._click import Command, Context
+from typer._click.exceptions import BadParameter
+from typer._coercion import RuntimeParam
+from typer.core import TyperGroup
+
+
+def _flag(value: Any) -> Any:
+    """A flag's value: click gives flags as bools, environment values as text.
+
+    Other text passes through: ``--install-completion SHELL`` is a flag that takes a value.
+    """
+    if isinstance(value, str):
+        word = value.strip().lower()
+        if word in ("1", "true", "yes", "on", "0", "false", "no", "off", ""):
+            return word in ("1", "true", "yes", "on")
+        return value
+    return bool(value)
+
+
+_SCALARS: dict[Any, Any] = {
+    str: str,
+    Path: Path,
+    bool: _flag,
+    list[str]: str,
+    list[Path]: Path,
+}
+
+
+@dataclass(frozen=True)
+class _PlainParam(RuntimeParam):
+    """A string, path or enum (or a list of them) taken as given."""
+
+    convert: Any
+
+    def _coerce_value(self, value: Any, param: Any, ctx: Context) -> Any:
+        if isinstance(value, (list, tuple)):
+            return [self._one(v, param, ctx) for v in value]
+        return self._one(value, param, ctx)
+
+    def _one(self, value: Any, param: Any, ctx: Context) -> Any:
+        if isinstance(self.convert, type) and issubclass(self.convert, enum.Enum):
+            try:
+                return self.convert(value)
+            except ValueError:
+                choices = ", ".join(f"'{c.value}'" for c in self.convert)
+                raise BadParameter(
+                    f"{value!r} is not one of {choices}.", ctx=ctx, param=param
+                ) from None
+        return self.convert(value)
+
+
+def _plain(annotation: Any) -> Any | None:
+    if annotation in _SCALARS:
+        return _SCALARS[annotation]
+    if isinstance(annotation, type) and issubclass(annotation, enum.Enum):
+        return annotation
+    return None
+
+
+def use_plain_params(params: list[Any]) -> None:
+    """Give the plain ones of ``params`` the plain coercion (unless they have one)."""
+    for param in params:
+        descriptor = getattr(param, "type_descriptor", None)
+        info = getattr(descriptor, "parameter_info", None)
+        if descriptor is None or info is None or descriptor.file_annotation is not None:
+            continue
+        convert = _plain(descriptor.annotation)
+        if convert is None or getattr(info, "parser", None) is not None:
+            continue
+        if getattr(param, "_runtime_param", None) is None:
+            param._runtime_param = _PlainParam(
+                annotation=descriptor.annotation, parameter_info=info, convert=convert
+            )
+
+
+def use_plain_coercion(command: Command) -> None:
+    """Give the plain parameters of ``command`` and its subcommands the plain coercion.
+
+    Applied when a command parses its arguments: click creates the help option per context.
+    """
+    parse_args = command.parse_args
+
+    def parse_plainly(ctx: Context, args: list[str]) -> list[str]:
+        use_plain_params(command.get_params(ctx))
+        return parse_args(ctx, args)
+
+    command.parse_args = parse_plainly  # type: ignore[method-assign]
+    if isinstance(command, TyperGroup):
+        for sub in command.commands.values():
+            use_plain_coercion(sub)

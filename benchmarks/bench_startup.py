@@ -1,0 +1,86 @@
+"""Whole-process start: ``bagkit --help`` and ``bagkit info BAG`` against ``python -c pass``.
+
+Target (issue 17): each within 0.15 s of ``python -c pass`` in the same environment. Every
+command is run RUNS times, interleaved with the peers so that a change of machine load hits
+them alike; the median wall time of each is compared. ``python -c "import numpy"`` is printed
+beside them: the bag reader needs numpy, so it is the floor of ``bagkit info``.
+
+Run: ``.venv/bin/python -m benchmarks startup``
+"""
+
+from __future__ import annotations
+
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from bagkit.bag import BagWriter, TopicInfo
+
+RUNS = 9
+TARGET_S = 0.15
+STRING = "std_msgs/msg/String"
+
+
+def _small_bag(directory: Path) -> Path:
+    """A bag of two topics, 200 messages: what a user opens with ``bagkit info``."""
+    path = directory / "startup"
+    payload = b"\x00\x01\x00\x00\x04\x00\x00\x00abc\x00"
+    with BagWriter(path) as bag:
+        for topic in ("/a", "/b"):
+            bag.add_topic(TopicInfo(topic, STRING))
+        for i in range(200):
+            bag.write("/a" if i % 2 else "/b", payload, log_time=1_000_000_000 + i * 10_000_000)
+    return path
+
+
+# As on a user's machine: modules are loaded from their cached bytecode (an environment that
+# sets PYTHONDONTWRITEBYTECODE would compile bagkit's modules from source at every start).
+_ENV = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+
+
+def _wall(command: list[str]) -> float:
+    start = time.perf_counter()
+    subprocess.run(
+        command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=True, env=_ENV
+    )
+    return time.perf_counter() - start
+
+
+def main() -> bool:
+    """Print the median start times and their differences to ``python -c pass``."""
+    bagkit = str(Path(sys.executable).with_name("bagkit"))
+    with tempfile.TemporaryDirectory() as tmp:
+        bag = _small_bag(Path(tmp))
+        commands = {
+            "python -c pass": [sys.executable, "-c", "pass"],
+            "python -c 'import numpy'": [sys.executable, "-c", "import numpy"],
+            "bagkit --help": [bagkit, "--help"],
+            "bagkit info BAG": [bagkit, "info", str(bag)],
+        }
+        for command in commands.values():  # warm-up: bytecode caches, page cache
+            _wall(command)
+        times: dict[str, list[float]] = {name: [] for name in commands}
+        for _ in range(RUNS):
+            for name, command in commands.items():
+                times[name].append(_wall(command))
+    medians = {name: statistics.median(t) for name, t in times.items()}
+    base = medians["python -c pass"]
+    ok = True
+    print(f"median of {RUNS} runs each, interleaved; target: bagkit within {TARGET_S} s of pass")
+    for name, median in medians.items():
+        over = median - base
+        verdict = ""
+        if name.startswith("bagkit"):
+            met = over <= TARGET_S
+            ok &= met
+            verdict = "ok" if met else "MISSED"
+        print(f"  {name:28s} {median * 1000:7.1f} ms  (+{over * 1000:6.1f} ms) {verdict}")
+    return ok
+
+
+if __name__ == "__main__":
+    sys.exit(0 if main() else 1)

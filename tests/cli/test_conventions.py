@@ -1,0 +1,148 @@
+"""What every command shares: -h, list options, one meaning per short flag, formats offered
+only where they work, shell completion, and commands imported only when they run."""
+
+from __future__ import annotations
+
+import json
+import os
+import struct
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from bagkit.bag import BagWriter, TopicInfo
+from bagkit.cli.common import expand_multi_value_options, split_list
+from bagkit.cli.main import _COMMANDS
+
+BAGKIT = str(Path(sys.executable).with_name("bagkit"))
+FLOAT64 = "std_msgs/msg/Float64"
+
+
+def _run(*args: str) -> subprocess.CompletedProcess[str]:
+    env = {**os.environ, "COLUMNS": "100"}
+    return subprocess.run(
+        [BAGKIT, *args], capture_output=True, text=True, timeout=120, check=False, env=env
+    )
+
+
+def test_split_list_takes_repeated_values_and_comma_lists() -> None:
+    assert split_list(None) == []
+    assert split_list(["/a,/b", "/c", " /d , ,"]) == ["/a", "/b", "/c", "/d"]
+
+
+def test_several_values_after_one_flag_become_repetitions() -> None:
+    options = frozenset({"--topics", "--exclude-topics"})
+    args = ["--topics", "/a", "/b", "-o", "out", "--exclude-topics", "/c", "/d", "--all"]
+    assert expand_multi_value_options(args, options) == [
+        *["--topics", "/a", "--topics", "/b", "-o", "out"],
+        *["--exclude-topics", "/c", "--exclude-topics", "/d", "--all"],
+    ]
+    # A positional before any such option, and values of other options, stay as they are.
+    assert expand_multi_value_options(["/x", "-o", "a", "b"], options) == ["/x", "-o", "a", "b"]
+
+
+@pytest.mark.parametrize("command", sorted(_COMMANDS))
+@pytest.mark.parametrize("flag", ["-h", "--help"])
+def test_every_command_answers_h_and_help(command: str, flag: str) -> None:
+    result = _run(command, flag)
+    if command == "play" and "No such command" in result.stderr:
+        pytest.skip("bagkit play comes with the replay work")
+    assert result.returncode == 0, result.stderr
+    assert f"bagkit {command}" in result.stdout and "Usage" in result.stdout
+
+
+def test_top_level_help_lists_every_command_without_importing_them() -> None:
+    code = (
+        "import sys; sys.argv = ['bagkit', '--help']\n"
+        "from bagkit.cli.launch import run\n"
+        "try:\n    run()\nexcept SystemExit:\n    pass\n"
+        "heavy = sorted(m for m in sys.modules if m.split('.')[0] in ('numpy', 'pandas', "
+        "'rich', 'pydantic', 'rclpy') or m.startswith('bagkit.cli.') and m not in "
+        "('bagkit.cli.main', 'bagkit.cli.common', 'bagkit.cli.launch', "
+        "'bagkit.cli.plain_params'))\n"
+        "print('HEAVY', heavy, file=sys.stderr)\n"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True
+    )
+    assert "HEAVY []" in result.stderr
+    for command in _COMMANDS:
+        assert f"\n  {command} " in result.stdout
+
+
+def test_info_imports_neither_pydantic_nor_other_commands(tmp_path: Path) -> None:
+    bag = _bag(tmp_path)
+    code = (
+        f"import sys; sys.argv = ['bagkit', 'info', {str(bag)!r}]\n"
+        "from bagkit.cli.launch import run\n"
+        "try:\n    run()\nexcept SystemExit:\n    pass\n"
+        "print('LOADED', sorted(m for m in sys.modules if m.startswith(('pydantic', "
+        "'pandas', 'bagkit.cli.stats', 'bagkit.cli.record', 'bagkit.compare'))), file=sys.stderr)\n"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True
+    )
+    assert "LOADED []" in result.stderr
+
+
+def test_shell_completion_is_available() -> None:
+    # typer detects the shell from the parent process, as at a prompt ("; true": bash must
+    # not exec bagkit in its place).
+    result = subprocess.run(
+        ["bash", "-c", f"{BAGKIT} --show-completion; true"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=True,
+    )
+    assert "complete -o default -F _bagkit_completion bagkit" in result.stdout, result.stderr
+
+
+def _bag(tmp_path: Path) -> Path:
+    path = tmp_path / "lists"
+    payload = b"\x00\x01\x00\x00" + struct.pack("<d", 1.5)  # CDR of Float64(1.5)
+    with BagWriter(path) as bag:
+        for topic in ("/a", "/b", "/c"):
+            bag.add_topic(TopicInfo(topic, FLOAT64))
+        for i in range(10):
+            for topic in ("/a", "/b", "/c"):
+                bag.write(topic, payload, log_time=1_000_000_000 + i * 100_000_000)
+    return path
+
+
+def test_stats_summary_takes_comma_lists_as_repeated_options(tmp_path: Path) -> None:
+    bag = str(_bag(tmp_path))
+    comma = _run("stats", "summary", bag, "-t", "/a,/c", "--format", "json")
+    repeated = _run("stats", "summary", bag, "-t", "/a", "--topics", "/c", "--format", "json")
+    assert comma.returncode == 0, comma.stderr
+    topics = [t["topic"] for t in json.loads(comma.stdout)["topics"]]
+    assert topics == ["/a", "/c"]
+    assert json.loads(comma.stdout) == json.loads(repeated.stdout)
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        # Reports offer table and json only; csv is not listed, so it is a usage error.
+        (["compare", "x", "y", "--format", "csv"], "'csv' is not one of 'table', 'json'."),
+        (["record", "-a", "--format", "csv"], "'csv' is not one of 'table', 'json'."),
+        (["info", "x", "--format", "csv"], "'csv' is not one of 'table', 'json'."),
+        # -f is --fields wherever it exists; no command takes -f for --format.
+        (["record", "-a", "-f", "json"], "No such option: -f"),
+        (["info", "x", "-f", "json"], "No such option: -f"),
+        (["compare", "x", "y", "-f", "json"], "No such option: -f"),
+    ],
+)
+def test_formats_and_short_flags(args: list[str], expected: str) -> None:
+    result = _run(*args)
+    assert result.returncode == 2
+    (line,) = result.stderr.strip().splitlines()
+    assert line.startswith("error:") and expected in line
+
+
+def test_help_of_reports_lists_only_working_formats() -> None:
+    for command in ("record", "info", "compare"):
+        out = _run(command, "--help").stdout
+        assert "table|json" in out.replace(" ", "") and "csv" not in out, command
