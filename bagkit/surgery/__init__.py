@@ -5,9 +5,9 @@ and whose compression is the one asked for is copied as it is, without decompres
 
 - :mod:`~bagkit.surgery.select`: which messages pass (topics, exclusions, regexes, time range)
 - :mod:`~bagkit.surgery.output`: the bag being written (temp name, split, raw chunk copies)
-- :mod:`~bagkit.surgery.copy`: the streaming, log-time ordered copy of input files
+- :mod:`~bagkit.surgery.copy`, :mod:`~bagkit.surgery.runs`: the streaming, log-time ordered copy
 - :mod:`~bagkit.surgery.rewrite`: ``filter``, ``merge`` and ``recover`` on top of it
-- :mod:`~bagkit.surgery.doctor`: every check, one problem per line
+- :mod:`~bagkit.surgery.doctor`, :mod:`~bagkit.surgery.file_check`: every check, one line each
 """
 
 from __future__ import annotations
