@@ -37,6 +37,7 @@ class Db3Contents:
     topics: dict[str, TopicInfo] = field(default_factory=dict)
     definitions: dict[str, str] = field(default_factory=dict)
     topic_counts: dict[str, int] = field(default_factory=dict)
+    topic_spans: dict[str, tuple[int, int]] = field(default_factory=dict)  # first, last log time
     start_ns: int = 0
     end_ns: int = 0
     problems: list[str] = field(default_factory=list)
@@ -146,13 +147,18 @@ def _read_definitions(db: sqlite3.Connection, columns: set[str], contents: Db3Co
 def _read_counts(db: sqlite3.Connection, contents: Db3Contents) -> None:
     contents.topic_counts = dict.fromkeys(contents.topics, 0)
     orphans = 0
-    query = f"SELECT topic_id, COUNT(*) FROM messages WHERE {_VALID_ROW} GROUP BY topic_id"
-    for topic_id, count in db.execute(query):
+    query = (
+        "SELECT topic_id, COUNT(*), MIN(timestamp), MAX(timestamp) FROM messages "
+        f"WHERE {_VALID_ROW} GROUP BY topic_id"
+    )
+    for topic_id, count, first, last in db.execute(query):
         name = contents.topic_ids.get(topic_id) if isinstance(topic_id, int) else None
         if name is None:
             orphans += count
-        else:
-            contents.topic_counts[name] += count
+            continue
+        contents.topic_counts[name] += count
+        old = contents.topic_spans.get(name, (first, last))
+        contents.topic_spans[name] = (min(old[0], first), max(old[1], last))
     if orphans:
         contents.problems.append(f"{orphans} messages of no known topic skipped")
     (invalid,) = db.execute(f"SELECT COUNT(*) FROM messages WHERE NOT ({_VALID_ROW})").fetchone()

@@ -125,10 +125,8 @@ def _read_times(
 
 
 def _sqlite_spans(storage: Sqlite3File, spans: dict[str, Span]) -> None:
-    query = "SELECT t.name, MIN(m.timestamp), MAX(m.timestamp) FROM messages m "
-    query += "JOIN topics t ON t.id = m.topic_id GROUP BY t.name"
-    for topic, first, last in storage._db.execute(query):
-        _widen(spans, topic, int(first), int(last))
+    for topic, (first, last) in storage.topic_spans.items():
+        _widen(spans, topic, first, last)
 
 
 def topic_spans(storage_files: list[StorageFile]) -> dict[str, Span]:

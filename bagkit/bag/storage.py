@@ -64,6 +64,7 @@ class Sqlite3File(StorageFile):
         self.topics = contents.topics
         self.definitions = contents.definitions
         self.topic_counts = contents.topic_counts
+        self.topic_spans = contents.topic_spans
         self.start_ns = contents.start_ns
         self.end_ns = contents.end_ns
         self.problems = [f"{path.name}: {problem}" for problem in contents.problems]
