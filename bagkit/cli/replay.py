@@ -64,7 +64,11 @@ def _expand_args(args: list[str], value_options: set[str]) -> list[str]:
         index += 1
         if arg == "--clock":
             after = args[index] if index < len(args) else ""
-            out.append(arg if _NUMBER.fullmatch(after) else f"--clock={DEFAULT_CLOCK_HZ:g}")
+            if _NUMBER.fullmatch(after):  # --clock HZ: the value is not the bag
+                out.extend((arg, after))
+                index += 1
+            else:
+                out.append(f"--clock={DEFAULT_CLOCK_HZ:g}")
         elif arg in _MULTI_VALUE:
             values: list[str] = []
             while index < len(args) and not args[index].startswith("-"):

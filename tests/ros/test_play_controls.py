@@ -128,6 +128,7 @@ def _options(args: list[str], monkeypatch: pytest.MonkeyPatch, command: str = "p
         ["--topics", "/a", "/b", "/c", "BAG"],
         ["BAG", "--topics", "/a,/b", "--topics", "/c"],
         ["BAG", "--topics", "/a", "/b", "-r", "1", "--topics=/c"],
+        ["--clock", "100", "--topics", "/a,/b,/c", "BAG"],  # the clock's rate is not the bag
     ],
 )
 def test_topics_take_several_values_comma_lists_and_repeats(
