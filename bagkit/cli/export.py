@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import typer
-from rich.progress import BarColumn, Progress, TaskID, TextColumn, TimeRemainingColumn
 
-from bagkit.cli.common import console, err_console, handle_errors, split_list, warn
+from bagkit.cli.common import console, handle_errors, split_list, warn
+from bagkit.cli.progress import DelayedProgress
 from bagkit.data.formats import ExportFormat
 
 HELP = """Write topics of BAG to Parquet (zstd) or CSV files, one per topic, for pandas, polars,
@@ -31,35 +30,6 @@ Examples:
 """
 
 # Below this many seconds an export finishes without a progress bar flashing by.
-PROGRESS_DELAY_S = 1.0
-
-
-class _Progress:
-    def __init__(self) -> None:
-        self._started = time.monotonic()
-        self._bar: Progress | None = None
-        self._task: TaskID | None = None
-
-    def __call__(self, done: int, total: int) -> None:
-        if self._bar is None:
-            if time.monotonic() - self._started < PROGRESS_DELAY_S:
-                return
-            self._bar = Progress(
-                TextColumn("exporting"),
-                BarColumn(),
-                TextColumn("{task.completed:,}/{task.total:,} messages"),
-                TimeRemainingColumn(),
-                console=err_console,
-                transient=True,
-            )
-            self._bar.start()
-            self._task = self._bar.add_task("export", total=total)
-        assert self._task is not None
-        self._bar.update(self._task, completed=done, total=total)
-
-    def close(self) -> None:
-        if self._bar is not None:
-            self._bar.stop()
 
 
 @handle_errors
@@ -94,7 +64,7 @@ def export(  # noqa: PLR0917 (typer maps parameters to options)
 
     if file_format is None:
         file_format = ExportFormat.CSV if out.suffix == ".csv" else ExportFormat.PARQUET
-    progress = _Progress()
+    progress = DelayedProgress("exporting")
     try:
         report = write(
             bag,

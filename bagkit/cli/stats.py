@@ -5,14 +5,12 @@ from __future__ import annotations
 import csv
 import math
 import sys
-import time
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import typer
 from rich.measure import Measurement
-from rich.progress import BarColumn, Progress, TaskID, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
 from bagkit.bag import BagError, BagReader
@@ -27,48 +25,18 @@ from bagkit.cli.common import (
     split_list,
     warn,
 )
+from bagkit.cli.progress import DelayedProgress
 
 if TYPE_CHECKING:
     from bagkit.stats import Summary
 
 # Below this many seconds a summary finishes without a progress bar flashing by.
-PROGRESS_DELAY_S = 1.0
 
 app = typer.Typer(
     name="stats",
     help="Statistics of the numeric fields of bags, decoded without a ROS install.",
     no_args_is_help=True,
 )
-
-
-class _DelayedProgress:
-    """A progress bar on stderr that only appears once the work has taken a second."""
-
-    def __init__(self) -> None:
-        self._started = time.monotonic()
-        self._bar: Progress | None = None
-        self._task: TaskID | None = None
-
-    def __call__(self, done: int, total: int) -> None:
-        if self._bar is None:
-            if time.monotonic() - self._started < PROGRESS_DELAY_S:
-                return
-            self._bar = Progress(
-                TextColumn("summarizing"),
-                BarColumn(),
-                TextColumn("{task.completed:,}/{task.total:,} messages"),
-                TimeRemainingColumn(),
-                console=err_console,
-                transient=True,
-            )
-            self._bar.start()
-            self._task = self._bar.add_task("summarize", total=total)
-        assert self._task is not None
-        self._bar.update(self._task, completed=done, total=total)
-
-    def close(self) -> None:
-        if self._bar is not None:
-            self._bar.stop()
 
 
 def _offset_ns(bags: list[Path], seconds: float | None) -> int | None:
@@ -169,7 +137,7 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
         workers=workers, scheduler=scheduler, bags=len(bags), announce=note
     ) as client:
         if client is None:
-            progress = _DelayedProgress()
+            progress = DelayedProgress("summarizing")
             try:
                 result = summarize(
                     bags,
