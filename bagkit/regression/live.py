@@ -176,6 +176,8 @@ def check_live(spec: FixtureSpec, workdir: Path, *, startup_timeout: float = 30.
             [_script("bagkit"), "record", "--use-sim-time", "-o", str(candidate), *spec.outputs],
         )
         counts = {**spec.subscription_counts(), **dict.fromkeys(spec.outputs, 1)}
+        # The recorder's own /clock too: it keeps no output that arrives before its first clock.
+        counts["/clock"] = counts.get("/clock", 0) + 1
         _prepare_graph(procs, counts, start_ns, startup_timeout)
         replay = procs.start(
             "replay",
