@@ -1,14 +1,19 @@
-"""``bagkit export``: topics of a bag to Parquet or CSV files, streamed with bounded memory."""
+"""``bagkit export``: topics of bags to Parquet or CSV files, streamed with bounded memory."""
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import typer
 
 from bagkit.cli.common import console, handle_errors, split_list, warn
+from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers
 from bagkit.cli.progress import DelayedProgress
 from bagkit.data.formats import ExportFormat
+
+if TYPE_CHECKING:
+    from bagkit.data.export import ExportReport
 
 HELP = """Write topics of BAG to Parquet (zstd) or CSV files, one per topic, for pandas, polars,
 DuckDB, Spark or a spreadsheet.
@@ -20,6 +25,10 @@ Parquet and JSON text in CSV. OUT is a directory (/imu/data -> OUT/imu/data.parq
 topic. Undecodable topics are skipped with a warning; a damaged bag exports what is intact and
 the loss is reported.
 
+Several bags (several BAGs, a directory of bags, a glob, a listing file) run on a local Dask
+cluster (or --scheduler), each into OUT/<its path relative to the bags' common folder>; a bag
+that cannot be exported is reported and the exit status is 1. See docs/fleet.md.
+
 Examples:
 
   bagkit export flight1 -o flight1_parquet
@@ -27,15 +36,15 @@ Examples:
   bagkit export flight1 -t /imu/data -o imu.csv --start 10 --end 70
 
   bagkit export flight1 -o out --topics /gps/fix --topics /imu/data --fields 'header.stamp.*'
-"""
 
-# Below this many seconds an export finishes without a progress bar flashing by.
+  bagkit export 'flights/2026-11-*' -o flights_parquet -t /imu/data --workers 4
+"""
 
 
 @handle_errors
 def export(  # noqa: PLR0917 (typer maps parameters to options)
-    bag: Path = typer.Argument(
-        ..., help="Bag directory or single .mcap/.db3 file.", metavar="BAG", show_default=False
+    inputs: list[Path] = typer.Argument(
+        ..., help=BAGS_HELP + ".", metavar="BAG", show_default=False
     ),
     out: Path = typer.Option(
         ..., "--output", "-o", help="Output directory, or a .parquet/.csv file for one topic."
@@ -59,26 +68,64 @@ def export(  # noqa: PLR0917 (typer maps parameters to options)
     dataset: bool = typer.Option(
         False, "--dataset", help="Parquet: a folder of part files per topic (OUT/imu/data/)."
     ),
+    workers: Workers = None,
+    scheduler: Scheduler = None,
 ) -> None:
-    from bagkit.data.export import export as write
+    from bagkit.fleet.inputs import STORAGE_SUFFIXES, expand_bags, is_bag_directory
 
     if file_format is None:
         file_format = ExportFormat.CSV if out.suffix == ".csv" else ExportFormat.PARQUET
+    options = {
+        "file_format": file_format,
+        "topics": split_list(topics) or None,
+        "fields": split_list(fields) or None,
+        "start": start,
+        "end": end,
+        "dataset": dataset,
+    }
+    named = inputs[0] if len(inputs) == 1 else None
+    if named is not None and (named.suffix in STORAGE_SUFFIXES or is_bag_directory(named)):
+        _print_report(_export_one(named, out, options))
+        return
+    _export_many(expand_bags(inputs), out, options, workers=workers, scheduler=scheduler)
+
+
+def _export_one(bag: Path, out: Path, options: dict[str, Any]) -> ExportReport:
+    from bagkit.data.export import export as write
+
     progress = DelayedProgress("exporting")
     try:
-        report = write(
-            bag,
-            out,
-            file_format=file_format,
-            topics=split_list(topics) or None,
-            fields=split_list(fields) or None,
-            start=start,
-            end=end,
-            dataset=dataset,
-            progress=progress,
-        )
+        return write(bag, out, progress=progress, **options)
     finally:
         progress.close()
+
+
+def _export_many(
+    bags: list[Path],
+    out: Path,
+    options: dict[str, Any],
+    *,
+    workers: int | None,
+    scheduler: str | None,
+) -> None:
+    from bagkit.cli.fleet_options import fleet_run
+    from bagkit.fleet.export import export_fleet
+
+    with fleet_run(bags, workers=workers, scheduler=scheduler, label="exporting") as (client, done):
+        results = export_fleet(bags, out, client=client, done=done, **options)
+    failed = 0
+    for result in results:
+        if result.report is None:
+            warn(f"{result.bag} not exported: {result.error}")
+            failed += 1
+            continue
+        console.print(f"{result.bag} -> {result.out}", highlight=False, soft_wrap=True)
+        _print_report(result.report, indent="  ")
+    if failed:
+        raise typer.Exit(1)
+
+
+def _print_report(report: ExportReport, indent: str = "") -> None:
     for topic, reason in report.skipped.items():
         warn(f"topic {topic} skipped: {reason}")
     for problem in report.problems:
@@ -86,5 +133,7 @@ def export(  # noqa: PLR0917 (typer maps parameters to options)
     for topic, files in report.files.items():
         where = files[0].parent if len(files) > 1 else files[0]
         console.print(
-            f"{topic}: {report.rows[topic]:,} rows -> {where}", highlight=False, soft_wrap=True
+            f"{indent}{topic}: {report.rows[topic]:,} rows -> {where}",
+            highlight=False,
+            soft_wrap=True,
         )

@@ -1,0 +1,60 @@
+"""What the commands that take many bags share: their options and how a run is set up.
+
+``stats summary``, ``export``, ``catalog`` and ``golden check`` take bags (directories, globs,
+listing files), ``--workers N`` and ``--scheduler ADDRESS``; one :func:`fleet_run` starts the
+local cluster or connects to the scheduler, and shows one progress bar over the bags.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated
+
+import typer
+
+from bagkit.cli.common import err_console, note
+
+if TYPE_CHECKING:
+    from distributed import Client
+
+BAGS_HELP = "Bags, directories searched for bags, globs, or .txt files listing bag paths"
+
+Workers = Annotated[
+    int | None,
+    typer.Option(
+        "--workers",
+        min=0,
+        help="Local Dask worker processes (default: one per core for several bags; "
+        "0: in this process).",
+        metavar="N",
+    ),
+]
+Scheduler = Annotated[
+    str | None,
+    typer.Option(
+        "--scheduler",
+        help="Run on an existing dask.distributed scheduler, e.g. tcp://10.0.0.5:8786 "
+        "(the bags must be readable at the same paths on its workers).",
+        metavar="ADDRESS",
+    ),
+]
+
+
+@contextmanager
+def fleet_run(
+    bags: Sequence[str | Path], *, workers: int | None, scheduler: str | None, label: str
+) -> Iterator[tuple[Client | None, Callable[[int], None]]]:
+    """The Dask client for a run over ``bags`` (None: in this process) and its progress call.
+
+    The progress bar counts bags and bytes; the dashboard of a local cluster is announced.
+    """
+    from bagkit.fleet import fleet_client
+    from bagkit.fleet.progress import BagProgress
+
+    with (
+        fleet_client(workers=workers, scheduler=scheduler, bags=len(bags), announce=note) as client,
+        BagProgress(bags, err_console, label=label) as done,
+    ):
+        yield client, done
