@@ -17,9 +17,9 @@ from bagkit.cli.common import (
     err_console,
     fail,
     handle_errors,
-    note,
     print_json,
 )
+from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers, fleet_run
 from bagkit.errors import BagkitError
 
 if TYPE_CHECKING:
@@ -51,39 +51,26 @@ app = typer.Typer(
 def build(
     roots: list[Path] = typer.Argument(
         ...,
-        help="Bags, directories searched for bags, globs, or .txt files listing bag paths.",
+        help=BAGS_HELP + ".",
         metavar="ROOT",
         show_default=False,
     ),
     output: Path = typer.Option(..., "--output", "-o", help="The catalogue (.parquet)."),
-    workers: int | None = typer.Option(
-        None,
-        "--workers",
-        min=0,
-        help="Local Dask worker processes (default: one per core when several bags must be "
-        "read; 0: in this process).",
-        metavar="N",
-    ),
-    scheduler: str | None = typer.Option(
-        None, "--scheduler", help="An existing dask.distributed scheduler.", metavar="ADDRESS"
-    ),
+    workers: Workers = None,
+    scheduler: Scheduler = None,
 ) -> None:
     """Build or update a catalogue: bags unchanged since the last update are not reopened.
 
     Example: bagkit catalog /data/flights -o flights.parquet
     """
-    from bagkit.fleet import fleet_client
     from bagkit.fleet.catalog import complete_update, plan_update, write_catalog
-    from bagkit.fleet.progress import BagProgress
 
     plan = plan_update(roots, output)
     changed = bool(plan.to_open or plan.removed) or not output.exists()
     if plan.to_open:
-        with (
-            fleet_client(
-                workers=workers, scheduler=scheduler, bags=len(plan.to_open), announce=note
-            ) as client,
-            BagProgress(plan.to_open, err_console, label="cataloguing") as done,
+        with fleet_run(plan.to_open, workers=workers, scheduler=scheduler, label="cataloguing") as (
+            client,
+            done,
         ):
             frame = complete_update(plan, client, done)
     else:

@@ -25,6 +25,7 @@ from bagkit.cli.common import (
     split_list,
     warn,
 )
+from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers
 from bagkit.cli.progress import DelayedProgress
 
 if TYPE_CHECKING:
@@ -59,8 +60,7 @@ def _offset_ns(bags: list[Path], seconds: float | None) -> int | None:
 def summary(  # noqa: PLR0917 (typer maps parameters to options)
     inputs: list[Path] = typer.Argument(
         ...,
-        help="Bags, directories searched for bags, globs, or .txt files listing bag paths; "
-        "several bags are pooled.",
+        help=BAGS_HELP + "; several bags are pooled.",
         metavar="BAG",
         show_default=False,
     ),
@@ -95,21 +95,8 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
         help="Decode fixed-layout messages in bulk with numpy (--no-bulk: one by one, slower, "
         "to cross-check).",
     ),
-    workers: int | None = typer.Option(
-        None,
-        "--workers",
-        min=0,
-        help="Local Dask worker processes (default: one per core for several bags; "
-        "0: in this process).",
-        metavar="N",
-    ),
-    scheduler: str | None = typer.Option(
-        None,
-        "--scheduler",
-        help="Run on an existing dask.distributed scheduler, e.g. tcp://10.0.0.5:8786 "
-        "(the bags must be readable at the same paths on its workers).",
-        metavar="ADDRESS",
-    ),
+    workers: Workers = None,
+    scheduler: Scheduler = None,
     check_crc: bool = typer.Option(
         True, "--crc/--no-crc", help="Check each chunk's CRC as it is read (--no-crc: skip it)."
     ),
