@@ -64,7 +64,8 @@ LAYERS: tuple[frozenset[str], ...] = (
     frozenset({"decode", "ros"}),
     frozenset({"stats", "compare"}),
     frozenset({"data", "surgery"}),
-    frozenset({"fleet", "regression"}),
+    frozenset({"fleet"}),
+    frozenset({"regression"}),
     frozenset({"cli", "pytest_plugin", "__init__"}),
 )
 LAYER_OF = {package: level for level, packages in enumerate(LAYERS) for package in packages}

@@ -9,7 +9,8 @@ from pathlib import Path
 
 import typer
 
-from bagkit.cli.common import console, err_console, fail, handle_errors
+from bagkit.cli.common import console, err_console, fail, handle_errors, note
+from bagkit.cli.fleet_options import Scheduler, Workers
 from bagkit.regression.spec import FixtureSpec, find_fixtures, load_spec
 
 app = typer.Typer(
@@ -52,36 +53,45 @@ def check(
     failures: Path = typer.Option(
         Path("golden_failures"), help="Where a failing fixture's report.json/.html and plots go."
     ),
+    workers: Workers = None,
+    scheduler: Scheduler = None,
 ) -> None:
     """Run each fixture's inputs through today's code and compare with its expected outputs.
 
     Exit status 0 when every fixture matches, 1 when one differs (its report is in
-    FAILURES/<fixture>-<mode>/report.html), 2 for unusable input.
+    FAILURES/<fixture>-<mode>/report.html), 2 for unusable input. Several lockstep checks run
+    on a local Dask cluster (or --scheduler), one task per fixture; live checks run one after
+    another in this process (they share DDS and the wall clock).
 
     Example: bagkit golden check fixtures/takeoff --mode all
     """
-    from bagkit.regression.artefacts import write_failure_artefacts
-    from bagkit.regression.golden import run_check
+    from bagkit.cli.fleet_options import fleet_run
+    from bagkit.regression.batch import check_fixtures
 
     mode = "live" if live else mode
     if mode not in {"lockstep", "live", "all"}:
         raise fail(f"--mode must be lockstep, live or all, not {mode!r}")
-    failed = []
-    for spec in _specs(fixtures):
-        for each in spec.modes if mode == "all" else (mode,):
-            with tempfile.TemporaryDirectory(prefix="bagkit-golden-") as tmp:
-                with err_console.status(f"{spec.name}: {each} ..."):
-                    result = run_check(spec, each, Path(tmp))
-                console.print(result.summary(), highlight=False, markup=False)
-                if result.lockstep is not None:
-                    speed = f"{result.lockstep.speedup:.0f}x real time"
-                    console.print(f"  lockstep ({speed})", highlight=False)
-                if not result.passed:
-                    folder = failures / f"{spec.name}-{result.mode}"
-                    write_failure_artefacts(result, folder)
-                    console.print(f"  report: {folder / 'report.html'}", highlight=False)
-                    failed.append(spec.name)
-    if failed:
+    jobs = [
+        (spec, each)
+        for spec in _specs(fixtures)
+        for each in (spec.modes if mode == "all" else (mode,))
+    ]
+    bags = [spec.bag for spec, each in jobs if each == "lockstep"]
+    with fleet_run(bags, workers=workers, scheduler=scheduler, label="checking") as (client, done):
+        outcomes = check_fixtures(
+            jobs,
+            failures,
+            client=client,
+            done=done,
+            before_live=lambda job: note(f"{job[0].name}: live ..."),
+        )
+    for outcome in outcomes:
+        console.print(outcome.summary, highlight=False, markup=False)
+        if outcome.speedup is not None:
+            console.print(f"  lockstep ({outcome.speedup:.0f}x real time)", highlight=False)
+        if outcome.report is not None:
+            console.print(f"  report: {outcome.report}", highlight=False, soft_wrap=True)
+    if not all(outcome.passed for outcome in outcomes):
         raise typer.Exit(1)
 
 
