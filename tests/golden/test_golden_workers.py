@@ -20,8 +20,16 @@ BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 
 def _check(fixtures: list[Path], failures: Path, workers: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [BAGKIT, "golden", "check", *map(str, fixtures), "--failures", str(failures)]
-        + ["--workers", workers],
+        [
+            BAGKIT,
+            "golden",
+            "check",
+            *map(str, fixtures),
+            "--failures",
+            str(failures),
+            "--workers",
+            workers,
+        ],
         capture_output=True,
         text=True,
         timeout=300,
