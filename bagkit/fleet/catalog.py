@@ -110,11 +110,11 @@ def plan_update(roots: Iterable[str | Path], output: str | Path) -> CatalogPlan:
     describes as they were before a change."""
     bags = [str(bag) for bag in expand_bags(roots)]
     old = read_catalog(output) if Path(output).exists() else to_frame([])
-    stamps = old.groupby("path", sort=False)[["size", "mtime_ns"]].first()
-    known = {
-        str(path): (int(size), int(mtime))
-        for path, size, mtime in zip(stamps.index, stamps["size"], stamps["mtime_ns"], strict=True)
-    }
+    known: dict[str, tuple[int, int]] = {}
+    for path, size, mtime in zip(
+        old["path"].tolist(), old["size"].tolist(), old["mtime_ns"].tolist(), strict=True
+    ):
+        known.setdefault(path, (size, mtime))  # the rows of one bag share its stamp
     unchanged = {bag for bag in bags if known.get(bag) == bag_stamp(bag)}
     kept = old[old["path"].isin(unchanged)]
     to_open = [bag for bag in bags if bag not in unchanged]

@@ -23,7 +23,7 @@ from bagkit.fleet.errors import FleetError
 from bagkit.fleet.execute import ItemDone, run_each
 from bagkit.stats import StatsError, Summary
 from bagkit.stats.accumulate import TopicAccumulator
-from bagkit.stats.summary import _check_topics, _finish, _Run
+from bagkit.stats.summary import SummaryRun, check_topics, finish_summary
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -52,8 +52,16 @@ class BagPartial:
 
 def _new_run(
     fields: Sequence[str] | None, start_ns: int | None, end_ns: int | None, bulk: bool
-) -> _Run:
-    return _Run(MessageTypes(), FieldSelection(fields), start_ns, end_ns, bulk, progress=None)
+) -> SummaryRun:
+    return SummaryRun(
+        MessageTypes(),
+        FieldSelection(fields),
+        start_ns,
+        end_ns,
+        bulk,
+        progress=None,
+        prefetch=False,
+    )
 
 
 def summarize_bag(
@@ -101,7 +109,7 @@ def _merge_topic(into: TopicAccumulator, other: TopicAccumulator, bag: str) -> N
     into.first_failure = into.first_failure or other.first_failure
 
 
-def _merge(run: _Run, part: BagPartial) -> None:
+def _merge(run: SummaryRun, part: BagPartial) -> None:
     """Add one bag's partial to ``run``, as the in-process summary would have read the bag."""
     for topic, accumulator in part.accumulators.items():
         existing = run.accumulators.get(topic)
@@ -134,14 +142,14 @@ def merge_partials(
     readable = [part for part in parts if part.error is None]
     if not readable:
         raise FleetError(f"no bag could be read ({parts[0].error if parts else 'no bag given'})")
-    _check_topics(set().union(*(part.topics for part in readable)), topics)
+    check_topics(set().union(*(part.topics for part in readable)), topics)
     run = _new_run(fields, start_ns, end_ns, bulk=True)
     for part in parts:
         if part.error is not None:
             run.problems.append(f"{part.bag}: not read: {part.error}")
         else:
             _merge(run, part)
-    return _finish(run, [part.bag for part in parts])
+    return finish_summary(run, [part.bag for part in parts])
 
 
 def summarize_fleet(

@@ -30,8 +30,14 @@ ProgressCallback = Callable[[int, int], None]
 
 
 @dataclass(slots=True)
-class _Run:
-    """The state of one :func:`summarize` call across its bags."""
+class SummaryRun:
+    """The state of one summary across its bags: what :func:`summarize` runs in this process,
+    and a fleet worker on its bag (:mod:`bagkit.fleet.stats`).
+
+    ``prefetch`` reads and decompresses the next chunk in a thread beside the numpy work on
+    the current one: a second core for one process; a worker of a cluster, whose cores are the
+    other workers', runs without it.
+    """
 
     types: MessageTypes
     fields: FieldSelection
@@ -39,6 +45,7 @@ class _Run:
     end_ns: int | None
     bulk: bool
     progress: ProgressCallback | None
+    prefetch: bool = True
     done: int = 0
     total: int = 0
     accumulators: dict[str, TopicAccumulator] = field(default_factory=dict)
@@ -120,11 +127,14 @@ class _Run:
                 wanted[name] = accumulator
             else:  # skipped: its messages are not read
                 self.total -= reader.topic_counts.get(name, 0)
-        if wanted and reader.storage == "mcap":
+        if wanted and reader.storage == "mcap" and self.prefetch:
             # closing(): the reading thread stops before the reader is closed, also on error.
             with closing(prefetch(reader.chunks(wanted))) as chunks:
                 for chunk in chunks:
                     self.advance(self.add_chunk(chunk, wanted))
+        elif wanted and reader.storage == "mcap":
+            for chunk in reader.chunks(wanted):
+                self.advance(self.add_chunk(chunk, wanted))
         elif wanted:
             for message in reader.messages(wanted, self.start_ns, self.end_ns):
                 accumulator = wanted[message.topic]
@@ -194,12 +204,12 @@ def summarize(
     paths = [str(bag) for bag in bags]
     if not paths:
         raise StatsError("no bag given")
-    run = _Run(MessageTypes(), FieldSelection(fields), start_ns, end_ns, bulk, progress)
+    run = SummaryRun(MessageTypes(), FieldSelection(fields), start_ns, end_ns, bulk, progress)
     readers: list[BagReader] = []
     try:
         for path in paths:
             readers.append(BagReader(path, allow_empty=True, check_crc=check_crc).open())
-        _check_topics({name for reader in readers for name in reader.topics}, topics)
+        check_topics({name for reader in readers for name in reader.topics}, topics)
         run.total = sum(
             count
             for reader in readers
@@ -213,10 +223,10 @@ def summarize(
             reader.close()
     if progress is not None:
         progress(run.total, run.total)
-    return _finish(run, paths)
+    return finish_summary(run, paths)
 
 
-def _check_topics(known: set[str], topics: Sequence[str] | None) -> None:
+def check_topics(known: set[str], topics: Sequence[str] | None) -> None:
     """Raise UnknownTopicError unless every topic of ``topics`` is among the ``known`` ones."""
     if topics is None:
         return
@@ -227,7 +237,8 @@ def _check_topics(known: set[str], topics: Sequence[str] | None) -> None:
         )
 
 
-def _finish(run: _Run, paths: list[str]) -> Summary:
+def finish_summary(run: SummaryRun, paths: list[str]) -> Summary:
+    """The :class:`Summary` of a run over ``paths``: results per topic, problems reported."""
     results = []
     for topic in sorted(run.accumulators):
         accumulator = run.accumulators[topic]
