@@ -16,12 +16,13 @@ import sys
 import traceback
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, NoReturn, ParamSpec, TypeVar, cast
+from typing import TYPE_CHECKING, Any, ClassVar, NoReturn, ParamSpec, TypeVar, cast
 
 import typer
 
 # typer 0.29 vendors click; its exception classes are only importable from there (typer is pinned).
 from typer._click.exceptions import NoArgsIsHelpError, UsageError
+from typer.core import TyperCommand
 
 from bagkit.errors import BagkitError
 
@@ -111,23 +112,76 @@ def split_list(values: list[str] | tuple[str, ...] | None) -> list[str]:
     return [v.strip() for value in values or () for v in value.split(",") if v.strip()]
 
 
-def expand_multi_value_options(args: list[str], options: frozenset[str]) -> list[str]:
+def expand_multi_value_options(
+    args: list[str],
+    options: frozenset[str],
+    *,
+    value_options: frozenset[str] = frozenset(),
+    path_ends_values: bool = False,
+) -> list[str]:
     """``--topics a b c`` -> ``--topics a --topics b --topics c`` (argparse's ``nargs='+'``).
 
     ``ros2 bag`` takes several values after one option; click takes one. Values run until the
-    next token that starts with ``-``, as in argparse.
+    next token that starts with ``-``, as in argparse. The value of one of ``value_options``
+    (options taking one value) is passed through. With ``path_ends_values`` (a command whose
+    positional argument is a bag), an existing path after at least one value ends the values
+    until the first positional is seen: ``--topics /a /b BAG`` leaves BAG positional.
     """
     expanded: list[str] = []
-    current: str | None = None
-    for arg in args:
-        if arg == "--":
-            current = None
-        elif arg.startswith("-"):
-            current = arg if arg in options else None
-        elif current is not None and expanded[-1] != current:
-            expanded.append(current)
+    positional_seen = False
+    index = 0
+    while index < len(args):
+        arg = args[index]
+        index += 1
         expanded.append(arg)
+        if arg == "--":
+            expanded.extend(args[index:])
+            break
+        if arg in options:
+            first = True
+            while index < len(args) and not args[index].startswith("-"):
+                value = args[index]
+                ends = path_ends_values and not positional_seen and Path(value).exists()
+                if not first and ends:
+                    break
+                expanded.extend((value,) if first else (arg, value))
+                first = False
+                index += 1
+        elif arg in value_options and index < len(args):
+            expanded.append(args[index])
+            index += 1
+        elif not arg.startswith("-"):
+            positional_seen = True
     return expanded
+
+
+class MultiValueCommand(TyperCommand):
+    """A command whose ``multi_value`` options take several values after one flag.
+
+    Subclasses name the options; ``bag_positional`` says whether the positional argument is a
+    bag path (see :func:`expand_multi_value_options`).
+    """
+
+    multi_value: ClassVar[frozenset[str]] = frozenset()
+    bag_positional: ClassVar[bool] = True
+
+    def parse_args(self, ctx: Any, args: list[str]) -> list[str]:
+        expanded = expand_multi_value_options(
+            args,
+            self.multi_value,
+            value_options=self.value_options(),
+            path_ends_values=self.bag_positional,
+        )
+        return list(super().parse_args(ctx, expanded))
+
+    def value_options(self) -> frozenset[str]:
+        """The names of this command's options that take one value."""
+        return frozenset(
+            name
+            for param in self.params
+            if not getattr(param, "is_flag", True) and param.param_type_name == "option"
+            for name in param.opts
+        )
 
 
 def format_rate(rate_hz: float | None, digits: int = 2) -> str:

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from bagkit.cli.common import err_console, handle_errors
+from bagkit.cli.common import MultiValueCommand, err_console, handle_errors, split_list
 from bagkit.cli.recover import (
     CRC_HELP,
     FORCE_HELP,
@@ -16,7 +16,7 @@ from bagkit.cli.recover import (
     print_report,
 )
 from bagkit.surgery.rewrite import OutputOptions, filter_bag
-from bagkit.surgery.select import Selection, parse_time, split_list
+from bagkit.surgery.select import Selection, parse_time
 
 HELP = """Write the messages of BAG that pass the selection to a new bag OUT, in log-time
 order, with their definitions and QoS. Topics are selected like ros2 bag: --topics and
@@ -25,16 +25,25 @@ remove. Chunks whose messages all pass are copied as stored (not decoded or reco
 Times: seconds since the epoch (1700000000.5), nanoseconds (1700000000500000000ns) or
 ISO 8601 (2026-11-23T12:00:00Z).
 
-Example: bagkit filter drive -o imu_only --topics /imu/data,/gps/fix --start 1763850000
+Example: bagkit filter drive -o imu_only --topics /imu/data /gps/fix --start 1763850000
 """
 
-TOPICS_HELP = "Topics to keep (repeat or comma-separate)."
+TOPICS_HELP = "Topics to keep (several after one flag, repeated, or comma-separated)."
 REGEX_HELP = "Keep topics matching this regular expression (re.search)."
-EXCLUDE_TOPICS_HELP = "Topics to drop (repeat or comma-separate)."
+EXCLUDE_TOPICS_HELP = "Topics to drop (several after one flag, repeated, or comma-separated)."
 EXCLUDE_REGEX_HELP = "Drop topics matching this regular expression."
 COMPRESSION_HELP = "Chunk compression of OUT: zstd, lz4 or none."
 SIZE_HELP = "Split OUT into files of at most this many bytes (0: never), like ros2 bag."
 DURATION_HELP = "Split OUT into files spanning at most this many seconds (0: never)."
+
+
+class FilterCommand(MultiValueCommand):
+    """``--topics a b c`` and ``--exclude-topics a b c``, as ``ros2 bag convert``'s options."""
+
+    multi_value = frozenset({"--topics", "--exclude-topics"})
+
+
+COMMAND_CLASS = FilterCommand
 
 
 @handle_errors
@@ -58,9 +67,9 @@ def filter_command(  # noqa: PLR0917 (typer maps parameters to options)
 ) -> None:
     """Write the selected messages of a bag to a new bag."""
     selection = Selection(
-        topics=split_list(topics),
+        topics=frozenset(split_list(topics)),
         regex=regex,
-        exclude_topics=split_list(exclude_topics),
+        exclude_topics=frozenset(split_list(exclude_topics)),
         exclude_regex=exclude_regex,
         start_ns=parse_time(start) if start is not None else None,
         end_ns=parse_time(end) if end is not None else None,

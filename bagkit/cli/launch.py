@@ -8,13 +8,6 @@ from __future__ import annotations
 
 import sys
 
-# Options that take several values after one flag, as ``ros2 bag record``'s ``nargs='+'``.
-_MULTI_VALUE = {
-    "record": frozenset(
-        {"--topics", "--topic-types", "--exclude-topics", "--exclude-topic-types", "--custom-data"}
-    ),
-}
-
 
 def run() -> None:
     """Console entry point of ``bagkit``."""
@@ -23,10 +16,6 @@ def run() -> None:
         from bagkit.cli.echo import run_alone
 
         run_alone()
-    if command and command[0] in _MULTI_VALUE:
-        from bagkit.cli.common import expand_multi_value_options
-
-        sys.argv[2:] = expand_multi_value_options(sys.argv[2:], _MULTI_VALUE[command[0]])
     from bagkit.cli.main import run as run_all
 
     run_all()

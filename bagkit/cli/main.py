@@ -69,7 +69,9 @@ def load_command(name: str) -> Command | None:
         # group of one command stays a group.
         holder.add_typer(target)
     else:
-        holder.command(name, help=module.HELP, no_args_is_help=True)(target)
+        # COMMAND_CLASS: a command's own parsing, e.g. options that take several values.
+        cls = getattr(module, "COMMAND_CLASS", None)
+        holder.command(name, help=module.HELP, no_args_is_help=True, cls=cls)(target)
     # With a second command beside it the holder is always a group.
     holder.command("_", hidden=True)(lambda: None)
     group = typer.main.get_command(holder)

@@ -15,6 +15,7 @@ import typer
 
 from bagkit.cli.common import (
     EXIT_INTERRUPTED,
+    MultiValueCommand,
     ReportFormat,
     err_console,
     fail,
@@ -98,6 +99,18 @@ def parse_custom_data(values: list[str]) -> dict[str, str]:
             raise fail(f"--custom-data {pair!r} is not KEY=VALUE")
         data[key] = value
     return data
+
+
+class RecordCommand(MultiValueCommand):
+    """``ros2 bag record``'s options that take several values (its ``nargs='+'``)."""
+
+    multi_value = frozenset(
+        {"--topics", "--topic-types", "--exclude-topics", "--exclude-topic-types", "--custom-data"}
+    )
+    bag_positional = False  # the positional arguments are topics
+
+
+COMMAND_CLASS = RecordCommand
 
 
 @handle_errors

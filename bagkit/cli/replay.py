@@ -10,16 +10,17 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 from rich.table import Table
-from typer.core import TyperCommand
 
 from bagkit.cli.common import (
     CONTEXT_SETTINGS,
     EXIT_INTERRUPTED,
+    MultiValueCommand,
     ReportFormat,
     console,
     fail,
     handle_errors,
     print_json,
+    split_list,
     warn,
 )
 from bagkit.ros.timing import DEFAULT_CLOCK_HZ, DEFAULT_DISCOVERY_TIME_S, LATE_THRESHOLD_NS
@@ -34,61 +35,26 @@ _NUMBER = re.compile(r"[0-9]*\.?[0-9]+([eE][-+]?[0-9]+)?")
 _MULTI_VALUE = frozenset({"--topics", "--exclude-topics", "--remap", "-m"})
 
 
-class ReplayCommand(TyperCommand):
+class ReplayCommand(MultiValueCommand):
     """Parses ``ros2 bag play``'s option forms that typer lacks.
 
     A bare ``--clock`` (followed by nothing, an option or the bag path) becomes ``--clock=40``;
-    ``--topics a b c`` becomes ``--topics=a --topics=b --topics=c`` (the values run up to the
-    next option; before the bag is given, an existing path ends them: it is the bag).
+    ``--topics a b c`` takes several values (:class:`~bagkit.cli.common.MultiValueCommand`).
     """
 
+    multi_value = _MULTI_VALUE
+
     def parse_args(self, ctx: Any, args: list[str]) -> list[str]:
-        return list(super().parse_args(ctx, _expand_args(args, self._value_options())))
-
-    def _value_options(self) -> set[str]:
-        return {
-            name
-            for param in self.params
-            if not getattr(param, "is_flag", True) and param.param_type_name == "option"
-            for name in param.opts
-        }
+        return super().parse_args(ctx, _bare_clock(args))
 
 
-def _expand_args(args: list[str], value_options: set[str]) -> list[str]:
-    """Rewrite ``--clock`` without a value and the values of multi-value options."""
+def _bare_clock(args: list[str]) -> list[str]:
+    """``--clock`` not followed by a number -> ``--clock=40`` (rosbag2's default rate)."""
     out: list[str] = []
-    bag_seen = False
-    index = 0
-    while index < len(args):
-        arg = args[index]
-        index += 1
-        if arg == "--clock":
-            after = args[index] if index < len(args) else ""
-            if _NUMBER.fullmatch(after):  # --clock HZ: the value is not the bag
-                out.extend((arg, after))
-                index += 1
-            else:
-                out.append(f"--clock={DEFAULT_CLOCK_HZ:g}")
-        elif arg in _MULTI_VALUE:
-            values: list[str] = []
-            while index < len(args) and not args[index].startswith("-"):
-                if not bag_seen and values and Path(args[index]).exists():
-                    break
-                values.append(args[index])
-                index += 1
-            out.extend(f"{arg}={value}" for value in values or [""])
-        elif arg in value_options:
-            out.extend(args[index - 1 : index + 1])
-            index += 1
-        else:
-            bag_seen = bag_seen or not arg.startswith("-")
-            out.append(arg)
+    for arg, after in zip(args, [*args[1:], ""], strict=True):
+        bare = arg == "--clock" and not _NUMBER.fullmatch(after)
+        out.append(f"--clock={DEFAULT_CLOCK_HZ:g}" if bare else arg)
     return out
-
-
-def _names(values: list[str]) -> list[str]:
-    """Names given repeated, several per option, or as comma lists."""
-    return [name for value in values for name in re.split(r"[,\s]+", value) if name]
 
 
 HELP = """Replay BAG over ROS 2 with its recorded timing, scaled by --rate (alias: play).
@@ -247,10 +213,10 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
     player = Player(
         bag,
         rate=rate,
-        topics=_names(topics) or None,
+        topics=split_list(topics) or None,
         regex=regex,
         exclude=exclude,
-        exclude_topics=_names(exclude_topics),
+        exclude_topics=split_list(exclude_topics),
         start_offset=start_offset,
         duration=duration,
         playback_until_ns=until_nsec if until_sec is None else int(until_sec * 1e9),

@@ -74,11 +74,6 @@ def _compile(pattern: str) -> re.Pattern[str] | None:
         raise SurgeryError(f"bad regex {pattern!r}: {exc}") from None
 
 
-def split_list(values: list[str] | None) -> frozenset[str]:
-    """Option values given repeated and/or as comma lists: ``["a,b", "c"]`` -> {a, b, c}."""
-    return frozenset(v.strip() for value in values or [] for v in value.split(",") if v.strip())
-
-
 def parse_time(text: str) -> int:
     """A time option as ns since the epoch: ``1700000000.5`` (seconds), ``1700000000500000000ns``,
     or ISO 8601 (``2026-11-23T12:00:00Z``; UTC when no zone is given).

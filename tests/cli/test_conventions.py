@@ -3,6 +3,7 @@ only where they work, shell completion, and commands imported only when they run
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import struct
@@ -41,6 +42,31 @@ def test_several_values_after_one_flag_become_repetitions() -> None:
     ]
     # A positional before any such option, and values of other options, stay as they are.
     assert expand_multi_value_options(["/x", "-o", "a", "b"], options) == ["/x", "-o", "a", "b"]
+    # After `--`, nothing is rewritten.
+    assert expand_multi_value_options(["--", "--topics", "/a", "/b"], options) == [
+        *["--", "--topics", "/a", "/b"]
+    ]
+
+
+def test_an_existing_path_ends_the_values_until_the_bag_is_given(tmp_path: Path) -> None:
+    options = frozenset({"--topics"})
+    bag = str(tmp_path)
+    expand = functools.partial(
+        expand_multi_value_options, options=options, value_options=frozenset({"--rate"})
+    )
+    # The bag after the topics is the positional argument...
+    assert expand(["--topics", "/a", "/b", bag], path_ends_values=True) == [
+        *["--topics", "/a", "--topics", "/b", bag]
+    ]
+    # ...also after an option's value, which is not taken for the bag...
+    assert expand(["--rate", "2", "--topics", "/a", bag], path_ends_values=True) == [
+        *["--rate", "2", "--topics", "/a", bag]
+    ]
+    # ...but not once the bag was given, nor for commands without a bag argument.
+    assert expand([bag, "--topics", "/a", bag], path_ends_values=True) == [
+        *[bag, "--topics", "/a", "--topics", bag]
+    ]
+    assert expand(["--topics", "/a", bag]) == ["--topics", "/a", "--topics", bag]
 
 
 @pytest.mark.parametrize("command", sorted(_COMMANDS))

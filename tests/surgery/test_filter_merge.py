@@ -44,6 +44,8 @@ CASES = [
     (["--topics", "/imu/data"], lambda m: m[0] == "/imu/data"),
     (["--topics", "/text,/temperature"], lambda m: m[0] in ("/text", "/temperature")),
     (["--topics", "/text", "--topics", "/imu/data"], lambda m: m[0] in ("/text", "/imu/data")),
+    (["--topics", "/text", "/imu/data"], lambda m: m[0] in ("/text", "/imu/data")),
+    (["--exclude-topics", "/imu/data", "/text"], lambda m: m[0] == "/temperature"),
     (["-e", "^/te"], lambda m: m[0].startswith("/te")),
     (["--exclude-topics", "/imu/data"], lambda m: m[0] != "/imu/data"),
     (["--exclude-regex", "t.xt|temp"], lambda m: not re.search("t.xt|temp", m[0])),
@@ -70,6 +72,14 @@ def test_filter_equals_rosbags_selection(
     assert rosbags_messages(out) == expected
     assert mcap_messages(sorted(out.glob("*.mcap"))) == expected
     assert json.loads(result.stdout)["message_count"] == len(expected)
+
+
+def test_several_topics_before_the_bag(mixed: Path, tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    result = run("filter", "--topics", "/text", "/temperature", str(mixed), "-o", str(out))
+    assert result.returncode == 0, result.stderr
+    expected = _expected(mixed, lambda m: m[0] in ("/text", "/temperature"))
+    assert mcap_messages(sorted(out.glob("*.mcap"))) == expected
 
 
 @pytest.mark.parametrize("compression", ["none", "lz4", "zstd"])
