@@ -4,14 +4,16 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 from bagkit.bag.errors import CorruptBagError
 from bagkit.bag.mcap_file import McapFile
-from bagkit.bag.mcapio.chunks import read_message_indexes
 from bagkit.bag.mcapio.records import ChunkIndex
 from bagkit.bag.reader import BagReader
-from bagkit.bag.storage import Sqlite3File, StorageFile
+from bagkit.bag.storage import StorageFile
+
+if TYPE_CHECKING:
+    from bagkit.bag.sqlite3_file import Sqlite3File
 
 Span = tuple[int, int]
 
@@ -113,15 +115,12 @@ def _read_times(
     storage: McapFile, chunk: ChunkIndex, channels: list[int], found: dict[int, Span]
 ) -> None:
     try:
-        entries = read_message_indexes(storage._source, chunk)
+        spans = storage.message_index_times(chunk, channels)
     except CorruptBagError:
         return
-    for channel in channels:
-        times = entries[channel]["log_time"]
-        if len(times):
-            first, last = int(times.min()), int(times.max())
-            old = found.get(channel, (first, last))
-            found[channel] = (min(old[0], first), max(old[1], last))
+    for channel, (first, last) in spans.items():
+        old = found.get(channel, (first, last))
+        found[channel] = (min(old[0], first), max(old[1], last))
 
 
 def _sqlite_spans(storage: Sqlite3File, spans: dict[str, Span]) -> None:
@@ -135,8 +134,8 @@ def topic_spans(storage_files: list[StorageFile]) -> dict[str, Span]:
     for storage in storage_files:
         if isinstance(storage, McapFile):
             _mcap_spans(storage, spans)
-        elif isinstance(storage, Sqlite3File):
-            _sqlite_spans(storage, spans)
+        elif storage.storage_identifier == "sqlite3":
+            _sqlite_spans(cast("Sqlite3File", storage), spans)
     return spans
 
 

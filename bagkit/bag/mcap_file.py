@@ -11,8 +11,8 @@ import operator
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
 from mcap.well_known import Profile
 
 from bagkit.bag.definitions import canonical_type_name
@@ -28,23 +28,26 @@ from bagkit.bag.mcapio import (
     read_chunk,
     read_file_index,
 )
+from bagkit.bag.mcapio.chunks import message_index_times
 from bagkit.bag.mcapio.records import MESSAGE_RECORD_HEADER, RECORD_HEADER, ChunkIndex, Opcode
 from bagkit.bag.storage import StorageFile
 from bagkit.bag.types import BagMessage, TopicInfo, make_message
+
+if TYPE_CHECKING:
+    import numpy as np
 
 _LOG_TIME = operator.attrgetter("log_time")
 _OFFSET = operator.itemgetter(0)
 # Overlapping chunks are merged in log-time order while they need at most this many times
 # max_chunk_size of memory (uncompressed); beyond, order is given up rather than memory.
 MERGE_BUDGET_CHUNKS = 4
-_NO_SPANS = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64))
 
 
 @dataclass(frozen=True, slots=True)
 class BagChunk:
     """One MCAP chunk, decompressed, with where each of its topics' messages are.
 
-    ``message_index[topic]`` is a ``MESSAGE_INDEX_DTYPE`` array (``log_time``, ``offset`` of
+    ``message_index[topic]`` is a ``message_index_dtype`` array (``log_time``, ``offset`` of
     the Message record in ``records``, as stored); :meth:`payloads` gives the checked payload
     spans.
     """
@@ -62,7 +65,9 @@ class BagChunk:
         """
         entries = self.message_index.get(topic)
         if entries is None:
-            return _NO_SPANS
+            import numpy as np
+
+            return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64)
         log_times, starts, lengths, dropped = payload_spans(self.records, entries)
         if dropped:
             self.problems.append(
@@ -170,6 +175,16 @@ class McapFile(StorageFile):
         """Close the file."""
         self._handle.close()
 
+    def message_index_times(
+        self, chunk: ChunkIndex, channels: list[int]
+    ) -> dict[int, tuple[int, int]]:
+        """(first, last) log time of each of ``channels`` in ``chunk``, from its message index.
+
+        Raises:
+            CorruptBagError: the chunk's message indexes are not where its index says.
+        """
+        return message_index_times(self._source, chunk, channels)
+
     def _channel_ids(self, topics: set[str] | None) -> set[int]:
         return {c for c, t in self._channel_topics.items() if topics is None or t in topics}
 
@@ -249,6 +264,8 @@ class McapFile(StorageFile):
         Only the message index is ordered up front (numpy): a replay that takes the next message
         when it is due is not held up for the whole chunk's worth of objects.
         """
+        import numpy as np
+
         chunk = self._read(block)
         if chunk is None:
             return
@@ -290,6 +307,8 @@ class McapFile(StorageFile):
 
     def chunks(self, topics: set[str] | None) -> Iterator[BagChunk]:
         """Yield the chunks holding messages of ``topics`` (all when None), in file order."""
+        import numpy as np
+
         wanted = self._channel_ids(topics)
         for block in sorted(self._sorted_blocks, key=extent):
             if not _may_hold(block, wanted):

@@ -19,7 +19,7 @@ from bagkit.bag.errors import (
 from bagkit.bag.mcap_file import BagChunk, McapFile
 from bagkit.bag.mcapio import DEFAULT_MAX_CHUNK_SIZE, MAGIC
 from bagkit.bag.metadata import METADATA_FILENAME, BagMetadata, read_metadata
-from bagkit.bag.storage import SQLITE_MAGIC, Sqlite3File, StorageFile
+from bagkit.bag.storage import SQLITE_MAGIC, StorageFile
 from bagkit.bag.types import BagMessage, TopicInfo
 
 STORAGE_SUFFIXES = (".mcap", ".db3")
@@ -90,6 +90,8 @@ def open_storage_file(
     if head.startswith(MAGIC):
         return McapFile(path, check_crc=check_crc, max_chunk_size=max_chunk_size)
     if head == SQLITE_MAGIC:
+        from bagkit.bag.sqlite3_file import Sqlite3File
+
         return Sqlite3File(path)
     raise NotABagError(f"{path}: neither an MCAP nor a SQLite3 file")
 

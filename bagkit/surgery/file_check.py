@@ -19,7 +19,6 @@ from bagkit.bag.mcapio.records import (
     FOOTER_RECORD_SIZE,
     MAGIC,
     MAX_SECTION_SIZE,
-    MESSAGE_INDEX_DTYPE,
     MESSAGE_PREFIX,
     RECORD_HEADER,
     Channel,
@@ -27,6 +26,7 @@ from bagkit.bag.mcapio.records import (
     Opcode,
     Schema,
     iter_records,
+    message_index_dtype,
     parse_channel,
     parse_chunk,
     parse_footer,
@@ -206,7 +206,7 @@ class FileCheck:
             elif opcode == Opcode.CHANNEL:
                 channel = parse_channel(content)
                 self.facts.channels.setdefault(channel.id, channel)
-        return {c: np.array(e, dtype=MESSAGE_INDEX_DTYPE) for c, e in found.items()}
+        return {c: np.array(e, dtype=message_index_dtype()) for c, e in found.items()}
 
     def _count(self, entries: dict[int, np.ndarray], records: bytes) -> None:
         facts = self.facts

@@ -18,7 +18,7 @@ from bagkit.bag.errors import ChunkError
 from bagkit.bag.mcapio.chunk_builder import ChunkBuilder
 from bagkit.bag.mcapio.chunks import decompress, payload_spans
 from bagkit.bag.mcapio.file_writer import McapFileWriter
-from bagkit.bag.mcapio.records import MESSAGE_INDEX_DTYPE
+from bagkit.bag.mcapio.records import message_index_dtype
 
 COMPRESSORS: dict[str, Callable[[bytearray], bytes]] = {
     "zstd": zstandard.ZstdCompressor().compress,
@@ -137,5 +137,5 @@ def test_spans_outside_the_chunk_are_dropped_and_counted(
         chunk.message_index["/imu/data"] = broken
         assert len(chunk.payloads("/imu/data")[1]) == 16
         assert any("4 messages of /imu/data indexed outside" in p for p in bag.problems)
-    empty = payload_spans(b"", np.zeros(2, dtype=MESSAGE_INDEX_DTYPE))
+    empty = payload_spans(b"", np.zeros(2, dtype=message_index_dtype()))
     assert empty[3] == 2 and len(empty[1]) == 0

@@ -126,7 +126,7 @@ def test_a_map_of_partial_entries_is_a_corrupt_bag_error() -> None:
 
 
 def test_message_index_round_trip() -> None:
-    entries = np.array([(5, 0), (6, 40)], dtype=records.MESSAGE_INDEX_DTYPE)
+    entries = np.array([(5, 0), (6, 40)], dtype=records.message_index_dtype())
     data = records.encode_message_index(4, entries.tobytes())
     channel_id, parsed = records.parse_message_index(data[RECORD_HEADER.size :])
     assert channel_id == 4

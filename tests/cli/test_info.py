@@ -59,6 +59,22 @@ def two_topic_bag(tmp_path: Path) -> Path:
     return path
 
 
+def test_info_imports_no_numpy_sqlite_or_command_modules(two_topic_bag: Path) -> None:
+    """What keeps `bagkit info` within 0.15 s of `python -c pass` (benchmarks/bench_startup)."""
+    done = subprocess.run(
+        [sys.executable, "-X", "importtime", BAGKIT, "info", str(two_topic_bag)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    imported = {line.split("|")[-1].strip() for line in done.stderr.splitlines()}
+    assert "bagkit.bag.info" in imported  # the check sees what ran
+    assert not imported & {"numpy", "sqlite3", "pandas", "dask", "rosbags", "bagkit.cli.stats"}
+    assert "/fast" in done.stdout
+
+
 def test_json_reports_the_bag(two_topic_bag: Path) -> None:
     result = _run(str(two_topic_bag), "--format", "json")
     assert result.returncode == 0, result.stderr

@@ -22,7 +22,7 @@ from bagkit.bag.mcapio.chunks import (
     payload_spans,
     read_chunk,
 )
-from bagkit.bag.mcapio.records import MAGIC, MESSAGE_INDEX_DTYPE
+from bagkit.bag.mcapio.records import MAGIC, message_index_dtype
 from bagkit.bag.mcapio.salvage import read_file_index
 from bagkit.bag.mcapio.source import Source
 from bagkit.bag.mcapio.summary import FileIndex
@@ -30,7 +30,6 @@ from bagkit.bag.mcapio.summary import FileIndex
 __all__ = [
     "DEFAULT_MAX_CHUNK_SIZE",
     "MAGIC",
-    "MESSAGE_INDEX_DTYPE",
     "Block",
     "ChunkContents",
     "FileIndex",
@@ -38,6 +37,7 @@ __all__ = [
     "Source",
     "count_messages",
     "extent",
+    "message_index_dtype",
     "payload_spans",
     "read_chunk",
     "read_file_index",

@@ -11,8 +11,8 @@ import time
 from array import array
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-import numpy as np
 from zlib_ng.zlib_ng import crc32
 
 from bagkit.bag.mcapio.records import (
@@ -23,6 +23,9 @@ from bagkit.bag.mcapio.records import (
     encode_chunk_header,
     encode_message_index,
 )
+
+if TYPE_CHECKING:
+    import numpy as np
 
 _MESSAGE = int(Opcode.MESSAGE)
 _PREFIX_SIZE = MESSAGE_PREFIX.size
@@ -116,6 +119,8 @@ class ChunkBuilder:
         """
         if not len(offsets):
             return
+        import numpy as np  # here: writing a bag message by message needs no numpy
+
         base = len(self.records)
         self.records += records
         entries = np.empty((len(offsets), 2), np.uint64)

@@ -3,19 +3,23 @@
 Decompression never produces more than the chunk declares, and a chunk may declare at most
 ``max_chunk_size`` bytes (:data:`DEFAULT_MAX_CHUNK_SIZE`), so a compression bomb costs one
 error, not the machine's memory. Message positions come from the Message Index records as
-numpy arrays (``MESSAGE_INDEX_DTYPE``) instead of the ``mcap`` package's reader, which builds a
-Python object per message: kept for "read 100,000 messages ... bagkit/mcap reader" of
-``python -m benchmarks info`` (figures in benchmarks/README.md, "bagkit.bag.mcapio").
+numpy arrays (:func:`~bagkit.bag.mcapio.records.message_index_dtype`) instead of the ``mcap``
+package's reader, which builds a Python object per message: kept for "read 100,000 messages ...
+bagkit/mcap reader" of ``python -m benchmarks info`` (figures in benchmarks/README.md,
+"bagkit.bag.mcapio"). numpy is imported by the functions that use it: ``bagkit info`` reads
+message indexes as bytes (:func:`message_index_times`) and starts without numpy
+(benchmarks/README.md, start-up).
 """
 
 from __future__ import annotations
 
+import sys
+from array import array
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import lz4.frame
-import numpy as np
 import zstandard
-from numpy.lib.stride_tricks import sliding_window_view
 
 # zlib-ng's CRC-32 (same polynomial as zlib's) is many times faster than zlib's (PCLMUL), and
 # every chunk is checksummed on write and on read.
@@ -24,7 +28,7 @@ from zlib_ng.zlib_ng import crc32
 from bagkit.bag.errors import ChunkError, CorruptBagError
 from bagkit.bag.mcapio.records import (
     MAX_SECTION_SIZE,
-    MESSAGE_INDEX_DTYPE,
+    MESSAGE_INDEX_ENTRY_SIZE,
     MESSAGE_PREFIX,
     MESSAGE_RECORD_HEADER,
     RECORD_HEADER,
@@ -32,10 +36,14 @@ from bagkit.bag.mcapio.records import (
     ChunkIndex,
     Opcode,
     iter_records,
+    message_index_dtype,
+    message_index_entries,
     parse_chunk,
-    parse_message_index,
 )
 from bagkit.bag.mcapio.source import Source
+
+if TYPE_CHECKING:
+    import numpy as np
 
 # A chunk holds at least its largest message: 256 MiB admits any ROS 2 message seen in practice
 # (an uncompressed 8K RGB image is 100 MB) while a reader holds only a few chunks at a time.
@@ -167,8 +175,8 @@ def read_block_records(
     return _load(source, block, check_crc, max_size)[0]
 
 
-def read_message_indexes(source: Source, chunk_index: ChunkIndex) -> dict[int, np.ndarray]:
-    """The Message Index records of a chunk, by channel (empty when it has none).
+def message_index_bytes(source: Source, chunk_index: ChunkIndex) -> dict[int, memoryview]:
+    """The entries of a chunk's Message Index records, by channel, as stored (16 bytes each).
 
     Raises:
         CorruptBagError: the records are not where the chunk index says.
@@ -180,15 +188,52 @@ def read_message_indexes(source: Source, chunk_index: ChunkIndex) -> dict[int, n
     if chunk_index.message_index_length > MAX_SECTION_SIZE:
         raise CorruptBagError(f"message indexes of {chunk_index.message_index_length} bytes")
     block = source.read(first, chunk_index.message_index_length)
-    found: dict[int, np.ndarray] = {}
+    found: dict[int, memoryview] = {}
     for offset, opcode, content in iter_records(block):
         if opcode == Opcode.MESSAGE_INDEX:
-            channel_id, entries = parse_message_index(content)
+            channel_id, entries = message_index_entries(content)
             if offsets.get(channel_id) == first + offset:
                 found[channel_id] = entries
     if found.keys() != offsets.keys():
         raise CorruptBagError("message indexes are not where the chunk index says")
     return found
+
+
+def read_message_indexes(source: Source, chunk_index: ChunkIndex) -> dict[int, np.ndarray]:
+    """The Message Index records of a chunk, by channel, as ``message_index_dtype`` arrays.
+
+    Raises:
+        CorruptBagError: the records are not where the chunk index says.
+    """
+    import numpy as np
+
+    dtype = message_index_dtype()
+    return {
+        channel_id: np.frombuffer(entries, dtype=dtype)
+        for channel_id, entries in message_index_bytes(source, chunk_index).items()
+    }
+
+
+def message_index_times(
+    source: Source, chunk_index: ChunkIndex, channels: list[int]
+) -> dict[int, tuple[int, int]]:
+    """(first, last) log time of each of ``channels`` with entries in a chunk's Message Index
+    records, read without numpy (``bagkit info``'s start-up).
+
+    Raises:
+        CorruptBagError: the records are not where the chunk index says.
+    """
+    spans: dict[int, tuple[int, int]] = {}
+    for channel_id, entries in message_index_bytes(source, chunk_index).items():
+        if channel_id not in channels or not len(entries):
+            continue
+        words = array("Q")
+        words.frombytes(entries)
+        if sys.byteorder == "big":  # MCAP is little-endian
+            words.byteswap()
+        log_times = words[0::2]
+        spans[channel_id] = (min(log_times), max(log_times))
+    return spans
 
 
 def walk_message_index(records: bytes | memoryview) -> dict[int, np.ndarray]:
@@ -197,6 +242,8 @@ def walk_message_index(records: bytes | memoryview) -> dict[int, np.ndarray]:
     Raises:
         CorruptBagError: a record runs past the end, or a Message record is too short.
     """
+    import numpy as np
+
     found: dict[int, list[tuple[int, int]]] = {}
     for offset, opcode, content in iter_records(records):
         if opcode == Opcode.MESSAGE:
@@ -205,7 +252,7 @@ def walk_message_index(records: bytes | memoryview) -> dict[int, np.ndarray]:
             channel_id, _, log_time, _ = MESSAGE_PREFIX.unpack_from(content)
             found.setdefault(channel_id, []).append((log_time, offset))
     return {
-        channel_id: np.array(entries, dtype=MESSAGE_INDEX_DTYPE)
+        channel_id: np.array(entries, dtype=message_index_dtype())
         for channel_id, entries in found.items()
     }
 
@@ -240,10 +287,10 @@ def count_messages(source: Source, block: Block) -> int | None:
     if not isinstance(block, ChunkIndex):
         return None
     try:
-        indexes = read_message_indexes(source, block)
+        indexes = message_index_bytes(source, block)
     except CorruptBagError:
         return None
-    return sum(len(entries) for entries in indexes.values()) if indexes else None
+    return sum(len(e) for e in indexes.values()) // MESSAGE_INDEX_ENTRY_SIZE if indexes else None
 
 
 def payload_spans(
@@ -253,12 +300,15 @@ def payload_spans(
 
     Args:
         records: a chunk's decompressed records.
-        entries: ``MESSAGE_INDEX_DTYPE`` entries of messages in it.
+        entries: ``message_index_dtype`` entries of messages in it.
 
     Returns:
         ``(log_times, starts, lengths, dropped)``: int64 arrays for the entries that point at a
         whole Message record inside ``records``, and how many did not (dropped).
     """
+    import numpy as np
+    from numpy.lib.stride_tricks import sliding_window_view
+
     size = len(records)
     offsets = entries["offset"]
     if size >= MESSAGE_RECORD_HEADER.size:
@@ -291,6 +341,9 @@ _PUBLISH_TIME_SIZE = 8
 def payload_publish_times(records: bytes, starts: np.ndarray) -> np.ndarray:
     """The ``publish_time`` (int64 ns) of the messages whose payloads :func:`payload_spans`
     found at ``starts``: the last field of the Message record before its payload."""
+    import numpy as np
+    from numpy.lib.stride_tricks import sliding_window_view
+
     if not len(starts):
         return np.empty(0, dtype=np.int64)
     buf = np.frombuffer(records, dtype=np.uint8)

@@ -8,17 +8,19 @@ from the file as they are (a short read silently truncates a string, a length of
 as asked), while every length parsed here is checked against its record first and a bad one is a
 :class:`CorruptBagError`. Message Index records are parsed into numpy arrays (one
 ``np.frombuffer`` per record instead of a Python tuple per message: see benchmarks/README.md,
-"bagkit.bag.mcapio").
+"bagkit.bag.mcapio"); numpy is imported only then, as ``bagkit info`` reads the summary without
+it (benchmarks/README.md, start-up).
 
 Spec: https://mcap.dev/spec
 """
 
 from __future__ import annotations
 
+import functools
 import struct
 from collections.abc import Iterator
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
 from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
 from mcap.records import (
@@ -38,6 +40,9 @@ from mcap.records import (
 
 from bagkit.bag.errors import CorruptBagError
 
+if TYPE_CHECKING:
+    import numpy as np
+
 MAGIC = b"\x89MCAP0\r\n"
 # Every record: opcode (u8), content length (u64), content.
 RECORD_HEADER = struct.Struct("<BQ")
@@ -46,8 +51,9 @@ MESSAGE_PREFIX = struct.Struct("<HIQQ")
 # A whole Message record header (opcode, length, then MESSAGE_PREFIX); the payload follows.
 MESSAGE_RECORD_HEADER = struct.Struct("<BQHIQQ")
 MESSAGE_PAYLOAD_OFFSET = MESSAGE_RECORD_HEADER.size
-# One entry of a Message Index record: (log_time, offset of the Message record in the chunk).
-MESSAGE_INDEX_DTYPE = np.dtype([("log_time", "<u8"), ("offset", "<u8")])
+# One entry of a Message Index record: (log_time u64, offset u64 of the Message record in the
+# chunk); message_index_dtype() is its numpy dtype.
+MESSAGE_INDEX_ENTRY_SIZE = 16
 # A Chunk record's fixed fields before its compression name: start, end, size, CRC.
 CHUNK_PREFIX = struct.Struct("<QQQI")
 # The most bytes read whole for a summary section, the Message Index records of one chunk, or a
@@ -189,14 +195,30 @@ def parse_chunk(content: bytes | memoryview) -> Chunk:
     )
 
 
-def parse_message_index(content: bytes | memoryview) -> tuple[int, np.ndarray]:
-    """Parse a Message Index record's content into (channel id, ``MESSAGE_INDEX_DTYPE`` array)."""
+@functools.cache
+def message_index_dtype() -> np.dtype[Any]:
+    """The numpy dtype of a Message Index entry: ``log_time``, ``offset`` (both ``<u8``)."""
+    import numpy as np
+
+    return np.dtype([("log_time", "<u8"), ("offset", "<u8")])
+
+
+def message_index_entries(content: bytes | memoryview) -> tuple[int, memoryview]:
+    """A Message Index record's content as (channel id, its entries' bytes), checked whole."""
     cur = Cursor(content)
     channel_id = cur.u16()
     entries = cur.raw(cur.u32())
-    if len(entries) % MESSAGE_INDEX_DTYPE.itemsize:
+    if len(entries) % MESSAGE_INDEX_ENTRY_SIZE:
         raise CorruptBagError(f"a message index of {len(entries)} bytes is not whole entries")
-    return channel_id, np.frombuffer(entries, dtype=MESSAGE_INDEX_DTYPE)
+    return channel_id, entries
+
+
+def parse_message_index(content: bytes | memoryview) -> tuple[int, np.ndarray]:
+    """Parse a Message Index record's content into (channel id, ``message_index_dtype`` array)."""
+    import numpy as np
+
+    channel_id, entries = message_index_entries(content)
+    return channel_id, np.frombuffer(entries, dtype=message_index_dtype())
 
 
 def parse_chunk_index(content: bytes | memoryview) -> ChunkIndex:

@@ -16,6 +16,7 @@ from bagkit.bag.mcapio.records import (
     CHUNK_PREFIX,
     MAGIC,
     MAX_SECTION_SIZE,
+    MESSAGE_INDEX_ENTRY_SIZE,
     MESSAGE_PREFIX,
     RECORD_HEADER,
     ChunkIndex,
@@ -23,8 +24,8 @@ from bagkit.bag.mcapio.records import (
     Header,
     Opcode,
     iter_records,
+    message_index_entries,
     parse_channel,
-    parse_message_index,
     parse_metadata,
     parse_schema,
 )
@@ -136,10 +137,10 @@ class _Scanner:
     def _record(self, pos: int, opcode: int, length: int) -> None:
         if opcode == Opcode.MESSAGE_INDEX:
             if self.pending is not None:
-                channel_id, entries = parse_message_index(self._content(pos, length))
+                channel_id, entries = message_index_entries(self._content(pos, length))
                 self.pending.message_index_offsets[channel_id] = pos
                 self.pending.message_index_length += RECORD_HEADER.size + length
-                self.pending_counts[channel_id] = len(entries)
+                self.pending_counts[channel_id] = len(entries) // MESSAGE_INDEX_ENTRY_SIZE
             return
         self._settle(trust_indexes=True)
         if opcode == Opcode.CHUNK:
