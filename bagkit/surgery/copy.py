@@ -7,19 +7,26 @@ channel ids are the output's, and no other message (of any input) falls inside i
 otherwise it is opened and its selected Message records join the runs waiting to be written
 (:mod:`~bagkit.surgery.runs`). Memory: the chunks opened and not yet written out (those
 overlapping in time), not the bag.
+
+Chunks copied as stored have their CRC checked (which means decompressing them) on a pool of
+threads, one per core, while the copy goes on: up to :data:`CHECK_WINDOW` of them wait for
+their check, in order, before anything else is written.
 """
 
 from __future__ import annotations
 
+import os
 from collections import deque
 from collections.abc import Iterable
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from bagkit.bag.definitions import canonical_type_name
 from bagkit.bag.errors import ChunkError
 from bagkit.bag.mcapio import Block, FileIndex, Source, count_messages, extent, read_chunk
-from bagkit.bag.mcapio.raw_chunk import read_raw_chunk
+from bagkit.bag.mcapio.chunk_builder import ClosedChunk
+from bagkit.bag.mcapio.raw_chunk import check_raw_chunk, read_raw_chunk
 from bagkit.bag.mcapio.records import ChunkIndex
 from bagkit.bag.types import TopicInfo
 from bagkit.surgery.output import OutputBag
@@ -27,6 +34,8 @@ from bagkit.surgery.runs import Run, emit, open_run
 from bagkit.surgery.select import Selection
 
 _END = 1 << 64
+# Chunks read and waiting for their CRC check: enough to keep every core busy.
+CHECK_WINDOW = 16
 
 
 @dataclass
@@ -78,6 +87,40 @@ class _Stream:
         return self.blocks[0].message_start_time if self.blocks else _END
 
 
+class _CheckedCopies:
+    """Chunks to copy as stored, written in order once their CRC check (on a thread) passed."""
+
+    def __init__(self, out: OutputBag, check_crc: bool) -> None:
+        self._out = out
+        self._pool = ThreadPoolExecutor(os.cpu_count() or 1) if check_crc else None
+        self._waiting: deque[tuple[InputFile, Block, ClosedChunk, Future[None] | None]] = deque()
+
+    def add(self, file: InputFile, block: Block, chunk: ClosedChunk) -> None:
+        check = self._pool.submit(check_raw_chunk, chunk) if self._pool is not None else None
+        self._waiting.append((file, block, chunk, check))
+        while len(self._waiting) > CHECK_WINDOW:
+            self._write_next()
+
+    def flush(self) -> None:
+        """Write every chunk waiting (before anything else goes out)."""
+        while self._waiting:
+            self._write_next()
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(cancel_futures=True)
+
+    def _write_next(self) -> None:
+        file, block, chunk, check = self._waiting.popleft()
+        try:
+            if check is not None:
+                check.result()
+        except ChunkError as exc:
+            _lost(file, block, str(exc))
+            return
+        self._out.copy_chunk(chunk)
+
+
 def copy_files(
     files: list[InputFile], out: OutputBag, selection: Selection, *, check_crc: bool = True
 ) -> None:
@@ -88,41 +131,48 @@ def copy_files(
     """
     streams = [_Stream(f, rank) for rank, f in enumerate(files)]
     pending: list[Run] = []
-    while True:
-        waiting = [s for s in streams if s.blocks]
-        if not waiting:
-            emit(pending, _END, 0, out)
-            return
-        stream = min(waiting, key=_Stream.next_block_start)
-        # Messages before the block (equal times: those of earlier blocks or inputs) go first.
-        emit(pending, stream.next_block_start(), stream.order, out)
-        block = stream.blocks.popleft()
-        bound = min(s.next_block_start() for s in streams)
-        if pending:
-            bound = min(bound, *(run.head() for run in pending))
-        if block.message_end_time < bound and _may_copy(stream.file, block, selection, out):
-            _copy(stream, block, selection, out, pending, check_crc)
-        else:
-            _open(stream, block, selection, check_crc, pending)
+    copies = _CheckedCopies(out, check_crc)
+    try:
+        while True:
+            waiting = [s for s in streams if s.blocks]
+            if not waiting:
+                copies.flush()
+                emit(pending, _END, 0, out)
+                return
+            stream = min(waiting, key=_Stream.next_block_start)
+            if pending:
+                copies.flush()
+            # Messages before the block (equal times: those of earlier blocks or inputs) go first.
+            emit(pending, stream.next_block_start(), stream.order, out)
+            block = stream.blocks.popleft()
+            bound = min(s.next_block_start() for s in streams)
+            if pending:
+                bound = min(bound, *(run.head() for run in pending))
+            if block.message_end_time < bound and _may_copy(stream.file, block, selection, out):
+                _copy(stream, block, selection, copies, pending, check_crc)
+            else:
+                _open(stream, block, selection, check_crc, pending)
+    finally:
+        copies.close()
 
 
 def _copy(  # noqa: PLR0917 (the loop's state, passed as it is)
     stream: _Stream,
     block: Block,
     selection: Selection,
-    out: OutputBag,
+    copies: _CheckedCopies,
     pending: list[Run],
     check_crc: bool,
 ) -> None:
     """Copy a chunk as it is stored (or open it when its records show it cannot be)."""
     assert isinstance(block, ChunkIndex)
     try:
-        chunk = read_raw_chunk(stream.file.source, block, check_crc=check_crc)
+        chunk = read_raw_chunk(stream.file.source, block, check_crc=False)
     except ChunkError as exc:
         _lost(stream.file, block, str(exc))
         return
     if _identity(stream.file, chunk.message_counts):
-        out.copy_chunk(chunk)
+        copies.add(stream.file, block, chunk)
     else:  # an index-less chunk holding channels that are not copied as they are
         _open(stream, block, selection, check_crc, pending)
 

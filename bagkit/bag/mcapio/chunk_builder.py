@@ -49,6 +49,7 @@ class ClosedChunk:
     compression: str
     uncompressed_size: int
     message_counts: dict[int, int]
+    uncompressed_crc: int = 0  # 0: not computed (MCAP's "no CRC")
 
     @property
     def length(self) -> int:

@@ -96,4 +96,18 @@ def read_raw_chunk(
         compression=chunk.compression,
         uncompressed_size=chunk.uncompressed_size,
         message_counts={c: len(e) for c, e in indexes.items()},
+        uncompressed_crc=chunk.uncompressed_crc,
     )
+
+
+def check_raw_chunk(chunk: ClosedChunk, max_size: int = DEFAULT_MAX_CHUNK_SIZE) -> None:
+    """Check a chunk read with ``check_crc=False``: it decompresses to its size and CRC.
+
+    Thread-safe (it only reads ``chunk``), so copies can check chunks on other cores.
+
+    Raises:
+        ChunkError: the data does not decompress to its declared size, or a CRC mismatch.
+    """
+    records = decompress(chunk.compression, chunk.data, chunk.uncompressed_size, max_size)
+    if chunk.uncompressed_crc and crc32(records) != chunk.uncompressed_crc:
+        raise ChunkError("CRC mismatch (the chunk is damaged)")
