@@ -6,8 +6,8 @@ from pathlib import Path
 
 import typer
 
-from bagkit.cli.common import console, err_console, handle_errors, print_json
-from bagkit.cli.recover import FORMAT_OPTION, ReportFormat
+from bagkit.cli.common import ReportFormat, console, err_console, handle_errors, print_json
+from bagkit.cli.surgery_options import Format
 from bagkit.surgery.doctor import diagnose
 
 HELP = """Check a bag like mcap doctor, for whole rosbag2 bags: chunk CRCs, message and chunk
@@ -24,7 +24,7 @@ Example: bagkit doctor drive --deep
 def doctor(
     bag: Path = typer.Argument(..., help="Bag directory, its metadata.yaml, or a .mcap file."),
     deep: bool = typer.Option(False, "--deep", help="Also decode every message."),
-    output_format: ReportFormat = FORMAT_OPTION,
+    output_format: Format = ReportFormat.TABLE,
 ) -> None:
     """Check a bag; one line per problem."""
     with err_console.status(f"checking {bag}"):

@@ -6,16 +6,25 @@ from pathlib import Path
 
 import typer
 
-from bagkit.cli.common import MultiValueCommand, err_console, handle_errors, split_list
-from bagkit.cli.recover import (
-    CRC_HELP,
-    FORCE_HELP,
-    FORMAT_OPTION,
-    OUTPUT_HELP,
+from bagkit.cli.common import (
+    MultiValueCommand,
     ReportFormat,
+    err_console,
+    handle_errors,
+    split_list,
+)
+from bagkit.cli.surgery_options import (
+    CheckCrc,
+    Compression,
+    Force,
+    Format,
+    MaxBagDuration,
+    MaxBagSize,
+    Output,
+    output_options,
     print_report,
 )
-from bagkit.surgery.rewrite import OutputOptions, filter_bag
+from bagkit.surgery.rewrite import filter_bag
 from bagkit.surgery.select import Selection, parse_time
 
 HELP = """Write the messages of BAG that pass the selection to a new bag OUT, in log-time
@@ -32,9 +41,6 @@ TOPICS_HELP = "Topics to keep (several after one flag, repeated, or comma-separa
 REGEX_HELP = "Keep topics matching this regular expression (re.search)."
 EXCLUDE_TOPICS_HELP = "Topics to drop (several after one flag, repeated, or comma-separated)."
 EXCLUDE_REGEX_HELP = "Drop topics matching this regular expression."
-COMPRESSION_HELP = "Chunk compression of OUT: zstd, lz4 or none."
-SIZE_HELP = "Split OUT into files of at most this many bytes (0: never), like ros2 bag."
-DURATION_HELP = "Split OUT into files spanning at most this many seconds (0: never)."
 
 
 class FilterCommand(MultiValueCommand):
@@ -47,9 +53,10 @@ COMMAND_CLASS = FilterCommand
 
 
 @handle_errors
-def filter_command(  # noqa: PLR0917 (typer maps parameters to options)
+def filter_command(
     bag: Path = typer.Argument(..., help="The bag to read (directory or .mcap file)."),
-    output: Path = typer.Option(..., "--output", "-o", help=OUTPUT_HELP),
+    *,
+    output: Output,
     topics: list[str] | None = typer.Option(None, "--topics", help=TOPICS_HELP),
     regex: str = typer.Option("", "--regex", "-e", help=REGEX_HELP),
     exclude_topics: list[str] | None = typer.Option(
@@ -58,12 +65,12 @@ def filter_command(  # noqa: PLR0917 (typer maps parameters to options)
     exclude_regex: str = typer.Option("", "--exclude-regex", help=EXCLUDE_REGEX_HELP),
     start: str | None = typer.Option(None, "--start", help="Keep messages logged at or after."),
     end: str | None = typer.Option(None, "--end", help="Keep messages logged before."),
-    compression: str = typer.Option("zstd", "--compression", help=COMPRESSION_HELP),
-    max_bag_size: int = typer.Option(0, "--max-bag-size", "-b", help=SIZE_HELP),
-    max_bag_duration: float = typer.Option(0, "--max-bag-duration", "-d", help=DURATION_HELP),
-    force: bool = typer.Option(False, "--force", help=FORCE_HELP),
-    check_crc: bool = typer.Option(True, "--crc/--no-crc", help=CRC_HELP),
-    output_format: ReportFormat = FORMAT_OPTION,
+    compression: Compression = "zstd",
+    max_bag_size: MaxBagSize = 0,
+    max_bag_duration: MaxBagDuration = 0.0,
+    force: Force = False,
+    check_crc: CheckCrc = True,
+    output_format: Format = ReportFormat.TABLE,
 ) -> None:
     """Write the selected messages of a bag to a new bag."""
     selection = Selection(
@@ -74,12 +81,8 @@ def filter_command(  # noqa: PLR0917 (typer maps parameters to options)
         start_ns=parse_time(start) if start is not None else None,
         end_ns=parse_time(end) if end is not None else None,
     )
-    options = OutputOptions(
-        compression=compression,
-        max_bag_size=max_bag_size,
-        max_bag_duration_s=max_bag_duration,
-        force=force,
-        check_crc=check_crc,
+    options = output_options(
+        compression, max_bag_size, max_bag_duration, force=force, check_crc=check_crc
     )
     with err_console.status(f"filtering {bag}"):
         report = filter_bag(bag, output, selection, options)

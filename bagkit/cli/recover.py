@@ -2,13 +2,20 @@
 
 from __future__ import annotations
 
-import enum
 from pathlib import Path
 
 import typer
 
-from bagkit.cli.common import console, err_console, handle_errors, print_json, warn
-from bagkit.surgery.rewrite import OutputOptions, RewriteReport, recover_bag
+from bagkit.cli.common import ReportFormat, err_console, handle_errors
+from bagkit.cli.surgery_options import (
+    CheckCrc,
+    Force,
+    Format,
+    Output,
+    output_options,
+    print_report,
+)
+from bagkit.surgery.rewrite import recover_bag
 
 HELP = """Rewrite a crashed (killed), truncated or index-less bag as a complete one: chunks,
 message indexes, summary with statistics, chunk indexes, metadata.yaml (version 9) and the
@@ -19,48 +26,18 @@ printed.
 Example: bagkit recover crashed_drive -o drive_recovered
 """
 
-OUTPUT_HELP = "The bag directory to write (must not exist unless --force)."
-FORCE_HELP = "Replace OUT if it exists."
-CRC_HELP = "Check each chunk's CRC (a damaged chunk's messages are reported lost)."
-
-
-class ReportFormat(enum.StrEnum):
-    """How the surgery commands print their report."""
-
-    TEXT = "text"
-    JSON = "json"
-
-
-FORMAT_OPTION = typer.Option(
-    ReportFormat.TEXT, "--format", help="text (for people) or json (for scripts)."
-)
-
-
-def print_report(report: RewriteReport, output_format: ReportFormat) -> None:
-    """What a rewrite wrote (stdout) and lost (stderr warnings)."""
-    if output_format == ReportFormat.JSON:
-        print_json(report.to_dict())
-    else:
-        console.print(
-            f"wrote {report.output}: {report.message_count:,} messages "
-            f"({len(report.topic_counts)} topics, {len(report.files)} files, "
-            f"{report.chunks_copied} chunks copied as stored)",
-            highlight=False,
-            soft_wrap=True,
-        )
-    for problem in report.problems:
-        warn(f"lost: {problem}")
-
 
 @handle_errors
 def recover(
     bag: Path = typer.Argument(..., help="The bag (directory or .mcap file) to recover."),
-    output: Path = typer.Option(..., "--output", "-o", help=OUTPUT_HELP),
-    force: bool = typer.Option(False, "--force", help=FORCE_HELP),
-    check_crc: bool = typer.Option(True, "--crc/--no-crc", help=CRC_HELP),
-    output_format: ReportFormat = FORMAT_OPTION,
+    *,
+    output: Output,
+    force: Force = False,
+    check_crc: CheckCrc = True,
+    output_format: Format = ReportFormat.TABLE,
 ) -> None:
     """Rewrite a crashed or truncated bag as a complete one."""
+    options = output_options(force=force, check_crc=check_crc)
     with err_console.status(f"recovering {bag}"):
-        report = recover_bag(bag, output, OutputOptions(force=force, check_crc=check_crc))
+        report = recover_bag(bag, output, options)
     print_report(report, output_format)
