@@ -4,36 +4,29 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from types import TracebackType
 
-import lz4.frame
-import zstandard
 from mcap.well_known import Profile
 
 from bagkit import __version__
+from bagkit.bag.bag_files import (
+    bag_metadata,
+    compressor,
+    file_information,
+    finish_storage_file,
+)
 from bagkit.bag.bag_topics import BagTopics
 from bagkit.bag.errors import BagError, BagExistsError, BagWriteError
 from bagkit.bag.mcapio.chunk_builder import ChunkBuilder
 from bagkit.bag.mcapio.file_writer import McapFileWriter
-from bagkit.bag.mcapio.records import Header, Metadata, encode
+from bagkit.bag.mcapio.records import Header, encode
 from bagkit.bag.metadata import BagMetadata, FileInformation, write_metadata
 from bagkit.bag.types import TopicInfo
 
-COMPRESSIONS = ("zstd", "lz4", "none")
 LIBRARY = f"bagkit {__version__}"
 DEFAULT_CHUNK_SIZE = 1 << 20
-
-
-def _compressor(compression: str) -> tuple[str, Callable[[bytearray], bytes]]:
-    if compression == "zstd":
-        return "zstd", zstandard.ZstdCompressor(level=1).compress
-    if compression == "lz4":
-        return "lz4", lz4.frame.compress
-    if compression == "none":
-        return "", bytes
-    raise BagError(f"unknown compression {compression!r} (choose from {', '.join(COMPRESSIONS)})")
 
 
 class BagWriter:
@@ -69,7 +62,7 @@ class BagWriter:
     ) -> None:
         self.path = Path(path)
         self.custom_data: dict[str, str] = {}
-        self._compression, self._compress = _compressor(compression)
+        self._compression, self._compress = compressor(compression)
         self._max_bag_size = max_bag_size
         self._max_bag_duration_ns = int(max_bag_duration_s * 1e9)
         self._chunk_size = chunk_size
@@ -367,32 +360,11 @@ class BagWriter:
         for channel_id, count in chunk.message_counts().items():
             self._topics.counts[channel_id] += count
 
-    def _file_information(self, storage: McapFileWriter) -> FileInformation:
-        start = storage.start_time or 0
-        return FileInformation(
-            path=storage.path.name,
-            starting_time=start,
-            duration=storage.end_time - start if storage.message_count else 0,
-            message_count=storage.message_count,
-        )
-
     def _bag_metadata(self) -> BagMetadata:
         files = list(self._files)
         if self._file is not None:
-            files.append(self._file_information(self._file))
-        with_messages = [f for f in files if f.message_count]
-        start = min((f.starting_time for f in with_messages), default=0)
-        end = max((f.starting_time + f.duration for f in with_messages), default=0)
-        return BagMetadata(
-            storage_identifier="mcap",
-            relative_file_paths=[f.path for f in files],
-            starting_time=start,
-            duration=end - start,
-            message_count=sum(f.message_count for f in files),
-            topics=self._topics.with_counts(),
-            files=files,
-            custom_data=dict(self.custom_data),
-        )
+            files.append(file_information(self._file))
+        return bag_metadata(files, self._topics.with_counts(), self.custom_data)
 
     def _finish_file(self) -> None:
         """Write the rosbag2 metadata record, the summary and the footer, and close the file."""
@@ -400,14 +372,13 @@ class BagWriter:
         if storage is None:
             return
         try:
-            serialized = self._bag_metadata().dump(root=False)
-            storage.add_metadata(
-                Metadata(name="rosbag2", metadata={"serialized_metadata": serialized})
-            )
-            storage.finish(
-                list(self._topics.schemas.values()), list(self._topics.channels.values())
+            finish_storage_file(
+                storage,
+                self._bag_metadata(),
+                list(self._topics.schemas.values()),
+                list(self._topics.channels.values()),
             )
         finally:
-            self._files.append(self._file_information(storage))
+            self._files.append(file_information(storage))
             self._file = None
             storage.close()

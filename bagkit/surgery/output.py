@@ -14,12 +14,13 @@ from pathlib import Path
 import numpy as np
 from mcap.well_known import Profile, SchemaEncoding
 
+from bagkit.bag.bag_files import bag_metadata, compressor, file_information, finish_storage_file
 from bagkit.bag.mcapio.chunk_builder import ChunkBuilder, ClosedChunk
 from bagkit.bag.mcapio.file_writer import McapFileWriter
-from bagkit.bag.mcapio.records import Channel, Header, Metadata, Schema
+from bagkit.bag.mcapio.records import Channel, Header, Schema
 from bagkit.bag.metadata import BagMetadata, FileInformation, write_metadata
 from bagkit.bag.types import TopicInfo
-from bagkit.bag.writer import DEFAULT_CHUNK_SIZE, LIBRARY, _compressor
+from bagkit.bag.writer import DEFAULT_CHUNK_SIZE, LIBRARY
 from bagkit.surgery.errors import SurgeryError
 
 
@@ -51,7 +52,7 @@ class OutputBag:
         if not path.parent.is_dir():
             raise SurgeryError(f"{path.parent}: no such directory")
         self.path = path
-        self.compression, self._compress = _compressor(compression)
+        self.compression, self._compress = compressor(compression)
         self._force = force
         self._max_size = max_bag_size
         self._max_duration = int(max_bag_duration_s * 1e9)
@@ -204,35 +205,13 @@ class OutputBag:
         file = self._file
         if file is None:
             return
-        start = file.start_time or 0
-        self._files.append(
-            FileInformation(
-                path=file.path.name,
-                starting_time=start,
-                duration=file.end_time - start if file.message_count else 0,
-                message_count=file.message_count,
-            )
+        self._files.append(file_information(file))
+        finish_storage_file(
+            file, self._metadata(), list(self.schemas.values()), list(self.channels.values())
         )
-        file.add_metadata(
-            Metadata(
-                name="rosbag2", metadata={"serialized_metadata": self._metadata().dump(root=False)}
-            )
-        )
-        file.finish(list(self.schemas.values()), list(self.channels.values()))
         file.close()
         self._file = None
 
     def _metadata(self) -> BagMetadata:
-        files = list(self._files)
-        with_messages = [f for f in files if f.message_count]
-        start = min((f.starting_time for f in with_messages), default=0)
-        end = max((f.starting_time + f.duration for f in with_messages), default=0)
-        return BagMetadata(
-            storage_identifier="mcap",
-            relative_file_paths=[f.path for f in files],
-            starting_time=start,
-            duration=end - start,
-            message_count=sum(f.message_count for f in files),
-            topics=[(t, self.counts[self.channels[n].id]) for n, t in self.topics.items()],
-            files=files,
-        )
+        topics = [(t, self.counts[self.channels[n].id]) for n, t in self.topics.items()]
+        return bag_metadata(self._files, topics)

@@ -1,0 +1,66 @@
+"""bagkit.bag.bag_files: compressors, file entries and metadata totals, the rosbag2 record."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import lz4.frame
+import pytest
+import yaml
+import zstandard
+from mcap.reader import make_reader
+
+from bagkit.bag import BagError, BagWriter, TopicInfo
+from bagkit.bag.bag_files import bag_metadata, compressor
+from bagkit.bag.metadata import FileInformation
+
+STRING = "std_msgs/msg/String"
+DECOMPRESS = {
+    "zstd": lambda data, size: zstandard.ZstdDecompressor().decompress(data, max_output_size=size),
+    "lz4": lambda data, size: lz4.frame.decompress(data),
+    "": lambda data, size: data,
+}
+
+
+@pytest.mark.parametrize("compression", ["zstd", "lz4", "none"])
+def test_compressors_round_trip_with_their_reference_decoders(compression: str) -> None:
+    name, compress = compressor(compression)
+    records = bytearray(b"some records " * 1000)
+    assert name == ("" if compression == "none" else compression)
+    assert DECOMPRESS[name](compress(records), len(records)) == records
+
+
+def test_unknown_compression_is_a_bag_error() -> None:
+    with pytest.raises(BagError, match="choose from zstd, lz4, none"):
+        compressor("gzip")
+
+
+def test_metadata_spans_the_files_with_messages() -> None:
+    files = [
+        FileInformation(path="b_0.mcap", starting_time=100, duration=50, message_count=3),
+        FileInformation(path="b_1.mcap", starting_time=0, duration=0, message_count=0),
+        FileInformation(path="b_2.mcap", starting_time=140, duration=60, message_count=2),
+    ]
+    topic = TopicInfo("/a", STRING)
+    metadata = bag_metadata(files, [(topic, 5)], {"robot": "r2"})
+    assert metadata.relative_file_paths == ["b_0.mcap", "b_1.mcap", "b_2.mcap"]
+    # the empty file's time 0 does not pull the start back
+    assert (metadata.starting_time, metadata.duration) == (100, 200 - 100)
+    assert metadata.message_count == 5
+    assert metadata.custom_data == {"robot": "r2"}
+
+
+def test_each_file_carries_rosbag2_metadata_matching_its_metadata_yaml(tmp_path: Path) -> None:
+    with BagWriter(tmp_path / "bag", max_bag_size=1) as bag:  # one message per file
+        bag.add_topic(TopicInfo("/a", STRING))
+        for i in range(3):
+            bag.write("/a", b"\x00\x01\x00\x00\x02\x00\x00\x00x\x00", log_time=1_000 + i)
+    on_disk = yaml.safe_load((tmp_path / "bag" / "metadata.yaml").read_text())
+    info = on_disk["rosbag2_bagfile_information"]
+    last = sorted((tmp_path / "bag").glob("*.mcap"))[-1]
+    with open(last, "rb") as f:
+        (record,) = [m for m in make_reader(f).iter_metadata() if m.name == "rosbag2"]
+    embedded = yaml.safe_load(record.metadata["serialized_metadata"])
+    # the last file's record is written with every file known, as metadata.yaml is
+    assert embedded["message_count"] == info["message_count"] == 3
+    assert embedded["relative_file_paths"] == info["relative_file_paths"]
