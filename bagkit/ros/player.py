@@ -26,6 +26,7 @@ from bagkit.bag import BagReader, TopicInfo
 from bagkit.ros.errors import PlayerError
 from bagkit.ros.lateness import LatenessSamples
 from bagkit.ros.play_controls import PlayControls
+from bagkit.ros.play_options import check_play_options
 from bagkit.ros.playback_report import PlayProgress, PlayReport, TopicPlayback
 from bagkit.ros.player_services import serve_controls
 from bagkit.ros.player_topics import publishable_topics
@@ -45,6 +46,41 @@ from bagkit.ros.timing import DEFAULT_DISCOVERY_TIME_S
 
 class Player:
     """Replays a bag through ROS 2 publishers with the recorded timing.
+
+    Args:
+        bag: bag directory or single ``.mcap`` file.
+        rate: playback speed factor (2.0 = twice as fast as recorded).
+        topics: replay only these topics (union with ``regex``); None = all.
+        regex: replay topics whose name matches this regular expression (``re.search``).
+        exclude: do not replay topics whose name matches this regular expression.
+        start_offset: skip this many seconds from the start of the bag.
+        duration: replay only this many seconds of bag time (after ``start_offset``).
+        playback_until_ns: replay only messages logged at or before this time (ns since the
+            epoch); with ``duration``, the later of the two ends the replay (as rosbag2).
+        exclude_topics: do not replay these topics.
+        loops: passes over the bag; 0 = until interrupted.
+        delay: seconds to sleep before each pass.
+        clock_hz: publish ``/clock`` at this rate (and before each message); None = off.
+        start_paused: start paused (``player.controls.resume()`` or a service resumes).
+        services: offer rosbag2's control services and a ``rate`` parameter on the node
+            (:mod:`bagkit.ros.player_services`).
+        remap: topic renames, recorded name -> published name.
+        wait_for_subscribers: before the first message, wait until every subscription that
+            the graph shows on a replayed topic has matched.
+        wait_for: topics that must have at least one subscriber before playback starts
+            (for consumers that are still starting up).
+        wait_timeout: seconds to wait for subscribers before giving up.
+        discovery_time: seconds after the node's creation during which the graph is watched
+            for subscriptions that already exist (see ``wait_until_matched``).
+        ack_timeout: at the end, seconds to wait for subscribers of reliable topics to
+            acknowledge every message (see ``wait_until_acknowledged``).
+        qos_overrides: rosbag2 QoS overrides file (``topic: {reliability: ..., ...}``).
+        context: rclpy context to use; None = a private one, shut down on exit.
+        node_name: name of the player's node.
+        on_progress: called with a ``PlayProgress`` about every ``progress_period`` seconds.
+        progress_period: seconds between progress reports.
+        on_live_publishers: called once before the first message with the replayed topics
+            that other nodes publish too (published name -> those nodes).
 
     Example:
         >>> with Player("drive", rate=2.0, clock_hz=100.0) as player:
@@ -81,44 +117,8 @@ class Player:
         progress_period: float = 0.5,
         on_live_publishers: Callable[[dict[str, list[str]]], None] | None = None,
     ) -> None:
-        """Set up a replay; nothing is opened until the player is entered.
-
-        Args:
-            bag: bag directory or single ``.mcap`` file.
-            rate: playback speed factor (2.0 = twice as fast as recorded).
-            topics: replay only these topics (union with ``regex``); None = all.
-            regex: replay topics whose name matches this regular expression (``re.search``).
-            exclude: do not replay topics whose name matches this regular expression.
-            start_offset: skip this many seconds from the start of the bag.
-            duration: replay only this many seconds of bag time (after ``start_offset``).
-            playback_until_ns: replay only messages logged at or before this time (ns since the
-                epoch); with ``duration``, the later of the two ends the replay (as rosbag2).
-            exclude_topics: do not replay these topics.
-            loops: passes over the bag; 0 = until interrupted.
-            delay: seconds to sleep before each pass.
-            clock_hz: publish ``/clock`` at this rate (and before each message); None = off.
-            start_paused: start paused (``player.controls.resume()`` or a service resumes).
-            services: offer rosbag2's control services and a ``rate`` parameter on the node
-                (:mod:`bagkit.ros.player_services`).
-            remap: topic renames, recorded name -> published name.
-            wait_for_subscribers: before the first message, wait until every subscription that
-                the graph shows on a replayed topic has matched.
-            wait_for: topics that must have at least one subscriber before playback starts
-                (for consumers that are still starting up).
-            wait_timeout: seconds to wait for subscribers before giving up.
-            discovery_time: seconds after the node's creation during which the graph is watched
-                for subscriptions that already exist (see ``wait_until_matched``).
-            ack_timeout: at the end, seconds to wait for subscribers of reliable topics to
-                acknowledge every message (see ``wait_until_acknowledged``).
-            qos_overrides: rosbag2 QoS overrides file (``topic: {reliability: ..., ...}``).
-            context: rclpy context to use; None = a private one, shut down on exit.
-            node_name: name of the player's node.
-            on_progress: called with a ``PlayProgress`` about every ``progress_period`` seconds.
-            progress_period: seconds between progress reports.
-            on_live_publishers: called once before the first message with the replayed topics
-                that other nodes publish too (published name -> those nodes).
-        """
-        _check_options(rate, start_offset, duration, delay, clock_hz, loops)
+        """Set up a replay; nothing is opened until the player is entered."""
+        check_play_options(rate, start_offset, duration, delay, clock_hz, loops)
         self.bag_path = Path(bag)
         self.rate = rate
         self.controls = PlayControls(rate, paused=start_paused)
@@ -402,26 +402,3 @@ def play(bag: str | Path, **options: Any) -> PlayReport:
     """Replay ``bag`` once with ``Player(bag, **options)`` and return the report."""
     with Player(bag, **options) as player:
         return player.play()
-
-
-def _check_options(  # noqa: PLR0917 (the Player's options, checked together)
-    rate: float,
-    start_offset: float,
-    duration: float | None,
-    delay: float,
-    clock_hz: float | None,
-    loops: int,
-) -> None:
-    """Raise PlayerError for an option out of its range."""
-    if not rate > 0:
-        raise PlayerError(f"rate must be positive, got {rate}")
-    if start_offset < 0:
-        raise PlayerError(f"start offset must not be negative, got {start_offset}")
-    if duration is not None and not duration > 0:
-        raise PlayerError(f"duration must be positive, got {duration}")
-    if delay < 0:
-        raise PlayerError(f"delay must not be negative, got {delay}")
-    if clock_hz is not None and not clock_hz > 0:
-        raise PlayerError(f"clock rate must be positive, got {clock_hz}")
-    if loops < 0:
-        raise PlayerError(f"loops must be 0 (forever) or positive, got {loops}")
