@@ -179,23 +179,12 @@ def run_lockstep(
     Raises:
         RegressionError: an input topic is missing or its type is not installed.
     """
-    from bagkit.ros.errors import MessageClassNotFoundError
-    from bagkit.ros.serialization import deserializer
-
     started = time.perf_counter()
     subscribed = {t for p in processors for t in p.input_topics}
     wanted = list(input_topics) if input_topics is not None else sorted(subscribed)
     with BagReader(golden) as reader:
-        missing = [t for t in wanted if t not in reader.topics]
-        if missing:
-            raise RegressionError(f"{golden}: no input topic(s) {', '.join(missing)}")
-        try:
-            decoders = {t: deserializer(reader.topics[t].type) for t in wanted}
-        except MessageClassNotFoundError as exc:
-            raise RegressionError(f"{golden}: {exc}") from exc
+        decoders = _decoders(golden, reader, wanted)
         routes = {t: [p for p in processors if t in p.input_topics] for t in wanted}
-        start_ns = end_ns = 0
-        done = 0
         # Chunks closed by size only (not by wall time) keep the file bytes reproducible.
         with BagWriter(output, chunk_interval_s=math.inf) as writer:
             out = _OutputBag(writer, reader.topics)
@@ -205,25 +194,7 @@ def run_lockstep(
                     info = reader.topics[t]
                     out.add_topic(info, reader.definitions.get(info.type))
             timers = _Timers(processors, out)
-            for bag_msg in reader.messages(topics=sorted({*wanted, *copied})):
-                if bag_msg.topic in copied:
-                    out.copy(bag_msg)
-                if bag_msg.topic not in decoders:
-                    continue
-                if not done:
-                    start_ns = bag_msg.log_time
-                    timers.start(start_ns)
-                end_ns = bag_msg.log_time
-                # A tick at exactly a message's time fires before it, as a node that is
-                # spinning would see the timer become ready first.
-                timers.fire_until(bag_msg.log_time + 1)
-                msg = decoders[bag_msg.topic](bag_msg.data)
-                for processor in routes[bag_msg.topic]:
-                    for topic, reply in processor.on_message(bag_msg.topic, msg, bag_msg.log_time):
-                        out.write(topic, reply, bag_msg.log_time)
-                    _drain(processor)
-                done += 1
-            timers.fire_until(end_ns + 1)
+            done, start_ns, end_ns = _feed(reader, decoders, routes, copied, out, timers)
             counts = {t: n for t, n in out.counts.items() if t not in copied}
     return LockstepResult(
         output=output,
@@ -233,3 +204,51 @@ def run_lockstep(
         bag_duration_ns=end_ns - start_ns,
         wall_time_s=time.perf_counter() - started,
     )
+
+
+def _decoders(golden: Path, reader: BagReader, topics: list[str]) -> dict[str, Any]:
+    """A deserializer per input topic (through bagkit.ros.serialization: rclpy stays there)."""
+    from bagkit.ros.errors import MessageClassNotFoundError
+    from bagkit.ros.serialization import deserializer
+
+    missing = [t for t in topics if t not in reader.topics]
+    if missing:
+        raise RegressionError(f"{golden}: no input topic(s) {', '.join(missing)}")
+    try:
+        return {t: deserializer(reader.topics[t].type) for t in topics}
+    except MessageClassNotFoundError as exc:
+        raise RegressionError(f"{golden}: {exc}") from exc
+
+
+def _feed(  # noqa: PLR0917 (the run's parts, passed as they are)
+    reader: BagReader,
+    decoders: dict[str, Any],
+    routes: dict[str, list[Processor]],
+    copied: list[str],
+    out: _OutputBag,
+    timers: _Timers,
+) -> tuple[int, int, int]:
+    """Feed every input message to its processors in log-time order, timers between them;
+    return (messages fed, first and last log time)."""
+    start_ns = end_ns = 0
+    done = 0
+    for bag_msg in reader.messages(topics=sorted({*decoders, *copied})):
+        if bag_msg.topic in copied:
+            out.copy(bag_msg)
+        if bag_msg.topic not in decoders:
+            continue
+        if not done:
+            start_ns = bag_msg.log_time
+            timers.start(start_ns)
+        end_ns = bag_msg.log_time
+        # A tick at exactly a message's time fires before it, as a node that is spinning
+        # would see the timer become ready first.
+        timers.fire_until(bag_msg.log_time + 1)
+        msg = decoders[bag_msg.topic](bag_msg.data)
+        for processor in routes[bag_msg.topic]:
+            for topic, reply in processor.on_message(bag_msg.topic, msg, bag_msg.log_time):
+                out.write(topic, reply, bag_msg.log_time)
+            _drain(processor)
+        done += 1
+    timers.fire_until(end_ns + 1)
+    return done, start_ns, end_ns
