@@ -7,6 +7,8 @@ Chunk record's bytes go out unchanged, its Message Index records are re-encoded 
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from zlib_ng.zlib_ng import crc32
 
 from bagkit.bag.errors import ChunkError, CorruptBagError
@@ -19,12 +21,16 @@ from bagkit.bag.mcapio.chunks import (
 )
 from bagkit.bag.mcapio.records import (
     RECORD_HEADER,
+    Chunk,
     ChunkIndex,
     Opcode,
     encode_message_index,
     parse_chunk,
 )
 from bagkit.bag.mcapio.source import Source
+
+if TYPE_CHECKING:
+    import numpy as np
 
 _MAX_COMPRESSED_RATIO = 2
 
@@ -62,21 +68,7 @@ def read_raw_chunk(
         records = decompress(chunk.compression, chunk.data, chunk.uncompressed_size, max_size)
         if check_crc and chunk.uncompressed_crc and crc32(records) != chunk.uncompressed_crc:
             raise ChunkError("CRC mismatch (the chunk is damaged)")
-    try:
-        indexes = (
-            read_message_indexes(source, chunk_index) if chunk_index.message_index_offsets else {}
-        )
-    except CorruptBagError:
-        indexes = {}
-    try:
-        if not indexes:
-            if records is None:
-                records = decompress(
-                    chunk.compression, chunk.data, chunk.uncompressed_size, max_size
-                )
-            indexes = walk_message_index(records)
-    except CorruptBagError as exc:
-        raise ChunkError(str(exc)) from None
+    indexes = _message_indexes(source, chunk_index, chunk, records, max_size)
     header_length = len(record) - len(chunk.data)
     parts = []
     offsets: dict[int, int] = {}
@@ -98,6 +90,27 @@ def read_raw_chunk(
         message_counts={c: len(e) for c, e in indexes.items()},
         uncompressed_crc=chunk.uncompressed_crc,
     )
+
+
+def _message_indexes(
+    source: Source, chunk_index: ChunkIndex, chunk: Chunk, records: bytes | None, max_size: int
+) -> dict[int, np.ndarray]:
+    """The chunk's Message Index entries: from its records after it when they are where the
+    index says, otherwise from walking its (decompressed) records."""
+    try:
+        indexes = (
+            read_message_indexes(source, chunk_index) if chunk_index.message_index_offsets else {}
+        )
+    except CorruptBagError:
+        indexes = {}
+    if indexes:
+        return indexes
+    try:
+        if records is None:
+            records = decompress(chunk.compression, chunk.data, chunk.uncompressed_size, max_size)
+        return walk_message_index(records)
+    except CorruptBagError as exc:
+        raise ChunkError(str(exc)) from None
 
 
 def check_raw_chunk(chunk: ClosedChunk, max_size: int = DEFAULT_MAX_CHUNK_SIZE) -> None:
