@@ -23,6 +23,33 @@ from bagkit.cli.common import (
     split_list,
     warn,
 )
+from bagkit.cli.replay_options import (
+    Bag,
+    Clock,
+    Delay,
+    DisableKeyboardControls,
+    DiscoveryTime,
+    Duration,
+    Exclude,
+    ExcludeTopics,
+    Format,
+    Loop,
+    QosOverrides,
+    Rate,
+    ReadAheadQueueSize,
+    Regex,
+    Remap,
+    StartOffset,
+    StartPaused,
+    Storage,
+    Topics,
+    UntilNsec,
+    UntilSec,
+    WaitFor,
+    WaitForAllAcked,
+    WaitForSubscribers,
+    WaitTimeout,
+)
 from bagkit.ros.timing import DEFAULT_CLOCK_HZ, DEFAULT_DISCOVERY_TIME_S, LATE_THRESHOLD_NS
 
 if TYPE_CHECKING:
@@ -79,135 +106,36 @@ HELP_OPTIONS = CONTEXT_SETTINGS
 )
 @handle_errors
 def replay(  # noqa: PLR0917 (typer maps parameters to options)
-    bag: Path = typer.Argument(..., help="Bag directory or .mcap file.", show_default=False),
-    rate: float = typer.Option(
-        1.0, "--rate", "-r", help="Playback speed factor (2 = twice as fast)."
-    ),
-    topics: list[str] = typer.Option(
-        [],
-        "--topics",
-        help="Replay only these topics: several after one --topics, repeated, or comma lists.",
-    ),
-    regex: str | None = typer.Option(
-        None, "--regex", "-e", help="Replay topics whose name matches this regex (re.search)."
-    ),
-    exclude: str | None = typer.Option(
-        None,
-        "--exclude-regex",
-        "-x",
-        "--exclude",
-        help="Do not replay topics whose name matches this regex.",
-    ),
-    exclude_topics: list[str] = typer.Option(
-        [], "--exclude-topics", help="Do not replay these topics (as --topics)."
-    ),
-    start_offset: float = typer.Option(
-        0.0, "--start-offset", help="Start this many seconds after the bag's first message."
-    ),
-    duration: float | None = typer.Option(
-        None,
-        "--playback-duration",
-        "--duration",
-        help="Replay only this many seconds of bag time.",
-    ),
-    until_sec: float | None = typer.Option(
-        None,
-        "--playback-until-sec",
-        help="Replay messages logged up to this time (seconds since the epoch).",
-    ),
-    until_nsec: int | None = typer.Option(
-        None,
-        "--playback-until-nsec",
-        help="Replay messages logged up to this time (nanoseconds since the epoch).",
-    ),
-    loop: bool = typer.Option(False, "--loop", "-l", help="Replay again and again until Ctrl-C."),
-    delay: float = typer.Option(
-        0.0, "--delay", "-d", help="Sleep this many seconds before each pass."
-    ),
-    clock: float | None = typer.Option(
-        None,
-        "--clock",
-        metavar="[HZ]",
-        help=(
-            f"Publish rosgraph_msgs/Clock on /clock at HZ ({DEFAULT_CLOCK_HZ:g} when given "
-            "without a value) and before each message; a /clock topic in the bag is then not "
-            "replayed."
-        ),
-        show_default=False,
-    ),
-    start_paused: bool = typer.Option(
-        False, "--start-paused", "-p", help="Start paused (space, or the ~/resume service)."
-    ),
-    disable_keyboard_controls: bool = typer.Option(
-        False, "--disable-keyboard-controls", help="Do not read keys from the terminal."
-    ),
-    remap: list[str] = typer.Option(
-        [], "--remap", "-m", help="Publish topic OLD as NEW (OLD:=NEW); several or repeated."
-    ),
-    wait_for_subscribers: bool = typer.Option(
-        True,
-        "--wait-for-subscribers/--no-wait-for-subscribers",
-        help=(
-            "Before the first message, wait until every subscription the ROS graph shows on a "
-            "replayed topic (and /clock) has matched."
-        ),
-    ),
-    wait_for: list[str] = typer.Option(
-        [],
-        "--wait-for",
-        help="Also wait until this topic (published name) has a subscriber; repeatable.",
-    ),
-    wait_timeout: float = typer.Option(
-        10.0, "--wait-timeout", help="Seconds to wait for subscribers before giving up."
-    ),
-    discovery_time: float = typer.Option(
-        DEFAULT_DISCOVERY_TIME_S,
-        "--discovery-time",
-        help=(
-            "Seconds to watch the ROS graph for subscribers that already exist (Fast DDS "
-            "announces participants every 3 s); 0 with --wait-for when the consumers are known."
-        ),
-    ),
-    wait_for_all_acked: int = typer.Option(
-        10_000,
-        "--wait-for-all-acked",
-        metavar="TIMEOUT",
-        help="At the end, wait up to TIMEOUT ms for reliable subscribers to acknowledge "
-        "every message (0 = as long as it takes).",
-    ),
-    qos_overrides: Path | None = typer.Option(
-        None,
-        "--qos-profile-overrides-path",
-        "--qos-overrides",
-        help="rosbag2 QoS overrides file (YAML: topic -> reliability, durability, history, depth).",
-    ),
-    read_ahead_queue_size: int = typer.Option(
-        1000,
-        "--read-ahead-queue-size",
-        help="Accepted for ros2 bag; bagkit reads chunk by chunk as the replay reaches them.",
-    ),
-    storage: str | None = typer.Option(
-        None,
-        "--storage",
-        "-s",
-        help="Accepted for ros2 bag (mcap or sqlite3); bagkit detects the storage itself.",
-    ),
-    output_format: ReportFormat = typer.Option(
-        ReportFormat.TABLE, "--format", help="Final report as a table or as JSON."
-    ),
+    bag: Bag,
+    rate: Rate = 1.0,
+    topics: Topics = None,
+    regex: Regex = None,
+    exclude: Exclude = None,
+    exclude_topics: ExcludeTopics = None,
+    start_offset: StartOffset = 0.0,
+    duration: Duration = None,
+    until_sec: UntilSec = None,
+    until_nsec: UntilNsec = None,
+    loop: Loop = False,
+    delay: Delay = 0.0,
+    clock: Clock = None,
+    start_paused: StartPaused = False,
+    disable_keyboard_controls: DisableKeyboardControls = False,
+    remap: Remap = None,
+    wait_for_subscribers: WaitForSubscribers = True,
+    wait_for: WaitFor = None,
+    wait_timeout: WaitTimeout = 10.0,
+    discovery_time: DiscoveryTime = DEFAULT_DISCOVERY_TIME_S,
+    wait_for_all_acked: WaitForAllAcked = 10_000,
+    qos_overrides: QosOverrides = None,
+    read_ahead_queue_size: ReadAheadQueueSize = 1000,
+    storage: Storage = None,
+    output_format: Format = ReportFormat.TABLE,
 ) -> None:
-    from bagkit.ros.fastdds import large_receive_queue
-    from bagkit.ros.keyboard import terminal_controls
     from bagkit.ros.player import Player
     from bagkit.ros.selection import parse_remaps
-    from bagkit.ros.timing import precise_timers
 
-    if until_sec is not None and until_nsec is not None:
-        raise fail("--playback-until-sec and --playback-until-nsec exclude each other")
-    if storage not in {None, "mcap", "sqlite3"}:
-        raise fail(f"--storage {storage}: bagkit reads mcap and sqlite3 bags")
-    if read_ahead_queue_size < 1 or wait_for_all_acked < 0:
-        raise fail("--read-ahead-queue-size must be positive, --wait-for-all-acked not negative")
+    _check_ros2_options(until_sec, until_nsec, storage, read_ahead_queue_size, wait_for_all_acked)
     interactive = sys.stderr.isatty()
     progress = _ProgressLine(interactive=interactive)
     player = Player(
@@ -225,9 +153,9 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
         clock_hz=clock,
         start_paused=start_paused,
         services=True,
-        remap=parse_remaps(rule for value in remap for rule in value.split(",") if rule),
+        remap=parse_remaps(rule for value in remap or () for rule in value.split(",") if rule),
         wait_for_subscribers=wait_for_subscribers,
-        wait_for=wait_for,
+        wait_for=wait_for or [],
         wait_timeout=wait_timeout,
         discovery_time=discovery_time,
         ack_timeout=wait_for_all_acked / 1e3 if wait_for_all_acked else _FOREVER_S,
@@ -236,17 +164,7 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
         progress_period=0.25 if interactive else 5.0,
         on_live_publishers=_warn_live_publishers,
     )
-    with ExitStack() as stack:
-        # The same Fast DDS shared-memory sizing as `bagkit record`: the profile's queue
-        # capacity also sizes the participant's pool of send buffers (read at its creation).
-        with large_receive_queue():
-            stack.enter_context(player)
-        _warn_skipped(player)
-        stack.enter_context(
-            terminal_controls(player.controls, keyboard=not disable_keyboard_controls)
-        )
-        precise_timers()  # this thread publishes: its sleeps must end on time
-        report = player.play()
+    report = _run(player, keyboard=not disable_keyboard_controls)
     progress.finish()
 
     if output_format is ReportFormat.JSON:
@@ -254,6 +172,39 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
     else:
         _print_report(report)
     _finish(report, bag)
+
+
+def _check_ros2_options(
+    until_sec: float | None,
+    until_nsec: int | None,
+    storage: str | None,
+    read_ahead_queue_size: int,
+    wait_for_all_acked: int,
+) -> None:
+    """The checks of ros2 bag play's options that typer's types do not express."""
+    if until_sec is not None and until_nsec is not None:
+        raise fail("--playback-until-sec and --playback-until-nsec exclude each other")
+    if storage not in {None, "mcap", "sqlite3"}:
+        raise fail(f"--storage {storage}: bagkit reads mcap and sqlite3 bags")
+    if read_ahead_queue_size < 1 or wait_for_all_acked < 0:
+        raise fail("--read-ahead-queue-size must be positive, --wait-for-all-acked not negative")
+
+
+def _run(player: Player, *, keyboard: bool) -> PlayReport:
+    """Open the player, hand it the terminal's keys, replay."""
+    from bagkit.ros.fastdds import large_receive_queue
+    from bagkit.ros.keyboard import terminal_controls
+    from bagkit.ros.timing import precise_timers
+
+    with ExitStack() as stack:
+        # The same Fast DDS shared-memory sizing as `bagkit record`: the profile's queue
+        # capacity also sizes the participant's pool of send buffers (read at its creation).
+        with large_receive_queue():
+            stack.enter_context(player)
+        _warn_skipped(player)
+        stack.enter_context(terminal_controls(player.controls, keyboard=keyboard))
+        precise_timers()  # this thread publishes: its sleeps must end on time
+        return player.play()
 
 
 # --wait-for-all-acked 0: wait "forever" (a year).

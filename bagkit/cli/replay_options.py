@@ -1,0 +1,154 @@
+"""The options of ``bagkit replay``/``play``, named as ``ros2 bag play``'s (docs/cli.md).
+
+Declared here, one alias each, so that the command itself reads as what it does.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from bagkit.cli.common import ReportFormat
+from bagkit.ros.timing import DEFAULT_CLOCK_HZ
+
+Bag = Annotated[Path, typer.Argument(help="Bag directory or .mcap file.", show_default=False)]
+Rate = Annotated[
+    float, typer.Option("--rate", "-r", help="Playback speed factor (2 = twice as fast).")
+]
+Topics = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--topics",
+        help="Replay only these topics: several after one --topics, repeated, or comma lists.",
+    ),
+]
+Regex = Annotated[
+    str | None,
+    typer.Option("--regex", "-e", help="Replay topics whose name matches this regex (re.search)."),
+]
+Exclude = Annotated[
+    str | None,
+    typer.Option(
+        "--exclude-regex",
+        "-x",
+        "--exclude",
+        help="Do not replay topics whose name matches this regex.",
+    ),
+]
+ExcludeTopics = Annotated[
+    list[str] | None,
+    typer.Option("--exclude-topics", help="Do not replay these topics (as --topics)."),
+]
+StartOffset = Annotated[
+    float,
+    typer.Option("--start-offset", help="Start this many seconds after the bag's first message."),
+]
+Duration = Annotated[
+    float | None,
+    typer.Option(
+        "--playback-duration", "--duration", help="Replay only this many seconds of bag time."
+    ),
+]
+UntilSec = Annotated[
+    float | None,
+    typer.Option(
+        "--playback-until-sec",
+        help="Replay messages logged up to this time (seconds since the epoch).",
+    ),
+]
+UntilNsec = Annotated[
+    int | None,
+    typer.Option(
+        "--playback-until-nsec",
+        help="Replay messages logged up to this time (nanoseconds since the epoch).",
+    ),
+]
+Loop = Annotated[bool, typer.Option("--loop", "-l", help="Replay again and again until Ctrl-C.")]
+Delay = Annotated[
+    float, typer.Option("--delay", "-d", help="Sleep this many seconds before each pass.")
+]
+Clock = Annotated[
+    float | None,
+    typer.Option(
+        "--clock",
+        metavar="[HZ]",
+        help=f"Publish rosgraph_msgs/Clock on /clock at HZ ({DEFAULT_CLOCK_HZ:g} when given "
+        "without a value) and before each message; a /clock topic in the bag is then not "
+        "replayed.",
+        show_default=False,
+    ),
+]
+StartPaused = Annotated[
+    bool,
+    typer.Option("--start-paused", "-p", help="Start paused (space, or the ~/resume service)."),
+]
+DisableKeyboardControls = Annotated[
+    bool, typer.Option("--disable-keyboard-controls", help="Do not read keys from the terminal.")
+]
+Remap = Annotated[
+    list[str] | None,
+    typer.Option("--remap", "-m", help="Publish topic OLD as NEW (OLD:=NEW); several or repeated."),
+]
+WaitForSubscribers = Annotated[
+    bool,
+    typer.Option(
+        "--wait-for-subscribers/--no-wait-for-subscribers",
+        help="Before the first message, wait until every subscription the ROS graph shows on a "
+        "replayed topic (and /clock) has matched.",
+    ),
+]
+WaitFor = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--wait-for",
+        help="Also wait until this topic (published name) has a subscriber; repeatable.",
+    ),
+]
+WaitTimeout = Annotated[
+    float, typer.Option("--wait-timeout", help="Seconds to wait for subscribers before giving up.")
+]
+DiscoveryTime = Annotated[
+    float,
+    typer.Option(
+        "--discovery-time",
+        help="Seconds to watch the ROS graph for subscribers that already exist (Fast DDS "
+        "announces participants every 3 s); 0 with --wait-for when the consumers are known.",
+    ),
+]
+WaitForAllAcked = Annotated[
+    int,
+    typer.Option(
+        "--wait-for-all-acked",
+        metavar="TIMEOUT",
+        help="At the end, wait up to TIMEOUT ms for reliable subscribers to acknowledge "
+        "every message (0 = as long as it takes).",
+    ),
+]
+QosOverrides = Annotated[
+    Path | None,
+    typer.Option(
+        "--qos-profile-overrides-path",
+        "--qos-overrides",
+        help="rosbag2 QoS overrides file (YAML: topic -> reliability, durability, history, depth).",
+    ),
+]
+ReadAheadQueueSize = Annotated[
+    int,
+    typer.Option(
+        "--read-ahead-queue-size",
+        help="Accepted for ros2 bag; bagkit reads chunk by chunk as the replay reaches them.",
+    ),
+]
+Storage = Annotated[
+    str | None,
+    typer.Option(
+        "--storage",
+        "-s",
+        help="Accepted for ros2 bag (mcap or sqlite3); bagkit detects the storage itself.",
+    ),
+]
+Format = Annotated[
+    ReportFormat, typer.Option("--format", help="Final report as a table or as JSON.")
+]
