@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import enum
 import re
 import signal
 import threading
@@ -23,6 +22,36 @@ from bagkit.cli.common import (
     print_json,
     split_list,
     warn,
+)
+from bagkit.cli.record_options import (
+    AllTopics,
+    CompressionFormat,
+    CompressionFormatOption,
+    CompressionMode,
+    CompressionModeOption,
+    CustomData,
+    Duration,
+    ExcludeRegex,
+    ExcludeTopics,
+    ExcludeTopicTypes,
+    Format,
+    IncludeHidden,
+    IncludeUnpublished,
+    LogLevel,
+    LogLevelOption,
+    MaxBagDuration,
+    MaxBagSize,
+    MaxCacheSize,
+    NodeName,
+    Output,
+    PollingInterval,
+    QosOverrides,
+    Regex,
+    Storage,
+    Topics,
+    TopicsPositional,
+    TopicTypes,
+    UseSimTime,
 )
 from bagkit.cli.record_table import print_record_table, progress_line
 
@@ -45,31 +74,6 @@ HELP = (
     "in all three), 1 when recording failed (disk full: the bag keeps what was written), "
     "2 for bad options or an existing output."
 )
-
-
-class CompressionMode(enum.StrEnum):
-    """``ros2 bag record --compression-mode``: bagkit compresses MCAP chunks in either mode."""
-
-    NONE = "none"
-    FILE = "file"
-    MESSAGE = "message"
-
-
-class CompressionFormat(enum.StrEnum):
-    """``--compression-format``: the MCAP chunk compression."""
-
-    ZSTD = "zstd"
-    LZ4 = "lz4"
-
-
-class LogLevel(enum.StrEnum):
-    """``--log-level``: warnings are printed at ``warn`` and below, progress at ``info``."""
-
-    DEBUG = "debug"
-    INFO = "info"
-    WARN = "warn"
-    ERROR = "error"
-    FATAL = "fatal"
 
 
 def chunk_compression(mode: CompressionMode | None, fmt: CompressionFormat | None) -> str:
@@ -115,98 +119,31 @@ COMMAND_CLASS = RecordCommand
 
 @handle_errors
 def record(  # noqa: PLR0917 (typer maps parameters to options; ros2 bag has them all)
-    topics_positional: list[str] = typer.Argument(
-        None, help="Topics to record (as --topics).", show_default=False, metavar="[TOPIC]..."
-    ),
-    topics: list[str] = typer.Option(
-        None, "--topics", help="Topics to record (always, hidden ones too).", metavar="TOPIC..."
-    ),
-    topic_types: list[str] = typer.Option(
-        None, "--topic-types", help="Record topics of these types.", metavar="TYPE..."
-    ),
-    all_topics: bool = typer.Option(
-        False, "--all", "-a", "--all-topics", help="Record every topic (not hidden ones)."
-    ),
-    regex: str | None = typer.Option(
-        None, "--regex", "-e", help="Record topics whose name contains a match of RE."
-    ),
-    exclude_regex: str | None = typer.Option(
-        None, "--exclude-regex", "-x", help="Leave out topics matching RE, named ones too."
-    ),
-    exclude_topics: list[str] = typer.Option(
-        None, "--exclude-topics", help="Leave out these topics.", metavar="TOPIC..."
-    ),
-    exclude_topic_types: list[str] = typer.Option(
-        None, "--exclude-topic-types", help="Leave out topics of these types.", metavar="TYPE..."
-    ),
-    include_hidden: bool = typer.Option(
-        False, "--include-hidden-topics", help="Let --all/--regex select hidden topics (/_x)."
-    ),
-    include_unpublished: bool = typer.Option(
-        False, "--include-unpublished-topics", help="Also record topics without a publisher."
-    ),
-    output: Path | None = typer.Option(
-        None,
-        "--output",
-        "-o",
-        help="Bag directory to create (default: rosbag2_YYYY_MM_DD-HH_MM_SS); never overwritten.",
-        show_default=False,
-    ),
-    storage: str = typer.Option("mcap", "--storage", "-s", help="Storage: mcap only."),
-    max_bag_size: int = typer.Option(
-        0,
-        "--max-bag-size",
-        "-b",
-        help="Split into a new file at this many bytes (0: never).",
-        min=0,
-    ),
-    max_bag_duration: float = typer.Option(
-        0,
-        "--max-bag-duration",
-        "-d",
-        help="Split into a new file every this many seconds (0: never); keeps recording.",
-        min=0,
-    ),
-    duration: float | None = typer.Option(
-        None,
-        "--duration",
-        help="Stop after this many seconds, counted from when the topics are subscribed.",
-        min=0.0,
-        metavar="SEC",
-    ),
-    compression_mode: CompressionMode | None = typer.Option(
-        None, "--compression-mode", help="none: no compression; file or message: chunks."
-    ),
-    compression_format: CompressionFormat | None = typer.Option(
-        None, "--compression-format", help="Chunk compression (default zstd)."
-    ),
-    qos_overrides: Path | None = typer.Option(
-        None,
-        "--qos-profile-overrides-path",
-        help="YAML {topic: {reliability: ..., durability: ..., ...}} (ros2 bag's format): "
-        "subscribe with these profiles instead of the adapted ones.",
-    ),
-    use_sim_time: bool = typer.Option(
-        False, "--use-sim-time", help="Stamp with /clock time; nothing is written before it."
-    ),
-    node_name: str = typer.Option("bagkit_recorder", "--node-name", help="The recorder's node."),
-    custom_data: list[str] = typer.Option(
-        None, "--custom-data", help="KEY=VALUE pairs for metadata.yaml.", metavar="KEY=VALUE..."
-    ),
-    max_cache_size: int | None = typer.Option(
-        None,
-        "--max-cache-size",
-        help="Bytes held between taking and writing messages (default 64 MiB).",
-        min=1 << 20,
-        show_default=False,
-    ),
-    polling_interval: int = typer.Option(
-        100, "--polling-interval", help="Milliseconds between looks for new topics.", min=1
-    ),
-    log_level: LogLevel = typer.Option(LogLevel.INFO, "--log-level", help="error: no warnings."),
-    output_format: ReportFormat = typer.Option(
-        ReportFormat.TABLE, "--format", help="Final report as a table or JSON."
-    ),
+    topics_positional: TopicsPositional = None,
+    topics: Topics = None,
+    topic_types: TopicTypes = None,
+    all_topics: AllTopics = False,
+    regex: Regex = None,
+    exclude_regex: ExcludeRegex = None,
+    exclude_topics: ExcludeTopics = None,
+    exclude_topic_types: ExcludeTopicTypes = None,
+    include_hidden: IncludeHidden = False,
+    include_unpublished: IncludeUnpublished = False,
+    output: Output = None,
+    storage: Storage = "mcap",
+    max_bag_size: MaxBagSize = 0,
+    max_bag_duration: MaxBagDuration = 0,
+    duration: Duration = None,
+    compression_mode: CompressionModeOption = None,
+    compression_format: CompressionFormatOption = None,
+    qos_overrides: QosOverrides = None,
+    use_sim_time: UseSimTime = False,
+    node_name: NodeName = "bagkit_recorder",
+    custom_data: CustomData = None,
+    max_cache_size: MaxCacheSize = None,
+    polling_interval: PollingInterval = 100,
+    log_level: LogLevelOption = LogLevel.INFO,
+    output_format: Format = ReportFormat.TABLE,
 ) -> None:
     from bagkit.ros.memory import keep_freed_memory
     from bagkit.ros.qos import load_qos_overrides
@@ -246,7 +183,13 @@ def record(  # noqa: PLR0917 (typer maps parameters to options; ros2 bag has the
 
     keep_freed_memory()
     report, received = _record_until_stopped(recorder, duration)
+    _print_outcome(report, received, output_format, quiet=quiet)
 
+
+def _print_outcome(
+    report: RecordReport, received: list[int], output_format: ReportFormat, *, quiet: bool
+) -> None:
+    """Print the report; exit 1 on a failure, 128 + the signal that stopped the recording."""
     if output_format is ReportFormat.JSON:
         print_json(report.to_dict())
     else:

@@ -1,0 +1,163 @@
+"""The options of ``bagkit record``, named as ``ros2 bag record``'s (docs/cli.md).
+
+Declared here, one alias each, with the value types of the options that take a choice, so that
+the command itself reads as what it does.
+"""
+
+from __future__ import annotations
+
+import enum
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from bagkit.cli.common import ReportFormat
+
+
+class CompressionMode(enum.StrEnum):
+    """``ros2 bag record --compression-mode``: bagkit compresses MCAP chunks in either mode."""
+
+    NONE = "none"
+    FILE = "file"
+    MESSAGE = "message"
+
+
+class CompressionFormat(enum.StrEnum):
+    """``--compression-format``: the MCAP chunk compression."""
+
+    ZSTD = "zstd"
+    LZ4 = "lz4"
+
+
+class LogLevel(enum.StrEnum):
+    """``--log-level``: warnings are printed at ``warn`` and below, progress at ``info``."""
+
+    DEBUG = "debug"
+    INFO = "info"
+    WARN = "warn"
+    ERROR = "error"
+    FATAL = "fatal"
+
+
+TopicsPositional = Annotated[
+    list[str] | None,
+    typer.Argument(
+        help="Topics to record (as --topics).", show_default=False, metavar="[TOPIC]..."
+    ),
+]
+Topics = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--topics", help="Topics to record (always, hidden ones too).", metavar="TOPIC..."
+    ),
+]
+TopicTypes = Annotated[
+    list[str] | None,
+    typer.Option("--topic-types", help="Record topics of these types.", metavar="TYPE..."),
+]
+AllTopics = Annotated[
+    bool, typer.Option("--all", "-a", "--all-topics", help="Record every topic (not hidden ones).")
+]
+Regex = Annotated[
+    str | None,
+    typer.Option("--regex", "-e", help="Record topics whose name contains a match of RE."),
+]
+ExcludeRegex = Annotated[
+    str | None,
+    typer.Option("--exclude-regex", "-x", help="Leave out topics matching RE, named ones too."),
+]
+ExcludeTopics = Annotated[
+    list[str] | None,
+    typer.Option("--exclude-topics", help="Leave out these topics.", metavar="TOPIC..."),
+]
+ExcludeTopicTypes = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--exclude-topic-types", help="Leave out topics of these types.", metavar="TYPE..."
+    ),
+]
+IncludeHidden = Annotated[
+    bool,
+    typer.Option("--include-hidden-topics", help="Let --all/--regex select hidden topics (/_x)."),
+]
+IncludeUnpublished = Annotated[
+    bool,
+    typer.Option("--include-unpublished-topics", help="Also record topics without a publisher."),
+]
+Output = Annotated[
+    Path | None,
+    typer.Option(
+        "--output",
+        "-o",
+        help="Bag directory to create (default: rosbag2_YYYY_MM_DD-HH_MM_SS); never overwritten.",
+        show_default=False,
+    ),
+]
+Storage = Annotated[str, typer.Option("--storage", "-s", help="Storage: mcap only.")]
+MaxBagSize = Annotated[
+    int,
+    typer.Option(
+        "--max-bag-size", "-b", help="Split into a new file at this many bytes (0: never).", min=0
+    ),
+]
+MaxBagDuration = Annotated[
+    float,
+    typer.Option(
+        "--max-bag-duration",
+        "-d",
+        help="Split into a new file every this many seconds (0: never); keeps recording.",
+        min=0,
+    ),
+]
+Duration = Annotated[
+    float | None,
+    typer.Option(
+        "--duration",
+        help="Stop after this many seconds, counted from when the topics are subscribed.",
+        min=0.0,
+        metavar="SEC",
+    ),
+]
+CompressionModeOption = Annotated[
+    CompressionMode | None,
+    typer.Option("--compression-mode", help="none: no compression; file or message: chunks."),
+]
+CompressionFormatOption = Annotated[
+    CompressionFormat | None,
+    typer.Option("--compression-format", help="Chunk compression (default zstd)."),
+]
+QosOverrides = Annotated[
+    Path | None,
+    typer.Option(
+        "--qos-profile-overrides-path",
+        help="YAML {topic: {reliability: ..., durability: ..., ...}} (ros2 bag's format): "
+        "subscribe with these profiles instead of the adapted ones.",
+    ),
+]
+UseSimTime = Annotated[
+    bool,
+    typer.Option("--use-sim-time", help="Stamp with /clock time; nothing is written before it."),
+]
+NodeName = Annotated[str, typer.Option("--node-name", help="The recorder's node.")]
+CustomData = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--custom-data", help="KEY=VALUE pairs for metadata.yaml.", metavar="KEY=VALUE..."
+    ),
+]
+MaxCacheSize = Annotated[
+    int | None,
+    typer.Option(
+        "--max-cache-size",
+        help="Bytes held between taking and writing messages (default 64 MiB).",
+        min=1 << 20,
+        show_default=False,
+    ),
+]
+PollingInterval = Annotated[
+    int,
+    typer.Option("--polling-interval", help="Milliseconds between looks for new topics.", min=1),
+]
+LogLevelOption = Annotated[LogLevel, typer.Option("--log-level", help="error: no warnings.")]
+Format = Annotated[ReportFormat, typer.Option("--format", help="Final report as a table or JSON.")]
