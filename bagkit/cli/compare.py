@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import typer
 from rich import box
@@ -17,6 +16,25 @@ from bagkit.cli.common import (
     print_json,
     split_list,
     warn,
+)
+from bagkit.cli.compare_options import (
+    Atol,
+    Candidate,
+    CheckCrc,
+    EventWindow,
+    Format,
+    Golden,
+    IgnoreFields,
+    IncludeTimes,
+    Live,
+    MatchWindow,
+    PassRate,
+    Report,
+    Rtol,
+    Show,
+    Skip,
+    Spec,
+    Topics,
 )
 from bagkit.compare import CompareOptions, CompareReport, Tolerance, compare_bags, replace_options
 
@@ -80,60 +98,24 @@ def _print_table(report: CompareReport, limit: int) -> None:
 
 @handle_errors
 def compare(
-    golden: Path = typer.Argument(..., help="The reference bag (directory or .mcap)."),
-    candidate: Path = typer.Argument(..., help="The bag to check against it."),
+    golden: Golden,
+    candidate: Candidate,
     *,
-    topics: list[str] | None = typer.Option(
-        None,
-        "--topics",
-        "-t",
-        help="Topics to compare (repeat or comma-separate); default: the topics both bags have.",
-        show_default=False,
-    ),
-    atol: float | None = typer.Option(None, help="Absolute tolerance of float fields [0]."),
-    rtol: float | None = typer.Option(None, help="Relative tolerance of float fields [0]."),
-    ignore_fields: list[str] | None = typer.Option(
-        None,
-        "--ignore-fields",
-        "-i",
-        help="Field glob to skip, e.g. 'pose.covariance*' or "
-        "'/logger/summary:*' for one topic (repeatable).",
-        show_default=False,
-    ),
-    spec: Path | None = typer.Option(
-        None,
-        help="Fixture spec (spec.yaml) whose outputs and tolerances to use; the options "
-        "given here override it.",
-    ),
-    live: bool = typer.Option(False, "--live", help="With --spec: its live tolerances."),
-    event_window: float | None = typer.Option(
-        None, help="Seconds within which alert events of equal (name, level) match [0.5]."
-    ),
-    match_window: float | None = typer.Option(
-        None, help="Seconds within which header stamps match [0: exactly]."
-    ),
-    skip: float | None = typer.Option(
-        None,
-        min=0.0,
-        help="Seconds after the golden's first message before which nothing is compared.",
-    ),
-    pass_rate: float | None = typer.Option(
-        None,
-        min=0.0,
-        max=1.0,
-        help="Fraction of each topic's matched messages that must be within tolerance [1].",
-    ),
-    include_times: bool = typer.Option(
-        False, "--include-times", help="Also compare receive and publish times."
-    ),
-    report: Path | None = typer.Option(None, help="Write the JSON verdict to this file."),
-    output_format: ReportFormat = typer.Option(
-        ReportFormat.TABLE, "--format", help="table, or json (the verdict on stdout)."
-    ),
-    show: int = typer.Option(10, help="How many divergences to print and keep per topic."),
-    check_crc: bool = typer.Option(
-        True, "--crc/--no-crc", help="Check each chunk's CRC as it is read (--no-crc: skip it)."
-    ),
+    topics: Topics = None,
+    atol: Atol = None,
+    rtol: Rtol = None,
+    ignore_fields: IgnoreFields = None,
+    spec: Spec = None,
+    live: Live = False,
+    event_window: EventWindow = None,
+    match_window: MatchWindow = None,
+    skip: Skip = None,
+    pass_rate: PassRate = None,
+    include_times: IncludeTimes = False,
+    report: Report = None,
+    output_format: Format = ReportFormat.TABLE,
+    show: Show = 10,
+    check_crc: CheckCrc = True,
 ) -> None:
     """Compare CANDIDATE with GOLDEN within tolerances (exit 0 same, 1 different, 2 bad input)."""
     if spec is not None:

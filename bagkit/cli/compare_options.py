@@ -1,0 +1,77 @@
+"""The options of ``bagkit compare``, declared once each so the command reads as what it does."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from bagkit.cli.common import ReportFormat
+
+Golden = Annotated[Path, typer.Argument(help="The reference bag (directory or .mcap).")]
+Candidate = Annotated[Path, typer.Argument(help="The bag to check against it.")]
+Topics = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--topics",
+        "-t",
+        help="Topics to compare (repeat or comma-separate); default: the topics both bags have.",
+        show_default=False,
+    ),
+]
+Atol = Annotated[float | None, typer.Option(help="Absolute tolerance of float fields [0].")]
+Rtol = Annotated[float | None, typer.Option(help="Relative tolerance of float fields [0].")]
+IgnoreFields = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--ignore-fields",
+        "-i",
+        help="Field glob to skip, e.g. 'pose.covariance*' or "
+        "'/logger/summary:*' for one topic (repeatable).",
+        show_default=False,
+    ),
+]
+Spec = Annotated[
+    Path | None,
+    typer.Option(
+        help="Fixture spec (spec.yaml) whose outputs and tolerances to use; the options "
+        "given here override it."
+    ),
+]
+Live = Annotated[bool, typer.Option("--live", help="With --spec: its live tolerances.")]
+EventWindow = Annotated[
+    float | None,
+    typer.Option(help="Seconds within which alert events of equal (name, level) match [0.5]."),
+]
+MatchWindow = Annotated[
+    float | None, typer.Option(help="Seconds within which header stamps match [0: exactly].")
+]
+Skip = Annotated[
+    float | None,
+    typer.Option(
+        min=0.0, help="Seconds after the golden's first message before which nothing is compared."
+    ),
+]
+PassRate = Annotated[
+    float | None,
+    typer.Option(
+        min=0.0,
+        max=1.0,
+        help="Fraction of each topic's matched messages that must be within tolerance [1].",
+    ),
+]
+IncludeTimes = Annotated[
+    bool, typer.Option("--include-times", help="Also compare receive and publish times.")
+]
+Report = Annotated[Path | None, typer.Option(help="Write the JSON verdict to this file.")]
+Format = Annotated[
+    ReportFormat, typer.Option("--format", help="table, or json (the verdict on stdout).")
+]
+Show = Annotated[int, typer.Option(help="How many divergences to print and keep per topic.")]
+CheckCrc = Annotated[
+    bool,
+    typer.Option(
+        "--crc/--no-crc", help="Check each chunk's CRC as it is read (--no-crc: skip it)."
+    ),
+]
