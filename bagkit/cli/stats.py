@@ -7,7 +7,7 @@ import math
 import sys
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import typer
 from rich.measure import Measurement
@@ -25,8 +25,18 @@ from bagkit.cli.common import (
     split_list,
     warn,
 )
-from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers
+from bagkit.cli.fleet_options import Scheduler, Workers
 from bagkit.cli.progress import DelayedProgress
+from bagkit.cli.stats_options import (
+    Bulk,
+    CheckCrc,
+    End,
+    Fields,
+    Format,
+    Inputs,
+    Start,
+    Topics,
+)
 
 if TYPE_CHECKING:
     from bagkit.stats import Summary
@@ -58,48 +68,16 @@ def _offset_ns(bags: list[Path], seconds: float | None) -> int | None:
 @app.command("summary", no_args_is_help=True)
 @handle_errors
 def summary(  # noqa: PLR0917 (typer maps parameters to options)
-    inputs: list[Path] = typer.Argument(
-        ...,
-        help=BAGS_HELP + "; several bags are pooled.",
-        metavar="BAG",
-        show_default=False,
-    ),
-    topics: list[str] | None = typer.Option(
-        None, "--topics", "-t", help="Only these topics (repeat, or a comma list)."
-    ),
-    fields: list[str] | None = typer.Option(
-        None,
-        "--fields",
-        "-f",
-        help="Only fields matching these globs, e.g. 'linear_acceleration.*' "
-        "(* and ? are wildcards, brackets are literal: 'orientation_covariance[0]').",
-    ),
-    start: float | None = typer.Option(
-        None,
-        "--start",
-        help="Skip messages logged before SEC seconds after the first one.",
-        metavar="SEC",
-    ),
-    end: float | None = typer.Option(
-        None,
-        "--end",
-        help="Stop at SEC seconds after the first message (exclusive).",
-        metavar="SEC",
-    ),
-    output: OutputFormat = typer.Option(
-        OutputFormat.TABLE, "--format", help="table for people, json or csv for scripts."
-    ),
-    bulk: bool = typer.Option(
-        True,
-        "--bulk/--no-bulk",
-        help="Decode fixed-layout messages in bulk with numpy (--no-bulk: one by one, slower, "
-        "to cross-check).",
-    ),
+    inputs: Inputs,
+    topics: Topics = None,
+    fields: Fields = None,
+    start: Start = None,
+    end: End = None,
+    output: Format = OutputFormat.TABLE,
+    bulk: Bulk = True,
     workers: Workers = None,
     scheduler: Scheduler = None,
-    check_crc: bool = typer.Option(
-        True, "--crc/--no-crc", help="Check each chunk's CRC as it is read (--no-crc: skip it)."
-    ),
+    check_crc: CheckCrc = True,
 ) -> None:
     """Count and rate per topic; count, NaN count, min, max, mean and std per numeric field.
 
@@ -113,42 +91,18 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
 
     Example: bagkit stats summary 'flights/2026-11-*' -t /imu/data --workers 4
     """
-    from bagkit.fleet import expand_bags, fleet_client, summarize_fleet
-    from bagkit.fleet.progress import BagProgress
-    from bagkit.stats import summarize
+    from bagkit.fleet import expand_bags
 
     bags = expand_bags(inputs)
-    start_ns, end_ns = _offset_ns(bags, start), _offset_ns(bags, end)
-    selection = {"topics": split_list(topics) or None, "fields": split_list(fields) or None}
-    with fleet_client(
-        workers=workers, scheduler=scheduler, bags=len(bags), announce=note
-    ) as client:
-        if client is None:
-            progress = DelayedProgress("summarizing")
-            try:
-                result = summarize(
-                    bags,
-                    **selection,
-                    start_ns=start_ns,
-                    end_ns=end_ns,
-                    progress=progress,
-                    bulk=bulk,
-                    check_crc=check_crc,
-                )
-            finally:
-                progress.close()
-        else:
-            with BagProgress(bags, err_console, label="summarizing") as done:
-                result = summarize_fleet(
-                    bags,
-                    **selection,
-                    client=client,
-                    start_ns=start_ns,
-                    end_ns=end_ns,
-                    bulk=bulk,
-                    check_crc=check_crc,
-                    done=done,
-                )
+    options = {
+        "topics": split_list(topics) or None,
+        "fields": split_list(fields) or None,
+        "start_ns": _offset_ns(bags, start),
+        "end_ns": _offset_ns(bags, end),
+        "bulk": bulk,
+        "check_crc": check_crc,
+    }
+    result = _summarize(bags, options, workers=workers, scheduler=scheduler)
     for topic, reason in result.skipped.items():
         warn(f"topic {topic} skipped: {reason}")
     for problem in result.problems:
@@ -159,6 +113,27 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
         _print_csv(result)
     else:
         _print_tables(result)
+
+
+def _summarize(
+    bags: list[Path], options: dict[str, Any], *, workers: int | None, scheduler: str | None
+) -> Summary:
+    """Summarize in this process (a progress bar over messages) or on Dask (over bags)."""
+    from bagkit.fleet import fleet_client, summarize_fleet
+    from bagkit.fleet.progress import BagProgress
+    from bagkit.stats import summarize
+
+    with fleet_client(
+        workers=workers, scheduler=scheduler, bags=len(bags), announce=note
+    ) as client:
+        if client is not None:
+            with BagProgress(bags, err_console, label="summarizing") as done:
+                return summarize_fleet(bags, client=client, done=done, **options)
+        progress = DelayedProgress("summarizing")
+        try:
+            return summarize(bags, progress=progress, **options)
+        finally:
+            progress.close()
 
 
 def _json_safe(value: object) -> object:
