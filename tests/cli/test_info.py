@@ -11,29 +11,12 @@ from pathlib import Path
 
 import pytest
 from mcap.reader import make_reader
-from rosbags.typesys import Stores, get_typestore
+from ros2_messages import STRING, TYPESTORE, qos_yaml
 
 from bagkit.bag import BagWriter, TopicInfo
 
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
-TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
-STRING = "std_msgs/msg/String"
-QOS = """\
-- history: keep_last
-  depth: 5
-  reliability: best_effort
-  durability: transient_local
-  deadline:
-    sec: 9223372036
-    nsec: 854775807
-  lifespan:
-    sec: 9223372036
-    nsec: 854775807
-  liveliness: automatic
-  liveliness_lease_duration:
-    sec: 9223372036
-    nsec: 854775807
-  avoid_ros_namespace_conventions: false"""
+QOS = qos_yaml(depth=5, reliability="best_effort", durability="transient_local")
 START = 1_763_850_000_000_000_000
 
 

@@ -7,41 +7,17 @@ import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
 from mcap.reader import make_reader
+from ros2_messages import IMU, STRING, TEMPERATURE, TYPESTORE, imu_cdr, qos_yaml, string_cdr
 from rosbags.highlevel import AnyReader
-from rosbags.typesys import Stores, get_typestore
 
 from bagkit.bag import BagWriter, TopicInfo
 
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
-TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
-STRING = "std_msgs/msg/String"
-IMU = "sensor_msgs/msg/Imu"
-TEMPERATURE = "sensor_msgs/msg/Temperature"
 START = 1_763_850_000_000_000_000
-QOS = """\
-- history: keep_last
-  depth: 7
-  reliability: best_effort
-  durability: transient_local
-  deadline:
-    sec: 9223372036
-    nsec: 854775807
-  lifespan:
-    sec: 9223372036
-    nsec: 854775807
-  liveliness: automatic
-  liveliness_lease_duration:
-    sec: 9223372036
-    nsec: 854775807
-  avoid_ros_namespace_conventions: false"""
+QOS = qos_yaml(depth=7, reliability="best_effort", durability="transient_local")
 
 Message = tuple[str, int, bytes]  # topic, log time, payload
-
-
-def string_cdr(text: str) -> bytes:
-    return bytes(TYPESTORE.serialize_cdr(TYPESTORE.types[STRING](data=text), STRING))
 
 
 def temperature_cdr(i: int) -> bytes:
@@ -51,25 +27,6 @@ def temperature_cdr(i: int) -> bytes:
     )
     msg = t[TEMPERATURE](header=header, temperature=20.0 + 0.1 * i, variance=0.0)
     return bytes(TYPESTORE.serialize_cdr(msg, TEMPERATURE))
-
-
-def imu_cdr(i: int) -> bytes:
-    t = TYPESTORE.types
-    header = t["std_msgs/msg/Header"](
-        stamp=t["builtin_interfaces/msg/Time"](sec=i // 100, nanosec=(i % 100) * 10_000_000),
-        frame_id="imu",
-    )
-    vec = t["geometry_msgs/msg/Vector3"]
-    msg = t[IMU](
-        header=header,
-        orientation=t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
-        orientation_covariance=np.zeros(9),
-        angular_velocity=vec(x=0.001 * i, y=0.0, z=0.0),
-        angular_velocity_covariance=np.zeros(9),
-        linear_acceleration=vec(x=0.0, y=0.0, z=9.81 + 0.001 * i),
-        linear_acceleration_covariance=np.zeros(9),
-    )
-    return bytes(TYPESTORE.serialize_cdr(msg, IMU))
 
 
 def write_mixed_bag(
