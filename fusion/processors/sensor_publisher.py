@@ -99,18 +99,7 @@ class SensorPublisher(ProcessorBase):
         self.faults = FaultSchedule.parse(
             p.text("faults"), period=p.number("fault_period", non_negative=True)
         )
-        self.profile = FlightProfile(
-            ground_altitude=p.number("flight.ground_altitude"),
-            cruise_height=p.number("flight.cruise_height", non_negative=True),
-            takeoff_delay=p.number("flight.takeoff_delay", non_negative=True),
-            climb_duration=p.number("flight.climb_duration", positive=True),
-            cruise_duration=p.number("flight.cruise_duration", non_negative=True),
-            descent_duration=p.number("flight.descent_duration", positive=True),
-            ground_duration=p.number("flight.ground_duration", non_negative=True),
-            ground_speed=p.number("flight.ground_speed", non_negative=True),
-            orbit_radius=p.number("flight.orbit_radius", positive=True),
-            loop=p.flag("flight.loop"),
-        )
+        self.profile = _flight_profile(p)
         self.origin = GeodeticOrigin(p.number("flight.latitude"), p.number("flight.longitude"))
         self.qnh = p.number("atmosphere.qnh", positive=True)
         self.ground_temperature = p.number("atmosphere.ground_temperature")
@@ -130,16 +119,7 @@ class SensorPublisher(ProcessorBase):
             rate=1e9 / self.periods_ns["imu"],
             rng=imu_rng,
         )
-        self.gnss = GnssModel(
-            GnssNoise(
-                horizontal_white=p.number("gps.horizontal_white", non_negative=True),
-                horizontal_bias=p.number("gps.horizontal_bias", non_negative=True),
-                vertical_white=p.number("gps.vertical_white", non_negative=True),
-                vertical_bias=p.number("gps.vertical_bias", non_negative=True),
-                bias_time_constant=p.number("gps.bias_time_constant", positive=True),
-            ),
-            gps_rng,
-        )
+        self.gnss = GnssModel(_gnss_noise(p), gps_rng)
         self.barometer = BarometerModel(
             white_sigma=p.number("barometer.white_sigma", non_negative=True),
             drift_random_walk=p.number("barometer.drift_random_walk", non_negative=True),
@@ -297,3 +277,30 @@ class SensorPublisher(ProcessorBase):
         msg.twist.twist.linear.z = state.vertical_velocity
         msg.twist.twist.angular.z = state.yaw_rate
         return msg
+
+
+def _flight_profile(p: Params) -> FlightProfile:
+    """The simulated flight from the ``flight.*`` parameters."""
+    return FlightProfile(
+        ground_altitude=p.number("flight.ground_altitude"),
+        cruise_height=p.number("flight.cruise_height", non_negative=True),
+        takeoff_delay=p.number("flight.takeoff_delay", non_negative=True),
+        climb_duration=p.number("flight.climb_duration", positive=True),
+        cruise_duration=p.number("flight.cruise_duration", non_negative=True),
+        descent_duration=p.number("flight.descent_duration", positive=True),
+        ground_duration=p.number("flight.ground_duration", non_negative=True),
+        ground_speed=p.number("flight.ground_speed", non_negative=True),
+        orbit_radius=p.number("flight.orbit_radius", positive=True),
+        loop=p.flag("flight.loop"),
+    )
+
+
+def _gnss_noise(p: Params) -> GnssNoise:
+    """The GPS receiver's noise from the ``gps.*`` parameters."""
+    return GnssNoise(
+        horizontal_white=p.number("gps.horizontal_white", non_negative=True),
+        horizontal_bias=p.number("gps.horizontal_bias", non_negative=True),
+        vertical_white=p.number("gps.vertical_white", non_negative=True),
+        vertical_bias=p.number("gps.vertical_bias", non_negative=True),
+        bias_time_constant=p.number("gps.bias_time_constant", positive=True),
+    )
