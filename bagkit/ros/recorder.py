@@ -126,16 +126,7 @@ class Recorder:
             exclude_topics=exclude_topics,
             exclude_topic_types=exclude_topic_types,
         )
-        if self.selection.empty:
-            raise RecorderOptionsError(
-                "nothing to record: name topics, or use --all, --regex or --topic-types"
-            )
-        if self.path.exists():
-            raise RecorderOptionsError(
-                f"{self.path} already exists (bagkit never overwrites a bag)"
-            )
-        if max_bag_size < 0 or max_bag_duration_s < 0:
-            raise RecorderOptionsError("--max-bag-size and --max-bag-duration must be >= 0")
+        _check_options(self.path, self.selection, max_bag_size, max_bag_duration_s)
         self.compression = compression
         self.max_bag_size = max_bag_size
         self.max_bag_duration_s = max_bag_duration_s
@@ -337,3 +328,18 @@ def _remove_empty_bag(path: Path) -> None:
             child.unlink()
     with contextlib.suppress(OSError):  # something else is in there: not ours to remove
         path.rmdir()
+
+
+def _check_options(
+    path: Path, selection: TopicSelection, max_bag_size: int, max_bag_duration_s: float
+) -> None:
+    """Raise RecorderOptionsError before anything starts: nothing selected, an existing bag,
+    negative split limits."""
+    if selection.empty:
+        raise RecorderOptionsError(
+            "nothing to record: name topics, or use --all, --regex or --topic-types"
+        )
+    if path.exists():
+        raise RecorderOptionsError(f"{path} already exists (bagkit never overwrites a bag)")
+    if max_bag_size < 0 or max_bag_duration_s < 0:
+        raise RecorderOptionsError("--max-bag-size and --max-bag-duration must be >= 0")
