@@ -170,14 +170,17 @@ def check_live(spec: FixtureSpec, workdir: Path, *, startup_timeout: float = 30.
     start_ns, end_ns = _bag_span(spec.bag)
     replay_timeout = 2 * (end_ns - start_ns) / 1e9 / spec.live_rate + 60
     with _processes(workdir / "logs") as procs:
-        _start_system(procs, spec.launch, "launch")
         recorder = procs.start(
             "record",
             [_script("bagkit"), "record", "--use-sim-time", "-o", str(candidate), *spec.outputs],
         )
+        # The recorder keeps nothing that arrives before its first /clock, and a node may
+        # publish the moment its own clock is set (a timer due at the bag's start): the
+        # recorder gets the clock before any node exists.
+        _prepare_graph(procs, {"/clock": 1}, start_ns, startup_timeout)
+        _start_system(procs, spec.launch, "launch")
         counts = {**spec.subscription_counts(), **dict.fromkeys(spec.outputs, 1)}
-        # The recorder's own /clock too: it keeps no output that arrives before its first clock.
-        counts["/clock"] = counts.get("/clock", 0) + 1
+        counts["/clock"] = counts.get("/clock", 0) + 1  # the recorder's, matched again
         _prepare_graph(procs, counts, start_ns, startup_timeout)
         replay = procs.start(
             "replay",
