@@ -118,90 +118,89 @@ def _crc_cost(small: Path, large: Path) -> None:
     )
 
 
+def _writers(root: Path, payloads: list[bytes]) -> bool:
+    """Same messages through both writers, zstd chunks."""
+    t_bagkit = _best_of(2, lambda: _write_bagkit(root / f"w{time.monotonic_ns()}", SMALL, payloads))
+    t_mcap = _best_of(
+        2, lambda: _write_mcap(root / f"m{time.monotonic_ns()}.mcap", SMALL, payloads)
+    )
+    rate = SMALL / t_bagkit
+    print(f"write {SMALL:,} Imu: bagkit {rate:,.0f} msg/s, mcap Writer {SMALL / t_mcap:,.0f} msg/s")
+    print(f"  ratio bagkit/mcap Writer: {t_mcap / t_bagkit:.2f}x (target >= 1.0)")
+    print(f"  ratio to the recorder's need ({RECORDER_RATE:,} msg/s): {rate / RECORDER_RATE:.1f}x")
+    return t_mcap / t_bagkit >= 1.0 and rate >= RECORDER_RATE
+
+
+def _readers(small: Path) -> bool:
+    """Every message (raw bytes, no decoding) of the same bag through the three readers."""
+
+    def read_bagkit() -> None:
+        with BagReader(small) as bag:
+            for _ in bag.messages():
+                pass
+
+    def read_rosbags() -> None:
+        with AnyReader([small]) as reader:
+            for _ in reader.messages():
+                pass
+
+    def read_mcap() -> None:
+        with open(small / "small_0.mcap", "rb") as f:
+            for _ in make_reader(f).iter_messages():
+                pass
+
+    r_bagkit, r_rosbags, r_mcap = (_best_of(2, f) for f in (read_bagkit, read_rosbags, read_mcap))
+    print(
+        f"read {SMALL:,} messages: bagkit {SMALL / r_bagkit:,.0f} msg/s, rosbags "
+        f"{SMALL / r_rosbags:,.0f} msg/s, mcap {SMALL / r_mcap:,.0f} msg/s"
+    )
+    print(f"  ratio bagkit/rosbags: {r_rosbags / r_bagkit:.2f}x (target >= 1.0)")
+    print(f"  ratio bagkit/mcap reader: {r_mcap / r_bagkit:.2f}x")
+    return r_rosbags / r_bagkit >= 1.0
+
+
+def _info(small: Path, large: Path) -> bool:
+    """``bag_info`` (summary and indexes only) on bags 10x apart, against mcap's summary."""
+    size_mb = sum(f.stat().st_size for f in large.glob("*.mcap")) / 1e6
+    i_small = _best_of(5, lambda: bag_info(small))
+    i_large = _best_of(5, lambda: bag_info(large))
+
+    def mcap_summary() -> None:
+        with open(large / "large_0.mcap", "rb") as f:
+            make_reader(f).get_summary()
+
+    i_mcap = _best_of(5, mcap_summary)
+    print(
+        f"info: {SMALL:,} msgs {i_small * 1e3:.1f} ms, {LARGE:,} msgs ({size_mb:.0f} MB) "
+        f"{i_large * 1e3:.1f} ms; mcap get_summary on the large bag {i_mcap * 1e3:.1f} ms"
+    )
+    print(f"  ratio to the {INFO_CEILING_S}s ceiling: {i_large / INFO_CEILING_S:.3f} (target < 1)")
+    print(f"  ratio large/small bag (10x the messages): {i_large / i_small:.2f}x")
+    return i_large < INFO_CEILING_S
+
+
+def _crashed_info(root: Path, large: Path) -> None:
+    """A crashed recording: no summary, every chunk header is read (salvage scan)."""
+    crashed = root / "crashed"
+    crashed.mkdir()
+    data = (large / "large_0.mcap").read_bytes()
+    (crashed / "crashed_0.mcap").write_bytes(data[: len(data) * 9 // 10])
+    i_crashed = _best_of(1, lambda: bag_info(crashed))
+    print(f"info on the large bag cut at 90% (salvage scan): {i_crashed:.2f} s")
+
+
 def main() -> bool:
     """Print the figures; True when every target is met."""
     payloads = _imu_payloads(64)
-    ok = True
     with tempfile.TemporaryDirectory(prefix="bench_info_") as tmp:
         root = Path(tmp)
-
-        # Write: same messages through both writers, zstd chunks.
-        t_bagkit = _best_of(
-            2, lambda: _write_bagkit(root / f"w{time.monotonic_ns()}", SMALL, payloads)
-        )
-        t_mcap = _best_of(
-            2, lambda: _write_mcap(root / f"m{time.monotonic_ns()}.mcap", SMALL, payloads)
-        )
-        rate = SMALL / t_bagkit
-        print(
-            f"write {SMALL:,} Imu: bagkit {rate:,.0f} msg/s, "
-            f"mcap Writer {SMALL / t_mcap:,.0f} msg/s"
-        )
-        print(f"  ratio bagkit/mcap Writer: {t_mcap / t_bagkit:.2f}x (target >= 1.0)")
-        print(
-            f"  ratio to the recorder's need ({RECORDER_RATE:,} msg/s): {rate / RECORDER_RATE:.1f}x"
-        )
-        ok &= t_mcap / t_bagkit >= 1.0 and rate >= RECORDER_RATE
-
-        # Read every message (raw bytes, no decoding) from the same bag.
-        small = root / "small"
+        ok = _writers(root, payloads)
+        small, large = root / "small", root / "large"
         _write_bagkit(small, SMALL, payloads)
-
-        def read_bagkit() -> None:
-            with BagReader(small) as bag:
-                for _ in bag.messages():
-                    pass
-
-        def read_rosbags() -> None:
-            with AnyReader([small]) as reader:
-                for _ in reader.messages():
-                    pass
-
-        def read_mcap() -> None:
-            with open(small / "small_0.mcap", "rb") as f:
-                for _ in make_reader(f).iter_messages():
-                    pass
-
-        r_bagkit = _best_of(2, read_bagkit)
-        r_rosbags = _best_of(2, read_rosbags)
-        r_mcap = _best_of(2, read_mcap)
-        print(
-            f"read {SMALL:,} messages: bagkit {SMALL / r_bagkit:,.0f} msg/s, rosbags "
-            f"{SMALL / r_rosbags:,.0f} msg/s, mcap {SMALL / r_mcap:,.0f} msg/s"
-        )
-        print(f"  ratio bagkit/rosbags: {r_rosbags / r_bagkit:.2f}x (target >= 1.0)")
-        print(f"  ratio bagkit/mcap reader: {r_mcap / r_bagkit:.2f}x")
-        ok &= r_rosbags / r_bagkit >= 1.0
-
-        # info: summary and indexes only, on bags 10x apart.
-        large = root / "large"
+        ok &= _readers(small)
         _write_bagkit(large, LARGE, payloads)
-        size_mb = sum(f.stat().st_size for f in large.glob("*.mcap")) / 1e6
-        i_small = _best_of(5, lambda: bag_info(small))
-        i_large = _best_of(5, lambda: bag_info(large))
-
-        def mcap_summary() -> None:
-            with open(large / "large_0.mcap", "rb") as f:
-                make_reader(f).get_summary()
-
-        i_mcap = _best_of(5, mcap_summary)
-        print(
-            f"info: {SMALL:,} msgs {i_small * 1e3:.1f} ms, {LARGE:,} msgs ({size_mb:.0f} MB) "
-            f"{i_large * 1e3:.1f} ms; mcap get_summary on the large bag {i_mcap * 1e3:.1f} ms"
-        )
-        print(
-            f"  ratio to the {INFO_CEILING_S}s ceiling: {i_large / INFO_CEILING_S:.3f} (target < 1)"
-        )
-        print(f"  ratio large/small bag (10x the messages): {i_large / i_small:.2f}x")
+        ok &= _info(small, large)
         _crc_cost(small, large)
-        ok &= i_large < INFO_CEILING_S
-
-        # A crashed recording: no summary, every chunk header is read (salvage scan).
-        crashed = root / "crashed"
-        crashed.mkdir()
-        data = (large / "large_0.mcap").read_bytes()
-        (crashed / "crashed_0.mcap").write_bytes(data[: len(data) * 9 // 10])
-        i_crashed = _best_of(1, lambda: bag_info(crashed))
-        print(f"info on the large bag cut at 90% (salvage scan): {i_crashed:.2f} s")
+        _crashed_info(root, large)
     print("targets met" if ok else "targets MISSED")
     return ok
