@@ -430,7 +430,9 @@ def test_cli_skips_unknown_types_with_one_warning(
     bag = write_test_bag(tmp_path / "mixed", extra_topics={"/exotic": "exotic_msgs/msg/Thing"})
     expected = recorded(bag, list(SCHEDULE))
     listener = listener_factory(STRING_TOPICS)
-    result = _bagkit("replay", str(bag), "--rate", "10", *CLI_KNOWN, "--wait-for", "/replay/fast")
+    # Every message of both topics is expected: wait for both subscriptions.
+    waits = [arg for topic in STRING_TOPICS for arg in ("--wait-for", topic)]
+    result = _bagkit("replay", str(bag), "--rate", "10", *CLI_KNOWN, *waits)
     assert result.returncode == 0, result.stderr
     warnings = [line for line in result.stderr.splitlines() if "warning" in line]
     assert len(warnings) == 1, result.stderr
