@@ -17,8 +17,12 @@ def prefetch(items: Iterator[T], *, depth: int = 2) -> Generator[T, None, None]:
     """Yield ``items``, produced by a worker thread at most ``depth`` items ahead.
 
     Exceptions of the producer are raised in the consumer. Closing the generator early stops
-    the worker after its current item.
+    the worker after its current item. ``depth`` 0: no thread, the items as they come (for a
+    caller whose other cores are busy already).
     """
+    if depth == 0:
+        yield from items
+        return
     ready: queue.Queue[object] = queue.Queue(maxsize=depth)
     stop = threading.Event()
 

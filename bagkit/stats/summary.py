@@ -127,14 +127,12 @@ class SummaryRun:
                 wanted[name] = accumulator
             else:  # skipped: its messages are not read
                 self.total -= reader.topic_counts.get(name, 0)
-        if wanted and reader.storage == "mcap" and self.prefetch:
+        if wanted and reader.storage == "mcap":
             # closing(): the reading thread stops before the reader is closed, also on error.
-            with closing(prefetch(reader.chunks(wanted))) as chunks:
+            ahead = prefetch(reader.chunks(wanted), depth=2 if self.prefetch else 0)
+            with closing(ahead) as chunks:
                 for chunk in chunks:
                     self.advance(self.add_chunk(chunk, wanted))
-        elif wanted and reader.storage == "mcap":
-            for chunk in reader.chunks(wanted):
-                self.advance(self.add_chunk(chunk, wanted))
         elif wanted:
             for message in reader.messages(wanted, self.start_ns, self.end_ns):
                 accumulator = wanted[message.topic]

@@ -40,3 +40,15 @@ def test_early_close_stops_the_worker() -> None:
     items.close()
     assert not any(t.name == "bagkit-prefetch" and t.is_alive() for t in threading.enumerate())
     assert len(produced) <= 5 + 2 + 2
+
+
+def test_depth_zero_runs_no_thread() -> None:
+    seen_in: list[str] = []
+
+    def items() -> Iterator[int]:
+        for i in range(3):
+            seen_in.append(threading.current_thread().name)
+            yield i
+
+    assert list(prefetch(items(), depth=0)) == [0, 1, 2]
+    assert seen_in == [threading.current_thread().name] * 3
