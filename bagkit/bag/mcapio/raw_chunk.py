@@ -65,9 +65,10 @@ def read_raw_chunk(
         raise ChunkError(str(exc)) from None
     records: bytes | None = None
     if check_crc or not chunk_index.message_index_offsets:
-        records = decompress(chunk.compression, chunk.data, chunk.uncompressed_size, max_size)
-        if check_crc and chunk.uncompressed_crc and crc32(records) != chunk.uncompressed_crc:
-            raise ChunkError("CRC mismatch (the chunk is damaged)")
+        crc = chunk.uncompressed_crc if check_crc else 0
+        records = _decompressed(
+            chunk.compression, chunk.data, chunk.uncompressed_size, crc, max_size
+        )
     indexes = _message_indexes(source, chunk_index, chunk, records, max_size)
     header_length = len(record) - len(chunk.data)
     parts = []
@@ -121,6 +122,16 @@ def check_raw_chunk(chunk: ClosedChunk, max_size: int = DEFAULT_MAX_CHUNK_SIZE) 
     Raises:
         ChunkError: the data does not decompress to its declared size, or a CRC mismatch.
     """
-    records = decompress(chunk.compression, chunk.data, chunk.uncompressed_size, max_size)
-    if chunk.uncompressed_crc and crc32(records) != chunk.uncompressed_crc:
+    _decompressed(
+        chunk.compression, chunk.data, chunk.uncompressed_size, chunk.uncompressed_crc, max_size
+    )
+
+
+def _decompressed(
+    compression: str, data: bytes | memoryview, size: int, crc: int, max_size: int
+) -> bytes:
+    """The chunk's records, checked against ``crc`` unless it is 0 (MCAP's "no CRC")."""
+    records = decompress(compression, data, size, max_size)
+    if crc and crc32(records) != crc:
         raise ChunkError("CRC mismatch (the chunk is damaged)")
+    return records
