@@ -95,8 +95,10 @@ class _CheckedCopies:
         self._pool = ThreadPoolExecutor(os.cpu_count() or 1) if check_crc else None
         self._waiting: deque[tuple[InputFile, Block, ClosedChunk, Future[None] | None]] = deque()
 
-    def add(self, file: InputFile, block: Block, chunk: ClosedChunk) -> None:
-        check = self._pool.submit(check_raw_chunk, chunk) if self._pool is not None else None
+    def add(self, file: InputFile, block: Block, chunk: ClosedChunk, *, checked: bool) -> None:
+        """Queue ``chunk`` for writing; its CRC is checked first unless it was (``checked``)."""
+        pool = None if checked else self._pool
+        check = pool.submit(check_raw_chunk, chunk) if pool is not None else None
         self._waiting.append((file, block, chunk, check))
         while len(self._waiting) > CHECK_WINDOW:
             self._write_next()
@@ -166,13 +168,16 @@ def _copy(  # noqa: PLR0917 (the loop's state, passed as it is)
 ) -> None:
     """Copy a chunk as it is stored (or open it when its records show it cannot be)."""
     assert isinstance(block, ChunkIndex)
+    # A chunk without Message Index records is decompressed to find its messages: its CRC is
+    # checked then, not decompressed a second time on the pool.
+    inline = check_crc and not block.message_index_offsets
     try:
-        chunk = read_raw_chunk(stream.file.source, block, check_crc=False)
+        chunk = read_raw_chunk(stream.file.source, block, check_crc=inline)
     except ChunkError as exc:
         _lost(stream.file, block, str(exc))
         return
     if _identity(stream.file, chunk.message_counts):
-        copies.add(stream.file, block, chunk)
+        copies.add(stream.file, block, chunk, checked=inline)
     else:  # an index-less chunk holding channels that are not copied as they are
         _open(stream, block, selection, check_crc, pending)
 
