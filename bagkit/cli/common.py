@@ -16,7 +16,7 @@ import sys
 import traceback
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, ClassVar, NoReturn, ParamSpec, TypeVar, cast
+from typing import TYPE_CHECKING, Annotated, Any, ClassVar, NoReturn, ParamSpec, TypeVar, cast
 
 import typer
 
@@ -99,6 +99,14 @@ class ReportFormat(enum.StrEnum):
     TABLE = "table"
     JSON = "json"
 
+
+# For commands that read bags (stats, compare); surgery's --crc also says what a bad CRC costs.
+CheckCrcOnRead = Annotated[
+    bool,
+    typer.Option(
+        "--crc/--no-crc", help="Check each chunk's CRC as it is read (--no-crc: skip it)."
+    ),
+]
 
 # Every command answers -h as well as --help (ros2 bag's habit).
 CONTEXT_SETTINGS: dict[str, Any] = {"help_option_names": ["-h", "--help"]}

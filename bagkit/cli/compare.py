@@ -9,6 +9,7 @@ from rich import box
 from rich.table import Table
 
 from bagkit.cli.common import (
+    CheckCrcOnRead,
     ReportFormat,
     console,
     err_console,
@@ -20,7 +21,6 @@ from bagkit.cli.common import (
 from bagkit.cli.compare_options import (
     Atol,
     Candidate,
-    CheckCrc,
     EventWindow,
     Format,
     Golden,
@@ -115,7 +115,7 @@ def compare(
     report: Report = None,
     output_format: Format = ReportFormat.TABLE,
     show: Show = 10,
-    check_crc: CheckCrc = True,
+    check_crc: CheckCrcOnRead = True,
 ) -> None:
     """Compare CANDIDATE with GOLDEN within tolerances (exit 0 same, 1 different, 2 bad input)."""
     if spec is not None:

@@ -69,9 +69,3 @@ Format = Annotated[
     ReportFormat, typer.Option("--format", help="table, or json (the verdict on stdout).")
 ]
 Show = Annotated[int, typer.Option(help="How many divergences to print and keep per topic.")]
-CheckCrc = Annotated[
-    bool,
-    typer.Option(
-        "--crc/--no-crc", help="Check each chunk's CRC as it is read (--no-crc: skip it)."
-    ),
-]

@@ -15,6 +15,7 @@ from rich.table import Table
 
 from bagkit.bag import BagError, BagReader
 from bagkit.cli.common import (
+    CheckCrcOnRead,
     OutputFormat,
     console,
     err_console,
@@ -29,7 +30,6 @@ from bagkit.cli.fleet_options import Scheduler, Workers
 from bagkit.cli.progress import DelayedProgress
 from bagkit.cli.stats_options import (
     Bulk,
-    CheckCrc,
     End,
     Fields,
     Format,
@@ -77,7 +77,7 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
     bulk: Bulk = True,
     workers: Workers = None,
     scheduler: Scheduler = None,
-    check_crc: CheckCrc = True,
+    check_crc: CheckCrcOnRead = True,
 ) -> None:
     """Count and rate per topic; count, NaN count, min, max, mean and std per numeric field.
 

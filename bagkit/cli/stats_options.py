@@ -55,9 +55,3 @@ Bulk = Annotated[
         "to cross-check).",
     ),
 ]
-CheckCrc = Annotated[
-    bool,
-    typer.Option(
-        "--crc/--no-crc", help="Check each chunk's CRC as it is read (--no-crc: skip it)."
-    ),
-]
