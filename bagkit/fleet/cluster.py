@@ -73,6 +73,9 @@ def fleet_client(
     Raises:
         SchedulerError: ``scheduler`` cannot be reached.
     """
+    if scheduler is None and (workers == 0 or (workers is None and bags <= 1)):
+        yield None  # in this process, without importing distributed (slow to import)
+        return
     from distributed import Client
 
     if scheduler is not None:
@@ -83,9 +86,6 @@ def fleet_client(
             raise SchedulerError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
         with client:
             yield client
-        return
-    if workers == 0 or (workers is None and bags <= 1):
-        yield None
         return
     cluster = local_cluster(workers or default_workers())
     try:
