@@ -94,19 +94,14 @@ def check_fixtures(
     task = functools.partial(
         check_fixture, failures=failures.resolve(), import_root=str(Path.cwd())
     )
-    lockstep = [i for i, (_, mode) in enumerate(jobs) if mode == "lockstep"]
-    outcomes: dict[int, FixtureOutcome] = dict(
-        zip(
-            lockstep,
-            run_each(
-                task, [(jobs[i][0].directory.resolve(), "lockstep") for i in lockstep], client, done
-            ),
-            strict=True,
-        )
-    )
-    for i, job in enumerate(jobs):
-        if i not in outcomes:
-            if before_live is not None:
-                before_live(job)
-            outcomes[i] = task((job[0].directory.resolve(), job[1]))
-    return [outcomes[i] for i in range(len(jobs))]
+    paths = [(spec.directory.resolve(), mode) for spec, mode in jobs]
+    lockstep = iter(run_each(task, [p for p in paths if p[1] == "lockstep"], client, done))
+    outcomes = []
+    for job, path in zip(jobs, paths, strict=True):
+        if path[1] == "lockstep":
+            outcomes.append(next(lockstep))
+            continue
+        if before_live is not None:
+            before_live(job)
+        outcomes.append(task(path))
+    return outcomes
