@@ -18,6 +18,7 @@ from typer.core import TyperCommand, TyperGroup
 
 from bagkit import __version__
 from bagkit.cli.common import CONTEXT_SETTINGS, run_app
+from bagkit.cli.help_text import reflow_command_help
 from bagkit.cli.plain_params import use_plain_coercion, use_plain_params
 
 
@@ -79,6 +80,7 @@ def load_command(name: str) -> Command | None:
     command = group.commands.get(name)
     if command is not None:
         use_plain_coercion(command)
+        reflow_command_help(command)
     return command
 
 

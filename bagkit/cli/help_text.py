@@ -1,0 +1,33 @@
+"""Command help that the terminal wraps: a paragraph is one line of text, not the source's lines.
+
+typer (0.29) keeps a docstring's line breaks inside a paragraph; lines cut at 100 columns in
+the source then wrap again on an 80-column terminal, every other line a stub. Paragraphs with
+an indented line (example commands) keep their breaks.
+"""
+
+from __future__ import annotations
+
+import inspect
+
+from typer._click import Command
+from typer.core import TyperGroup
+
+
+def reflow(text: str) -> str:
+    """``text`` with the lines of each paragraph joined, but for paragraphs with indented lines."""
+    paragraphs = inspect.cleandoc(text).split("\n\n")
+    return "\n\n".join(
+        paragraph
+        if any(line.startswith(" ") for line in paragraph.splitlines())
+        else " ".join(line.strip() for line in paragraph.splitlines())
+        for paragraph in paragraphs
+    )
+
+
+def reflow_command_help(command: Command) -> None:
+    """Reflow the help of ``command`` and of its subcommands."""
+    if command.help:
+        command.help = reflow(command.help)
+    if isinstance(command, TyperGroup):
+        for sub in command.commands.values():
+            reflow_command_help(sub)
