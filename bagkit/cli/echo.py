@@ -7,11 +7,16 @@ import enum
 import os
 import signal
 import sys
+from collections.abc import Iterable
 from pathlib import Path
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from bagkit.cli.common import EXIT_INTERRUPTED, handle_errors, split_list, warn
+
+if TYPE_CHECKING:
+    from bagkit.data.echo import Plain
 
 HELP = """Print the messages of TOPIC of BAG as they are read, each with its log time.
 
@@ -40,51 +45,67 @@ class EchoFormat(enum.StrEnum):
     JSON = "json"
 
 
-@handle_errors
-def echo(  # noqa: PLR0917 (typer maps parameters to options)
-    bag: Path = typer.Argument(
-        ..., help="Bag directory or single .mcap/.db3 file.", show_default=False, metavar="BAG"
+Bag = Annotated[
+    Path,
+    typer.Argument(
+        help="Bag directory or single .mcap/.db3 file.", show_default=False, metavar="BAG"
     ),
-    topic: str = typer.Argument(
-        ..., help="The topic to print.", show_default=False, metavar="TOPIC"
-    ),
-    count: int | None = typer.Option(
-        None, "--count", "-n", help="Stop after N messages.", metavar="N", min=0
-    ),
-    start: str | None = typer.Option(
-        None,
+]
+Topic = Annotated[
+    str, typer.Argument(help="The topic to print.", show_default=False, metavar="TOPIC")
+]
+Count = Annotated[
+    int | None,
+    typer.Option("--count", "-n", help="Stop after N messages.", metavar="N", min=0),
+]
+Start = Annotated[
+    str | None,
+    typer.Option(
         "--start",
         help="From SEC seconds after the bag start (or an absolute time: epoch seconds, ISO 8601).",
         metavar="SEC",
     ),
-    end: str | None = typer.Option(
-        None, "--end", help="Until SEC (exclusive), read as --start.", metavar="SEC"
-    ),
-    fields: list[str] | None = typer.Option(
-        None,
+]
+End = Annotated[
+    str | None, typer.Option("--end", help="Until SEC (exclusive), read as --start.", metavar="SEC")
+]
+Fields = Annotated[
+    list[str] | None,
+    typer.Option(
         "--fields",
         "-f",
         help="Only these fields: dotted paths or globs as in stats summary "
         "('linear_acceleration.*', 'orientation_covariance[0]', 'header').",
     ),
-    output: EchoFormat = typer.Option(
-        EchoFormat.YAML, "--format", help="yaml or json (one per line)."
-    ),
-    full_length: bool = typer.Option(
-        False,
+]
+Format = Annotated[EchoFormat, typer.Option("--format", help="yaml or json (one per line).")]
+FullLength = Annotated[
+    bool,
+    typer.Option(
         "--full-length",
         help=f"YAML: print sequences whole (by default cut after {DEFAULT_TRUNCATE_LENGTH} "
         "elements, as ros2 topic echo does). JSON is always whole.",
     ),
+]
+
+
+@handle_errors
+def echo(  # noqa: PLR0917 (typer maps parameters to options)
+    bag: Bag,
+    topic: Topic,
+    count: Count = None,
+    start: Start = None,
+    end: End = None,
+    fields: Fields = None,
+    output: Format = EchoFormat.YAML,
+    full_length: FullLength = False,
 ) -> None:
     from bagkit.bag import BagReader
     from bagkit.data.echo import echo as read_messages
-    from bagkit.data.echo import to_json, to_yaml
 
     # Output is a stream: a closed pipe (| head) or Ctrl-C ends it quietly.
     signal.signal(signal.SIGPIPE, signal.SIG_DFL)
     limit = None if full_length or output is EchoFormat.JSON else DEFAULT_TRUNCATE_LENGTH
-    out = sys.stdout
     try:
         with BagReader(bag, allow_empty=True) as reader:
             bag_start = reader.start_ns
@@ -98,14 +119,21 @@ def echo(  # noqa: PLR0917 (typer maps parameters to options)
             limit=limit,
             on_failure=warn,
         )
-        for record in records:
-            out.write(
-                to_json(record) + "\n" if output is EchoFormat.JSON else to_yaml(record, bag_start)
-            )
-            out.flush()
+        _write(records, output, bag_start)
     except KeyboardInterrupt:
         # No "interrupted" line: the reader asked for it, the output so far is complete.
         _quiet_exit(EXIT_INTERRUPTED)
+
+
+def _write(records: Iterable[Plain], output: EchoFormat, bag_start: int) -> None:
+    """Print each record as it comes (flushed: a reader sees the first one at once)."""
+    from bagkit.data.echo import to_json, to_yaml
+
+    for record in records:
+        sys.stdout.write(
+            to_json(record) + "\n" if output is EchoFormat.JSON else to_yaml(record, bag_start)
+        )
+        sys.stdout.flush()
 
 
 def _quiet_exit(code: int) -> None:
@@ -118,11 +146,12 @@ def _quiet_exit(code: int) -> None:
 def run_alone() -> None:
     """Run ``bagkit echo ARGS`` as a one-command app (see :mod:`bagkit.cli.launch`)."""
     from bagkit.cli.common import CONTEXT_SETTINGS, run_app
+    from bagkit.cli.help_text import reflow
 
     app = typer.Typer(
         add_completion=False, pretty_exceptions_enable=False, context_settings=CONTEXT_SETTINGS
     )
-    app.command(help=HELP, no_args_is_help=True)(echo)
+    app.command(help=reflow(HELP), no_args_is_help=True)(echo)
     # click names the program after argv[0]: usage and errors then read "bagkit echo".
     sys.argv = [f"{sys.argv[0]} echo", *sys.argv[2:]]
     run_app(app)
