@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import typer
 from rich import box
@@ -118,24 +119,12 @@ def compare(
     check_crc: CheckCrcOnRead = True,
 ) -> None:
     """Compare CANDIDATE with GOLDEN within tolerances (exit 0 same, 1 different, 2 bad input)."""
-    if spec is not None:
-        from bagkit.regression.spec import load_spec
-
-        options = load_spec(spec).compare_options("live" if live else "lockstep")
-    else:
-        options = CompareOptions()
-    extra_ignores = tuple(split_list(ignore_fields))
-    tolerance = None
-    if atol is not None or rtol is not None:
-        tolerance = Tolerance(
-            atol if atol is not None else options.tolerance.atol,
-            rtol if rtol is not None else options.tolerance.rtol,
-        )
+    base = _spec_options(spec, live)
     options = replace_options(
-        options,
+        base,
         topics=tuple(split_list(topics)) or None,
-        tolerance=tolerance,
-        ignore_fields=options.ignore_fields + extra_ignores,
+        tolerance=_tolerance(base.tolerance, atol, rtol),
+        ignore_fields=base.ignore_fields + tuple(split_list(ignore_fields)),
         event_window_ns=None if event_window is None else round(event_window * 1e9),
         match_window_ns=None if match_window is None else round(match_window * 1e9),
         include_times=include_times or None,
@@ -162,3 +151,19 @@ def compare(
         if report is not None:
             console.print(f"report: {report}", highlight=False)
     raise typer.Exit(result.exit_code)
+
+
+def _spec_options(spec: Path | None, live: bool) -> CompareOptions:
+    """The options of the spec's lockstep (or live) comparison; the defaults without a spec."""
+    if spec is None:
+        return CompareOptions()
+    from bagkit.regression.spec import load_spec
+
+    return load_spec(spec).compare_options("live" if live else "lockstep")
+
+
+def _tolerance(base: Tolerance, atol: float | None, rtol: float | None) -> Tolerance | None:
+    """``--atol``/``--rtol`` over the base tolerance; None when neither is given."""
+    if atol is None and rtol is None:
+        return None
+    return Tolerance(base.atol if atol is None else atol, base.rtol if rtol is None else rtol)
