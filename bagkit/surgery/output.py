@@ -23,6 +23,30 @@ from bagkit.bag.types import TopicInfo
 from bagkit.bag.writer import DEFAULT_CHUNK_SIZE, LIBRARY
 from bagkit.surgery.errors import SurgeryError
 
+# What --force may replace: a bag directory holds these files only (rosbag2 writes no folders).
+_BAG_SUFFIXES = (".mcap", ".db3", ".yaml", ".zstd", ".lz4")
+
+
+def check_replaceable(path: Path) -> None:
+    """Raise SurgeryError unless ``path`` is something ``--force`` may replace: a bag or file.
+
+    A directory that holds folders or other files, or holds the working directory, is not
+    replaced: ``-o .`` or a mistyped name must not delete what was never a bag.
+    """
+    if path.is_symlink() or path.is_file():
+        return
+    resolved = path.resolve()
+    if Path.cwd().resolve().is_relative_to(resolved):
+        raise SurgeryError(f"{path} holds the working directory: not replaced")
+    others = [
+        c.name for c in resolved.iterdir() if c.is_dir() or not c.name.endswith(_BAG_SUFFIXES)
+    ]
+    if others:
+        raise SurgeryError(
+            f"{path} is not a bag directory (it holds {', '.join(sorted(others)[:3])}): "
+            "not replaced, remove it yourself or choose another name"
+        )
+
 
 class OutputBag:
     """A rosbag2 MCAP bag written message by message or chunk by chunk.
@@ -47,8 +71,12 @@ class OutputBag:
         max_bag_duration_s: float = 0,
         force: bool = False,
     ) -> None:
-        if path.exists() and not force:
-            raise SurgeryError(f"{path} already exists (use --force to replace it)")
+        if not path.name or path.name == "..":
+            raise SurgeryError(f"{str(path)!r} names no bag directory to write")
+        if path.exists() or path.is_symlink():
+            if not force:
+                raise SurgeryError(f"{path} already exists (use --force to replace it)")
+            check_replaceable(path)
         if not path.parent.is_dir():
             raise SurgeryError(f"{path.parent}: no such directory")
         self.path = path

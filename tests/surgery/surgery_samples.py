@@ -89,8 +89,10 @@ def chunk_records(file: Path) -> list[bytes]:
     return records
 
 
-def run(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([BAGKIT, *args], capture_output=True, text=True, timeout=120, check=False)
+def run(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [BAGKIT, *args], capture_output=True, text=True, timeout=120, check=False, cwd=cwd
+    )
 
 
 def key(message: Message) -> tuple[int, str, bytes]:

@@ -236,10 +236,32 @@ def test_output_is_never_half_written_nor_overwritten(mixed: Path, tmp_path: Pat
         assert result.stderr.startswith("error: ") and len(result.stderr.splitlines()) == 1
         assert "Traceback" not in result.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]  # no partial output left
-    result = run("filter", str(mixed), "-o", str(out), "--force", "--topics", "/text")
-    assert result.returncode == 0, result.stderr
-    assert not (out / "keep.txt").exists()
-    assert {m[0] for m in rosbags_messages(out)} == {"/text"}
+    result = run("filter", str(mixed), "-o", str(out), "--force")
+    assert result.returncode == 2
+    assert result.stderr.startswith(f"error: {out} is not a bag directory (it holds keep.txt)")
+    assert [p.name for p in out.iterdir()] == ["keep.txt"]
+    (out / "keep.txt").unlink()
+    for _ in range(2):  # an empty directory, then the bag written there, are replaced
+        result = run("filter", str(mixed), "-o", str(out), "--force", "--topics", "/text")
+        assert result.returncode == 0, result.stderr
+        assert {m[0] for m in rosbags_messages(out)} == {"/text"}
     result = run("filter", str(mixed), "-o", str(mixed / "inside"))
     assert result.returncode == 2
     assert "overlap" in result.stderr
+
+
+def test_force_replaces_bags_only_and_never_the_working_directory(
+    mixed: Path, tmp_path: Path
+) -> None:
+    here = tmp_path / "here"  # the working directory, holding only bag-like files
+    here.mkdir()
+    (here / "notes.mcap").write_text("mine")
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "notes.txt").write_text("mine")
+    for name in ["", ".", "..", str(here), str(tmp_path), "../other"]:
+        result = run("filter", str(mixed), "-o", name, "--force", cwd=here)
+        assert result.returncode == 2, name
+        assert result.stderr.startswith("error: ") and len(result.stderr.splitlines()) == 1
+    assert (here / "notes.mcap").read_text() == (other / "notes.txt").read_text() == "mine"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["here", "other"]  # nothing partial
