@@ -166,12 +166,7 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
     )
     report = _run(player, keyboard=not disable_keyboard_controls)
     progress.finish()
-
-    if output_format is ReportFormat.JSON:
-        print_json(report.to_dict())
-    else:
-        _print_report(report)
-    _finish(report, bag)
+    _finish(report, bag, output_format)
 
 
 def _check_ros2_options(
@@ -226,18 +221,23 @@ def _warn_live_publishers(found: dict[str, list[str]]) -> None:
 
 
 def _warn_skipped(player: Player) -> None:
-    if player.skipped_types:
-        listed = ", ".join(f"{t} ({ty})" for t, ty in sorted(player.skipped_types.items()))
+    topics = player.publishable
+    if topics.skipped_types:
+        listed = ", ".join(f"{t} ({ty})" for t, ty in sorted(topics.skipped_types.items()))
         warn(f"not replaying topics whose message type is not installed: {listed}")
-    if player.skipped_formats:
-        listed = ", ".join(f"{t} ({f})" for t, f in sorted(player.skipped_formats.items()))
+    if topics.skipped_formats:
+        listed = ", ".join(f"{t} ({f})" for t, f in sorted(topics.skipped_formats.items()))
         warn(f"not replaying topics whose serialization format is not cdr: {listed}")
-    if player.missing_topics:
-        warn(f"topics not in the bag: {', '.join(player.missing_topics)}")
+    if topics.missing:
+        warn(f"topics not in the bag: {', '.join(topics.missing)}")
 
 
-def _finish(report: PlayReport, bag: Path) -> None:
-    """Warnings, the error of a replay that found nothing readable, the exit status."""
+def _finish(report: PlayReport, bag: Path, output_format: ReportFormat) -> None:
+    """The report; warnings, the error of a replay that found nothing readable, the exit status."""
+    if output_format is ReportFormat.JSON:
+        print_json(report.to_dict())
+    else:
+        _print_report(report)
     damage = "; ".join(report.problems)
     if report.problems and report.messages == 0 and not report.interrupted:
         raise fail(f"nothing replayed: {bag} is damaged: {damage}", 2)

@@ -26,10 +26,10 @@ from bagkit.bag import BagReader, TopicInfo
 from bagkit.ros.errors import PlayerError
 from bagkit.ros.lateness import LatenessSamples
 from bagkit.ros.play_controls import PlayControls
-from bagkit.ros.play_options import check_play_options
+from bagkit.ros.play_options import PlayWindow, SubscriberWaits, check_play_options
 from bagkit.ros.playback_report import PlayProgress, PlayReport, TopicPlayback
 from bagkit.ros.player_services import serve_controls
-from bagkit.ros.player_topics import publishable_topics
+from bagkit.ros.player_topics import PublishableTopics, publishable_topics
 from bagkit.ros.publish_loop import PassPublisher
 from bagkit.ros.publishers import (
     TopicOutput,
@@ -40,7 +40,7 @@ from bagkit.ros.publishers import (
     wait_until_matched,
 )
 from bagkit.ros.qos import load_qos_overrides, replay_publisher_qos
-from bagkit.ros.selection import TopicSelection, absolute_topic_name
+from bagkit.ros.selection import TopicSelection
 from bagkit.ros.timing import DEFAULT_DISCOVERY_TIME_S
 
 
@@ -118,13 +118,11 @@ class Player:
         on_live_publishers: Callable[[dict[str, list[str]]], None] | None = None,
     ) -> None:
         """Set up a replay; nothing is opened until the player is entered."""
-        check_play_options(rate, start_offset, duration, delay, clock_hz, loops)
+        check_play_options(rate, delay, clock_hz, loops)
         self.bag_path = Path(bag)
         self.rate = rate
         self.controls = PlayControls(rate, paused=start_paused)
         self.services = services
-        self.playback_until_ns = playback_until_ns
-        self.exclude_topics = {absolute_topic_name(name) for name in exclude_topics}
         # A bag's topics were chosen when it was recorded: hidden ones replay like the others.
         self.selection = TopicSelection.create(
             topics or (),
@@ -132,19 +130,17 @@ class Player:
             regex=regex,
             exclude=exclude,
             include_hidden=True,
+            exclude_topics=exclude_topics,
             error=PlayerError,
         )
-        self.start_offset_ns = int(start_offset * 1e9)
-        self.duration_ns = int(duration * 1e9) if duration is not None else None
+        self.window = PlayWindow.create(start_offset, duration, playback_until_ns)
         self.loops = loops
         self.delay = delay
         self.clock_hz = clock_hz
         self.remap = dict(remap or {})
-        self.wait_for_subscribers = wait_for_subscribers
-        self.wait_for = list(wait_for)
-        self.wait_timeout = wait_timeout
-        self.discovery_time = discovery_time
-        self.ack_timeout = ack_timeout
+        self.waits = SubscriberWaits(
+            wait_for_subscribers, tuple(wait_for), wait_timeout, discovery_time, ack_timeout
+        )
         self.qos_overrides_path = Path(qos_overrides) if qos_overrides is not None else None
         self.on_progress = on_progress
         self.on_live_publishers = on_live_publishers
@@ -159,9 +155,8 @@ class Player:
         self._node_created = 0.0
         self.live_publishers: dict[str, list[str]] = {}
         """Published topic -> other nodes publishing it, found when the replay starts."""
-        self.skipped_types: dict[str, str] = {}
-        self.skipped_formats: dict[str, str] = {}
-        self.missing_topics: list[str] = []
+        self.publishable = PublishableTopics()
+        """The bag's topics that are replayed, and the selected ones that cannot be."""
 
     def __enter__(self) -> Player:
         try:
@@ -195,7 +190,7 @@ class Player:
         overrides = load_qos_overrides(self.qos_overrides_path) if self.qos_overrides_path else {}
         reader = self._stack.enter_context(BagReader(self.bag_path))
         self._reader = reader
-        self._check_window(reader)
+        self.window.bounds(reader.start_ns, reader.end_ns, self.bag_path)  # raises past the end
         selected = self._select_topics(reader.topics)
         mean_size = reader.uncompressed_size // max(reader.message_count, 1) or 1024
         bag_duration_s = (reader.end_ns - reader.start_ns) / 1e9
@@ -216,15 +211,6 @@ class Player:
             self._clock = create_clock_output(node)
         if self.services:
             self._stack.enter_context(serve_controls(node, self.controls))
-
-    def _check_window(self, reader: BagReader) -> None:
-        """An offset past the last message leaves nothing to replay: say so before starting."""
-        duration_ns = reader.end_ns - reader.start_ns
-        if self.start_offset_ns > duration_ns:
-            raise PlayerError(
-                f"--start-offset {self.start_offset_ns / 1e9:g} s is past the end of "
-                f"{self.bag_path} ({duration_ns / 1e9:.3f} s of messages)"
-            )
 
     def _create_node(self) -> Node:
         context = self._context
@@ -254,16 +240,13 @@ class Player:
         return count / bag_duration_s * self.rate
 
     def _select_topics(self, topics: Mapping[str, TopicInfo]) -> list[tuple[TopicInfo, Any]]:
-        self.missing_topics = self.selection.missing(topics)
-        found = publishable_topics(
+        self.publishable = publishable_topics(
             topics,
             self.selection,
-            exclude_topics=self.exclude_topics,
             clock_published=self.clock_hz is not None,
             bag_path=self.bag_path,
         )
-        self.skipped_types, self.skipped_formats = found.skipped_types, found.skipped_formats
-        return found.selected
+        return self.publishable.selected
 
     def play(self) -> PlayReport:
         """Replay the bag (``loops`` passes); Ctrl-C stops between two messages.
@@ -284,7 +267,7 @@ class Player:
         interrupted = False
         wall_start = time.monotonic_ns()
         try:
-            if self.wait_for_subscribers or self.wait_for:
+            if self.waits.before_start or self.waits.topics:
                 self.wait_until_matched()
             self.live_publishers = other_publishers(self.node, list(self._outputs.values()))
             if self.live_publishers and self.on_live_publishers is not None:
@@ -312,9 +295,9 @@ class Player:
             wall_duration_s=wall_ns / 1e9,
             rate=self.rate,
             lateness=lateness.summary(),
-            skipped_types=dict(self.skipped_types),
-            skipped_formats=dict(self.skipped_formats),
-            missing_topics=list(self.missing_topics),
+            skipped_types=dict(self.publishable.skipped_types),
+            skipped_formats=dict(self.publishable.skipped_formats),
+            missing_topics=list(self.publishable.missing),
             problems=list(dict.fromkeys(self._reader.problems)),
             unacknowledged=unacknowledged,
             interrupted=interrupted,
@@ -324,7 +307,7 @@ class Player:
         """Per-topic counts; unreadable messages where the whole bag was to be replayed."""
         assert self._reader is not None
         reader = self._reader
-        whole_bag = complete and not self.start_offset_ns and self.duration_ns is None
+        whole_bag = complete and self.window.whole
         playbacks = []
         for topic, out in self._outputs.items():
             unreadable = 0
@@ -337,8 +320,7 @@ class Player:
         """Publish one pass over the window; return the bag time it covered (ns)."""
         assert self._reader is not None
         reader = self._reader
-        window_start = reader.start_ns + self.start_offset_ns
-        window_end = self._window_end(window_start)
+        window_start, window_end = self.window.bounds(reader.start_ns, reader.end_ns, self.bag_path)
         messages = iter(
             reader.messages(topics=list(self._outputs), start_ns=window_start, end_ns=window_end)
         )
@@ -360,21 +342,12 @@ class Player:
         )
         return publisher.run(itertools.chain([first], messages), window_start)
 
-    def _window_end(self, window_start: int) -> int | None:
-        """Exclusive end of the replayed window: the later of ``duration`` and the until time."""
-        ends = []
-        if self.duration_ns is not None:
-            ends.append(window_start + self.duration_ns)
-        if self.playback_until_ns is not None:
-            ends.append(self.playback_until_ns + 1)
-        return max(ends) if ends else None
-
     def wait_until_acknowledged(self) -> list[str]:
         """Wait until the subscribers of reliable topics have every message; return the others.
 
         A fast replay ends while messages are in flight. Waits at most ``ack_timeout`` s in all.
         """
-        return wait_until_acknowledged(list(self._outputs.values()), self.ack_timeout)
+        return wait_until_acknowledged(list(self._outputs.values()), self.waits.ack_timeout_s)
 
     def wait_until_matched(self) -> None:
         """Block until the subscriptions the graph knows on replayed topics have matched.
@@ -392,9 +365,9 @@ class Player:
         wait_until_matched(
             self.node,
             outputs,
-            wait_for=self.wait_for,
-            settled_at=self._node_created + self.discovery_time,
-            timeout=self.wait_timeout,
+            wait_for=list(self.waits.topics),
+            settled_at=self._node_created + self.waits.discovery_s,
+            timeout=self.waits.timeout_s,
         )
 
 

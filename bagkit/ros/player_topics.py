@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Set
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -23,13 +23,14 @@ class PublishableTopics:
     """Topic -> its message type, not installed."""
     skipped_formats: dict[str, str] = field(default_factory=dict)
     """Topic -> its serialization format, not cdr."""
+    missing: list[str] = field(default_factory=list)
+    """Topics named by the selection that the bag does not have."""
 
 
 def publishable_topics(
     topics: Mapping[str, TopicInfo],
     selection: TopicSelection,
     *,
-    exclude_topics: Set[str],
     clock_published: bool,
     bag_path: Path,
 ) -> PublishableTopics:
@@ -38,9 +39,9 @@ def publishable_topics(
     Raises:
         PlayerError: nothing is left to publish (the message says why).
     """
-    found = PublishableTopics()
+    found = PublishableTopics(missing=selection.missing(topics))
     for name, info in sorted(topics.items()):
-        if not selection.matches(name) or name in exclude_topics:
+        if not selection.matches(name):
             continue
         if clock_published and name == CLOCK_TOPIC:
             continue

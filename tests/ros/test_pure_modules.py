@@ -12,6 +12,7 @@ PURE = [
     "bagkit.ros.lateness",
     "bagkit.ros.loss",
     "bagkit.ros.memory",
+    "bagkit.ros.play_options",
     "bagkit.ros.playback_report",
     "bagkit.ros.record_report",
     "bagkit.ros.selection",

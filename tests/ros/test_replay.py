@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import json
 import os
@@ -272,7 +273,7 @@ def test_loops_and_delay(test_bag: Path, listener_factory: type[Listener]) -> No
     listener = listener_factory(STRING_TOPICS)
     with Player(test_bag, rate=5.0, loops=2, delay=0.5, wait_for=list(SCHEDULE), **KNOWN) as player:
         player.wait_until_matched()
-        player.wait_for_subscribers, player.wait_for = False, []
+        player.waits = dataclasses.replace(player.waits, before_start=False, topics=())
         started_ns = time.time_ns()
         report = player.play()
     got = listener.wait_for_count(2 * len(expected))

@@ -1,0 +1,72 @@
+"""The player's window and option ranges, checked without rclpy."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from bagkit.ros.errors import PlayerError
+from bagkit.ros.play_options import PlayWindow, check_play_options
+
+BAG = Path("drive")
+START, END = 1_000_000_000_000, 1_010_000_000_000  # 10 s of messages
+
+
+def test_whole_bag_has_no_end() -> None:
+    window = PlayWindow.create()
+    assert window.whole
+    assert window.bounds(START, END, BAG) == (START, None)
+
+
+def test_offset_and_duration_in_seconds() -> None:
+    window = PlayWindow.create(start_offset=2.5, duration=1.25)
+    assert not window.whole
+    assert window.bounds(START, END, BAG) == (START + 2_500_000_000, START + 3_750_000_000)
+
+
+def test_the_later_of_duration_and_until_ends_the_window() -> None:
+    until = START + 5_000_000_000
+    shorter = PlayWindow.create(duration=1.0, until_ns=until)
+    longer = PlayWindow.create(duration=8.0, until_ns=until)
+    assert shorter.bounds(START, END, BAG) == (START, until + 1)  # until is inclusive
+    assert longer.bounds(START, END, BAG) == (START, START + 8_000_000_000)
+    assert not PlayWindow.create(until_ns=until).whole
+
+
+def test_offset_past_the_last_message_names_the_bag() -> None:
+    window = PlayWindow.create(start_offset=10.5)
+    with pytest.raises(PlayerError, match=r"--start-offset 10.5 s is past the end of drive"):
+        window.bounds(START, END, BAG)
+    assert PlayWindow.create(start_offset=10.0).bounds(START, END, BAG) == (END, None)
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        ({"start_offset": -1.0}, "start offset must not be negative"),
+        ({"duration": 0.0}, "duration must be positive"),
+        ({"duration": float("nan")}, "duration must be positive"),
+    ],
+)
+def test_window_out_of_range(options: dict[str, float], message: str) -> None:
+    with pytest.raises(PlayerError, match=message):
+        PlayWindow.create(**options)
+
+
+@pytest.mark.parametrize(
+    ("rate", "delay", "clock_hz", "loops", "message"),
+    [
+        (0.0, 0.0, None, 1, "rate must be positive"),
+        (float("nan"), 0.0, None, 1, "rate must be positive"),
+        (1.0, -0.5, None, 1, "delay must not be negative"),
+        (1.0, 0.0, 0.0, 1, "clock rate must be positive"),
+        (1.0, 0.0, None, -1, "loops must be 0"),
+    ],
+)
+def test_options_out_of_range(
+    rate: float, delay: float, clock_hz: float | None, loops: int, message: str
+) -> None:
+    with pytest.raises(PlayerError, match=message):
+        check_play_options(rate, delay, clock_hz, loops)
+    check_play_options(1.0, 0.0, None, 0)  # 0 loops: until interrupted
