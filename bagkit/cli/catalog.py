@@ -92,7 +92,9 @@ def _timestamp(text: str | None) -> pd.Timestamp | None:
     try:
         stamp = pd.Timestamp(text)
     except ValueError:
-        raise fail(f"not a date and time: {text!r} (e.g. 2026-11-23T14:00Z)") from None
+        stamp = pd.NaT
+    if pd.isna(stamp):  # also "nan" and "": pandas reads them as no time at all
+        raise fail(f"not a date and time: {text!r} (e.g. 2026-11-23T14:00Z)")
     return stamp.tz_localize(UTC) if stamp.tzinfo is None else stamp
 
 

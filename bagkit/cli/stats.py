@@ -54,6 +54,9 @@ def _offset_ns(bags: list[Path], seconds: float | None) -> int | None:
     """``seconds`` after the first message of ``bags``, as an absolute log time."""
     if seconds is None:
         return None
+    from bagkit.data.select import check_seconds
+
+    check_seconds(seconds, seconds)
     first = []
     for bag in bags:
         try:
