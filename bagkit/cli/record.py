@@ -8,7 +8,7 @@ import threading
 import time
 from pathlib import Path
 from types import FrameType
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import typer
 
@@ -146,17 +146,10 @@ def record(  # noqa: PLR0917 (typer maps parameters to options; ros2 bag has the
     output_format: Format = ReportFormat.TABLE,
 ) -> None:
     from bagkit.ros.memory import keep_freed_memory
-    from bagkit.ros.qos import load_qos_overrides
     from bagkit.ros.recorder import DEFAULT_QUEUE_BYTES, Recorder, default_output_name
-    from bagkit.ros.selection import absolute_topic_name
 
     if storage != "mcap":
         raise fail(f"--storage {storage}: bagkit records MCAP only (it reads sqlite3 bags)")
-    overrides = {}
-    if qos_overrides is not None:
-        overrides = {
-            absolute_topic_name(k): v for k, v in load_qos_overrides(qos_overrides).items()
-        }
     quiet = log_level in (LogLevel.ERROR, LogLevel.FATAL)
     recorder = Recorder(
         output or Path(default_output_name()),
@@ -173,7 +166,7 @@ def record(  # noqa: PLR0917 (typer maps parameters to options; ros2 bag has the
         compression=chunk_compression(compression_mode, compression_format),
         max_bag_size=max_bag_size,
         max_bag_duration_s=max_bag_duration,
-        qos_overrides=overrides,
+        qos_overrides=_qos_overrides(qos_overrides),
         use_sim_time=use_sim_time,
         node_name=node_name,
         discovery_period_s=polling_interval / 1000,
@@ -184,6 +177,16 @@ def record(  # noqa: PLR0917 (typer maps parameters to options; ros2 bag has the
     keep_freed_memory()
     report, received = _record_until_stopped(recorder, duration)
     _print_outcome(report, received, output_format, quiet=quiet)
+
+
+def _qos_overrides(path: Path | None) -> dict[str, Any]:
+    """The ``--qos-profile-overrides-path`` file's profiles by absolute topic name."""
+    if path is None:
+        return {}
+    from bagkit.ros.qos import load_qos_overrides
+    from bagkit.ros.selection import absolute_topic_name
+
+    return {absolute_topic_name(k): v for k, v in load_qos_overrides(path).items()}
 
 
 def _print_outcome(
