@@ -24,6 +24,7 @@ from bagkit.bag.mcapio.file_writer import McapFileWriter
 from bagkit.bag.mcapio.records import Header, encode
 from bagkit.bag.metadata import BagMetadata, FileInformation, write_metadata
 from bagkit.bag.types import TopicInfo
+from bagkit.times import seconds_to_ns
 
 LIBRARY = f"bagkit {__version__}"
 DEFAULT_CHUNK_SIZE = 1 << 20
@@ -64,7 +65,7 @@ class BagWriter:
         self.custom_data: dict[str, str] = {}
         self._compression, self._compress = compressor(compression)
         self._max_bag_size = max_bag_size
-        self._max_bag_duration_ns = int(max_bag_duration_s * 1e9)
+        self._max_bag_duration_ns = seconds_to_ns(max_bag_duration_s, max_bag_duration_s, BagError)
         self._chunk_size = chunk_size
         self._chunk_interval_s = chunk_interval_s
         self._lock = threading.Lock()

@@ -37,7 +37,15 @@ from bagkit.cli.compare_options import (
     Spec,
     Topics,
 )
-from bagkit.compare import CompareOptions, CompareReport, Tolerance, compare_bags, replace_options
+from bagkit.compare import (
+    CompareError,
+    CompareOptions,
+    CompareReport,
+    Tolerance,
+    compare_bags,
+    replace_options,
+)
+from bagkit.times import seconds_to_ns
 
 HELP = (
     "Compare CANDIDATE with GOLDEN, topic by topic, field by field.\n\n"
@@ -125,11 +133,11 @@ def compare(
         topics=tuple(split_list(topics)) or None,
         tolerance=_tolerance(base.tolerance, atol, rtol),
         ignore_fields=base.ignore_fields + tuple(split_list(ignore_fields)),
-        event_window_ns=None if event_window is None else round(event_window * 1e9),
-        match_window_ns=None if match_window is None else round(match_window * 1e9),
+        event_window_ns=_ns(event_window),
+        match_window_ns=_ns(match_window),
         include_times=include_times or None,
         pass_rate=pass_rate,
-        skip_ns=None if skip is None else round(skip * 1e9),
+        skip_ns=_ns(skip),
         max_divergences=show,
     )
     with err_console.status("comparing ...") as status:
@@ -167,3 +175,7 @@ def _tolerance(base: Tolerance, atol: float | None, rtol: float | None) -> Toler
     if atol is None and rtol is None:
         return None
     return Tolerance(base.atol if atol is None else atol, base.rtol if rtol is None else rtol)
+
+
+def _ns(seconds: float | None) -> int | None:
+    return None if seconds is None else seconds_to_ns(seconds, seconds, CompareError)

@@ -50,7 +50,9 @@ from bagkit.cli.replay_options import (
     WaitForSubscribers,
     WaitTimeout,
 )
+from bagkit.errors import BagkitError
 from bagkit.ros.timing import DEFAULT_CLOCK_HZ, DEFAULT_DISCOVERY_TIME_S, LATE_THRESHOLD_NS
+from bagkit.times import seconds_to_ns
 
 if TYPE_CHECKING:
     # The player imports rclpy: only `bagkit replay` itself pays for that import.
@@ -147,7 +149,7 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
         exclude_topics=split_list(exclude_topics),
         start_offset=start_offset,
         duration=duration,
-        playback_until_ns=until_nsec if until_sec is None else int(until_sec * 1e9),
+        playback_until_ns=_until_ns(until_sec, until_nsec),
         loops=0 if loop else 1,
         delay=delay,
         clock_hz=clock,
@@ -183,6 +185,13 @@ def _check_ros2_options(
         raise fail(f"--storage {storage}: bagkit reads mcap and sqlite3 bags")
     if read_ahead_queue_size < 1 or wait_for_all_acked < 0:
         raise fail("--read-ahead-queue-size must be positive, --wait-for-all-acked not negative")
+
+
+def _until_ns(until_sec: float | None, until_nsec: int | None) -> int | None:
+    """--playback-until-sec or --playback-until-nsec as ns since the epoch."""
+    if until_sec is None:
+        return until_nsec
+    return seconds_to_ns(until_sec, until_sec, BagkitError)
 
 
 def _run(player: Player, *, keyboard: bool) -> PlayReport:

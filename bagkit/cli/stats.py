@@ -37,6 +37,7 @@ from bagkit.cli.stats_options import (
     Start,
     Topics,
 )
+from bagkit.times import seconds_to_ns
 
 if TYPE_CHECKING:
     from bagkit.stats import Summary
@@ -54,9 +55,9 @@ def _offset_ns(bags: list[Path], seconds: float | None) -> int | None:
     """``seconds`` after the first message of ``bags``, as an absolute log time."""
     if seconds is None:
         return None
-    from bagkit.data.select import check_seconds
+    from bagkit.stats import StatsError  # imports numpy: not for --help
 
-    check_seconds(seconds, seconds)
+    offset_ns = seconds_to_ns(seconds, seconds, StatsError)
     first = []
     for bag in bags:
         try:
@@ -65,7 +66,7 @@ def _offset_ns(bags: list[Path], seconds: float | None) -> int | None:
                     first.append(reader.start_ns)
         except BagError:
             continue  # reported by the summary (an error for one bag, a problem among many)
-    return min(first, default=0) + round(seconds * 1e9)
+    return min(first, default=0) + offset_ns
 
 
 @app.command("summary", no_args_is_help=True)

@@ -10,6 +10,7 @@ from typing import Any
 
 from bagkit.compare.errors import CompareError
 from bagkit.decode.paths import FieldSelection, name_matches, path_matches
+from bagkit.times import seconds_to_ns
 
 DEFAULT_EVENT_TOPICS = ("/alerts",)
 DEFAULT_EVENT_WINDOW_NS = 500_000_000
@@ -126,7 +127,7 @@ def _seconds_to_ns(value: Any, what: str) -> int:
         raise CompareError(f"{what} must be a number of seconds, got {value!r}") from None
     if seconds < 0:
         raise CompareError(f"{what} must be >= 0, got {value!r}")
-    return round(seconds * 1e9)
+    return seconds_to_ns(seconds, value, CompareError)
 
 
 def _fraction(value: Any, what: str) -> float:

@@ -12,12 +12,11 @@ import numpy as np
 from bagkit.data.errors import DataError, UnknownFieldError, UnknownTopicError
 from bagkit.decode import LeafField
 from bagkit.decode.paths import path_matches
+from bagkit.times import check_seconds
 
 # Times at or beyond this many seconds are read as absolute (Unix epoch) times; below it, as
 # seconds from the bag's first message (about 31.7 years of recording).
 ABSOLUTE_AFTER_S = 1e9
-# Log times are int64 nanoseconds: about 292 years either side of 1970.
-MAX_SECONDS = 2**63 / 1e9
 
 TimeLike = float | int | str | dt.datetime | Any
 """Seconds from the bag start, or absolute: epoch seconds, a datetime, an ISO 8601 string."""
@@ -51,23 +50,16 @@ def to_ns(value: TimeLike | None, bag_start_ns: int) -> int | None:
             value = value.replace(tzinfo=dt.UTC)
         delta = value - dt.datetime(1970, 1, 1, tzinfo=dt.UTC)
         return (delta.days * 86_400 + delta.seconds) * 1_000_000_000 + delta.microseconds * 1000
-    seconds = check_seconds(float(value), value)
+    seconds = check_seconds(float(value), value, DataError)
     if abs(seconds) >= ABSOLUTE_AFTER_S:
         return round(seconds * 1e9)
     return bag_start_ns + round(seconds * 1e9)
 
 
-def check_seconds(seconds: float, given: object) -> float:
-    """``seconds``, unless it is not finite or out of the int64 nanosecond range (DataError)."""
-    if not abs(seconds) < MAX_SECONDS:
-        raise DataError(f"bad time {given!r}: not a number of seconds within int64 ns")
-    return seconds
-
-
 def _parse_time(text: str) -> float | dt.datetime:
     """A time option's text: a number of seconds, or ISO 8601 (``Z`` for UTC allowed)."""
     try:
-        return check_seconds(float(text), text)
+        return check_seconds(float(text), text, DataError)
     except ValueError:
         pass
     try:

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from bagkit.ros.errors import PlayerError
 from bagkit.ros.timing import DEFAULT_DISCOVERY_TIME_S
+from bagkit.times import seconds_to_ns
 
 
 def check_play_options(rate: float, delay: float, clock_hz: float | None, loops: int) -> None:
@@ -45,8 +46,8 @@ class PlayWindow:
             raise PlayerError(f"start offset must not be negative, got {start_offset}")
         if duration is not None and not duration > 0:
             raise PlayerError(f"duration must be positive, got {duration}")
-        duration_ns = int(duration * 1e9) if duration is not None else None
-        return cls(int(start_offset * 1e9), duration_ns, until_ns)
+        duration_ns = None if duration is None else seconds_to_ns(duration, duration, PlayerError)
+        return cls(seconds_to_ns(start_offset, start_offset, PlayerError), duration_ns, until_ns)
 
     @property
     def whole(self) -> bool:

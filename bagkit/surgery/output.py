@@ -22,6 +22,7 @@ from bagkit.bag.metadata import BagMetadata, FileInformation, write_metadata
 from bagkit.bag.types import TopicInfo
 from bagkit.bag.writer import DEFAULT_CHUNK_SIZE, LIBRARY
 from bagkit.surgery.errors import SurgeryError
+from bagkit.times import seconds_to_ns
 
 # What --force may replace: a bag directory holds these files only (rosbag2 writes no folders).
 _BAG_SUFFIXES = (".mcap", ".db3", ".yaml", ".zstd", ".lz4")
@@ -83,7 +84,7 @@ class OutputBag:
         self.compression, self._compress = compressor(compression)
         self._force = force
         self._max_size = max_bag_size
-        self._max_duration = int(max_bag_duration_s * 1e9)
+        self._max_duration = seconds_to_ns(max_bag_duration_s, max_bag_duration_s, SurgeryError)
         # Files end within one chunk of max_bag_size: small limits get smaller chunks.
         self._chunk_size = (
             min(DEFAULT_CHUNK_SIZE, max(max_bag_size // 4, 4096))

@@ -81,7 +81,13 @@ def parse_time(text: str) -> int:
     Raises:
         SurgeryError: none of these.
     """
-    value = text.strip()
+    ns = _epoch_ns(text.strip())
+    if ns is None or not 0 <= ns < 1 << 63:
+        raise SurgeryError(f"bad time {text!r} (seconds since the epoch, NNNns, or ISO 8601)")
+    return ns
+
+
+def _epoch_ns(value: str) -> int | None:
     try:
         if value.endswith("ns"):
             return int(value[:-2])
@@ -90,9 +96,7 @@ def parse_time(text: str) -> int:
             return int(seconds) * 1_000_000_000 + int((fraction + "0" * 9)[:9])
         stamp = datetime.datetime.fromisoformat(value.replace("Z", "+00:00"))
     except ValueError:
-        raise SurgeryError(
-            f"bad time {text!r} (seconds since the epoch, NNNns, or ISO 8601)"
-        ) from None
+        return None
     if stamp.tzinfo is None:
         stamp = stamp.replace(tzinfo=datetime.UTC)
     return int(stamp.timestamp()) * 1_000_000_000 + stamp.microsecond * 1000

@@ -217,6 +217,13 @@ def test_options_from_spec_mapping() -> None:
         options_from_mapping({"tolerance": 1})
 
 
+@pytest.mark.parametrize("seconds", [float("nan"), float("inf"), 1e300, "soon"])
+def test_a_window_that_is_no_time_is_a_compare_error(seconds: object) -> None:
+    # YAML's .nan and .inf load as floats: the spec is untrusted like a bag.
+    with pytest.raises(CompareError):
+        options_from_mapping({"event_window": seconds})
+
+
 def test_integers_compare_exactly_whatever_the_tolerance() -> None:
     golden = [stamped(0, level=2, x=1.0)]
     candidate = [stamped(0, level=1, x=1.5)]

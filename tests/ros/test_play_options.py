@@ -47,6 +47,8 @@ def test_offset_past_the_last_message_names_the_bag() -> None:
         ({"start_offset": -1.0}, "start offset must not be negative"),
         ({"duration": 0.0}, "duration must be positive"),
         ({"duration": float("nan")}, "duration must be positive"),
+        ({"duration": float("inf")}, "bad time inf"),
+        ({"start_offset": 1e300}, "bad time 1e"),
     ],
 )
 def test_window_out_of_range(options: dict[str, float], message: str) -> None:
