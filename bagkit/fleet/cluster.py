@@ -15,12 +15,17 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import TYPE_CHECKING
 
-from bagkit.fleet.errors import SchedulerError
+from bagkit.fleet.errors import FleetError, SchedulerError
 
 if TYPE_CHECKING:
     from distributed import Client, LocalCluster
 
 LOOPBACK = "127.0.0.1"
+
+
+# Each local worker is a process of its own (about 100 MB): more than a few per core only
+# share the cores, and a mistyped count must not start thousands of processes.
+MAX_WORKERS_PER_CORE = 4
 
 
 def default_workers() -> int:
@@ -72,6 +77,7 @@ def fleet_client(
 
     Raises:
         SchedulerError: ``scheduler`` cannot be reached.
+        FleetError: more local workers than MAX_WORKERS_PER_CORE per core.
     """
     if scheduler is None and (workers == 0 or (workers is None and bags <= 1)):
         yield None  # in this process, without importing distributed (slow to import)
@@ -87,6 +93,12 @@ def fleet_client(
         with client:
             yield client
         return
+    if workers is not None and workers > MAX_WORKERS_PER_CORE * default_workers():
+        raise FleetError(
+            f"--workers {workers}: a local cluster runs at most {MAX_WORKERS_PER_CORE} worker "
+            f"processes per core ({MAX_WORKERS_PER_CORE * default_workers()} here); for more, "
+            "start a cluster and give --scheduler"
+        )
     cluster = local_cluster(workers or default_workers())
     try:
         if announce is not None:

@@ -91,6 +91,19 @@ def test_unreachable_scheduler_is_one_error_line(fleet_bags: list[Path]) -> None
     assert len(done.stderr.strip().splitlines()) == 1, done.stderr
 
 
+def test_a_mistyped_worker_count_starts_no_process(fleet_bags: list[Path]) -> None:
+    done = subprocess.run(
+        [BAGKIT, "stats", "summary", *map(str, fleet_bags[:2]), "--workers", "100000"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert done.returncode == 2
+    assert done.stderr.startswith("error: --workers 100000: a local cluster runs at most 4")
+    assert len(done.stderr.strip().splitlines()) == 1, done.stderr
+
+
 def test_no_bag_in_the_inputs_is_one_error_line(tmp_path: Path) -> None:
     done = subprocess.run(
         [BAGKIT, "stats", "summary", str(tmp_path)],
