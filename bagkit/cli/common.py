@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Annotated, Any, ClassVar, NoReturn, ParamSpec,
 import typer
 
 # typer 0.29 vendors click; its exception classes are only importable from there (typer is pinned).
+from typer._click import Command
 from typer._click.exceptions import NoArgsIsHelpError, UsageError
 from typer.core import TyperCommand
 
@@ -292,8 +293,8 @@ def internal_error_message(exc: BaseException) -> str:
     )
 
 
-def run_app(app: typer.Typer, args: list[str] | None = None) -> NoReturn:
-    """Run a typer app as a console script (``args``: sys.argv[1:] when None) and exit.
+def run_app(app: typer.Typer | Command, args: list[str] | None = None) -> NoReturn:
+    """Run a typer app or command as a console script (``args``: sys.argv[1:] when None), exit.
 
     Usage errors are one ``error:`` line (exit 2): click would print a usage block and a boxed
     message; a wrong flag is bad input like any other, so it gets the same one-line treatment,

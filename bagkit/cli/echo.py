@@ -147,6 +147,7 @@ def run_alone() -> None:
     """Run ``bagkit echo ARGS`` as a one-command app (see :mod:`bagkit.cli.launch`)."""
     from bagkit.cli.common import CONTEXT_SETTINGS, run_app
     from bagkit.cli.help_text import reflow
+    from bagkit.cli.plain_params import use_plain_coercion
 
     app = typer.Typer(
         add_completion=False, pretty_exceptions_enable=False, context_settings=CONTEXT_SETTINGS
@@ -154,4 +155,6 @@ def run_alone() -> None:
     app.command(help=reflow(HELP), no_args_is_help=True)(echo)
     # click names the program after argv[0]: usage and errors then read "bagkit echo".
     sys.argv = [f"{sys.argv[0]} echo", *sys.argv[2:]]
-    run_app(app)
+    command = typer.main.get_command(app)
+    use_plain_coercion(command)
+    run_app(command)

@@ -1,10 +1,10 @@
-"""Plain coercion of string, path, flag and choice parameters, without importing pydantic.
+"""Plain coercion of string, path, flag, number and choice parameters, without pydantic.
 
 typer (0.29, pinned) coerces every parameter through a pydantic ``TypeAdapter``: importing
-pydantic for that costs a command like ``bagkit info BAG`` more than reading the bag. Strings,
-paths, lists of them and enum choices need no validation library; this gives those parameters
-a plain coercion (``_runtime_param``, typer's own lazily built slot) and leaves every other
-parameter (numbers with bounds, ...) to typer.
+pydantic for that costs every command more than reading a small bag. Strings, paths, ints and
+floats (with the option's ``min``/``max``), lists of them and enum choices need no validation
+library; this gives those parameters a plain coercion (``_runtime_param``, typer's own lazily
+built slot) and leaves any other parameter (clamped numbers, ...) to typer.
 """
 
 from __future__ import annotations
@@ -37,14 +37,17 @@ _SCALARS: dict[Any, Any] = {
     str: str,
     Path: Path,
     bool: _flag,
+    int: int,
+    float: float,
     list[str]: str,
     list[Path]: Path,
 }
+_NUMBER_NAMES = {int: "an integer", float: "a number"}
 
 
 @dataclass(frozen=True)
 class _PlainParam(RuntimeParam):
-    """A string, path or enum (or a list of them) taken as given."""
+    """A string, path, number or enum (or a list of them), converted without pydantic."""
 
     convert: Any
 
@@ -54,6 +57,8 @@ class _PlainParam(RuntimeParam):
         return self._one(value, param, ctx)
 
     def _one(self, value: Any, param: Any, ctx: Context) -> Any:
+        if self.convert in _NUMBER_NAMES:
+            return self._number(value, param, ctx)
         if isinstance(self.convert, type) and issubclass(self.convert, enum.Enum):
             try:
                 return self.convert(value)
@@ -63,6 +68,27 @@ class _PlainParam(RuntimeParam):
                     f"{value!r} is not one of {choices}.", ctx=ctx, param=param
                 ) from None
         return self.convert(value)
+
+    def _number(self, value: Any, param: Any, ctx: Context) -> Any:
+        """An int or float option, within the option's ``min``/``max`` (as typer's messages)."""
+        try:
+            number = self.convert(value)
+        except (TypeError, ValueError):
+            raise BadParameter(
+                f"Input should be {_NUMBER_NAMES[self.convert]}, got {value!r}",
+                ctx=ctx,
+                param=param,
+            ) from None
+        low, high = self.parameter_info.min, self.parameter_info.max
+        if low is not None and not number >= low:
+            raise BadParameter(
+                f"Input should be greater than or equal to {low}", ctx=ctx, param=param
+            )
+        if high is not None and not number <= high:
+            raise BadParameter(
+                f"Input should be less than or equal to {high}", ctx=ctx, param=param
+            )
+        return number
 
 
 def _plain(annotation: Any) -> Any | None:
@@ -82,6 +108,8 @@ def use_plain_params(params: list[Any]) -> None:
             continue
         convert = _plain(descriptor.annotation)
         if convert is None or getattr(info, "parser", None) is not None:
+            continue
+        if getattr(info, "clamp", False):  # clamped numbers: typer's own coercion
             continue
         if getattr(param, "_runtime_param", None) is None:
             param._runtime_param = _PlainParam(

@@ -184,3 +184,28 @@ def test_help_of_reports_lists_only_working_formats() -> None:
     for command in ("record", "info", "compare"):
         out = _run(command, "--help").stdout
         assert "table|json" in out.replace(" ", "") and "csv" not in out, command
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["stats", "summary", "BAG", "--start", "0.1", "--workers", "0"],
+        ["echo", "BAG", "/a", "-n", "2"],
+        ["echo", "BAG", "/a", "-n", "-1"],  # an out-of-range number: our message, no pydantic
+    ],
+)
+def test_number_options_are_parsed_without_pydantic(tmp_path: Path, args: list[str]) -> None:
+    # typer parses through pydantic, whose import costs every command tens of milliseconds.
+    argv = ["bagkit", *(str(_bag(tmp_path)) if a == "BAG" else a for a in args)]
+    code = (
+        f"import sys; sys.argv = {argv!r}\n"
+        "from bagkit.cli.launch import run\n"
+        "try:\n    run()\nexcept SystemExit as exc:\n    print('EXIT', exc.code, file=sys.stderr)\n"
+        "print('PYDANTIC', 'pydantic' in sys.modules, file=sys.stderr)\n"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=False
+    )
+    assert "PYDANTIC False" in result.stderr
+    expected = 2 if "-1" in args else 0
+    assert f"EXIT {expected}" in result.stderr, result.stderr
