@@ -31,16 +31,15 @@ shared). Targets:
 - peak RSS of a 10x longer recording (paced Imu) <= 1.5x the short one;
 and reports the CPU per message of the recorder and of ``count`` on that paced topic.
 
+The publisher and subscriber processes are ``benchmarks/record_peers.py``.
+
 Run: ``.venv/bin/python -m benchmarks record``
 """
 
 from __future__ import annotations
 
-import argparse
-import contextlib
 import json
 import os
-import resource
 import signal
 import subprocess
 import sys
@@ -51,21 +50,17 @@ from typing import Any
 
 from bagkit.ros.fastdds import (
     PORT_QUEUE_CAPACITY,
-    large_receive_queue,
     localhost_only,
     shared_memory_profile,
 )
+from benchmarks.record_peers import READY_TIMEOUT_S, TOPIC
 
-TOPIC = "/bench/record"
-DEPTH = 1000
 IMU_SECONDS = 10.0
 IMAGE_SECONDS = 5.0
-IMAGE_BYTES = 1 << 20
 RSS_SHORT_S = 2.0
 RSS_RATE_HZ = 2000.0
 RATE_FLOOR = 0.9
 RSS_CEILING = 1.5
-READY_TIMEOUT_S = 30.0
 # Interleaved runs per mode, best kept. Imu gets more: the middleware's receive thread costs
 # 10 - 29 us per message from run to run in either subscriber (same code, same machine), so
 # three runs often compare one's cheap run with the other's dear one.
@@ -82,250 +77,7 @@ LARGE_SEGMENT = {
     "port_queue_capacity": FAST_DDS_DEFAULT_PORT_QUEUE,
 }
 MANY_BUFFERS = {"port_queue_capacity": PORT_QUEUE_CAPACITY}
-
-
-def _message_type(kind: str) -> Any:
-    if kind == "imu":
-        from sensor_msgs.msg import Imu
-
-        return Imu
-    from sensor_msgs.msg import Image
-
-    return Image
-
-
-def _payload(kind: str) -> bytes:
-    from rclpy.serialization import serialize_message
-
-    message = _message_type(kind)()
-    message.header.frame_id = "bench"
-    if kind == "image":
-        message.height, message.width, message.step = 512, 512, 2048
-        message.encoding = "rgba8"
-        message.data = bytes(IMAGE_BYTES)
-    return bytes(serialize_message(message))
-
-
-def _init(name: str) -> tuple[Any, Any]:
-    import rclpy
-    from rclpy.context import Context
-    from rclpy.node import Node
-    from rclpy.signals import SignalHandlerOptions
-
-    context = Context()
-    rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
-    return context, Node(name, context=context, start_parameter_services=False)
-
-
-def publish(kind: str, seconds: float, rate_hz: float) -> None:
-    """Flood (or pace at ``rate_hz``) TOPIC for ``seconds`` once matched; print the count."""
-    from rclpy.duration import Duration
-    from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
-    from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-
-    context, node = _init("bench_record_publisher")
-    qos = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
-    publisher = node.create_publisher(_message_type(kind), TOPIC, qos)
-    payload = _payload(kind)
-    deadline = time.monotonic() + READY_TIMEOUT_S
-    while publisher.get_subscription_count() == 0:
-        if time.monotonic() > deadline:
-            raise SystemExit("no subscriber matched")
-        time.sleep(0.01)
-    time.sleep(0.2)
-    sent = 0
-    start = time.monotonic()
-    end = start + seconds
-    period = 1.0 / rate_hz if rate_hz else 0.0
-    publish_raw = publisher.publish
-    blocked = 0
-    while (now := time.monotonic()) < end:
-        try:
-            publish_raw(payload)
-        except _rclpy.RCLError:
-            # Keep-all history full for longer than the middleware's blocking time: this is
-            # the flow control of a reliable keep-all flood; publish the same message again.
-            blocked += 1
-            continue
-        sent += 1
-        if period:
-            delay = start + sent * period - now
-            if delay > 0:
-                time.sleep(delay)
-    publisher.wait_for_all_acked(Duration(seconds=30))
-    print(
-        json.dumps({"sent": sent, "sent_bytes": sent * len(payload), "blocked": blocked}),
-        flush=True,
-    )
-    node.destroy_node()
-    context.try_shutdown()
-
-
-def subscribe(mode: str, kind: str, out: Path, *, default_transport: bool = False) -> None:
-    """Run one subscriber until SIGINT, then write its result as JSON to ``out``.
-
-    ``default_transport``: without the large receive queue of ``bagkit record``.
-    """
-    stop = {"now": False}
-
-    def on_signal(_signum: int, _frame: object) -> None:
-        stop["now"] = True
-
-    signal.signal(signal.SIGINT, on_signal)
-    from bagkit.ros.memory import keep_freed_memory
-
-    # Both as `bagkit record` does for its process; the peers get them too, so the ratios
-    # compare the work done per message, not the allocator or the transport's queue.
-    keep_freed_memory()
-    ready = out.with_suffix(".ready")
-    with contextlib.nullcontext() if default_transport else large_receive_queue():
-        if mode == "recorder":
-            result = _run_recorder(out.with_suffix(".bag"), ready, stop)
-        else:
-            result = _run_subscriber(mode, kind, out.with_suffix(".bag"), ready, stop)
-    usage = resource.getrusage(resource.RUSAGE_SELF)
-    result["peak_rss"] = _peak_rss()
-    result["cpu_s"] = usage.ru_utime + usage.ru_stime
-    out.write_text(json.dumps(result))
-
-
-def _peak_rss() -> int:
-    """Peak resident bytes of this process image.
-
-    Not ``ru_maxrss``: it keeps the resident size of the parent that forked this process (the
-    benchmark runner, 135 MiB after the other benchmarks), which hid every subscriber's own peak
-    below it. VmHWM restarts at exec.
-    """
-    status = Path("/proc/self/status").read_text()
-    return int(status.split("VmHWM:")[1].split()[0]) * 1024
-
-
-def _thread_cpu() -> dict[str, float]:
-    """CPU seconds of this process's live threads, by kind: the middleware's (``dds.*``),
-    the recorder's (``bagkit-*``), the rest (``python``)."""
-    tick = os.sysconf("SC_CLK_TCK")
-    totals: dict[str, float] = {}
-    for stat in Path("/proc/self/task").glob("*/stat"):
-        with contextlib.suppress(OSError):
-            text = stat.read_text()
-            # comm is in parentheses and may hold spaces; utime and stime are fields 14 and 15.
-            comm = text[text.index("(") + 1 : text.rindex(")")]
-            fields = text[text.rindex(")") + 2 :].split()
-            kind = "dds" if comm.startswith("dds.") else comm.removeprefix("bagkit-")
-            totals[kind] = totals.get(kind, 0.0) + (int(fields[11]) + int(fields[12])) / tick
-    return totals
-
-
-def _run_recorder(bag: Path, ready: Path, stop: dict[str, bool]) -> dict[str, Any]:
-    from bagkit.ros.recorder import Recorder
-
-    recorder = Recorder(bag, topics=[TOPIC])
-    recorder.start()
-    ready.touch()
-    while not stop["now"]:
-        time.sleep(0.05)
-    threads = _thread_cpu()
-    report = recorder.stop()
-    topic = report.topic(TOPIC) if report.topics else None
-    return {
-        "messages": topic.messages if topic else 0,
-        "bytes": topic.bytes if topic else 0,
-        "span_ns": (topic.last_ns - topic.first_ns) if topic else 0,
-        "lost": report.lost,
-        "error": report.error,
-        "threads": threads,
-    }
-
-
-def _run_subscriber(
-    mode: str, kind: str, bag: Path, ready: Path, stop: dict[str, bool]
-) -> dict[str, Any]:
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
-    from rclpy.qos import QoSProfile, ReliabilityPolicy
-
-    from bagkit.bag import BagWriter, TopicInfo
-    from bagkit.ros.qos import adapt_subscription_qos
-    from bagkit.ros.take import take_serialized
-    from bagkit.ros.types import message_type_name
-
-    context, node = _init(f"bench_record_{mode}")
-    message_type = _message_type(kind)
-    # Exactly the profile the recorder subscribes with to a reliable publisher.
-    qos = adapt_subscription_qos([QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)])
-    counts = {"messages": 0, "bytes": 0, "first": 0, "last": 0}
-
-    if mode == "naive":
-        writer = BagWriter(bag).open()
-        writer.add_topic(TopicInfo(TOPIC, message_type_name(message_type)))
-
-        def on_message(data: bytes, info: Any) -> None:
-            received = info["received_timestamp"]
-            writer.write(TOPIC, data, log_time=received, publish_time=received)
-            counts["messages"] += 1
-            counts["bytes"] += len(data)
-            counts["first"] = counts["first"] or received
-            counts["last"] = received
-
-        node.create_subscription(message_type, TOPIC, on_message, qos, raw=True)
-        executor = SingleThreadedExecutor(context=context)
-        executor.add_node(node)
-        ready.touch()
-        while not stop["now"]:
-            executor.spin_once(timeout_sec=0.05)
-        drained = -1
-        while drained != counts["messages"]:
-            drained = counts["messages"]
-            executor.spin_once(timeout_sec=0.1)
-        writer.close()
-    else:
-        subscription = node.create_subscription(message_type, TOPIC, lambda _m: None, qos, raw=True)
-        handle = subscription.handle
-        if mode == "inline":
-            writer = BagWriter(bag).open()
-            writer.add_topic(TopicInfo(TOPIC, message_type_name(message_type)))
-        wait_set = _rclpy.WaitSet(1, 0, 0, 0, 0, 0, context.handle)
-        ready.touch()
-        while True:
-            stopping = stop["now"]  # one more drain after the stop
-            wait_set.clear_entities()
-            wait_set.add_subscription(handle)
-            wait_set.wait(0 if stopping else 50_000_000)
-            if mode == "count":
-                while (taken := handle.take_message(message_type, True)) is not None:
-                    received = taken[1]["received_timestamp"]
-                    counts["messages"] += 1
-                    counts["bytes"] += len(taken[0])
-                    counts["first"] = counts["first"] or received
-                    counts["last"] = received
-            else:
-                while batch := take_serialized(subscription, max_count=256, max_bytes=4 << 20):
-                    writer.write_batch(
-                        TOPIC,
-                        batch.payloads,
-                        log_times=batch.received,
-                        publish_times=batch.sources,
-                        sequences=batch.sequences,
-                    )
-                    counts["messages"] += len(batch)
-                    counts["bytes"] += batch.nbytes
-                    counts["first"] = counts["first"] or batch.received[0]
-                    counts["last"] = batch.received[-1]
-            if stopping:
-                break
-        if mode == "inline":
-            writer.close()
-    threads = _thread_cpu()
-    node.destroy_node()
-    context.try_shutdown()
-    return {
-        "messages": counts["messages"],
-        "bytes": counts["bytes"],
-        "span_ns": counts["last"] - counts["first"],
-        "lost": None,
-        "error": None,
-        "threads": threads,
-    }
+PEERS = [sys.executable, "-m", "benchmarks.record_peers"]
 
 
 def _run(
@@ -345,7 +97,6 @@ def _run(
     env = dict(os.environ)
     env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     env.setdefault("ROS_DOMAIN_ID", str(150 + os.getpid() % 50))
-    me = [sys.executable, "-m", "benchmarks.bench_record"]
     with tempfile.TemporaryDirectory(prefix="bench_record_") as tmp:
         out = Path(tmp) / "result.json"
         publisher_env = dict(env)
@@ -356,42 +107,52 @@ def _run(
             )
             publisher_env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(profile)
         options = ["--default-transport"] if default_transport else []
-        sub = subprocess.Popen([*me, "subscribe", mode, kind, str(out), *options], env=env)
+        sub = subprocess.Popen([*PEERS, "subscribe", mode, kind, str(out), *options], env=env)
         try:
-            deadline = time.monotonic() + READY_TIMEOUT_S
-            while not out.with_suffix(".ready").exists():
-                if sub.poll() is not None or time.monotonic() > deadline:
-                    raise RuntimeError(f"{mode} subscriber did not start")
-                time.sleep(0.05)
-            pub = subprocess.run(
-                [*me, "publish", kind, str(seconds), str(rate_hz)],
-                env=publisher_env,
-                capture_output=True,
-                text=True,
-                check=False,
-                timeout=seconds + 90,
-            )
-            if pub.returncode:
-                raise RuntimeError(f"publisher failed: {pub.stderr.strip()[-500:]}")
-            time.sleep(0.5)
-            sub.send_signal(signal.SIGINT)
-            sub.wait(timeout=120)
+            sent = _publish_to(sub, out, [kind, str(seconds), str(rate_hz)], publisher_env)
         finally:
             if sub.poll() is None:
                 sub.kill()
                 sub.wait()
-        result: dict[str, Any] = json.loads(out.read_text())
-        result.update(json.loads(pub.stdout.strip().splitlines()[-1]))
-        bag = out.with_suffix(".bag")
+        result: dict[str, Any] = {**json.loads(out.read_text()), **sent}
         if mode in ("recorder", "inline"):
             from bagkit.bag import BagReader
 
-            with BagReader(bag) as reader:
+            with BagReader(out.with_suffix(".bag")) as reader:
                 result["in_bag"] = reader.topic_counts.get(TOPIC, 0)
     seconds_span = max(result["span_ns"], 1) / 1e9
     result["rate"] = result["messages"] / seconds_span
     result["mb_per_s"] = result["bytes"] / seconds_span / 1e6
     return result
+
+
+def _publish_to(
+    sub: subprocess.Popen[bytes], out: Path, args: list[str], env: dict[str, str]
+) -> dict[str, Any]:
+    """Once the subscriber is ready, run the publisher; then stop the subscriber (SIGINT).
+
+    Returns the publisher's counts (``sent``, ``sent_bytes``, ``blocked``).
+    """
+    deadline = time.monotonic() + READY_TIMEOUT_S
+    while not out.with_suffix(".ready").exists():
+        if sub.poll() is not None or time.monotonic() > deadline:
+            raise RuntimeError(f"the subscriber did not start: {sub.args[3:]}")
+        time.sleep(0.05)
+    pub = subprocess.run(
+        [*PEERS, "publish", *args],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=False,
+        timeout=float(args[1]) + 90,
+    )
+    if pub.returncode:
+        raise RuntimeError(f"publisher failed: {pub.stderr.strip()[-500:]}")
+    time.sleep(0.5)
+    sub.send_signal(signal.SIGINT)
+    sub.wait(timeout=120)
+    counts: dict[str, Any] = json.loads(pub.stdout.strip().splitlines()[-1])
+    return counts
 
 
 def _line(name: str, result: dict[str, Any]) -> str:
@@ -437,8 +198,17 @@ def _best_of(
 
 
 def main() -> bool:
-    """Run the three comparisons; print ratios; True when every target is met."""
-    ok = True
+    """Run the comparisons; print ratios; True when every target is met."""
+    imu_recorder, ok = _imu_flood()
+    _imu_with_many_send_buffers(imu_recorder)
+    ok &= _image_flood()
+    _image_with_a_large_segment()
+    ok &= _memory_and_cpu()
+    return bool(ok)
+
+
+def _imu_flood() -> tuple[dict[str, Any], bool]:
+    """The Imu target: recorder rate against ``count``; returns the recorder's best run."""
     print(f"Imu flood, reliable keep-all, {IMU_SECONDS:g} s per run, best of {IMU_ROUNDS}:")
     imu = _best_of(("count", "recorder"), "imu", IMU_SECONDS, IMU_ROUNDS)
     imu["naive"] = _run("naive", "imu", IMU_SECONDS)
@@ -449,7 +219,6 @@ def main() -> bool:
     recorder = imu["recorder"]
     ratio = recorder["rate"] / imu["count"]["rate"]
     ratio_to_default = recorder["rate"] / imu["count-dflt"]["rate"]
-    complete = recorder["in_bag"] == recorder["sent"] and recorder["lost"] == 0
     print(
         f"  recorder/count rate {ratio:.2f} (target >= {RATE_FLOOR}); "
         f"recorder/naive rate {recorder['rate'] / imu['naive']['rate']:.2f}; "
@@ -457,8 +226,16 @@ def main() -> bool:
         f"recorder/count with the default queue {ratio_to_default:.2f}; "
         f"bag holds {recorder['in_bag']}/{recorder['sent']}, lost {recorder['lost']}"
     )
-    ok &= ratio >= RATE_FLOOR and complete
+    return recorder, ratio >= RATE_FLOOR and _complete(recorder)
 
+
+def _complete(recorder: dict[str, Any]) -> bool:
+    """Whether the bag holds every published message and the recorder lost none."""
+    return bool(recorder["in_bag"] == recorder["sent"] and recorder["lost"] == 0)
+
+
+def _imu_with_many_send_buffers(recorder: dict[str, Any]) -> None:
+    """Not a target: the Imu flood from a publisher with as many send buffers as we queue."""
     print(
         f"Imu flood, publisher with {MANY_BUFFERS['port_queue_capacity']} shared-memory buffers, "
         f"best of {TUNED_ROUNDS} (not a target):"
@@ -476,19 +253,24 @@ def main() -> bool:
         f"lost {tuned['recorder']['lost']}"
     )
 
+
+def _image_flood() -> bool:
+    """The image target: recorder MB/s against ``count``."""
     print(f"1 MB Image at full speed, {IMAGE_SECONDS:g} s per run, best of {IMAGE_ROUNDS}:")
     image = _best_of(("count", "recorder"), "image", IMAGE_SECONDS, IMAGE_ROUNDS)
     for mode, result in image.items():
         print(_line(mode, result))
     recorder = image["recorder"]
     ratio = recorder["mb_per_s"] / image["count"]["mb_per_s"]
-    complete = recorder["in_bag"] == recorder["sent"] and recorder["lost"] == 0
     print(
         f"  recorder/count MB/s {ratio:.2f} (target >= {RATE_FLOOR}); "
         f"bag holds {recorder['in_bag']}/{recorder['sent']}, lost {recorder['lost']}"
     )
-    ok &= ratio >= RATE_FLOOR and complete
+    return ratio >= RATE_FLOOR and _complete(recorder)
 
+
+def _image_with_a_large_segment() -> None:
+    """Not a target: images from a publisher whose shared-memory segment holds 64 of them."""
     print(
         f"1 MB Image, publisher with a {LARGE_SEGMENT_BYTES >> 20} MiB shared-memory segment, "
         "one run each (not a target):"
@@ -507,6 +289,9 @@ def main() -> bool:
         f"bag holds {large['recorder']['in_bag']}/{large['recorder']['sent']}"
     )
 
+
+def _memory_and_cpu() -> bool:
+    """The memory target (a 10x longer recording); then, not a target, CPU per message."""
     print(f"Memory: Imu at {RSS_RATE_HZ:g} Hz, {RSS_SHORT_S:g} s vs {10 * RSS_SHORT_S:g} s:")
     short = _run("recorder", "imu", RSS_SHORT_S, RSS_RATE_HZ)
     long = _run("recorder", "imu", 10 * RSS_SHORT_S, RSS_RATE_HZ)
@@ -514,8 +299,6 @@ def main() -> bool:
     print(_line("long", long))
     growth = long["peak_rss"] / short["peak_rss"]
     print(f"  peak RSS long/short {growth:.2f} (target <= {RSS_CEILING})")
-    ok &= growth <= RSS_CEILING and long["lost"] == 0 and long["in_bag"] == long["sent"]
-
     # Not a target: what recording a steady topic costs, against only taking it.
     paced_count = _run("count", "imu", 10 * RSS_SHORT_S, RSS_RATE_HZ)
     print(_line("count", paced_count))
@@ -527,27 +310,4 @@ def main() -> bool:
         f"  CPU per message at {RSS_RATE_HZ:g} Hz (whole process, start-up included): "
         f"recorder {cpu['rec']:.0f} us, count {cpu['count']:.0f} us"
     )
-    return bool(ok)
-
-
-def _cli() -> None:
-    parser = argparse.ArgumentParser(description=__doc__)
-    roles = parser.add_subparsers(dest="role", required=True)
-    pub = roles.add_parser("publish")
-    pub.add_argument("kind", choices=["imu", "image"])
-    pub.add_argument("seconds", type=float)
-    pub.add_argument("rate_hz", type=float)
-    sub = roles.add_parser("subscribe")
-    sub.add_argument("mode", choices=["count", "inline", "naive", "recorder"])
-    sub.add_argument("kind", choices=["imu", "image"])
-    sub.add_argument("out", type=Path)
-    sub.add_argument("--default-transport", action="store_true")
-    args = parser.parse_args()
-    if args.role == "publish":
-        publish(args.kind, args.seconds, args.rate_hz)
-    else:
-        subscribe(args.mode, args.kind, args.out, default_transport=args.default_transport)
-
-
-if __name__ == "__main__":
-    _cli()
+    return growth <= RSS_CEILING and _complete(long)
