@@ -29,7 +29,7 @@ from bagkit.ros.play_controls import PlayControls
 from bagkit.ros.play_options import PlayWindow, SubscriberWaits, check_play_options
 from bagkit.ros.playback_report import PlayProgress, PlayReport, TopicPlayback
 from bagkit.ros.player_services import serve_controls
-from bagkit.ros.player_topics import PublishableTopics, publishable_topics
+from bagkit.ros.player_topics import PublishableTopics, publishable_topics, replay_selection
 from bagkit.ros.publish_loop import PassPublisher
 from bagkit.ros.publishers import (
     TopicOutput,
@@ -40,8 +40,8 @@ from bagkit.ros.publishers import (
     wait_until_matched,
 )
 from bagkit.ros.qos import load_qos_overrides, replay_publisher_qos
-from bagkit.ros.selection import TopicSelection
 from bagkit.ros.timing import DEFAULT_DISCOVERY_TIME_S
+from bagkit.times import seconds_to_ns
 
 
 class Player:
@@ -123,16 +123,7 @@ class Player:
         self.rate = rate
         self.controls = PlayControls(rate, paused=start_paused)
         self.services = services
-        # A bag's topics were chosen when it was recorded: hidden ones replay like the others.
-        self.selection = TopicSelection.create(
-            topics or (),
-            all_topics=topics is None and regex is None,
-            regex=regex,
-            exclude=exclude,
-            include_hidden=True,
-            exclude_topics=exclude_topics,
-            error=PlayerError,
-        )
+        self.selection = replay_selection(topics, regex, exclude, exclude_topics)
         self.window = PlayWindow.create(start_offset, duration, playback_until_ns)
         self.loops = loops
         self.delay = delay
@@ -144,7 +135,7 @@ class Player:
         self.qos_overrides_path = Path(qos_overrides) if qos_overrides is not None else None
         self.on_progress = on_progress
         self.on_live_publishers = on_live_publishers
-        self.progress_period_ns = int(progress_period * 1e9)
+        self.progress_period_ns = seconds_to_ns(progress_period, progress_period, PlayerError)
         self._context = context
         self._node_name = node_name
         self._stack = ExitStack()
