@@ -10,8 +10,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import typer
-from rich.measure import Measurement
-from rich.table import Table
 
 from bagkit.bag import BagError, BagReader
 from bagkit.cli.common import (
@@ -182,29 +180,34 @@ def _print_tables(result: Summary) -> None:
         )
         if not topic.fields:
             continue
-        table = Table(show_edge=False, box=None, header_style="dim")
-        # Field names are never cut: they are what scripts and --fields refer to.
-        table.add_column("field", no_wrap=True, min_width=max(len(f.field) for f in topic.fields))
-        for column in ("count", "nan", "min", "max", "mean", "std"):
-            table.add_column(column, justify="right", no_wrap=True)
-        for f in topic.fields:
-            table.add_row(
-                f.field,
-                str(f.count),
-                str(f.nan_count),
-                _number(f.min),
-                _number(f.max),
-                _number(f.mean),
-                _number(f.std),
-            )
-        # Never squeeze numbers into ellipses: a wide table is printed wider than the console.
-        natural = Measurement.get(console, console.options.update(width=10_000), table).maximum
-        width = console.width
-        console.width = max(width, natural)
-        try:
-            console.print(table)
-        finally:
-            console.width = width
+        rows = [
+            [f.field, str(f.count), str(f.nan_count)]
+            + [_number(v) for v in (f.min, f.max, f.mean, f.std)]
+            for f in topic.fields
+        ]
+        header, *lines = _aligned([list(FIELD_COLUMNS), *rows])
+        console.print(header, style="dim", highlight=False, soft_wrap=True)
+        for line in lines:
+            console.print(line, highlight=False, markup=False, soft_wrap=True)
+
+
+# The per-topic table: field names left-aligned and never cut (scripts and --fields refer to
+# them), numbers right-aligned and never squeezed: a wide table is printed wider.
+FIELD_COLUMNS = ("field", "count", "nan", "min", "max", "mean", "std")
+
+
+def _aligned(rows: list[list[str]]) -> list[str]:
+    """Rows as lines of columns two spaces apart: the first left-, the others right-aligned."""
+    widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
+    return [
+        " "
+        + "  ".join(
+            cell.ljust(width) if i == 0 else cell.rjust(width)
+            for i, (cell, width) in enumerate(zip(row, widths, strict=True))
+        )
+        + " "
+        for row in rows
+    ]
 
 
 def _print_csv(result: Summary) -> None:
