@@ -12,9 +12,25 @@ and whose compression is the one asked for is copied as it is, without decompres
 
 from __future__ import annotations
 
-from bagkit.surgery.doctor import Finding, diagnose
-from bagkit.surgery.rewrite import RewriteReport, filter_bag, merge_bags, recover_bag
-from bagkit.surgery.select import Selection
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from bagkit.surgery.doctor import Finding, diagnose
+    from bagkit.surgery.rewrite import RewriteReport, filter_bag, merge_bags, recover_bag
+    from bagkit.surgery.select import Selection
+
+# Imported on first use: doctor decodes schemas (numpy, rosbags), which filter, merge and
+# recover never do, and `bagkit filter` should not pay for that import.
+_HOMES = {
+    "Finding": "doctor",
+    "diagnose": "doctor",
+    "RewriteReport": "rewrite",
+    "filter_bag": "rewrite",
+    "merge_bags": "rewrite",
+    "recover_bag": "rewrite",
+    "Selection": "select",
+}
 
 __all__ = [
     "Finding",
@@ -25,3 +41,10 @@ __all__ = [
     "merge_bags",
     "recover_bag",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    home = _HOMES.get(name)
+    if home is None:
+        raise AttributeError(f"module 'bagkit.surgery' has no attribute {name!r}")
+    return getattr(importlib.import_module(f"bagkit.surgery.{home}"), name)
