@@ -9,6 +9,7 @@ import sys
 import types
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -101,6 +102,23 @@ class ProcessGroup:
             except subprocess.TimeoutExpired:
                 os.killpg(proc.pid, signal.SIGKILL)
                 proc.wait()
+
+
+@pytest.fixture
+def node(request: pytest.FixtureRequest) -> Iterator[Any]:
+    """A node of the test (``<test module>_node``) in a context of its own, shut down after."""
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.node import Node
+
+    context = Context()
+    rclpy.init(context=context)
+    test_node = Node(f"{request.module.__name__.rsplit('.', 1)[-1]}_node", context=context)
+    try:
+        yield test_node
+    finally:
+        test_node.destroy_node()
+        context.try_shutdown()
 
 
 @pytest.fixture

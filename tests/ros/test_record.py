@@ -3,58 +3,31 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
-import rclpy
 import yaml
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
-from rclpy.context import Context
 from rclpy.node import Node
-from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosbags.highlevel import AnyReader
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Int32, String
+from waiting import wait_for, wait_matched
 
 from bagkit.bag import BagReader
 from bagkit.ros import handoff, subscriptions, write_loop
 from bagkit.ros.errors import MessageClassNotFoundError
 from bagkit.ros.qos import parse_offered_qos_profiles
+from bagkit.ros.record_report import RecordReport
 from bagkit.ros.recorder import Recorder
 
 pytestmark = pytest.mark.ros
 
 MATCH_TIMEOUT_S = 10.0
-
-
-@pytest.fixture
-def node() -> Iterator[Node]:
-    """A publishing node in a context of its own, shut down after the test."""
-    context = Context()
-    rclpy.init(context=context)
-    publisher_node = Node("record_test_publisher", context=context)
-    try:
-        yield publisher_node
-    finally:
-        publisher_node.destroy_node()
-        context.try_shutdown()
-
-
-def wait_for(condition: Callable[[], bool], timeout: float = MATCH_TIMEOUT_S) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError("timed out waiting for the recorder")
-        time.sleep(0.01)
-
-
-def wait_matched(*publishers: Publisher) -> None:
-    wait_for(lambda: all(p.get_subscription_count() > 0 for p in publishers))
 
 
 def imu(i: int) -> Imu:
@@ -68,37 +41,15 @@ def imu(i: int) -> Imu:
     return msg
 
 
-def test_records_known_sequences_readable_by_rosbags_and_mcap(node: Node, tmp_path: Path) -> None:
-    n_imu, n_text = 300, 120
-    reliable = node.create_publisher(Imu, "/rec/imu", 100)
-    best_effort = node.create_publisher(
-        String, "/rec/text", QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT)
-    )
-    latched = node.create_publisher(
-        String, "/rec/latched", QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-    )
-    # Published before the recorder exists: only transient-local durability brings it over.
-    latched.publish(String(data="map v1"))
-    bag = tmp_path / "known"
-    with Recorder(bag, regex="^/rec/") as recorder:
-        wait_matched(reliable, best_effort, latched)
-        for i in range(n_imu):
-            reliable.publish(imu(i))
-            if i < n_text:
-                best_effort.publish(String(data=f"text {i}"))
-            time.sleep(0.001)
-        # A topic that appears while recording is recorded from its first matched message.
-        late = node.create_publisher(Int32, "/rec/late", 10)
-        wait_matched(late)
-        for i in range(20):
-            late.publish(Int32(data=i * i))
-        wait_for(lambda: recorder.progress().messages >= n_imu + 1 + 20)
-        time.sleep(0.2)
-    report = recorder.report
+N_IMU, N_TEXT, N_LATE = 300, 120, 20
 
+
+def test_records_known_sequences_readable_by_rosbags_and_mcap(node: Node, tmp_path: Path) -> None:
+    bag = tmp_path / "known"
+    report = _record_known_sequences(node, bag)
     assert report.error is None
-    assert report.topic("/rec/imu").messages == n_imu
-    assert report.topic("/rec/late").messages == 20
+    assert report.topic("/rec/imu").messages == N_IMU
+    assert report.topic("/rec/late").messages == N_LATE
     assert report.topic("/rec/latched").messages == 1
     text = report.topic("/rec/text")
     # Best effort may drop (rarely, on localhost); every hole between the first and the last
@@ -108,8 +59,40 @@ def test_records_known_sequences_readable_by_rosbags_and_mcap(node: Node, tmp_pa
     assert text.messages + text.gaps == sequences[-1] - sequences[0] + 1
     assert report.lost == text.gaps
     assert {t.publishers for t in report.topics} == {1}
+    _check_rosbags_reads_what_was_published(bag, text.messages)
+    _check_mcap_records(bag, {t.topic: t.messages for t in report.topics if t.messages})
 
-    # rosbags: every message deserializes, in publication order, with the published content.
+
+def _record_known_sequences(node: Node, bag: Path) -> RecordReport:
+    """Record reliable, best-effort, transient-local and late-appearing topics of ``node``."""
+    reliable = node.create_publisher(Imu, "/rec/imu", 100)
+    best_effort = node.create_publisher(
+        String, "/rec/text", QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT)
+    )
+    latched = node.create_publisher(
+        String, "/rec/latched", QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    )
+    # Published before the recorder exists: only transient-local durability brings it over.
+    latched.publish(String(data="map v1"))
+    with Recorder(bag, regex="^/rec/") as recorder:
+        wait_matched(reliable, best_effort, latched)
+        for i in range(N_IMU):
+            reliable.publish(imu(i))
+            if i < N_TEXT:
+                best_effort.publish(String(data=f"text {i}"))
+            time.sleep(0.001)
+        # A topic that appears while recording is recorded from its first matched message.
+        late = node.create_publisher(Int32, "/rec/late", 10)
+        wait_matched(late)
+        for i in range(N_LATE):
+            late.publish(Int32(data=i * i))
+        wait_for(lambda: recorder.progress().messages >= N_IMU + 1 + N_LATE)
+        time.sleep(0.2)
+    return recorder.report
+
+
+def _check_rosbags_reads_what_was_published(bag: Path, texts_recorded: int) -> None:
+    """Every message deserializes, in publication order, with the published content."""
     with AnyReader([bag]) as reader:
         by_topic: dict[str, list[Any]] = {}
         for connection, _timestamp, raw in reader.messages():
@@ -117,17 +100,19 @@ def test_records_known_sequences_readable_by_rosbags_and_mcap(node: Node, tmp_pa
                 reader.deserialize(raw, connection.msgtype)
             )
     imus = by_topic["/rec/imu"]
-    assert [m.header.stamp.sec for m in imus] == [1000 + i for i in range(n_imu)]
-    assert [m.angular_velocity.x for m in imus] == [-0.5 * i for i in range(n_imu)]
+    assert [m.header.stamp.sec for m in imus] == [1000 + i for i in range(N_IMU)]
+    assert [m.angular_velocity.x for m in imus] == [-0.5 * i for i in range(N_IMU)]
     assert imus[7].header.frame_id == "imu_link"
     assert imus[7].orientation_covariance[0] == -1.0
-    assert [m.data for m in by_topic["/rec/late"]] == [i * i for i in range(20)]
+    assert [m.data for m in by_topic["/rec/late"]] == [i * i for i in range(N_LATE)]
     assert [m.data for m in by_topic["/rec/latched"]] == ["map v1"]
     texts = [m.data for m in by_topic["/rec/text"]]
     assert texts == sorted(texts, key=lambda t: int(t.split()[1]))
-    assert len(texts) == text.messages
+    assert len(texts) == texts_recorded
 
-    # mcap + mcap_ros2: the same messages, and the record fields rosbag2 defines.
+
+def _check_mcap_records(bag: Path, expected_counts: dict[str, int]) -> None:
+    """mcap + mcap_ros2 read the same messages, with the record fields rosbag2 defines."""
     counts: dict[str, int] = {}
     for mcap_file in sorted(bag.glob("*.mcap")):
         with mcap_file.open("rb") as stream:
@@ -142,7 +127,7 @@ def test_records_known_sequences_readable_by_rosbags_and_mcap(node: Node, tmp_pa
                 if channel.topic == "/rec/imu":
                     # Publication sequence numbers of the only publisher: 1, 2, 3...
                     assert message.sequence == decoded.header.stamp.sec - 1000 + 1
-    assert counts == {t.topic: t.messages for t in report.topics if t.messages}
+    assert counts == expected_counts
 
 
 def test_metadata_and_channel_qos(node: Node, tmp_path: Path) -> None:

@@ -18,13 +18,12 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 from std_msgs.msg import String
-from test_record import node, wait_for
+from waiting import wait_for
 
 from bagkit.bag import BagReader
 
 pytestmark = pytest.mark.ros
 
-__all__ = ["node"]  # the fixture, shared with test_record.py
 
 STARTUP_TIMEOUT_S = 20.0
 

@@ -6,6 +6,7 @@ import subprocess
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import pytest
 from mcap.reader import make_reader
@@ -40,6 +41,16 @@ def wait_for_line(log: Path, text: str, *, timeout: float, is_alive: Callable[[]
 
 
 def test_record_live_fusion_system(processes: object, tmp_path: Path) -> None:
+    bag, report = _record_while_alerting(processes, tmp_path)
+    recorded = {t["topic"]: t for t in report["topics"] if t["messages"]}
+    _check_report(report, recorded)
+    _check_bag_counts_and_sequences(bag, report, recorded)
+    _check_rosbags_reads_fused_outputs(bag, recorded)
+    _check_mcap_ros2_decodes_everything(bag, recorded)
+
+
+def _record_while_alerting(processes: object, tmp_path: Path) -> tuple[Path, dict[str, Any]]:
+    """``fusion launch`` with a temperature spike; ``bagkit record -a`` once the alert is up."""
     params = tmp_path / "params.yaml"
     # The alert fires before the recording starts: /alerts (transient local) must still be in it.
     params.write_text(f'sensor_publisher:\n  ros__parameters:\n    faults: "{SPIKE}"\n')
@@ -59,12 +70,15 @@ def test_record_live_fusion_system(processes: object, tmp_path: Path) -> None:
     )
     stdout, stderr = recorder.communicate(timeout=60)
     assert recorder.returncode == 0, stderr.decode()
-    report = report_json(stdout)
-    recorded = {t["topic"]: t for t in report["topics"] if t["messages"]}
+    return bag, report_json(stdout)
 
-    # Every topic of the system, nothing lost, one publisher each. Topics are discovered at
-    # different times (DDS discovery of each node's participant), so each is checked from its
-    # first message on.
+
+def _check_report(report: dict[str, Any], recorded: dict[str, Any]) -> None:
+    """Every topic of the system, nothing lost, one publisher each, nominal rates.
+
+    Topics are discovered at different times (DDS discovery of each node's participant), so
+    each is checked from its first message on.
+    """
     assert set(topics.TOPIC_TYPES) - {topics.LOGGER_SUMMARY} <= set(recorded)
     assert report["lost"] == 0
     for name in topics.TOPIC_TYPES:
@@ -75,8 +89,12 @@ def test_record_live_fusion_system(processes: object, tmp_path: Path) -> None:
         if recorded[name]["messages"] >= 4:
             assert abs(recorded[name]["rate_hz"] - nominal) <= 0.2 * nominal, recorded[name]
 
-    # The bag holds exactly the report's messages; each fusion topic (one publisher) has
-    # contiguous sequence numbers (/parameter_events and /rosout have one publisher per node).
+
+def _check_bag_counts_and_sequences(
+    bag: Path, report: dict[str, Any], recorded: dict[str, Any]
+) -> None:
+    """The bag holds exactly the report's messages; each fusion topic (one publisher) has
+    contiguous sequence numbers (/parameter_events and /rosout have one publisher per node)."""
     with BagReader(bag) as reader:
         assert reader.problems == []
         assert reader.topic_counts == {t["topic"]: t["messages"] for t in report["topics"]}
@@ -87,7 +105,9 @@ def test_record_live_fusion_system(processes: object, tmp_path: Path) -> None:
         numbers = sequences[name]
         assert numbers == list(range(numbers[0], numbers[0] + len(numbers))), name
 
-    # rosbags: everything deserializes; the fusion output follows its inputs one to one.
+
+def _check_rosbags_reads_fused_outputs(bag: Path, recorded: dict[str, Any]) -> None:
+    """rosbags deserializes everything; the fusion output follows its inputs one to one."""
     stamps: dict[str, list[int]] = {}
     with AnyReader([bag]) as any_reader:
         for connection, _timestamp, raw in any_reader.messages():
@@ -106,7 +126,8 @@ def test_record_live_fusion_system(processes: object, tmp_path: Path) -> None:
         assert len(inputs) - 2 <= len(outputs) <= len(inputs), output
     assert all(len(stamps[name]) == recorded[name]["messages"] for name in recorded)
 
-    # mcap_ros2 decodes every message too.
+
+def _check_mcap_ros2_decodes_everything(bag: Path, recorded: dict[str, Any]) -> None:
     decoded: dict[str, int] = {}
     for mcap_file in sorted(bag.glob("*.mcap")):
         with mcap_file.open("rb") as stream:

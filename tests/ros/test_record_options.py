@@ -15,15 +15,13 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Int32, String
-from test_record import node, wait_for, wait_matched
 from test_record_cli import STARTUP_TIMEOUT_S, record, report_json
+from waiting import wait_for, wait_matched
 
 from bagkit.bag import BagReader
 from bagkit.ros.recorder import Recorder
 
 pytestmark = pytest.mark.ros
-
-__all__ = ["node"]
 
 
 def test_sim_time_writes_nothing_before_the_first_clock(node: Node, tmp_path: Path) -> None:

@@ -12,21 +12,19 @@ import signal
 import statistics
 import subprocess
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import pytest
-import rclpy
 from rcl_interfaces.msg import Parameter as ParameterMsg
 from rcl_interfaces.msg import ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
-from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.serialization import serialize_message
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
+from waiting import wait_for
 
 from bagkit.bag import BagWriter, TopicInfo
 from tests.ros import test_replay
@@ -48,26 +46,6 @@ def write_bag(path: Path, hz: float, seconds: float) -> Path:
             data = bytes(serialize_message(String(data=f"#{index}")))
             writer.write(TOPIC, data, log_time=START_NS + index * period)
     return path
-
-
-@pytest.fixture
-def node() -> Iterator[Node]:
-    """A node of the test in a context of its own (a service client or a live publisher)."""
-    context = Context()
-    rclpy.init(context=context)
-    test_node = Node("replay_controls_test", context=context)
-    try:
-        yield test_node
-    finally:
-        test_node.destroy_node()
-        context.try_shutdown()
-
-
-def wait_for(condition: Callable[[], bool], timeout: float = 15.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        assert time.monotonic() < deadline, "timed out"
-        time.sleep(0.01)
 
 
 def indices(received: list[Received]) -> list[int]:
@@ -94,7 +72,7 @@ def check_pause_step_resume(
     period_ns: int,
 ) -> None:
     """Pause after a few messages, step twice, resume; check each phase from what arrived."""
-    wait_for(lambda: len(listener.messages()) >= 5)
+    wait_for(lambda: len(listener.messages()) >= 5, 15.0)
     toggle()
     time.sleep(0.3)  # in flight when paused
     paused_count = len(listener.messages())
@@ -102,13 +80,13 @@ def check_pause_step_resume(
     assert len(listener.messages()) == paused_count, "published while paused"
     for stepped in (paused_count + 1, paused_count + 2):
         step()
-        wait_for(lambda count=stepped: len(listener.messages()) == count)
+        wait_for(lambda count=stepped: len(listener.messages()) == count, 15.0)
         time.sleep(0.3)
         assert len(listener.messages()) == stepped, "a step published more than one"
     paused_count += 2
     resumed_ns = time.time_ns()
     toggle()
-    wait_for(lambda: len(listener.messages()) >= paused_count + 20)
+    wait_for(lambda: len(listener.messages()) >= paused_count + 20, 15.0)
     got = listener.messages()
     assert indices(got) == list(range(len(got))), "every message once, in order"
     after = got[paused_count:]
@@ -230,7 +208,7 @@ def test_ctrl_z_then_fg_does_not_burst(
     bag = write_bag(tmp_path / "bag", hz=hz, seconds=6)
     listener = listener_factory({TOPIC: String})
     proc = processes.start(play_args(bag), stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    wait_for(lambda: len(listener.messages()) >= 50)
+    wait_for(lambda: len(listener.messages()) >= 50, 15.0)
     os.kill(proc.pid, signal.SIGTSTP)
     wait_for(lambda: _stopped(proc.pid), timeout=5.0)
     time.sleep(0.2)
@@ -239,7 +217,7 @@ def test_ctrl_z_then_fg_does_not_burst(
     assert len(listener.messages()) == stopped_count
     continued_ns = time.time_ns()
     os.kill(proc.pid, signal.SIGCONT)
-    wait_for(lambda: len(listener.messages()) >= stopped_count + 50)
+    wait_for(lambda: len(listener.messages()) >= stopped_count + 50, 15.0)
     burst = [r for r in listener.messages() if 0 <= r.received_ns - continued_ns <= 50_000_000]
     assert len(burst) <= 0.05 * hz + 2, len(burst)  # the bag's rate, not a backlog
     _, stderr = proc.communicate(timeout=30)
@@ -282,5 +260,5 @@ def test_remap_stays_out_of_rcl_and_live_publishers_are_named(
     assert proc.returncode == 0, stderr
     warnings = [line for line in stderr.splitlines() if "also published" in line]
     assert len(warnings) == 1, stderr
-    assert "/ctl/live" in warnings[0] and "replay_controls_test" in warnings[0]
+    assert "/ctl/live" in warnings[0] and "test_replay_controls_node" in warnings[0]
     assert "/ctl/other" not in warnings[0]

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
@@ -16,6 +15,7 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rclpy.subscription import Subscription
 from sensor_msgs.msg import Image, Imu
+from waiting import wait_matched
 
 from bagkit.ros.take import TakenMessages, take_serialized
 
@@ -60,11 +60,7 @@ def make_pair(context: Context, message_type: Any, topic: str) -> Pair:
     publisher = node.create_publisher(message_type, topic, KEEP_ALL)
     ours = node.create_subscription(message_type, topic, lambda _m: None, KEEP_ALL, raw=True)
     reference = node.create_subscription(message_type, topic, lambda _m: None, KEEP_ALL, raw=True)
-    deadline = time.monotonic() + 10
-    while publisher.get_subscription_count() < 2:
-        if time.monotonic() > deadline:
-            pytest.fail("subscriptions did not match")
-        time.sleep(0.05)
+    wait_matched(publisher, count=2)
     return Pair(node, publisher, ours, reference, message_type)
 
 

@@ -7,32 +7,18 @@ import os
 import signal
 import subprocess
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-import rclpy
-from rclpy.context import Context
 from rclpy.node import Node
 from std_msgs.msg import String
 from surgery_samples import run
 from test_recover import check_recovered, salvaged
+from waiting import wait_matched
 
 pytestmark = pytest.mark.ros
 
 STARTUP_TIMEOUT_S = 20.0
-
-
-@pytest.fixture
-def node() -> Iterator[Node]:
-    context = Context()
-    rclpy.init(context=context)
-    publisher_node = Node("surgery_test_publisher", context=context)
-    try:
-        yield publisher_node
-    finally:
-        publisher_node.destroy_node()
-        context.try_shutdown()
 
 
 def test_sigkilled_recording_is_recovered(node: Node, processes: object, tmp_path: Path) -> None:
@@ -43,10 +29,7 @@ def test_sigkilled_recording_is_recovered(node: Node, processes: object, tmp_pat
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
     )
-    deadline = time.monotonic() + STARTUP_TIMEOUT_S
-    while publisher.get_subscription_count() == 0:
-        assert time.monotonic() < deadline, "the recorder did not subscribe"
-        time.sleep(0.01)
+    wait_matched(publisher, timeout=STARTUP_TIMEOUT_S)
     start = time.monotonic()
     i = 0
     while time.monotonic() - start < 2.5:
