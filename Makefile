@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 export RMW_IMPLEMENTATION := rmw_fastrtps_cpp
 
-.PHONY: demo test lint format bench golden clean
+.PHONY: demo test test-fast lint format bench golden clean
 
 $(STAMP): pyproject.toml setup.py bagkit/ros/_take.c
 	$(PYTHON) -m venv $(VENV)
@@ -20,6 +20,10 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(PY) -m pytest -q --durations=10
+
+# The fast loop: every test that starts no DDS participant, on two worker processes.
+test-fast: $(STAMP)
+	$(PY) -m pytest -q -m "not ros" -n 2
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .
