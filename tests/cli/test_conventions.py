@@ -28,6 +28,22 @@ def _run(*args: str, columns: int = 100) -> subprocess.CompletedProcess[str]:
     )
 
 
+def _run_in_python(argv: list[str], then: str) -> subprocess.CompletedProcess[str]:
+    """Run ``argv`` as the console script does in a fresh interpreter, then the code ``then``.
+
+    The exit status is printed as ``EXIT <code>`` on stderr.
+    """
+    code = (
+        f"import sys; sys.argv = {argv!r}\n"
+        "from bagkit.cli.launch import run\n"
+        "try:\n    run()\nexcept SystemExit as exc:\n    print('EXIT', exc.code, file=sys.stderr)\n"
+        f"{then}"
+    )
+    return subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=False
+    )
+
+
 def test_split_list_takes_repeated_values_and_comma_lists() -> None:
     assert split_list(None) == []
     assert split_list(["/a,/b", "/c", " /d , ,"]) == ["/a", "/b", "/c", "/d"]
@@ -92,20 +108,15 @@ def test_every_command_answers_h_and_help(command: str, flag: str) -> None:
 
 
 def test_top_level_help_lists_every_command_without_importing_them() -> None:
-    code = (
-        "import sys; sys.argv = ['bagkit', '--help']\n"
-        "from bagkit.cli.launch import run\n"
-        "try:\n    run()\nexcept SystemExit:\n    pass\n"
+    result = _run_in_python(
+        ["bagkit", "--help"],
         "heavy = sorted(m for m in sys.modules if m.split('.')[0] in ('numpy', 'pandas', "
         "'rich', 'pydantic', 'rclpy') or m.startswith('bagkit.cli.') and m not in "
         "('bagkit.cli.main', 'bagkit.cli.common', 'bagkit.cli.launch', "
         "'bagkit.cli.plain_params', 'bagkit.cli.help_text'))\n"
-        "print('HEAVY', heavy, file=sys.stderr)\n"
+        "print('HEAVY', heavy, file=sys.stderr)\n",
     )
-    result = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True
-    )
-    assert "HEAVY []" in result.stderr
+    assert "HEAVY []" in result.stderr and "EXIT 0" in result.stderr, result.stderr
     for command in _COMMANDS:
         assert f"\n  {command} " in result.stdout
 
@@ -197,15 +208,7 @@ def test_help_of_reports_lists_only_working_formats() -> None:
 def test_number_options_are_parsed_without_pydantic(tmp_path: Path, args: list[str]) -> None:
     # typer parses through pydantic, whose import costs every command tens of milliseconds.
     argv = ["bagkit", *(str(_bag(tmp_path)) if a == "BAG" else a for a in args)]
-    code = (
-        f"import sys; sys.argv = {argv!r}\n"
-        "from bagkit.cli.launch import run\n"
-        "try:\n    run()\nexcept SystemExit as exc:\n    print('EXIT', exc.code, file=sys.stderr)\n"
-        "print('PYDANTIC', 'pydantic' in sys.modules, file=sys.stderr)\n"
-    )
-    result = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=False
-    )
+    result = _run_in_python(argv, "print('PYDANTIC', 'pydantic' in sys.modules, file=sys.stderr)\n")
     assert "PYDANTIC False" in result.stderr
     expected = 2 if "-1" in args else 0
     assert f"EXIT {expected}" in result.stderr, result.stderr
