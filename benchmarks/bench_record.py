@@ -225,6 +225,7 @@ def _imu_flood() -> tuple[dict[str, Any], bool]:
         f"inline/count rate {imu['inline']['rate'] / imu['count']['rate']:.2f}; "
         f"recorder/count with the default queue {ratio_to_default:.2f}; "
         f"bag holds {recorder['in_bag']}/{recorder['sent']}, lost {recorder['lost']}"
+        f"{'' if recorder['acked'] else ' (the publisher gave up waiting for acknowledgements)'}"
     )
     return recorder, ratio >= RATE_FLOOR and _complete(recorder)
 
@@ -265,6 +266,7 @@ def _image_flood() -> bool:
     print(
         f"  recorder/count MB/s {ratio:.2f} (target >= {RATE_FLOOR}); "
         f"bag holds {recorder['in_bag']}/{recorder['sent']}, lost {recorder['lost']}"
+        f"{'' if recorder['acked'] else ' (the publisher gave up waiting for acknowledgements)'}"
     )
     return ratio >= RATE_FLOOR and _complete(recorder)
 
