@@ -1,7 +1,7 @@
 """Replay controls over DDS: keys through a pseudo-terminal, the services, Ctrl-Z; warnings.
 
 Every test runs the real ``bagkit play`` in a subprocess and receives with a real subscriber
-(``tests/ros/test_replay.py``'s listener, which keeps the middleware's reception timestamps).
+(``tests/ros/replay_harness.py``'s listener, which keeps the middleware's reception timestamps).
 """
 
 from __future__ import annotations
@@ -22,15 +22,12 @@ from rcl_interfaces.srv import SetParameters
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.serialization import serialize_message
+from replay_harness import Listener, Received
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 from waiting import wait_for
 
 from bagkit.bag import BagWriter, TopicInfo
-from tests.ros import test_replay
-from tests.ros.test_replay import Listener, Received
-
-listener_factory = test_replay.listener_factory  # the fixture, shared
 
 TOPIC = "/ctl/data"
 START_NS = 1_700_000_000_000_000_000

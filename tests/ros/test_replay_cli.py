@@ -1,0 +1,301 @@
+"""``bagkit replay`` as a user runs it: real subprocesses, rosbag2's bags, damaged ones."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+from rclpy.serialization import deserialize_message
+from replay_harness import (
+    BAG_START_NS,
+    CLI_KNOWN,
+    NOMINAL_BAG,
+    SCHEDULE,
+    STRING_TOPICS,
+    Listener,
+    bagkit_cli,
+    payload,
+    recorded,
+    write_test_bag,
+)
+from std_msgs.msg import String
+
+from bagkit.bag import BagReader, BagWriter, TopicInfo
+
+pytestmark = pytest.mark.ros
+
+
+def test_cli_replays_a_rosbag2_recording(
+    interop_dir: Path, listener_factory: type[Listener]
+) -> None:
+    bag = interop_dir / "rosbag2_py/test/resources/mcap/talker"
+    expected = [d for _, d, _ in recorded(bag, ["/topic"])]
+    listener = listener_factory({"/topic": String})
+    result = bagkit_cli(
+        "replay",
+        str(bag),
+        "--rate",
+        "10",
+        "--topics",
+        "/topic",
+        "--format",
+        "json",
+        *CLI_KNOWN,
+        "--wait-for",
+        "/topic",
+    )
+    assert result.returncode == 0, result.stderr
+    got = listener.wait_for_count(len(expected))
+    texts = [deserialize_message(d, String).data for d in expected]
+    assert [r.text for r in got] == texts
+    assert texts[0] == "Hello, world! 0"
+    report = json.loads(result.stdout)
+    assert report["messages"] == len(expected)
+    assert report["topics"] == [
+        {
+            "topic": "/topic",
+            "published_as": "/topic",
+            "type": "std_msgs/msg/String",
+            "messages": 10,
+            "unreadable": 0,
+        }
+    ]
+
+
+def test_cli_loop_until_ctrl_c(
+    test_bag: Path, listener_factory: type[Listener], processes: Any
+) -> None:
+    per_pass = len(recorded(test_bag))
+    listener = listener_factory(STRING_TOPICS)
+    proc = processes.start(
+        [
+            "bagkit",
+            "replay",
+            str(test_bag),
+            "--loop",
+            "--rate",
+            "5",
+            *CLI_KNOWN,
+            "--wait-for",
+            "/replay/fast",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    listener.wait_for_count(2 * per_pass + 1, timeout=20)
+    os.killpg(proc.pid, signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=10)
+    assert proc.returncode == 130, stderr
+    assert "Traceback" not in stderr
+    assert len(listener.messages()) > 2 * per_pass
+    assert "passes" in stdout  # the report is printed even when interrupted
+    progress = [line for line in stderr.splitlines() if line.startswith("bag ")]
+    assert progress and "msgs" in progress[-1] and "late" in progress[-1]
+
+
+@pytest.mark.parametrize("case", ["missing", "not a bag", "unknown types", "not cdr", "bad remap"])
+def test_cli_bad_input_is_one_clear_line(
+    tmp_path: Path, request: pytest.FixtureRequest, case: str
+) -> None:
+    options: list[str] = []
+    if case == "missing":
+        path, expected = tmp_path / "nope", "no such file"
+    elif case == "not a bag":
+        path = tmp_path / "notes.txt"
+        path.write_text("hello\n")
+        expected = "not"
+    elif case == "unknown types":
+        path = tmp_path / "exotic"
+        with BagWriter(path) as writer:
+            writer.add_topic(TopicInfo("/exotic", "exotic_msgs/msg/Thing"), definition="int32 v\n")
+            writer.write("/exotic", b"\x00\x01\x00\x00\x07\x00\x00\x00", log_time=BAG_START_NS)
+        expected = "exotic_msgs/msg/Thing"
+    elif case == "not cdr":
+        interop_dir: Path = request.getfixturevalue("interop_dir")
+        path = interop_dir / "rosbag2_tests/resources/mcap/wrong_rmw_test"
+        expected = "'wrong_format' is not cdr"
+    elif case == "bad remap":
+        path, expected = NOMINAL_BAG, "cannot publish /imu/data as '/imu data'"
+        options = ["--remap", "/imu/data:=/imu data"]
+    else:
+        raise AssertionError(case)
+    result = bagkit_cli("replay", str(path), "--no-wait-for-subscribers", *options)
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert lines[0].startswith("error:") and expected in lines[0], lines
+
+
+def test_cli_skips_unknown_types_with_one_warning(
+    tmp_path: Path, listener_factory: type[Listener]
+) -> None:
+    bag = write_test_bag(tmp_path / "mixed", extra_topics={"/exotic": "exotic_msgs/msg/Thing"})
+    expected = recorded(bag, list(SCHEDULE))
+    listener = listener_factory(STRING_TOPICS)
+    # Every message of both topics is expected: wait for both subscriptions.
+    waits = [arg for topic in STRING_TOPICS for arg in ("--wait-for", topic)]
+    result = bagkit_cli("replay", str(bag), "--rate", "10", *CLI_KNOWN, *waits)
+    assert result.returncode == 0, result.stderr
+    warnings = [line for line in result.stderr.splitlines() if "warning" in line]
+    assert len(warnings) == 1, result.stderr
+    assert "/exotic (exotic_msgs/msg/Thing)" in warnings[0]
+    assert len(listener.wait_for_count(len(expected))) == len(expected), result.stdout
+
+
+def test_cli_truncated_bag_replays_what_is_intact(
+    tmp_path: Path, listener_factory: type[Listener]
+) -> None:
+    bag = tmp_path / "cut"
+    with BagWriter(bag, chunk_size=2_000) as writer:
+        writer.add_topic(TopicInfo("/replay/fast", "std_msgs/msg/String"))
+        for index in range(200):
+            writer.write(
+                "/replay/fast",
+                payload("/replay/fast", index),
+                log_time=BAG_START_NS + index * 5_000_000,
+            )
+    (storage,) = sorted(bag.glob("*.mcap"))
+    cut = tmp_path / "cut.mcap"
+    shutil.copy(storage, cut)
+    with cut.open("r+b") as f:
+        f.truncate(storage.stat().st_size // 2)
+    listener = listener_factory({"/replay/fast": String})
+    result = bagkit_cli(
+        "replay",
+        str(cut),
+        "--rate",
+        "10",
+        "--format",
+        "json",
+        *CLI_KNOWN,
+        "--wait-for",
+        "/replay/fast",
+    )
+    assert result.returncode == 0, result.stderr
+    report = json.loads(result.stdout)
+    assert 0 < report["messages"] < 200
+    assert report["problems"]
+    got = listener.wait_for_count(report["messages"])
+    # Decoded: between processes Fast DDS pads the payload to a multiple of 4 bytes.
+    assert [r.text for r in got] == [f"/replay/fast#{i}" for i in range(len(got))]
+    assert len(got) == report["messages"]
+    assert "damaged" in result.stderr and "Traceback" not in result.stderr
+
+
+def _corrupt_chunks(bag: Path, which: list[int]) -> tuple[int, int]:
+    """Break the zstd frame of chunks ``which`` of ``bag``; return (messages, in those chunks)."""
+    from mcap.reader import make_reader
+
+    (storage,) = bag.glob("*.mcap")
+    with storage.open("rb") as f:
+        reader = make_reader(f)
+        chunks = reader.get_summary().chunk_indexes  # type: ignore[union-attr]
+        log_times = [message.log_time for _, _, message in reader.iter_messages()]
+    broken = [chunks[i] for i in which]
+    lost = sum(
+        1 for t in log_times for c in broken if c.message_start_time <= t <= c.message_end_time
+    )
+    with storage.open("r+b") as f:
+        for chunk in broken:
+            # Past the chunk's opcode, length, times, sizes, CRC and compression name: the frame.
+            f.seek(chunk.chunk_start_offset + 1 + 8 * 4 + 4 + 4 + len(chunk.compression) + 8)
+            f.write(b"\xff" * 8)
+    return len(log_times), lost
+
+
+@pytest.mark.parametrize("broken", ["one chunk", "every chunk"])
+def test_cli_chunk_that_does_not_decompress_is_named_and_counted(
+    tmp_path: Path, broken: str
+) -> None:
+    bag = tmp_path / "broken"
+    with BagWriter(bag, chunk_size=2_000) as writer:
+        writer.add_topic(TopicInfo("/replay/fast", "std_msgs/msg/String"))
+        for index in range(200):
+            writer.write(
+                "/replay/fast",
+                payload("/replay/fast", index),
+                log_time=BAG_START_NS + index * 1_000_000,
+            )
+    with BagReader(bag) as reader:
+        chunk_count = sum(1 for _ in reader.chunks())
+    which = [2] if broken == "one chunk" else list(range(chunk_count))
+    total, lost = _corrupt_chunks(bag, which)
+    result = bagkit_cli(
+        "replay", str(bag), "--rate", "100", "--no-wait-for-subscribers", "--format", "json"
+    )
+    assert "Traceback" not in result.stderr
+    assert "no message of the selected topics" not in result.stderr
+    if broken == "every chunk":
+        assert result.returncode == 2
+        (line,) = result.stderr.strip().splitlines()
+        assert line.startswith("error: nothing replayed") and "chunk at byte" in line
+        return
+    assert result.returncode == 0, result.stderr
+    report = json.loads(result.stdout)
+    assert 0 < lost < total
+    assert report["messages"] == total - lost
+    assert report["unreadable"] == report["topics"][0]["unreadable"] == lost
+    (warning,) = [line for line in result.stderr.splitlines() if "damaged" in line]
+    assert f"{lost} could not be read" in warning and "chunk at byte" in warning
+
+
+def test_cli_start_offset_past_the_end_is_one_clear_line(test_bag: Path) -> None:
+    result = bagkit_cli("replay", str(test_bag), "--start-offset", "5", "--no-wait-for-subscribers")
+    assert result.returncode == 2
+    (line,) = result.stderr.strip().splitlines()
+    assert line.startswith("error: --start-offset 5 s is past the end of")
+    assert "nan" not in result.stdout + result.stderr
+
+
+@pytest.mark.parametrize("user_profile", [False, True])
+def test_replay_gives_itself_the_large_shared_memory_pool_unless_the_user_has_a_profile(
+    test_bag: Path, listener_factory: type[Listener], tmp_path: Path, user_profile: bool
+) -> None:
+    from test_record_cli import shared_memory_ports
+
+    env = dict(os.environ)
+    if user_profile:
+        mine = tmp_path / "mine.xml"
+        mine.write_text(
+            '<?xml version="1.0" encoding="UTF-8"?>\n'
+            '<dds xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"><profiles>'
+            '<participant profile_name="mine" is_default_profile="true"><rtps/></participant>'
+            "</profiles></dds>\n"
+        )
+        env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(mine)
+    listener = listener_factory(STRING_TOPICS)
+    proc = subprocess.Popen(
+        [
+            str(Path(sys.executable).with_name("bagkit")),
+            "replay",
+            str(test_bag),
+            *CLI_KNOWN,
+            "--wait-for",
+            "/replay/fast",
+        ],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    try:
+        listener.wait_for_count(1)
+        ports = shared_memory_ports(proc.pid)  # read while the replay runs (about 1 s)
+        _, stderr = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 0, stderr.decode()
+    assert ports, "the player maps no shared-memory port"
+    # Fast DDS sizes a port file by its descriptors: 52 KB for the default 512, 1.3 MB for
+    # bagkit's 65536 (the same setting sizes the participant's send pool).
+    large = [size for size in ports.values() if size > 1_000_000]
+    assert bool(large) is not user_profile, ports
