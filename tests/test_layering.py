@@ -61,6 +61,7 @@ def test_rclpy_only_behind_the_ros_shells(path: Path) -> None:
 LAYERS: tuple[frozenset[str], ...] = (
     frozenset({"errors"}),
     frozenset({"times"}),
+    frozenset({"selection"}),
     frozenset({"bag"}),
     frozenset({"decode", "ros"}),
     frozenset({"stats", "compare"}),

@@ -184,7 +184,7 @@ def _qos_overrides(path: Path | None) -> dict[str, Any]:
     if path is None:
         return {}
     from bagkit.ros.qos import load_qos_overrides
-    from bagkit.ros.selection import absolute_topic_name
+    from bagkit.selection.topics import absolute_topic_name
 
     return {absolute_topic_name(k): v for k, v in load_qos_overrides(path).items()}
 

@@ -135,7 +135,7 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
     output_format: Format = ReportFormat.TABLE,
 ) -> None:
     from bagkit.ros.player import Player
-    from bagkit.ros.selection import parse_remaps
+    from bagkit.ros.player_topics import parse_remaps
 
     _check_ros2_options(until_sec, until_nsec, storage, read_ahead_queue_size, wait_for_all_acked)
     interactive = sys.stderr.isatty()

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from bagkit.compare.errors import CompareError
-from bagkit.decode.paths import FieldSelection, name_matches, path_matches
+from bagkit.selection.fields import FieldSelection, name_matches, path_matches
 from bagkit.times import seconds_to_ns
 
 DEFAULT_EVENT_TOPICS = ("/alerts",)
@@ -40,7 +40,7 @@ class Tolerance:
 @dataclass(frozen=True, slots=True)
 class ToleranceRule:
     """A tolerance for the fields ``field`` selects on topics matching ``topic`` (globs of
-    :mod:`bagkit.decode.paths`)."""
+    :mod:`bagkit.selection.fields`)."""
 
     topic: str
     field: str

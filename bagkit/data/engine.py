@@ -3,7 +3,7 @@
 Two ideas live elsewhere in bagkit and are only re-exported here: where each message's payload
 is in a decompressed chunk (``bagkit.bag.mcapio.chunks``, checked against the chunk) and the
 bulk decoder of fixed-layout payloads (``bagkit.decode.bulk``). Field globs are
-``bagkit.decode.paths``'.
+``bagkit.selection.fields``'.
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@ import numpy as np
 
 from bagkit.data.errors import DataError, UnknownFieldError, UnknownTopicError
 from bagkit.decode import LeafField
-from bagkit.decode.paths import path_matches
+from bagkit.selection.fields import path_matches
 from bagkit.times import check_seconds
 
 # Times at or beyond this many seconds are read as absolute (Unix epoch) times; below it, as

@@ -3,7 +3,7 @@
 - :class:`MessageTypes`: a rosbags typestore built from a bag's ros2msg definitions.
 - :func:`flatten_message` / :func:`leaf_fields`: messages as ``{dotted path: value}``, and the
   same paths from the schema alone.
-- :mod:`bagkit.decode.paths`: the field-glob language (``[TOPIC_GLOB:]FIELD_GLOB``).
+- :mod:`bagkit.selection.fields`: the field-glob language (``[TOPIC_GLOB:]FIELD_GLOB``).
 - :mod:`bagkit.decode.layout` and :mod:`bagkit.decode.bulk`: CDR layouts as numpy dtypes, and
   many payloads of one layout decoded at once into columns; :mod:`bagkit.decode.direct`: leaf
   values read from one payload (the general path).
@@ -20,8 +20,8 @@ from bagkit.decode.flatten import (
     flatten_message,
     leaf_fields,
 )
-from bagkit.decode.paths import FieldSelection
 from bagkit.decode.types import MessageTypes
+from bagkit.selection.fields import FieldSelection
 
 __all__ = [
     "DecodeError",

@@ -18,9 +18,9 @@ from typing import TYPE_CHECKING
 
 from bagkit.bag import BagError, BagReader
 from bagkit.decode import MessageTypes
-from bagkit.decode.paths import FieldSelection
 from bagkit.fleet.errors import FleetError
 from bagkit.fleet.execute import ItemDone, run_each
+from bagkit.selection.fields import FieldSelection
 from bagkit.stats import StatsError, Summary
 from bagkit.stats.accumulate import TopicAccumulator
 from bagkit.stats.summary import SummaryRun, check_topics, finish_summary

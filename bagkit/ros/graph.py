@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 
-from bagkit.ros.selection import TopicSelection
+from bagkit.selection.topics import TopicSelection
 
 
 @dataclass(frozen=True, slots=True)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -10,8 +10,8 @@ from typing import Any
 from bagkit.bag import TopicInfo
 from bagkit.ros.clock import CLOCK_TOPIC
 from bagkit.ros.errors import MessageClassNotFoundError, PlayerError
-from bagkit.ros.selection import TopicSelection
 from bagkit.ros.types import import_message_type
+from bagkit.selection.topics import TopicSelection
 
 
 @dataclass(slots=True)
@@ -90,3 +90,14 @@ def publishable_topics(
             )
         raise PlayerError(f"nothing to replay in {bag_path}: {reason}")
     return found
+
+
+def parse_remaps(pairs: Iterable[str]) -> dict[str, str]:
+    """Parse ``OLD:=NEW`` topic remappings (as ``ros2 bag play --remap``)."""
+    remap = {}
+    for pair in pairs:
+        old, sep, new = pair.partition(":=")
+        if not sep or not old or not new:
+            raise PlayerError(f"remapping {pair!r} is not of the form OLD:=NEW")
+        remap[old] = new
+    return remap

@@ -31,10 +31,10 @@ from bagkit.ros.clock import CLOCK_TOPIC
 from bagkit.ros.errors import RecorderOptionsError, RecordingFailedError
 from bagkit.ros.handoff import HandoffQueue, StopSignal
 from bagkit.ros.record_report import RecordProgress, RecordReport
-from bagkit.ros.selection import TopicSelection
 from bagkit.ros.subscriptions import Subscriptions, never_called
 from bagkit.ros.take_loop import SimClock, TakeLoop
 from bagkit.ros.write_loop import FLUSH_PERIOD_S, WriteLoop
+from bagkit.selection.topics import TopicSelection
 
 DISCOVERY_PERIOD_S = 0.1
 # Bounds the memory held between taking and writing: absorbs writer hiccups (a slow disk

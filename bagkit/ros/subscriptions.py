@@ -25,8 +25,8 @@ from bagkit.ros.handoff import HandoffQueue
 from bagkit.ros.loss import SequenceTracker
 from bagkit.ros.qos import adapt_subscription_qos, dump_offered_qos_profiles
 from bagkit.ros.record_report import TopicRecord
-from bagkit.ros.selection import TopicSelection
 from bagkit.ros.types import import_message_type
+from bagkit.selection.topics import TopicSelection
 
 _log = logging.getLogger(__name__)
 

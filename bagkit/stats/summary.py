@@ -19,7 +19,7 @@ import numpy as np
 from bagkit.bag import BagChunk, BagReader
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
 from bagkit.decode.layout import CdrLayout
-from bagkit.decode.paths import FieldSelection
+from bagkit.selection.fields import FieldSelection
 from bagkit.stats.accumulate import ROW_BATCH, TopicAccumulator
 from bagkit.stats.errors import NothingToSummarizeError, StatsError, UnknownTopicError
 from bagkit.stats.prefetch import prefetch
@@ -184,7 +184,7 @@ def summarize(
     Args:
         bags: bag directories or single ``.mcap``/``.db3`` files.
         topics: only these topics (all when None).
-        fields: only the fields these patterns select (:mod:`bagkit.decode.paths`: globs
+        fields: only the fields these patterns select (:mod:`bagkit.selection.fields`: globs
             with ``*`` and ``?``, brackets literal, ``TOPIC_GLOB:FIELD_GLOB``).
         start_ns: only messages with ``log_time >= start_ns``.
         end_ns: only messages with ``log_time < end_ns``.

@@ -15,7 +15,7 @@ PURE = [
     "bagkit.ros.play_options",
     "bagkit.ros.playback_report",
     "bagkit.ros.record_report",
-    "bagkit.ros.selection",
+    "bagkit.selection.topics",
     "bagkit.ros.timing",
     "bagkit.ros.write_loop",
 ]

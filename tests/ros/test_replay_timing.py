@@ -10,7 +10,7 @@ from typer.testing import CliRunner
 from bagkit.cli.main import app
 from bagkit.ros.errors import PlayerError
 from bagkit.ros.lateness import LatenessSamples
-from bagkit.ros.selection import parse_remaps
+from bagkit.ros.player_topics import parse_remaps
 from bagkit.ros.timing import (
     LATE_THRESHOLD_NS,
     LatenessSummary,

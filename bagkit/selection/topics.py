@@ -17,7 +17,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 from bagkit.errors import BagkitError
-from bagkit.ros.errors import PlayerError, RecorderOptionsError
+from bagkit.selection.errors import SelectionError
 
 
 def absolute_topic_name(name: str) -> str:
@@ -37,7 +37,7 @@ def is_hidden(name: str) -> bool:
 
 
 def compile_topic_pattern(
-    pattern: str | None, option: str, *, error: type[BagkitError] = RecorderOptionsError
+    pattern: str | None, option: str, *, error: type[BagkitError] = SelectionError
 ) -> re.Pattern[str] | None:
     """Compile a ``--regex``/``--exclude`` option; a bad expression raises ``error``."""
     if pattern is None:
@@ -73,7 +73,7 @@ class TopicSelection:
         topic_types: Iterable[str] = (),
         exclude_topics: Iterable[str] = (),
         exclude_topic_types: Iterable[str] = (),
-        error: type[BagkitError] = RecorderOptionsError,
+        error: type[BagkitError] = SelectionError,
     ) -> TopicSelection:
         """Build a selection from command-line style options.
 
@@ -118,14 +118,3 @@ class TopicSelection:
     def missing(self, available: Iterable[str]) -> list[str]:
         """Named topics that are not in ``available``, sorted."""
         return sorted(self.topics - set(available))
-
-
-def parse_remaps(pairs: Iterable[str]) -> dict[str, str]:
-    """Parse ``OLD:=NEW`` topic remappings (as ``ros2 bag play --remap``)."""
-    remap = {}
-    for pair in pairs:
-        old, sep, new = pair.partition(":=")
-        if not sep or not old or not new:
-            raise PlayerError(f"remapping {pair!r} is not of the form OLD:=NEW")
-        remap[old] = new
-    return remap

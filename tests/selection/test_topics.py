@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import pytest
 
-from bagkit.ros.errors import PlayerError, RecorderOptionsError
-from bagkit.ros.selection import TopicSelection, is_hidden
+from bagkit.selection.errors import SelectionError
+from bagkit.selection.topics import TopicSelection, is_hidden
 
 TOPICS = ["/imu/data", "/fusion/odometry", "/fusion/_debug", "/_internal/state", "/rosout"]
 
@@ -54,7 +54,5 @@ def test_missing_named_topics() -> None:
     ],
 )
 def test_bad_selection(options: dict[str, object], message: str) -> None:
-    with pytest.raises(RecorderOptionsError, match=message):
+    with pytest.raises(SelectionError, match=message):
         TopicSelection.create(**options)  # type: ignore[arg-type]
-    with pytest.raises(PlayerError, match=message):
-        TopicSelection.create(**options, error=PlayerError)  # type: ignore[arg-type]

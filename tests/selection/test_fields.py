@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from bagkit.compare.options import CompareOptions, Tolerance, ToleranceRule
-from bagkit.decode.paths import FieldSelection, name_matches, path_matches, split_pattern
+from bagkit.selection.fields import FieldSelection, name_matches, path_matches, split_pattern
 from bagkit.stats import summarize
 from tests.stats.rosbags_oracle import imu_data, scan_data, write_bag
 
