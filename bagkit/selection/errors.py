@@ -7,3 +7,11 @@ from bagkit.errors import BagkitError
 
 class SelectionError(BagkitError):
     """A selection that cannot be understood: a bad regex, time, window or condition."""
+
+
+class UnknownTopicError(SelectionError):
+    """A topic the bag (or bags) does not have; the message names the closest ones it has."""
+
+
+class UnknownFieldError(SelectionError):
+    """A field (path or glob) the topic's type does not have; the message names its fields."""

@@ -17,9 +17,13 @@ wildcards, matched against the whole topic name); a glob without a colon applies
 
 from __future__ import annotations
 
+import difflib
 import functools
 import re
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
+from typing import Protocol, TypeVar
+
+from bagkit.selection.errors import UnknownFieldError
 
 
 def _translate(glob: str) -> str:
@@ -85,3 +89,83 @@ class FieldSelection:
             name_matches(topic, topic_glob) and path_matches(path, field)
             for topic_glob, field in self._split
         )
+
+
+class HasPath(Protocol):
+    """A leaf field: anything with a ``path`` (``bagkit.decode.LeafField``)."""
+
+    @property
+    def path(self) -> str: ...
+
+
+Leaf = TypeVar("Leaf", bound=HasPath)
+
+
+def select_fields(
+    leaves: Sequence[Leaf], patterns: Sequence[str] | None, *, topic: str, must_match: bool = True
+) -> list[Leaf]:
+    """The leaves matching any of ``patterns`` (all when None), in definition order.
+
+    A pattern is a path or glob (``linear_acceleration.*``, ``orientation_covariance[0]``,
+    ``ranges[]``); a path also selects everything under it (``header`` selects
+    ``header.stamp.sec``, ``header.stamp.nanosec``, ``header.frame_id``).
+
+    Raises:
+        UnknownFieldError: with ``must_match``, a pattern matches no leaf; the message names the
+            topic's fields, whole, and the closest to the pattern.
+    """
+    if not patterns:
+        return list(leaves)
+    unmatched = [p for p in patterns if not any(path_matches(leaf.path, p) for leaf in leaves)]
+    if unmatched and must_match:
+        raise UnknownFieldError(unknown_field_message(topic, unmatched, [x.path for x in leaves]))
+    return [leaf for leaf in leaves if any(path_matches(leaf.path, p) for p in patterns)]
+
+
+def unknown_field_message(topic: str, unmatched: Sequence[str], paths: Sequence[str]) -> str:
+    """``/imu/data has no field x (did you mean y? it has a.{x,y,z}, b[0..8])``."""
+    close = difflib.get_close_matches(unmatched[0], paths, n=3, cutoff=0.6)
+    guess = f"did you mean {', '.join(close)}? " if close else ""
+    listing = describe_paths(paths) if paths else "none"
+    return f"{topic} has no field {', '.join(unmatched)} ({guess}it has {listing})"
+
+
+def describe_paths(paths: Sequence[str]) -> str:
+    """Leaf paths, whole but short: ``orientation.{x,y,z,w}, orientation_covariance[0..8]``."""
+    runs: list[tuple[str, list[str]]] = []  # (parent, last components) in definition order
+    for path in _fold_indexes(paths):
+        parent, dot, last = path.rpartition(".")
+        if dot and runs and runs[-1][0] == parent and "[" not in last:
+            runs[-1][1].append(last)
+        else:
+            runs.append((parent if dot and "[" not in last else "", [last if dot else path]))
+    return ", ".join(
+        f"{parent}.{{{','.join(names)}}}"
+        if len(names) > 1
+        else f"{parent}.{names[0]}"
+        if parent
+        else names[0]
+        for parent, names in runs
+    )
+
+
+def _fold_indexes(paths: Sequence[str]) -> list[str]:
+    """``a[0]``, ``a[1]``, ``a[2]`` -> ``a[0..2]``: fixed arrays printed once."""
+    folded: list[str] = []
+    index = re.compile(r"^(.*)\[(\d+)\]$")
+    run: tuple[str, int, int] | None = None  # (stem, first, last)
+    for path in [*paths, ""]:
+        match = index.match(path)
+        if run and match and match[1] == run[0] and int(match[2]) == run[2] + 1:
+            run = (run[0], run[1], run[2] + 1)
+            continue
+        if run:
+            folded.append(
+                f"{run[0]}[{run[1]}..{run[2]}]" if run[2] > run[1] else f"{run[0]}[{run[1]}]"
+            )
+            run = None
+        if match:
+            run = (match[1], int(match[2]), int(match[2]))
+        elif path:
+            folded.append(path)
+    return folded

@@ -12,12 +12,13 @@ absolute: ``imu/data`` means ``/imu/data``. No rclpy import.
 
 from __future__ import annotations
 
+import difflib
 import re
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 from bagkit.errors import BagkitError
-from bagkit.selection.errors import SelectionError
+from bagkit.selection.errors import SelectionError, UnknownTopicError
 
 
 def absolute_topic_name(name: str) -> str:
@@ -118,3 +119,33 @@ class TopicSelection:
     def missing(self, available: Iterable[str]) -> list[str]:
         """Named topics that are not in ``available``, sorted."""
         return sorted(self.topics - set(available))
+
+
+def require_topics(
+    wanted: Iterable[str], known: Iterable[str], where: str = "the bag"
+) -> list[str]:
+    """``wanted`` as absolute names, each one of ``known``.
+
+    Raises:
+        UnknownTopicError: a name is not known; the message names the closest known topics
+            (or all of them, when few).
+    """
+    known = sorted(set(known))
+    names = [absolute_topic_name(name) for name in wanted]
+    missing = [name for name in names if name not in known]
+    if missing:
+        raise UnknownTopicError(
+            f"topic {', '.join(missing)} not in {where} ({closest_names(missing[0], known)})"
+        )
+    return names
+
+
+def closest_names(name: str, known: Sequence[str], limit: int = 8) -> str:
+    """``did you mean /a, /b?`` or ``it has /a, /b, ...``: the known names a reader wants to see."""
+    if not known:
+        return "it has none"
+    close = difflib.get_close_matches(name, known, n=3, cutoff=0.6)
+    guess = f"did you mean {', '.join(close)}? " if close else ""
+    if len(known) > limit:
+        return f"{guess}it has {len(known)} topics, {', '.join(known[:limit])}, ..."
+    return f"{guess}it has {', '.join(known)}"

@@ -1,0 +1,381 @@
+"""Field conditions: ``status[*].level >= 2 and not hardware_id == 'imu'``, parsed, never eval'd.
+
+Grammar (docs/cli.md)::
+
+    condition  := or
+    or         := and ("or" and)*
+    and        := not ("and" not)*
+    not        := "not" not | "(" or ")" | comparison
+    comparison := path OP value           OP: == != < <= > >=
+    path       := NAME ("." NAME | "[" INDEX "]" | "[*]" | "[]")*
+    value      := number | 'text' | "text" | true | false
+
+``[*]`` (or ``[]``) is any element: the comparison holds when it holds for one of them. A
+condition is evaluated on a decoded message (:meth:`Condition.matches`) or, for fixed-layout
+topics, on whole numpy columns at once (:meth:`Condition.mask`). Names starting with ``_`` are
+not fields and are refused, so a condition can only read a message's fields.
+"""
+
+from __future__ import annotations
+
+import operator
+import re
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+from bagkit.selection.errors import SelectionError, UnknownFieldError
+from bagkit.selection.fields import unknown_field_message
+
+if TYPE_CHECKING:
+    import numpy as np
+    import numpy.typing as npt
+
+ANY = -1
+"""A path step meaning "any element" (``[*]``, ``[]``)."""
+
+MAX_LENGTH = 4096
+MAX_DEPTH = 64
+
+_OPERATORS: dict[str, Callable[[Any, Any], Any]] = {
+    "==": operator.eq,
+    "!=": operator.ne,
+    "<=": operator.le,
+    ">=": operator.ge,
+    "<": operator.lt,
+    ">": operator.gt,
+}
+_TOKEN = re.compile(
+    r"""\s*(?:
+      (?P<number>[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?(?![\w.]))
+    | (?P<string>'(?:[^'\\]|\\.)*'|"(?:[^"\\]|\\.)*")
+    | (?P<op>==|!=|<=|>=|<|>)
+    | (?P<punct>[().\[\]*])
+    | (?P<name>[A-Za-z][A-Za-z0-9_]*)
+    )""",
+    re.VERBOSE,
+)
+_KEYWORDS = {"and", "or", "not", "true", "false"}
+
+Step = str | int
+Value = float | int | str | bool
+
+
+@dataclass(frozen=True, slots=True)
+class Comparison:
+    """``path OP value``."""
+
+    path: tuple[Step, ...]
+    op: str
+    value: Value
+
+    @property
+    def text(self) -> str:
+        """The path as written in the leaf-path language (``status[*].level``)."""
+        out = ""
+        for step in self.path:
+            if isinstance(step, str):
+                out += f".{step}" if out else step
+            else:
+                out += "[*]" if step == ANY else f"[{step}]"
+        return out
+
+
+@dataclass(frozen=True, slots=True)
+class Node:
+    """``and``/``or`` of its items, or ``not`` of its one item."""
+
+    kind: str
+    items: tuple[Node | Comparison, ...]
+
+
+Expression = Node | Comparison
+
+
+class Condition:
+    """A parsed condition; see the module's grammar."""
+
+    def __init__(self, text: str) -> None:
+        self.text = text
+        self.tree: Expression = _Parser(text).parse()
+
+    def __repr__(self) -> str:
+        return f"Condition({self.text!r})"
+
+    def comparisons(self) -> list[Comparison]:
+        """Every comparison, in the order written."""
+        found: list[Comparison] = []
+        stack: list[Expression] = [self.tree]
+        while stack:
+            node = stack.pop()
+            if isinstance(node, Comparison):
+                found.append(node)
+            else:
+                stack.extend(reversed(node.items))
+        return found
+
+    def check_fields(self, topic: str, leaf_paths: Sequence[str]) -> None:
+        """Raise UnknownFieldError when a path names no field of the topic's leaf paths.
+
+        ``leaf_paths`` are :mod:`bagkit.selection.fields` paths (``a.b``, ``c[0]``, ``d[].e``).
+        """
+        for comparison in self.comparisons():
+            pattern = _leaf_pattern(comparison.path)
+            if not any(pattern.fullmatch(path) for path in leaf_paths):
+                raise UnknownFieldError(unknown_field_message(topic, [comparison.text], leaf_paths))
+
+    def matches(self, message: Any) -> bool:
+        """Whether a decoded message (fields as attributes) satisfies the condition.
+
+        Raises:
+            SelectionError: a path names no field of the message, or a value cannot be compared.
+        """
+        return _evaluate(self.tree, message)
+
+    def bulk_columns(self, leaf_paths: Sequence[str]) -> dict[Comparison, list[str]] | None:
+        """The numpy columns each comparison reads, or None when one needs a sequence."""
+        known = list(leaf_paths)
+        columns = {}
+        for comparison in self.comparisons():
+            names = [p for p in known if _leaf_pattern(comparison.path).fullmatch(p)]
+            if not names or any("[]" in name for name in names):
+                return None
+            columns[comparison] = names
+        return columns
+
+    def mask(
+        self, columns: Mapping[str, npt.NDArray[Any]], reads: Mapping[Comparison, list[str]]
+    ) -> npt.NDArray[np.bool_]:
+        """Which rows of ``columns`` (leaf path -> array) satisfy it; ``reads`` from
+        :meth:`bulk_columns`.
+
+        Raises:
+            SelectionError: a value cannot be compared with its column.
+        """
+        return _mask(self.tree, columns, reads)
+
+
+def parse_condition(text: str) -> Condition:
+    """Parse ``text``. Raises SelectionError naming the position of the first problem."""
+    return Condition(text)
+
+
+def _leaf_pattern(path: tuple[Step, ...]) -> re.Pattern[str]:
+    """The leaf paths a condition path reads: ``a[*].b`` reads ``a[].b`` or ``a[0].b`` ..."""
+    out = ""
+    for step in path:
+        if isinstance(step, str):
+            out += ("\\." if out else "") + re.escape(step)
+        elif step == ANY:
+            out += r"\[\d*\]"
+        else:
+            out += rf"(?:\[{step}\]|\[\])"
+    return re.compile(out)
+
+
+class _Parser:
+    """Recursive descent over the tokens of one condition, depth bounded."""
+
+    def __init__(self, text: str) -> None:
+        if len(text) > MAX_LENGTH:
+            raise SelectionError(f"bad condition: longer than {MAX_LENGTH} characters")
+        self.text = text
+        self.tokens = self._tokenize(text)
+        self.at = 0
+        self.depth = 0
+
+    def parse(self) -> Expression:
+        if not self.tokens:
+            raise SelectionError("bad condition: it is empty")
+        tree = self._or()
+        if self.at < len(self.tokens):
+            self._fail("expected 'and', 'or' or the end")
+        return tree
+
+    def _tokenize(self, text: str) -> list[tuple[str, str, int]]:
+        tokens, at = [], 0
+        while text[at:].strip():
+            match = _TOKEN.match(text, at)
+            if match is None or match.end() == at:
+                position = len(text) - len(text[at:].lstrip()) + 1
+                character = text[position - 1]
+                raise SelectionError(
+                    f"bad condition {text!r}: unexpected {character!r} at column {position}"
+                )
+            kind = match.lastgroup or ""
+            tokens.append((kind, match[kind], match.start(kind)))
+            at = match.end()
+        return tokens
+
+    def _fail(self, expected: str) -> None:
+        if self.at < len(self.tokens):
+            _, value, position = self.tokens[self.at]
+            found = f"{value!r} at column {position + 1}"
+        else:
+            found = "the end"
+        raise SelectionError(f"bad condition {self.text!r}: {expected}, found {found}")
+
+    def _peek(self, *values: str) -> bool:
+        return self.at < len(self.tokens) and self.tokens[self.at][1] in values
+
+    def _take(self) -> tuple[str, str, int]:
+        token = self.tokens[self.at]
+        self.at += 1
+        return token
+
+    def _or(self) -> Expression:
+        return self._chain("or", self._and)
+
+    def _and(self) -> Expression:
+        return self._chain("and", self._not)
+
+    def _chain(self, word: str, item: Callable[[], Expression]) -> Expression:
+        items = [item()]
+        while self._peek(word):
+            self.at += 1
+            items.append(item())
+        return items[0] if len(items) == 1 else Node(word, tuple(items))
+
+    def _not(self) -> Expression:
+        self.depth += 1
+        if self.depth > MAX_DEPTH:
+            raise SelectionError(f"bad condition: nested deeper than {MAX_DEPTH}")
+        try:
+            if self._peek("not"):
+                self.at += 1
+                return Node("not", (self._not(),))
+            if self._peek("("):
+                self.at += 1
+                inner = self._or()
+                if not self._peek(")"):
+                    self._fail("expected ')'")
+                self.at += 1
+                return inner
+            return self._comparison()
+        finally:
+            self.depth -= 1
+
+    def _comparison(self) -> Comparison:
+        path = self._path()
+        if self.at >= len(self.tokens) or self.tokens[self.at][0] != "op":
+            self._fail("expected an operator (== != < <= > >=)")
+        op = self._take()[1]
+        return Comparison(path, op, self._value())
+
+    def _path(self) -> tuple[Step, ...]:
+        if (
+            self.at >= len(self.tokens)
+            or self.tokens[self.at][0] != "name"
+            or self._peek(*_KEYWORDS)
+        ):
+            self._fail("expected a field path")
+        steps: list[Step] = [self._take()[1]]
+        while self._peek(".", "["):
+            if self._take()[1] == ".":
+                if self.at >= len(self.tokens) or self.tokens[self.at][0] != "name":
+                    self._fail("expected a field name after '.'")
+                steps.append(self._take()[1])
+                continue
+            steps.append(self._index())
+        return tuple(steps)
+
+    def _index(self) -> int:
+        if self._peek("*"):
+            self.at += 1
+            index = ANY
+        elif self._peek("]"):
+            index = ANY
+        elif self.at < len(self.tokens) and re.fullmatch(r"\d+", self.tokens[self.at][1]):
+            index = int(self._take()[1])
+        else:
+            self._fail("expected an index, '*' or ']'")
+        if not self._peek("]"):
+            self._fail("expected ']'")
+        self.at += 1
+        return index
+
+    def _value(self) -> Value:
+        if self.at >= len(self.tokens):
+            self._fail("expected a value")
+        kind, text, _ = self.tokens[self.at]
+        if kind == "number":
+            self.at += 1
+            number = float(text)
+            return int(text) if re.fullmatch(r"[+-]?\d+", text) else number
+        if kind == "string":
+            self.at += 1
+            return re.sub(r"\\(.)", r"\1", text[1:-1])
+        if text in ("true", "false"):
+            self.at += 1
+            return text == "true"
+        self._fail("expected a value (a number, 'text', true or false)")
+        raise AssertionError  # unreachable: _fail raises
+
+
+def _evaluate(node: Expression, message: Any) -> bool:
+    if isinstance(node, Comparison):
+        return any(_compare(value, node) for value in _values(message, node))
+    if node.kind == "not":
+        return not _evaluate(node.items[0], message)
+    results = (_evaluate(item, message) for item in node.items)
+    return any(results) if node.kind == "or" else all(results)
+
+
+def _values(message: Any, comparison: Comparison) -> list[Any]:
+    """The values ``comparison.path`` reaches in ``message`` (several through ``[*]``)."""
+    current = [message]
+    for step in comparison.path:
+        reached = []
+        for value in current:
+            if isinstance(step, str):
+                if step not in getattr(value, "__dataclass_fields__", ()):
+                    raise UnknownFieldError(f"no field {comparison.text!r} in the message")
+                reached.append(getattr(value, step))
+            elif not hasattr(value, "__len__") or isinstance(value, str | bytes):
+                raise SelectionError(f"{comparison.text}: not an array")
+            elif step == ANY:
+                reached.extend(value)
+            elif step < len(value):
+                reached.append(value[step])
+        current = reached
+    return current
+
+
+def _compare(value: Any, comparison: Comparison) -> bool:
+    expected = comparison.value
+    if isinstance(value, bytes) and len(value) == 1:  # rclpy's byte fields
+        value = value[0]
+    if isinstance(expected, str) != isinstance(value, str):
+        raise SelectionError(
+            f"{comparison.text} {comparison.op} {expected!r}: cannot compare "
+            f"{type(value).__name__} with {type(expected).__name__}"
+        )
+    return bool(_OPERATORS[comparison.op](value, expected))
+
+
+def _mask(
+    node: Expression,
+    columns: Mapping[str, npt.NDArray[Any]],
+    reads: Mapping[Comparison, list[str]],
+) -> npt.NDArray[np.bool_]:
+    import numpy as np
+
+    if isinstance(node, Comparison):
+        hits = [_column_compare(columns[name], node) for name in reads[node]]
+        return np.logical_or.reduce(hits) if len(hits) > 1 else hits[0]
+    masks = [_mask(item, columns, reads) for item in node.items]
+    if node.kind == "not":
+        return ~masks[0]
+    return (np.logical_or if node.kind == "or" else np.logical_and).reduce(masks)
+
+
+def _column_compare(column: npt.NDArray[Any], comparison: Comparison) -> npt.NDArray[np.bool_]:
+    import numpy as np
+
+    text_column = column.dtype.kind in "OUS"
+    if isinstance(comparison.value, str) != text_column:
+        raise SelectionError(
+            f"{comparison.text} {comparison.op} {comparison.value!r}: cannot compare "
+            f"{'text' if text_column else 'a number'} with {type(comparison.value).__name__}"
+        )
+    return np.asarray(_OPERATORS[comparison.op](column, comparison.value), dtype=bool)
