@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import sys
-from datetime import UTC
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -15,7 +14,6 @@ from bagkit.cli.common import (
     OutputFormat,
     console,
     err_console,
-    fail,
     handle_errors,
     print_json,
 )
@@ -84,20 +82,6 @@ def build(
     )
 
 
-def _timestamp(text: str | None) -> pd.Timestamp | None:
-    import pandas as pd
-
-    if text is None:
-        return None
-    try:
-        stamp = pd.Timestamp(text)
-    except ValueError:
-        stamp = pd.NaT
-    if pd.isna(stamp):  # also "nan" and "": pandas reads them as no time at all
-        raise fail(f"not a date and time: {text!r} (e.g. 2026-11-23T14:00Z)")
-    return stamp.tz_localize(UTC) if stamp.tzinfo is None else stamp
-
-
 @app.command("query", no_args_is_help=True)
 @handle_errors
 def query(
@@ -106,7 +90,9 @@ def query(
         None, "--topic", "-t", help="Bags with messages on this topic (a glob: '/gps/*')."
     ),
     start: str | None = typer.Option(
-        None, "--start", help="Bags with messages at or after this time (ISO 8601, UTC if no zone)."
+        None,
+        "--start",
+        help="Bags with messages at or after this time (ISO 8601, UTC if no zone; epoch seconds).",
     ),
     end: str | None = typer.Option(
         None, "--end", help="Bags with messages at or before this time."
@@ -122,7 +108,7 @@ def query(
 
     if not catalog.exists():
         raise BagkitError(f"{catalog}: no such catalogue")
-    rows = select(read_catalog(catalog), topic=topic, start=_timestamp(start), end=_timestamp(end))
+    rows = select(read_catalog(catalog), topic=topic, start=start, end=end)
     columns = ["path", "topic", "type", "count", "start", "end", "duration"]
     if output is OutputFormat.JSON:
         records = rows[columns].astype({"start": "string", "end": "string"})

@@ -14,6 +14,7 @@ import json
 import os
 import sys
 import traceback
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, ClassVar, NoReturn, ParamSpec, TypeVar, cast
@@ -246,6 +247,7 @@ def handle_errors(func: Callable[P, R]) -> Callable[P, R]:
 
     @functools.wraps(func)
     def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
+        warnings.showwarning = _warning_line
         try:
             return func(*args, **kwargs)
         except BagkitError as exc:
@@ -259,6 +261,11 @@ def handle_errors(func: Callable[P, R]) -> Callable[P, R]:
             raise fail(f"{exc.strerror or exc}: {exc.filename or ''}".rstrip(": "), 2) from None
 
     return wrapper
+
+
+def _warning_line(message: Warning | str, *_: object, **__: object) -> None:
+    """The library's warnings (an empty time window, data loss) as ``warning:`` lines."""
+    warn(str(message))
 
 
 def _broken_pipe() -> typer.Exit:

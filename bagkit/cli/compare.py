@@ -38,14 +38,12 @@ from bagkit.cli.compare_options import (
     Topics,
 )
 from bagkit.compare import (
-    CompareError,
     CompareOptions,
     CompareReport,
     Tolerance,
     compare_bags,
     replace_options,
 )
-from bagkit.times import seconds_to_ns
 
 HELP = (
     "Compare CANDIDATE with GOLDEN, topic by topic, field by field.\n\n"
@@ -133,11 +131,11 @@ def compare(
         topics=tuple(split_list(topics)) or None,
         tolerance=_tolerance(base.tolerance, atol, rtol),
         ignore_fields=base.ignore_fields + tuple(split_list(ignore_fields)),
-        event_window_ns=_ns(event_window),
-        match_window_ns=_ns(match_window),
+        event_window_ns=_ns(event_window, "--event-window"),
+        match_window_ns=_ns(match_window, "--match-window"),
         include_times=include_times or None,
         pass_rate=pass_rate,
-        skip_ns=_ns(skip),
+        skip_ns=_ns(skip, "--skip"),
         max_divergences=show,
     )
     with err_console.status("comparing ...") as status:
@@ -177,5 +175,7 @@ def _tolerance(base: Tolerance, atol: float | None, rtol: float | None) -> Toler
     return Tolerance(base.atol if atol is None else atol, base.rtol if rtol is None else rtol)
 
 
-def _ns(seconds: float | None) -> int | None:
-    return None if seconds is None else seconds_to_ns(seconds, seconds, CompareError)
+def _ns(duration: str | None, option: str) -> int | None:
+    from bagkit.selection.times import parse_duration
+
+    return None if duration is None else parse_duration(duration, option)

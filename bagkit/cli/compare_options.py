@@ -41,16 +41,23 @@ Spec = Annotated[
 ]
 Live = Annotated[bool, typer.Option("--live", help="With --spec: its live tolerances.")]
 EventWindow = Annotated[
-    float | None,
-    typer.Option(help="Seconds within which alert events of equal (name, level) match [0.5]."),
+    str | None,
+    typer.Option(
+        help="Duration (0.5, 500ms) within which alert events of equal (name, level) match [0.5].",
+        metavar="DURATION",
+    ),
 ]
 MatchWindow = Annotated[
-    float | None, typer.Option(help="Seconds within which header stamps match [0: exactly].")
+    str | None,
+    typer.Option(
+        help="Duration within which header stamps match [0: exactly].", metavar="DURATION"
+    ),
 ]
 Skip = Annotated[
-    float | None,
+    str | None,
     typer.Option(
-        min=0.0, help="Seconds after the golden's first message before which nothing is compared."
+        help="Duration after the golden's first message before which nothing is compared.",
+        metavar="DURATION",
     ),
 ]
 PassRate = Annotated[

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from bagkit.cli.common import EXIT_INTERRUPTED, handle_errors, split_list, warn
+from bagkit.cli.selection_options import End, Start
 
 if TYPE_CHECKING:
     from bagkit.data.echo import Plain
@@ -57,17 +58,6 @@ Topic = Annotated[
 Count = Annotated[
     int | None,
     typer.Option("--count", "-n", help="Stop after N messages.", metavar="N", min=0),
-]
-Start = Annotated[
-    str | None,
-    typer.Option(
-        "--start",
-        help="From SEC seconds after the bag start (or an absolute time: epoch seconds, ISO 8601).",
-        metavar="SEC",
-    ),
-]
-End = Annotated[
-    str | None, typer.Option("--end", help="Until SEC (exclusive), read as --start.", metavar="SEC")
 ]
 Fields = Annotated[
     list[str] | None,

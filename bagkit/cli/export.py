@@ -10,6 +10,7 @@ import typer
 from bagkit.cli.common import console, handle_errors, split_list, warn
 from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers
 from bagkit.cli.progress import DelayedProgress
+from bagkit.cli.selection_options import End, Start
 from bagkit.data.formats import ExportFormat
 
 if TYPE_CHECKING:
@@ -58,13 +59,8 @@ def export(  # noqa: PLR0917 (typer maps parameters to options)
     fields: list[str] | None = typer.Option(
         None, "--fields", "-f", help="Only fields matching these paths or globs (as stats)."
     ),
-    start: str | None = typer.Option(
-        None,
-        "--start",
-        help="From SEC seconds after the bag start (or absolute: epoch seconds, ISO 8601).",
-        metavar="SEC",
-    ),
-    end: str | None = typer.Option(None, "--end", help="Until SEC (exclusive).", metavar="SEC"),
+    start: Start = None,
+    end: End = None,
     dataset: bool = typer.Option(
         False, "--dataset", help="Parquet: a folder of part files per topic (OUT/imu/data/)."
     ),

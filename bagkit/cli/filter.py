@@ -13,6 +13,7 @@ from bagkit.cli.common import (
     handle_errors,
     split_list,
 )
+from bagkit.cli.selection_options import End, Start
 from bagkit.cli.surgery_options import (
     CheckCrc,
     Compression,
@@ -25,7 +26,7 @@ from bagkit.cli.surgery_options import (
     print_report,
 )
 from bagkit.surgery.rewrite import filter_bag
-from bagkit.surgery.select import Selection, parse_time
+from bagkit.surgery.select import Selection
 
 HELP = """Write the messages of BAG that pass the selection to a new bag OUT, in log-time
 order, with their definitions and QoS. Topics are selected like ros2 bag: --topics and
@@ -63,8 +64,8 @@ def filter_command(
         None, "--exclude-topics", help=EXCLUDE_TOPICS_HELP
     ),
     exclude_regex: str = typer.Option("", "--exclude-regex", help=EXCLUDE_REGEX_HELP),
-    start: str | None = typer.Option(None, "--start", help="Keep messages logged at or after."),
-    end: str | None = typer.Option(None, "--end", help="Keep messages logged before."),
+    start: Start = None,
+    end: End = None,
     compression: Compression = "zstd",
     max_bag_size: MaxBagSize = 0,
     max_bag_duration: MaxBagDuration = 0.0,
@@ -73,13 +74,8 @@ def filter_command(
     output_format: Format = ReportFormat.TABLE,
 ) -> None:
     """Write the selected messages of a bag to a new bag."""
-    selection = Selection(
-        topics=frozenset(split_list(topics)),
-        regex=regex,
-        exclude_topics=frozenset(split_list(exclude_topics)),
-        exclude_regex=exclude_regex,
-        start_ns=parse_time(start) if start is not None else None,
-        end_ns=parse_time(end) if end is not None else None,
+    selection = Selection.create(
+        split_list(topics), regex, split_list(exclude_topics), exclude_regex, start, end
     )
     options = output_options(
         compression, max_bag_size, max_bag_duration, force=force, check_crc=check_crc

@@ -8,6 +8,7 @@ import typer
 
 from bagkit.cli import common
 from bagkit.cli.common import console, handle_errors, split_list
+from bagkit.cli.selection_options import End, Start
 
 HELP = """Plot fields of BAG over time into OUT: .png (matplotlib) or .html (an interactive page
 with zoom, hover and series toggled in the legend, that opens with no network access).
@@ -26,7 +27,7 @@ Examples:
 
 
 @handle_errors
-def plot(
+def plot(  # noqa: PLR0917 (typer maps parameters to options)
     bag: Path = typer.Argument(
         ..., help="Bag directory or single .mcap/.db3 file.", metavar="BAG", show_default=False
     ),
@@ -40,6 +41,8 @@ def plot(
     absolute: bool = typer.Option(
         False, "--absolute", help="X axis in UTC log time (default: seconds from each bag's start)."
     ),
+    start: Start = None,
+    end: End = None,
 ) -> None:
     from bagkit.data.errors import DataError
     from bagkit.data.series import load_series
@@ -49,7 +52,10 @@ def plot(
         raise DataError(f"{out}: the output must end in .png or .html")
     bags = [bag, *(Path(b) for b in split_list(more_bags))]
     with common.err_console.status("reading ..."):
-        found = load_series(bags, series, absolute=absolute)
+        found = load_series(bags, series, absolute=absolute, start=start, end=end)
+    if not found and (start is not None or end is not None):
+        console.print(f"0 series: nothing in the time window, {out} not written", highlight=False)
+        return  # the window's warning said why: an empty result, as every command gives
     if not found:
         raise DataError("no message of the requested topics in the bag")
     if suffix == ".png":

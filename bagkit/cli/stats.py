@@ -11,7 +11,6 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from bagkit.bag import BagError, BagReader
 from bagkit.cli.common import (
     CheckCrcOnRead,
     OutputFormat,
@@ -26,16 +25,8 @@ from bagkit.cli.common import (
 )
 from bagkit.cli.fleet_options import Scheduler, Workers
 from bagkit.cli.progress import DelayedProgress
-from bagkit.cli.stats_options import (
-    Bulk,
-    End,
-    Fields,
-    Format,
-    Inputs,
-    Start,
-    Topics,
-)
-from bagkit.times import seconds_to_ns
+from bagkit.cli.selection_options import End, Start
+from bagkit.cli.stats_options import Bulk, Fields, Format, Inputs, Topics
 
 if TYPE_CHECKING:
     from bagkit.stats import Summary
@@ -47,24 +38,6 @@ app = typer.Typer(
     help="Statistics of the numeric fields of bags, decoded without a ROS install.",
     no_args_is_help=True,
 )
-
-
-def _offset_ns(bags: list[Path], seconds: float | None) -> int | None:
-    """``seconds`` after the first message of ``bags``, as an absolute log time."""
-    if seconds is None:
-        return None
-    from bagkit.stats import StatsError  # imports numpy: not for --help
-
-    offset_ns = seconds_to_ns(seconds, seconds, StatsError)
-    first = []
-    for bag in bags:
-        try:
-            with BagReader(bag, allow_empty=True) as reader:
-                if reader.message_count:
-                    first.append(reader.start_ns)
-        except BagError:
-            continue  # reported by the summary (an error for one bag, a problem among many)
-    return min(first, default=0) + offset_ns
 
 
 @app.command("summary", no_args_is_help=True)
@@ -99,8 +72,8 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
     options = {
         "topics": split_list(topics) or None,
         "fields": split_list(fields) or None,
-        "start_ns": _offset_ns(bags, start),
-        "end_ns": _offset_ns(bags, end),
+        "start": start,
+        "end": end,
         "bulk": bulk,
         "check_crc": check_crc,
     }
@@ -165,9 +138,14 @@ def _number(value: float | int | None) -> str:
 
 
 def _print_tables(result: Summary) -> None:
+    span = (
+        f"{_utc(result.start_ns)} .. {_utc(result.end_ns)}"
+        if result.start_ns is not None and result.end_ns is not None
+        else "no message in the time window"
+    )
     console.print(
         f"[bold]{', '.join(result.bags)}[/]: {result.duration_s:.3f} s, "
-        f"{_utc(result.start_ns)} .. {_utc(result.end_ns)}, {len(result.topics)} topics",
+        f"{span}, {len(result.topics)} topics",
         highlight=False,
         soft_wrap=True,
     )

@@ -30,20 +30,6 @@ Fields = Annotated[
         "(* and ? are wildcards, brackets are literal: 'orientation_covariance[0]').",
     ),
 ]
-Start = Annotated[
-    float | None,
-    typer.Option(
-        "--start",
-        help="Skip messages logged before SEC seconds after the first one.",
-        metavar="SEC",
-    ),
-]
-End = Annotated[
-    float | None,
-    typer.Option(
-        "--end", help="Stop at SEC seconds after the first message (exclusive).", metavar="SEC"
-    ),
-]
 Format = Annotated[
     OutputFormat, typer.Option("--format", help="table for people, json or csv for scripts.")
 ]

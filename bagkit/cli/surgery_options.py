@@ -84,5 +84,7 @@ def print_report(report: RewriteReport, output_format: ReportFormat) -> None:
             highlight=False,
             soft_wrap=True,
         )
+    for warning in report.warnings:
+        warn(warning)
     for problem in report.problems:
         warn(f"lost: {problem}")

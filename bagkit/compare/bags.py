@@ -15,6 +15,7 @@ from bagkit.compare.options import CompareOptions
 from bagkit.compare.result import CompareReport, Divergence, TopicResult
 from bagkit.decode import DecodeError, MessageTypes, flatten_message
 from bagkit.errors import BagkitError
+from bagkit.selection.topics import require_topics
 
 EVENT_TYPE = "diagnostic_msgs/msg/DiagnosticArray"
 
@@ -152,10 +153,9 @@ def _topics(
 ) -> list[str]:
     """The topics to compare (see :func:`compare_bags`)."""
     if options.topics is not None:
-        unknown = [t for t in options.topics if t not in g_bag.topics and t not in c_bag.topics]
-        if unknown:
-            raise CompareError(f"topic(s) in neither bag: {', '.join(unknown)}")
-        return list(options.topics)
+        return require_topics(
+            options.topics, g_bag.topics.keys() | c_bag.topics.keys(), "either bag"
+        )
     topics = sorted(g_bag.topics.keys() & c_bag.topics.keys())
     only_golden = sorted(g_bag.topics.keys() - c_bag.topics.keys())
     only_candidate = sorted(c_bag.topics.keys() - g_bag.topics.keys())

@@ -21,10 +21,10 @@ import numpy as np
 import pyarrow as pa
 
 from bagkit.data.engine import BulkGroup, decode_bulk, payload_spans
-from bagkit.data.select import Window
 from bagkit.decode import DecodeError, LeafField, MessageTypes
 from bagkit.decode.flatten import STRING_TYPES
 from bagkit.decode.layout import PRIMITIVE_FORMATS, CdrLayout
+from bagkit.selection.windows import Window
 
 _ARROW_TYPES: dict[str, pa.DataType] = {
     "bool": pa.bool_(),

@@ -8,6 +8,7 @@ line of ``mcap cat --json``; ``data`` is the message as nested dicts and lists, 
 from __future__ import annotations
 
 import json
+import warnings
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -20,8 +21,12 @@ from rosbags.typesys.store import Typestore
 
 from bagkit.bag import BagReader
 from bagkit.data.errors import UndecodableTopicError
-from bagkit.data.select import TimeLike, check_topics, select_fields, window
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
+from bagkit.selection.errors import EmptyWindowWarning
+from bagkit.selection.fields import select_fields
+from bagkit.selection.times import TimeLike
+from bagkit.selection.topics import require_topics
+from bagkit.selection.windows import TimeRange, outside_warning
 
 Plain = dict[str, Any]
 
@@ -50,8 +55,9 @@ def echo(
     Raises:
         BagError, UnknownTopicError, UnknownFieldError, UndecodableTopicError, DecodeError.
     """
+    span = TimeRange.parse(start, end)
     with BagReader(bag, allow_empty=True) as reader:
-        check_topics([topic], reader.topics)
+        (topic,) = require_topics([topic], reader.topics)
         info = reader.topics[topic]
         types = MessageTypes.from_definitions(reader.definitions)
         try:
@@ -61,9 +67,13 @@ def echo(
         except DecodeError as exc:
             raise UndecodableTopicError(f"{topic} cannot be decoded: {exc}") from None
         convert = _converter(types, info.type, canonical, fields, topic, limit)
-        span = window(start, end, reader.start_ns)
+        window = span.resolve(reader.start_ns, reader.end_ns)
+        if reader.message_count:
+            outside = outside_warning(str(bag), window, reader.start_ns, reader.end_ns)
+            if outside is not None:
+                warnings.warn(outside, EmptyWindowWarning, stacklevel=2)
         done = 0
-        for message in reader.messages([topic], span.start_ns, span.end_ns):
+        for message in reader.messages([topic], window.start_ns, window.end_ns):
             if count is not None and done >= count:
                 return
             try:

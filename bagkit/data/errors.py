@@ -3,18 +3,13 @@
 from __future__ import annotations
 
 from bagkit.errors import BagkitError
+from bagkit.selection.errors import UnknownFieldError, UnknownTopicError
+
+__all__ = ["DataError", "UndecodableTopicError", "UnknownFieldError", "UnknownTopicError"]
 
 
 class DataError(BagkitError):
     """A selection of messages or fields that cannot be read as asked."""
-
-
-class UnknownTopicError(DataError):
-    """A topic the bag does not have; the message names those it has."""
-
-
-class UnknownFieldError(DataError):
-    """A field (path or glob) the topic's type does not have; the message names its fields."""
 
 
 class UndecodableTopicError(DataError):

@@ -10,6 +10,7 @@ ending in ``.parquet``/``.csv``, or with ``dataset=True`` a folder of part files
 from __future__ import annotations
 
 import json
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,7 +24,9 @@ from bagkit.bag import BagReader
 from bagkit.data.errors import DataError
 from bagkit.data.formats import ExportFormat
 from bagkit.data.scan import Scan, plan_scan
-from bagkit.data.select import TimeLike, window
+from bagkit.selection.errors import EmptyWindowWarning
+from bagkit.selection.times import TimeLike
+from bagkit.selection.windows import TimeRange
 
 # A row group is written once this many rows or bytes of a topic are buffered.
 ROW_GROUP_ROWS = 128 * 1024
@@ -77,9 +80,12 @@ def export(
         exported or ``out`` names a single file for several topics.
     """
     out, file_format = Path(out), ExportFormat(file_format)
+    span = TimeRange.parse(start, end)
     with BagReader(bag, allow_empty=True) as reader:
-        scan = plan_scan(reader, topics, fields, window(start, end, reader.start_ns))
+        scan = plan_scan(reader, topics, fields, span, label=str(bag))
         report = ExportReport(skipped=dict(scan.skipped))
+        if scan.outside is not None:
+            warnings.warn(scan.outside, EmptyWindowWarning, stacklevel=2)
         if not scan.topics:
             reasons = "; ".join(f"{t}: {why}" for t, why in scan.skipped.items())
             raise DataError(f"no topic of {reader.path} can be exported ({reasons or 'none'})")

@@ -12,8 +12,11 @@ import pyarrow as pa
 from bagkit.bag import BagReader
 from bagkit.data.errors import UndecodableTopicError
 from bagkit.data.scan import plan_scan
-from bagkit.data.select import TimeLike, window
 from bagkit.data.table import ColumnTable
+from bagkit.selection.errors import EmptyWindowWarning
+from bagkit.selection.times import TimeLike
+from bagkit.selection.topics import absolute_topic_name
+from bagkit.selection.windows import TimeRange
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -64,8 +67,12 @@ def _read(
     *,
     bulk: bool,
 ) -> tuple[ColumnTable, pa.Schema]:
+    span = TimeRange.parse(start, end)
+    topic = absolute_topic_name(topic)
     with BagReader(bag, allow_empty=True) as reader:
-        scan = plan_scan(reader, [topic], fields, window(start, end, reader.start_ns), bulk=bulk)
+        scan = plan_scan(reader, [topic], fields, span, label=str(bag), bulk=bulk)
+        if scan.outside is not None:
+            warnings.warn(scan.outside, EmptyWindowWarning, stacklevel=3)
         if topic in scan.skipped:
             raise UndecodableTopicError(f"{topic} cannot be decoded: {scan.skipped[topic]}")
         table = scan.table(topic)

@@ -12,9 +12,11 @@ import pyarrow as pa
 from bagkit.bag import BagReader
 from bagkit.data.columns import Rows, TopicColumns
 from bagkit.data.errors import UnknownFieldError
-from bagkit.data.select import Window, check_topics, select_fields
 from bagkit.data.table import ColumnTable
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
+from bagkit.selection.fields import select_fields
+from bagkit.selection.topics import require_topics
+from bagkit.selection.windows import TimeRange, Window, outside_warning
 from bagkit.stats.prefetch import prefetch
 
 # Messages of chunkless storage (.db3) are decoded this many at a time.
@@ -32,6 +34,8 @@ class Scan:
     window: Window
     topics: dict[str, TopicColumns]
     skipped: dict[str, str] = field(default_factory=dict)
+    outside: str | None = None
+    """The one warning when the time window holds none of the bag's messages."""
 
     def batches(self) -> Iterator[tuple[str, pa.RecordBatch]]:
         """(topic, batch) per topic and chunk, in file order (``.db3``: in log-time order)."""
@@ -101,24 +105,35 @@ def plan_scan(
     reader: BagReader,
     topics: Sequence[str] | None,
     fields: Sequence[str] | None,
-    window: Window,
+    span: TimeRange,
     *,
+    label: str,
     bulk: bool = True,
 ) -> Scan:
-    """Which topics of ``reader`` can be decoded, with which fields.
+    """Which topics of ``reader`` can be decoded, with which fields, in which time window.
 
     Args:
-        topics: these topics (all when None); each must be in the bag.
-        fields: path globs (see :func:`~bagkit.data.select.select_fields`); with several topics
-            a topic none of whose fields match is left out, with one topic that is an error.
+        topics: these topics (all when None); each must be in the bag (``imu/data`` is
+            ``/imu/data``).
+        fields: path globs (see :func:`~bagkit.selection.fields.select_fields`); with several
+            topics a topic none of whose fields match is left out, with one topic that is an
+            error.
+        span: ``--start``/``--end``, resolved against this bag.
+        label: the bag as the user named it, for the window's warning.
 
     Raises:
         UnknownTopicError, UnknownFieldError.
     """
     if topics is not None:
-        check_topics(topics, reader.topics)
+        topics = require_topics(topics, reader.topics)
     types = MessageTypes.from_definitions(reader.definitions)
-    scan = Scan(reader, window, {})
+    window = span.resolve(reader.start_ns, reader.end_ns)
+    outside = (
+        outside_warning(label, window, reader.start_ns, reader.end_ns)
+        if reader.message_count
+        else None
+    )
+    scan = Scan(reader, window, {}, outside=outside)
     for name in topics if topics is not None else sorted(reader.topics):
         info = reader.topics[name]
         if info.serialization_format != "cdr":
@@ -138,5 +153,5 @@ def plan_scan(
             leaves = select_fields(leaves, fields, topic=name)
         scan.topics[name] = TopicColumns(types, name, info.type, leaves, bulk=bulk)
     if fields and not scan.topics and not scan.skipped:
-        raise UnknownFieldError(f"no topic of {reader.path} has a field {', '.join(fields)}")
+        raise UnknownFieldError(f"no topic of {label} has a field {', '.join(fields)}")
     return scan

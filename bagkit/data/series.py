@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -12,10 +13,13 @@ import numpy as np
 from bagkit.bag import BagReader
 from bagkit.data.errors import DataError, UndecodableTopicError
 from bagkit.data.scan import plan_scan
-from bagkit.data.select import Window
 from bagkit.data.units import field_unit
 from bagkit.decode import MessageTypes
 from bagkit.decode.flatten import STRING_TYPES
+from bagkit.selection.errors import EmptyWindowWarning
+from bagkit.selection.times import TimeLike
+from bagkit.selection.topics import absolute_topic_name
+from bagkit.selection.windows import TimeRange
 
 
 @dataclass(frozen=True, slots=True)
@@ -61,29 +65,47 @@ def bag_labels(bags: Sequence[Path]) -> list[str]:
 
 
 def load_series(
-    bags: Sequence[str | Path], specs: Sequence[str], *, absolute: bool = False
+    bags: Sequence[str | Path],
+    specs: Sequence[str],
+    *,
+    absolute: bool = False,
+    start: TimeLike | None = None,
+    end: TimeLike | None = None,
 ) -> list[Series]:
-    """Every numeric field that ``specs`` name, from every bag, in spec order, bag order.
+    """Every numeric field that ``specs`` name, from every bag, in spec order, bag order;
+    ``start``/``end`` resolved against each bag (:mod:`bagkit.selection.times`).
 
     Raises:
         BagError, UnknownTopicError, UnknownFieldError, UndecodableTopicError; DataError for
         a field that is not a number (a string, a variable-length sequence).
     """
     wanted = [parse_spec(spec) for spec in specs]
+    span = TimeRange.parse(start, end)
     paths = [Path(bag) for bag in bags]
     per_spec: list[list[Series]] = [[] for _ in wanted]
     for label, path in zip(bag_labels(paths), paths, strict=True):
         with BagReader(path, allow_empty=True) as reader:
             types = MessageTypes.from_definitions(reader.definitions)
             for found, (topic, field) in zip(per_spec, wanted, strict=True):
-                found.extend(_topic_series(reader, types, label, topic, field, absolute=absolute))
+                found.extend(
+                    _topic_series(reader, types, (label, str(path)), (topic, field), span, absolute)
+                )
     return [s for found in per_spec for s in found]
 
 
 def _topic_series(
-    reader: BagReader, types: MessageTypes, label: str, topic: str, field: str, *, absolute: bool
+    reader: BagReader,
+    types: MessageTypes,
+    labels: tuple[str, str],
+    spec: tuple[str, str],
+    span: TimeRange,
+    absolute: bool,
 ) -> list[Series]:
-    scan = plan_scan(reader, [topic], [field], Window())
+    topic, field = absolute_topic_name(spec[0]), spec[1]
+    label, given = labels  # the legend's short name; the path as given, for warnings
+    scan = plan_scan(reader, [topic], [field], span, label=given)
+    if scan.outside is not None:
+        warnings.warn(scan.outside, EmptyWindowWarning, stacklevel=3)
     if topic in scan.skipped:
         raise UndecodableTopicError(f"{topic} cannot be decoded: {scan.skipped[topic]}")
     columns = scan.topics[topic]

@@ -13,7 +13,6 @@ be read, has one row whose topic is empty and whose problems say why.
 
 from __future__ import annotations
 
-import fnmatch
 import math
 import os
 from collections.abc import Iterable
@@ -28,6 +27,10 @@ from bagkit.fleet.describe import COLUMNS, bag_stamp, describe_bags
 from bagkit.fleet.errors import CatalogError
 from bagkit.fleet.execute import ItemDone, run_each
 from bagkit.fleet.inputs import expand_bags
+from bagkit.selection.errors import SelectionError
+from bagkit.selection.fields import name_matches
+from bagkit.selection.times import TimeLike, parse_time
+from bagkit.selection.topics import absolute_topic_name
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -156,15 +159,31 @@ def query(
     frame: pd.DataFrame,
     *,
     topic: str | None = None,
-    start: pd.Timestamp | None = None,
-    end: pd.Timestamp | None = None,
+    start: TimeLike | None = None,
+    end: TimeLike | None = None,
 ) -> pd.DataFrame:
-    """Rows of bags holding messages on ``topic`` (a glob) within [``start``, ``end``]."""
+    """Rows of bags holding messages on ``topic`` within [``start``, ``end``].
+
+    ``topic`` is a name (``imu/data`` is ``/imu/data``) or a glob (``/gps/*``, as in
+    :mod:`bagkit.selection.fields`); the times are absolute times of
+    :mod:`bagkit.selection.times` (a catalogue spans many bags: no bag start to count from).
+
+    Raises:
+        SelectionError: a time that is not absolute, or not a time.
+    """
     keep = frame["count"].fillna(0) > 0
     if topic is not None:
-        keep &= frame["topic"].fillna("").map(lambda name: fnmatch.fnmatchcase(name, topic))
-    if start is not None:
-        keep &= frame["end"] >= start
-    if end is not None:
-        keep &= frame["start"] <= end
+        pattern = absolute_topic_name(topic)
+        keep &= frame["topic"].fillna("").map(lambda name: name_matches(name, pattern))
+    for side, value in (("start", start), ("end", end)):
+        if value is None:
+            continue
+        point = parse_time(value, f"--{side}")
+        if not point.absolute:
+            raise SelectionError(
+                f"bad --{side} {value!r}: a catalogue query takes absolute times "
+                "(ISO 8601 or epoch seconds)"
+            )
+        stamp = pd.Timestamp(point.ns, unit="ns", tz="UTC")
+        keep &= frame["end"] >= stamp if side == "start" else frame["start"] <= stamp
     return frame[keep].reset_index(drop=True)

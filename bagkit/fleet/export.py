@@ -19,10 +19,10 @@ from typing import TYPE_CHECKING, Any
 
 from bagkit.data.export import ExportReport, export
 from bagkit.data.formats import ExportFormat
-from bagkit.data.select import TimeLike
 from bagkit.errors import BagkitError
 from bagkit.fleet.errors import FleetError
 from bagkit.fleet.execute import ItemDone, run_each
+from bagkit.selection.times import TimeLike
 
 if TYPE_CHECKING:
     from distributed import Client

@@ -86,12 +86,16 @@ def expand_bags(items: Iterable[str | Path]) -> list[Path]:
     """Every bag named by ``items``, each once, in the order given.
 
     Raises:
-        NoBagsError: nothing names a bag.
+        NoBagsError: nothing names a bag, or a path given (not a glob) does not exist: the
+            same error every command gives for a missing path.
     """
     items = list(items)
     seen: dict[str, Path] = {}
     for item in items:
-        for bag in _expand(Path(item)):
+        path = Path(item)
+        if not glob.has_magic(str(item)) and not os.path.lexists(path):
+            raise NoBagsError(f"{item}: no such file or directory")
+        for bag in _expand(path):
             seen.setdefault(os.path.normpath(bag), bag)
     if not seen:
         raise NoBagsError(f"no bag in {', '.join(str(i) for i in items) or 'the inputs'}")

@@ -21,6 +21,9 @@ from bagkit.decode import MessageTypes
 from bagkit.fleet.errors import FleetError
 from bagkit.fleet.execute import ItemDone, run_each
 from bagkit.selection.fields import FieldSelection
+from bagkit.selection.times import TimeLike
+from bagkit.selection.topics import absolute_topic_name
+from bagkit.selection.windows import TimeRange
 from bagkit.stats import StatsError, Summary
 from bagkit.stats.accumulate import TopicAccumulator
 from bagkit.stats.summary import SummaryRun, check_topics, finish_summary
@@ -51,13 +54,12 @@ class BagPartial:
 
 
 def _new_run(
-    fields: Sequence[str] | None, start_ns: int | None, end_ns: int | None, bulk: bool
+    fields: Sequence[str] | None, start: TimeLike | None, end: TimeLike | None, bulk: bool
 ) -> SummaryRun:
     return SummaryRun(
         MessageTypes(),
         FieldSelection(fields),
-        start_ns,
-        end_ns,
+        TimeRange.parse(start, end),
         bulk,
         progress=None,
         prefetch=False,
@@ -69,16 +71,16 @@ def summarize_bag(
     *,
     topics: Sequence[str] | None = None,
     fields: Sequence[str] | None = None,
-    start_ns: int | None = None,
-    end_ns: int | None = None,
+    start: TimeLike | None = None,
+    end: TimeLike | None = None,
     bulk: bool = True,
     check_crc: bool = True,
 ) -> BagPartial:
     """The partial summary of one bag (what a worker computes); arguments as ``summarize``."""
-    run = _new_run(fields, start_ns, end_ns, bulk)
+    run = _new_run(fields, start, end, bulk)
     try:
         with BagReader(bag, allow_empty=True, check_crc=check_crc) as reader:
-            run.read(reader, topics)
+            run.read(reader, topics, bag)
             names = frozenset(reader.topics)
     except BagError as exc:
         return BagPartial(bag, error=str(exc))
@@ -130,8 +132,8 @@ def merge_partials(
     *,
     topics: Sequence[str] | None = None,
     fields: Sequence[str] | None = None,
-    start_ns: int | None = None,
-    end_ns: int | None = None,
+    start: TimeLike | None = None,
+    end: TimeLike | None = None,
 ) -> Summary:
     """The summary of the bags of ``parts`` (in their order), as ``summarize`` would give it.
 
@@ -142,8 +144,8 @@ def merge_partials(
     readable = [part for part in parts if part.error is None]
     if not readable:
         raise FleetError(f"no bag could be read ({parts[0].error if parts else 'no bag given'})")
-    check_topics(set().union(*(part.topics for part in readable)), topics)
-    run = _new_run(fields, start_ns, end_ns, bulk=True)
+    topics = check_topics(set().union(*(part.topics for part in readable)), topics, len(parts))
+    run = _new_run(fields, start, end, bulk=True)
     for part in parts:
         if part.error is not None:
             run.problems.append(f"{part.bag}: not read: {part.error}")
@@ -158,8 +160,8 @@ def summarize_fleet(
     client: Client | None,
     topics: Sequence[str] | None = None,
     fields: Sequence[str] | None = None,
-    start_ns: int | None = None,
-    end_ns: int | None = None,
+    start: TimeLike | None = None,
+    end: TimeLike | None = None,
     bulk: bool = True,
     check_crc: bool = True,
     done: ItemDone | None = None,
@@ -173,14 +175,16 @@ def summarize_fleet(
         As :func:`merge_partials`.
     """
     paths = [str(bag) for bag in bags]
+    if topics is not None:
+        topics = [absolute_topic_name(topic) for topic in topics]
     task = functools.partial(
         summarize_bag,
         topics=topics,
         fields=fields,
-        start_ns=start_ns,
-        end_ns=end_ns,
+        start=start,
+        end=end,
         bulk=bulk,
         check_crc=check_crc,
     )
     parts = run_each(task, paths, client, done)
-    return merge_partials(parts, topics=topics, fields=fields, start_ns=start_ns, end_ns=end_ns)
+    return merge_partials(parts, topics=topics, fields=fields, start=start, end=end)

@@ -15,3 +15,7 @@ class UnknownTopicError(SelectionError):
 
 class UnknownFieldError(SelectionError):
     """A field (path or glob) the topic's type does not have; the message names its fields."""
+
+
+class EmptyWindowWarning(UserWarning):
+    """A time window that holds none of a bag's messages: the result is empty, not an error."""

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 from bagkit.errors import BagkitError
+from bagkit.selection.errors import UnknownTopicError
+
+__all__ = ["NothingToSummarizeError", "StatsError", "UnknownTopicError"]
 
 
 class StatsError(BagkitError):
@@ -11,7 +14,3 @@ class StatsError(BagkitError):
 
 class NothingToSummarizeError(StatsError):
     """No message of the selected topics in the selected time range (or an empty bag)."""
-
-
-class UnknownTopicError(StatsError):
-    """A topic asked for with ``topics=`` that none of the bags has."""

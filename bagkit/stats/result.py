@@ -49,22 +49,25 @@ class Summary:
 
     Attributes:
         bags: the bags summarized, as given.
-        start_ns, end_ns: first and last log time of the summarized messages.
+        start_ns, end_ns: first and last log time of the summarized messages (None when the
+            time window held none).
         topics: per topic, in name order.
         skipped: topic -> why it could not be decoded (not in ``topics``).
         problems: what could not be read (salvaged files, messages that do not decode).
     """
 
     bags: tuple[str, ...]
-    start_ns: int
-    end_ns: int
+    start_ns: int | None
+    end_ns: int | None
     topics: tuple[TopicStats, ...]
     skipped: dict[str, str] = field(default_factory=dict)
     problems: tuple[str, ...] = ()
 
     @property
     def duration_s(self) -> float:
-        """Seconds from the first to the last summarized message."""
+        """Seconds from the first to the last summarized message (0 when none)."""
+        if self.start_ns is None or self.end_ns is None:
+            return 0.0
         return (self.end_ns - self.start_ns) / 1e9
 
     def to_dict(self) -> dict[str, Any]:

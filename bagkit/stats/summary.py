@@ -20,8 +20,11 @@ from bagkit.bag import BagChunk, BagReader
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
 from bagkit.decode.layout import CdrLayout
 from bagkit.selection.fields import FieldSelection
+from bagkit.selection.times import TimeLike
+from bagkit.selection.topics import require_topics
+from bagkit.selection.windows import TimeRange, Window, outside_warning
 from bagkit.stats.accumulate import ROW_BATCH, TopicAccumulator
-from bagkit.stats.errors import NothingToSummarizeError, StatsError, UnknownTopicError
+from bagkit.stats.errors import NothingToSummarizeError, StatsError
 from bagkit.stats.prefetch import prefetch
 from bagkit.stats.result import Summary
 
@@ -41,11 +44,11 @@ class SummaryRun:
 
     types: MessageTypes
     fields: FieldSelection
-    start_ns: int | None
-    end_ns: int | None
+    span: TimeRange
     bulk: bool
     progress: ProgressCallback | None
     prefetch: bool = True
+    window: Window = field(default_factory=Window)
     done: int = 0
     total: int = 0
     accumulators: dict[str, TopicAccumulator] = field(default_factory=dict)
@@ -104,25 +107,22 @@ class SummaryRun:
         self.accumulators[topic] = accumulator
         return accumulator
 
-    def in_window(self, log_times: np.ndarray) -> np.ndarray:
-        mask = np.ones(len(log_times), dtype=bool)
-        if self.start_ns is not None:
-            mask &= log_times >= self.start_ns
-        if self.end_ns is not None:
-            mask &= log_times < self.end_ns
-        return mask
-
-    def read(self, reader: BagReader, topics: Sequence[str] | None) -> None:
-        """Add the messages of ``reader`` on ``topics`` (all when None)."""
+    def read(self, reader: BagReader, topics: Sequence[str] | None, label: str) -> None:
+        """Add the messages of ``reader`` on ``topics`` (all when None); ``label`` names the bag
+        in problems as the user gave it."""
         # Each bag is decoded with its own definitions (pooled bags must agree on them).
         self.types = MessageTypes.from_definitions(reader.definitions)
+        # Times from the start or end count from this bag's own first or last message.
+        self.window = self.span.resolve(reader.start_ns, reader.end_ns)
+        if reader.message_count:
+            outside = outside_warning(label, self.window, reader.start_ns, reader.end_ns)
+            if outside is not None:
+                self.problems.append(outside)
         wanted: dict[str, TopicAccumulator] = {}
         for name, info in reader.topics.items():
             if topics is not None and name not in topics:
                 continue
-            accumulator = self.accumulator(
-                name, info.type, info.serialization_format, str(reader.path)
-            )
+            accumulator = self.accumulator(name, info.type, info.serialization_format, label)
             if accumulator is not None:
                 wanted[name] = accumulator
             else:  # skipped: its messages are not read
@@ -134,7 +134,7 @@ class SummaryRun:
                 for chunk in chunks:
                     self.advance(self.add_chunk(chunk, wanted))
         elif wanted:
-            for message in reader.messages(wanted, self.start_ns, self.end_ns):
+            for message in reader.messages(wanted, self.window.start_ns, self.window.end_ns):
                 accumulator = wanted[message.topic]
                 accumulator.add_times(np.array([message.log_time]))
                 if accumulator.leaves:
@@ -158,8 +158,8 @@ class SummaryRun:
                 continue
             seen += len(index)
             log_times, starts, lengths = chunk.payloads(topic)
-            if self.start_ns is not None or self.end_ns is not None:
-                keep = self.in_window(log_times)
+            if self.window.bounded:
+                keep = self.window.mask(log_times)
                 log_times, starts, lengths = log_times[keep], starts[keep], lengths[keep]
             accumulator.add_times(log_times)
             if not len(starts) or not accumulator.leaves:  # counted; no field to decode
@@ -173,8 +173,8 @@ def summarize(
     *,
     topics: Sequence[str] | None = None,
     fields: Sequence[str] | None = None,
-    start_ns: int | None = None,
-    end_ns: int | None = None,
+    start: TimeLike | None = None,
+    end: TimeLike | None = None,
     progress: ProgressCallback | None = None,
     bulk: bool = True,
     check_crc: bool = True,
@@ -186,8 +186,9 @@ def summarize(
         topics: only these topics (all when None).
         fields: only the fields these patterns select (:mod:`bagkit.selection.fields`: globs
             with ``*`` and ``?``, brackets literal, ``TOPIC_GLOB:FIELD_GLOB``).
-        start_ns: only messages with ``log_time >= start_ns``.
-        end_ns: only messages with ``log_time < end_ns``.
+        start, end: only messages with ``start <= log_time < end``, each a time of
+            :mod:`bagkit.selection.times` (``10`` and ``-5`` count from each bag's own first
+            and last message; epoch seconds, ISO 8601, datetimes are absolute).
         progress: called with (messages done, messages in total).
         bulk: decode fixed-layout messages in bulk with numpy; False decodes every message
             with the general decoder (slower; to cross-check the bulk path).
@@ -202,20 +203,22 @@ def summarize(
     paths = [str(bag) for bag in bags]
     if not paths:
         raise StatsError("no bag given")
-    run = SummaryRun(MessageTypes(), FieldSelection(fields), start_ns, end_ns, bulk, progress)
+    span = TimeRange.parse(start, end)
+    run = SummaryRun(MessageTypes(), FieldSelection(fields), span, bulk, progress)
     readers: list[BagReader] = []
     try:
         for path in paths:
             readers.append(BagReader(path, allow_empty=True, check_crc=check_crc).open())
-        check_topics({name for reader in readers for name in reader.topics}, topics)
+        known = {name for reader in readers for name in reader.topics}
+        topics = check_topics(known, topics, len(paths))
         run.total = sum(
             count
             for reader in readers
             for topic, count in reader.topic_counts.items()
             if topics is None or topic in topics
         )
-        for reader in readers:
-            run.read(reader, topics)
+        for path, reader in zip(paths, readers, strict=True):
+            run.read(reader, topics, path)
     finally:
         for reader in readers:
             reader.close()
@@ -224,15 +227,15 @@ def summarize(
     return finish_summary(run, paths)
 
 
-def check_topics(known: set[str], topics: Sequence[str] | None) -> None:
-    """Raise UnknownTopicError unless every topic of ``topics`` is among the ``known`` ones."""
+def check_topics(known: set[str], topics: Sequence[str] | None, bags: int) -> list[str] | None:
+    """``topics`` as absolute names, each in one of the bags at least (None: all topics).
+
+    Raises:
+        UnknownTopicError: a topic is in none of the bags.
+    """
     if topics is None:
-        return
-    missing = [topic for topic in topics if topic not in known]
-    if missing:
-        raise UnknownTopicError(
-            f"topic {', '.join(missing)} not in the bag (it has {', '.join(sorted(known))})"
-        )
+        return None
+    return require_topics(topics, known, "the bag" if bags == 1 else "any of the bags")
 
 
 def finish_summary(run: SummaryRun, paths: list[str]) -> Summary:
@@ -254,9 +257,9 @@ def finish_summary(run: SummaryRun, paths: list[str]) -> Summary:
         if run.skipped and not run.accumulators:
             reasons = "; ".join(f"{t}: {why}" for t, why in sorted(run.skipped.items()))
             raise NothingToSummarizeError(f"no topic of {bags} can be decoded ({reasons})")
-        windowed = run.start_ns is not None or run.end_ns is not None
-        where = " in the selected time range" if windowed else ""
-        raise NothingToSummarizeError(f"no messages to summarize in {bags}{where}")
+        if run.span.bounded:  # the window missed: said once per bag, an empty summary
+            return Summary(tuple(paths), None, None, (), dict(run.skipped), tuple(run.problems))
+        raise NothingToSummarizeError(f"no messages to summarize in {bags}")
     if run.fields and not results:
         raise NothingToSummarizeError("no numeric field matches --fields")
     return Summary(

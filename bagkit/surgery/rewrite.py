@@ -9,6 +9,8 @@ from pathlib import Path
 
 from bagkit.bag import BagReader
 from bagkit.bag.mcapio import MAGIC, Source, read_file_index
+from bagkit.selection.topics import require_topics
+from bagkit.selection.windows import outside_warning
 from bagkit.surgery.copy import InputFile, copy_files, topics_of
 from bagkit.surgery.errors import SurgeryError
 from bagkit.surgery.output import OutputBag
@@ -26,6 +28,8 @@ class RewriteReport:
         topic_counts: messages written per topic.
         chunks_copied: chunks copied as they were stored.
         problems: what was lost or could not be read, one line each.
+        warnings: what the user should know that lost nothing (a time window outside the
+            inputs).
     """
 
     output: Path
@@ -34,6 +38,7 @@ class RewriteReport:
     topic_counts: dict[str, int] = field(default_factory=dict)
     chunks_copied: int = 0
     problems: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def message_count(self) -> int:
@@ -50,6 +55,7 @@ class RewriteReport:
             "topic_counts": self.topic_counts,
             "chunks_copied": self.chunks_copied,
             "problems": self.problems,
+            "warnings": self.warnings,
         }
 
 
@@ -97,7 +103,9 @@ def _rewrite(
 ) -> RewriteReport:
     _check_output(bags, output)
     report = RewriteReport(output=output)
-    with _opened_inputs(bags, report) as files:
+    spans: list[tuple[int, int]] = []
+    with _opened_inputs(bags, report, spans) as files:
+        selection = _resolve(selection, bags, files, spans, report)
         out = OutputBag(
             output,
             compression=options.compression,
@@ -129,14 +137,19 @@ def _check_output(bags: list[Path], output: Path) -> None:
 
 
 @contextlib.contextmanager
-def _opened_inputs(bags: list[Path], report: RewriteReport) -> Iterator[list[InputFile]]:
-    """Every MCAP file of ``bags`` in order, with its index (summary or salvage)."""
+def _opened_inputs(
+    bags: list[Path], report: RewriteReport, spans: list[tuple[int, int]]
+) -> Iterator[list[InputFile]]:
+    """Every MCAP file of ``bags`` in order, with its index (summary or salvage); the first
+    and last log time of each bag with messages are appended to ``spans``."""
     files: list[InputFile] = []
     handles = []
     try:
         for bag in bags:
             with BagReader(bag, allow_empty=True) as reader:
                 paths, known, missing = list(reader.files), dict(reader.topics), reader.problems
+                if reader.message_count:
+                    spans.append((reader.start_ns, reader.end_ns))
             report.problems.extend(p for p in missing if "missing" in p or "unreadable" in p)
             for path in paths:
                 handle = open(path, "rb")  # noqa: SIM115 (closed below)
@@ -150,6 +163,30 @@ def _opened_inputs(bags: list[Path], report: RewriteReport) -> Iterator[list[Inp
     finally:
         for handle in handles:
             handle.close()
+
+
+def _resolve(
+    selection: Selection,
+    bags: list[Path],
+    files: list[InputFile],
+    spans: list[tuple[int, int]],
+    report: RewriteReport,
+) -> Selection:
+    """The selection's named topics checked against the inputs, its times against their span.
+
+    Raises:
+        UnknownTopicError: a named topic is in no input (the message names the closest).
+    """
+    require_topics(selection.topics.topics, {name for f in files for name in f.known})
+    if not spans or not selection.span.bounded:
+        return selection
+    first, last = min(s for s, _ in spans), max(e for _, e in spans)
+    resolved = selection.resolved(first, last)
+    label = ", ".join(str(bag) for bag in bags)
+    outside = outside_warning(label, resolved.window, first, last)
+    if outside is not None:
+        report.warnings.append(outside)
+    return resolved
 
 
 def _add_topics(files: list[InputFile], out: OutputBag, selection: Selection) -> None:

@@ -76,10 +76,11 @@ def open_run(
         times = ends = np.zeros(len(offsets), np.int64)
     bad = int(len(offsets) - valid.sum())
     keep = valid.copy()
-    if selection.start_ns is not None:
-        keep &= times >= np.uint64(selection.start_ns)
-    if selection.end_ns is not None:
-        keep &= times < np.uint64(min(selection.end_ns, _MAX_TIME))
+    window = selection.window
+    if window.start_ns is not None:
+        keep &= times >= np.uint64(max(window.start_ns, 0))
+    if window.end_ns is not None:
+        keep &= times < np.uint64(min(max(window.end_ns, 0), _MAX_TIME))
     order = np.flatnonzero(keep)
     order = order[np.lexsort((offsets[order], times[order]))]
     if not len(order):

@@ -1,0 +1,26 @@
+"""The options every bag command shares for choosing messages: ``--start``/``--end``.
+
+One declaration, one help text, one grammar (bagkit.selection.times; docs/cli.md's table).
+"""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import typer
+
+TIME_HELP = (
+    "seconds from the bag start (10, 1m30s), before its end (-5), or absolute "
+    "(epoch seconds, ISO 8601, NNNns); docs/cli.md"
+)
+
+Start = Annotated[
+    str | None,
+    typer.Option("--start", help=f"Messages logged at or after TIME: {TIME_HELP}.", metavar="TIME"),
+]
+End = Annotated[
+    str | None,
+    typer.Option(
+        "--end", help="Messages logged before TIME (exclusive), read as --start.", metavar="TIME"
+    ),
+]

@@ -1,0 +1,164 @@
+"""The same topics and times mean one thing in every command (subprocesses of the CLI).
+
+Each selection runs through echo, export, stats summary, filter and plot's series; what each
+selected is compared with what the bag holds in that window, read with the bag reader alone.
+The edges (unknown topic, window outside the bag, missing path) are checked once for all.
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime as dt
+import json
+import subprocess
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+from bagkit.bag import BagReader
+from bagkit.data.series import load_series
+
+BAGKIT = str(Path(sys.executable).with_name("bagkit"))
+BAG = Path(__file__).resolve().parents[2] / "fixtures" / "faults" / "golden"
+S = 1_000_000_000
+
+
+def _bagkit(*args: str | Path, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [BAGKIT, *map(str, args)], capture_output=True, text=True, timeout=120, check=False, cwd=cwd
+    )
+
+
+@pytest.fixture(scope="module")
+def span() -> tuple[int, int]:
+    with BagReader(BAG) as reader:
+        return reader.start_ns, reader.end_ns
+
+
+def _iso(ns: int) -> str:
+    stamp = dt.datetime.fromtimestamp(ns // S, tz=dt.UTC)
+    return stamp.strftime("%Y-%m-%dT%H:%M:%S") + f".{ns % S:09d}Z"
+
+
+# (topic as typed, --start, --end) given as functions of the bag's span, and the window in ns.
+Times = Callable[[int, int], tuple[str | None, str | None, int | None, int | None]]
+SELECTIONS: dict[str, tuple[str, Times]] = {
+    "offsets": ("imu/data", lambda s, e: ("10", "20", s + 10 * S, s + 20 * S)),
+    "from the end": ("/imu/data", lambda s, e: ("-5", None, e - 5 * S, None)),
+    "durations": ("imu/data", lambda s, e: ("12s", "20500ms", s + 12 * S, s + 20_500_000_000)),
+    "epoch seconds": ("gps/fix", lambda s, e: (f"{(s + 12 * S) / S:.9f}", None, s + 12 * S, None)),
+    "iso 8601": (
+        "/gps/fix",
+        lambda s, e: (_iso(s + 3 * S), _iso(s + 33 * S), s + 3 * S, s + 33 * S),
+    ),
+    "nanoseconds": (
+        "temperature",
+        lambda s, e: (f"{7 * S}ns", f"{s + 40 * S}ns", s + 7 * S, s + 40 * S),
+    ),
+}
+
+
+def _expected(topic: str, start: int | None, end: int | None) -> list[int]:
+    with BagReader(BAG) as reader:
+        return [m.log_time for m in reader.messages([topic], start, end)]
+
+
+def _options(start: str | None, end: str | None) -> list[str]:
+    return [*(["--start", start] if start else []), *(["--end", end] if end else [])]
+
+
+def _echo(topic: str, times: list[str], tmp: Path) -> list[int]:
+    result = _bagkit("echo", BAG, topic, "--format", "json", *times)
+    assert result.returncode == 0, result.stderr
+    return [json.loads(line)["log_time"] for line in result.stdout.splitlines()]
+
+
+def _export(topic: str, times: list[str], tmp: Path) -> list[int]:
+    out = tmp / "out.csv"
+    result = _bagkit("export", BAG, "-t", topic, "-o", out, "--format", "csv", *times)
+    assert result.returncode == 0, result.stderr
+    with out.open() as f:
+        return [int(row["log_time"]) for row in csv.DictReader(f)]
+
+
+def _stats(topic: str, times: list[str], tmp: Path) -> list[int]:
+    result = _bagkit("stats", "summary", BAG, "-t", topic, "--format", "json", *times)
+    assert result.returncode == 0, result.stderr
+    (found,) = json.loads(result.stdout)["topics"]
+    return [found["count"]]  # stats gives counts, compared with the count below
+
+
+def _filter(topic: str, times: list[str], tmp: Path) -> list[int]:
+    out = tmp / "cut"
+    result = _bagkit("filter", BAG, "-o", out, "--topics", topic, *times, cwd=tmp)
+    assert result.returncode == 0, result.stderr
+    with BagReader(out) as reader:
+        return [m.log_time for m in reader.messages()]
+
+
+COMMANDS = {"echo": _echo, "export": _export, "stats": _stats, "filter": _filter}
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+@pytest.mark.parametrize("name", SELECTIONS)
+def test_one_selection_selects_the_same_messages_everywhere(
+    command: str, name: str, span: tuple[int, int], tmp_path: Path
+) -> None:
+    topic, times = SELECTIONS[name]
+    start, end, start_ns, end_ns = times(*span)
+    expected = _expected("/" + topic.lstrip("/"), start_ns, end_ns)
+    assert 0 < len(expected) < BagReader(BAG).open().topic_counts["/" + topic.lstrip("/")]
+    got = COMMANDS[command](topic, _options(start, end), tmp_path)
+    assert got == ([len(expected)] if command == "stats" else expected)
+
+
+@pytest.mark.parametrize("name", SELECTIONS)
+def test_plot_series_select_the_same_window(name: str, span: tuple[int, int]) -> None:
+    topic, times = SELECTIONS[name]
+    start, end, start_ns, end_ns = times(*span)
+    field = "header.stamp.sec"
+    (series,) = load_series([BAG], [f"{topic}:{field}"], start=start, end=end, absolute=True)
+    assert len(series.values) == len(_expected("/" + topic.lstrip("/"), start_ns, end_ns))
+
+
+EDGE_COMMANDS = {
+    "echo": lambda bag, topic, tmp: ["echo", bag, topic],
+    "export": lambda bag, topic, tmp: ["export", bag, "-t", topic, "-o", tmp / "x.csv"],
+    "stats": lambda bag, topic, tmp: ["stats", "summary", bag, "-t", topic],
+    "filter": lambda bag, topic, tmp: ["filter", bag, "-o", tmp / "f", "--topics", topic],
+    "plot": lambda bag, topic, tmp: ["plot", bag, f"{topic}:header", "-o", tmp / "p.png"],
+    "compare": lambda bag, topic, tmp: ["compare", bag, bag, "-t", topic],
+}
+
+
+@pytest.mark.parametrize("command", EDGE_COMMANDS)
+def test_an_unknown_topic_is_one_error_naming_the_closest(command: str, tmp_path: Path) -> None:
+    result = _bagkit(*EDGE_COMMANDS[command](BAG, "/imu/dat", tmp_path), cwd=tmp_path)
+    assert result.returncode == 2, result.stderr
+    assert result.stderr.count("\n") == 1
+    assert result.stderr.startswith("error: topic /imu/dat not in ")
+    assert "did you mean /imu/data?" in result.stderr
+
+
+@pytest.mark.parametrize("command", EDGE_COMMANDS)
+def test_a_missing_path_is_one_error(command: str, tmp_path: Path) -> None:
+    missing = tmp_path / "no_such_bag"
+    result = _bagkit(*EDGE_COMMANDS[command](missing, "/imu/data", tmp_path), cwd=tmp_path)
+    assert result.returncode == 2
+    assert result.stderr == f"error: {missing}: no such file or directory\n"
+
+
+@pytest.mark.parametrize("command", ["echo", "export", "stats", "filter", "plot"])
+def test_a_window_outside_the_bag_is_one_warning_and_an_empty_result(
+    command: str, tmp_path: Path
+) -> None:
+    args = [*EDGE_COMMANDS[command](BAG, "/imu/data", tmp_path), "--start", "1h"]
+    result = _bagkit(*args, cwd=tmp_path)
+    warnings = [line for line in result.stderr.splitlines() if line.startswith("warning:")]
+    assert len(warnings) == 1, result.stderr
+    assert warnings[0].startswith(f"warning: {BAG}: the time window [")
+    assert result.returncode == 0, result.stderr
+    if command == "echo":
+        assert result.stdout == ""
