@@ -93,7 +93,7 @@ def load_series(
     return [s for found in per_spec for s in found]
 
 
-def _topic_series(
+def _topic_series(  # noqa: PLR0917 (private, called once)
     reader: BagReader,
     types: MessageTypes,
     labels: tuple[str, str],
