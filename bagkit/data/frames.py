@@ -77,7 +77,7 @@ def _read(
             raise UndecodableTopicError(f"{topic} cannot be decoded: {scan.skipped[topic]}")
         table = scan.table(topic)
         for problem in scan.problems:
-            warnings.warn(f"{reader.path}: {problem}", DataLossWarning, stacklevel=3)
+            warnings.warn(f"{bag}: {problem}", DataLossWarning, stacklevel=3)
     return table, scan.topics[topic].schema
 
 

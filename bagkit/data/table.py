@@ -79,7 +79,7 @@ class ColumnTable:
                 data[field.name] = pd.array(array, dtype="str")
             else:
                 data[field.name] = array
-        index = pd.DatetimeIndex(arrays[0].view("datetime64[ns]"), name="time")
+        index = pd.DatetimeIndex(arrays[0].view("datetime64[ns]"), name="time").tz_localize("UTC")
         return pd.DataFrame(data, index=index, copy=False)
 
 

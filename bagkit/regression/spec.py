@@ -20,6 +20,7 @@ import yaml
 from bagkit.compare import CompareOptions, options_from_mapping
 from bagkit.compare.errors import CompareError
 from bagkit.regression.errors import SpecError
+from bagkit.selection.topics import absolute_topic_name
 
 SPEC_FILE = "spec.yaml"
 BAG_DIR = "golden"
@@ -97,9 +98,9 @@ def _topics(
         raise SpecError(
             f"{where}: {key} must be a {'non-empty ' if required else ''}list of topics"
         )
-    if not all(isinstance(t, str) and t.startswith("/") for t in value):
-        raise SpecError(f"{where}: {key} must hold topic names starting with /")
-    return tuple(value)
+    if not all(isinstance(t, str) and t.strip("/") for t in value):
+        raise SpecError(f"{where}: {key} must hold topic names")
+    return tuple(absolute_topic_name(t) for t in value)
 
 
 def resolve_command(command: Sequence[str], directory: Path) -> Command:

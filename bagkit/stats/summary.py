@@ -140,7 +140,7 @@ class SummaryRun:
                 if accumulator.leaves:
                     accumulator.add_payloads((message.data,))
                 self.advance(1, every=ROW_BATCH)
-        self.problems.extend(reader.problems)
+        self.problems.extend(f"{label}: {problem}" for problem in reader.problems)
 
     def advance(self, messages: int, every: int = 1) -> None:
         """Count ``messages`` as done; report progress (each time ``done`` passes a multiple

@@ -135,13 +135,16 @@ def test_dataframe_columns_index_and_rosbags_dataframe(tmp_path: Path) -> None:
     """The DataFrame of all fields against rosbags-dataframe's get_dataframe of the same keys."""
     bag = GOLDEN[0]
     frame = bagkit.read_dataframe(bag, "/imu/data")
-    assert isinstance(frame.index, pd.DatetimeIndex) and frame.index.dtype == "datetime64[ns]"
+    assert isinstance(frame.index, pd.DatetimeIndex) and frame.index.dtype == "datetime64[ns, UTC]"
+    start = frame.index[0]
+    assert frame.loc[pd.Timestamp(start.isoformat().replace("+00:00", "Z")) :].shape == frame.shape
     assert (frame.index.asi8 == frame["log_time"].to_numpy()).all()
     assert frame["log_time"].dtype == np.int64 and frame["publish_time"].dtype == np.int64
     keys = [c for c in frame.columns if "[" not in c and c not in ("log_time", "publish_time")]
     with AnyReader([bag]) as reader:
         theirs = get_dataframe(reader, "/imu/data", keys)
-    assert (theirs.index.to_numpy().astype("datetime64[ns]") == frame.index.to_numpy()).all()
+    theirs_ns = theirs.index.to_numpy().astype("datetime64[ns]").astype(np.int64)
+    assert (theirs_ns == frame.index.asi8).all()
     for key in keys:
         assert np.array_equal(frame[key].to_numpy(), theirs[key].to_numpy()), key
     with AnyReader([bag]) as reader:

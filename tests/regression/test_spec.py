@@ -51,6 +51,8 @@ def test_defaults_and_explicit_settings(tmp_path: Path) -> None:
     )
     assert spec.subscription_counts() == {"/value": 3, "/clock": 2}
     assert spec.live_rate == 4.0
+    relative = load_spec(spec_at(tmp_path, outputs=["doubled", "/also"]))
+    assert relative.outputs == ("/doubled", "/also")
     only = load_spec(spec_at(tmp_path, launch="node", modes=["lockstep"]))
     assert only.modes == ("lockstep",)
 
@@ -61,7 +63,7 @@ def test_defaults_and_explicit_settings(tmp_path: Path) -> None:
         ({"processor": None}, "no system under test"),
         ({"processor": "pkg.core"}, "module.path:function"),
         ({"inputs": []}, "inputs must be a non-empty list"),
-        ({"outputs": ["doubled"]}, "starting with /"),
+        ({"outputs": ["/"]}, "must hold topic names"),
         ({"launch": 3}, "launch must be a command line"),
         ({"launch": [""]}, "launch must be a command line"),
         ({"live_rate": "fast"}, "must be numbers"),
