@@ -58,8 +58,11 @@ def test_rate_is_from_first_to_last_message(bag: Path, topics: dict[str, TopicDa
 
 def test_time_window_selects_messages(bag: Path, topics: dict[str, TopicData]) -> None:
     start, end = T0 + 2_000_000_000, T0 + 9_000_000_000
-    result = summarize([bag], start_ns=start, end_ns=end)
+    result = summarize([bag], start=f"{start}ns", end=f"{end}ns")
+    assert result.start_ns is not None and result.end_ns is not None
     assert start <= result.start_ns and result.end_ns < end
+    relative = summarize([bag], start="2", end=f"{(end - T0) / 1e9}")
+    assert relative == result
     for stats in result.topics:
         data = topics[stats.topic]
         inside = np.array([start <= t < end for t, _ in data.messages])
@@ -133,8 +136,9 @@ def test_bad_input_raises_readable_errors(bag: Path, tmp_path: Path) -> None:
         summarize([bag], topics=["/nope"])
     with pytest.raises(BagNotFoundError):
         summarize([tmp_path / "missing"])
-    with pytest.raises(NothingToSummarizeError, match="no messages"):
-        summarize([bag], start_ns=T0 + 10**15)
+    outside = summarize([bag], start=f"{T0 + 10**15}ns")
+    assert outside.topics == () and outside.start_ns is None
+    assert len(outside.problems) == 1 and "holds no message" in outside.problems[0]
     with pytest.raises(NothingToSummarizeError, match="--fields"):
         summarize([bag], fields=["no_such_field"])
 
