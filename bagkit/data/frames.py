@@ -15,7 +15,7 @@ from bagkit.data.scan import plan_scan
 from bagkit.data.table import ColumnTable
 from bagkit.selection.errors import EmptyWindowWarning
 from bagkit.selection.times import TimeLike
-from bagkit.selection.topics import absolute_topic_name
+from bagkit.selection.topics import require_topics
 from bagkit.selection.windows import TimeRange
 
 if TYPE_CHECKING:
@@ -68,8 +68,8 @@ def _read(
     bulk: bool,
 ) -> tuple[ColumnTable, pa.Schema]:
     span = TimeRange.parse(start, end)
-    topic = absolute_topic_name(topic)
     with BagReader(bag, allow_empty=True) as reader:
+        (topic,) = require_topics([topic], reader.topics)
         scan = plan_scan(reader, [topic], fields, span, label=str(bag), bulk=bulk)
         if scan.outside is not None:
             warnings.warn(scan.outside, EmptyWindowWarning, stacklevel=3)

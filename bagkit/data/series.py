@@ -18,7 +18,7 @@ from bagkit.decode import MessageTypes
 from bagkit.decode.flatten import STRING_TYPES
 from bagkit.selection.errors import EmptyWindowWarning
 from bagkit.selection.times import TimeLike
-from bagkit.selection.topics import absolute_topic_name
+from bagkit.selection.topics import require_topics
 from bagkit.selection.windows import TimeRange
 
 
@@ -101,7 +101,7 @@ def _topic_series(  # noqa: PLR0917 (private, called once)
     span: TimeRange,
     absolute: bool,
 ) -> list[Series]:
-    topic, field = absolute_topic_name(spec[0]), spec[1]
+    (topic,), field = require_topics([spec[0]], reader.topics), spec[1]
     label, given = labels  # the legend's short name; the path as given, for warnings
     scan = plan_scan(reader, [topic], [field], span, label=given)
     if scan.outside is not None:

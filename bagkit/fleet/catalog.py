@@ -174,7 +174,8 @@ def query(
     keep = frame["count"].fillna(0) > 0
     if topic is not None:
         pattern = absolute_topic_name(topic)
-        keep &= frame["topic"].fillna("").map(lambda name: name_matches(name, pattern))
+        names = frame["topic"].fillna("")
+        keep &= names.map(lambda name: name_matches(absolute_topic_name(name), pattern))
     for side, value in (("start", start), ("end", end)):
         if value is None:
             continue

@@ -16,6 +16,7 @@ offset. A duration (``90``, ``90s``, ``1m30s``, ``1h``, ``250ms``, ``NNNns``) is
 from __future__ import annotations
 
 import datetime as dt
+import numbers
 import re
 from dataclasses import dataclass
 from enum import Enum
@@ -82,9 +83,10 @@ def parse_time(value: TimeLike, option: str = "time") -> TimePoint:
         return _parse_text(value.strip(), option)
     if isinstance(value, bool):
         raise _bad(value, option)
-    if isinstance(value, int | float):
+    if isinstance(value, numbers.Real):  # numpy's numbers too
         _seconds_ns(float(value), value, option)  # finite and within int64 ns
-        return _parse_text(str(value) if isinstance(value, int) else repr(value), option)
+        exact = isinstance(value, numbers.Integral)
+        return _parse_text(str(int(value)) if exact else repr(float(value)), option)
     return TimePoint(Anchor.EPOCH, _object_ns(value, option))
 
 

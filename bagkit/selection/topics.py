@@ -124,23 +124,25 @@ class TopicSelection:
 def require_topics(
     wanted: Iterable[str], known: Iterable[str], where: str = "the bag"
 ) -> list[str]:
-    """``wanted`` as absolute names, each one of ``known``.
+    """``wanted`` as the names ``known`` holds them: ``imu/data`` and ``/imu/data`` are one
+    topic, whichever way a bag stored it (bags of other tools may hold relative names).
 
     Raises:
         UnknownTopicError: a name is not known; the message names the closest known topics
             (or all of them, when few).
     """
     known = sorted(set(known))
-    names = [absolute_topic_name(name) for name in wanted]
-    missing = [name for name in names if name not in known]
+    stored = {absolute_topic_name(name): name for name in known}
+    names = [name if name in known else stored.get(absolute_topic_name(name)) for name in wanted]
+    missing = [absolute_topic_name(w) for w, n in zip(wanted, names, strict=True) if n is None]
     if missing:
         raise UnknownTopicError(
             f"topic {', '.join(missing)} not in {where} ({closest_names(missing[0], known)})"
         )
-    return names
+    return [name for name in names if name is not None]
 
 
-def closest_names(name: str, known: Sequence[str], limit: int = 8) -> str:
+def closest_names(name: str, known: Sequence[str], limit: int = 20) -> str:
     """``did you mean /a, /b?`` or ``it has /a, /b, ...``: the known names a reader wants to see."""
     if not known:
         return "it has none"

@@ -21,7 +21,7 @@ from bagkit.decode import DecodeError, MessageTypes, leaf_fields
 from bagkit.decode.layout import CdrLayout
 from bagkit.selection.fields import FieldSelection
 from bagkit.selection.times import TimeLike
-from bagkit.selection.topics import require_topics
+from bagkit.selection.topics import absolute_topic_name, require_topics
 from bagkit.selection.windows import TimeRange, Window, outside_warning
 from bagkit.stats.accumulate import ROW_BATCH, TopicAccumulator
 from bagkit.stats.errors import NothingToSummarizeError, StatsError
@@ -119,8 +119,9 @@ class SummaryRun:
             if outside is not None:
                 self.problems.append(outside)
         wanted: dict[str, TopicAccumulator] = {}
+        named = None if topics is None else {absolute_topic_name(t) for t in topics}
         for name, info in reader.topics.items():
-            if topics is not None and name not in topics:
+            if named is not None and absolute_topic_name(name) not in named:
                 continue
             accumulator = self.accumulator(name, info.type, info.serialization_format, label)
             if accumulator is not None:

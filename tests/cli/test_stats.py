@@ -124,8 +124,8 @@ def test_table_output_and_window(bag: Path, temperatures: np.ndarray) -> None:
     [
         (["/definitely/not/here"], "no such file"),
         (["--topics", "/nope"], "/nope"),
-        (["--start", "nan"], "bad time nan"),
-        (["--end", "1e300"], "bad time 1e+300"),
+        (["--start", "nan"], "bad --start 'nan': not a time"),
+        (["--end", "1e300"], "bad --end '1e300': beyond int64"),
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(bag: Path, args: list[str], message: str) -> None:

@@ -49,6 +49,8 @@ def test_epoch_seconds_from_the_threshold_on() -> None:
     assert parse_time("1763850000.25").resolve(0, 0) == 1_763_850_000_250_000_000
     assert parse_time(1763850000.25).resolve(0, 0) == 1_763_850_000_250_000_000
     assert parse_time(10).resolve(START, END) == START + 10**10
+    assert parse_time(np.float64(1763850000.25)) == parse_time("1763850000.25")
+    assert parse_time(np.int64(-3)).resolve(START, END) == END - 3 * 10**9
 
 
 def test_iso_8601_and_time_objects_are_absolute_and_naive_is_utc() -> None:
