@@ -113,7 +113,7 @@ def subscribe(mode: str, kind: str, out: Path, *, default_transport: bool = Fals
         stop["now"] = True
 
     signal.signal(signal.SIGINT, on_signal)
-    from bagkit.ros.memory import keep_freed_memory
+    from bagkit.ros.tuning import keep_freed_memory
 
     # Both as `bagkit record` does for its process; the peers get them too, so the ratios
     # compare the work done per message, not the allocator or the transport's queue.
@@ -158,7 +158,7 @@ def _thread_cpu() -> dict[str, float]:
 
 
 def _run_recorder(bag: Path, ready: Path, stop: dict[str, bool]) -> dict[str, Any]:
-    from bagkit.ros.recorder import Recorder
+    from bagkit.ros.record.recorder import Recorder
 
     recorder = Recorder(bag, topics=[TOPIC])
     recorder.start()
@@ -242,7 +242,7 @@ def _run_subscriber(
 
 def _bag_writer(peer: _Subscriber) -> Any:
     from bagkit.bag import BagWriter, TopicInfo
-    from bagkit.ros.types import message_type_name
+    from bagkit.ros.message_classes import message_type_name
 
     writer = BagWriter(peer.bag).open()
     writer.add_topic(TopicInfo(TOPIC, message_type_name(peer.message_type)))
@@ -278,7 +278,7 @@ def _take_in_a_loop(peer: _Subscriber) -> None:
     """``count`` (take and count) or ``inline`` (bagkit's batched take written to a bag)."""
     from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 
-    from bagkit.ros.take import take_serialized
+    from bagkit.ros.record.take import take_serialized
 
     subscription = peer.node.create_subscription(
         peer.message_type, TOPIC, lambda _m: None, peer.qos, raw=True

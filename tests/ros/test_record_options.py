@@ -19,7 +19,8 @@ from test_record_cli import STARTUP_TIMEOUT_S, record, report_json
 from waiting import wait_for, wait_matched
 
 from bagkit.bag import BagReader
-from bagkit.ros.recorder import Recorder
+from bagkit.recording.options import RecordOptions
+from bagkit.ros.record.recorder import Recorder
 
 pytestmark = pytest.mark.ros
 
@@ -30,7 +31,7 @@ def test_sim_time_writes_nothing_before_the_first_clock(node: Node, tmp_path: Pa
     )
     data = node.create_publisher(String, "/sim/early", 100)
     bag = tmp_path / "sim"
-    with Recorder(bag, topics=["/sim/early"], use_sim_time=True) as recorder:
+    with Recorder(RecordOptions(bag, topics=("/sim/early",), use_sim_time=True)) as recorder:
         wait_matched(clock, data)
         for i in range(5):
             data.publish(String(data=f"early {i}"))
