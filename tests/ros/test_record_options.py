@@ -20,6 +20,7 @@ from waiting import wait_for, wait_matched
 
 from bagkit.bag import BagReader
 from bagkit.recording.options import RecordOptions
+from bagkit.recording.report import RecordProgress
 from bagkit.ros.record.recorder import Recorder
 
 pytestmark = pytest.mark.ros
@@ -186,24 +187,37 @@ def test_storage_other_than_mcap_and_bad_custom_data_are_bad_input(
         assert not (tmp_path / "never").exists()
 
 
-def test_run_stops_at_max_messages_then_on_the_stop_event(node: Node, tmp_path: Path) -> None:
+def test_run_stops_at_max_messages_on_a_condition_and_on_an_event(
+    node: Node, tmp_path: Path
+) -> None:
     publisher = node.create_publisher(String, "/run/data", 100)
-    stop = threading.Event()
-    feeding = threading.Thread(target=_publish_until, args=(stop, [publisher], 0.01))
+    feeding_done = threading.Event()
+    feeding = threading.Thread(target=_publish_until, args=(feeding_done, [publisher], 0.01))
     feeding.start()
+    reports = []
     try:
         options = RecordOptions(tmp_path / "limited", topics=("/run/data",), max_messages=5)
         progress: list[int] = []
-        report = Recorder(options).run(on_progress=lambda p: progress.append(p.messages))
-        assert report.error is None
-        assert report.messages >= 5  # counted between two looks: a few more may be in
+        reports.append(Recorder(options).run(on_progress=lambda p: progress.append(p.messages)))
         assert progress  # called as the recording starts, then every half second
-        recorder = Recorder(RecordOptions(tmp_path / "stopped", topics=("/run/data",)))
-        threading.Timer(1.0, stop.set).start()
-        report = recorder.run(stop)
+        # A condition: stop once three messages are in.
+        recorder = Recorder(RecordOptions(tmp_path / "condition", topics=("/run/data",)))
+        reports.append(recorder.run(lambda: recorder.progress().messages >= 3))
+        # An event, set from another thread (here, the progress callback's).
+        stop = threading.Event()
+
+        def stop_after_three(progress: RecordProgress) -> None:
+            if progress.messages >= 3:
+                stop.set()
+
+        options = RecordOptions(tmp_path / "event", topics=("/run/data",))
+        reports.append(Recorder(options).run(stop, on_progress=stop_after_three))
     finally:
-        stop.set()
+        feeding_done.set()
         feeding.join()
-    assert report.error is None and report.messages > 0
-    with BagReader(tmp_path / "stopped") as reader:
-        assert reader.topic_counts == {"/run/data": report.messages}
+    assert [r.error for r in reports] == [None, None, None]
+    assert reports[0].messages >= 5  # counted between two looks: a few more may be in
+    assert reports[1].messages >= 3 and reports[2].messages >= 3
+    for report in reports:
+        with BagReader(report.path) as reader:
+            assert reader.topic_counts == {"/run/data": report.messages}
