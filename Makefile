@@ -9,7 +9,7 @@ export RMW_IMPLEMENTATION := rmw_fastrtps_cpp
 
 .PHONY: demo test test-fast lint format bench golden clean
 
-$(STAMP): pyproject.toml setup.py bagkit/ros/_take.c
+$(STAMP): pyproject.toml setup.py bagkit/ros/record/_take.c
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[dev]'

@@ -138,7 +138,8 @@ class GoldenItem(pytest.Item):
 
     def runtest(self) -> None:
         from bagkit.regression.artefacts import write_failure_artefacts
-        from bagkit.regression.golden import run_check, update_golden
+        from bagkit.regression.check import run_check
+        from bagkit.regression.golden import update_golden
 
         if self.config.getoption("update_golden"):
             if self.mode != "lockstep":

@@ -49,7 +49,7 @@ def _processor_seconds(spec: FixtureSpec) -> float:
     """Wall time of the processors alone on the fixture's inputs (deserialized beforehand)."""
     from rclpy.serialization import deserialize_message
 
-    from bagkit.ros.types import import_message_type
+    from bagkit.ros.message_classes import import_message_type
 
     with BagReader(spec.bag) as reader:
         classes = {t: import_message_type(reader.topics[t].type) for t in spec.inputs}

@@ -284,7 +284,7 @@ def _machine_floor(rate: float, seconds: float) -> None:
     This VM stalls for milliseconds now and then whatever runs on it; that is the floor under
     the player's own lateness.
     """
-    from bagkit.ros.timing import wait_until
+    from bagkit.playback.timing import wait_until
 
     period_ns = PERIOD_NS / len(TOPICS) / rate
     count = int(seconds * 1e9 / period_ns)

@@ -18,8 +18,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from bagkit.ros.fastdds import large_receive_queue
-
 TOPIC = "/bench/record"
 IMAGE_BYTES = 1 << 20
 READY_TIMEOUT_S = 30.0
@@ -105,7 +103,7 @@ def publish(kind: str, seconds: float, rate_hz: float) -> None:
 def subscribe(mode: str, kind: str, out: Path, *, default_transport: bool = False) -> None:
     """Run one subscriber until SIGINT, then write its result as JSON to ``out``.
 
-    ``default_transport``: without the large receive queue of ``bagkit record``.
+    ``default_transport``: without the large shared-memory queue of ``bagkit record``.
     """
     stop = {"now": False}
 
@@ -113,16 +111,17 @@ def subscribe(mode: str, kind: str, out: Path, *, default_transport: bool = Fals
         stop["now"] = True
 
     signal.signal(signal.SIGINT, on_signal)
-    from bagkit.ros.memory import keep_freed_memory
+    from bagkit.ros.tuning import keep_freed_memory, process_tuning
 
-    # Both as `bagkit record` does for its process; the peers get them too, so the ratios
-    # compare the work done per message, not the allocator or the transport's queue.
+    # The recorder tunes its process itself (the library's process_tuning, as `bagkit record`);
+    # the peers get the same tuning, so the ratios compare the work done per message, not the
+    # allocator or the transport's queue. The default-transport runs vary the queue only.
     keep_freed_memory()
     ready = out.with_suffix(".ready")
-    with contextlib.nullcontext() if default_transport else large_receive_queue():
-        if mode == "recorder":
-            result = _run_recorder(out.with_suffix(".bag"), ready, stop)
-        else:
+    if mode == "recorder":
+        result = _run_recorder(out.with_suffix(".bag"), ready, stop, tune=not default_transport)
+    else:
+        with process_tuning(not default_transport):
             result = _run_subscriber(mode, kind, out.with_suffix(".bag"), ready, stop)
     usage = resource.getrusage(resource.RUSAGE_SELF)
     result["peak_rss"] = _peak_rss()
@@ -157,10 +156,11 @@ def _thread_cpu() -> dict[str, float]:
     return totals
 
 
-def _run_recorder(bag: Path, ready: Path, stop: dict[str, bool]) -> dict[str, Any]:
-    from bagkit.ros.recorder import Recorder
+def _run_recorder(bag: Path, ready: Path, stop: dict[str, bool], *, tune: bool) -> dict[str, Any]:
+    from bagkit.recording.options import RecordOptions
+    from bagkit.ros.record.recorder import Recorder
 
-    recorder = Recorder(bag, topics=[TOPIC])
+    recorder = Recorder(RecordOptions(bag, topics=(TOPIC,), tune_process=tune))
     recorder.start()
     ready.touch()
     while not stop["now"]:
@@ -242,7 +242,7 @@ def _run_subscriber(
 
 def _bag_writer(peer: _Subscriber) -> Any:
     from bagkit.bag import BagWriter, TopicInfo
-    from bagkit.ros.types import message_type_name
+    from bagkit.ros.message_classes import message_type_name
 
     writer = BagWriter(peer.bag).open()
     writer.add_topic(TopicInfo(TOPIC, message_type_name(peer.message_type)))
@@ -278,7 +278,7 @@ def _take_in_a_loop(peer: _Subscriber) -> None:
     """``count`` (take and count) or ``inline`` (bagkit's batched take written to a bag)."""
     from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 
-    from bagkit.ros.take import take_serialized
+    from bagkit.ros.record.take import take_serialized
 
     subscription = peer.node.create_subscription(
         peer.message_type, TOPIC, lambda _m: None, peer.qos, raw=True

@@ -63,6 +63,7 @@ LAYERS: tuple[frozenset[str], ...] = (
     frozenset({"times"}),
     frozenset({"selection"}),
     frozenset({"bag"}),
+    frozenset({"recording", "playback"}),
     frozenset({"decode", "ros"}),
     frozenset({"stats", "compare"}),
     frozenset({"data", "surgery"}),

@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
 import re
 import signal
 import threading
-import time
-from pathlib import Path
 from types import FrameType
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import typer
 
@@ -54,11 +53,14 @@ from bagkit.cli.record_options import (
     UseSimTime,
 )
 from bagkit.cli.record_table import print_record_table, progress_line
+from bagkit.recording.options import DEFAULT_QUEUE_BYTES, RecordOptions
+from bagkit.recording.report import RecordProgress, RecordReport
 
 if TYPE_CHECKING:
+    from rich.status import Status
+
     # The recorder imports rclpy: only `bagkit record` itself pays for that import.
-    from bagkit.ros.record_report import RecordReport
-    from bagkit.ros.recorder import Recorder
+    from bagkit.ros.record.recorder import Recorder
 
 HELP = (
     "Record TOPICS (or --topics, --all, --regex, --topic-types) into an MCAP bag that ros2 bag, "
@@ -145,48 +147,36 @@ def record(  # noqa: PLR0917 (typer maps parameters to options; ros2 bag has the
     log_level: LogLevelOption = LogLevel.INFO,
     output_format: Format = ReportFormat.TABLE,
 ) -> None:
-    from bagkit.ros.memory import keep_freed_memory
-    from bagkit.ros.recorder import DEFAULT_QUEUE_BYTES, Recorder, default_output_name
+    from bagkit.ros.record.recorder import Recorder
 
     if storage != "mcap":
         raise fail(f"--storage {storage}: bagkit records MCAP only (it reads sqlite3 bags)")
     quiet = log_level in (LogLevel.ERROR, LogLevel.FATAL)
-    recorder = Recorder(
-        output or Path(default_output_name()),
-        topics=split_list(topics_positional) + split_list(topics),
+    options = RecordOptions(
+        output=output,
+        topics=tuple(split_list(topics_positional) + split_list(topics)),
         all_topics=all_topics,
         regex=regex,
-        exclude=exclude_regex,
+        exclude_regex=exclude_regex,
         include_hidden=include_hidden,
-        topic_types=split_list(topic_types),
-        exclude_topics=split_list(exclude_topics),
-        exclude_topic_types=split_list(exclude_topic_types),
+        topic_types=tuple(split_list(topic_types)),
+        exclude_topics=tuple(split_list(exclude_topics)),
+        exclude_topic_types=tuple(split_list(exclude_topic_types)),
         include_unpublished=include_unpublished,
         custom_data=parse_custom_data(custom_data or []),
         compression=chunk_compression(compression_mode, compression_format),
         max_bag_size=max_bag_size,
         max_bag_duration_s=max_bag_duration,
-        qos_overrides=_qos_overrides(qos_overrides),
+        duration_s=duration,
+        qos_overrides=qos_overrides,
         use_sim_time=use_sim_time,
         node_name=node_name,
-        discovery_period_s=polling_interval / 1000,
-        on_warning=(lambda _message: None) if quiet else warn,
         queue_bytes=max_cache_size or DEFAULT_QUEUE_BYTES,
+        discovery_period_s=polling_interval / 1000,
     )
-
-    keep_freed_memory()
-    report, received = _record_until_stopped(recorder, duration)
+    recorder = Recorder(options, on_warning=(lambda _message: None) if quiet else warn)
+    report, received = _record_until_stopped(recorder)
     _print_outcome(report, received, output_format, quiet=quiet)
-
-
-def _qos_overrides(path: Path | None) -> dict[str, Any]:
-    """The ``--qos-profile-overrides-path`` file's profiles by absolute topic name."""
-    if path is None:
-        return {}
-    from bagkit.ros.qos import load_qos_overrides
-    from bagkit.selection.topics import absolute_topic_name
-
-    return {absolute_topic_name(k): v for k, v in load_qos_overrides(path).items()}
 
 
 def _print_outcome(
@@ -208,12 +198,8 @@ def _print_outcome(
         raise typer.Exit(EXIT_INTERRUPTED if received[0] == signal.SIGINT else 128 + received[0])
 
 
-def _record_until_stopped(
-    recorder: Recorder, duration: float | None
-) -> tuple[RecordReport, list[int]]:
-    """Record until a signal, ``duration`` or a failure; return the report and the signals."""
-    from bagkit.ros.fastdds import large_receive_queue
-
+def _record_until_stopped(recorder: Recorder) -> tuple[RecordReport, list[int]]:
+    """Record until a signal, ``--duration`` or a failure; return the report and the signals."""
     stop = threading.Event()
     received: list[int] = []
 
@@ -227,24 +213,33 @@ def _record_until_stopped(
 
     previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
-        with large_receive_queue():  # read when the participant is created
-            recorder.start()
-        err_console.print(f"recording to {recorder.path} (Ctrl-C to stop)", highlight=False)
-        deadline = None
-        with err_console.status(progress_line(recorder.progress(), subscribed=False)) as status:
-            while not stop.is_set() and not recorder.stopped.is_set():
-                subscribed = recorder.subscribed.is_set()
-                if duration is not None and deadline is None and subscribed:
-                    # The duration counts from when the topics are subscribed, not from start.
-                    deadline = time.monotonic() + duration
-                remaining = None if deadline is None else deadline - time.monotonic()
-                if remaining is not None and remaining <= 0:
-                    break
-                wait = 0.05 if not subscribed else 0.5
-                stop.wait(wait if remaining is None else min(wait, remaining))
-                status.update(progress_line(recorder.progress(), subscribed=subscribed))
+        with _ProgressStatus(recorder) as status:
+            report = recorder.run(stop, on_progress=status.update)
     finally:
-        report = recorder.stop()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     return report, received
+
+
+class _ProgressStatus:
+    """The live progress line on stderr, opened at the first progress (the recording started)."""
+
+    def __init__(self, recorder: Recorder) -> None:
+        self._recorder = recorder
+        self._stack = contextlib.ExitStack()
+        self._status: Status | None = None
+
+    def __enter__(self) -> _ProgressStatus:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self._stack.close()
+
+    def update(self, progress: RecordProgress) -> None:
+        line = progress_line(progress, subscribed=self._recorder.subscribed.is_set())
+        if self._status is None:
+            path = self._recorder.path
+            err_console.print(f"recording to {path} (Ctrl-C to stop)", highlight=False)
+            self._status = self._stack.enter_context(err_console.status(line))
+        else:
+            self._status.update(line)

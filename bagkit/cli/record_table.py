@@ -10,7 +10,7 @@ from rich.table import Table
 from bagkit.cli.common import console, format_rate, topic_table_fits
 
 if TYPE_CHECKING:
-    from bagkit.ros.record_report import RecordProgress, RecordReport
+    from bagkit.recording.report import RecordProgress, RecordReport
 
 
 # messages, lost, rate and bytes, with the table's padding.

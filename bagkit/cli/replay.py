@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import re
 import sys
-from contextlib import ExitStack
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -51,13 +50,14 @@ from bagkit.cli.replay_options import (
     WaitTimeout,
 )
 from bagkit.errors import BagkitError
-from bagkit.ros.timing import DEFAULT_CLOCK_HZ, DEFAULT_DISCOVERY_TIME_S, LATE_THRESHOLD_NS
+from bagkit.playback.options import PlayOptions
+from bagkit.playback.timing import DEFAULT_CLOCK_HZ, DEFAULT_DISCOVERY_TIME_S, LATE_THRESHOLD_NS
 from bagkit.times import seconds_to_ns
 
 if TYPE_CHECKING:
     # The player imports rclpy: only `bagkit replay` itself pays for that import.
-    from bagkit.ros.playback_report import PlayProgress, PlayReport
-    from bagkit.ros.player import Player
+    from bagkit.playback.report import PlayProgress, PlayReport
+    from bagkit.ros.replay.player import Player
 
 _NUMBER = re.compile(r"[0-9]*\.?[0-9]+([eE][-+]?[0-9]+)?")
 # Options that take several values, as `ros2 bag play`'s nargs='+' ones: `--topics a b c`.
@@ -134,38 +134,36 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
     storage: Storage = None,
     output_format: Format = ReportFormat.TABLE,
 ) -> None:
-    from bagkit.ros.player import Player
-    from bagkit.ros.player_topics import parse_remaps
+    from bagkit.ros.replay.player import Player
+    from bagkit.ros.replay.topics import parse_remaps
 
     _check_ros2_options(until_sec, until_nsec, storage, read_ahead_queue_size, wait_for_all_acked)
     interactive = sys.stderr.isatty()
     progress = _ProgressLine(interactive=interactive)
-    player = Player(
+    options = PlayOptions(
         bag,
         rate=rate,
-        topics=split_list(topics) or None,
+        topics=tuple(split_list(topics)) or None,
         regex=regex,
-        exclude=exclude,
-        exclude_topics=split_list(exclude_topics),
-        start_offset=start_offset,
-        duration=duration,
-        playback_until_ns=_until_ns(until_sec, until_nsec),
+        exclude_regex=exclude,
+        exclude_topics=tuple(split_list(exclude_topics)),
+        start_offset_s=start_offset,
+        duration_s=duration,
+        until_ns=_until_ns(until_sec, until_nsec),
         loops=0 if loop else 1,
-        delay=delay,
+        delay_s=delay,
         clock_hz=clock,
         start_paused=start_paused,
-        services=True,
         remap=parse_remaps(rule for value in remap or () for rule in value.split(",") if rule),
         wait_for_subscribers=wait_for_subscribers,
-        wait_for=wait_for or [],
-        wait_timeout=wait_timeout,
-        discovery_time=discovery_time,
-        ack_timeout=wait_for_all_acked / 1e3 if wait_for_all_acked else _FOREVER_S,
+        wait_for=tuple(wait_for or ()),
+        wait_timeout_s=wait_timeout,
+        discovery_time_s=discovery_time,
+        ack_timeout_s=wait_for_all_acked / 1e3 if wait_for_all_acked else _FOREVER_S,
         qos_overrides=qos_overrides,
-        on_progress=progress.update,
-        progress_period=0.25 if interactive else 5.0,
-        on_live_publishers=_warn_live_publishers,
+        progress_period_s=0.25 if interactive else 5.0,
     )
+    player = Player(options, on_progress=progress.update, on_live_publishers=_warn_live_publishers)
     report = _run(player, keyboard=not disable_keyboard_controls)
     progress.finish()
     _finish(report, bag, output_format)
@@ -195,20 +193,13 @@ def _until_ns(until_sec: float | None, until_nsec: int | None) -> int | None:
 
 
 def _run(player: Player, *, keyboard: bool) -> PlayReport:
-    """Open the player, hand it the terminal's keys, replay."""
-    from bagkit.ros.fastdds import large_receive_queue
-    from bagkit.ros.keyboard import terminal_controls
-    from bagkit.ros.timing import precise_timers
+    """Open the player (which tunes the process), hand it the terminal's keys, replay."""
+    from bagkit.playback.keyboard import terminal_controls
 
-    with ExitStack() as stack:
-        # The same Fast DDS shared-memory sizing as `bagkit record`: the profile's queue
-        # capacity also sizes the participant's pool of send buffers (read at its creation).
-        with large_receive_queue():
-            stack.enter_context(player)
+    with player:
         _warn_skipped(player)
-        stack.enter_context(terminal_controls(player.controls, keyboard=keyboard))
-        precise_timers()  # this thread publishes: its sleeps must end on time
-        return player.play()
+        with terminal_controls(player.controls, keyboard=keyboard):
+            return player.play()
 
 
 # --wait-for-all-acked 0: wait "forever" (a year).

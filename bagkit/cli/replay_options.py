@@ -11,7 +11,7 @@ from typing import Annotated
 import typer
 
 from bagkit.cli.common import ReportFormat
-from bagkit.ros.timing import DEFAULT_CLOCK_HZ
+from bagkit.playback.timing import DEFAULT_CLOCK_HZ
 
 Bag = Annotated[Path, typer.Argument(help="Bag directory or .mcap file.", show_default=False)]
 Rate = Annotated[

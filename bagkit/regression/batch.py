@@ -56,7 +56,7 @@ def check_fixture(job: tuple[Path, str], *, failures: Path, import_root: str) ->
     caller's): processor factories import from the directory the command runs in.
     """
     from bagkit.regression.artefacts import write_failure_artefacts
-    from bagkit.regression.golden import run_check
+    from bagkit.regression.check import run_check
 
     if import_root not in sys.path:
         sys.path.insert(0, import_root)

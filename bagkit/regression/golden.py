@@ -103,17 +103,3 @@ def update_golden(spec: FixtureSpec) -> GoldenUpdate:
         spec.bag.rename(old)
         fresh.rename(spec.bag)
     return GoldenUpdate(result, rewritten=True)
-
-
-def run_check(spec: FixtureSpec, mode: str, workdir: Path) -> GoldenCheck:
-    """Check ``spec`` in ``mode`` (``lockstep`` or ``live``) in ``workdir``.
-
-    Raises:
-        SpecError: the spec does not describe the system for ``mode``.
-        LiveRunError: a live run failed.
-    """
-    if mode == "live":
-        from bagkit.regression.live import check_live
-
-        return check_live(spec, workdir)
-    return check_lockstep(spec, workdir)

@@ -1,10 +1,12 @@
 """The live system in the loop: replaying goldens through DDS, and recording new goldens.
 
-The system under test is whatever the spec's command lines start (any language). bagkit runs
-its own console scripts beside them, as a user would: ``bagkit record`` for the recording and
-``bagkit replay --clock`` for the inputs. Every process runs in its own session and is stopped
-by its pid (SIGINT, then SIGKILL), so a failed run leaves nothing behind. The caller's
-environment decides the ROS domain and discovery range.
+The system under test is whatever the spec's command lines start (any language), each in its
+own session, stopped by its pid (SIGINT, then SIGKILL), so a failed run leaves nothing behind.
+bagkit's side runs in this process through the library, as ``bagkit record`` and
+``bagkit replay --clock`` would (the same ``Recorder(options)`` and ``Player(options)``, the same
+process tuning), and every wait is on an event: a subscription in the graph, the recorder
+started, the outputs recorded. docs/regression.md says why in-process. The caller's environment
+decides the ROS domain and discovery range.
 """
 
 from __future__ import annotations
@@ -13,32 +15,34 @@ import os
 import shutil
 import signal
 import subprocess
-import sys
 import time
 from collections.abc import Callable, Collection, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import IO
+from typing import IO, TYPE_CHECKING
 
 from bagkit.bag import BagReader
 from bagkit.compare import compare_bags
+from bagkit.errors import BagkitError
+from bagkit.playback.options import PlayOptions
+from bagkit.recording.options import RecordOptions
 from bagkit.regression.errors import LiveRunError, SpecError
 from bagkit.regression.golden import GoldenCheck, update_golden
 from bagkit.regression.spec import BAG_DIR, SPEC_FILE, FixtureSpec
 
+if TYPE_CHECKING:
+    from bagkit.ros.record.recorder import Recorder
+
 MAX_FIXTURE_BYTES = 2_000_000
 STOP_TIMEOUT_S = 15.0
-SETTLE_S = 2.0
+# After the replay, how long the last outputs may take to reach the recorder (a loaded machine).
+OUTPUTS_TIMEOUT_S = 10.0
+POLL_S = 0.05
 # /clock between the inputs: the rate the live fixtures were measured at (20 of 20 passes),
 # finer than a bare --clock's 40 Hz.
 CLOCK_HZ = 100
 CLOCK_HOLD_S = 0.5
 LOG_TAIL_LINES = 15
-
-
-def _script(name: str) -> str:
-    # The console scripts of this environment, whatever PATH says.
-    return str(Path(sys.executable).with_name(name))
 
 
 class Processes:
@@ -150,14 +154,69 @@ def _bag_span(bag: Path) -> tuple[int, int]:
         return reader.start_ns, reader.end_ns
 
 
+@contextmanager
+def _recording(options: RecordOptions) -> Iterator[Recorder]:
+    """A started recorder (its node in the graph, the topics looked for once), stopped after.
+
+    Raises:
+        LiveRunError: the recorder cannot start, or the recording failed (a full disk).
+    """
+    from bagkit.ros.record.recorder import Recorder
+
+    recorder = Recorder(options)
+    try:
+        recorder.start()
+    except BagkitError as exc:
+        raise LiveRunError(f"the recorder did not start: {exc}") from exc
+    try:
+        yield recorder
+    finally:
+        report = recorder.stop()
+    if report.error is not None:
+        raise LiveRunError(f"the recording failed: {report.error}")
+
+
+def _replay_inputs(spec: FixtureSpec) -> None:
+    """Publish the golden's inputs and /clock at ``live_rate``, as ``bagkit replay --clock``.
+
+    Raises:
+        LiveRunError: the replay could not start or its subscribers did not come.
+    """
+    from bagkit.ros.replay.player import Player
+
+    options = PlayOptions(
+        spec.bag,
+        rate=spec.live_rate,
+        topics=tuple(spec.inputs),
+        clock_hz=CLOCK_HZ,
+        services=False,
+    )
+    try:
+        Player(options).run()
+    except BagkitError as exc:
+        raise LiveRunError(f"replaying the inputs failed: {exc}") from exc
+
+
+def _wait_for_outputs(recorder: Recorder, expected: int, procs: Processes) -> None:
+    """Wait until the recorder has the golden's number of outputs, or OUTPUTS_TIMEOUT_S.
+
+    The last outputs are still in flight when the replay ends; a system that gives fewer is
+    for the comparison to report, after the timeout.
+    """
+    deadline = time.monotonic() + OUTPUTS_TIMEOUT_S
+    while recorder.progress().messages < expected and time.monotonic() < deadline:
+        procs.check_running()
+        if recorder.stopped.wait(POLL_S):
+            return
+
+
 def check_live(spec: FixtureSpec, workdir: Path, *, startup_timeout: float = 30.0) -> GoldenCheck:
     """Replay ``spec``'s golden inputs through the nodes on DDS and compare their outputs.
 
-    The spec's ``launch`` commands start the nodes (with use_sim_time); ``bagkit record
-    --use-sim-time`` records the outputs; once the graph shows the subscriptions the spec
-    waits for, the nodes' clock is set to the golden's start, and ``bagkit replay --clock``
-    publishes the inputs and the clock at ``live_rate``; the comparison uses the spec's live
-    tolerances.
+    The spec's ``launch`` commands start the nodes (with use_sim_time); a recorder with sim
+    time records the outputs; once the graph shows the subscriptions the spec waits for, the
+    nodes' clock is set to the golden's start, and a player publishes the inputs and the clock
+    at ``live_rate``; the comparison uses the spec's live tolerances.
 
     Raises:
         SpecError: the spec has no launch command.
@@ -167,13 +226,11 @@ def check_live(spec: FixtureSpec, workdir: Path, *, startup_timeout: float = 30.
         raise SpecError(f"{spec.directory / SPEC_FILE}: live mode needs a launch command")
     workdir.mkdir(parents=True, exist_ok=True)
     candidate = workdir / "candidate"
-    start_ns, end_ns = _bag_span(spec.bag)
-    replay_timeout = 2 * (end_ns - start_ns) / 1e9 / spec.live_rate + 60
-    with _processes(workdir / "logs") as procs:
-        recorder = procs.start(
-            "record",
-            [_script("bagkit"), "record", "--use-sim-time", "-o", str(candidate), *spec.outputs],
-        )
+    start_ns, _ = _bag_span(spec.bag)
+    with BagReader(spec.bag) as golden:
+        expected = sum(golden.topic_counts.get(topic, 0) for topic in spec.outputs)
+    options = RecordOptions(candidate, topics=tuple(spec.outputs), use_sim_time=True)
+    with _processes(workdir / "logs") as procs, _recording(options) as recorder:
         # The recorder keeps nothing that arrives before its first /clock, and a node may
         # publish the moment its own clock is set (a timer due at the bag's start): the
         # recorder gets the clock before any node exists.
@@ -182,31 +239,9 @@ def check_live(spec: FixtureSpec, workdir: Path, *, startup_timeout: float = 30.
         counts = {**spec.subscription_counts(), **dict.fromkeys(spec.outputs, 1)}
         counts["/clock"] = counts.get("/clock", 0) + 1  # the recorder's, matched again
         _prepare_graph(procs, counts, start_ns, startup_timeout)
-        replay = procs.start(
-            "replay",
-            [
-                _script("bagkit"),
-                "replay",
-                "--clock",
-                str(CLOCK_HZ),
-                "--rate",
-                repr(spec.live_rate),
-                "--topics",
-                ",".join(spec.inputs),
-                str(spec.bag),
-            ],
-        )
-        try:
-            code = replay.wait(timeout=replay_timeout)
-        except subprocess.TimeoutExpired:
-            raise LiveRunError(f"bagkit replay hangs:\n{procs.log_tail('replay')}") from None
-        if code != 0:
-            raise LiveRunError(f"bagkit replay exited {code}:\n{procs.log_tail('replay')}")
-        time.sleep(SETTLE_S)  # the last outputs are still in flight on a loaded machine
-        procs.check_running(ignore=("replay",))
-        code = procs.stop(recorder)
-        if not candidate.exists():
-            raise LiveRunError(f"bagkit record exited {code}:\n{procs.log_tail('record')}")
+        _replay_inputs(spec)
+        _wait_for_outputs(recorder, expected, procs)
+        procs.check_running()
     report = compare_bags(spec.bag, candidate, spec.compare_options("live"))
     return GoldenCheck(spec, "live", candidate, report)
 
@@ -216,7 +251,7 @@ def record_golden(
 ) -> dict[str, int]:
     """Record ``spec``'s golden bag from the live system; return its message counts by topic.
 
-    ``bagkit record`` records the inputs, outputs and ``record_topics`` while the spec's
+    A recorder records the inputs, outputs and ``record_topics`` while the spec's
     ``record_launch`` commands run the whole system on the wall clock for ``duration``. With a
     processor factory, the recorded outputs are then replaced by lockstep's (the recorder joins
     a little after the nodes, so the live outputs start from a state the bag does not hold).
@@ -229,21 +264,14 @@ def record_golden(
         raise SpecError(f"{spec.directory / SPEC_FILE}: recording needs record_launch")
     workdir.mkdir(parents=True, exist_ok=True)
     recording = workdir / BAG_DIR
-    topics = list(dict.fromkeys([*spec.inputs, *spec.outputs, *spec.record_topics]))
-    with _processes(workdir / "logs") as procs:
-        recorder = procs.start(
-            "record", [_script("bagkit"), "record", "-o", str(recording), *topics]
-        )
-        time.sleep(1.0)  # the recorder is in the graph before the first input
+    topics = tuple(dict.fromkeys([*spec.inputs, *spec.outputs, *spec.record_topics]))
+    # The recorder has started (its node is in the graph) before the system's first input.
+    with _processes(workdir / "logs") as procs, _recording(RecordOptions(recording, topics)) as rec:
         _start_system(procs, spec.record_launch, "system")
         log(f"{spec.name}: recording {spec.duration_s:.0f} s of the live system ...")
         deadline = time.monotonic() + spec.duration_s + 1.0
-        while time.monotonic() < deadline:
+        while time.monotonic() < deadline and not rec.stopped.wait(POLL_S):
             procs.check_running()
-            time.sleep(0.2)
-        code = procs.stop(recorder)
-        if not recording.exists():
-            raise LiveRunError(f"bagkit record exited {code}:\n{procs.log_tail('record')}")
     size = sum(f.stat().st_size for f in recording.iterdir())
     if size > MAX_FIXTURE_BYTES:
         raise LiveRunError(f"the recording is {size / 1e6:.1f} MB, more than 2 MB")

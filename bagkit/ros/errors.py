@@ -3,6 +3,18 @@
 from __future__ import annotations
 
 from bagkit.errors import BagkitError
+from bagkit.playback.errors import PlayerError
+from bagkit.recording.errors import RecorderOptionsError
+
+__all__ = [
+    "MessageClassNotFoundError",
+    "PlayerError",
+    "QosProfileError",
+    "RecorderOptionsError",
+    "RecordingFailedError",
+    "RosError",
+    "SubscriberTimeoutError",
+]
 
 
 class RosError(BagkitError):
@@ -13,10 +25,6 @@ class MessageClassNotFoundError(RosError):
     """A message type whose Python package is not installed."""
 
 
-class PlayerError(RosError):
-    """A replay that cannot start: bad options, nothing to replay."""
-
-
 class SubscriberTimeoutError(PlayerError):
     """Subscribers known to the graph did not match the player's publishers in time."""
 
@@ -25,10 +33,6 @@ class SubscriberTimeoutError(PlayerError):
 
 class QosProfileError(RosError):
     """A QoS profile that cannot be read: bad offered_qos_profiles YAML or overrides file."""
-
-
-class RecorderOptionsError(RosError):
-    """A recording that cannot start: nothing selected, a bad option, an existing output."""
 
 
 class RecordingFailedError(RosError):

@@ -7,20 +7,14 @@ from collections.abc import Callable, Mapping
 
 import rclpy
 from rclpy.context import Context
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 
+from bagkit.ros.clock import CLOCK_TOPIC
 from bagkit.ros.errors import SubscriberTimeoutError
+from bagkit.ros.qos import CLOCK_QOS
 
 POLL_S = 0.1
 CLOCK_PERIOD_S = 0.02
-# What rclcpp's ClockQoS offers and what every use_sim_time node subscribes with.
-CLOCK_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1,
-    reliability=ReliabilityPolicy.BEST_EFFORT,
-    durability=DurabilityPolicy.VOLATILE,
-)
 
 
 def wait_for_subscriptions(
@@ -74,7 +68,7 @@ def hold_clock(time_ns: int, *, subscriptions: int, seconds: float, timeout: flo
     rclpy.init(context=context)
     try:
         node = rclpy.create_node("bagkit_clock_hold", context=context)
-        publisher = node.create_publisher(Clock, "/clock", CLOCK_QOS)
+        publisher = node.create_publisher(Clock, CLOCK_TOPIC, CLOCK_QOS)
         msg = Clock()
         msg.clock.sec, msg.clock.nanosec = divmod(time_ns, 1_000_000_000)
         deadline = time.monotonic() + timeout

@@ -43,6 +43,13 @@ RECORD_DEPTH = 1000
 REPLAY_DEPTH = 100
 HISTORY_WINDOW_S = 0.1
 HISTORY_BUDGET_BYTES = 256 << 20
+# What rclcpp's ClockQoS offers and what every use_sim_time node subscribes with.
+CLOCK_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.BEST_EFFORT,
+    durability=DurabilityPolicy.VOLATILE,
+)
 # Jazzy metadata writes strings from this version on.
 STRING_POLICY_VERSION = 9
 # RMW_DURATION_INFINITE as written by rosbag2: {sec: 9223372036, nsec: 854775807}.

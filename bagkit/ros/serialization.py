@@ -6,7 +6,7 @@ from typing import Any
 
 from rclpy.serialization import deserialize_message, serialize_message
 
-from bagkit.ros.types import import_message_type, message_type_name
+from bagkit.ros.message_classes import import_message_type, message_type_name
 
 
 def serialize(msg: Any) -> bytes:

@@ -12,7 +12,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from bagkit.decode import DecodeError
 from bagkit.decode.layout import CdrLayout, PaddingZeroer
-from bagkit.ros.types import import_message_type
+from bagkit.ros.message_classes import import_message_type
 
 JAZZY = get_typestore(Stores.ROS2_JAZZY)
 

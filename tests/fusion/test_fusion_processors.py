@@ -11,7 +11,7 @@ from fusion_loop import START_NS, run_loop
 from rclpy.serialization import serialize_message
 from rosbags.typesys import Stores, get_typestore
 
-from bagkit.ros.types import message_type_name
+from bagkit.ros.message_classes import message_type_name
 from fusion import topics
 from fusion.errors import ConfigError, UnknownNodeError
 from fusion.params import default_parameters

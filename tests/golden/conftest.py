@@ -8,7 +8,7 @@ import pytest
 from rclpy.serialization import serialize_message
 
 from bagkit.bag import BagWriter, TopicInfo
-from bagkit.ros.types import message_type_name
+from bagkit.ros.message_classes import message_type_name
 from fusion.simulate import simulate
 
 

@@ -19,6 +19,9 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
 from bagkit.bag import BagReader, BagWriter, TopicInfo
+from bagkit.playback.options import PlayOptions
+from bagkit.playback.report import PlayReport
+from bagkit.ros.replay.player import Player
 
 BAG_START_NS = 1_700_000_000_000_000_000
 # Two topics on different grids so that their messages interleave: 20 Hz and 10 Hz for 1 s.
@@ -137,10 +140,15 @@ STRING_TOPICS = dict.fromkeys(SCHEDULE, String)
 
 # The listeners are known: wait for them instead of watching the graph for 3 s (a subscription
 # in this process is discovered at once; one in another process takes up to 3 s).
-KNOWN = {"discovery_time": 0.0}
+KNOWN = {"discovery_time_s": 0.0}
 
 
 CLI_KNOWN = ["--discovery-time", "0"]
+
+
+def play(bag: Path, **options: Any) -> PlayReport:
+    """Replay ``bag`` once with these :class:`PlayOptions` and return the report."""
+    return Player(PlayOptions(bag, **options)).run()
 
 
 def clock_ns(data: bytes) -> int:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import random
 
-from bagkit.ros.loss import SequenceTracker
+from bagkit.recording.loss import SequenceTracker
 
 
 def feed(numbers: list[int], publishers: int) -> tuple[int, int]:

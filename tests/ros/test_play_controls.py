@@ -8,9 +8,10 @@ import pytest
 from typer.testing import CliRunner
 
 from bagkit.cli.main import app
-from bagkit.ros.errors import PlayerError
-from bagkit.ros.keyboard import DOWN, RIGHT, SPACE, UP, key_actions, split_keys
-from bagkit.ros.play_controls import RATE_STEP, PlayControls
+from bagkit.playback.controls import RATE_STEP, PlayControls
+from bagkit.playback.errors import PlayerError
+from bagkit.playback.keyboard import DOWN, RIGHT, SPACE, UP, key_actions, split_keys
+from bagkit.playback.options import PlayOptions
 
 MS = 1_000_000
 
@@ -111,11 +112,11 @@ def _options(args: list[str], monkeypatch: pytest.MonkeyPatch, command: str = "p
     seen: dict[str, object] = {}
 
     class FakePlayer:
-        def __init__(self, bag: object, **options: object) -> None:
-            seen.update(options, bag=str(bag))
+        def __init__(self, options: PlayOptions, **_callbacks: object) -> None:
+            seen.update(vars(options), bag=str(options.bag))
             raise PlayerError("stop here")
 
-    monkeypatch.setattr("bagkit.ros.player.Player", FakePlayer)
+    monkeypatch.setattr("bagkit.ros.replay.player.Player", FakePlayer)
     result = CliRunner().invoke(app, [command, *args])
     assert result.exit_code == 2, result.output
     return seen
@@ -137,7 +138,7 @@ def test_topics_take_several_values_comma_lists_and_repeats(
     monkeypatch.chdir(tmp_path)  # type: ignore[arg-type]
     (tmp_path / "BAG").mkdir()  # type: ignore[operator]
     seen = _options(args, monkeypatch)
-    assert seen["topics"] == ["/a", "/b", "/c"]
+    assert seen["topics"] == ("/a", "/b", "/c")
     assert seen["bag"] == "BAG"
 
 
@@ -173,15 +174,15 @@ def test_ros2_bag_play_options_reach_the_player(monkeypatch: pytest.MonkeyPatch)
         ],
         monkeypatch,
     )
-    assert seen["exclude"] == "^/tf"
-    assert seen["exclude_topics"] == ["/a", "/b"]
+    assert seen["exclude_regex"] == "^/tf"
+    assert seen["exclude_topics"] == ("/a", "/b")
     assert seen["start_paused"] is True
     assert seen["loops"] == 0
-    assert seen["delay"] == 2.0
-    assert seen["duration"] == 3.0
-    assert seen["playback_until_ns"] == 17
+    assert seen["delay_s"] == 2.0
+    assert seen["duration_s"] == 3.0
+    assert seen["until_ns"] == 17
     assert seen["remap"] == {"/a": "/x", "/b": "/y"}
-    assert seen["ack_timeout"] > 3600  # type: ignore[operator]
+    assert seen["ack_timeout_s"] > 3600  # type: ignore[operator]
     assert str(seen["qos_overrides"]) == "q.yaml"
 
 
@@ -191,9 +192,9 @@ def test_old_spellings_still_work(monkeypatch: pytest.MonkeyPatch) -> None:
         monkeypatch,
         command="replay",
     )
-    assert (seen["exclude"], seen["duration"]) == ("^/tf", 3.0)
+    assert (seen["exclude_regex"], seen["duration_s"]) == ("^/tf", 3.0)
     assert str(seen["qos_overrides"]) == "q.yaml"
-    assert _options(["BAG", "--playback-until-sec", "1.5"], monkeypatch)["playback_until_ns"] == (
+    assert _options(["BAG", "--playback-until-sec", "1.5"], monkeypatch)["until_ns"] == (
         1_500_000_000
     )
 

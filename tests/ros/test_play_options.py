@@ -1,4 +1,4 @@
-"""The player's window and option ranges, checked without rclpy."""
+"""The player's options and window, checked without rclpy."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from bagkit.ros.errors import PlayerError
-from bagkit.ros.play_options import PlayWindow, check_play_options
+from bagkit.playback.errors import PlayerError
+from bagkit.playback.options import PlayOptions, PlayWindow
 
 BAG = Path("drive")
 START, END = 1_000_000_000_000, 1_010_000_000_000  # 10 s of messages
@@ -70,5 +70,5 @@ def test_options_out_of_range(
     rate: float, delay: float, clock_hz: float | None, loops: int, message: str
 ) -> None:
     with pytest.raises(PlayerError, match=message):
-        check_play_options(rate, delay, clock_hz, loops)
-    check_play_options(1.0, 0.0, None, 0)  # 0 loops: until interrupted
+        PlayOptions(BAG, rate=rate, delay_s=delay, clock_hz=clock_hz, loops=loops)
+    assert PlayOptions(BAG, loops=0).loops == 0  # 0 loops: until interrupted

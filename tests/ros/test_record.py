@@ -19,11 +19,12 @@ from std_msgs.msg import Int32, String
 from waiting import wait_for, wait_matched
 
 from bagkit.bag import BagReader
-from bagkit.ros import handoff, subscriptions, write_loop
+from bagkit.recording.options import RecordOptions
+from bagkit.recording.report import RecordReport
 from bagkit.ros.errors import MessageClassNotFoundError
 from bagkit.ros.qos import parse_offered_qos_profiles
-from bagkit.ros.record_report import RecordReport
-from bagkit.ros.recorder import Recorder
+from bagkit.ros.record import handoff, subscriptions, write_loop
+from bagkit.ros.record.recorder import Recorder
 
 pytestmark = pytest.mark.ros
 
@@ -74,7 +75,7 @@ def _record_known_sequences(node: Node, bag: Path) -> RecordReport:
     )
     # Published before the recorder exists: only transient-local durability brings it over.
     latched.publish(String(data="map v1"))
-    with Recorder(bag, regex="^/rec/") as recorder:
+    with Recorder(RecordOptions(bag, regex="^/rec/")) as recorder:
         wait_matched(reliable, best_effort, latched)
         for i in range(N_IMU):
             reliable.publish(imu(i))
@@ -136,7 +137,7 @@ def test_metadata_and_channel_qos(node: Node, tmp_path: Path) -> None:
     )
     latched.publish(String(data="hello"))
     bag = tmp_path / "meta"
-    with Recorder(bag, topics=["meta/latched"]) as recorder:
+    with Recorder(RecordOptions(bag, topics=("meta/latched",))) as recorder:
         wait_for(lambda: recorder.progress().messages == 1)
     info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
     assert info["version"] == 9
@@ -176,7 +177,7 @@ def test_publisher_with_weaker_qos_joining_later_is_recorded(node: Node, tmp_pat
     """Subscribed reliable; a best-effort publisher appears: re-subscribed to match both."""
     reliable = node.create_publisher(String, "/mixed", 10)
     bag = tmp_path / "mixed"
-    with Recorder(bag, topics=["/mixed"]) as recorder:
+    with Recorder(RecordOptions(bag, topics=("/mixed",))) as recorder:
         wait_matched(reliable)
         reliable.publish(String(data="reliable 0"))
         best_effort = node.create_publisher(
@@ -210,7 +211,8 @@ def test_unknown_message_package_is_skipped_with_one_warning(
     unknown = node.create_publisher(Int32, "/skip/int", 10)
     text = node.create_publisher(String, "/skip/text", 10)
     warnings: list[str] = []
-    with Recorder(tmp_path / "skip", regex="^/skip/", on_warning=warnings.append) as recorder:
+    options = RecordOptions(tmp_path / "skip", regex="^/skip/")
+    with Recorder(options, on_warning=warnings.append) as recorder:
         wait_matched(text)
         text.publish(String(data="kept"))
         unknown.publish(Int32(data=1))
@@ -228,7 +230,7 @@ def test_use_sim_time_stamps_log_time_from_clock(node: Node, tmp_path: Path) -> 
     data = node.create_publisher(String, "/sim/data", 10)
     bag = tmp_path / "sim"
     sim_times = []
-    with Recorder(bag, topics=["/sim/data"], use_sim_time=True) as recorder:
+    with Recorder(RecordOptions(bag, topics=("/sim/data",), use_sim_time=True)) as recorder:
         wait_matched(clock, data)
         for i in range(10):
             sim = Clock()
@@ -248,8 +250,10 @@ def test_use_sim_time_stamps_log_time_from_clock(node: Node, tmp_path: Path) -> 
 
 def test_qos_overrides_replace_the_adapted_profile(node: Node, tmp_path: Path) -> None:
     publisher = node.create_publisher(String, "/ovr", 10)
-    override = QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST_EFFORT)
-    with Recorder(tmp_path / "ovr", topics=["/ovr"], qos_overrides={"/ovr": override}) as rec:
+    overrides = tmp_path / "overrides.yaml"
+    overrides.write_text("ovr:\n  reliability: best_effort\n  depth: 5\n")  # a relative name
+    options = RecordOptions(tmp_path / "ovr", topics=("/ovr",), qos_overrides=overrides)
+    with Recorder(options) as rec:
         wait_matched(publisher)
 
         def recorder_subscriptions() -> list[Any]:
@@ -281,7 +285,7 @@ def test_write_queue_overflow_is_counted(
     publisher = node.create_publisher(String, "/slow", 1000)
     n = 600
     # Room for about two batches (5 ms of messages each) waiting for the writer.
-    with Recorder(tmp_path / "slow", topics=["/slow"], queue_bytes=200) as recorder:
+    with Recorder(RecordOptions(tmp_path / "slow", topics=("/slow",), queue_bytes=200)) as recorder:
         wait_matched(publisher)
         for i in range(n):
             publisher.publish(String(data=f"slow {i:04d}"))
@@ -305,7 +309,7 @@ def test_type_without_a_definition_is_skipped_and_recording_goes_on(
     text = node.create_publisher(String, "/odd/text", 10)
     warnings: list[str] = []
     bag = tmp_path / "odd"
-    with Recorder(bag, regex="^/odd/", on_warning=warnings.append) as recorder:
+    with Recorder(RecordOptions(bag, regex="^/odd/"), on_warning=warnings.append) as recorder:
         wait_matched(text)
         wait_for(lambda: "/odd/request" in recorder.report.skipped)
         odd.publish(ListParameters.Request())
@@ -337,7 +341,7 @@ def test_subscription_error_in_discovery_still_finishes_the_bag(
     monkeypatch.setattr(Node, "create_subscription", failing)
     wait_for(lambda: bool(node.get_publishers_info_by_topic("/broken/topic")))
     bag = tmp_path / "broken"
-    recorder = Recorder(bag, topics=["/broken/topic"])
+    recorder = Recorder(RecordOptions(bag, topics=("/broken/topic",)))
     recorder.start()
     assert recorder.stopped.wait(MATCH_TIMEOUT_S)
     report = recorder.stop()

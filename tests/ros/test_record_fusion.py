@@ -15,7 +15,7 @@ from rosbags.highlevel import AnyReader
 from test_record_cli import report_json
 
 from bagkit.bag import BagReader
-from bagkit.ros.types import message_type_name
+from bagkit.ros.message_classes import message_type_name
 from fusion import topics
 
 pytestmark = pytest.mark.ros

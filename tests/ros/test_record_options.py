@@ -19,7 +19,9 @@ from test_record_cli import STARTUP_TIMEOUT_S, record, report_json
 from waiting import wait_for, wait_matched
 
 from bagkit.bag import BagReader
-from bagkit.ros.recorder import Recorder
+from bagkit.recording.options import RecordOptions
+from bagkit.recording.report import RecordProgress
+from bagkit.ros.record.recorder import Recorder
 
 pytestmark = pytest.mark.ros
 
@@ -30,7 +32,7 @@ def test_sim_time_writes_nothing_before_the_first_clock(node: Node, tmp_path: Pa
     )
     data = node.create_publisher(String, "/sim/early", 100)
     bag = tmp_path / "sim"
-    with Recorder(bag, topics=["/sim/early"], use_sim_time=True) as recorder:
+    with Recorder(RecordOptions(bag, topics=("/sim/early",), use_sim_time=True)) as recorder:
         wait_matched(clock, data)
         for i in range(5):
             data.publish(String(data=f"early {i}"))
@@ -183,3 +185,39 @@ def test_storage_other_than_mcap_and_bad_custom_data_are_bad_input(
         assert proc.returncode == 2
         assert stderr.decode().strip() == f"error: {message}"
         assert not (tmp_path / "never").exists()
+
+
+def test_run_stops_at_max_messages_on_a_condition_and_on_an_event(
+    node: Node, tmp_path: Path
+) -> None:
+    publisher = node.create_publisher(String, "/run/data", 100)
+    feeding_done = threading.Event()
+    feeding = threading.Thread(target=_publish_until, args=(feeding_done, [publisher], 0.01))
+    feeding.start()
+    reports = []
+    try:
+        options = RecordOptions(tmp_path / "limited", topics=("/run/data",), max_messages=5)
+        progress: list[int] = []
+        reports.append(Recorder(options).run(on_progress=lambda p: progress.append(p.messages)))
+        assert progress  # called as the recording starts, then every half second
+        # A condition: stop once three messages are in.
+        recorder = Recorder(RecordOptions(tmp_path / "condition", topics=("/run/data",)))
+        reports.append(recorder.run(lambda: recorder.progress().messages >= 3))
+        # An event, set from another thread (here, the progress callback's).
+        stop = threading.Event()
+
+        def stop_after_three(progress: RecordProgress) -> None:
+            if progress.messages >= 3:
+                stop.set()
+
+        options = RecordOptions(tmp_path / "event", topics=("/run/data",))
+        reports.append(Recorder(options).run(stop, on_progress=stop_after_three))
+    finally:
+        feeding_done.set()
+        feeding.join()
+    assert [r.error for r in reports] == [None, None, None]
+    assert reports[0].messages >= 5  # counted between two looks: a few more may be in
+    assert reports[1].messages >= 3 and reports[2].messages >= 3
+    for report in reports:
+        with BagReader(report.path) as reader:
+            assert reader.topic_counts == {"/run/data": report.messages}

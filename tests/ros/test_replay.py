@@ -9,6 +9,7 @@ import time
 from pathlib import Path
 
 import pytest
+from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from replay_harness import (
     BAG_SPAN_NS,
@@ -19,15 +20,18 @@ from replay_harness import (
     Listener,
     clock_ns,
     payload,
+    play,
     recorded,
 )
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
+from waiting import wait_for
 
 from bagkit.bag import BagWriter, TopicInfo
+from bagkit.playback.options import PlayOptions
 from bagkit.ros.clock import clock_message
-from bagkit.ros.player import Player, play
-from bagkit.ros.qos import REPLAY_DEPTH, dump_offered_qos_profiles
+from bagkit.ros.qos import dump_offered_qos_profiles
+from bagkit.ros.replay.player import Player
 
 pytestmark = pytest.mark.ros
 
@@ -38,7 +42,7 @@ def test_every_message_in_order_with_the_recorded_pacing(
 ) -> None:
     expected = recorded(test_bag)
     listener = listener_factory(STRING_TOPICS)
-    report = play(test_bag, rate=rate, wait_for=list(SCHEDULE), **KNOWN)
+    report = play(test_bag, rate=rate, wait_for=tuple(SCHEDULE), **KNOWN)
     got = listener.wait_for_count(len(expected))
 
     # Every message, first one included, in log-time order (one process, one writer: DDS keeps
@@ -76,7 +80,7 @@ def test_start_offset_and_duration_select_a_window_of_bag_time(
     expected = [(t, d) for t, d, log in recorded(test_bag) if window[0] <= log < window[1]]
     listener = listener_factory(STRING_TOPICS)
     report = play(
-        test_bag, rate=4.0, start_offset=0.3, duration=0.4, wait_for=list(SCHEDULE), **KNOWN
+        test_bag, rate=4.0, start_offset_s=0.3, duration_s=0.4, wait_for=tuple(SCHEDULE), **KNOWN
     )
     got = listener.wait_for_count(len(expected))
     assert [(r.topic, r.data) for r in got] == expected
@@ -89,15 +93,15 @@ def test_topic_selection_regex_and_exclude(
     fast = [(t, d) for t, d, _ in recorded(test_bag, ["/replay/fast"])]
     slow = [(t, d) for t, d, _ in recorded(test_bag, ["/replay/slow"])]
     for options, expected in [
-        ({"topics": ["/replay/fast"]}, fast),
-        ({"exclude": "fast$"}, slow),
+        ({"topics": ("/replay/fast",)}, fast),
+        ({"exclude_regex": "fast$"}, slow),
         (
-            {"regex": "^/replay/s", "topics": ["/replay/fast"]},
+            {"regex": "^/replay/s", "topics": ("/replay/fast",)},
             sorted(fast + slow, key=_order(test_bag)),
         ),
     ]:
         listener = listener_factory(STRING_TOPICS)
-        report = play(test_bag, rate=10.0, wait_for=list(SCHEDULE), **KNOWN, **options)
+        report = play(test_bag, rate=10.0, wait_for=tuple(SCHEDULE), **KNOWN, **options)
         got = listener.wait_for_count(len(expected))
         assert [(r.topic, r.data) for r in got] == expected, options
         assert report.messages == len(expected)
@@ -117,9 +121,9 @@ def test_remap_publishes_under_the_new_name(
     report = play(
         test_bag,
         rate=10.0,
-        topics=["/replay/fast"],
+        topics=("/replay/fast",),
         remap={"/replay/fast": "/renamed"},
-        wait_for=["/renamed", "/replay/fast"],
+        wait_for=("/renamed", "/replay/fast"),
         **KNOWN,
     )
     got = listener.wait_for_count(len(fast))
@@ -131,7 +135,10 @@ def test_remap_publishes_under_the_new_name(
 def test_loops_and_delay(test_bag: Path, listener_factory: type[Listener]) -> None:
     expected = [(t, d) for t, d, _ in recorded(test_bag)]
     listener = listener_factory(STRING_TOPICS)
-    with Player(test_bag, rate=5.0, loops=2, delay=0.5, wait_for=list(SCHEDULE), **KNOWN) as player:
+    options = PlayOptions(
+        test_bag, rate=5.0, loops=2, delay_s=0.5, wait_for=tuple(SCHEDULE), **KNOWN
+    )
+    with Player(options) as player:
         player.wait_until_matched()
         player.waits = dataclasses.replace(player.waits, before_start=False, topics=())
         started_ns = time.time_ns()
@@ -151,7 +158,7 @@ def test_clock_runs_in_bag_time_before_each_message(
 ) -> None:
     rate = 2.0
     listener = listener_factory({**STRING_TOPICS, "/clock": Clock})
-    report = play(test_bag, rate=rate, clock_hz=50.0, wait_for=[*SCHEDULE, "/clock"], **KNOWN)
+    report = play(test_bag, rate=rate, clock_hz=50.0, wait_for=(*SCHEDULE, "/clock"), **KNOWN)
     expected = recorded(test_bag)
     listener.wait_for_count(len(expected))
     clock = [(r, clock_ns(r.data)) for r in listener.messages("/clock")]
@@ -168,7 +175,7 @@ def test_clock_runs_in_bag_time_before_each_message(
     assert report.messages == len(expected)
 
 
-def test_publishers_take_the_recorded_qos_or_the_overrides(tmp_path: Path) -> None:
+def test_publishers_take_the_recorded_qos_or_the_overrides(node: Node, tmp_path: Path) -> None:
     latched = QoSProfile(
         depth=3, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
     )
@@ -181,17 +188,22 @@ def test_publishers_take_the_recorded_qos_or_the_overrides(tmp_path: Path) -> No
             writer.write(topic, payload(topic, 0), log_time=BAG_START_NS)
     overrides = tmp_path / "overrides.yaml"
     overrides.write_text("/plain:\n  reliability: reliable\n  history: keep_last\n  depth: 42\n")
-    with Player(bag, qos_overrides=overrides) as player:
-        offered = player.qos_profiles
-    # Transient-local keeps its recorded depth (what a late subscriber gets); volatile topics
-    # get a history for the messages in flight, here (one message each) the floor.
+
+    def offered_by_the_player(topic: str) -> list[QoSProfile]:
+        infos = node.get_publishers_info_by_topic(topic)
+        return [i.qos_profile for i in infos if i.node_name == "bagkit_player"]
+
+    with Player(PlayOptions(bag, qos_overrides=overrides, wait_for_subscribers=False)):
+        # What DDS discovery tells of a publisher: reliability and durability, not the depth
+        # (test_qos.py checks the depths replay_publisher_qos and the overrides give).
+        wait_for(lambda: all(offered_by_the_player(t) for t in ("/latched", "/lossy", "/plain")))
+        offered = {t: offered_by_the_player(t)[0] for t in ("/latched", "/lossy", "/plain")}
     assert offered["/latched"].durability == DurabilityPolicy.TRANSIENT_LOCAL
     assert offered["/latched"].reliability == ReliabilityPolicy.RELIABLE
-    assert offered["/latched"].depth == 3
     assert offered["/lossy"].reliability == ReliabilityPolicy.BEST_EFFORT
-    assert offered["/lossy"].depth == REPLAY_DEPTH
+    assert offered["/lossy"].durability == DurabilityPolicy.VOLATILE
+    # Recorded best effort; the override makes it reliable.
     assert offered["/plain"].reliability == ReliabilityPolicy.RELIABLE
-    assert offered["/plain"].depth == 42
 
 
 def test_a_recorded_clock_is_not_replayed_with_clock_on(tmp_path: Path) -> None:
@@ -201,17 +213,18 @@ def test_a_recorded_clock_is_not_replayed_with_clock_on(tmp_path: Path) -> None:
         writer.add_topic(TopicInfo("/replay/fast", "std_msgs/msg/String"))
         writer.write("/clock", clock_message(BAG_START_NS), log_time=BAG_START_NS)
         writer.write("/replay/fast", payload("/replay/fast", 0), log_time=BAG_START_NS)
-    with Player(bag, clock_hz=100.0, wait_for_subscribers=False) as player:
-        assert set(player.published_topics) == {"/replay/fast"}
-    with Player(bag, wait_for_subscribers=False) as player:
-        assert set(player.published_topics) == {"/clock", "/replay/fast"}
+    for clock_hz, replayed in ((100.0, ["/replay/fast"]), (None, ["/clock", "/replay/fast"])):
+        options = PlayOptions(bag, clock_hz=clock_hz, wait_for_subscribers=False)
+        report = Player(options).run()
+        assert sorted(t.topic for t in report.topics) == replayed
+        assert report.messages == len(replayed)
 
 
 def test_looping_keeps_the_lateness_samples_bounded(
     test_bag: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from bagkit.ros import lateness
-    from bagkit.ros import player as player_module
+    from bagkit.playback import lateness
+    from bagkit.ros.replay import player as player_module
 
     kept: list[lateness.LatenessSamples] = []
 

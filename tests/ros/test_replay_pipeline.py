@@ -131,7 +131,7 @@ def _header_stamps(
     reader: BagReader, types: dict[str, str], end_ns: int | None = None
 ) -> dict[str, list[int]]:
     """Header stamps per topic of ``reader``, of the messages logged before ``end_ns``."""
-    from bagkit.ros.types import import_message_type
+    from bagkit.ros.message_classes import import_message_type
 
     stamps: dict[str, list[int]] = {}
     for topic, type_name in types.items():

@@ -8,15 +8,16 @@ import pytest
 from typer.testing import CliRunner
 
 from bagkit.cli.main import app
-from bagkit.ros.errors import PlayerError
-from bagkit.ros.lateness import LatenessSamples
-from bagkit.ros.player_topics import parse_remaps
-from bagkit.ros.timing import (
+from bagkit.playback.errors import PlayerError
+from bagkit.playback.lateness import LatenessSamples
+from bagkit.playback.options import PlayOptions
+from bagkit.playback.timing import (
     LATE_THRESHOLD_NS,
     LatenessSummary,
     Timeline,
     wait_until,
 )
+from bagkit.ros.replay.topics import parse_remaps
 
 
 def test_timeline_scales_bag_time_by_rate() -> None:
@@ -93,11 +94,11 @@ def test_clock_takes_an_optional_value(
     seen: dict[str, object] = {}
 
     class FakePlayer:
-        def __init__(self, bag: object, **options: object) -> None:
-            seen.update(options)
+        def __init__(self, options: PlayOptions, **_callbacks: object) -> None:
+            seen.update(vars(options))
             raise PlayerError("stop here")
 
-    monkeypatch.setattr("bagkit.ros.player.Player", FakePlayer)
+    monkeypatch.setattr("bagkit.ros.replay.player.Player", FakePlayer)
     result = CliRunner().invoke(app, ["replay", *args])
     assert result.exit_code == 2, result.output
     assert seen["clock_hz"] == float(expected)

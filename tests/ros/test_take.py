@@ -1,4 +1,4 @@
-"""bagkit.ros.take against rclpy's own take, on real subscriptions of one real publisher."""
+"""bagkit.ros.record.take against rclpy's own take, on real subscriptions of one real publisher."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from rclpy.subscription import Subscription
 from sensor_msgs.msg import Image, Imu
 from waiting import wait_matched
 
-from bagkit.ros.take import TakenMessages, take_serialized
+from bagkit.ros.record.take import TakenMessages, take_serialized
 
 KEEP_ALL = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
 

@@ -1,10 +1,10 @@
 """Record ROS 2 topics into a rosbag2-compatible MCAP bag, counting every lost message.
 
-Two threads do the work: the take thread (:mod:`bagkit.ros.take_loop`) owns the node,
-subscribes (:mod:`bagkit.ros.subscriptions`) and takes messages in bursts; the writer thread
-(:mod:`bagkit.ros.write_loop`) writes them and accounts for loss. They meet in a queue bounded
-in bytes (:mod:`bagkit.ros.handoff`). This module holds the life cycle: options, the bag, the
-node, the threads.
+Two threads do the work: the take thread (:mod:`~bagkit.ros.record.take_loop`) owns the node,
+subscribes (:mod:`~bagkit.ros.record.subscriptions`) and takes messages in bursts; the writer
+thread (:mod:`~bagkit.ros.record.write_loop`) writes them and accounts for loss. They meet in a
+queue bounded in bytes (:mod:`~bagkit.ros.record.handoff`). This module holds the life cycle:
+the bag, the node, the threads, and the run that stops them.
 """
 
 from __future__ import annotations
@@ -13,8 +13,7 @@ import contextlib
 import errno
 import threading
 import time
-from collections.abc import Callable, Mapping
-from datetime import datetime
+from collections.abc import Callable
 from pathlib import Path
 from types import TracebackType
 
@@ -27,118 +26,69 @@ from rclpy.signals import SignalHandlerOptions
 
 from bagkit.bag import BagWriteError, BagWriter
 from bagkit.bag.errors import BagError
+from bagkit.recording.options import RecordOptions, default_output_name
+from bagkit.recording.report import RecordProgress, RecordReport
 from bagkit.ros.clock import CLOCK_TOPIC
 from bagkit.ros.errors import RecorderOptionsError, RecordingFailedError
-from bagkit.ros.handoff import HandoffQueue, StopSignal
-from bagkit.ros.record_report import RecordProgress, RecordReport
-from bagkit.ros.subscriptions import Subscriptions, never_called
-from bagkit.ros.take_loop import SimClock, TakeLoop
-from bagkit.ros.write_loop import FLUSH_PERIOD_S, WriteLoop
-from bagkit.selection.topics import TopicSelection
+from bagkit.ros.qos import load_qos_overrides
+from bagkit.ros.record.handoff import HandoffQueue, StopSignal
+from bagkit.ros.record.subscriptions import Subscriptions, never_called
+from bagkit.ros.record.take_loop import SimClock, TakeLoop
+from bagkit.ros.record.write_loop import FLUSH_PERIOD_S, WriteLoop
+from bagkit.ros.tuning import process_tuning
+from bagkit.selection.topics import absolute_topic_name
 
-DISCOVERY_PERIOD_S = 0.1
-# Bounds the memory held between taking and writing: absorbs writer hiccups (a slow disk
-# write, a chunk to compress); beyond that the middleware holds the messages (see handoff).
-DEFAULT_QUEUE_BYTES = 64 << 20
-# A bag that cannot be written for these reasons is a failed run (exit 1), not a bad option.
+# A recording that cannot be written for these reasons is a failed run (exit 1), not a bad option.
 _DISK_FULL = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG}
-
-
-def default_output_name(now: datetime | None = None) -> str:
-    """``rosbag2_YYYY_MM_DD-HH_MM_SS`` in local time, as ``ros2 bag record`` names its bags."""
-    return (now or datetime.now()).strftime("rosbag2_%Y_%m_%d-%H_%M_%S")
+# How often run() looks at its stop conditions before the topics are subscribed (the duration
+# counts from there), and at most between two looks afterwards.
+_POLL_STARTING_S = 0.05
+_POLL_S = 0.5
+# What run() may be told to stop by: an event to set, or a function that says when.
+StopWhen = threading.Event | Callable[[], bool]
 
 
 class Recorder:
-    """Record topics into a bag; a context manager (``start`` on enter, ``stop`` on exit).
+    """Record topics into a bag, as :class:`~bagkit.recording.options.RecordOptions` say.
 
-    Construction only checks the options; ``start`` creates the bag and the node.
+    Construction only checks the options; :meth:`run` (or ``start``, then ``stop``; or ``with``)
+    does the work: creates the bag and the node, tunes the process as ``bagkit record`` does
+    (unless ``options.tune_process`` is False), records, finishes the bag.
 
     Example::
 
-        with Recorder("run1", all_topics=True) as recorder:
-            time.sleep(10)
-        print(recorder.report.messages, recorder.report.lost)
+        stop = threading.Event()  # set it from anywhere to stop
+        report = Recorder(RecordOptions(Path("run1"), all_topics=True, duration_s=10)).run(stop)
+        print(report.messages, report.lost)
 
     Args:
-        output: the bag directory to create (it must not exist).
-        topics: topic names to record (hidden or not).
-        all_topics: record every topic (hidden ones only with ``include_hidden``).
-        regex: also record topics whose name contains a match of this regular expression.
-        exclude: do not record topics matching this (named ones included).
-        include_hidden: let ``all_topics``/``regex`` select hidden topics.
-        topic_types: also record topics of these types (``pkg/msg/Name``).
-        exclude_topics: do not record these topics (named ones included).
-        exclude_topic_types: do not record topics of these types.
-        include_unpublished: also subscribe to selected topics that have no publisher.
-        custom_data: key -> value pairs for metadata.yaml's ``custom_data``.
-        compression: ``zstd`` (default), ``lz4`` or ``none``.
-        max_bag_size: split into a new file at this many bytes (0: never).
-        max_bag_duration_s: split when a file spans this many seconds (0: never).
-        qos_overrides: topic -> subscription profile, instead of the adapted one.
-        use_sim_time: ``log_time`` is the latest ``/clock`` time when the message was taken,
-            as ``ros2 bag record --use-sim-time``; messages taken before the first ``/clock``
-            are not written (counted in ``TopicRecord.before_clock``).
+        options: what to record, where, how.
         context: an initialized rclpy context to use; default: a private one.
-        node_name: the recorder node's name.
-        queue_bytes: bound of the queue between taking and writing.
-        discovery_period_s: how often the graph is polled for new topics and publishers.
         on_warning: called (from the recording threads) with each warning, such as a topic
             skipped because its message package is not installed; default: logging.
 
     Raises:
-        RecorderOptionsError: nothing selected, bad regex, or ``output`` exists.
+        RecorderOptionsError: the output exists.
     """
 
     def __init__(
         self,
-        output: str | Path,
+        options: RecordOptions,
         *,
-        topics: tuple[str, ...] | list[str] = (),
-        all_topics: bool = False,
-        regex: str | None = None,
-        exclude: str | None = None,
-        include_hidden: bool = False,
-        topic_types: tuple[str, ...] | list[str] = (),
-        exclude_topics: tuple[str, ...] | list[str] = (),
-        exclude_topic_types: tuple[str, ...] | list[str] = (),
-        include_unpublished: bool = False,
-        custom_data: Mapping[str, str] | None = None,
-        compression: str = "zstd",
-        max_bag_size: int = 0,
-        max_bag_duration_s: float = 0,
-        qos_overrides: Mapping[str, QoSProfile] | None = None,
-        use_sim_time: bool = False,
         context: Context | None = None,
-        node_name: str = "bagkit_recorder",
-        queue_bytes: int = DEFAULT_QUEUE_BYTES,
-        discovery_period_s: float = DISCOVERY_PERIOD_S,
         on_warning: Callable[[str], None] | None = None,
     ) -> None:
-        self.path = Path(output)
-        self.selection = TopicSelection.create(
-            topics,
-            all_topics=all_topics,
-            regex=regex,
-            exclude=exclude,
-            include_hidden=include_hidden,
-            topic_types=topic_types,
-            exclude_topics=exclude_topics,
-            exclude_topic_types=exclude_topic_types,
-        )
-        _check_options(self.path, self.selection, max_bag_size, max_bag_duration_s)
-        self.compression = compression
-        self.max_bag_size = max_bag_size
-        self.max_bag_duration_s = max_bag_duration_s
-        self.qos_overrides = dict(qos_overrides or {})
-        self.use_sim_time = use_sim_time
-        self.include_unpublished = include_unpublished
-        self.custom_data = dict(custom_data or {})
-        self.discovery_period_s = discovery_period_s
+        self.options = options
+        self.path = options.output or Path(default_output_name())
+        if self.path.exists():
+            raise RecorderOptionsError(
+                f"{self.path} already exists (bagkit never overwrites a bag)"
+            )
+        self.selection = options.selection
         self.report = RecordReport(self.path)
         self._context = context
-        self._node_name = node_name
-        self._queue = HandoffQueue(queue_bytes)
+        self._on_warning = on_warning
+        self._queue = HandoffQueue(options.queue_bytes)
         self._stop = StopSignal()
         self._stopped = threading.Event()
         self._own_context: Context | None = None
@@ -147,7 +97,67 @@ class Recorder:
         self._writer: WriteLoop | None = None
         self._threads: list[threading.Thread] = []
         self._started = 0.0
-        self._on_warning = on_warning
+
+    def run(
+        self,
+        stop: StopWhen | None = None,
+        *,
+        on_progress: Callable[[RecordProgress], None] | None = None,
+        progress_period_s: float = _POLL_S,
+    ) -> RecordReport:
+        """Record until ``stop``, ``options.duration_s``, ``options.max_messages`` or a failure.
+
+        The bag is finished in every case, Ctrl-C (KeyboardInterrupt) included.
+
+        Args:
+            stop: an event that stops the recording when set, or a function returning True
+                when it should stop; None: only the options' limits or a failure stop it.
+            on_progress: called right after the recording started, then about every
+                ``progress_period_s`` seconds, with the counts so far.
+            progress_period_s: seconds between two ``on_progress`` calls.
+
+        Returns:
+            The report; its ``error`` says why a recording ended early (a full disk).
+
+        Raises:
+            RecorderOptionsError: the output cannot be created, or a bag option is invalid.
+            RecordingFailedError: the bag cannot be written (a full disk); nothing is left.
+        """
+        self.start()
+        try:
+            self._wait(_should_stop(stop), on_progress, progress_period_s)
+        finally:
+            report = self.stop()
+        return report
+
+    def _wait(
+        self,
+        should_stop: Callable[[float], bool],
+        on_progress: Callable[[RecordProgress], None] | None,
+        progress_period_s: float,
+    ) -> None:
+        """Return when told to stop, at a limit of the options, or when the bag is finished."""
+        options = self.options
+        next_progress = 0.0
+        while not self._stopped.is_set():
+            now = time.monotonic()
+            if on_progress is not None and now >= next_progress:
+                on_progress(self.progress())
+                next_progress = now + progress_period_s
+            subscribed = self.subscribed.is_set()
+            wait = min(_POLL_S, progress_period_s) if subscribed else _POLL_STARTING_S
+            if options.duration_s is not None and subscribed:
+                assert self._subscriptions is not None
+                remaining = self._subscriptions.complete_at + options.duration_s - now
+                if remaining <= 0:
+                    return
+                wait = min(wait, remaining)
+            if options.max_messages is not None:
+                if self.progress().messages >= options.max_messages:
+                    return
+                wait = _POLL_STARTING_S
+            if should_stop(wait):
+                return
 
     def __enter__(self) -> Recorder:
         self.start()
@@ -188,9 +198,12 @@ class Recorder:
                 invalid.
             RecordingFailedError: the bag cannot be written (a full disk); nothing is left.
         """
+        overrides = self._qos_overrides()
         bag = self._create_bag()
         try:
-            take_loop = self._start_node()
+            # Fast DDS reads its profile when the participant is created.
+            with process_tuning(self.options.tune_process):
+                take_loop = self._start_node(overrides)
         except BaseException:
             bag.close()
             self._shutdown_node()
@@ -209,16 +222,27 @@ class Recorder:
             thread.start()
         discovered.wait()
 
+    def _qos_overrides(self) -> dict[str, QoSProfile]:
+        """The overrides file's profiles by absolute topic name.
+
+        Raises:
+            QosProfileError: the file cannot be read.
+        """
+        path = self.options.qos_overrides
+        if path is None:
+            return {}
+        return {absolute_topic_name(k): v for k, v in load_qos_overrides(path).items()}
+
     def _create_bag(self) -> BagWriter:
         try:
             bag = BagWriter(
                 self.path,
-                compression=self.compression,
-                max_bag_size=self.max_bag_size,
-                max_bag_duration_s=self.max_bag_duration_s,
+                compression=self.options.compression,
+                max_bag_size=self.options.max_bag_size,
+                max_bag_duration_s=self.options.max_bag_duration_s,
                 chunk_interval_s=FLUSH_PERIOD_S,
             ).open()
-            bag.custom_data.update(self.custom_data)
+            bag.custom_data.update(self.options.custom_data)
             return bag
         except BagWriteError as exc:
             cause = exc.__cause__
@@ -229,7 +253,7 @@ class Recorder:
         except BagError as exc:
             raise RecorderOptionsError(str(exc)) from None
 
-    def _start_node(self) -> TakeLoop:
+    def _start_node(self, qos_overrides: dict[str, QoSProfile]) -> TakeLoop:
         context = self._context
         if context is None:
             context = Context()
@@ -237,7 +261,7 @@ class Recorder:
             rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
             self._own_context = context
         node = self._node = Node(
-            self._node_name,
+            self.options.node_name,
             context=context,
             start_parameter_services=False,
             enable_rosout=False,
@@ -247,14 +271,14 @@ class Recorder:
         self._subscriptions = Subscriptions(
             node,
             self.selection,
-            qos_overrides=self.qos_overrides,
+            qos_overrides=qos_overrides,
             queue=self._queue,
             skipped=self.report.skipped,
             on_warning=self._on_warning,
-            include_unpublished=self.include_unpublished,
+            include_unpublished=self.options.include_unpublished,
         )
         clock = None
-        if self.use_sim_time:
+        if self.options.use_sim_time:
             from rosgraph_msgs.msg import Clock
 
             best_effort = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
@@ -267,7 +291,7 @@ class Recorder:
             self._stop,
             wake=wake.handle,
             clock=clock,
-            discovery_period_s=self.discovery_period_s,
+            discovery_period_s=self.options.discovery_period_s,
         )
 
     def _write(self) -> None:
@@ -330,16 +354,20 @@ def _remove_empty_bag(path: Path) -> None:
         path.rmdir()
 
 
-def _check_options(
-    path: Path, selection: TopicSelection, max_bag_size: int, max_bag_duration_s: float
-) -> None:
-    """Raise RecorderOptionsError before anything starts: nothing selected, an existing bag,
-    negative split limits."""
-    if selection.empty:
-        raise RecorderOptionsError(
-            "nothing to record: name topics, or use --all, --regex or --topic-types"
-        )
-    if path.exists():
-        raise RecorderOptionsError(f"{path} already exists (bagkit never overwrites a bag)")
-    if max_bag_size < 0 or max_bag_duration_s < 0:
-        raise RecorderOptionsError("--max-bag-size and --max-bag-duration must be >= 0")
+def _never() -> bool:
+    return False
+
+
+def _should_stop(stop: StopWhen | None) -> Callable[[float], bool]:
+    """``stop`` as ``wait(seconds)``: wait up to that long, return whether to stop."""
+    if isinstance(stop, threading.Event):
+        return stop.wait
+    condition = stop if stop is not None else _never
+
+    def wait(seconds: float) -> bool:
+        if condition():
+            return True
+        time.sleep(seconds)
+        return condition()
+
+    return wait

@@ -13,7 +13,7 @@ import threading
 import time
 from collections.abc import Callable
 
-from bagkit.ros.timing import Timeline
+from bagkit.playback.timing import Timeline
 
 # Up and down arrows change the rate by this much, as `ros2 bag play` (Jazzy) does.
 RATE_STEP = 0.1

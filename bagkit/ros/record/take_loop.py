@@ -1,9 +1,9 @@
 """The recorder's take thread: wait for messages, take them in bursts, hand batches over.
 
 The thread owns the node: it waits on a wait set and drains every ready subscription with
-:func:`bagkit.ros.take.take_serialized` (an executor callback per message would cost about
+:func:`bagkit.ros.record.take.take_serialized` (an executor callback per message would cost about
 200 us, far too slow for a recorder), polls the graph every ``discovery_period_s`` and hands
-the messages to the writer thread through the :class:`~bagkit.ros.handoff.HandoffQueue`.
+the messages to the writer thread through the :class:`~bagkit.ros.record.handoff.HandoffQueue`.
 """
 
 from __future__ import annotations
@@ -17,10 +17,11 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.subscription import Subscription
 
 from bagkit.ros.clock import clock_ns
-from bagkit.ros.handoff import Batch, BatchPart, HandoffQueue, StopSignal
-from bagkit.ros.memory import name_native_thread
-from bagkit.ros.subscriptions import RecordedTopic, Subscriptions
-from bagkit.ros.take import TakenMessages, take_serialized
+from bagkit.ros.record.handoff import Batch, BatchPart, HandoffQueue, StopSignal
+from bagkit.ros.record.recorded_topic import RecordedTopic
+from bagkit.ros.record.subscriptions import Subscriptions
+from bagkit.ros.record.take import TakenMessages, take_serialized
+from bagkit.ros.tuning import name_native_thread
 
 # Messages taken from one subscription before looking at the others, so that a flood on one
 # topic does not starve the rest, and before handing a batch to the writer; a topic's burst

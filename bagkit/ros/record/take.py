@@ -14,7 +14,7 @@ from functools import cache
 
 from rclpy.subscription import Subscription
 
-from bagkit.ros import _take
+from bagkit.ros.record import _take
 
 
 @dataclass(slots=True)

@@ -12,8 +12,8 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Literal
 
 if TYPE_CHECKING:
-    from bagkit.ros.subscriptions import RecordedTopic
-    from bagkit.ros.take import TakenMessages
+    from bagkit.ros.record.recorded_topic import RecordedTopic
+    from bagkit.ros.record.take import TakenMessages
 
 # How long the take thread waits for room in a full write queue before dropping a batch.
 QUEUE_WAIT_S = 1.0

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import ctypes
 import math
 import time
 from dataclasses import dataclass
@@ -11,11 +10,9 @@ from dataclasses import dataclass
 # last stretch before a deadline is spun instead. Short: a thread that spins most of the time is,
 # to the scheduler, a CPU hog that it preempts for whole time slices on a busy machine. With
 # 0.5 ms, a 2 kHz replay (1 kHz at rate 2) never slept and its p99 lateness was worse than a
-# plain sleeping loop's; the CLI lowers the publishing thread's timer slack (precise_timers) so
-# that a short spin covers the wake-up (benchmarks/README.md).
+# plain sleeping loop's; the player lowers the publishing thread's timer slack
+# (bagkit.ros.tuning.precise_timers) so that a short spin covers the wake-up (benchmarks/README.md).
 SPIN_WINDOW_NS = 50_000
-# prctl(2) option: the thread's timer slack in ns (see precise_timers).
-PR_SET_TIMERSLACK = 29
 # A message published more than this after its scheduled time counts as late.
 LATE_THRESHOLD_NS = 1_000_000
 
@@ -41,19 +38,6 @@ class Timeline:
     def bag_time(self, wall_ns: int) -> int:
         """Bag time (ns) that corresponds to the monotonic time ``wall_ns``."""
         return self.bag_start_ns + int((wall_ns - self.wall_start_ns) * self.rate)
-
-
-def precise_timers() -> None:
-    """Have the calling thread's sleeps end on time, not up to 50 us late (Linux timer slack).
-
-    With the slack at its minimum, a sleep wakes within a few microseconds of its deadline on an
-    idle machine, so the spin window can stay short. A no-op where prctl is unavailable.
-    """
-    try:
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(PR_SET_TIMERSLACK, 1, 0, 0, 0)
-    except (OSError, AttributeError):
-        pass
 
 
 def wait_until(deadline_ns: int, *, spin_window_ns: int = SPIN_WINDOW_NS) -> int:

@@ -11,8 +11,6 @@ from rclpy.exceptions import InvalidTopicNameException
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import (
-    DurabilityPolicy,
-    HistoryPolicy,
     QoSCompatibility,
     QoSProfile,
     ReliabilityPolicy,
@@ -23,19 +21,13 @@ from rosgraph_msgs.msg import Clock
 from bagkit.bag import TopicInfo
 from bagkit.ros.clock import CLOCK_TOPIC, CLOCK_TYPE
 from bagkit.ros.errors import PlayerError, SubscriberTimeoutError
+from bagkit.ros.qos import CLOCK_QOS
 
 # The graph counts as settled when it has not changed for this long.
 GRAPH_SETTLE_S = 0.2
 # A publisher sees a subscription match before the subscription sees the publisher; the first
 # message is only safe once both sides have matched, which we cannot observe from here.
 MATCH_GRACE_S = 0.1
-# What rclcpp's ClockQoS offers and what every use_sim_time node subscribes with.
-CLOCK_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1,
-    reliability=ReliabilityPolicy.BEST_EFFORT,
-    durability=DurabilityPolicy.VOLATILE,
-)
 
 
 @dataclass(slots=True)

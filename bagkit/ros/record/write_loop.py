@@ -15,12 +15,12 @@ from typing import TYPE_CHECKING
 
 from bagkit.bag import BagWriteError, BagWriter
 from bagkit.bag.errors import BagError
-from bagkit.ros.handoff import Batch, BatchPart, HandoffQueue, StopSignal
-from bagkit.ros.memory import name_native_thread
-from bagkit.ros.record_report import TopicRecord, loss_summary
+from bagkit.recording.report import TopicRecord, loss_summary
+from bagkit.ros.record.handoff import Batch, BatchPart, HandoffQueue, StopSignal
+from bagkit.ros.tuning import name_native_thread
 
 if TYPE_CHECKING:
-    from bagkit.ros.subscriptions import NewTopic
+    from bagkit.ros.record.recorded_topic import NewTopic
 
 # The writer closes a chunk at least this often, so a killed recorder loses at most this much.
 FLUSH_PERIOD_S = 1.0

@@ -21,7 +21,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager, suppress
 from types import FrameType
 
-from bagkit.ros.play_controls import RATE_STEP, PlayControls
+from bagkit.playback.controls import RATE_STEP, PlayControls
 
 SPACE = b" "
 RIGHT = b"\x1b[C"

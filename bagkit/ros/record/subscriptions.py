@@ -10,53 +10,22 @@ import logging
 import threading
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
-from typing import Any
 
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.subscription import Subscription
 
 from bagkit.bag import TopicInfo, message_definition
 from bagkit.bag.errors import UnknownMessageTypeError as UnknownDefinitionError
+from bagkit.recording.report import TopicRecord
 from bagkit.ros.errors import MessageClassNotFoundError
 from bagkit.ros.graph import DiscoveredTopic, discover_topics
-from bagkit.ros.handoff import HandoffQueue
-from bagkit.ros.loss import SequenceTracker
+from bagkit.ros.message_classes import import_message_type
 from bagkit.ros.qos import adapt_subscription_qos, dump_offered_qos_profiles
-from bagkit.ros.record_report import TopicRecord
-from bagkit.ros.types import import_message_type
+from bagkit.ros.record.handoff import HandoffQueue
+from bagkit.ros.record.recorded_topic import NewTopic, RecordedTopic
 from bagkit.selection.topics import TopicSelection
 
 _log = logging.getLogger(__name__)
-
-
-@dataclass(slots=True)
-class RecordedTopic:
-    """A subscribed topic: its subscription, what re-subscribing needs (type, QoS), its counts."""
-
-    record: TopicRecord
-    subscription: Subscription
-    message_type: Any
-    qos: QoSProfile
-    tracker: SequenceTracker = field(default_factory=SequenceTracker)
-
-    def count_gaps(self, sequences: list[int]) -> None:
-        """Count the sequence gaps up to the messages just taken (``sequences``)."""
-        record = self.record
-        record.gaps += self.tracker.observe_many(
-            sequences, self.subscription.handle.get_publisher_count
-        )
-        record.publishers = self.tracker.publishers
-
-
-@dataclass(frozen=True, slots=True)
-class NewTopic:
-    """What the writer needs to add a topic to the bag before its first message."""
-
-    topic: RecordedTopic
-    info: TopicInfo
-    definition: str
 
 
 def never_called(_message: object) -> None:

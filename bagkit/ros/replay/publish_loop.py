@@ -1,6 +1,6 @@
 """One pass of a replay: publish each message when the monotonic clock reaches its time.
 
-The timeline is the :class:`~bagkit.ros.play_controls.PlayControls`' own: a pause, resume, step
+The timeline is the :class:`~bagkit.playback.controls.PlayControls`' own: a pause, resume, step
 or rate change re-anchors it between two messages, and the loop waits on the controls (woken by
 any change) instead of sleeping; nothing else in the loop keeps timing state.
 """
@@ -11,12 +11,12 @@ import time
 from collections.abc import Callable, Iterator
 
 from bagkit.bag import BagMessage
+from bagkit.playback.controls import PlayControls
+from bagkit.playback.lateness import LatenessSamples
+from bagkit.playback.report import PlayProgress
+from bagkit.playback.timing import LATE_THRESHOLD_NS, SPIN_WINDOW_NS, wait_until
 from bagkit.ros.clock import clock_message
-from bagkit.ros.lateness import LatenessSamples
-from bagkit.ros.play_controls import PlayControls
-from bagkit.ros.playback_report import PlayProgress
-from bagkit.ros.publishers import TopicOutput
-from bagkit.ros.timing import LATE_THRESHOLD_NS, SPIN_WINDOW_NS, wait_until
+from bagkit.ros.replay.publishers import TopicOutput
 
 # Lateness samples are handed to LatenessSamples in blocks, when the next message is at least
 # LATENESS_SLACK_NS away (a block of 4096 takes about 0.1 ms), or at the latest at

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-from bagkit.ros.timing import LatenessSummary
+from bagkit.playback.timing import LatenessSummary
 
 
 @dataclass(frozen=True, slots=True)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from bagkit.ros.timing import LATE_THRESHOLD_NS, LatenessSummary
+from bagkit.playback.timing import LATE_THRESHOLD_NS, LatenessSummary
 
 LATENESS_SAMPLES = 100_000
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -10,7 +10,7 @@ from typing import Any
 from bagkit.bag import TopicInfo
 from bagkit.ros.clock import CLOCK_TOPIC
 from bagkit.ros.errors import MessageClassNotFoundError, PlayerError
-from bagkit.ros.types import import_message_type
+from bagkit.ros.message_classes import import_message_type
 from bagkit.selection.topics import TopicSelection
 
 
@@ -25,27 +25,6 @@ class PublishableTopics:
     """Topic -> its serialization format, not cdr."""
     missing: list[str] = field(default_factory=list)
     """Topics named by the selection that the bag does not have."""
-
-
-def replay_selection(
-    topics: Sequence[str] | None,
-    regex: str | None,
-    exclude: str | None,
-    exclude_topics: Sequence[str],
-) -> TopicSelection:
-    """The player's topic options as a selection: all topics unless ``topics``/``regex``.
-
-    A bag's topics were chosen when it was recorded: hidden ones replay like the others.
-    """
-    return TopicSelection.create(
-        topics or (),
-        all_topics=topics is None and regex is None,
-        regex=regex,
-        exclude=exclude,
-        include_hidden=True,
-        exclude_topics=exclude_topics,
-        error=PlayerError,
-    )
 
 
 def publishable_topics(

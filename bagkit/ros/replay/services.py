@@ -25,7 +25,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_srvs.srv import Trigger
 
-from bagkit.ros.play_controls import PlayControls
+from bagkit.playback.controls import PlayControls
 
 RATE_PARAMETER = "rate"
 

@@ -1,0 +1,9 @@
+"""Errors of a replay that are decided without ROS (its options, its window)."""
+
+from __future__ import annotations
+
+from bagkit.errors import BagkitError
+
+
+class PlayerError(BagkitError):
+    """A replay that cannot start: bad options, nothing to replay."""

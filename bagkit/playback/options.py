@@ -1,0 +1,206 @@
+"""What a replay is asked to do: :class:`PlayOptions` (``bagkit replay``'s), its window, its waits.
+
+Frozen and free of rclpy: the CLI parses its command line into one, a Python user writes one,
+and :class:`bagkit.ros.replay.player.Player` runs it. Every default is the CLI's.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from bagkit.playback.errors import PlayerError
+from bagkit.playback.timing import DEFAULT_DISCOVERY_TIME_S
+from bagkit.selection.topics import TopicSelection
+from bagkit.times import seconds_to_ns
+
+
+@dataclass(frozen=True, slots=True)
+class PlayWindow:
+    """The part of the bag each pass replays (``--start-offset``, ``--duration``, until).
+
+    Attributes:
+        start_offset_ns: skipped from the bag's first message.
+        duration_ns: bag time replayed after the offset; None = to the end.
+        until_ns: last log time replayed (ns since the epoch); with ``duration_ns`` the later
+            of the two ends the window (as rosbag2).
+    """
+
+    start_offset_ns: int = 0
+    duration_ns: int | None = None
+    until_ns: int | None = None
+
+    @classmethod
+    def create(
+        cls, start_offset: float = 0.0, duration: float | None = None, until_ns: int | None = None
+    ) -> PlayWindow:
+        """The window of the player's options, in seconds; PlayerError out of range."""
+        if start_offset < 0:
+            raise PlayerError(f"start offset must not be negative, got {start_offset}")
+        if duration is not None and not duration > 0:
+            raise PlayerError(f"duration must be positive, got {duration}")
+        duration_ns = None if duration is None else seconds_to_ns(duration, duration, PlayerError)
+        return cls(seconds_to_ns(start_offset, start_offset, PlayerError), duration_ns, until_ns)
+
+    @property
+    def whole(self) -> bool:
+        """Whether every message of the bag is in the window."""
+        return not self.start_offset_ns and self.duration_ns is None and self.until_ns is None
+
+    def bounds(self, start_ns: int, end_ns: int, bag: Path) -> tuple[int, int | None]:
+        """Log-time bounds (start, exclusive end or None) in a bag of messages start..end.
+
+        Raises:
+            PlayerError: the offset is past the bag's last message (nothing would be replayed).
+        """
+        if self.start_offset_ns > end_ns - start_ns:
+            raise PlayerError(
+                f"--start-offset {self.start_offset_ns / 1e9:g} s is past the end of "
+                f"{bag} ({(end_ns - start_ns) / 1e9:.3f} s of messages)"
+            )
+        window_start = start_ns + self.start_offset_ns
+        ends = []
+        if self.duration_ns is not None:
+            ends.append(window_start + self.duration_ns)
+        if self.until_ns is not None:
+            ends.append(self.until_ns + 1)
+        return window_start, max(ends) if ends else None
+
+
+@dataclass(frozen=True, slots=True)
+class SubscriberWaits:
+    """How the player waits for its subscribers, before the first message and after the last.
+
+    Attributes:
+        before_start: wait until every subscription the graph shows on a replayed topic has
+            matched.
+        topics: topics that must have a subscriber before playback starts.
+        timeout_s: how long to wait for them before giving up.
+        discovery_s: after the node's creation, how long the graph is watched for
+            subscriptions that already exist.
+        ack_timeout_s: at the end, how long subscribers of reliable topics get to acknowledge
+            every message.
+    """
+
+    before_start: bool = True
+    topics: tuple[str, ...] = ()
+    timeout_s: float = 10.0
+    discovery_s: float = DEFAULT_DISCOVERY_TIME_S
+    ack_timeout_s: float = 10.0
+
+
+@dataclass(frozen=True)
+class PlayOptions:
+    """The options of a replay (``bagkit replay``'s, docs/replay.md).
+
+    Example::
+
+        report = Player(PlayOptions(Path("drive"), rate=2.0, clock_hz=100.0)).run()
+
+    Attributes:
+        bag: bag directory or single ``.mcap`` file.
+        rate: playback speed factor (2.0 = twice as fast as recorded).
+        topics: replay only these topics (union with ``regex``); None = all.
+        regex: replay topics whose name matches this regular expression (``re.search``).
+        exclude_regex: do not replay topics whose name matches this regular expression.
+        exclude_topics: do not replay these topics.
+        start_offset_s: skip this many seconds from the start of the bag.
+        duration_s: replay only this many seconds of bag time (after ``start_offset_s``).
+        until_ns: replay only messages logged at or before this time (ns since the epoch);
+            with ``duration_s``, the later of the two ends the replay (as rosbag2).
+        loops: passes over the bag; 0 = until interrupted.
+        delay_s: seconds to sleep before each pass.
+        clock_hz: publish ``/clock`` at this rate (and before each message); None = off.
+        start_paused: start paused (``player.controls.resume()`` or a service resumes).
+        services: offer rosbag2's control services and a ``rate`` parameter on the node
+            (:mod:`bagkit.ros.replay.services`).
+        remap: topic renames, recorded name -> published name.
+        wait_for_subscribers: before the first message, wait until every subscription that
+            the graph shows on a replayed topic has matched.
+        wait_for: topics that must have at least one subscriber before playback starts
+            (for consumers that are still starting up).
+        wait_timeout_s: seconds to wait for subscribers before giving up.
+        discovery_time_s: seconds after the node's creation during which the graph is watched
+            for subscriptions that already exist.
+        ack_timeout_s: at the end, seconds to wait for subscribers of reliable topics to
+            acknowledge every message.
+        qos_overrides: rosbag2 QoS overrides file (``topic: {reliability: ..., ...}``).
+        node_name: name of the player's node.
+        progress_period_s: seconds between two calls of the player's ``on_progress``.
+        tune_process: tune the process as ``bagkit replay`` does (:mod:`bagkit.ros.tuning`:
+            Fast DDS shared-memory buffers, malloc thresholds, precise timers on the publishing
+            thread); False leaves the host process alone.
+
+    Raises:
+        PlayerError: an option out of its range, or a regular expression that does not compile.
+    """
+
+    bag: Path
+    rate: float = 1.0
+    topics: tuple[str, ...] | None = None
+    regex: str | None = None
+    exclude_regex: str | None = None
+    exclude_topics: tuple[str, ...] = ()
+    start_offset_s: float = 0.0
+    duration_s: float | None = None
+    until_ns: int | None = None
+    loops: int = 1
+    delay_s: float = 0.0
+    clock_hz: float | None = None
+    start_paused: bool = False
+    services: bool = True
+    remap: Mapping[str, str] = field(default_factory=dict)
+    wait_for_subscribers: bool = True
+    wait_for: tuple[str, ...] = ()
+    wait_timeout_s: float = 10.0
+    discovery_time_s: float = DEFAULT_DISCOVERY_TIME_S
+    ack_timeout_s: float = 10.0
+    qos_overrides: Path | None = None
+    node_name: str = "bagkit_player"
+    progress_period_s: float = 0.5
+    tune_process: bool = True
+
+    def __post_init__(self) -> None:
+        if not self.rate > 0:
+            raise PlayerError(f"rate must be positive, got {self.rate}")
+        if self.delay_s < 0:
+            raise PlayerError(f"delay must not be negative, got {self.delay_s}")
+        if self.clock_hz is not None and not self.clock_hz > 0:
+            raise PlayerError(f"clock rate must be positive, got {self.clock_hz}")
+        if self.loops < 0:
+            raise PlayerError(f"loops must be 0 (forever) or positive, got {self.loops}")
+        seconds_to_ns(self.progress_period_s, self.progress_period_s, PlayerError)
+        _ = self.window, self.selection  # their own checks
+
+    @property
+    def window(self) -> PlayWindow:
+        """The part of the bag each pass replays."""
+        return PlayWindow.create(self.start_offset_s, self.duration_s, self.until_ns)
+
+    @property
+    def waits(self) -> SubscriberWaits:
+        """How the player waits for its subscribers."""
+        return SubscriberWaits(
+            self.wait_for_subscribers,
+            self.wait_for,
+            self.wait_timeout_s,
+            self.discovery_time_s,
+            self.ack_timeout_s,
+        )
+
+    @property
+    def selection(self) -> TopicSelection:
+        """The topic options as a selection: all topics unless ``topics``/``regex``.
+
+        A bag's topics were chosen when it was recorded: hidden ones replay like the others.
+        """
+        return TopicSelection.create(
+            self.topics or (),
+            all_topics=self.topics is None and self.regex is None,
+            regex=self.regex,
+            exclude=self.exclude_regex,
+            include_hidden=True,
+            exclude_topics=self.exclude_topics,
+            error=PlayerError,
+        )

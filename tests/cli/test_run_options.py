@@ -1,0 +1,92 @@
+"""RecordOptions and PlayOptions: the library's defaults are the command line's, and out-of-range
+values are refused before anything starts (no rclpy)."""
+
+from __future__ import annotations
+
+import inspect
+from pathlib import Path
+
+import pytest
+
+from bagkit.cli.record import record
+from bagkit.cli.replay import replay
+from bagkit.playback.errors import PlayerError
+from bagkit.playback.options import PlayOptions
+from bagkit.recording.errors import RecorderOptionsError
+from bagkit.recording.options import DEFAULT_QUEUE_BYTES, RecordOptions
+
+
+def cli_defaults(command: object) -> dict[str, object]:
+    return {
+        name: parameter.default
+        for name, parameter in inspect.signature(command).parameters.items()  # type: ignore[arg-type]
+    }
+
+
+def test_record_options_default_to_the_cli() -> None:
+    cli = cli_defaults(record)
+    options = RecordOptions(all_topics=True)
+    assert options.output is cli["output"] is None
+    assert options.node_name == cli["node_name"]
+    assert options.discovery_period_s == cli["polling_interval"] / 1000  # type: ignore[operator]
+    assert options.max_bag_size == cli["max_bag_size"]
+    assert options.max_bag_duration_s == cli["max_bag_duration"]
+    assert options.duration_s is cli["duration"] is None
+    assert options.use_sim_time is cli["use_sim_time"] is False
+    assert options.include_hidden is cli["include_hidden"] is False
+    assert options.include_unpublished is cli["include_unpublished"] is False
+    assert options.qos_overrides is cli["qos_overrides"] is None
+    assert cli["max_cache_size"] is None and options.queue_bytes == DEFAULT_QUEUE_BYTES
+    assert options.compression == "zstd"  # no --compression-* option: bagkit's zstd chunks
+    assert options.tune_process
+
+
+def test_play_options_default_to_the_cli() -> None:
+    cli = cli_defaults(replay)
+    options = PlayOptions(Path("bag"))
+    assert options.rate == cli["rate"]
+    assert options.start_offset_s == cli["start_offset"]
+    assert options.duration_s is cli["duration"] is None
+    assert options.delay_s == cli["delay"]
+    assert options.clock_hz is cli["clock"] is None
+    assert options.loops == 1 and cli["loop"] is False
+    assert options.start_paused is cli["start_paused"] is False
+    assert options.wait_for_subscribers is cli["wait_for_subscribers"] is True
+    assert options.wait_timeout_s == cli["wait_timeout"]
+    assert options.discovery_time_s == cli["discovery_time"]
+    assert options.ack_timeout_s == cli["wait_for_all_acked"] / 1000  # type: ignore[operator]
+    assert options.qos_overrides is cli["qos_overrides"] is None
+    assert options.services and options.tune_process  # the CLI always offers the services
+
+
+@pytest.mark.parametrize(
+    ("fields", "message"),
+    [
+        ({}, "nothing to record"),
+        ({"all_topics": True, "max_bag_size": -1}, "must be >= 0"),
+        ({"all_topics": True, "duration_s": -1.0}, "duration must not be negative"),
+        ({"all_topics": True, "max_messages": 0}, "max_messages must be positive"),
+        ({"all_topics": True, "queue_bytes": 0}, "must be positive"),
+    ],
+)
+def test_record_options_out_of_range(fields: dict[str, object], message: str) -> None:
+    with pytest.raises(RecorderOptionsError, match=message):
+        RecordOptions(Path("never"), **fields)  # type: ignore[arg-type]
+
+
+def test_record_options_make_names_absolute() -> None:
+    selection = RecordOptions(topics=("imu/data",)).selection
+    assert selection.topics == frozenset({"/imu/data"})
+
+
+@pytest.mark.parametrize(
+    ("fields", "message"),
+    [
+        ({"regex": "("}, "--regex '\\(' is not a valid regular expression"),
+        ({"progress_period_s": float("nan")}, "bad time nan"),
+        ({"start_offset_s": -1.0}, "start offset must not be negative"),
+    ],
+)
+def test_play_options_out_of_range(fields: dict[str, object], message: str) -> None:
+    with pytest.raises(PlayerError, match=message):
+        PlayOptions(Path("bag"), **fields)  # type: ignore[arg-type]
