@@ -15,7 +15,7 @@ from bagkit.data.errors import UnknownFieldError
 from bagkit.data.select import Window, check_topics, select_fields
 from bagkit.data.table import ColumnTable
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
-from bagkit.stats.prefetch import prefetch
+from bagkit.prefetch import prefetch
 
 # Messages of chunkless storage (.db3) are decoded this many at a time.
 ROWS_PER_BATCH = 8192

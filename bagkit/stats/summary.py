@@ -19,10 +19,10 @@ import numpy as np
 from bagkit.bag import BagChunk, BagReader
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
 from bagkit.decode.layout import CdrLayout
+from bagkit.prefetch import prefetch
 from bagkit.selection.fields import FieldSelection
 from bagkit.stats.accumulate import ROW_BATCH, TopicAccumulator
 from bagkit.stats.errors import NothingToSummarizeError, StatsError, UnknownTopicError
-from bagkit.stats.prefetch import prefetch
 from bagkit.stats.result import Summary
 
 ProgressCallback = Callable[[int, int], None]
