@@ -156,7 +156,7 @@ class Supervisor:
         """
         gone = self.exited(ignore)
         if gone is not None:
-            tail = f"; the end of its log:\n{self.log_tail(gone)}" if gone.log else ""
+            tail = f"; the end of its log:\n{self.log_tail(gone)}" if gone.command.log else ""
             raise ProcessError(f"{gone.name} exited early with code {gone.returncode}{tail}")
 
     def wait_ready(
@@ -201,9 +201,8 @@ class Supervisor:
 
     def log_tail(self, one: Supervised, lines: int = LOG_TAIL_LINES) -> str:
         """The end of ``one``'s log file, for error messages ("(empty)" without)."""
-        if one.log is None or one.command.log is None:
+        if one.command.log is None:
             return "(empty)"
-        one.log.flush()
         text = one.command.log.read_text(errors="replace")
         return "\n".join(text.splitlines()[-lines:]) or "(empty)"
 
