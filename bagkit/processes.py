@@ -58,7 +58,8 @@ class Command:
     ``log``: stdout and stderr into this file; else ``on_line``: each line of stdout and
     stderr (decoded, without its newline) to this callable, from a reader thread; else
     ``stdout``/``stderr`` as ``subprocess.Popen`` takes them (None: this process's).
-    ``env`` None: this process's environment.
+    ``env`` None: this process's environment. ``preexec``: run in the child before it execs
+    (limits, ``resource.setrlimit``).
     """
 
     name: str
@@ -71,6 +72,7 @@ class Command:
     stdout: Stream = None
     stderr: Stream = None
     text: bool = False
+    preexec: Callable[[], None] | None = None
 
 
 @dataclass(slots=True)
@@ -126,6 +128,7 @@ class Supervisor:
                 cwd=command.cwd,
                 text=command.text and not merged,
                 start_new_session=True,
+                preexec_fn=command.preexec,  # noqa: PLW1509 (the caller's: a limit, no locks)
             )
         except OSError as exc:
             if log is not None:

@@ -86,11 +86,13 @@ class ProcessesFixture:
     def start(self, args: list[str], **popen: Any) -> subprocess.Popen[Any]:
         """Start ``args`` (``bagkit``/``fusion``/``python`` resolve to this environment);
         ``popen``: the ``Command`` fields (``stdout``, ``stderr``, ``stdin``, ``text``, ``env``,
-        ``cwd``)."""
+        ``cwd``; ``preexec_fn`` is ``preexec``)."""
         if args[0] in {"bagkit", "fusion"}:
             args = [str(Path(sys.executable).with_name(args[0])), *args[1:]]
         elif args[0] == "python":
             args = [sys.executable, *args[1:]]
+        if "preexec_fn" in popen:
+            popen["preexec"] = popen.pop("preexec_fn")
         return self.supervisor.start(Command(Path(args[0]).name, args, **popen)).process
 
 
