@@ -4,12 +4,12 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-__version__ = "0.1.0"
+from bagkit.version import __version__
 
 if TYPE_CHECKING:
     from bagkit.data.frames import read_arrow, read_dataframe
 
-__all__ = ["read_arrow", "read_dataframe"]
+__all__ = ["__version__", "read_arrow", "read_dataframe"]
 
 
 def __getattr__(name: str) -> object:

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 import typer
 from rich.table import Table
 
-from bagkit.cli.common import (
+from bagkit.cli import (
     OutputFormat,
     console,
     err_console,

@@ -2,23 +2,21 @@
 
 What ``ros2 launch`` does for this system (ros2launch has no wheels): start the nodes, merge their
 output with a ``[node]`` prefix, forward Ctrl-C/SIGTERM as SIGINT, wait, then kill stragglers,
-and fail as soon as one node dies.
+and fail as soon as one node dies. The processes are bagkit's ``Supervisor``'s.
 """
 
 from __future__ import annotations
 
 import os
 import signal
-import subprocess
 import sys
 import threading
-import time
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from types import FrameType
 from typing import IO
 
+from bagkit.processes import Command, StopPolicy, Supervisor
 from fusion.errors import NodeFailedError
 from fusion.params import load_parameter_file
 from fusion.processors import NODE_NAMES, create_processor
@@ -26,15 +24,6 @@ from fusion.processors import NODE_NAMES, create_processor
 _COLOURS = ("\033[36m", "\033[32m", "\033[33m", "\033[35m")
 _RESET = "\033[0m"
 EXIT_INTERRUPTED = 130
-
-
-@dataclass(slots=True)
-class NodeProcess:
-    """A started node."""
-
-    name: str
-    process: subprocess.Popen[bytes]
-    reader: threading.Thread
 
 
 def validate_parameter_file(path: Path, names: Sequence[str]) -> None:
@@ -78,8 +67,7 @@ class Launcher:
         self.params_file = params_file
         self.use_sim_time = use_sim_time
         self.output = output if output is not None else sys.stdout
-        self.stop_timeout = stop_timeout
-        self.nodes: list[NodeProcess] = []
+        self.nodes = Supervisor(StopPolicy(interrupt_s=stop_timeout))
         self._stop = threading.Event()
         self._write_lock = threading.Lock()
         self._colour = self.output.isatty() and "NO_COLOR" not in os.environ
@@ -91,20 +79,27 @@ class Launcher:
 
         Raises:
             NodeFailedError: a node exited on its own or could not be stopped.
+            ProcessError: a node could not be started.
         """
         previous = {
             sig: signal.signal(sig, self._on_signal) for sig in (signal.SIGINT, signal.SIGTERM)
         }
         try:
+            env = dict(os.environ, PYTHONUNBUFFERED="1")
             for index, name in enumerate(self.names):
-                self._start(name, index)
-            died = self._supervise()
-            unclean = self._stop_all()
+                command = node_command(
+                    name, params_file=self.params_file, use_sim_time=self.use_sim_time
+                )
+                self.nodes.start(Command(name, command, env=env, on_line=self._writer(index, name)))
+            died = self.nodes.wait_any(self._stop)
+            died_code = None if died is None else died.returncode
         finally:
+            self.nodes.stop_all()
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
         if died is not None:
-            raise NodeFailedError(f"node {died.name} exited with code {died.process.returncode}")
+            raise NodeFailedError(f"node {died.name} exited with code {died_code}")
+        unclean = [node.name for node in self.nodes.started if node.returncode != 0]
         if unclean:
             raise NodeFailedError(f"node(s) did not stop cleanly: {', '.join(unclean)}")
         return EXIT_INTERRUPTED
@@ -112,60 +107,17 @@ class Launcher:
     def _on_signal(self, signum: int, frame: FrameType | None) -> None:
         if self._stop.is_set():
             # A second Ctrl-C while the nodes shut down: do not make the user wait.
-            for node in self.nodes:
-                if node.process.poll() is None:
-                    os.killpg(node.process.pid, signal.SIGKILL)
+            self.nodes.kill_all()
         self._stop.set()
 
-    def _start(self, name: str, index: int) -> None:
-        env = dict(os.environ, PYTHONUNBUFFERED="1")
-        process = subprocess.Popen(
-            node_command(name, params_file=self.params_file, use_sim_time=self.use_sim_time),
-            stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT,
-            stdin=subprocess.DEVNULL,
-            env=env,
-            # Own session: a terminal's Ctrl-C reaches only the launcher, which forwards it,
-            # so every node is stopped exactly once and in a known way.
-            start_new_session=True,
-        )
+    def _writer(self, index: int, name: str) -> Callable[[str], None]:
         prefix = f"[{name}] "
         if self._colour:
             prefix = f"{_COLOURS[index % len(_COLOURS)]}{prefix}{_RESET}"
-        assert process.stdout is not None
-        reader = threading.Thread(
-            target=self._copy_output, args=(process.stdout, prefix), daemon=True
-        )
-        reader.start()
-        self.nodes.append(NodeProcess(name, process, reader))
 
-    def _copy_output(self, stream: IO[bytes], prefix: str) -> None:
-        for raw in stream:
-            line = raw.decode(errors="replace").rstrip("\n")
+        def write(line: str) -> None:
             with self._write_lock:
                 self.output.write(f"{prefix}{line}\n")
                 self.output.flush()
 
-    def _supervise(self) -> NodeProcess | None:
-        while not self._stop.wait(0.1):
-            for node in self.nodes:
-                if node.process.poll() is not None:
-                    return node
-        return None
-
-    def _stop_all(self) -> list[str]:
-        for node in self.nodes:
-            if node.process.poll() is None:
-                os.killpg(node.process.pid, signal.SIGINT)
-        deadline = time.monotonic() + self.stop_timeout
-        unclean = []
-        for node in self.nodes:
-            try:
-                node.process.wait(timeout=max(0.0, deadline - time.monotonic()))
-            except subprocess.TimeoutExpired:
-                os.killpg(node.process.pid, signal.SIGKILL)
-                node.process.wait()
-            if node.process.returncode != 0:
-                unclean.append(node.name)
-            node.reader.join(timeout=1.0)
-        return unclean
+        return write

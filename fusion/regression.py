@@ -9,9 +9,9 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+from bagkit.regression import Processor
 from fusion.params import flatten
 from fusion.processors import Severity, create_processor
-from fusion.processors.base import Processor
 
 
 def make_processors(nodes: Mapping[str, Mapping[str, object] | None]) -> list[Processor]:
@@ -21,8 +21,10 @@ def make_processors(nodes: Mapping[str, Mapping[str, object] | None]) -> list[Pr
         UnknownNodeError: a node name is not one of fusion's.
         ConfigError: a parameter is unknown, of the wrong type or out of range.
     """
-    processors = [create_processor(name, flatten(params or {})) for name, params in nodes.items()]
-    for processor in processors:
+    processors: list[Processor] = []
+    for name, params in nodes.items():
+        processor = create_processor(name, flatten(params or {}))
         # Nobody reads the log in lockstep; the per-sample debug lines alone cost a tenth of a run.
         processor.min_log_severity = Severity.WARN
+        processors.append(processor)
     return processors

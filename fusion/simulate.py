@@ -12,7 +12,7 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from fusion.processors import NODE_NAMES, LogLine, Processor, create_processor
+from fusion.processors import NODE_NAMES, LogLine, ProcessorBase, create_processor
 
 DEFAULT_START_NS = 1_700_000_000_000_000_000
 
@@ -43,7 +43,7 @@ def simulate(
         UnknownNodeError, ConfigError: as ``create_processor``.
     """
     params = params or {}
-    processors: dict[str, Processor] = {n: create_processor(n, params.get(n)) for n in nodes}
+    processors: dict[str, ProcessorBase] = {n: create_processor(n, params.get(n)) for n in nodes}
     next_tick = {
         name: start_ns + p.timer_period_ns
         for name, p in processors.items()

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-import signal
 import subprocess
 import sys
 import types
@@ -12,6 +11,8 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
+from bagkit.processes import Command, StopPolicy, Supervisor
 
 # Set before anything creates a ROS context: rclpy reads these when a context initializes, and
 # every subprocess a test starts inherits them. The domain is derived from the pid so that two
@@ -76,32 +77,23 @@ def interop_dir() -> Path:
     return INTEROP_DIR
 
 
-class ProcessGroup:
-    """Subprocesses started by one test, each in its own session, stopped by pid on teardown."""
+class ProcessesFixture:
+    """Subprocesses started by one test through bagkit's ``Supervisor``, stopped on teardown."""
 
     def __init__(self) -> None:
-        self.procs: list[subprocess.Popen[bytes]] = []
+        self.supervisor = Supervisor(StopPolicy(interrupt_s=10.0, terminate_s=5.0))
 
-    def start(self, args: list[str], **kwargs: object) -> subprocess.Popen[bytes]:
-        """Start ``args`` (``bagkit``/``fusion``/``python`` resolve to this environment)."""
+    def start(self, args: list[str], **popen: Any) -> subprocess.Popen[Any]:
+        """Start ``args`` (``bagkit``/``fusion``/``python`` resolve to this environment);
+        ``popen``: the ``Command`` fields (``stdout``, ``stderr``, ``stdin``, ``text``, ``env``,
+        ``cwd``; ``preexec_fn`` is ``preexec``)."""
         if args[0] in {"bagkit", "fusion"}:
             args = [str(Path(sys.executable).with_name(args[0])), *args[1:]]
         elif args[0] == "python":
             args = [sys.executable, *args[1:]]
-        proc = subprocess.Popen(args, start_new_session=True, **kwargs)  # type: ignore[call-overload]
-        self.procs.append(proc)
-        return proc
-
-    def stop_all(self, timeout: float = 10.0) -> None:
-        for proc in self.procs:
-            if proc.poll() is None:
-                os.killpg(proc.pid, signal.SIGINT)
-        for proc in self.procs:
-            try:
-                proc.wait(timeout=timeout)
-            except subprocess.TimeoutExpired:
-                os.killpg(proc.pid, signal.SIGKILL)
-                proc.wait()
+        if "preexec_fn" in popen:
+            popen["preexec"] = popen.pop("preexec_fn")
+        return self.supervisor.start(Command(Path(args[0]).name, args, **popen)).process
 
 
 @pytest.fixture
@@ -122,10 +114,8 @@ def node(request: pytest.FixtureRequest) -> Iterator[Any]:
 
 
 @pytest.fixture
-def processes() -> Iterator[ProcessGroup]:
-    """Start subprocesses that are stopped (SIGINT, then SIGKILL) by their ids after the test."""
-    group = ProcessGroup()
-    try:
+def processes() -> Iterator[ProcessesFixture]:
+    """Start subprocesses that are stopped (SIGINT, SIGTERM, SIGKILL) after the test."""
+    group = ProcessesFixture()
+    with group.supervisor:
         yield group
-    finally:
-        group.stop_all()

@@ -10,7 +10,6 @@ from types import TracebackType
 
 from mcap.well_known import Profile
 
-from bagkit import __version__
 from bagkit.bag.bag_files import (
     bag_metadata,
     compressor,
@@ -25,6 +24,7 @@ from bagkit.bag.mcapio.records import Header, encode
 from bagkit.bag.metadata import BagMetadata, FileInformation, write_metadata
 from bagkit.bag.types import TopicInfo
 from bagkit.times import seconds_to_ns
+from bagkit.version import __version__
 
 LIBRARY = f"bagkit {__version__}"
 DEFAULT_CHUNK_SIZE = 1 << 20

@@ -16,10 +16,10 @@ import typer
 from typer._click import Command, Context
 from typer.core import TyperCommand, TyperGroup
 
-from bagkit import __version__
 from bagkit.cli.common import CONTEXT_SETTINGS, run_app
 from bagkit.cli.help_text import reflow_command_help
 from bagkit.cli.plain_params import use_plain_coercion, use_plain_params
+from bagkit.version import __version__
 
 
 @dataclass(frozen=True, slots=True)

@@ -174,11 +174,6 @@ class TopicColumns:
         self.first_failure = ""
         self.unindexed = 0
 
-    def chunk_batch(self, records: bytes, index: np.ndarray, window: Window) -> pa.RecordBatch:
-        """The messages of this topic in one decompressed chunk (``index``: its entries)."""
-        rows = self.decode_chunk(records, index, window, lambda n: Rows.empty(self.leaves, n))
-        return rows.batch(self.schema)
-
     def decode_chunk(
         self, records: bytes, index: np.ndarray, window: Window, reserve: Callable[[int], Rows]
     ) -> Rows:

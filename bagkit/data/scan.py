@@ -14,10 +14,10 @@ from bagkit.data.columns import Rows, TopicColumns
 from bagkit.data.errors import UnknownFieldError
 from bagkit.data.table import ColumnTable
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
+from bagkit.prefetch import prefetch
 from bagkit.selection.fields import select_fields
 from bagkit.selection.topics import require_topics
 from bagkit.selection.windows import TimeRange, Window, outside_warning
-from bagkit.stats.prefetch import prefetch
 
 # Messages of chunkless storage (.db3) are decoded this many at a time.
 ROWS_PER_BATCH = 8192

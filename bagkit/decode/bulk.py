@@ -46,11 +46,6 @@ def read_u32(buf: np.ndarray, positions: np.ndarray) -> np.ndarray:
     return sliding_window_view(buf, 4)[positions].view("<u4").ravel()
 
 
-def read_u64(buf: np.ndarray, positions: np.ndarray) -> np.ndarray:
-    """Little-endian ``uint64`` at each of ``positions`` in the byte array ``buf``."""
-    return sliding_window_view(buf, 8)[positions].view("<u8").ravel()
-
-
 def gather(buf: np.ndarray, starts: np.ndarray, dtype: np.dtype) -> np.ndarray:
     """One record of ``dtype`` at each of ``starts`` in ``buf`` (zero-copy when evenly spaced)."""
     size = dtype.itemsize

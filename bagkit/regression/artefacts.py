@@ -9,6 +9,7 @@ from pathlib import Path
 from bagkit.bag import BagReader
 from bagkit.compare import TopicResult
 from bagkit.compare.bags import Sample, events_of, iter_samples
+from bagkit.data.plot_png import Layout, Panel, Trace, draw_png
 from bagkit.decode import MessageTypes
 from bagkit.regression.golden import GoldenCheck
 from bagkit.regression.report_html import FieldSeries, render
@@ -96,54 +97,63 @@ def _plot_png(
     t0: int,
     png: Path,
 ) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    def seconds(samples: list[Sample]) -> list[float]:
+        return [(s.time_ns - t0) / 1e9 for s in samples]
 
     if topic.matched_by == "event":
-        fig, ax = plt.subplots(figsize=(10, 3.5))
+        traces = []
         for samples, label, marker in ((g_samples, "golden", "o"), (c_samples, "candidate", "x")):
             events = events_of(samples)
-            ax.scatter(
-                [(e.time_ns - t0) / 1e9 for e in events],
-                [f"{e.name} [{e.level}]" for e in events],
-                marker=marker,
-                label=label,
-            )
-        ax.set_title(f"{topic.topic}: events (name [level])")
-        ax.legend()
-        ax.set_xlabel("time since the golden's start (s)")
+            names = [f"{e.name} [{e.level}]" for e in events]
+            times = [(e.time_ns - t0) / 1e9 for e in events]
+            traces.append(Trace(times, names, label, style="none", marker=marker))
+        panels = [Panel(f"{topic.topic}: events (name [level])", traces, legend="best")]
+        height = 3.5
     elif not series:
         # No failing scalar: the message counts over time show the missing and extra messages.
-        fig, ax = plt.subplots(figsize=(10, 2.8))
-        for samples, label, style in ((g_samples, "golden", "-"), (c_samples, "candidate", "--")):
-            times = [(s.time_ns - t0) / 1e9 for s in samples]
-            ax.plot(times, range(len(times)), style, label=label)
-        ax.set_title(f"{topic.topic} (message count)", fontsize=9)
-        ax.legend(fontsize=8, loc="upper left")
-        ax.set_xlabel("time since the golden's start (s)")
-    else:
-        fig, axes = plt.subplots(len(series), 1, figsize=(10, 2.8 * len(series)), squeeze=False)
-        for ax, one in zip(axes[:, 0], series, strict=True):
-            for values, label, style in (
-                (one.golden, "golden", "-"),
-                (one.candidate, "candidate", "--"),
-            ):
-                ax.plot([t for t, _ in values], [v for _, v in values], style, label=label)
-            diff_ax = ax.twinx()
-            diff_ax.plot(
-                [t for t, _, _ in one.pairs],
-                [c - g for _, g, c in one.pairs],
-                ":",
-                color="tab:red",
-                label="candidate - golden",
+        traces = [
+            Trace(seconds(samples), list(range(len(samples))), label, style=style)
+            for samples, label, style in (
+                (g_samples, "golden", "-"),
+                (c_samples, "candidate", "--"),
             )
-            diff_ax.set_ylabel("candidate - golden", color="tab:red", fontsize=8)
-            diff_ax.legend(fontsize=8, loc="upper right")
-            ax.set_title(f"{topic.topic} {one.path}", fontsize=9)
-            ax.legend(fontsize=8, loc="upper left")
-        axes[-1, 0].set_xlabel("time since the golden's start (s)")
-    fig.tight_layout()
-    fig.savefig(png, dpi=80)
-    plt.close(fig)
+        ]
+        panels = [Panel(f"{topic.topic} (message count)", traces, legend="upper left")]
+        height = 2.8
+    else:
+        panels = [_field_panel(topic.topic, one) for one in series]
+        height = 2.8
+    layout = Layout(
+        "time since the golden's start (s)",
+        width_in=10.0,
+        panel_height_in=height,
+        margin_height_in=0.0,
+        dpi=80,
+        share_x=False,
+    )
+    draw_png(panels, png, layout)
+
+
+def _field_panel(topic: str, one: FieldSeries) -> Panel:
+    """Both bags' values of one failing field, and their difference on the right axis."""
+    lines = [
+        Trace([t for t, _ in values], [v for _, v in values], label, style=style)
+        for values, label, style in (
+            (one.golden, "golden", "-"),
+            (one.candidate, "candidate", "--"),
+        )
+    ]
+    difference = Trace(
+        [t for t, _, _ in one.pairs],
+        [c - g for _, g, c in one.pairs],
+        "candidate - golden",
+        style=":",
+        color="tab:red",
+    )
+    return Panel(
+        f"{topic} {one.path}",
+        lines,
+        legend="upper left",
+        twin=[difference],
+        twin_label="candidate - golden",
+    )

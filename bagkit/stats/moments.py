@@ -126,10 +126,11 @@ class Moments:
             np.where(positive, np.inf, np.where(negative, -np.inf, finite)),
         )
 
-    def std(self) -> np.ndarray:
-        """Sample standard deviation (ddof=1, as pandas); NaN below two values or with inf."""
+    def std(self, ddof: int = 1) -> np.ndarray:
+        """Standard deviation, of the sample (``ddof=1``, as pandas) or of the population
+        (``ddof=0``, as numpy); NaN up to ``ddof`` values or with inf."""
         count = self.count
         with np.errstate(invalid="ignore", divide="ignore"):
-            std = np.sqrt(self.m2 / (count - 1))
+            std = np.sqrt(self.m2 / (count - ddof))
         infinite = (self.positive_inf + self.negative_inf) > 0
-        return np.where((count > 1) & ~infinite, std, np.nan)
+        return np.where((count > ddof) & ~infinite, std, np.nan)

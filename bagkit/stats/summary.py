@@ -19,13 +19,13 @@ import numpy as np
 from bagkit.bag import BagChunk, BagReader
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
 from bagkit.decode.layout import CdrLayout
+from bagkit.prefetch import prefetch
 from bagkit.selection.fields import FieldSelection
 from bagkit.selection.times import TimeLike
 from bagkit.selection.topics import absolute_topic_name, require_topics
 from bagkit.selection.windows import TimeRange, Window, outside_warning
 from bagkit.stats.accumulate import ROW_BATCH, TopicAccumulator
 from bagkit.stats.errors import NothingToSummarizeError, StatsError
-from bagkit.stats.prefetch import prefetch
 from bagkit.stats.result import Summary
 
 ProgressCallback = Callable[[int, int], None]

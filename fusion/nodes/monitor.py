@@ -9,8 +9,6 @@ from __future__ import annotations
 
 import itertools
 import math
-import os
-import signal
 import subprocess
 import sys
 import time
@@ -24,6 +22,7 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 
+from bagkit.processes import Command, StopPolicy, Supervisor
 from fusion import topics
 from fusion.errors import FusionError
 from fusion.nodes.shell import topic_qos
@@ -155,19 +154,10 @@ def check_system(
     command = [sys.executable, "-m", "fusion", "launch"]
     if params_file is not None:
         command += ["--params", str(params_file)]
-    system = subprocess.Popen(
-        command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
-    )
-    try:
-        return observe(duration_s, is_alive=lambda: system.poll() is None)
-    finally:
-        if system.poll() is None:
-            os.killpg(system.pid, signal.SIGINT)
-        try:
-            system.wait(timeout=15)
-        except subprocess.TimeoutExpired:
-            os.killpg(system.pid, signal.SIGKILL)
-            system.wait()
+    quiet = subprocess.DEVNULL
+    with Supervisor(StopPolicy(interrupt_s=15.0)) as group:
+        system = group.start(Command("fusion launch", command, stdout=quiet, stderr=quiet))
+        return observe(duration_s, is_alive=lambda: system.returncode is None)
 
 
 def _measure(

@@ -17,7 +17,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from bagkit.errors import BagkitError
 from fusion import topics
 from fusion.params import default_parameters
-from fusion.processors import Processor, Severity, create_processor, parameter_descriptions
+from fusion.processors import ProcessorBase, Severity, create_processor, parameter_descriptions
 
 # Streams: reliable with a deep queue, so that a recorder or a replay at several times real time
 # loses nothing to a momentarily slow subscriber (10 s of IMU at 10 Hz).
@@ -72,7 +72,7 @@ class ProcessorNode(Node):
             name: _parameter_value(self.get_parameter(name).value)
             for name in default_parameters(node_name)
         }
-        self.processor: Processor = create_processor(node_name, params)
+        self.processor: ProcessorBase = create_processor(node_name, params)
         self._publishers_by_topic = {
             topic: self.create_publisher(topics.TOPIC_TYPES[topic], topic, topic_qos(topic))
             for topic in self.processor.output_topics

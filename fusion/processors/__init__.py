@@ -10,11 +10,11 @@ from collections.abc import Callable, Mapping
 
 from fusion.errors import UnknownNodeError
 from fusion.processors import alert_system, data_logger, sensor_fusion, sensor_publisher
-from fusion.processors.base import LogLine, Output, Processor, ProcessorBase, Severity
+from fusion.processors.base import LogLine, ProcessorBase, Severity
 
 NODE_NAMES: tuple[str, ...] = ("sensor_publisher", "data_logger", "alert_system", "sensor_fusion")
 
-_FACTORIES: dict[str, Callable[[Mapping[str, object] | None], Processor]] = {
+_FACTORIES: dict[str, Callable[[Mapping[str, object] | None], ProcessorBase]] = {
     "sensor_publisher": sensor_publisher.SensorPublisher,
     "data_logger": data_logger.DataLogger,
     "alert_system": alert_system.AlertSystem,
@@ -34,7 +34,7 @@ def _check_name(node_name: str) -> None:
         raise UnknownNodeError(f"unknown node {node_name!r} (known: {', '.join(NODE_NAMES)})")
 
 
-def create_processor(node_name: str, params: Mapping[str, object] | None = None) -> Processor:
+def create_processor(node_name: str, params: Mapping[str, object] | None = None) -> ProcessorBase:
     """The processor of ``node_name``; ``params`` (dotted names) override params.yaml defaults.
 
     Raises:
@@ -54,8 +54,6 @@ def parameter_descriptions(node_name: str) -> dict[str, str]:
 __all__ = [
     "NODE_NAMES",
     "LogLine",
-    "Output",
-    "Processor",
     "ProcessorBase",
     "Severity",
     "create_processor",

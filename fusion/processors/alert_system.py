@@ -9,10 +9,11 @@ from typing import Any
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from sensor_msgs.msg import NavSatStatus
 
+from bagkit.regression import Output
 from fusion import topics
 from fusion.alerts import AlertMonitor, Level, RangeRule, SensorRules, SensorState
 from fusion.params import Params
-from fusion.processors.base import Output, ProcessorBase, Severity
+from fusion.processors.base import ProcessorBase, Severity
 from fusion.processors.messages import field_value, stamp
 
 

@@ -1,12 +1,16 @@
-"""The processor interface shared by the rclpy nodes and the lockstep regression harness."""
+"""What every fusion processor shares: bagkit's ``Processor`` protocol and a log buffer.
+
+The rclpy nodes and bagkit's lockstep harness drive the same objects; lockstep knows them as
+``bagkit.regression.Processor``, which :class:`ProcessorBase` implements.
+"""
 
 from __future__ import annotations
 
 import enum
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any
 
-Output = tuple[str, Any]
+from bagkit.regression import Output
 
 
 class Severity(enum.IntEnum):
@@ -26,50 +30,14 @@ class LogLine:
     text: str
 
 
-class Processor(Protocol):
-    """A node's logic without rclpy: ROS message objects in, ROS message objects out.
+class ProcessorBase:
+    """A ``bagkit.regression.Processor`` with no-op handlers, plus the log buffer the node reads.
 
     ``now_ns`` is the node clock (sim time under ``use_sim_time``, the bag's log time in
     lockstep); processors never read the wall clock and own their random generators, so the
-    same inputs at the same times give the same outputs.
+    same inputs at the same times give the same outputs. ``drain_log`` returns the lines to
+    log; lines below ``min_log_severity`` are not produced (the node sets its logger's level).
     """
-
-    @property
-    def input_topics(self) -> tuple[str, ...]:
-        """Topics to subscribe to and pass to ``on_message``."""
-        ...
-
-    @property
-    def output_topics(self) -> tuple[str, ...]:
-        """Topics the outputs may name (types in ``fusion.topics.TOPIC_TYPES``)."""
-        ...
-
-    @property
-    def timer_period_ns(self) -> int | None:
-        """Period of ``on_timer`` calls on the node clock; None: no timer."""
-        ...
-
-    def on_message(self, topic: str, msg: Any, now_ns: int) -> list[Output]:
-        """Handle one received message; return ``(topic, message)`` pairs to publish.
-
-        Topics not in ``input_topics`` are ignored.
-        """
-        ...
-
-    def on_timer(self, now_ns: int) -> list[Output]:
-        """Handle a timer tick (only called when ``timer_period_ns`` is set)."""
-        ...
-
-    def drain_log(self) -> list[LogLine]:
-        """Return and forget the log lines produced since the last call."""
-        ...
-
-    min_log_severity: Severity
-    """Lines below this severity are not produced (the node sets its logger's level)."""
-
-
-class ProcessorBase:
-    """Default no-op handlers and the log buffer."""
 
     input_topics: tuple[str, ...] = ()
     output_topics: tuple[str, ...] = ()

@@ -8,11 +8,12 @@ from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
+from bagkit.regression import Output
 from fusion import topics
 from fusion.params import Params
-from fusion.processors.base import Output, ProcessorBase, Severity
+from fusion.processors.base import ProcessorBase, Severity
 from fusion.processors.messages import numeric_fields, stamp, stamp_ns
-from fusion.stats import FieldStats
+from fusion.stats import StreamMoments
 
 PARAMETER_DESCRIPTIONS: dict[str, str] = {
     "summary_period": "Seconds of node-clock time between two summaries on /logger/summary.",
@@ -35,7 +36,7 @@ class DataLogger(ProcessorBase):
         super().__init__()
         p = Params("data_logger", params)
         self.timer_period_ns = round(p.number("summary_period", positive=True) * 1e9)
-        self.stats = {topic: FieldStats() for topic in self.input_topics}
+        self.stats = {topic: StreamMoments() for topic in self.input_topics}
 
     def on_message(self, topic: str, msg: Any, now_ns: int) -> list[Output]:
         """Add the message's numeric fields to the topic's statistics."""
@@ -52,21 +53,20 @@ class DataLogger(ProcessorBase):
         """Publish the summary and log it as a table."""
         summary = DiagnosticArray()
         summary.header.stamp = stamp(now_ns)
-        for topic, field_stats in self.stats.items():
+        for topic, moments in self.stats.items():
             status = DiagnosticStatus()
             status.name = f"data_logger: {topic}"
             status.hardware_id = topic
-            if field_stats.messages:
+            if moments.messages:
                 status.level = DiagnosticStatus.OK
-                status.message = f"{field_stats.messages} messages"
+                status.message = f"{moments.messages} messages"
             else:
                 status.level = DiagnosticStatus.WARN
                 status.message = "no messages"
-            for name, stats in field_stats.fields.items():
-                row = (stats.count, stats.nan_count, stats.min, stats.max, stats.mean, stats.std)
+            for name, figures in moments.fields():
                 status.values.extend(
                     KeyValue(key=f"{name}.{stat}", value=_format(float(value)))
-                    for stat, value in zip(STAT_NAMES, row, strict=True)
+                    for stat, value in zip(STAT_NAMES, figures.row(), strict=True)
                 )
             summary.status.append(status)
         self.log(Severity.INFO, self.table(now_ns))
@@ -79,10 +79,10 @@ class DataLogger(ProcessorBase):
             f"{'mean':>11} {'std':>10}"
         )
         lines = [f"summary at {now_ns / 1e9:.1f} s", header]
-        for topic, field_stats in self.stats.items():
-            if not field_stats.messages:
+        for topic, moments in self.stats.items():
+            if not moments.messages:
                 lines.append(f"{topic:<20} (no messages)")
-            for name, s in field_stats.fields.items():
+            for name, s in moments.fields():
                 lines.append(
                     f"{topic:<20} {name:<24} {s.count:>6} {s.nan_count:>4} {s.min:>11.6g} "
                     f"{s.max:>11.6g} {s.mean:>11.6g} {s.std:>10.4g}"

@@ -10,6 +10,7 @@ from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import NavSatFix, NavSatStatus
 
+from bagkit.regression import Output
 from fusion import topics
 from fusion.estimation import (
     GeodeticOrigin,
@@ -20,7 +21,7 @@ from fusion.estimation import (
     pressure_altitude,
 )
 from fusion.params import Params
-from fusion.processors.base import Output, ProcessorBase, Severity
+from fusion.processors.base import ProcessorBase, Severity
 from fusion.processors.messages import (
     copy_quaternion,
     copy_vector3,

@@ -10,11 +10,12 @@ from geometry_msgs.msg import Vector3
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import FluidPressure, Imu, NavSatFix, NavSatStatus, Temperature
 
+from bagkit.regression import Output
 from fusion import topics
 from fusion.estimation import GeodeticOrigin, pressure_at_altitude
 from fusion.faults import FaultKind, FaultSchedule
 from fusion.params import Params
-from fusion.processors.base import Output, ProcessorBase, Severity
+from fusion.processors.base import ProcessorBase, Severity
 from fusion.processors.messages import quaternion_from_euler, stamp
 from fusion.sensors import (
     BarometerModel,

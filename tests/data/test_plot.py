@@ -13,7 +13,7 @@ from chromium import dump_dom, screenshot
 from matplotlib.image import imread
 
 import bagkit
-from bagkit.data.plot_png import DPI, PANEL_HEIGHT_IN, WIDTH_IN
+from bagkit.data.plot_png import Layout
 from bagkit.data.series import decimate, load_series
 
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
@@ -54,7 +54,9 @@ def test_png_has_the_expected_size_and_is_not_blank(tmp_path: Path) -> None:
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == f"4 series -> {out}"
     image = imread(out)
-    assert image.shape[:2] == (round((0.8 + 2 * PANEL_HEIGHT_IN) * DPI), round(WIDTH_IN * DPI))
+    page = Layout("")
+    height_in = page.margin_height_in + 2 * page.panel_height_in
+    assert image.shape[:2] == (round(height_in * page.dpi), round(page.width_in * page.dpi))
     gray = image[..., :3].mean(axis=2)
     assert gray.std() > 0.05  # lines, text and axes on white, not one colour
     assert (gray < 0.5).mean() > 0.005

@@ -9,12 +9,8 @@ import pandas as pd
 import pytest
 from distributed import Client
 
+from bagkit.data import read_dataframe
 from bagkit.fleet import dataframe
-
-try:
-    from bagkit.data import read_dataframe
-except ImportError:
-    pytest.skip("bagkit.data not merged yet", allow_module_level=True)
 
 FIELDS = ["linear_acceleration.z", "angular_velocity.x"]
 

@@ -11,6 +11,7 @@ from fusion_loop import START_NS, run_loop
 from rclpy.serialization import serialize_message
 from rosbags.typesys import Stores, get_typestore
 
+from bagkit.regression import Processor
 from bagkit.ros.message_classes import message_type_name
 from fusion import topics
 from fusion.errors import ConfigError, UnknownNodeError
@@ -38,6 +39,7 @@ def test_registry_and_parameter_descriptions() -> None:
     assert NODE_NAMES == ("sensor_publisher", "data_logger", "alert_system", "sensor_fusion")
     for name in NODE_NAMES:
         processor = create_processor(name)
+        assert isinstance(processor, Processor), name  # bagkit's protocol, as lockstep checks
         assert set(processor.input_topics) <= set(topics.TOPIC_TYPES)
         assert set(processor.output_topics) <= set(topics.TOPIC_TYPES)
         descriptions = parameter_descriptions(name)

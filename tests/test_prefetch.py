@@ -7,7 +7,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from bagkit.stats.prefetch import prefetch
+from bagkit.prefetch import prefetch
 
 
 def test_items_in_order() -> None:
