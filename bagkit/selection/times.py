@@ -85,8 +85,9 @@ def parse_time(value: TimeLike, option: str = "time") -> TimePoint:
         raise _bad(value, option)
     if isinstance(value, numbers.Real):  # numpy's numbers too
         _seconds_ns(float(value), value, option)  # finite and within int64 ns
-        exact = isinstance(value, numbers.Integral)
-        return _parse_text(str(int(value)) if exact else repr(float(value)), option)
+        if isinstance(value, numbers.Integral):
+            return _parse_text(str(int(value)), option)
+        return _parse_text(repr(float(value)), option)
     return TimePoint(Anchor.EPOCH, _object_ns(value, option))
 
 
