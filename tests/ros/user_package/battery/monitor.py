@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from collections.abc import Callable
 
 import rclpy
 from my_robot_msgs.msg import BatteryReport, CellState
@@ -72,25 +73,26 @@ class Monitor(Node):
         return response
 
 
-def wait_until(node: Node, condition: object, timeout_s: float) -> None:
+def wait_until(node: Node, condition: Callable[[], bool], what: str, timeout_s: float) -> None:
     deadline = time.monotonic() + timeout_s
-    while not condition():  # type: ignore[operator]
+    while not condition():
         if time.monotonic() > deadline:
-            sys.exit(f"battery monitor: timed out waiting for {condition}")
+            sys.exit(f"battery monitor: no {what} within {timeout_s} s")
         rclpy.spin_once(node, timeout_sec=0.01)
 
 
 def publish_known(node: Monitor, count: int) -> None:
     """The --count run: subscribers first, then every report, then one service call."""
     events = f"{SERVICE}/_service_event"
-    wait_until(node, lambda: node.publisher.get_subscription_count() > 0, 60)
-    wait_until(node, lambda: node.count_subscribers(events) > 0, 60)
+    wait_until(node, lambda: node.publisher.get_subscription_count() > 0, "subscriber", 60)
+    wait_until(node, lambda: node.count_subscribers(events) > 0, "event subscriber", 60)
     for _ in range(count):
         print_json(node.publish_next())
         time.sleep(1 / RATE_HZ)
     future = node.client.call_async(SetChargeLimit.Request(limit=0.8))
     rclpy.spin_until_future_complete(node, future, timeout_sec=30)
-    assert future.done(), "no response from the charge-limit service"
+    if not future.done():
+        sys.exit("battery monitor: no response from the charge-limit service within 30 s")
     # Every report delivered before the node goes away.
     if not node.publisher.wait_for_all_acked(Duration(seconds=30)):
         sys.exit("battery monitor: reports not acknowledged within 30 s")
