@@ -120,6 +120,7 @@ def workspace(tmp_path_factory: pytest.TempPathFactory) -> Workspace:
     root = tmp_path_factory.mktemp("colcon_ws")
     shutil.copytree(USER_PROJECT / "my_robot_msgs", root / "src" / "my_robot_msgs")
     env = build_environment()
+    env["COLCON_HOME"] = str(root / "colcon_home")  # no defaults or mixins of the developer's
     args = [str(colcon), "--log-base", "log", "build", "--cmake-args", *cmake_args()]
     built = subprocess.run(
         args,
