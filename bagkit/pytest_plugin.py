@@ -255,18 +255,21 @@ class GoldenSummary:
         )
 
     @pytest.hookimpl(trylast=True)
-    def pytest_sessionfinish(self) -> None:
+    def pytest_sessionfinish(self, exitstatus: int) -> None:
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.path.write_text(self.markdown())
+        self.path.write_text(self.markdown(interrupted=exitstatus == pytest.ExitCode.INTERRUPTED))
 
-    def markdown(self) -> str:
+    def markdown(self, *, interrupted: bool = False) -> str:
         """The verdict: a headline, then one table row per fixture and mode."""
+        # pytest stops before running anything on a collection error (or at Ctrl-C)
+        note = ["", "pytest was interrupted: not every fixture ran."] if interrupted else []
         if not self.rows:
-            return "## Golden fixtures: none ran\n"
+            return "\n".join(["## Golden fixtures: none ran", *note]) + "\n"
         bad = [r for r in self.rows if r.result in {"failed", "error"}]
         head = f"FAIL ({len(bad)} of {len(self.rows)})" if bad else f"pass ({len(self.rows)})"
         lines = [
             f"## Golden fixtures: {head}",
+            *note,
             "",
             "| fixture | mode | result | verdict | report |",
             "|---|---|---|---|---|",
