@@ -91,6 +91,8 @@ def pytest_configure(config: pytest.Config) -> None:
     roots = _roots(config)
     config.stash[ROOTS] = roots
     summary = config.getoption("golden_summary")
+    if summary and Path(summary).is_dir():
+        raise pytest.UsageError(f"--golden-summary {summary}: a directory, not a file")
     if summary and not hasattr(config, "workerinput"):  # xdist workers report to the controller
         config.pluginmanager.register(GoldenSummary(Path(summary), config.rootpath))
     if not roots:
@@ -208,11 +210,11 @@ def verdict(check: GoldenCheck, most: int = 3) -> str:
 
 
 def _topic_verdict(topic: TopicResult) -> str:
-    fields = ", ".join(f"{f.path} (max |err| {f.max_abs_error:.3g})" for f in topic.failed_fields)
-    counts = [
+    parts = [f"{f.path} (max |err| {f.max_abs_error:.3g})" for f in topic.failed_fields]
+    parts += [
         f"{n} {what}" for n, what in ((topic.missing, "missing"), (topic.extra, "extra")) if n
     ]
-    return f"{topic.topic}: " + (", ".join([fields, *counts] if fields else counts) or "differs")
+    return f"{topic.topic}: {', '.join(parts) or 'differs'}"
 
 
 @dataclass(frozen=True, slots=True)
@@ -255,9 +257,17 @@ class GoldenSummary:
         )
 
     @pytest.hookimpl(trylast=True)
-    def pytest_sessionfinish(self, exitstatus: int) -> None:
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.path.write_text(self.markdown(interrupted=exitstatus == pytest.ExitCode.INTERRUPTED))
+    def pytest_sessionfinish(self, session: pytest.Session, exitstatus: int) -> None:
+        text = self.markdown(interrupted=exitstatus == pytest.ExitCode.INTERRUPTED)
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self.path.write_text(text)
+        except OSError as exc:
+            reporter = session.config.pluginmanager.get_plugin("terminalreporter")
+            if reporter is not None:
+                reporter.ensure_newline()
+                reporter.write_line(f"error: --golden-summary {self.path}: {exc.strerror}")
+            session.exitstatus = pytest.ExitCode.USAGE_ERROR
 
     def markdown(self, *, interrupted: bool = False) -> str:
         """The verdict: a headline, then one table row per fixture and mode."""

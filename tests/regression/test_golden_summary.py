@@ -130,3 +130,20 @@ def test_the_verdict_gathers_xdist_workers(project: Path) -> None:
         ["lobby", "lockstep", "passed"],
         ["office", "lockstep", "passed"],
     ]
+
+
+def test_a_summary_that_cannot_be_written_is_one_error_line(project: Path) -> None:
+    (project / "verdict").mkdir()
+    (project / "verdict" / "golden.md").mkdir()  # SUMMARY names a directory
+    refused = pytest_in(project)
+    assert refused.returncode == pytest.ExitCode.USAGE_ERROR
+    assert refused.stderr.strip() == f"ERROR: --golden-summary {SUMMARY}: a directory, not a file"
+
+    (project / "verdict" / "golden.md").rmdir()
+    (project / "verdict").rmdir()
+    (project / "verdict").write_text("")  # a file where the verdict's folder should be
+    unwritable = pytest_in(project)
+    assert unwritable.returncode == pytest.ExitCode.USAGE_ERROR, unwritable.stdout
+    assert f"\nerror: --golden-summary {SUMMARY}: File exists\n" in unwritable.stdout
+    assert "1 passed" in unwritable.stdout  # the fixtures ran
+    assert "Traceback" not in unwritable.stdout + unwritable.stderr
