@@ -1,25 +1,29 @@
 """The CI templates of examples/ci, parsed and run on a temporary copy of examples/thermostat.
 
-What runs: the lockstep job of each template, its shell commands in the order the CI service
-runs them, each step with ``bash -e`` in the copy as working directory, under a timeout:
+What runs: a job of each template, its shell commands in the order the CI service runs them,
+each step with ``bash -e`` in the copy as working directory, under a timeout:
 
-- GitHub Actions (``jobs.lockstep``): every ``run:`` step, with the job's ``env:``. A step runs
-  as GitHub decides from its ``if:``: none (or ``success()``) after every earlier step passed,
-  ``failure()`` after one failed, ``always()`` in any case. ``uses:`` steps do not run (checkout:
-  the copy is the checkout; setup-python: this venv is the Python; upload-artifact: its ``path``
-  entries are checked to exist). ``GITHUB_STEP_SUMMARY`` is a temporary file.
-- GitLab CI (``golden-lockstep``): ``before_script`` (the job's or ``default:``'s) and
-  ``script`` in one shell, then ``after_script`` in another, whatever the script did; the global
-  and the job's ``variables`` in the environment. The ``artifacts`` paths and the JUnit report
-  are checked to exist.
+- GitHub Actions (``jobs.lockstep``, ``jobs.live``): every ``run:`` step, with the job's
+  ``env:``. A step runs as GitHub decides from its ``if:``: none (or ``success()``) after every
+  earlier step passed, ``failure()`` after one failed, ``always()`` in any case. ``uses:``
+  steps do not run (checkout: the copy is the checkout; setup-python: this venv is the Python;
+  upload-artifact: its ``path`` entries are checked to exist). ``GITHUB_STEP_SUMMARY`` is a
+  temporary file, emptied before each run.
+- GitLab CI (``golden-lockstep``, ``golden-live``): ``before_script`` (the job's or
+  ``default:``'s) and ``script`` in one shell, then ``after_script`` in another, whatever the
+  script did; the global and the job's ``variables`` in the environment (``CI_PROJECT_DIR``:
+  the copy). The ``artifacts`` paths and the JUnit report are checked to exist.
 
 The install rule: bagkit is already installed in this venv (its ``bin`` first on PATH), so a
 command line starting with ``pip install`` or ``python -m pip install`` is left out; the test
-checks that the template does install bagkit there.
+checks that the template does install ``bagkit[ros]`` there.
 
-The live jobs start DDS and do not run here: they are parsed and checked to be well-formed
-(the ROS install, LOCALHOST discovery, the same pytest options as lockstep but live mode, valid
-options of this pytest, the artifacts kept on failure).
+Each job runs on the example as it is (passes), then after ``KP = 0.37`` (fails, the verdict
+naming /thermostat/heater, the report kept). The lockstep jobs always run. The live jobs start
+DDS: they run only with the ``ros`` marker, on this session's ``ROS_DOMAIN_ID`` (set by
+tests/conftest.py) in place of the template's, which would meet other runs on a shared
+machine; without DDS they are still parsed and checked (the lockstep job's pytest options in
+live mode, which this pytest takes: ``--collect-only`` collects the live item).
 """
 
 from __future__ import annotations
@@ -173,7 +177,7 @@ def project(tmp_path: Path) -> Path:
 
 
 def mutate(project: Path) -> None:
-    """Change the controller's gain: lockstep's outputs then differ on /thermostat/heater."""
+    """Change the controller's gain: the heater's outputs then differ from the golden's."""
     core = project / "thermostat" / "core.py"
     assert core.read_text().count(KP) == 1
     core.write_text(core.read_text().replace(KP, "KP = 0.37"))
@@ -189,133 +193,134 @@ def outputs(runs: list[StepRun]) -> str:
     return "\n".join(f"--- {r.step.name} ({r.returncode})\n{r.output}" for r in runs)
 
 
-def test_github_lockstep_job_passes_then_fails_after_a_mutation(
-    project: Path, tmp_path: Path
-) -> None:
-    job = load("github-actions.yml")["jobs"]["lockstep"]
-    steps, installs = strip_installs(github_steps(job))
-    assert any("bagkit" in line for line in installs), installs
-    words = pytest_command([c for s in steps for c in s.commands])
-    junit = project / option(words, "--junitxml")
-    verdict_file = project / option(words, "--golden-summary")
-    (upload,) = [s for s in job["steps"] if str(s.get("uses", "")).startswith("actions/upload")]
-    assert upload.get("if") == "always()"
-    kept = upload["with"]["path"].split()
-    assert "golden_failures/" in kept and f"{verdict_file.parent.name}/" in kept
-    summary = tmp_path / "step_summary.md"
-    service = {"GITHUB_STEP_SUMMARY": str(summary), "GITHUB_WORKSPACE": str(project)}
-    env = step_env(service, job.get("env", {}))
+@dataclass(frozen=True, slots=True)
+class Job:
+    """A template's job, ready to run on the copy: its steps, environment and products."""
 
-    passed = run_steps(steps, project, env)
-    assert [r.returncode for r in passed] == [0] * len(steps), outputs(passed)
-    assert "| office | lockstep | passed |" in summary.read_text()
-    assert summary.read_text() == verdict_file.read_text()
-    assert junit_counts(junit) == (1, 0)
+    steps: list[Step]
+    env: dict[str, str]
+    pytest_words: list[str]
+    kept: list[str]  # the artifact's paths, kept on failure too
+    junit: str  # where the CI service reads the JUnit XML
+    summary: Path | None  # GitHub's step summary file; GitLab: the verdict is in the log
+
+    def run(self, project: Path) -> tuple[list[StepRun], str]:
+        """Run the job; its step results and the verdict as the CI service shows it."""
+        if self.summary is not None:
+            self.summary.write_text("")
+        runs = run_steps(self.steps, project, self.env)
+        return runs, (self.summary.read_text() if self.summary else runs[-1].output)
+
+
+def installs_bagkit(installs: list[str]) -> None:
+    assert [line.strip() for line in installs] == ["python -m pip install 'bagkit[ros]'"]
+
+
+def github_job(name: str, project: Path, summary: Path) -> Job:
+    job = load("github-actions.yml")["jobs"][name]
+    steps, installs = strip_installs(github_steps(job))
+    installs_bagkit(installs)
+    (upload,) = [s for s in job["steps"] if str(s.get("uses", "")).startswith("actions/upload")]
+    assert upload["if"] == "always()"
+    (verdict,) = [s for s in steps if "GITHUB_STEP_SUMMARY" in "\n".join(s.commands)]
+    assert verdict.when == "always"
+    service = {"GITHUB_STEP_SUMMARY": str(summary), "GITHUB_WORKSPACE": str(project)}
+    words = pytest_command([c for s in steps for c in s.commands])
+    kept = upload["with"]["path"].split()
+    return Job(steps, step_env(service, job.get("env", {})), words, kept, "", summary)
+
+
+def gitlab_job(name: str, project: Path) -> Job:
+    config = load("gitlab-ci.yml")
+    job = config[name]
+    steps, installs = strip_installs(gitlab_steps(config, job))
+    installs_bagkit(installs)
+    artifacts = job["artifacts"]
+    assert artifacts["when"] == "always"
+    variables = {**config.get("variables", {}), **job.get("variables", {})}
+    env = step_env({"CI_PROJECT_DIR": str(project)}, variables)
+    assert env["PIP_CACHE_DIR"] == f"{project}/.cache/pip"  # in the project: GitLab caches it
+    words = pytest_command(steps[0].commands)
+    return Job(steps, env, words, artifacts["paths"], artifacts["reports"]["junit"], None)
+
+
+def make_job(template: str, mode: str, project: Path, tmp_path: Path) -> Job:
+    if template == "github":
+        return github_job(mode, project, tmp_path / "step_summary.md")
+    return gitlab_job(f"golden-{mode}", project)
+
+
+def check_pass_then_fail(job: Job, project: Path, mode: str) -> None:
+    """The job passes on the example, then fails on the mutated one with a verdict and a report."""
+    junit = option(job.pytest_words, "--junitxml")
+    assert job.junit in {"", junit}  # GitLab reads the file pytest writes
+    verdict_file = project / option(job.pytest_words, "--golden-summary")
+    assert "golden_failures/" in job.kept and f"{verdict_file.parent.name}/" in job.kept
+    pytest_step = next(i for i, s in enumerate(job.steps) if "pytest" in "\n".join(s.commands))
+
+    runs, shown = job.run(project)
+    assert [r.returncode for r in runs] == [0] * len(runs), outputs(runs)
+    assert shown == verdict_file.read_text()
+    assert f"| office | {mode} | passed |" in shown
+    assert junit_counts(project / junit) == (1, 0)
     assert not (project / "golden_failures").exists()
 
     mutate(project)
-    summary.write_text("")  # GitHub gives each step an empty summary file
-    failed = run_steps(steps, project, env)
-    codes = {r.step.name: r.returncode for r in failed}
-    assert codes["Golden fixtures (lockstep)"] == 1, outputs(failed)
-    assert codes["Verdict"] == 0, outputs(failed)  # runs after the failure: if: always()
-    text = summary.read_text()
-    assert "## Golden fixtures: FAIL (1 of 1)" in text
-    assert "| office | lockstep | failed | /thermostat/heater: data (max \\|err\\|" in text
-    assert "`golden_failures/office-lockstep/report.html`" in text
-    assert junit_counts(junit) == (1, 1)
-    for path in kept:  # what upload-artifact keeps, on failure
+    runs, shown = job.run(project)
+    codes = [r.returncode for r in runs]
+    assert codes[pytest_step] == 1, outputs(runs)
+    # every later step runs: they keep the verdict and the artifacts after the failure
+    assert codes[pytest_step + 1 :] == [0] * (len(runs) - pytest_step - 1), outputs(runs)
+    assert shown == verdict_file.read_text()
+    assert "## Golden fixtures: FAIL (1 of 1)" in shown
+    assert f"| office | {mode} | failed | /thermostat/heater: data (max \\|err\\|" in shown
+    assert f"`golden_failures/office-{mode}/report.html`" in shown
+    assert junit_counts(project / junit) == (1, 1)
+    for path in job.kept:
         assert (project / path).is_dir(), path
-    assert (project / "golden_failures" / "office-lockstep" / "report.html").is_file()
+    assert (project / "golden_failures" / f"office-{mode}" / "report.html").is_file()
 
 
-def test_gitlab_lockstep_job_passes_then_fails_after_a_mutation(project: Path) -> None:
-    config = load("gitlab-ci.yml")
-    job = config["golden-lockstep"]
-    steps, installs = strip_installs(gitlab_steps(config, job))
-    assert any("bagkit" in line for line in installs), installs
-    words = pytest_command(steps[0].commands)
-    artifacts = job["artifacts"]
-    assert artifacts["when"] == "always"
-    assert artifacts["reports"]["junit"] == option(words, "--junitxml")
-    verdict_file = project / option(words, "--golden-summary")
-    assert f"{verdict_file.parent.name}/" in artifacts["paths"]
-    assert "golden_failures/" in artifacts["paths"]
-    variables = {**config.get("variables", {}), **job.get("variables", {})}
-    env = step_env({"CI_PROJECT_DIR": str(project)}, variables)
-    assert env["PIP_CACHE_DIR"] == f"{project}/.cache/pip"  # what the cache keeps
-
-    passed = run_steps(steps, project, env)
-    assert [r.returncode for r in passed] == [0, 0], outputs(passed)
-    assert "| office | lockstep | passed |" in passed[1].output  # the verdict, in the log
-    assert junit_counts(project / artifacts["reports"]["junit"]) == (1, 0)
-
-    mutate(project)
-    failed = run_steps(steps, project, env)
-    assert [r.returncode for r in failed] == [1, 0], outputs(failed)
-    assert "| office | lockstep | failed | /thermostat/heater: data" in failed[1].output
-    assert failed[1].output == verdict_file.read_text()
-    assert junit_counts(project / artifacts["reports"]["junit"]) == (1, 1)
-    for path in artifacts["paths"]:
-        assert (project / path).is_dir(), path
-    assert (project / "golden_failures" / "office-lockstep" / "report.html").is_file()
+@pytest.mark.parametrize("template", ["github", "gitlab"])
+def test_lockstep_job_passes_then_fails_after_a_mutation(
+    template: str, project: Path, tmp_path: Path
+) -> None:
+    check_pass_then_fail(make_job(template, "lockstep", project, tmp_path), project, "lockstep")
 
 
-def live_and_lockstep_commands() -> list[tuple[str, list[str], list[str]]]:
-    """Per template: its name, the pytest words of its lockstep job and of its live job."""
-    github = load("github-actions.yml")["jobs"]
-    gitlab = load("gitlab-ci.yml")
-    return [
-        (
-            "github-actions.yml",
-            pytest_command([s["run"] for s in github["lockstep"]["steps"] if "run" in s]),
-            pytest_command([s["run"] for s in github["live"]["steps"] if "run" in s]),
-        ),
-        (
-            "gitlab-ci.yml",
-            pytest_command(gitlab["golden-lockstep"]["script"]),
-            pytest_command(gitlab["golden-live"]["script"]),
-        ),
-    ]
+@pytest.mark.ros
+@pytest.mark.parametrize("template", ["github", "gitlab"])
+def test_live_job_passes_then_fails_after_a_mutation(
+    template: str, project: Path, tmp_path: Path
+) -> None:
+    job = make_job(template, "live", project, tmp_path)
+    assert job.env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
+    job.env["ROS_DOMAIN_ID"] = os.environ["ROS_DOMAIN_ID"]  # this session's, not the template's
+    check_pass_then_fail(job, project, "live")
 
 
-def test_live_jobs_are_well_formed(project: Path) -> None:
-    """The live jobs (not run: DDS) pass the lockstep job's options in live mode, and pytest
-    with bagkit's plugin takes them: ``--collect-only`` with them collects the live item."""
-    for name, lockstep, live in live_and_lockstep_commands():
-        assert options(live) == options(lockstep), name
-        assert option_value(lockstep, "--golden-mode") == "lockstep", name
-        assert option_value(live, "--golden-mode") == "live", name
-        assert live[3:5] == ["-m", "golden"], name  # only the fixtures run live
-        assert option(live, "--junitxml") != option(lockstep, "--junitxml"), name
-        collected = subprocess.run(
-            [sys.executable, *live[1:], "--collect-only", "-q"],
-            cwd=project,
-            capture_output=True,
-            text=True,
-            timeout=120,
-            check=False,
-        )
-        assert collected.returncode == 0, collected.stdout + collected.stderr
-        assert collected.stdout.splitlines()[0] == "fixtures/office/spec.yaml::live", name
-
-    github = load("github-actions.yml")["jobs"]["live"]
-    assert github["env"]["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
-    runs = [s["run"] for s in github["steps"] if "run" in s]
-    assert "python -m pip install 'bagkit[ros]'" in runs
-    (upload,) = [s for s in github["steps"] if str(s.get("uses", "")).startswith("actions/upload")]
-    assert upload["if"] == "always()" and "golden_failures/" in upload["with"]["path"].split()
-    assert any(
-        s.get("if") == "always()" and "GITHUB_STEP_SUMMARY" in s.get("run", "")
-        for s in github["steps"]
+@pytest.mark.parametrize("template", ["github", "gitlab"])
+def test_live_job_is_the_lockstep_job_in_live_mode(
+    template: str, project: Path, tmp_path: Path
+) -> None:
+    """Without DDS: the live job passes the lockstep job's options in live mode, and pytest
+    with bagkit's plugin takes them (``--collect-only`` collects the live item)."""
+    lockstep = make_job(template, "lockstep", project, tmp_path).pytest_words
+    live_job = make_job(template, "live", project, tmp_path)
+    live = live_job.pytest_words
+    assert live_job.env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
+    assert options(live) == options(lockstep)
+    assert option_value(lockstep, "--golden-mode") == "lockstep"
+    assert option_value(live, "--golden-mode") == "live"
+    assert live[3:5] == ["-m", "golden"]  # only the fixtures run live
+    assert option(live, "--junitxml") != option(lockstep, "--junitxml")
+    collected = subprocess.run(
+        [sys.executable, *live[1:], "--collect-only", "-q"],
+        cwd=project,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
     )
-
-    config = load("gitlab-ci.yml")
-    gitlab = config["golden-live"]
-    assert gitlab["variables"]["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
-    assert "python -m pip install 'bagkit[ros]'" in config["default"]["before_script"]
-    assert gitlab["artifacts"]["when"] == "always"
-    assert "golden_failures/" in gitlab["artifacts"]["paths"]
-    assert gitlab["artifacts"]["reports"]["junit"] == option(
-        pytest_command(gitlab["script"]), "--junitxml"
-    )
+    assert collected.returncode == 0, collected.stdout + collected.stderr
+    assert collected.stdout.splitlines()[0] == "fixtures/office/spec.yaml::live"
