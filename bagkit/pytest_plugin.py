@@ -10,7 +10,9 @@ becomes one item per mode (``fixtures/takeoff/spec.yaml::lockstep``, ``::live``)
 ``--golden-mode lockstep|live|all`` chooses the modes (default: all the spec lists);
 ``--update-golden`` accepts today's behaviour instead of comparing (lockstep outputs; a
 fixture whose outputs are unchanged is not rewritten). A failure prints the verdict and the
-path of its report (``golden_failures/<fixture>-<mode>/report.html``).
+path of its report (``golden_failures/<fixture>-<mode>/report.html``). ``--golden-summary
+FILE`` writes a markdown verdict at the end (one table row per fixture and mode), for a CI job
+summary.
 
 Nothing here imports rclpy or the harness until a golden item runs.
 """
@@ -19,18 +21,26 @@ from __future__ import annotations
 
 import os
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import pytest
 
 if TYPE_CHECKING:
+    from bagkit.compare.result import TopicResult
     from bagkit.regression.golden import GoldenCheck
     from bagkit.regression.spec import FixtureSpec
 
 ROOTS = pytest.StashKey[list[Path]]()
 SPEC_FILE = "spec.yaml"
 MODE_CHOICES = ("lockstep", "live", "all")
+# user_properties of a golden item's reports: they cross xdist's worker boundary (and land in
+# --junitxml as properties), so the summary is written from what the controller receives.
+FIXTURE_PROPERTY = "golden_fixture"
+MODE_PROPERTY = "golden_mode"
+VERDICT_PROPERTY = "golden_verdict"
+REPORT_PROPERTY = "golden_report"
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -59,6 +69,12 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         metavar="DIR",
         help="Where failing fixtures' reports go (default: golden_failures under the rootdir).",
     )
+    group.addoption(
+        "--golden-summary",
+        default=None,
+        metavar="FILE",
+        help="Golden fixtures: write a markdown verdict (a table per fixture and mode) to FILE.",
+    )
     parser.addini("golden_roots", "Directories holding golden fixtures.", type="paths")
     parser.addini("golden_mode", "lockstep, live or all (default all).", default="all")
 
@@ -74,6 +90,11 @@ def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line("markers", "ros: starts real ROS 2 nodes over DDS")
     roots = _roots(config)
     config.stash[ROOTS] = roots
+    summary = config.getoption("golden_summary")
+    if summary and Path(summary).is_dir():
+        raise pytest.UsageError(f"--golden-summary {summary}: a directory, not a file")
+    if summary and not hasattr(config, "workerinput"):  # xdist workers report to the controller
+        config.pluginmanager.register(GoldenSummary(Path(summary), config.rootpath))
     if not roots:
         return
     # Live runs stay on this machine and off other sessions' domains unless told otherwise.
@@ -135,6 +156,7 @@ class GoldenItem(pytest.Item):
         super().__init__(**kwargs)
         self.spec = spec
         self.mode = mode
+        self.user_properties += [(FIXTURE_PROPERTY, spec.name), (MODE_PROPERTY, mode)]
 
     def runtest(self) -> None:
         from bagkit.regression.artefacts import write_failure_artefacts
@@ -145,13 +167,17 @@ class GoldenItem(pytest.Item):
             if self.mode != "lockstep":
                 pytest.skip("expected outputs are rewritten from lockstep only")
             update = update_golden(self.spec)
-            print(f"{self.spec.name}: {'rewritten' if update.rewritten else 'unchanged'}")
+            outcome = "rewritten" if update.rewritten else "unchanged"
+            self.user_properties.append((VERDICT_PROPERTY, f"outputs {outcome}"))
+            print(f"{self.spec.name}: {outcome}")
             return
         with tempfile.TemporaryDirectory(prefix=f"golden-{self.spec.name}-") as tmp:
             check = run_check(self.spec, self.mode, Path(tmp))
+            self.user_properties.append((VERDICT_PROPERTY, verdict(check)))
             if not check.passed:
                 folder = self._failures() / f"{self.spec.name}-{self.mode}"
                 write_failure_artefacts(check, folder)
+                self.user_properties.append((REPORT_PROPERTY, str(folder / "report.html")))
                 raise GoldenMismatchError(check, folder / "report.html")
 
     def _failures(self) -> Path:
@@ -171,3 +197,121 @@ class GoldenItem(pytest.Item):
 
     def reportinfo(self) -> tuple[Path, int | None, str]:
         return self.path, None, f"golden fixture {self.spec.name} [{self.mode}]"
+
+
+def verdict(check: GoldenCheck, most: int = 3) -> str:
+    """One line: what matched, or the failing topics with their fields and counts."""
+    topics = check.report.topics
+    if check.passed:
+        matched = sum(t.matched for t in topics)
+        return f"{len(topics)} topic(s), {matched} messages match the golden"
+    failing = [_topic_verdict(t) for t in topics if not t.passed]
+    more = f"; and {len(failing) - most} more topic(s)" if len(failing) > most else ""
+    return "; ".join(failing[:most]) + more
+
+
+def _topic_verdict(topic: TopicResult) -> str:
+    parts = [f"{f.path} (max |err| {f.max_abs_error:.3g})" for f in topic.failed_fields]
+    parts += [
+        f"{n} {what}" for n, what in ((topic.missing, "missing"), (topic.extra, "extra")) if n
+    ]
+    return f"{topic.topic}: {', '.join(parts) or 'differs'}"
+
+
+@dataclass(frozen=True, slots=True)
+class SummaryRow:
+    """One fixture in one mode, as the markdown verdict shows it."""
+
+    fixture: str
+    mode: str
+    result: str
+    verdict: str
+    report: str
+
+
+class GoldenSummary:
+    """Collects the golden items' outcomes and writes the markdown verdict at session end."""
+
+    def __init__(self, path: Path, rootpath: Path) -> None:
+        self.path = path
+        self.rootpath = rootpath
+        self.rows: list[SummaryRow] = []
+
+    def pytest_collectreport(self, report: pytest.CollectReport) -> None:
+        # A spec that does not load is a fixture that did not run: a row, not a silence.
+        if report.failed and Path(report.nodeid).name == SPEC_FILE:
+            fixture = Path(report.nodeid).parent.name
+            self.rows.append(SummaryRow(fixture, "-", "error", _first_line(report), ""))
+
+    def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
+        props = dict(report.user_properties)
+        if FIXTURE_PROPERTY not in props or (report.when != "call" and report.passed):
+            return
+        self.rows.append(
+            SummaryRow(
+                fixture=str(props[FIXTURE_PROPERTY]),
+                mode=str(props[MODE_PROPERTY]),
+                result=_result(report, compared=REPORT_PROPERTY in props),
+                verdict=str(props.get(VERDICT_PROPERTY) or _first_line(report)),
+                report=str(props.get(REPORT_PROPERTY, "")),
+            )
+        )
+
+    @pytest.hookimpl(trylast=True)
+    def pytest_sessionfinish(self, session: pytest.Session, exitstatus: int) -> None:
+        text = self.markdown(interrupted=exitstatus == pytest.ExitCode.INTERRUPTED)
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self.path.write_text(text)
+        except OSError as exc:
+            reporter = session.config.pluginmanager.get_plugin("terminalreporter")
+            if reporter is not None:
+                reporter.ensure_newline()
+                reporter.write_line(f"error: --golden-summary {self.path}: {exc.strerror}")
+            session.exitstatus = pytest.ExitCode.USAGE_ERROR
+
+    def markdown(self, *, interrupted: bool = False) -> str:
+        """The verdict: a headline, then one table row per fixture and mode."""
+        # pytest stops before running anything on a collection error (or at Ctrl-C)
+        note = ["", "pytest was interrupted: not every fixture ran."] if interrupted else []
+        if not self.rows:
+            return "\n".join(["## Golden fixtures: none ran", *note]) + "\n"
+        bad = [r for r in self.rows if r.result in {"failed", "error"}]
+        head = f"FAIL ({len(bad)} of {len(self.rows)})" if bad else f"pass ({len(self.rows)})"
+        lines = [
+            f"## Golden fixtures: {head}",
+            *note,
+            "",
+            "| fixture | mode | result | verdict | report |",
+            "|---|---|---|---|---|",
+        ]
+        for row in self.rows:
+            report = f"`{self._relative(row.report)}`" if row.report else ""
+            cells = [row.fixture, row.mode, row.result, row.verdict]
+            lines.append("| " + " | ".join([*map(_cell, cells), report]) + " |")
+        return "\n".join(lines) + "\n"
+
+    def _relative(self, report: str) -> str:
+        path = Path(report)
+        return (
+            str(path.relative_to(self.rootpath)) if path.is_relative_to(self.rootpath) else report
+        )
+
+
+def _result(report: pytest.TestReport, *, compared: bool) -> str:
+    """passed, skipped, failed (the outputs differ) or error (the fixture did not get compared)."""
+    if report.passed or report.skipped:
+        return report.outcome
+    return "failed" if compared and report.when == "call" else "error"
+
+
+def _first_line(report: pytest.CollectReport | pytest.TestReport) -> str:
+    if report.skipped and isinstance(report.longrepr, tuple):
+        return report.longrepr[2].removeprefix("Skipped: ")
+    text = report.longreprtext.strip()
+    return text.splitlines()[0] if text else report.outcome
+
+
+def _cell(text: str) -> str:
+    """Markdown table cell text: a pipe would end the cell."""
+    return text.replace("|", "\\|")
