@@ -53,6 +53,7 @@ from bagkit.cli.record_options import (
     UseSimTime,
 )
 from bagkit.cli.record_table import print_record_table, progress_line
+from bagkit.cli.selection_options import duration_seconds
 from bagkit.recording.options import DEFAULT_QUEUE_BYTES, RecordOptions
 from bagkit.recording.report import RecordProgress, RecordReport
 
@@ -167,7 +168,7 @@ def record(  # noqa: PLR0917 (typer maps parameters to options; ros2 bag has the
         compression=chunk_compression(compression_mode, compression_format),
         max_bag_size=max_bag_size,
         max_bag_duration_s=max_bag_duration,
-        duration_s=duration,
+        duration_s=duration_seconds(duration, "--duration"),
         qos_overrides=qos_overrides,
         use_sim_time=use_sim_time,
         node_name=node_name,

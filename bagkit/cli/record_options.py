@@ -111,12 +111,12 @@ MaxBagDuration = Annotated[
     ),
 ]
 Duration = Annotated[
-    float | None,
+    str | None,
     typer.Option(
         "--duration",
-        help="Stop after this many seconds, counted from when the topics are subscribed.",
-        min=0.0,
-        metavar="SEC",
+        help="Stop after this long (seconds, or 1m30s), counted from when the topics are "
+        "subscribed.",
+        metavar="DURATION",
     ),
 ]
 CompressionModeOption = Annotated[

@@ -49,6 +49,7 @@ from bagkit.cli.replay_options import (
     WaitForSubscribers,
     WaitTimeout,
 )
+from bagkit.cli.selection_options import duration_seconds
 from bagkit.errors import BagkitError
 from bagkit.playback.options import PlayOptions
 from bagkit.playback.timing import DEFAULT_CLOCK_HZ, DEFAULT_DISCOVERY_TIME_S, LATE_THRESHOLD_NS
@@ -114,7 +115,7 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
     regex: Regex = None,
     exclude: Exclude = None,
     exclude_topics: ExcludeTopics = None,
-    start_offset: StartOffset = 0.0,
+    start_offset: StartOffset = "0",
     duration: Duration = None,
     until_sec: UntilSec = None,
     until_nsec: UntilNsec = None,
@@ -147,8 +148,8 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
         regex=regex,
         exclude_regex=exclude,
         exclude_topics=tuple(split_list(exclude_topics)),
-        start_offset_s=start_offset,
-        duration_s=duration,
+        start_offset_s=duration_seconds(start_offset, "--start-offset") or 0.0,
+        duration_s=duration_seconds(duration, "--playback-duration"),
         until_ns=_until_ns(until_sec, until_nsec),
         loops=0 if loop else 1,
         delay_s=delay,

@@ -42,13 +42,20 @@ ExcludeTopics = Annotated[
     typer.Option("--exclude-topics", help="Do not replay these topics (as --topics)."),
 ]
 StartOffset = Annotated[
-    float,
-    typer.Option("--start-offset", help="Start this many seconds after the bag's first message."),
+    str,
+    typer.Option(
+        "--start-offset",
+        help="Start this long after the bag's first message (seconds, or 1m30s, 250ms).",
+        metavar="DURATION",
+    ),
 ]
 Duration = Annotated[
-    float | None,
+    str | None,
     typer.Option(
-        "--playback-duration", "--duration", help="Replay only this many seconds of bag time."
+        "--playback-duration",
+        "--duration",
+        help="Replay only this much bag time (seconds, or 1m30s, 250ms).",
+        metavar="DURATION",
     ),
 ]
 UntilSec = Annotated[

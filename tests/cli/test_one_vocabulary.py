@@ -128,7 +128,7 @@ EDGE_COMMANDS = {
     "export": lambda bag, topic, tmp: ["export", bag, "-t", topic, "-o", tmp / "x.csv"],
     "stats": lambda bag, topic, tmp: ["stats", "summary", bag, "-t", topic],
     "filter": lambda bag, topic, tmp: ["filter", bag, "-o", tmp / "f", "--topics", topic],
-    "plot": lambda bag, topic, tmp: ["plot", bag, f"{topic}:header", "-o", tmp / "p.png"],
+    "plot": lambda bag, topic, tmp: ["plot", bag, f"{topic}:header.stamp.sec", "-o", tmp / "p.png"],
     "compare": lambda bag, topic, tmp: ["compare", bag, bag, "-t", topic],
 }
 

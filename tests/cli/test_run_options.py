@@ -45,7 +45,7 @@ def test_play_options_default_to_the_cli() -> None:
     cli = cli_defaults(replay)
     options = PlayOptions(Path("bag"))
     assert options.rate == cli["rate"]
-    assert options.start_offset_s == cli["start_offset"]
+    assert options.start_offset_s == float(cli["start_offset"])
     assert options.duration_s is cli["duration"] is None
     assert options.delay_s == cli["delay"]
     assert options.clock_hz is cli["clock"] is None
