@@ -41,7 +41,13 @@ _CODES = {
     "float32": "f",
     "float64": "d",
 }
-_NUMPY = {"bool": "?", "byte": "i1", "char": "u1"}  # as rosbags: numpy.byte is int8
+# numpy types as rosbags makes them (numpy.byte is int8).
+_NUMPY = {"bool": "?", "byte": "i1", "char": "u1", "int8": "i1", "uint8": "u1"} | {
+    f"{kind}{bits}": f"{code}{bits // 8}"
+    for kind, code in (("int", "i"), ("uint", "u"), ("float", "f"))
+    for bits in (16, 32, 64)
+    if kind != "float" or bits > 16
+}
 WIDE_UNIT = 4
 
 
@@ -185,7 +191,8 @@ class _Codegen:
         return count
 
     def numbers(self, base: str, count: str, depth: int) -> str:
-        dtype = np.dtype(_NUMPY.get(base, self.order + _CODES[base]))
+        code = _NUMPY[base]
+        dtype = np.dtype(code if code[-1] in "?1" else self.order + code)
         native = self.constant(dtype.newbyteorder("="))
         typed = self.constant(dtype)
         item = f"a{len(self.lines)}"
