@@ -301,7 +301,5 @@ def _generate(
     except (SyntaxError, RecursionError) as exc:  # Python's limits on nested blocks
         raise UnsupportedTypeError(f"{typename}: {exc}") from exc
     exec(code, gen.namespace)
-    reader: Callable[[bytes | memoryview], tuple[list[FlatValue], int, int]] = gen.namespace[
-        "read"
-    ]
+    reader: Callable[[bytes | memoryview], tuple[list[FlatValue], int, int]] = gen.namespace["read"]
     return reader

@@ -87,7 +87,7 @@ class MessageTypes:
             if dep not in self.typestore.fielddefs and dep not in parsed
         ]
         if missing:  # rosbags' own Jazzy types load only then (they take 0.1-0.2 s to import)
-            builtin = get_typestore(Stores.ROS2_JAZZY).fielddefs
+            builtin: Mapping[str, Any] = get_typestore(Stores.ROS2_JAZZY).fielddefs
             for dep in missing:
                 if dep not in parsed:
                     if dep not in builtin:
@@ -100,10 +100,11 @@ class MessageTypes:
             known = self.typestore.fielddefs.get(typename)
             if known is not None and list(known[1]) != list(definition[1]):
                 raise SchemaError(f"{typename} is defined twice, differently")
+        fielddefs: dict[str, Any] = self.typestore.fielddefs
         for typename, definition in parsed.items():
-            if typename not in self.typestore.fielddefs:
+            if typename not in fielddefs:
                 self.typestore.types[typename] = _message_class(typename, definition)
-                self.typestore.fielddefs[typename] = definition
+                fielddefs[typename] = definition
 
     def resolve(self, name: str) -> str:
         """The typestore name of bag type ``name``.
@@ -117,7 +118,7 @@ class MessageTypes:
         if canonical in self.typestore.fielddefs:
             return canonical
         if name not in self.problems:
-            builtin = get_typestore(Stores.ROS2_JAZZY).fielddefs
+            builtin: Mapping[str, Any] = get_typestore(Stores.ROS2_JAZZY).fielddefs
             if canonical in builtin:
                 self._register({canonical: builtin[canonical]})
                 return canonical

@@ -73,17 +73,18 @@ def parse_definition(text: str, name: str) -> dict[str, TypeDef]:
     typename = type_name(name)
     sections = _sections(text)
     types: dict[str, TypeDef] = {}
-    for index, lines in enumerate(sections):
+    for index, section in enumerate(sections):
+        body = section
         if index:
-            header = next((line for line in lines if line.strip()), "")
+            header = next((line for line in section if line.strip()), "")
             match = _HEADER.match(header.strip())
             if not match:
                 raise DefinitionError(f"a section starts with {header[:60]!r}, not 'MSG: pkg/Type'")
             typename = type_name(match[1])
-            lines = lines[lines.index(header) + 1 :]
+            body = section[section.index(header) + 1 :]
         if typename in types:
             raise DefinitionError(f"{typename} is defined twice")
-        types[typename] = parse_message(lines, typename)
+        types[typename] = parse_message(body, typename)
     return types
 
 
@@ -93,7 +94,7 @@ def parse_message(lines: list[str], typename: str) -> TypeDef:
     Raises:
         DefinitionError: see :func:`parse_definition`.
     """
-    package = typename.split("/")[0]
+    package = typename.split("/", maxsplit=1)[0]
     constants: list[tuple[str, str, Any]] = []
     fields: list[tuple[str, Any]] = []
     names: set[str] = set()

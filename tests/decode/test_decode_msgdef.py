@@ -45,7 +45,7 @@ def test_constants_and_defaults_of_every_form_are_values() -> None:
     types = MessageTypes.from_definitions({"pkg/msg/Forms": text})
     assert types.problems == {}
     cls = types.typestore.types["pkg/msg/Forms"]
-    assert cls.POS_INF == math.inf and cls.NEG_INF == -math.inf and cls.HUGE == math.inf
+    assert math.inf == cls.POS_INF and -math.inf == cls.NEG_INF and math.inf == cls.HUGE
     assert math.isnan(cls.NOT_A_NUMBER) and cls.SMALL == 0.001 and cls.HEX == 31
     assert (cls.YES, cls.NO, cls.TOP) == (True, False, 255)
     assert cls.QUOTED == 'say "hi" \\\\ back'

@@ -127,7 +127,9 @@ def _difference(a: Any, b: Any, where: str = "") -> str | None:
     if isinstance(a, list) and isinstance(b, list):
         if len(a) != len(b):
             return f"{where}: {len(a)} != {len(b)} elements"
-        found = (_difference(x, y, f"{where}[{i}]") for i, (x, y) in enumerate(zip(a, b)))
+        found = (
+            _difference(x, y, f"{where}[{i}]") for i, (x, y) in enumerate(zip(a, b, strict=True))
+        )
         return next((d for d in found if d), None)
     if isinstance(a, float) or isinstance(b, float):
         same = float(a) == float(b) and math.copysign(1, a) == math.copysign(1, b)
