@@ -82,9 +82,10 @@ def parse_definition(text: str, name: str) -> dict[str, TypeDef]:
                 raise DefinitionError(f"a section starts with {header[:60]!r}, not 'MSG: pkg/Type'")
             typename = type_name(match[1])
             body = section[section.index(header) + 1 :]
-        if typename in types:
-            raise DefinitionError(f"{typename} is defined twice")
-        types[typename] = parse_message(body, typename)
+        parsed = parse_message(body, typename)
+        # Some writers repeat a dependency used twice: harmless when it is the same.
+        if types.setdefault(typename, parsed) != parsed:
+            raise DefinitionError(f"{typename} is defined twice, differently")
     return types
 
 
