@@ -208,11 +208,20 @@ def _message_class(typename: str, definition: TypeDef) -> type:
     constants: dict[str, Any] = {
         normalize_fieldname(name): value for name, _, value in definition[0]
     }
-    members: list[Any] = [(normalize_fieldname(name), Any) for name, _ in definition[1]]
+    # An explicit field() each: dataclasses would take a class attribute of the same name
+    # (``mro``) as the member's default.
+    members: list[Any] = [
+        (normalize_fieldname(name), Any, dataclasses.field()) for name, _ in definition[1]
+    ]
     if definition[1] == [EMPTY_STRUCT_MEMBER]:
         members = [(EMPTY_STRUCT_MEMBER[0], Any, dataclasses.field(default=0))]
     namespace = {**constants, "__msgtype__": typename}
-    return dataclasses.make_dataclass(typename.replace("/", "__"), members, namespace=namespace)
+    try:
+        return dataclasses.make_dataclass(
+            typename.replace("/", "__"), members, namespace=namespace
+        )
+    except (TypeError, ValueError) as exc:
+        raise SchemaError(f"{typename} cannot be a Python class ({exc})") from None
 
 
 def _references(parsed: Mapping[str, Any]) -> list[str]:

@@ -16,6 +16,8 @@ from random_messages import JAZZY, random_message
 from bagkit.bag import BagWriter, TopicInfo
 from bagkit.decode import MessageTypes, flatten_message
 from bagkit.decode.cdr import object_reader
+from bagkit.decode.layout import CdrLayout
+from bagkit.stats import summarize
 
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 
@@ -174,3 +176,40 @@ def test_wide_strings_as_rclpy_writes_them() -> None:
             types.deserialize(b"\x00\x01\x00\x00" + broken, "w/msg/W")
         with pytest.raises(Exception, match="does not decode"):
             read(b"\x00\x01\x00\x00" + broken)
+
+
+def test_names_that_mean_something_to_python_are_plain_fields() -> None:
+    """Keywords, builtins, dataclass and generated-code names, a class attribute (``mro``)."""
+    names = ["self", "cls", "None", "class", "match", "mro", "values", "pos", "rawdata", "T"]
+    text = "".join(f"int32 {name}\n" for name in names)
+    types = MessageTypes.from_definitions(
+        {"py/msg/Names": text, "py/msg/Wide": text + "wstring w\n"}
+    )
+    assert types.problems == {}
+    numbers = b"".join(struct.pack("<i", 10 * i) for i in range(len(names)))
+    for typename, tail in (("py/msg/Names", b""), ("py/msg/Wide", struct.pack("<II", 1, 65))):
+        payload = b"\x00\x01\x00\x00" + numbers + tail
+        flat = flatten_message(types.deserialize(payload, typename), types.typestore)
+        assert [flat[name] for name in names] == [10 * i for i in range(len(names))]
+        assert types.value_reader(typename, ["mro", "None"])(payload) == [50, 20]
+
+
+def test_wide_string_types_take_the_general_path_in_statistics(tmp_path: Path) -> None:
+    definition = "float64 x\nwstring label\nfloat32[] samples\n"
+    types = MessageTypes.from_definitions({"w/msg/Reading": definition})
+    assert CdrLayout.of(types.typestore, "w/msg/Reading") is None
+    bag = tmp_path / "wide"
+    with BagWriter(bag) as writer:
+        writer.add_topic(TopicInfo("/r", "w/msg/Reading"), definition=definition)
+        for i in range(10):
+            payload = (
+                b"\x00\x01\x00\x00"
+                + struct.pack("<dII", i / 4, 1, 0x263A)
+                + struct.pack("<Iff", 2, i, -i)
+            )
+            writer.write("/r", payload, log_time=i)
+    [topic] = summarize([bag]).topics
+    fields = {f.field: f for f in topic.fields}
+    assert sorted(fields) == ["samples[]", "x"] and topic.undecodable == 0
+    assert fields["x"].mean == pytest.approx(np.mean(np.arange(10) / 4))
+    assert (fields["samples[]"].count, fields["samples[]"].min) == (20, -9)
