@@ -94,6 +94,21 @@ def object_reader(typestore: Typestore, typename: str, *, little: bool) -> Objec
     return build(typename)
 
 
+def payload_reader(
+    typestore: Typestore, typename: str, *, little: bool
+) -> Callable[[Any, int, Any, Any], tuple[object, int]]:
+    """:func:`object_reader` called as rosbags' deserializers are (``cls`` and ``typestore``
+    ignored), the end it returns moved past rclpy's 4 bytes per wide string when present:
+    a caller checks trailing bytes as for any CDR payload."""
+    read = object_reader(typestore, typename, little=little)
+
+    def deserialize(data: Any, pos: int, _cls: Any, _store: Any) -> tuple[object, int]:
+        message, end, wide = read(data, pos)
+        return message, end + min(WIDE_UNIT * wide, max(len(data) - end, 0))
+
+    return deserialize
+
+
 class _Codegen:
     """The statements of one type's reader: ``b`` the payload, ``p`` the position, ``w`` the
     wide strings read, ``v`` the field values."""

@@ -88,12 +88,13 @@ def value_reader(
         if len(data) < 4 or data[0] != 0 or data[1] != 1:
             return fallback(data)
         try:
-            values, end, wide = direct(data)
+            values, end = direct(data)
         except (struct.error, ValueError, IndexError, OverflowError) as exc:
             raise DecodeError(f"{typename} message does not decode: {exc!r}") from exc
-        # CDR writers pad to 4 bytes at most; rclpy adds 4 bytes per wide string.
+        # CDR writers pad to 4 bytes at most (a reader of wide strings allows for rclpy's 4
+        # more bytes per wide string in the end it returns).
         size = len(data) - 4
-        if not size - 3 - WIDE_UNIT * wide <= end <= size:
+        if not size - 3 <= end <= size:
             problem = "it ends past the payload" if end > size else f"{size - end} bytes after it"
             raise DecodeError(f"{typename} message does not decode: {problem}")
         return values
@@ -114,6 +115,7 @@ class _Codegen:
         self.pooled_init: list[str] = []
         self._names = 0
         self._run: list[tuple[str, str, int | None]] = []  # (path, base, count or None)
+        self.wide = False  # the type has wide strings: ``w`` counts them
 
     def name(self, stem: str) -> str:
         self._names += 1
@@ -227,7 +229,8 @@ class _Codegen:
         self.emit("p = (p + 3) & -4", depth)
         self.emit(f"{count} = _u32(b, 4 + p)[0]", depth)
         self.emit("p += 4", depth)
-        self.emit(f"if {count} * {element_size} > n - p:", depth)
+        units = count if element_size == 1 else f"{count} * {element_size}"
+        self.emit(f"if {units} > n - p:", depth)
         self.emit("raise ValueError('a length prefix says more than the payload holds')", depth + 1)
         return count
 
@@ -238,6 +241,7 @@ class _Codegen:
                 self.store(path, f"_wide(b, 4 + p, {count}, '<')", depth, pooled)
             self.emit(f"p += {WIDE_UNIT} * {count}", depth)
             self.emit("w += 1", depth)
+            self.wide = True
             return
         count = self.length(depth)
         if path in self.wanted:
@@ -280,7 +284,7 @@ class _Codegen:
 
 def _generate(
     typestore: Typestore, typename: str, paths: tuple[str, ...]
-) -> Callable[[bytes | memoryview], tuple[list[FlatValue], int, int]]:
+) -> Callable[[bytes | memoryview], tuple[list[FlatValue], int]]:
     gen = _Codegen(typestore, frozenset(paths))
     gen.struct(typename, "", 1, False)
     gen.flush(1, False)
@@ -291,15 +295,17 @@ def _generate(
         "def read(b):",
         "    p = 0",
         "    n = len(b) - 4",
-        "    w = 0",
+        *(["    w = 0"] if gen.wide else []),
         *(f"    {line}" for line in gen.pooled_init),
         *gen.lines,
-        f"    return [{', '.join(gen.variables[path] for path in paths)}], p, w",
+        # rclpy's payloads hold up to 4 bytes per wide string after the message: counted in.
+        *([f"    p += min({WIDE_UNIT} * w, max(n - p, 0))"] if gen.wide else []),
+        f"    return [{', '.join(gen.variables[path] for path in paths)}], p",
     ]
     try:
         code = compile("\n".join(body), f"<bagkit read {typename}>", "exec")
     except (SyntaxError, RecursionError) as exc:  # Python's limits on nested blocks
         raise UnsupportedTypeError(f"{typename}: {exc}") from exc
     exec(code, gen.namespace)
-    reader: Callable[[bytes | memoryview], tuple[list[FlatValue], int, int]] = gen.namespace["read"]
+    reader: Callable[[bytes | memoryview], tuple[list[FlatValue], int]] = gen.namespace["read"]
     return reader

@@ -27,7 +27,7 @@ from rosbags.typesys.base import normalize_fieldname
 from rosbags.typesys.store import Typestore
 
 from bagkit.bag.definitions import canonical_type_name
-from bagkit.decode.cdr import WIDE_UNIT, has_wide_strings, object_reader
+from bagkit.decode.cdr import has_wide_strings, payload_reader
 from bagkit.decode.direct import ValueReader, value_reader
 from bagkit.decode.errors import DecodeError, DefinitionError, SchemaError
 from bagkit.decode.flatten import FlatValue, field_getter
@@ -136,48 +136,40 @@ class MessageTypes:
     def decoder(self, name: str) -> Callable[[bytes | memoryview], object]:
         """``deserialize`` for one type, resolved once (for many messages of a topic).
 
-        Calls rosbags' generated deserializer directly: given a memoryview (of a chunk), the
-        payload is not copied; arrays in the message may then be views of that buffer.
+        Calls rosbags' generated deserializer directly (bagkit's for types with wide strings):
+        given a memoryview (of a chunk), the payload is not copied; arrays in the message may
+        then be views of that buffer.
 
         Raises:
             SchemaError: the type cannot be decoded.
         """
         canonical = self.resolve(name)
-        little, big = self._readers(canonical)
+        store = self.typestore
+        if has_wide_strings(store, canonical):  # rosbags' deserializers have no wstring
+            little = payload_reader(store, canonical, little=True)
+            big = payload_reader(store, canonical, little=False)
+            cls: Any = None
+        else:
+            msgdef = store.get_msgdef(canonical)
+            little, big = msgdef.deserialize_cdr_le, msgdef.deserialize_cdr_be
+            cls = msgdef.cls
 
         def decode(data: bytes | memoryview) -> object:
             try:
                 if len(data) < 4 or data[0] != 0 or data[1] > 1:
                     raise ValueError("not a plain CDR encapsulation")
-                message, end, wide = (little if data[1] else big)(data[4:], 0)
+                message, end = (little if data[1] else big)(data[4:], 0, cls, store)
                 # rosbags cuts a string that runs past the end short instead of failing.
                 if end + 4 > len(data):
                     raise ValueError("the message ends past the payload")
-                # CDR writers pad to 4 bytes at most (rosbags' own check), rclpy's wide
-                # strings add up to 4 bytes each (see bagkit.decode.cdr).
-                if end + 4 + 3 + WIDE_UNIT * wide < len(data):
+                # CDR writers pad to 4 bytes at most (rosbags' own check).
+                if end + 4 + 3 < len(data):
                     raise ValueError(f"{len(data) - 4 - end} bytes after the message")
             except Exception as exc:  # readers raise struct/index/unicode errors on bad bytes
                 raise DecodeError(f"{name} message does not decode: {exc!r}") from exc
             return message
 
         return decode
-
-    def _readers(self, canonical: str) -> tuple[_Reader, _Reader]:
-        """The little- and big-endian readers of a type: rosbags' unless it has wide strings."""
-        store = self.typestore
-        if has_wide_strings(store, canonical):
-            return (
-                object_reader(store, canonical, little=True),
-                object_reader(store, canonical, little=False),
-            )
-        msgdef = store.get_msgdef(canonical)
-        cls = msgdef.cls
-
-        def rosbags_reader(read: Any) -> _Reader:
-            return lambda data, pos: (*read(data, pos, cls, store), 0)
-
-        return rosbags_reader(msgdef.deserialize_cdr_le), rosbags_reader(msgdef.deserialize_cdr_be)
 
     def value_reader(self, name: str, paths: Sequence[str]) -> ValueReader:
         """A function returning the values of leaf ``paths`` of one payload of type ``name``.
@@ -199,9 +191,6 @@ class MessageTypes:
         return value_reader(self.typestore, canonical, paths, through_objects)
 
 
-_Reader = Callable[[Any, int], tuple[object, int, int]]
-
-
 def _message_class(typename: str, definition: TypeDef) -> type:
     """The message class of a type, as rosbags would generate it: fields in order, the
     constants and ``__msgtype__`` as class attributes."""
@@ -217,9 +206,7 @@ def _message_class(typename: str, definition: TypeDef) -> type:
         members = [(EMPTY_STRUCT_MEMBER[0], Any, dataclasses.field(default=0))]
     namespace = {**constants, "__msgtype__": typename}
     try:
-        return dataclasses.make_dataclass(
-            typename.replace("/", "__"), members, namespace=namespace
-        )
+        return dataclasses.make_dataclass(typename.replace("/", "__"), members, namespace=namespace)
     except (TypeError, ValueError) as exc:
         raise SchemaError(f"{typename} cannot be a Python class ({exc})") from None
 
