@@ -148,6 +148,8 @@ class _Sink:
         self._part_rows = 0
 
     def add(self, batch: pa.RecordBatch) -> None:
+        if not batch.num_rows:  # no message of the chunk decoded: nothing to write
+            return
         self._pending.append(batch)
         self._pending_rows += batch.num_rows
         self._pending_bytes += batch.nbytes

@@ -20,7 +20,7 @@ from bagkit.decode.flatten import (
     flatten_message,
     leaf_fields,
 )
-from bagkit.decode.types import MessageTypes
+from bagkit.decode.message_types import MessageTypes
 from bagkit.selection.fields import FieldSelection
 
 __all__ = [

@@ -23,6 +23,7 @@ import numpy as np
 from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
 
+from bagkit.decode.cdr import WIDE_UNIT, wide_string
 from bagkit.decode.errors import DecodeError
 from bagkit.decode.flatten import FlatValue
 from bagkit.decode.layout import PRIMITIVE_FORMATS, U32
@@ -48,8 +49,8 @@ _DTYPES = {name: np.dtype(fmt) for name, fmt in PRIMITIVE_FORMATS.items()}
 
 
 class UnsupportedTypeError(Exception):
-    """The type has parts this reader does not handle (wide strings, sequences of structs
-    nested deeper than Python nests loops); use the object path."""
+    """The type has parts this reader does not handle (sequences of structs nested deeper
+    than Python nests loops); use the object path."""
 
 
 ValueReader = Callable[[bytes | memoryview], list[FlatValue]]
@@ -90,7 +91,8 @@ def value_reader(
             values, end = direct(data)
         except (struct.error, ValueError, IndexError, OverflowError) as exc:
             raise DecodeError(f"{typename} message does not decode: {exc!r}") from exc
-        # CDR writers pad to 4 bytes at most.
+        # CDR writers pad to 4 bytes at most (a reader of wide strings allows for rclpy's 4
+        # more bytes per wide string in the end it returns).
         size = len(data) - 4
         if not size - 3 <= end <= size:
             problem = "it ends past the payload" if end > size else f"{size - end} bytes after it"
@@ -108,11 +110,12 @@ class _Codegen:
         self.typestore = typestore
         self.wanted = wanted
         self.lines: list[str] = []
-        self.namespace: dict[str, Any] = {"_u32": U32.unpack_from, "np": np}
+        self.namespace: dict[str, Any] = {"_u32": U32.unpack_from, "np": np, "_wide": wide_string}
         self.variables: dict[str, str] = {}  # leaf path -> local holding its value
         self.pooled_init: list[str] = []
         self._names = 0
         self._run: list[tuple[str, str, int | None]] = []  # (path, base, count or None)
+        self.wide = False  # the type has wide strings: ``w`` counts them
 
     def name(self, stem: str) -> str:
         self._names += 1
@@ -215,23 +218,31 @@ class _Codegen:
 
     # -- strings and sequences ----------------------------------------------------------------
 
-    def length(self, depth: int) -> str:
+    def length(self, depth: int, element_size: int = 1) -> str:
         """Emit: align to 4, read a uint32 length prefix; return its local's name.
 
-        Every element of a string or sequence takes at least a byte: a prefix larger than the
-        bytes left is refused before a loop runs or anything is allocated for it.
+        Every element of a string or sequence takes at least a byte (a wide string's units 4):
+        a prefix larger than the bytes left is refused before a loop runs or anything is
+        allocated for it.
         """
         count = self.name("c")
         self.emit("p = (p + 3) & -4", depth)
         self.emit(f"{count} = _u32(b, 4 + p)[0]", depth)
         self.emit("p += 4", depth)
-        self.emit(f"if {count} > n - p:", depth)
+        units = count if element_size == 1 else f"{count} * {element_size}"
+        self.emit(f"if {units} > n - p:", depth)
         self.emit("raise ValueError('a length prefix says more than the payload holds')", depth + 1)
         return count
 
     def string(self, path: str, base: str, depth: int, pooled: bool) -> None:
-        if base != "string":
-            raise UnsupportedTypeError(f"{base} at {path}")
+        if base == "wstring":
+            count = self.length(depth, WIDE_UNIT)
+            if path in self.wanted:
+                self.store(path, f"_wide(b, 4 + p, {count}, '<')", depth, pooled)
+            self.emit(f"p += {WIDE_UNIT} * {count}", depth)
+            self.emit("w += 1", depth)
+            self.wide = True
+            return
         count = self.length(depth)
         if path in self.wanted:
             # The count includes the terminating NUL (0 only from writers that omit it).
@@ -284,8 +295,11 @@ def _generate(
         "def read(b):",
         "    p = 0",
         "    n = len(b) - 4",
+        *(["    w = 0"] if gen.wide else []),
         *(f"    {line}" for line in gen.pooled_init),
         *gen.lines,
+        # rclpy's payloads hold up to 4 bytes per wide string after the message: counted in.
+        *([f"    p += min({WIDE_UNIT} * w, max(n - p, 0))"] if gen.wide else []),
         f"    return [{', '.join(gen.variables[path] for path in paths)}], p",
     ]
     try:

@@ -11,3 +11,7 @@ class DecodeError(BagkitError):
 
 class SchemaError(DecodeError):
     """A stored message definition that cannot be parsed (or none is stored for the type)."""
+
+
+class DefinitionError(SchemaError):
+    """A stored message definition that is not a valid ``.msg`` text."""

@@ -164,6 +164,26 @@ def test_undecodable_topic_is_skipped_with_one_warning(tmp_path: Path) -> None:
     assert not (tmp_path / "out" / "blob.parquet").exists()
 
 
+def test_topic_of_which_no_message_decodes_is_one_warning_and_an_empty_file(
+    tmp_path: Path,
+) -> None:
+    bag = tmp_path / "garbage"
+    with BagWriter(bag) as writer:
+        writer.add_topic(TopicInfo("/t", "sensor_msgs/msg/Temperature"))
+        for i in range(5):
+            writer.write("/t", b"\x00\x01\x00\x00" + bytes([i]) * 3, log_time=i)
+    for suffix in (".parquet", ".csv"):
+        out = tmp_path / f"t{suffix}"
+        result = _run(bag, "-o", out)
+        assert result.returncode == 0, result.stderr
+        assert "internal error" not in result.stderr and "Traceback" not in result.stderr
+        warnings = [line for line in result.stderr.splitlines() if line.startswith("warning:")]
+        assert len(warnings) == 1, result.stderr
+        assert "/t: 5 messages could not be decoded" in warnings[0]
+        read = pd.read_parquet(out) if suffix == ".parquet" else pd.read_csv(out)
+        assert len(read) == 0 and "temperature" in read.columns
+
+
 def test_damaged_bag_exports_what_is_intact_and_says_what_was_lost(
     sample_bag: Path, tmp_path: Path
 ) -> None:

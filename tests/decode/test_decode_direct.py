@@ -7,7 +7,6 @@ import struct
 import numpy as np
 import pytest
 from random_messages import JAZZY, flat_equal, random_message
-from rosbags.typesys import Stores, get_types_from_idl, get_typestore
 
 from bagkit.decode import DecodeError, MessageTypes, flatten_message, leaf_fields
 from bagkit.decode.direct import value_reader
@@ -60,7 +59,7 @@ def test_byte_is_unsigned_as_ros_defines_it() -> None:
     assert value_reader(JAZZY, typename, ["level"], _no_fallback)(payload) == [200]
 
 
-def test_other_encapsulations_and_wide_strings_take_the_object_path() -> None:
+def test_other_encapsulations_take_the_object_path() -> None:
     typename = "sensor_msgs/msg/Temperature"
     msg = random_message(JAZZY, typename, np.random.default_rng(3))
     big_endian = bytes(JAZZY.serialize_cdr(msg, typename, little_endian=False))
@@ -72,12 +71,6 @@ def test_other_encapsulations_and_wide_strings_take_the_object_path() -> None:
 
     read = value_reader(JAZZY, typename, ["temperature"], fallback)
     assert read(big_endian) == ["from the object path"] and handed_over == [big_endian]
-    # Only IDL schemas have wide strings (rosbags' .msg parser has none).
-    store = get_typestore(Stores.EMPTY)
-    store.register(
-        get_types_from_idl("module t { module msg { struct Wide { wstring text; int32 x; }; }; };")
-    )
-    assert value_reader(store, "t/msg/Wide", ["x"], fallback) is fallback
 
 
 def test_bytes_that_do_not_match_the_type_are_a_decode_error() -> None:

@@ -1,29 +1,37 @@
 """A rosbags typestore built from the message definitions stored in a bag, no ROS install needed.
 
 rosbag2 stores each type's ``.msg`` text followed by its dependencies, each after a line of 80
-``=`` and ``MSG: pkg/Type``; rosbags' msg parser reads that whole text at once. Each type is
-registered on its own so that one unparseable definition only costs its own topics.
+``=`` and ``MSG: pkg/Type``. The text is the bag's, untrusted: :mod:`bagkit.decode.msgdef`
+parses it into names that are identifiers and values that are Python values, and the message
+classes are made here with :func:`dataclasses.make_dataclass` rather than by rosbags'
+``Typestore.register``, which generates and runs Python source with the constants in it. Each
+type is registered on its own so that one unparseable definition only costs its own topics.
 
 Two gaps are filled: service-event topics (``pkg/srv/Name_Event``) store the raw ``.srv`` text,
 from which the event type is rebuilt as rosidl generates it; and older ``.db3`` bags store no
 definitions (or incomplete ones), for which rosbags' own Jazzy types are used where it has them.
+Types with wide strings, which rosbags' deserializers lack, are read by :mod:`bagkit.decode.cdr`.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections import ChainMap
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 from rosbags.interfaces import Nodetype
-from rosbags.typesys import Stores, TypesysError, get_types_from_msg, get_typestore
+from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys.base import normalize_fieldname
 from rosbags.typesys.store import Typestore
 
 from bagkit.bag.definitions import canonical_type_name
+from bagkit.decode.cdr import has_wide_strings, payload_reader
 from bagkit.decode.direct import ValueReader, value_reader
-from bagkit.decode.errors import DecodeError, SchemaError
+from bagkit.decode.errors import DecodeError, DefinitionError, SchemaError
 from bagkit.decode.flatten import FlatValue, field_getter
+from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER, TypeDef, parse_definition
 from bagkit.decode.typegraph import check_type_graph
 
 _SERVICE_EVENT_INFO = "service_msgs/msg/ServiceEventInfo"
@@ -61,18 +69,17 @@ class MessageTypes:
             if "/srv/" in canonical and canonical.endswith("_Event"):
                 parsed = _service_event_types(canonical, text)
             else:
-                parsed = dict(get_types_from_msg(text, canonical))
+                parsed = parse_definition(text, canonical)
             self._register(parsed)
-        except (TypesysError, ValueError, SyntaxError) as exc:
-            detail = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-            self.problems[name] = f"definition of {name} cannot be parsed ({detail})"
+        except DefinitionError as exc:
+            self.problems[name] = f"definition of {name} cannot be parsed ({exc})"
         except KeyError as exc:
             missing = exc.args[0] if exc.args else exc
             self.problems[name] = f"definition of {name} is incomplete (no definition of {missing})"
         except SchemaError as exc:
             self.problems[name] = f"definition of {name} cannot be used ({exc})"
 
-    def _register(self, parsed: dict[str, Any]) -> None:
+    def _register(self, parsed: dict[str, TypeDef]) -> None:
         """Register ``parsed`` plus the dependencies it names but does not define."""
         missing = [
             dep
@@ -80,7 +87,7 @@ class MessageTypes:
             if dep not in self.typestore.fielddefs and dep not in parsed
         ]
         if missing:  # rosbags' own Jazzy types load only then (they take 0.1-0.2 s to import)
-            builtin = get_typestore(Stores.ROS2_JAZZY).fielddefs
+            builtin: Mapping[str, Any] = get_typestore(Stores.ROS2_JAZZY).fielddefs
             for dep in missing:
                 if dep not in parsed:
                     if dep not in builtin:
@@ -89,7 +96,15 @@ class MessageTypes:
                     missing.extend(d for d in _references({dep: builtin[dep]}) if d not in parsed)
         # Before rosbags sees them: its code generation recurses through the types.
         check_type_graph(ChainMap(parsed, self.typestore.fielddefs), parsed)
-        self.typestore.register(parsed)
+        for typename, definition in parsed.items():
+            known = self.typestore.fielddefs.get(typename)
+            if known is not None and list(known[1]) != list(definition[1]):
+                raise SchemaError(f"{typename} is defined twice, differently")
+        fielddefs: dict[str, Any] = self.typestore.fielddefs
+        for typename, definition in parsed.items():
+            if typename not in fielddefs:
+                self.typestore.types[typename] = _message_class(typename, definition)
+                fielddefs[typename] = definition
 
     def resolve(self, name: str) -> str:
         """The typestore name of bag type ``name``.
@@ -103,7 +118,7 @@ class MessageTypes:
         if canonical in self.typestore.fielddefs:
             return canonical
         if name not in self.problems:
-            builtin = get_typestore(Stores.ROS2_JAZZY).fielddefs
+            builtin: Mapping[str, Any] = get_typestore(Stores.ROS2_JAZZY).fielddefs
             if canonical in builtin:
                 self._register({canonical: builtin[canonical]})
                 return canonical
@@ -121,16 +136,23 @@ class MessageTypes:
     def decoder(self, name: str) -> Callable[[bytes | memoryview], object]:
         """``deserialize`` for one type, resolved once (for many messages of a topic).
 
-        Calls rosbags' generated deserializer directly: given a memoryview (of a chunk), the
-        payload is not copied; arrays in the message may then be views of that buffer.
+        Calls rosbags' generated deserializer directly (bagkit's for types with wide strings):
+        given a memoryview (of a chunk), the payload is not copied; arrays in the message may
+        then be views of that buffer.
 
         Raises:
             SchemaError: the type cannot be decoded.
         """
         canonical = self.resolve(name)
-        msgdef = self.typestore.get_msgdef(canonical)
-        little, big = msgdef.deserialize_cdr_le, msgdef.deserialize_cdr_be
-        cls, store = msgdef.cls, self.typestore
+        store = self.typestore
+        if has_wide_strings(store, canonical):  # rosbags' deserializers have no wstring
+            little = payload_reader(store, canonical, little=True)
+            big = payload_reader(store, canonical, little=False)
+            cls: Any = None
+        else:
+            msgdef = store.get_msgdef(canonical)
+            little, big = msgdef.deserialize_cdr_le, msgdef.deserialize_cdr_be
+            cls = msgdef.cls
 
         def decode(data: bytes | memoryview) -> object:
             try:
@@ -143,7 +165,7 @@ class MessageTypes:
                 # CDR writers pad to 4 bytes at most (rosbags' own check).
                 if end + 4 + 3 < len(data):
                     raise ValueError(f"{len(data) - 4 - end} bytes after the message")
-            except Exception as exc:  # rosbags raises struct/index/unicode errors on bad bytes
+            except Exception as exc:  # readers raise struct/index/unicode errors on bad bytes
                 raise DecodeError(f"{name} message does not decode: {exc!r}") from exc
             return message
 
@@ -169,6 +191,26 @@ class MessageTypes:
         return value_reader(self.typestore, canonical, paths, through_objects)
 
 
+def _message_class(typename: str, definition: TypeDef) -> type:
+    """The message class of a type, as rosbags would generate it: fields in order, the
+    constants and ``__msgtype__`` as class attributes."""
+    constants: dict[str, Any] = {
+        normalize_fieldname(name): value for name, _, value in definition[0]
+    }
+    # An explicit field() each: dataclasses would take a class attribute of the same name
+    # (``mro``) as the member's default.
+    members: list[Any] = [
+        (normalize_fieldname(name), Any, dataclasses.field()) for name, _ in definition[1]
+    ]
+    if definition[1] == [EMPTY_STRUCT_MEMBER]:
+        members = [(EMPTY_STRUCT_MEMBER[0], Any, dataclasses.field(default=0))]
+    namespace = {**constants, "__msgtype__": typename}
+    try:
+        return dataclasses.make_dataclass(typename.replace("/", "__"), members, namespace=namespace)
+    except (TypeError, ValueError) as exc:
+        raise SchemaError(f"{typename} cannot be a Python class ({exc})") from None
+
+
 def _references(parsed: Mapping[str, Any]) -> list[str]:
     """The message types that the fields of ``parsed`` use."""
     found: list[str] = []
@@ -186,23 +228,19 @@ def _references(parsed: Mapping[str, Any]) -> list[str]:
     return list(dict.fromkeys(found))
 
 
-def _service_event_types(event: str, text: str) -> dict[str, Any]:
+def _service_event_types(event: str, text: str) -> dict[str, TypeDef]:
     """Types of a ``pkg/srv/Name_Event`` from the ``.srv`` text that rosbag2 stores for it.
 
     rosidl generates ``Name_Event`` as ``ServiceEventInfo info``, ``Name_Request[<=1] request``
     and ``Name_Response[<=1] response``.
     """
     if "---" not in text:
-        return dict(get_types_from_msg(text, event))
+        return parse_definition(text, event)
     base = event.removesuffix("_Event")
-    package, _, name = base.split("/")
     request_text, response_text = text.split("---", 1)
-    types: dict[str, Any] = {}
-    # The msg parser only names types pkg/msg/Name: parse as such, then rename.
+    types: dict[str, TypeDef] = {}
     for part, part_text in (("Request", request_text), ("Response", response_text)):
-        parsed = dict(get_types_from_msg(part_text, f"{package}/msg/{name}_{part}"))
-        types[f"{base}_{part}"] = parsed.pop(f"{package}/msg/{name}_{part}")
-        types.update(parsed)
+        types.update(parse_definition(part_text, f"{base}_{part}"))
     types[event] = (
         [],
         [
