@@ -12,10 +12,10 @@ from typing import TYPE_CHECKING, Any
 import typer
 
 from bagkit.bag import BagError, BagReader
+from bagkit.cli import common
 from bagkit.cli.common import (
     CheckCrcOnRead,
     OutputFormat,
-    console,
     err_console,
     format_rate,
     handle_errors,
@@ -35,6 +35,7 @@ from bagkit.cli.stats_options import (
     Start,
     Topics,
 )
+from bagkit.cli.tables import Column, Table, print_table, print_wrapped
 from bagkit.times import seconds_to_ns
 
 if TYPE_CHECKING:
@@ -165,49 +166,37 @@ def _number(value: float | int | None) -> str:
 
 
 def _print_tables(result: Summary) -> None:
-    console.print(
-        f"[bold]{', '.join(result.bags)}[/]: {result.duration_s:.3f} s, "
-        f"{_utc(result.start_ns)} .. {_utc(result.end_ns)}, {len(result.topics)} topics",
-        highlight=False,
-        soft_wrap=True,
+    from rich.text import Text
+
+    bags = [f"{bag}," for bag in result.bags[:-1]] + [f"{result.bags[-1]}:"]
+    print_wrapped(
+        [
+            *(Text(bag, style="bold") for bag in bags),
+            f"{result.duration_s:.3f} s,",
+            f"{_utc(result.start_ns)} ..",
+            f"{_utc(result.end_ns)},",
+            f"{len(result.topics)} topics",
+        ]
     )
     for topic in result.topics:
         rate = format_rate(topic.rate_hz, digits=3)
-        console.print(
-            f"\n[bold]{topic.topic}[/]  {topic.type}  {topic.count} msgs  {rate}",
-            highlight=False,
-            soft_wrap=True,
-        )
+        common.console.print()
+        heading: list[str | Text] = [Text(topic.topic, style="bold"), topic.type]
+        heading += [f"{topic.count} msgs", rate]
+        print_wrapped(heading, sep="  ")
         if not topic.fields:
             continue
-        rows = [
-            [f.field, str(f.count), str(f.nan_count)]
-            + [_number(v) for v in (f.min, f.max, f.mean, f.std)]
-            for f in topic.fields
-        ]
-        header, *lines = _aligned([list(FIELD_COLUMNS), *rows])
-        console.print(header, style="dim", highlight=False, soft_wrap=True)
-        for line in lines:
-            console.print(line, highlight=False, markup=False, soft_wrap=True)
-
-
-# The per-topic table: field names left-aligned and never cut (scripts and --fields refer to
-# them), numbers right-aligned and never squeezed: a wide table is printed wider.
-FIELD_COLUMNS = ("field", "count", "nan", "min", "max", "mean", "std")
-
-
-def _aligned(rows: list[list[str]]) -> list[str]:
-    """Rows as lines of columns two spaces apart: the first left-, the others right-aligned."""
-    widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
-    return [
-        " "
-        + "  ".join(
-            cell.ljust(width) if i == 0 else cell.rjust(width)
-            for i, (cell, width) in enumerate(zip(row, widths, strict=True))
+        table = Table(
+            [Column(FIELD_COLUMNS[0]), *(Column(c, numeric=True) for c in FIELD_COLUMNS[1:])]
         )
-        + " "
-        for row in rows
-    ]
+        for f in topic.fields:
+            figures = [_number(v) for v in (f.min, f.max, f.mean, f.std)]
+            table.add_row(f.field, str(f.count), str(f.nan_count), *figures)
+        print_table(table)
+
+
+# The per-topic table: field names left-aligned, numbers right-aligned (bagkit.cli.tables).
+FIELD_COLUMNS = ("field", "count", "nan", "min", "max", "mean", "std")
 
 
 def _print_csv(result: Summary) -> None:
