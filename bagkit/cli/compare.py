@@ -35,7 +35,7 @@ from bagkit.cli.compare_options import (
     Spec,
     Topics,
 )
-from bagkit.cli.tables import INDENT, Column, Table, print_table, print_wrapped
+from bagkit.cli.tables import INDENT, Column, Styled, Table, print_table, print_wrapped
 from bagkit.compare import (
     CompareError,
     CompareOptions,
@@ -58,8 +58,6 @@ HELP = (
 
 
 def _print_table(report: CompareReport, limit: int) -> None:
-    from rich.text import Text
-
     counts_columns = (Column(c, numeric=True) for c in ("golden", "cand.", "missing", "extra"))
     table = Table(
         [Column("topic"), Column("match"), *counts_columns, Column("result")],
@@ -79,15 +77,13 @@ def _print_table(report: CompareReport, limit: int) -> None:
                 f"(rel {worst.max_rel_error:.3g}; atol {worst.atol:g} rtol {worst.rtol:g})"
             )
         if not topic.passed:
-            verdict = f"[red]{topic.divergence_count} diff[/]"
+            verdict = Styled(f"{topic.divergence_count} diff", "red")
         elif topic.failed_messages:
-            verdict = f"[green]ok[/] ({topic.failed_messages} msgs out, allowed)"
+            verdict = Styled(f"ok ({topic.failed_messages} msgs out, allowed)", "green")
         else:
-            verdict = "[green]ok[/]"
+            verdict = Styled("ok", "green")
         counts = (topic.golden_count, topic.candidate_count, topic.missing, topic.extra)
-        table.add_row(
-            topic.topic, topic.matched_by or "type", *map(str, counts), Text.from_markup(verdict)
-        )
+        table.add_row(topic.topic, topic.matched_by or "type", *map(str, counts), verdict)
     print_table(table)
     if errors:
         console.print("largest errors:")

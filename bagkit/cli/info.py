@@ -21,7 +21,16 @@ from bagkit.cli.common import (
     print_json,
     warn,
 )
-from bagkit.cli.tables import INDENT, Column, Table, print_fields, print_table, print_wrapped
+from bagkit.cli.tables import (
+    INDENT,
+    Column,
+    Styled,
+    Table,
+    print_fields,
+    print_line,
+    print_table,
+    print_wrapped,
+)
 
 HELP = """Show what a bag holds: files, size, storage, duration, start and end, message count,
 and per topic its type, count, rate, serialization format and offered QoS.
@@ -132,7 +141,7 @@ def _print_table(info: BagInfo, verbose: bool) -> None:
     if verbose:
         # One line per topic (and offered profile) rather than two more columns: at 80
         # columns those would not leave room for the names.
-        common.console.print("Serialization and offered QoS:", style="bold")
+        print_line([Styled("Serialization and offered QoS:", "bold")])
         for topic in info.topics:
             qos = _qos_summary(topic.offered_qos_profiles).replace("\n", "; ")
             line = f"{topic.topic}: {topic.serialization_format}, {qos}"

@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from bagkit.cli.common import console, format_rate
-from bagkit.cli.tables import Column, Table, print_table
+from bagkit.cli.tables import Column, Styled, Table, print_line, print_table
 
 if TYPE_CHECKING:
     from bagkit.ros.record_report import RecordProgress, RecordReport
@@ -25,14 +25,12 @@ def print_record_table(report: RecordReport) -> None:
     The bag's path has a line of its own: it is as long as the user made it, and the figures
     after it are read (and parsed) whole.
     """
-    from rich.text import Text
-
     discovery = (
         f"topics subscribed after {report.discovery_s:.1f} s"
         if report.discovery_s is not None
         else "a named topic never appeared"
     )
-    console.print(str(report.path), style="bold", highlight=False, markup=False, soft_wrap=True)
+    print_line([Styled(str(report.path), "bold")])
     figures = [Column(c, numeric=True) for c in ("messages", "lost", "rate", "bytes")]
     table = Table(
         [Column("topic"), *figures, Column("type")],
@@ -42,7 +40,7 @@ def print_record_table(report: RecordReport) -> None:
         table.add_row(
             topic.topic,
             str(topic.messages),
-            Text(str(topic.lost), style="red") if topic.lost else "0",
+            Styled(str(topic.lost), "red") if topic.lost else "0",
             format_rate(topic.rate_hz, digits=1),
             _human_bytes(topic.bytes),
             topic.type,

@@ -12,7 +12,6 @@ from typing import TYPE_CHECKING, Any
 import typer
 
 from bagkit.bag import BagError, BagReader
-from bagkit.cli import common
 from bagkit.cli.common import (
     CheckCrcOnRead,
     OutputFormat,
@@ -35,7 +34,7 @@ from bagkit.cli.stats_options import (
     Start,
     Topics,
 )
-from bagkit.cli.tables import Column, Table, print_table, print_wrapped
+from bagkit.cli.tables import Cell, Column, Styled, Table, print_line, print_table, print_wrapped
 from bagkit.times import seconds_to_ns
 
 if TYPE_CHECKING:
@@ -166,12 +165,10 @@ def _number(value: float | int | None) -> str:
 
 
 def _print_tables(result: Summary) -> None:
-    from rich.text import Text
-
     bags = [f"{bag}," for bag in result.bags[:-1]] + [f"{result.bags[-1]}:"]
     print_wrapped(
         [
-            *(Text(bag, style="bold") for bag in bags),
+            *(Styled(bag, "bold") for bag in bags),
             f"{result.duration_s:.3f} s,",
             f"{_utc(result.start_ns)} ..",
             f"{_utc(result.end_ns)},",
@@ -180,8 +177,8 @@ def _print_tables(result: Summary) -> None:
     )
     for topic in result.topics:
         rate = format_rate(topic.rate_hz, digits=3)
-        common.console.print()
-        heading: list[str | Text] = [Text(topic.topic, style="bold"), topic.type]
+        print_line([])
+        heading: list[Cell] = [Styled(topic.topic, "bold"), topic.type]
         heading += [f"{topic.count} msgs", rate]
         print_wrapped(heading, sep="  ")
         if not topic.fields:
