@@ -10,7 +10,6 @@ from __future__ import annotations
 import enum
 import errno
 import functools
-import json
 import os
 import sys
 import traceback
@@ -235,6 +234,8 @@ def note(message: str) -> None:
 
 def print_json(data: Any) -> None:
     """Write ``data`` as JSON on stdout (plain, no colour, so scripts can parse it)."""
+    import json  # here: --help and tables do without it (start-up time)
+
     sys.stdout.write(json.dumps(data, indent=2, allow_nan=True) + "\n")
 
 
