@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from bagkit.cli.common import console, format_rate
-from bagkit.cli.tables import Column, Styled, Table, print_line, print_table
+from bagkit.cli.common import format_rate
+from bagkit.cli.tables import INDENT, Column, Styled, Table, print_line, print_table, print_wrapped
 
 if TYPE_CHECKING:
     from bagkit.ros.record_report import RecordProgress, RecordReport
@@ -63,7 +63,7 @@ def _print_notes(report: RecordReport) -> None:
         if topic.before_clock:
             notes.append(f"{topic.before_clock} taken before the first /clock, not written")
         for note in notes:
-            console.print(f"  {topic.topic}: {note}", highlight=False, markup=False)
+            print_wrapped(f"{topic.topic}: {note}".split(" "), lead=INDENT)
 
 
 def progress_line(progress: RecordProgress, *, subscribed: bool) -> str:

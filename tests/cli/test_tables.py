@@ -107,3 +107,22 @@ def test_catalog_query(long_names_bag: Path, tmp_path: Path, columns: int) -> No
     _run(columns, "catalog", str(long_names_bag.parent), "-o", str(catalog), cwd=tmp_path)
     out = _run(columns, "catalog", "query", str(catalog), cwd=tmp_path)
     _assert_names_whole(out, (*NAMES, str(long_names_bag)), columns)
+
+
+@pytest.mark.parametrize("columns", [80, 40])
+def test_record_report(
+    columns: int, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The end-of-recording report, rendered in process (recording it needs DDS: tests/ros)."""
+    from bagkit.cli.record_table import print_record_table
+    from bagkit.ros.record_report import RecordReport, TopicRecord
+
+    monkeypatch.setenv("COLUMNS", str(columns))
+    path = Path("/tmp") / ("x" * 90) / "bag"  # longer than the width: a line of its own
+    long = TopicRecord(LONG_TOPIC, LONG_TYPE, messages=10, bytes=120, gaps=2)
+    short = TopicRecord(SHORT_TOPIC, SHORT_TYPE, messages=5, bytes=60, first_ns=0, last_ns=10**9)
+    print_record_table(RecordReport(path, duration_s=3.04, discovery_s=1.93, topics=[long, short]))
+    out = capsys.readouterr().out
+    _assert_names_whole(out, (*NAMES, str(path)), columns)
+    assert out.splitlines()[:2] == [str(path), "(3.0 s, topics subscribed after 1.9 s)"]
+    assert f"{LONG_TOPIC}: 2 lost in the middleware" in out.replace("\n    ", " ")
