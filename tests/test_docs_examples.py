@@ -71,16 +71,16 @@ def _commands(document: Path) -> list[Example]:
     examples = []
     fence: str | None = None
     pending: tuple[int, str] | None = None
-    for number, line in enumerate(document.read_text().splitlines(), 1):
-        opening = re.match(r"\s*```(\S*)", line)
+    for number, raw in enumerate(document.read_text().splitlines(), 1):
+        opening = re.match(r"\s*```(\S*)", raw)
         if opening:
             fence = opening.group(1) if fence is None else None
             continue
-        if fence == "console":
-            if not line.startswith("$ "):
-                continue
-            line = line[2:]
-        elif fence not in SHELL_FENCES:
+        if fence == "console" and raw.startswith("$ "):
+            line = raw[2:]
+        elif fence in SHELL_FENCES:
+            line = raw
+        else:
             continue
         start, text = pending if pending else (number, "")
         text += line.rstrip().removesuffix("\\")
