@@ -9,7 +9,8 @@ prefixes allowed) and, by rule:
   golden mode (those are the ROS tests' business);
 - every bag or file it takes as an argument exists in its working directory. That directory
   holds a copy of ``fixtures/`` and, under the names the docs give a recording of the demo
-  system (``flight1``, ``drive``, ``day1`` ...), bags made from the fixtures (:data:`RECORDINGS`);
+  system (``flight1``, ``drive``, ``day1`` ...), bags made from the fixtures (:data:`RECORDINGS`;
+  ``crashed`` is a fixture's copy cut short, as a killed recorder leaves it);
   paths elsewhere (``/data/fleet/``, ``bags.txt``) are not there and their commands are skipped.
 
 What follows a pipe (``| jq ...``) is left out: the bagkit command runs alone. Each document's
@@ -152,6 +153,11 @@ def recordings(tmp_path_factory: pytest.TempPathFactory) -> Path:
             check=False,
         )
         assert done.returncode == 0, done.stderr
+    # "crashed": a recording killed before its summary was written (its file cut at 70 %).
+    shutil.copytree(template / "fixtures" / "nominal" / "golden", template / "crashed")
+    (mcap,) = (template / "crashed").glob("*.mcap")
+    with mcap.open("r+b") as file:
+        file.truncate(mcap.stat().st_size * 7 // 10)
     return template
 
 
