@@ -2,8 +2,9 @@
 
 Target (issue 17): each within 0.15 s of ``python -c pass`` in the same environment. Every
 command is run RUNS times, interleaved with the peers so that a change of machine load hits
-them alike; the median wall time of each is compared. ``python -c "import numpy"`` is printed
-beside them: the bag reader needs numpy, so it is the floor of ``bagkit info``.
+them alike; the median wall time of each is compared (the best run is printed beside it).
+``python -c "import numpy"`` is printed beside them, for scale (``bagkit info`` imports no
+numpy since round 2).
 
 Run: ``.venv/bin/python -m benchmarks startup``
 """
@@ -68,17 +69,24 @@ def main() -> bool:
             for name, command in commands.items():
                 times[name].append(_wall(command))
     medians = {name: statistics.median(t) for name, t in times.items()}
-    base = medians["python -c pass"]
+    best = {name: min(t) for name, t in times.items()}
     ok = True
-    print(f"median of {RUNS} runs each, interleaved; target: bagkit within {TARGET_S} s of pass")
+    print(
+        f"median and best of {RUNS} runs each, interleaved; target: bagkit's median within "
+        f"{TARGET_S} s of pass"
+    )
     for name, median in medians.items():
-        over = median - base
+        over = median - medians["python -c pass"]
+        best_over = best[name] - best["python -c pass"]
         verdict = ""
         if name.startswith("bagkit"):
             met = over <= TARGET_S
             ok &= met
             verdict = "ok" if met else "MISSED"
-        print(f"  {name:28s} {median * 1000:7.1f} ms  (+{over * 1000:6.1f} ms) {verdict}")
+        print(
+            f"  {name:28s} median {median * 1000:7.1f} ms (+{over * 1000:6.1f} ms), "
+            f"best {best[name] * 1000:7.1f} ms (+{best_over * 1000:6.1f} ms) {verdict}"
+        )
     return ok
 
 

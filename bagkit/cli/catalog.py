@@ -7,17 +7,15 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import typer
-from rich.measure import Measurement
-from rich.table import Table
 
 from bagkit.cli.common import (
     OutputFormat,
-    console,
     err_console,
     handle_errors,
     print_json,
 )
 from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers, fleet_run
+from bagkit.cli.tables import Column, Table, print_table
 from bagkit.errors import BagkitError
 
 if TYPE_CHECKING:
@@ -120,19 +118,10 @@ def query(
 
 
 def _print_table(rows: pd.DataFrame) -> None:
-    table = Table(show_edge=False, box=None, header_style="dim")
-    for column in rows.columns:
-        table.add_column(column, no_wrap=True, justify="right" if column == "count" else "left")
+    table = Table([Column(c, numeric=c in ("count", "duration")) for c in rows.columns])
     for record in rows.itertuples(index=False):
         table.add_row(*(_cell(value) for value in record))
-    # Paths and times are never cut: the table is printed as wide as it needs.
-    natural = Measurement.get(console, console.options.update(width=10_000), table).maximum
-    width = console.width
-    console.width = max(width, natural)
-    try:
-        console.print(table)
-    finally:
-        console.width = width
+    print_table(table)
     err_console.print(f"{len(rows)} rows", highlight=False)
 
 

@@ -2,7 +2,7 @@
 
 Exit codes (docs/hostile-input.md): 0 done, 1 the run failed or found differences, 2 unusable
 input or usage, 70 internal error (a bug, whatever the input: please report it), 130
-interrupted, 141 the reader of our output went away (broken pipe).
+interrupted, 141 the reader of our output went away (broken pipe; quiet, as ``yes | head``).
 """
 
 from __future__ import annotations
@@ -10,7 +10,6 @@ from __future__ import annotations
 import enum
 import errno
 import functools
-import json
 import os
 import sys
 import traceback
@@ -52,10 +51,10 @@ def __getattr__(name: str) -> Any:
     from rich.console import Console
 
     class StdoutConsole(Console):
-        """Rich's console, except that a closed pipe is reported like any other broken pipe."""
+        """Rich's console, except that a closed pipe ends like any other broken pipe."""
 
         def on_broken_pipe(self) -> None:
-            """Raise BrokenPipeError for handle_errors (rich would exit 1 silently)."""
+            """Raise BrokenPipeError for handle_errors (rich would exit 1)."""
             raise BrokenPipeError(errno.EPIPE, os.strerror(errno.EPIPE))
 
     made = globals()[name] = Console(stderr=True) if name == "err_console" else StdoutConsole()
@@ -236,6 +235,8 @@ def note(message: str) -> None:
 
 def print_json(data: Any) -> None:
     """Write ``data`` as JSON on stdout (plain, no colour, so scripts can parse it)."""
+    import json  # here: --help and tables do without it (start-up time)
+
     sys.stdout.write(json.dumps(data, indent=2, allow_nan=True) + "\n")
 
 
@@ -255,7 +256,7 @@ def handle_errors(func: Callable[P, R]) -> Callable[P, R]:
         except KeyboardInterrupt:
             raise fail("interrupted", EXIT_INTERRUPTED) from None
         except BrokenPipeError:
-            # Here, not in run_app: typer would turn it into a silent exit 1 on the way.
+            # Here, not in run_app: typer would turn it into exit 1 on the way.
             raise _broken_pipe() from None
         except OSError as exc:
             raise fail(f"{exc.strerror or exc}: {exc.filename or ''}".rstrip(": "), 2) from None
@@ -269,14 +270,15 @@ def _warning_line(message: Warning | str, *_: object, **__: object) -> None:
 
 
 def _broken_pipe() -> typer.Exit:
-    """Report that the reader of stdout went away; stdout then points at /dev/null so that the
-    interpreter's final flush does not fail again."""
+    """The reader of stdout went away (``| head``): exit 141 without a word, as a process that
+    SIGPIPE ended. stdout then points at /dev/null so that the interpreter's final flush does
+    not fail again."""
     try:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
     except (OSError, ValueError):  # stdout without a file descriptor (captured in-process)
         pass
-    return fail("output closed before the end (broken pipe)", EXIT_BROKEN_PIPE)
+    return typer.Exit(EXIT_BROKEN_PIPE)
 
 
 def internal_error_message(exc: BaseException) -> str:

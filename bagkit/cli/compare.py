@@ -6,8 +6,6 @@ import json
 from pathlib import Path
 
 import typer
-from rich import box
-from rich.table import Table
 
 from bagkit.cli.common import (
     CheckCrcOnRead,
@@ -37,6 +35,7 @@ from bagkit.cli.compare_options import (
     Spec,
     Topics,
 )
+from bagkit.cli.tables import INDENT, Column, Styled, Table, print_table, print_wrapped
 from bagkit.compare import (
     CompareOptions,
     CompareReport,
@@ -57,45 +56,42 @@ HELP = (
 
 
 def _print_table(report: CompareReport, limit: int) -> None:
-    table = Table(title="golden vs candidate", title_justify="left", box=box.SIMPLE_HEAD)
-    table.add_column("topic", no_wrap=True)
-    table.add_column("match")
-    for column in ("golden", "cand.", "missing", "extra"):
-        table.add_column(column, justify="right")
-    table.add_column("result", no_wrap=True)
+    counts_columns = (Column(c, numeric=True) for c in ("golden", "cand.", "missing", "extra"))
+    table = Table(
+        [Column("topic"), Column("match"), *counts_columns, Column("result")],
+        title="golden vs candidate",
+    )
     errors: list[str] = []
     for topic in report.topics:
         numeric = [f for f in topic.fields if f.numeric and f.compared]
         worst = max(numeric, key=lambda f: (not f.passed, f.max_abs_error), default=None)
         if topic.matched_by == "event":
             errors.append(
-                f"  {topic.topic}: events shifted by up to {topic.max_event_shift_ns / 1e9:.3f} s"
+                f"{topic.topic}: events shifted by up to {topic.max_event_shift_ns / 1e9:.3f} s"
             )
         elif worst is not None:
             errors.append(
-                f"  {topic.topic}: {worst.path} |err| {worst.max_abs_error:.3g} "
+                f"{topic.topic}: {worst.path} |err| {worst.max_abs_error:.3g} "
                 f"(rel {worst.max_rel_error:.3g}; atol {worst.atol:g} rtol {worst.rtol:g})"
             )
         if not topic.passed:
-            verdict = f"[red]{topic.divergence_count} diff[/]"
+            verdict = Styled(f"{topic.divergence_count} diff", "red")
         elif topic.failed_messages:
-            verdict = f"[green]ok[/] ({topic.failed_messages} msgs out, allowed)"
+            verdict = Styled(f"ok ({topic.failed_messages} msgs out, allowed)", "green")
         else:
-            verdict = "[green]ok[/]"
+            verdict = Styled("ok", "green")
         counts = (topic.golden_count, topic.candidate_count, topic.missing, topic.extra)
         table.add_row(topic.topic, topic.matched_by or "type", *map(str, counts), verdict)
-    console.print(table)
+    print_table(table)
     if errors:
         console.print("largest errors:")
         for line in errors:
-            console.print(line, highlight=False, markup=False, soft_wrap=True)
+            print_wrapped(line.split(" "), lead=INDENT)
     divergences = report.first_divergences(limit)
     if divergences:
         console.print("first divergences:")
         for divergence in divergences:
-            console.print(
-                f"  {divergence.describe()}", highlight=False, markup=False, soft_wrap=True
-            )
+            print_wrapped(divergence.describe().split(" "), lead=INDENT)
     if report.passed:
         console.print("[bold green]PASS[/]: identical within tolerance")
     else:

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import enum
 import os
-import signal
 import sys
 from collections.abc import Iterable
 from pathlib import Path
@@ -93,8 +92,7 @@ def echo(  # noqa: PLR0917 (typer maps parameters to options)
     from bagkit.bag import BagReader
     from bagkit.data.echo import echo as read_messages
 
-    # Output is a stream: a closed pipe (| head) or Ctrl-C ends it quietly.
-    signal.signal(signal.SIGPIPE, signal.SIG_DFL)
+    # Output is a stream: Ctrl-C ends it quietly, as a closed pipe (| head) does every command.
     limit = None if full_length or output is EchoFormat.JSON else DEFAULT_TRUNCATE_LENGTH
     try:
         with BagReader(bag, allow_empty=True) as reader:

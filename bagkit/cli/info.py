@@ -2,26 +2,34 @@
 
 from __future__ import annotations
 
+import contextlib
 import datetime
 import json
+import sys
 from pathlib import Path
 
 import typer
 import yaml
-from rich import box
-from rich.table import Table
 
 from bagkit.bag import BagInfo, bag_info, safe_yaml
+from bagkit.cli import common
 from bagkit.cli.common import (
     ReportFormat,
-    console,
-    err_console,
     fail,
     format_rate,
     handle_errors,
     print_json,
-    topic_table_fits,
     warn,
+)
+from bagkit.cli.tables import (
+    INDENT,
+    Column,
+    Styled,
+    Table,
+    print_fields,
+    print_line,
+    print_table,
+    print_wrapped,
 )
 
 HELP = """Show what a bag holds: files, size, storage, duration, start and end, message count,
@@ -34,9 +42,6 @@ A topic's rate is (count - 1) / (last - first log time), "-" below two messages.
 
 Example: bagkit info my_bag -v
 """
-
-# Count and rate columns, with the table's padding.
-_NUMBER_COLUMNS = 28
 
 # rosbag2 metadata versions < 9 store QoS policies as rmw enum integers.
 _POLICY_NAMES = {
@@ -125,48 +130,30 @@ def _print_table(info: BagInfo, verbose: bool) -> None:
         rows.append(("Summary", "missing: the recording did not finish, salvaged"))
     for key, value in info.custom_data.items():
         rows.append((f"custom_data {key}", _custom_data_value(value, verbose)))
-    overview = Table.grid(padding=(0, 2))
-    overview.add_column(style="bold", no_wrap=True)
-    overview.add_column(overflow="fold")
-    for key, value in rows:
-        overview.add_row(f"{key}:", value)
-    console.print(overview)
-    if not topic_table_fits([t.topic for t in info.topics], _NUMBER_COLUMNS):
-        _print_stacked(info)
-    else:
-        _print_topic_table(info)
-    if verbose:
-        # One line per topic (and offered profile) rather than two more columns: at 80
-        # columns those would fold every type name.
-        console.print("Serialization and offered QoS:", style="bold")
-        for topic in info.topics:
-            qos = _qos_summary(topic.offered_qos_profiles).replace("\n", "; ")
-            console.print(
-                f"  {topic.topic}: {topic.serialization_format}, {qos}",
-                highlight=False,
-                markup=False,
-            )
-
-
-def _print_stacked(info: BagInfo) -> None:
-    """One topic per line, its figures on the next: for names too long for a table row."""
-    console.print("Topics:", style="bold")
-    for topic in info.topics:
-        console.print(f"  {topic.topic}", style="cyan", highlight=False, soft_wrap=True)
-        figures = f"{topic.count:,} messages, {format_rate(topic.rate_hz)}, {topic.type}"
-        console.print(f"      {figures}", highlight=False, markup=False)
-
-
-def _print_topic_table(info: BagInfo) -> None:
-    topics = Table(title="Topics", title_justify="left", box=box.SIMPLE_HEAD)
-    # Topic names are never cut (scripts and --topics refer to them); the type folds.
-    topics.add_column("Topic", style="cyan", no_wrap=True)
-    topics.add_column("Type", overflow="fold")
-    topics.add_column("Count", justify="right", no_wrap=True)
-    topics.add_column("Rate", justify="right", no_wrap=True)
+    print_fields(rows, names=frozenset({"Files"}))
+    columns = [Column("Topic", style="cyan"), Column("Type")]
+    topics = Table(
+        [*columns, Column("Count", numeric=True), Column("Rate", numeric=True)], "Topics"
+    )
     for topic in info.topics:
         topics.add_row(topic.topic, topic.type, f"{topic.count:,}", format_rate(topic.rate_hz))
-    console.print(topics)
+    print_table(topics)
+    if verbose:
+        # One line per topic (and offered profile) rather than two more columns: at 80
+        # columns those would not leave room for the names.
+        print_line([Styled("Serialization and offered QoS:", "bold")])
+        for topic in info.topics:
+            qos = _qos_summary(topic.offered_qos_profiles).replace("\n", "; ")
+            line = f"{topic.topic}: {topic.serialization_format}, {qos}"
+            print_wrapped(line.split(" "), lead=INDENT)
+
+
+def _reading(bag: str) -> contextlib.AbstractContextManager[object]:
+    """A spinner while a salvage scan runs, on a terminal only (rich's live display costs
+    more to import than a summary costs to read)."""
+    if not sys.stderr.isatty():
+        return contextlib.nullcontext()
+    return common.err_console.status(f"reading {bag}")
 
 
 @handle_errors
@@ -193,13 +180,13 @@ def info(  # noqa: PLR0917 (typer maps parameters to options)
     """Show what a bag holds (like ros2 bag info)."""
     if storage not in (None, "mcap", "sqlite3"):
         raise fail(f"--storage {storage}: bagkit reads mcap and sqlite3 bags")
-    with err_console.status(f"reading {bag}"):
+    with _reading(bag):
         result = bag_info(bag, check_crc=check_crc)
     if storage is not None and result.storage != storage:
         raise fail(f"{bag} is a {result.storage} bag, not {storage}")
     if topic_name:
         for topic in result.topics:
-            console.print(topic.topic, highlight=False, markup=False, soft_wrap=True)
+            sys.stdout.write(f"{topic.topic}\n")
     elif output_format is ReportFormat.JSON:
         print_json(result.to_dict())
     else:

@@ -8,7 +8,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import typer
-from rich.table import Table
 
 from bagkit.cli.common import (
     CONTEXT_SETTINGS,
@@ -50,6 +49,7 @@ from bagkit.cli.replay_options import (
     WaitTimeout,
 )
 from bagkit.cli.selection_options import duration_seconds
+from bagkit.cli.tables import Column, Table, print_table
 from bagkit.errors import BagkitError
 from bagkit.playback.options import PlayOptions
 from bagkit.playback.timing import DEFAULT_CLOCK_HZ, DEFAULT_DISCOVERY_TIME_S, LATE_THRESHOLD_NS
@@ -283,14 +283,11 @@ class _ProgressLine:
 
 
 def _print_report(report: PlayReport) -> None:
-    table = Table(title=None, box=None, header_style="bold")
-    table.add_column("topic")
-    table.add_column("published as")
-    table.add_column("type")
-    table.add_column("messages", justify="right")
     damaged = report.unreadable > 0
-    if damaged:
-        table.add_column("unreadable", justify="right")
+    table = Table(
+        [Column("topic"), Column("published as"), Column("type"), Column("messages", numeric=True)]
+        + ([Column("unreadable", numeric=True)] if damaged else [])
+    )
     for topic in report.topics:
         table.add_row(
             topic.topic,
@@ -299,7 +296,7 @@ def _print_report(report: PlayReport) -> None:
             str(topic.messages),
             *([str(topic.unreadable)] if damaged else []),
         )
-    console.print(table)
+    print_table(table)
     lateness = report.lateness
     console.print(
         f"{report.messages} messages in {report.wall_duration_s:.3f} s "

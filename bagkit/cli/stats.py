@@ -14,7 +14,6 @@ import typer
 from bagkit.cli.common import (
     CheckCrcOnRead,
     OutputFormat,
-    console,
     err_console,
     format_rate,
     handle_errors,
@@ -27,6 +26,7 @@ from bagkit.cli.fleet_options import Scheduler, Workers
 from bagkit.cli.progress import DelayedProgress
 from bagkit.cli.selection_options import End, Start
 from bagkit.cli.stats_options import Bulk, Fields, Format, Inputs, Topics
+from bagkit.cli.tables import Cell, Column, Styled, Table, print_line, print_table, print_wrapped
 
 if TYPE_CHECKING:
     from bagkit.stats import Summary
@@ -138,54 +138,39 @@ def _number(value: float | int | None) -> str:
 
 
 def _print_tables(result: Summary) -> None:
+    bags = [f"{bag}," for bag in result.bags[:-1]] + [f"{result.bags[-1]}:"]
     span = (
-        f"{_utc(result.start_ns)} .. {_utc(result.end_ns)}"
+        [f"{_utc(result.start_ns)} ..", f"{_utc(result.end_ns)},"]
         if result.start_ns is not None and result.end_ns is not None
-        else "no message in the time window"
+        else ["no message in the time window,"]
     )
-    console.print(
-        f"[bold]{', '.join(result.bags)}[/]: {result.duration_s:.3f} s, "
-        f"{span}, {len(result.topics)} topics",
-        highlight=False,
-        soft_wrap=True,
+    print_wrapped(
+        [
+            *(Styled(bag, "bold") for bag in bags),
+            f"{result.duration_s:.3f} s,",
+            *span,
+            f"{len(result.topics)} topics",
+        ]
     )
     for topic in result.topics:
         rate = format_rate(topic.rate_hz, digits=3)
-        console.print(
-            f"\n[bold]{topic.topic}[/]  {topic.type}  {topic.count} msgs  {rate}",
-            highlight=False,
-            soft_wrap=True,
-        )
+        print_line([])
+        heading: list[Cell] = [Styled(topic.topic, "bold"), topic.type]
+        heading += [f"{topic.count} msgs", rate]
+        print_wrapped(heading, sep="  ")
         if not topic.fields:
             continue
-        rows = [
-            [f.field, str(f.count), str(f.nan_count)]
-            + [_number(v) for v in (f.min, f.max, f.mean, f.std)]
-            for f in topic.fields
-        ]
-        header, *lines = _aligned([list(FIELD_COLUMNS), *rows])
-        console.print(header, style="dim", highlight=False, soft_wrap=True)
-        for line in lines:
-            console.print(line, highlight=False, markup=False, soft_wrap=True)
-
-
-# The per-topic table: field names left-aligned and never cut (scripts and --fields refer to
-# them), numbers right-aligned and never squeezed: a wide table is printed wider.
-FIELD_COLUMNS = ("field", "count", "nan", "min", "max", "mean", "std")
-
-
-def _aligned(rows: list[list[str]]) -> list[str]:
-    """Rows as lines of columns two spaces apart: the first left-, the others right-aligned."""
-    widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
-    return [
-        " "
-        + "  ".join(
-            cell.ljust(width) if i == 0 else cell.rjust(width)
-            for i, (cell, width) in enumerate(zip(row, widths, strict=True))
+        table = Table(
+            [Column(FIELD_COLUMNS[0]), *(Column(c, numeric=True) for c in FIELD_COLUMNS[1:])]
         )
-        + " "
-        for row in rows
-    ]
+        for f in topic.fields:
+            figures = [_number(v) for v in (f.min, f.max, f.mean, f.std)]
+            table.add_row(f.field, str(f.count), str(f.nan_count), *figures)
+        print_table(table)
+
+
+# The per-topic table: field names left-aligned, numbers right-aligned (bagkit.cli.tables).
+FIELD_COLUMNS = ("field", "count", "nan", "min", "max", "mean", "std")
 
 
 def _print_csv(result: Summary) -> None:

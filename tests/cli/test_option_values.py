@@ -6,9 +6,7 @@ from __future__ import annotations
 
 import contextlib
 import io
-import signal
 import struct
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -53,20 +51,10 @@ def _value_options(path: list[str]) -> list[str]:
     ]
 
 
-@contextlib.contextmanager
-def _sigpipe_kept() -> Iterator[None]:
-    # echo restores SIGPIPE's default for `| head`: not for the test process.
-    handler = signal.getsignal(signal.SIGPIPE)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGPIPE, handler)
-
-
 def _run(args: list[str]) -> tuple[object, str]:
     out, err = io.StringIO(), io.StringIO()
     code: object = None
-    with _sigpipe_kept(), contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
         try:
             run_app(app, args)
         except SystemExit as exc:

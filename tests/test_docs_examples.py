@@ -1,0 +1,201 @@
+"""The shell examples of README.md and docs/*.md, run as written on the fixtures.
+
+Which lines are commands: in blocks fenced ```bash, ```sh or ```shell every line (``\\``
+continues one); in ```console blocks the lines starting with ``$ `` (the others are output).
+A command runs when it is a ``bagkit`` command (``.venv/bin/bagkit`` and ``VAR=value``
+prefixes allowed) and, by rule:
+
+- it needs no ROS graph: not ``record``, ``replay``/``play``, ``golden record``, nor a live
+  golden mode (those are the ROS tests' business);
+- every bag or file it takes as an argument exists in its working directory. That directory
+  holds a copy of ``fixtures/`` and, under the names the docs give a recording of the demo
+  system (``flight1``, ``drive``, ``day1`` ...), bags made from the fixtures (:data:`RECORDINGS`;
+  ``crashed`` is a fixture's copy cut short, as a killed recorder leaves it);
+  paths elsewhere (``/data/fleet/``, ``bags.txt``) are not there and their commands are skipped.
+
+What follows a pipe (``| jq ...``) is left out: the bagkit command runs alone. Each document's
+commands run in their order in one scratch directory (a command may read what an earlier one
+wrote), never in the checkout. A command must exit 0, or N where its comment says ``exit N``,
+without an ``error:`` line.
+"""
+
+from __future__ import annotations
+
+import re
+import shlex
+import shutil
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+import typer
+
+from bagkit.cli.main import app
+
+ROOT = Path(__file__).resolve().parents[1]
+BAGKIT = str(Path(sys.executable).with_name("bagkit"))
+DOCUMENTS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+# The names the docs give a recording of the demo system -> the fixture it is made from.
+RECORDINGS = {
+    "flight1": "nominal",
+    "drive": "nominal",
+    "golden": "nominal",
+    "candidate": "faults",
+    "golden_bag": "nominal",
+    "candidate_bag": "nominal",
+    "day1": "nominal",
+    "day2": "faults",
+    "part1": "nominal",
+    "part2": "faults",
+}
+SHELL_FENCES = {"bash", "sh", "shell"}
+NEEDS_ROS = {("record",), ("replay",), ("play",), ("golden", "record")}
+
+
+@dataclass(frozen=True)
+class Example:
+    """One command of a document: where it is, its arguments after ``bagkit``, its comment."""
+
+    document: Path
+    line: int
+    args: tuple[str, ...]
+    comment: str
+
+    def __str__(self) -> str:
+        return f"{self.document.name}:{self.line}"
+
+
+def _commands(document: Path) -> list[Example]:
+    """The bagkit command lines of a document's shell blocks."""
+    examples = []
+    fence: str | None = None
+    pending: tuple[int, str] | None = None
+    for number, raw in enumerate(document.read_text().splitlines(), 1):
+        opening = re.match(r"\s*```(\S*)", raw)
+        if opening:
+            fence = opening.group(1) if fence is None else None
+            continue
+        if fence == "console" and raw.startswith("$ "):
+            line = raw[2:]
+        elif fence in SHELL_FENCES:
+            line = raw
+        else:
+            continue
+        start, text = pending if pending else (number, "")
+        text += line.rstrip().removesuffix("\\")
+        if line.rstrip().endswith("\\"):
+            pending = (start, text + " ")
+            continue
+        pending = None
+        example = _parse(document, start, text)
+        if example is not None:
+            examples.append(example)
+    return examples
+
+
+def _parse(document: Path, line: int, text: str) -> Example | None:
+    command, _, comment = text.partition(" #")
+    tokens = shlex.split(command.split(" | ")[0])
+    while tokens and re.fullmatch(r"[A-Z_]+=\S*", tokens[0]):
+        tokens.pop(0)
+    if not tokens or Path(tokens[0]).name != "bagkit":
+        return None
+    return Example(document, line, tuple(tokens[1:]), comment)
+
+
+EXAMPLES = [example for document in DOCUMENTS for example in _commands(document)]
+
+
+def _arguments(args: tuple[str, ...]) -> tuple[list[str], dict[str, object], list[Path]]:
+    """The command's words (``stats summary``), its parsed options and its path arguments."""
+    command = typer.main.get_command(app)
+    words: list[str] = []
+    rest = list(args)
+    while True:
+        ctx = command.make_context("bagkit", list(rest), resilient_parsing=True)
+        if not hasattr(command, "get_command"):
+            break
+        # The vendored click keeps a group's subcommand and its arguments here.
+        sub = [*getattr(ctx, "_protected_args", []), *ctx.args]
+        if not sub:
+            break
+        words.append(sub[0])
+        command, rest = command.get_command(ctx, sub[0]), sub[1:]
+    paths = [
+        value
+        for param in command.params
+        if param.param_type_name == "argument"
+        for value in (
+            ctx.params.get(param.name or "")
+            if isinstance(ctx.params.get(param.name or ""), list | tuple)
+            else [ctx.params.get(param.name or "")]
+        )
+        if isinstance(value, Path)
+    ]
+    return words, ctx.params, paths
+
+
+@pytest.fixture(scope="session")
+def recordings(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A directory with fixtures/ and the docs' recordings, made once."""
+    template = tmp_path_factory.mktemp("docs_template")
+    shutil.copytree(ROOT / "fixtures", template / "fixtures")
+    for name, fixture in RECORDINGS.items():
+        source = template / "fixtures" / fixture / "golden"
+        done = subprocess.run(
+            [BAGKIT, "merge", str(source), "-o", name],
+            cwd=template,
+            capture_output=True,
+            text=True,
+            timeout=120,
+            check=False,
+        )
+        assert done.returncode == 0, done.stderr
+    # "crashed": a recording killed before its summary was written (its file cut at 70 %).
+    shutil.copytree(template / "fixtures" / "nominal" / "golden", template / "crashed")
+    (mcap,) = (template / "crashed").glob("*.mcap")
+    with mcap.open("r+b") as file:
+        file.truncate(mcap.stat().st_size * 7 // 10)
+    return template
+
+
+@pytest.fixture(scope="session")
+def workdirs(recordings: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[Path, Path]:
+    """One scratch working directory per document, made on first use."""
+
+    class PerDocument(dict[Path, Path]):
+        def __missing__(self, document: Path) -> Path:
+            made = tmp_path_factory.mktemp(document.stem) / "work"
+            shutil.copytree(recordings, made)
+            self[document] = made
+            return made
+
+    return PerDocument()
+
+
+@pytest.mark.parametrize("example", EXAMPLES, ids=str)
+def test_example_runs_as_written(example: Example, workdirs: dict[Path, Path]) -> None:
+    words, params, paths = _arguments(example.args)
+    # Parsed without defaults (resilient parsing): no --mode is golden's default, lockstep.
+    live_mode = words[:1] == ["golden"] and params.get("mode") not in (None, "lockstep")
+    if tuple(words) in NEEDS_ROS or live_mode:
+        pytest.skip(f"needs a ROS graph: bagkit {' '.join(words)}")
+    if params.get("live"):
+        pytest.skip("needs a ROS graph: --live")
+    workdir = workdirs[example.document]
+    missing = [str(path) for path in paths if not (workdir / path).exists()]
+    if missing:
+        pytest.skip(f"not among the fixtures: {', '.join(missing)}")
+    expected = re.search(r"\bexits? (\d+)\b", example.comment)
+    done = subprocess.run(
+        [BAGKIT, *example.args],
+        cwd=workdir,
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+    )
+    assert done.returncode == (int(expected.group(1)) if expected else 0), done.stderr
+    assert "error:" not in done.stderr, done.stderr
