@@ -23,7 +23,7 @@ from bagkit.bag.mcapio.file_writer import McapFileWriter
 from bagkit.bag.mcapio.records import Header, encode
 from bagkit.bag.metadata import BagMetadata, FileInformation, write_metadata
 from bagkit.bag.types import TopicInfo
-from bagkit.times import seconds_to_ns
+from bagkit.selection.times import seconds_to_ns
 from bagkit.version import __version__
 
 LIBRARY = f"bagkit {__version__}"

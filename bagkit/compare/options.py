@@ -10,7 +10,7 @@ from typing import Any
 
 from bagkit.compare.errors import CompareError
 from bagkit.selection.fields import FieldSelection, name_matches, path_matches
-from bagkit.times import seconds_to_ns
+from bagkit.selection.times import seconds_to_ns
 
 DEFAULT_EVENT_TOPICS = ("/alerts",)
 DEFAULT_EVENT_WINDOW_NS = 500_000_000

@@ -12,8 +12,8 @@ from pathlib import Path
 
 from bagkit.playback.errors import PlayerError
 from bagkit.playback.timing import DEFAULT_DISCOVERY_TIME_S
+from bagkit.selection.times import seconds_to_ns
 from bagkit.selection.topics import TopicSelection
-from bagkit.times import seconds_to_ns
 
 
 @dataclass(frozen=True, slots=True)

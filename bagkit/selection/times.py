@@ -22,13 +22,15 @@ from dataclasses import dataclass
 from enum import Enum
 from typing import Any
 
+from bagkit.errors import BagkitError
 from bagkit.selection.errors import SelectionError
-from bagkit.times import MAX_SECONDS
 
 ABSOLUTE_AFTER_S = 1e9
 """Times of at least this many seconds (in magnitude) are epoch times; smaller ones offsets."""
 
 NS_PER_S = 1_000_000_000
+MAX_SECONDS = 2**63 / 1e9
+"""Log times are int64 ns (MCAP, rosbag2): about 292 years either side of 1970."""
 _UNIT_NS = {"h": 3600 * NS_PER_S, "m": 60 * NS_PER_S, "s": NS_PER_S, "ms": 1_000_000, "us": 1000}
 _NUMBER = r"\d+(?:\.\d*)?|\.\d+"
 _DURATION = re.compile(
@@ -191,3 +193,15 @@ def _object_ns(value: Any, option: str) -> int:
 
 def _bad(value: object, option: str) -> SelectionError:
     return SelectionError(f"bad {option} {value!r}: not a time ({_GRAMMAR})")
+
+
+def check_seconds(seconds: float, given: object, error: type[BagkitError]) -> float:
+    """``seconds``, or ``error`` naming ``given`` when it is not a finite int64-ns time."""
+    if not abs(seconds) < MAX_SECONDS:
+        raise error(f"bad time {given!r}: not a number of seconds within int64 ns")
+    return seconds
+
+
+def seconds_to_ns(seconds: float, given: object, error: type[BagkitError]) -> int:
+    """``seconds`` in integer nanoseconds (rounded), checked as :func:`check_seconds`."""
+    return round(check_seconds(seconds, given, error) * 1e9)

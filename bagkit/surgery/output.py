@@ -21,8 +21,8 @@ from bagkit.bag.mcapio.records import Channel, Header, Schema
 from bagkit.bag.metadata import BagMetadata, FileInformation, write_metadata
 from bagkit.bag.types import TopicInfo
 from bagkit.bag.writer import DEFAULT_CHUNK_SIZE, LIBRARY
+from bagkit.selection.times import seconds_to_ns
 from bagkit.surgery.errors import SurgeryError
-from bagkit.times import seconds_to_ns
 
 # What --force may replace: a bag directory holds these files only (rosbag2 writes no folders).
 _BAG_SUFFIXES = (".mcap", ".db3", ".yaml", ".zstd", ".lz4")

@@ -41,7 +41,7 @@ from bagkit.ros.replay.publishers import (
 from bagkit.ros.replay.services import serve_controls
 from bagkit.ros.replay.topics import PublishableTopics, publishable_topics
 from bagkit.ros.tuning import precise_timers, process_tuning
-from bagkit.times import seconds_to_ns
+from bagkit.selection.times import seconds_to_ns
 
 
 class Player:

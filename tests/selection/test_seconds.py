@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from bagkit.errors import BagkitError
-from bagkit.times import MAX_SECONDS, seconds_to_ns
+from bagkit.selection.times import MAX_SECONDS, seconds_to_ns
 
 
 class _MineError(BagkitError):
