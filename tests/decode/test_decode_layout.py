@@ -110,3 +110,12 @@ def test_a_length_prefix_larger_than_the_payload_is_a_decode_error(length: int) 
         PaddingZeroer(layout)(bytes(data))
     with pytest.raises(DecodeError, match="length prefix"):
         PaddingZeroer(layout)(bytes(data[:14]))
+
+
+def test_lockstep_keeps_wide_string_payloads_as_written() -> None:
+    """No CDR writer knows wstring: lockstep keeps such outputs' bytes instead of failing."""
+    from bagkit.regression.lockstep import _canonicalizer
+
+    canonical = _canonicalizer("my_msgs/msg/Wide", "wstring name\nwstring[2] pair\nint32 x\n")
+    payload = bytes(range(40))
+    assert canonical(payload) == payload
