@@ -1,7 +1,8 @@
 """The live system in the loop: replaying goldens through DDS, and recording new goldens.
 
 The system under test is whatever the spec's command lines start (any language), each in its
-own session, stopped by its pid (SIGINT, then SIGKILL), so a failed run leaves nothing behind.
+own session under :class:`bagkit.processes.Supervisor` (SIGINT, SIGTERM, then SIGKILL), so a
+failed run leaves nothing behind.
 bagkit's side runs in this process through the library, as ``bagkit record`` and
 ``bagkit replay --clock`` would (the same ``Recorder(options)`` and ``Player(options)``, the same
 process tuning), and every wait is on an event: a subscription in the graph, the recorder
@@ -11,20 +12,18 @@ decides the ROS domain and discovery range.
 
 from __future__ import annotations
 
-import os
 import shutil
-import signal
-import subprocess
 import time
-from collections.abc import Callable, Collection, Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import IO, TYPE_CHECKING
+from typing import TYPE_CHECKING
 
 from bagkit.bag import BagReader
 from bagkit.compare import compare_bags
 from bagkit.errors import BagkitError
 from bagkit.playback.options import PlayOptions
+from bagkit.processes import Command, ProcessError, StopPolicy, Supervisor
 from bagkit.recording.options import RecordOptions
 from bagkit.regression.errors import LiveRunError, SpecError
 from bagkit.regression.golden import GoldenCheck, update_golden
@@ -42,98 +41,45 @@ POLL_S = 0.05
 # finer than a bare --clock's 40 Hz.
 CLOCK_HZ = 100
 CLOCK_HOLD_S = 0.5
-LOG_TAIL_LINES = 15
-
-
-class Processes:
-    """Subprocesses started in their own sessions, stopped by pid, output kept in log files."""
-
-    def __init__(self, log_dir: Path) -> None:
-        self.log_dir = log_dir
-        self.started: list[tuple[str, subprocess.Popen[bytes], IO[bytes]]] = []
-
-    def start(self, name: str, args: Sequence[str]) -> subprocess.Popen[bytes]:
-        """Start ``args``; stdout and stderr go to ``<log_dir>/<name>.log``.
-
-        Raises:
-            LiveRunError: the program cannot be started.
-        """
-        log = (self.log_dir / f"{name}.log").open("wb")
-        try:
-            proc = subprocess.Popen(
-                list(args),
-                stdout=log,
-                stderr=subprocess.STDOUT,
-                stdin=subprocess.DEVNULL,
-                start_new_session=True,
-            )
-        except OSError as exc:
-            log.close()
-            raise LiveRunError(f"cannot start {name} ({args[0]}): {exc.strerror}") from exc
-        self.started.append((name, proc, log))
-        return proc
-
-    def stop(self, proc: subprocess.Popen[bytes], timeout: float = STOP_TIMEOUT_S) -> int:
-        """SIGINT ``proc``'s process group (SIGKILL after ``timeout``); return its exit code."""
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGINT)
-        try:
-            return proc.wait(timeout=timeout)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            return proc.wait()
-
-    def stop_all(self) -> None:
-        """Stop whatever is still running, last started first."""
-        for _, proc, log in reversed(self.started):
-            self.stop(proc)
-            log.close()
-
-    def exited(self, ignore: Collection[str] = ()) -> str | None:
-        """The name of the first process (not in ``ignore``) that has exited, or None."""
-        return next(
-            (n for n, proc, _ in self.started if n not in ignore and proc.poll() is not None),
-            None,
-        )
-
-    def check_running(self, ignore: Collection[str] = ()) -> None:
-        """Raise if a process (not in ``ignore``) has exited.
-
-        Raises:
-            LiveRunError: naming the process, its exit code and the tail of its log.
-        """
-        name = self.exited(ignore)
-        if name is not None:
-            code = next(p.returncode for n, p, _ in self.started if n == name)
-            raise LiveRunError(
-                f"a process of the live run exited early: {name} (exit code {code}); "
-                f"the end of its log:\n{self.log_tail(name)}"
-            )
-
-    def log_tail(self, name: str, lines: int = LOG_TAIL_LINES) -> str:
-        """The end of a process's log, for error messages."""
-        for _, _, log in self.started:
-            log.flush()
-        text = (self.log_dir / f"{name}.log").read_text(errors="replace")
-        return "\n".join(text.splitlines()[-lines:]) or "(empty)"
 
 
 @contextmanager
-def _processes(log_dir: Path) -> Iterator[Processes]:
+def _processes(log_dir: Path) -> Iterator[Supervisor]:
+    """The system under test's processes, each logging to ``<log_dir>/<name>.log``."""
     log_dir.mkdir(parents=True, exist_ok=True)
-    group = Processes(log_dir)
-    try:
+    with Supervisor(StopPolicy(interrupt_s=STOP_TIMEOUT_S)) as group:
         yield group
-    finally:
-        group.stop_all()
 
 
-def _start_system(procs: Processes, commands: Sequence[Sequence[str]], prefix: str) -> None:
+def _check_running(procs: Supervisor) -> None:
+    """Raise LiveRunError naming a process of the system that has exited, with its log's end."""
+    gone = procs.exited()
+    if gone is not None:
+        raise LiveRunError(
+            f"a process of the live run exited early: {gone.name} (exit code "
+            f"{gone.returncode}); the end of its log:\n{procs.log_tail(gone)}"
+        )
+
+
+def _start_system(
+    procs: Supervisor, log_dir: Path, commands: Sequence[Sequence[str]], prefix: str
+) -> None:
+    """Start the spec's command lines, each logging to ``<log_dir>/<name>.log``.
+
+    Raises:
+        LiveRunError: a program cannot be started.
+    """
     for index, command in enumerate(commands):
-        procs.start(f"{prefix}-{index}" if len(commands) > 1 else prefix, command)
+        name = f"{prefix}-{index}" if len(commands) > 1 else prefix
+        try:
+            procs.start(Command(name, command, log=log_dir / f"{name}.log"))
+        except ProcessError as exc:
+            raise LiveRunError(str(exc)) from exc
 
 
-def _prepare_graph(procs: Processes, counts: dict[str, int], start_ns: int, timeout: float) -> None:
+def _prepare_graph(
+    procs: Supervisor, counts: dict[str, int], start_ns: int, timeout: float
+) -> None:
     """Wait for the subscriptions in ``counts``, then set the nodes' clock to ``start_ns``."""
     from bagkit.ros.errors import SubscriberTimeoutError
     from bagkit.ros.graph_wait import hold_clock, wait_for_subscriptions
@@ -144,7 +90,7 @@ def _prepare_graph(procs: Processes, counts: dict[str, int], start_ns: int, time
         if clocks:
             hold_clock(start_ns, subscriptions=clocks, seconds=CLOCK_HOLD_S, timeout=timeout)
     except ChildProcessError:
-        procs.check_running()
+        _check_running(procs)
     except SubscriberTimeoutError as exc:
         raise LiveRunError(f"the system did not come up: {exc}") from exc
 
@@ -197,7 +143,7 @@ def _replay_inputs(spec: FixtureSpec) -> None:
         raise LiveRunError(f"replaying the inputs failed: {exc}") from exc
 
 
-def _wait_for_outputs(recorder: Recorder, expected: int, procs: Processes) -> None:
+def _wait_for_outputs(recorder: Recorder, expected: int, procs: Supervisor) -> None:
     """Wait until the recorder has the golden's number of outputs, or OUTPUTS_TIMEOUT_S.
 
     The last outputs are still in flight when the replay ends; a system that gives fewer is
@@ -205,7 +151,7 @@ def _wait_for_outputs(recorder: Recorder, expected: int, procs: Processes) -> No
     """
     deadline = time.monotonic() + OUTPUTS_TIMEOUT_S
     while recorder.progress().messages < expected and time.monotonic() < deadline:
-        procs.check_running()
+        _check_running(procs)
         if recorder.stopped.wait(POLL_S):
             return
 
@@ -235,13 +181,13 @@ def check_live(spec: FixtureSpec, workdir: Path, *, startup_timeout: float = 30.
         # publish the moment its own clock is set (a timer due at the bag's start): the
         # recorder gets the clock before any node exists.
         _prepare_graph(procs, {"/clock": 1}, start_ns, startup_timeout)
-        _start_system(procs, spec.launch, "launch")
+        _start_system(procs, workdir / "logs", spec.launch, "launch")
         counts = {**spec.subscription_counts(), **dict.fromkeys(spec.outputs, 1)}
         counts["/clock"] = counts.get("/clock", 0) + 1  # the recorder's, matched again
         _prepare_graph(procs, counts, start_ns, startup_timeout)
         _replay_inputs(spec)
         _wait_for_outputs(recorder, expected, procs)
-        procs.check_running()
+        _check_running(procs)
     report = compare_bags(spec.bag, candidate, spec.compare_options("live"))
     return GoldenCheck(spec, "live", candidate, report)
 
@@ -267,11 +213,11 @@ def record_golden(
     topics = tuple(dict.fromkeys([*spec.inputs, *spec.outputs, *spec.record_topics]))
     # The recorder has started (its node is in the graph) before the system's first input.
     with _processes(workdir / "logs") as procs, _recording(RecordOptions(recording, topics)) as rec:
-        _start_system(procs, spec.record_launch, "system")
+        _start_system(procs, workdir / "logs", spec.record_launch, "system")
         log(f"{spec.name}: recording {spec.duration_s:.0f} s of the live system ...")
         deadline = time.monotonic() + spec.duration_s + 1.0
         while time.monotonic() < deadline and not rec.stopped.wait(POLL_S):
-            procs.check_running()
+            _check_running(procs)
     size = sum(f.stat().st_size for f in recording.iterdir())
     if size > MAX_FIXTURE_BYTES:
         raise LiveRunError(f"the recording is {size / 1e6:.1f} MB, more than 2 MB")
