@@ -82,7 +82,6 @@ class OutputBag:
             raise SurgeryError(f"{path.parent}: no such directory")
         self.path = path
         self.compression, self._compress = compressor(compression)
-        self._force = force
         self._max_size = max_bag_size
         self._max_duration = seconds_to_ns(max_bag_duration_s, max_bag_duration_s, SurgeryError)
         # Files end within one chunk of max_bag_size: small limits get smaller chunks.
