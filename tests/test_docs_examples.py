@@ -36,6 +36,7 @@ from bagkit.cli.main import app
 
 ROOT = Path(__file__).resolve().parents[1]
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
+BAG_ARGUMENTS = frozenset({"bag", "bags", "inputs"})
 DOCUMENTS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 # The names the docs give a recording of the demo system -> the fixture it is made from.
 RECORDINGS = {
@@ -132,7 +133,8 @@ def _arguments(args: tuple[str, ...]) -> tuple[list[str], dict[str, object], lis
             if isinstance(ctx.params.get(param.name or ""), list | tuple)
             else [ctx.params.get(param.name or "")]
         )
-        if isinstance(value, Path)
+        # A bag argument typed str (info's, for its start-up time) is a path all the same.
+        if isinstance(value, Path) or (param.name in BAG_ARGUMENTS and isinstance(value, str))
     ]
     return words, ctx.params, paths
 
