@@ -141,7 +141,7 @@ class SummaryRun:
                 if accumulator.leaves:
                     accumulator.add_payloads((message.data,))
                 self.advance(1, every=ROW_BATCH)
-        self.problems.extend(f"{label}: {problem}" for problem in reader.problems)
+        self.problems.extend(_named(label, problem) for problem in reader.problems)
 
     def advance(self, messages: int, every: int = 1) -> None:
         """Count ``messages`` as done; report progress (each time ``done`` passes a multiple
@@ -271,3 +271,8 @@ def finish_summary(run: SummaryRun, paths: list[str]) -> Summary:
         skipped=dict(sorted(run.skipped.items())),
         problems=tuple(run.problems),
     )
+
+
+def _named(label: str, problem: str) -> str:
+    """``problem`` naming the bag as the user gave it, unless it names that file already."""
+    return problem if problem.startswith(f"{Path(label).name}:") else f"{label}: {problem}"

@@ -37,5 +37,6 @@ def test_nothing_to_read_is_an_error(tmp_path: Path) -> None:
         expand_bags([tmp_path / "empty", str(tmp_path / "*.mcap")])
 
 
-def test_a_missing_path_is_kept_for_the_reader_to_report(tmp_path: Path) -> None:
-    assert expand_bags([tmp_path / "gone"]) == [tmp_path / "gone"]
+def test_a_missing_path_is_one_error_as_in_every_command(tmp_path: Path) -> None:
+    with pytest.raises(NoBagsError, match=r"gone: no such file or directory$"):
+        expand_bags([tmp_path / "gone"])
