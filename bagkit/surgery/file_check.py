@@ -14,7 +14,7 @@ import numpy as np
 from zlib_ng.zlib_ng import crc32
 
 from bagkit.bag.errors import CorruptBagError
-from bagkit.bag.mcapio.chunks import DEFAULT_MAX_CHUNK_SIZE, decompress
+from bagkit.bag.mcapio.chunks import DEFAULT_MAX_CHUNK_SIZE, decompress, walk_chunk
 from bagkit.bag.mcapio.records import (
     FOOTER_RECORD_SIZE,
     MAGIC,
@@ -25,8 +25,6 @@ from bagkit.bag.mcapio.records import (
     ChunkIndex,
     Opcode,
     Schema,
-    iter_records,
-    message_index_dtype,
     parse_channel,
     parse_chunk,
     parse_footer,
@@ -166,7 +164,10 @@ class FileCheck:
             self._problem(f"{where}: CRC mismatch (the chunk is damaged)")
             self.damaged.add(pos)
             return
-        entries = self._walk_chunk(memoryview(records))
+        # Schema and Channel records are kept too: rosbag2 writes them inside chunks.
+        facts = self.facts
+        walked = walk_chunk(records, schemas=facts.schemas, channels=facts.channels)
+        entries = walked.message_index()
         self.chunks.append(
             _Chunk(
                 pos,
@@ -189,24 +190,6 @@ class FileCheck:
                 f"{chunk.message_end_time}, holds {start} to {end}"
             )
         self._count(entries, records)
-
-    def _walk_chunk(self, records: memoryview) -> dict[int, np.ndarray]:
-        """Message positions per channel; Schema and Channel records kept (rosbag2 puts them
-        inside chunks)."""
-        found: dict[int, list[tuple[int, int]]] = {}
-        for offset, opcode, content in iter_records(records):
-            if opcode == Opcode.MESSAGE:
-                if len(content) < MESSAGE_PREFIX.size:
-                    raise CorruptBagError(f"message record at byte {offset} is too short")
-                channel_id, _, log_time, _ = MESSAGE_PREFIX.unpack_from(content)
-                found.setdefault(channel_id, []).append((log_time, offset))
-            elif opcode == Opcode.SCHEMA:
-                schema = parse_schema(content)
-                self.facts.schemas.setdefault(schema.id, schema)
-            elif opcode == Opcode.CHANNEL:
-                channel = parse_channel(content)
-                self.facts.channels.setdefault(channel.id, channel)
-        return {c: np.array(e, dtype=message_index_dtype()) for c, e in found.items()}
 
     def _count(self, entries: dict[int, np.ndarray], records: bytes) -> None:
         facts = self.facts

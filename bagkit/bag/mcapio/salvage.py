@@ -11,7 +11,12 @@ in benchmarks/README.md, "bagkit.bag.mcapio").
 from __future__ import annotations
 
 from bagkit.bag.errors import CorruptBagError
-from bagkit.bag.mcapio.chunks import DEFAULT_MAX_CHUNK_SIZE, MessageRun, read_block_records
+from bagkit.bag.mcapio.chunks import (
+    DEFAULT_MAX_CHUNK_SIZE,
+    MessageRun,
+    read_block_records,
+    walk_chunk,
+)
 from bagkit.bag.mcapio.records import (
     CHUNK_PREFIX,
     MAGIC,
@@ -23,7 +28,6 @@ from bagkit.bag.mcapio.records import (
     Cursor,
     Header,
     Opcode,
-    iter_records,
     message_index_entries,
     parse_channel,
     parse_metadata,
@@ -214,20 +218,8 @@ class _Scanner:
         records = read_block_records(
             self.source, chunk_index, check_crc=self.check_crc, max_size=self.max_size
         )
-        counts: dict[int, int] = {}
-        for _, opcode, content in iter_records(records):
-            if opcode == Opcode.MESSAGE:
-                if len(content) < MESSAGE_PREFIX.size:
-                    raise CorruptBagError("message record too short")
-                channel_id = int.from_bytes(content[:2], "little")
-                counts[channel_id] = counts.get(channel_id, 0) + 1
-            elif opcode == Opcode.SCHEMA:
-                schema = parse_schema(content)
-                self.index.schemas.setdefault(schema.id, schema)
-            elif opcode == Opcode.CHANNEL:
-                channel = parse_channel(content)
-                self.index.channels.setdefault(channel.id, channel)
-        return counts
+        index = self.index
+        return walk_chunk(records, schemas=index.schemas, channels=index.channels).counts()
 
     def _find_channels_in_chunks(self) -> None:
         """Writers that put Schema/Channel records inside chunks: find the ones still missing."""
