@@ -15,6 +15,7 @@ from zlib_ng.zlib_ng import crc32
 
 from bagkit.bag.errors import CorruptBagError
 from bagkit.bag.mcapio.chunks import DEFAULT_MAX_CHUNK_SIZE, decompress, walk_chunk
+from bagkit.bag.mcapio.data_section import DataSection
 from bagkit.bag.mcapio.records import (
     FOOTER_RECORD_SIZE,
     MAGIC,
@@ -113,15 +114,8 @@ class FileCheck:
     # -- the walk -------------------------------------------------------------------------
 
     def _walk(self) -> None:
-        pos, size = len(MAGIC), self.source.size
-        while pos < size:
-            if pos + RECORD_HEADER.size > size:
-                self._problem(f"truncated at byte {pos}: {size - pos} bytes are no whole record")
-                return
-            opcode, length = RECORD_HEADER.unpack(self.source.read(pos, RECORD_HEADER.size))
-            if length > size - pos - RECORD_HEADER.size:
-                self._problem(f"truncated at byte {pos}: a record of {length} bytes is cut")
-                return
+        records = DataSection(self.source)
+        for pos, opcode, length in records:
             if opcode == Opcode.DATA_END:
                 crc = self.source.read(pos + RECORD_HEADER.size, 4) if length >= 4 else b""
                 self.data_end = (pos, int.from_bytes(crc, "little"))
@@ -133,7 +127,12 @@ class FileCheck:
             except CorruptBagError as exc:
                 self._problem(f"record at byte {pos} unreadable ({exc})")
                 self.damaged.add(pos)
-            pos += RECORD_HEADER.size + length
+        cut_at, cut_length = records.cut_at, records.cut_length
+        if cut_at is not None and cut_length is None:
+            left = self.source.size - cut_at
+            self._problem(f"truncated at byte {cut_at}: {left} bytes are no whole record")
+        elif cut_at is not None:
+            self._problem(f"truncated at byte {cut_at}: a record of {cut_length} bytes is cut")
 
     def _record(self, pos: int, opcode: int, length: int) -> None:
         if opcode in (Opcode.CHUNK, Opcode.MESSAGE_INDEX, Opcode.SCHEMA, Opcode.CHANNEL):

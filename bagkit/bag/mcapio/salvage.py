@@ -17,9 +17,9 @@ from bagkit.bag.mcapio.chunks import (
     read_block_records,
     walk_chunk,
 )
+from bagkit.bag.mcapio.data_section import DataSection
 from bagkit.bag.mcapio.records import (
     CHUNK_PREFIX,
-    MAGIC,
     MAX_SECTION_SIZE,
     MESSAGE_INDEX_ENTRY_SIZE,
     MESSAGE_PREFIX,
@@ -104,18 +104,9 @@ class _Scanner:
 
     def scan(self) -> FileIndex:
         """Walk the data section; return what it holds."""
-        pos = len(MAGIC)
-        stopped_at = None
+        records = DataSection(self.source)
         closed = False  # Data End or Footer reached: the last chunk's indexes are complete
-        size = self.source.size
-        while pos < size:
-            if pos + RECORD_HEADER.size > size:
-                stopped_at = pos
-                break
-            opcode, length = RECORD_HEADER.unpack(self.source.read(pos, RECORD_HEADER.size))
-            if length > size - pos - RECORD_HEADER.size:
-                stopped_at = pos
-                break
+        for pos, opcode, length in records:
             if opcode in (Opcode.DATA_END, Opcode.FOOTER):
                 closed = True
                 break
@@ -125,14 +116,13 @@ class _Scanner:
                 self.index.problems.append(
                     f"{self.source.name}: unreadable record at byte {pos} ({exc}), skipped"
                 )
-            pos += RECORD_HEADER.size + length
         # After a cut, the last chunk's indexes may be incomplete: count it from its records.
         self._settle(trust_indexes=closed)
         self._end_run()
-        if stopped_at is not None:
+        if records.cut_at is not None:
             self.index.problems.append(
-                f"{self.source.name}: truncated at byte {stopped_at}: "
-                f"{size - stopped_at} bytes could not be read"
+                f"{self.source.name}: truncated at byte {records.cut_at}: "
+                f"{self.source.size - records.cut_at} bytes could not be read"
             )
         self._find_channels_in_chunks()
         self._set_times()
