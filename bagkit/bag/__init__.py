@@ -19,9 +19,9 @@ from bagkit.bag.errors import (
     UnsupportedStorageError,
 )
 from bagkit.bag.info import BagInfo, TopicSummary, bag_info
-from bagkit.bag.mcap_file import BagChunk
+from bagkit.bag.messages import BagMessage, TopicInfo
 from bagkit.bag.reader import BagReader
-from bagkit.bag.types import BagMessage, TopicInfo
+from bagkit.bag.storage import BagChunk
 from bagkit.bag.writer import BagWriter
 
 __all__ = [

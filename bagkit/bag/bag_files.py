@@ -15,8 +15,8 @@ import zstandard
 from bagkit.bag.errors import BagError
 from bagkit.bag.mcapio.file_writer import McapFileWriter
 from bagkit.bag.mcapio.records import Channel, Metadata, Schema
+from bagkit.bag.messages import TopicInfo
 from bagkit.bag.metadata import BagMetadata, FileInformation
-from bagkit.bag.types import TopicInfo
 
 COMPRESSIONS = ("zstd", "lz4", "none")
 

@@ -7,7 +7,7 @@ from mcap.well_known import SchemaEncoding
 from bagkit.bag.definitions import canonical_type_name, message_definition, type_description_hash
 from bagkit.bag.errors import BagError, UnknownMessageTypeError
 from bagkit.bag.mcapio.records import Channel, Schema
-from bagkit.bag.types import TopicInfo
+from bagkit.bag.messages import TopicInfo
 
 
 class BagTopics:

@@ -9,9 +9,8 @@ from __future__ import annotations
 import heapq
 import operator
 from collections.abc import Iterator
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, BinaryIO, TypeGuard
 
 from mcap.well_known import Profile
 
@@ -24,14 +23,13 @@ from bagkit.bag.mcapio import (
     Source,
     count_messages,
     extent,
-    payload_spans,
     read_chunk,
     read_file_index,
 )
-from bagkit.bag.mcapio.chunks import message_index_times
+from bagkit.bag.mcapio.message_index import Span, channel_spans, widen
 from bagkit.bag.mcapio.records import MESSAGE_RECORD_HEADER, RECORD_HEADER, ChunkIndex, Opcode
-from bagkit.bag.storage import StorageFile
-from bagkit.bag.types import BagMessage, TopicInfo, make_message
+from bagkit.bag.messages import BagMessage, TopicInfo, make_message
+from bagkit.bag.storage import BagChunk
 
 if TYPE_CHECKING:
     import numpy as np
@@ -41,40 +39,6 @@ _OFFSET = operator.itemgetter(0)
 # Overlapping chunks are merged in log-time order while they need at most this many times
 # max_chunk_size of memory (uncompressed); beyond, order is given up rather than memory.
 MERGE_BUDGET_CHUNKS = 4
-
-
-@dataclass(frozen=True, slots=True)
-class BagChunk:
-    """One MCAP chunk, decompressed, with where each of its topics' messages are.
-
-    ``message_index[topic]`` is a ``message_index_dtype`` array (``log_time``, ``offset`` of
-    the Message record in ``records``, as stored); :meth:`payloads` gives the checked payload
-    spans.
-    """
-
-    file: Path
-    records: bytes
-    message_index: dict[str, np.ndarray]
-    problems: list[str] = field(default_factory=list, repr=False, compare=False)
-
-    def payloads(self, topic: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(log_times, starts, lengths)`` (int64) of each payload of ``topic`` in ``records``.
-
-        A message whose index entry points outside the chunk, or at no whole Message record,
-        is left out and counted in ``problems``.
-        """
-        entries = self.message_index.get(topic)
-        if entries is None:
-            import numpy as np
-
-            return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64)
-        log_times, starts, lengths, dropped = payload_spans(self.records, entries)
-        if dropped:
-            self.problems.append(
-                f"{self.file.name}: {dropped} messages of {topic} indexed outside their chunk "
-                "(damaged message index): lost"
-            )
-        return log_times, starts, lengths
 
 
 def _merged(blocks: list[tuple[int, Iterator[BagMessage]]]) -> Iterator[BagMessage]:
@@ -87,24 +51,27 @@ def _merged(blocks: list[tuple[int, Iterator[BagMessage]]]) -> Iterator[BagMessa
     return heapq.merge(*(messages for _, messages in sorted(blocks, key=_OFFSET)), key=_LOG_TIME)
 
 
+def _indexed(block: Block) -> TypeGuard[ChunkIndex]:
+    """True for a chunk with Message Index records (not a salvaged one, nor loose messages)."""
+    return isinstance(block, ChunkIndex) and bool(block.message_index_offsets)
+
+
 def _may_hold(block: Block, channel_ids: set[int]) -> bool:
     """False when a chunk's message indexes show none of ``channel_ids`` (skip reading it)."""
-    if isinstance(block, ChunkIndex) and block.message_index_offsets:
+    if _indexed(block):
         return not channel_ids.isdisjoint(block.message_index_offsets)
     return True
 
 
-class McapFile(StorageFile):
+class McapFile:
     """An MCAP storage file (summary and indexes when present, salvage otherwise).
+
+    A :class:`~bagkit.bag.storage.StorageFile`: nothing is read before :meth:`open`.
 
     Args:
         path: the file.
         check_crc: check each chunk's CRC when it is read (a mismatch loses that chunk).
         max_chunk_size: the largest uncompressed chunk read (a larger one is a problem).
-
-    Raises:
-        NotABagError, CorruptBagError: not an MCAP file, or its header is unreadable.
-        UnsupportedStorageError: a profile other than ``ros2``.
     """
 
     storage_identifier = "mcap"
@@ -115,28 +82,43 @@ class McapFile(StorageFile):
         self.path = path
         self.check_crc = check_crc
         self.max_chunk_size = max_chunk_size
-        self._handle = open(path, "rb")  # noqa: SIM115 (closed in close())
+        self.topics: dict[str, TopicInfo] = {}
+        self.definitions: dict[str, str] = {}
+        self.topic_counts: dict[str, int] = {}
+        self.start_ns = self.end_ns = 0
+        self.problems: list[str] = []
+        self.has_summary = False
+        self.compression = ""
+        self.compressed_size = self.uncompressed_size = 0
+        self._handle: BinaryIO | None = None
+        self._channel_topics: dict[int, str] = {}
+        self._sorted_blocks: list[Block] = []
+
+    def open(self) -> None:
+        """Read the summary (or salvage the file without one).
+
+        Raises:
+            NotABagError, CorruptBagError: not an MCAP file, or its header is unreadable.
+            UnsupportedStorageError: a profile other than ``ros2``.
+        """
+        self._handle = open(self.path, "rb")  # noqa: SIM115 (closed in close())
         try:
-            self._source = Source(self._handle, path.name)
+            self._source = Source(self._handle, self.path.name)
             self.index = read_file_index(
-                self._source, check_crc=check_crc, max_chunk_size=max_chunk_size
+                self._source, check_crc=self.check_crc, max_chunk_size=self.max_chunk_size
             )
         except (NotABagError, CorruptBagError) as exc:
-            self._handle.close()
-            raise type(exc)(f"{path}: {exc}") from exc
-        except BaseException:
-            self._handle.close()
-            raise
+            raise type(exc)(f"{self.path}: {exc}") from exc
         profile = self.index.header.profile
         if profile not in (Profile.ROS2, ""):
-            self._handle.close()
-            raise UnsupportedStorageError(f"{path}: MCAP profile {profile!r} is not ROS 2")
+            raise UnsupportedStorageError(f"{self.path}: MCAP profile {profile!r} is not ROS 2")
         self.problems = list(self.index.problems)
+        self.has_summary = self.index.summary
         self._describe_topics()
         self.start_ns = self.index.message_start_time
         self.end_ns = self.index.message_end_time
         chunks = self.index.chunk_indexes
-        self._sorted_blocks: list[Block] = sorted(
+        self._sorted_blocks = sorted(
             [*chunks, *self.index.message_runs],
             key=lambda b: (b.message_start_time, extent(b)[0]),
         )
@@ -146,9 +128,6 @@ class McapFile(StorageFile):
 
     def _describe_topics(self) -> None:
         """Topics, definitions and counts from the channels and schemas."""
-        self._channel_topics: dict[int, str] = {}
-        self.topics = {}
-        self.definitions = {}
         for channel in self.index.channels.values():
             schema = self.index.schemas.get(channel.schema_id)
             type_name = canonical_type_name(schema.name) if schema else ""
@@ -173,17 +152,26 @@ class McapFile(StorageFile):
 
     def close(self) -> None:
         """Close the file."""
-        self._handle.close()
+        if self._handle is not None:
+            self._handle.close()
 
-    def message_index_times(
-        self, chunk: ChunkIndex, channels: list[int]
-    ) -> dict[int, tuple[int, int]]:
-        """(first, last) log time of each of ``channels`` in ``chunk``, from its message index.
+    def topic_spans(self) -> dict[str, Span]:
+        """(first, last) log time of each topic with messages, from the Message Index records.
 
-        Raises:
-            CorruptBagError: the chunk's message indexes are not where its index says.
+        Blocks without them (salvaged chunks, loose messages) widen every topic with messages
+        to their bounds: reading them would cost what ``bagkit info`` avoids.
         """
-        return message_index_times(self._source, chunk, channels)
+        spans: dict[str, Span] = {}
+        with_messages = [t for t, count in self.topic_counts.items() if count]
+        for block in self._sorted_blocks:
+            if not _indexed(block):
+                for topic in with_messages:
+                    widen(spans, topic, block.message_start_time, block.message_end_time)
+        indexed = [c for c in self.index.chunk_indexes if c.message_index_offsets]
+        for channel, (first, last) in channel_spans(self._source, indexed).items():
+            if channel in self._channel_topics:
+                widen(spans, self._channel_topics[channel], first, last)
+        return spans
 
     def _channel_ids(self, topics: set[str] | None) -> set[int]:
         return {c for c, t in self._channel_topics.items() if topics is None or t in topics}

@@ -12,7 +12,7 @@ import yaml
 
 from bagkit.bag import safe_yaml
 from bagkit.bag.errors import NotABagError
-from bagkit.bag.types import TopicInfo
+from bagkit.bag.messages import TopicInfo
 
 METADATA_FILENAME = "metadata.yaml"
 METADATA_VERSION = 9

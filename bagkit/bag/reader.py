@@ -16,11 +16,12 @@ from bagkit.bag.errors import (
     NotABagError,
     UnsupportedStorageError,
 )
-from bagkit.bag.mcap_file import BagChunk, McapFile
+from bagkit.bag.mcap_file import McapFile
 from bagkit.bag.mcapio import DEFAULT_MAX_CHUNK_SIZE, MAGIC
+from bagkit.bag.mcapio.message_index import Span, widen
+from bagkit.bag.messages import BagMessage, TopicInfo
 from bagkit.bag.metadata import METADATA_FILENAME, BagMetadata, read_metadata
-from bagkit.bag.storage import SQLITE_MAGIC, StorageFile
-from bagkit.bag.types import BagMessage, TopicInfo
+from bagkit.bag.storage import SQLITE_MAGIC, BagChunk, StorageFile
 
 STORAGE_SUFFIXES = (".mcap", ".db3")
 SUPPORTED_STORAGE = ("mcap", "sqlite3")
@@ -80,20 +81,28 @@ def _resolve_files(path: Path) -> tuple[Path, list[Path], BagMetadata | None]:
 def open_storage_file(
     path: Path, *, check_crc: bool = True, max_chunk_size: int = DEFAULT_MAX_CHUNK_SIZE
 ) -> StorageFile:
-    """Open one storage file by its content (MCAP or SQLite3 magic).
+    """Open one storage file, its back-end chosen by its content (MCAP or SQLite3 magic).
 
     Raises:
-        NotABagError: neither MCAP nor SQLite3.
+        NotABagError: neither MCAP nor SQLite3; and what the back-end's ``open()`` raises.
     """
     with open(path, "rb") as f:
         head = f.read(len(SQLITE_MAGIC))
+    storage: StorageFile
     if head.startswith(MAGIC):
-        return McapFile(path, check_crc=check_crc, max_chunk_size=max_chunk_size)
-    if head == SQLITE_MAGIC:
+        storage = McapFile(path, check_crc=check_crc, max_chunk_size=max_chunk_size)
+    elif head == SQLITE_MAGIC:
         from bagkit.bag.sqlite3_file import Sqlite3File
 
-        return Sqlite3File(path)
-    raise NotABagError(f"{path}: neither an MCAP nor a SQLite3 file")
+        storage = Sqlite3File(path)
+    else:
+        raise NotABagError(f"{path}: neither an MCAP nor a SQLite3 file")
+    try:
+        storage.open()
+    except BaseException:
+        storage.close()
+        raise
+    return storage
 
 
 class BagReader:
@@ -238,8 +247,8 @@ class BagReader:
 
     @property
     def has_summary(self) -> bool:
-        """True when every MCAP file was closed cleanly (its summary was used, no salvage)."""
-        return all(s.index.summary for s in self._storage if isinstance(s, McapFile))
+        """True when no file had to be salvaged (every MCAP file's summary was used)."""
+        return all(s.has_summary for s in self._storage)
 
     @property
     def size_bytes(self) -> int:
@@ -287,13 +296,24 @@ class BagReader:
         """Yield the decompressed MCAP chunks holding ``topics``, file by file, in file order.
 
         For bulk decoding: each :class:`BagChunk` carries the message-index entries per topic.
-        SQLite3 files have no chunks and are skipped.
+        SQLite3 files have no chunks and yield none.
         """
         self._check_open()
         wanted = set(topics) if topics is not None else None
         for storage in self._storage:
-            if isinstance(storage, McapFile):
-                yield from storage.chunks(wanted)
+            yield from storage.chunks(wanted)
+
+    def topic_spans(self) -> dict[str, Span]:
+        """(first, last) log time of each topic with messages, from indexes (no message read).
+
+        See :meth:`bagkit.bag.storage.StorageFile.topic_spans`; over all files.
+        """
+        self._check_open()
+        spans: dict[str, Span] = {}
+        for storage in self._storage:
+            for topic, (first, last) in storage.topic_spans().items():
+                widen(spans, topic, first, last)
+        return spans
 
 
 def _complete(topic: TopicInfo, recorded: TopicInfo | None) -> TopicInfo:

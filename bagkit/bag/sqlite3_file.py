@@ -1,62 +1,221 @@
-"""The SQLite3 back-end: a rosbag2 ``.db3`` storage file (:mod:`bagkit.bag.db3` reads it)."""
+"""The SQLite3 back-end: a rosbag2 ``.db3`` storage file, read as untrusted input.
+
+A ``.db3`` file is a program as much as data: views and generated columns are evaluated on
+read (an infinite recursive view, a ``zeroblob(1e9)`` column). Only real tables with plain
+columns are read; rows whose values have the wrong type (text timestamps, BLOB topic names,
+NULLs) are skipped and counted, not decoded; SQLite errors while opening become bag errors,
+and damage found while reading messages ends this file's messages with a problem, as an
+unreadable MCAP chunk does. Imported only when a ``.db3`` file is opened (``sqlite3`` is not
+free at start-up).
+"""
 
 from __future__ import annotations
 
 import sqlite3
 from collections.abc import Iterator
 from pathlib import Path
+from urllib.request import pathname2url
 
-from bagkit.bag import db3
-from bagkit.bag.storage import StorageFile
-from bagkit.bag.types import BagMessage, make_message
+from bagkit.bag.definitions import canonical_type_name
+from bagkit.bag.errors import CorruptBagError, NotABagError
+from bagkit.bag.mcapio.message_index import Span, widen
+from bagkit.bag.messages import BagMessage, TopicInfo, make_message
+from bagkit.bag.storage import BagChunk
+
+# Columns read from each table; the first two tables are required, message_definitions is not.
+TOPIC_COLUMNS = ("id", "name", "type", "serialization_format")
+MESSAGE_COLUMNS = ("topic_id", "timestamp", "data")
+DEFINITION_COLUMNS = ("topic_type", "encoding", "encoded_message_definition")
+_OPTIONAL_TOPIC_COLUMNS = ("offered_qos_profiles", "type_description_hash")
+# A message row is readable when its timestamp is an integer and its data a blob.
+_VALID_ROW = "typeof(timestamp) = 'integer' AND typeof(data) = 'blob'"
+INT64_MIN = -(1 << 63)
+INT64_MAX = (1 << 63) - 1
 
 
-class Sqlite3File(StorageFile):
+def connect(path: Path) -> sqlite3.Connection:
+    """Open read-only and immutable (no -shm/-wal side files next to bags in read-only folders).
+
+    The path is URL-quoted: a ``?`` or ``#`` in a bag's name would otherwise end the file name.
+    """
+    uri = f"file:{pathname2url(str(path.resolve()))}?mode=ro&immutable=1"
+    try:
+        db = sqlite3.connect(uri, uri=True)
+    except sqlite3.Error as exc:
+        raise NotABagError(f"{path}: not a SQLite3 database ({exc})") from exc
+    db.text_factory = _text
+    return db
+
+
+class _NotUtf8(bytes):
+    """TEXT that is not UTF-8: not a str, so the row holding it is skipped as of a wrong type."""
+
+
+def _text(raw: bytes) -> str | _NotUtf8:
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError:
+        return _NotUtf8(raw)
+
+
+def _table_columns(db: sqlite3.Connection) -> dict[str, set[str]]:
+    """The plain columns of each real table (views and generated columns left out)."""
+    tables = [row[0] for row in db.execute("SELECT name FROM sqlite_master WHERE type = 'table'")]
+    return {
+        table: {row[0] for row in db.execute("SELECT name FROM pragma_table_info(?)", (table,))}
+        for table in tables
+        if isinstance(table, str)
+    }
+
+
+def _missing_columns(columns: dict[str, set[str]]) -> str:
+    """What a rosbag2 reader needs and the file lacks ('' when nothing), for the error line."""
+    needed = {"topics": TOPIC_COLUMNS, "messages": MESSAGE_COLUMNS}
+    missing = []
+    for table, names in needed.items():
+        if table not in columns:
+            missing.append(f"table {table}")
+        else:
+            missing += [f"column {table}.{n}" for n in names if n not in columns[table]]
+    return ", ".join(missing)
+
+
+class Sqlite3File:
     """A rosbag2 SQLite3 (``.db3``) storage file, opened read-only and immutable.
 
-    Untrusted like any input (:mod:`bagkit.bag.db3`): rows of the wrong types are skipped and
-    reported in ``problems``; damage found while reading messages ends this file's messages
-    with a problem, as an unreadable MCAP chunk does.
+    A :class:`~bagkit.bag.storage.StorageFile` without chunks: nothing is read before
+    :meth:`open`. Its tables are its index, so ``has_summary`` is True and topic spans come
+    from them; SQLite3 stores no publish time (a message's is its log time).
     """
 
     storage_identifier = "sqlite3"
+    has_summary = True
+    compression = ""
+    compressed_size = 0
+    uncompressed_size = 0
 
     def __init__(self, path: Path) -> None:
         self.path = path
-        self._db = db3.connect(path)
+        self.topics: dict[str, TopicInfo] = {}
+        self.definitions: dict[str, str] = {}
+        self.topic_counts: dict[str, int] = {}
+        self.start_ns = self.end_ns = 0
+        self.problems: list[str] = []
+        self._db: sqlite3.Connection | None = None
+        self._topic_ids: dict[int, str] = {}
+        self._spans: dict[str, Span] = {}
+
+    def open(self) -> None:
+        """Check the rosbag2 schema and read topics, definitions, counts and the time range.
+
+        Raises:
+            NotABagError: not SQLite3, or without the rosbag2 tables and columns.
+            CorruptBagError: SQLite3 reports damage (a bad page) while reading them.
+        """
+        self._db = db = connect(self.path)
         try:
-            contents = db3.read_contents(self._db, path)
-        except BaseException:
-            self._db.close()
-            raise
-        self._topic_ids = contents.topic_ids
-        self.topics = contents.topics
-        self.definitions = contents.definitions
-        self.topic_counts = contents.topic_counts
-        self.topic_spans = contents.topic_spans
-        self.start_ns = contents.start_ns
-        self.end_ns = contents.end_ns
-        self.problems = [f"{path.name}: {problem}" for problem in contents.problems]
+            columns = _table_columns(db)
+            missing = _missing_columns(columns)
+            if missing:
+                raise NotABagError(f"{self.path}: SQLite3 file without rosbag2 {missing}")
+            # Ordering ties by rowid: a WITHOUT ROWID table is refused here, not halfway through.
+            db.execute("SELECT rowid FROM messages LIMIT 0")
+            self._read_topics(db, columns["topics"])
+            if "message_definitions" in columns:
+                self._read_definitions(db, columns["message_definitions"])
+            self._read_counts(db)
+        except sqlite3.DatabaseError as exc:
+            kind = NotABagError if "file is not a database" in str(exc) else CorruptBagError
+            raise kind(f"{self.path}: unreadable SQLite3 database ({exc})") from exc
+        except sqlite3.Error as exc:
+            raise CorruptBagError(f"{self.path}: unreadable SQLite3 database ({exc})") from exc
+
+    def _problem(self, text: str) -> None:
+        self.problems.append(f"{self.path.name}: {text}")
+
+    def _read_topics(self, db: sqlite3.Connection, columns: set[str]) -> None:
+        optional = [c if c in columns else "''" for c in _OPTIONAL_TOPIC_COLUMNS]
+        query = f"SELECT {', '.join((*TOPIC_COLUMNS, *optional))} FROM topics"
+        for row in db.execute(query):
+            topic_id, name, type_name, fmt, qos, type_hash = row
+            texts = (name, type_name, fmt or "", qos or "", type_hash or "")
+            if not isinstance(topic_id, int) or not all(isinstance(t, str) for t in texts):
+                self._problem(f"topics row {topic_id!r:.40} has wrong types, skipped")
+                continue
+            self._topic_ids[topic_id] = name
+            self.topics.setdefault(
+                name, TopicInfo(name, canonical_type_name(type_name), *texts[2:])
+            )
+
+    def _read_definitions(self, db: sqlite3.Connection, columns: set[str]) -> None:
+        if not set(DEFINITION_COLUMNS) <= columns:
+            self._problem("message_definitions table without its columns, not used")
+            return
+        query = f"SELECT {', '.join(DEFINITION_COLUMNS)} FROM message_definitions"
+        for type_name, encoding, text in db.execute(query):
+            if not all(isinstance(v, str) for v in (type_name, encoding, text)):
+                self._problem(f"message_definitions row of {type_name!r:.60} unusable")
+            elif encoding == "ros2msg" and text:
+                self.definitions.setdefault(canonical_type_name(type_name), text)
+
+    def _read_counts(self, db: sqlite3.Connection) -> None:
+        self.topic_counts = dict.fromkeys(self.topics, 0)
+        orphans = 0
+        query = (
+            "SELECT topic_id, COUNT(*), MIN(timestamp), MAX(timestamp) FROM messages "
+            f"WHERE {_VALID_ROW} GROUP BY topic_id"
+        )
+        for topic_id, count, first, last in db.execute(query):
+            name = self._topic_ids.get(topic_id) if isinstance(topic_id, int) else None
+            if name is None:
+                orphans += count
+                continue
+            self.topic_counts[name] += count
+            widen(self._spans, name, first, last)
+        if orphans:
+            self._problem(f"{orphans} messages of no known topic skipped")
+        query = f"SELECT COUNT(*) FROM messages WHERE NOT ({_VALID_ROW})"
+        (invalid,) = db.execute(query).fetchone()
+        if invalid:
+            self._problem(f"{invalid} messages without an integer timestamp or blob data skipped")
+        start, end = db.execute(
+            f"SELECT MIN(timestamp), MAX(timestamp) FROM messages WHERE {_VALID_ROW}"
+        ).fetchone()
+        self.start_ns, self.end_ns = start or 0, end or 0
 
     def close(self) -> None:
         """Close the database."""
-        self._db.close()
+        if self._db is not None:
+            self._db.close()
+
+    def topic_spans(self) -> dict[str, Span]:
+        """(first, last) timestamp of each topic with messages, from the counts' query."""
+        return dict(self._spans)
+
+    def chunks(self, topics: set[str] | None) -> Iterator[BagChunk]:
+        """None: SQLite3 has no chunks (bulk readers fall back to :meth:`messages`)."""
+        return iter(())
 
     def messages(
         self, topics: set[str] | None, start_ns: int | None, end_ns: int | None
     ) -> Iterator[BagMessage]:
-        """Yield the messages in timestamp order (ties by row id); no publish time in SQLite3."""
+        """Yield the valid rows in timestamp order (ties by row id)."""
         wanted = [i for i, t in self._topic_ids.items() if topics is None or t in topics]
-        if not wanted:
+        if not wanted or self._db is None:
             return
-        lower = start_ns if start_ns is not None else db3.INT64_MIN
-        upper = end_ns if end_ns is not None else db3.INT64_MAX
+        marks = ",".join("?" * len(wanted))
+        query = (
+            f"SELECT topic_id, timestamp, data FROM messages WHERE topic_id IN ({marks}) "
+            f"AND timestamp >= ? AND timestamp < ? AND {_VALID_ROW} ORDER BY timestamp, rowid"
+        )
+        lower = max(start_ns if start_ns is not None else INT64_MIN, INT64_MIN)
+        upper = min(end_ns if end_ns is not None else INT64_MAX, INT64_MAX)
         read = 0
         try:
-            for topic_id, timestamp, data in db3.iter_messages(self._db, wanted, lower, upper):
+            for topic_id, timestamp, data in self._db.execute(query, (*wanted, lower, upper)):
                 read += 1
                 yield make_message(self._topic_ids[topic_id], data, timestamp, timestamp, 0)
         except sqlite3.Error as exc:
             problem = f"{self.path.name}: unreadable after {read} messages ({exc})"
-            if problem not in self.problems:
+            if problem not in self.problems:  # each read of a damaged file meets it again
                 self.problems.append(problem)

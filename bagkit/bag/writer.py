@@ -21,8 +21,8 @@ from bagkit.bag.errors import BagError, BagExistsError, BagWriteError
 from bagkit.bag.mcapio.chunk_builder import ChunkBuilder
 from bagkit.bag.mcapio.file_writer import McapFileWriter
 from bagkit.bag.mcapio.records import Header, encode
+from bagkit.bag.messages import TopicInfo
 from bagkit.bag.metadata import BagMetadata, FileInformation, write_metadata
-from bagkit.bag.types import TopicInfo
 from bagkit.selection.times import seconds_to_ns
 from bagkit.version import __version__
 

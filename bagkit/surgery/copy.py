@@ -28,7 +28,7 @@ from bagkit.bag.mcapio import Block, FileIndex, Source, count_messages, extent, 
 from bagkit.bag.mcapio.chunk_builder import ClosedChunk
 from bagkit.bag.mcapio.raw_chunk import check_raw_chunk, read_raw_chunk
 from bagkit.bag.mcapio.records import ChunkIndex
-from bagkit.bag.types import TopicInfo
+from bagkit.bag.messages import TopicInfo
 from bagkit.surgery.output import OutputBag
 from bagkit.surgery.runs import Run, emit, open_run
 from bagkit.surgery.select import Selection

@@ -14,7 +14,8 @@ import numpy as np
 from zlib_ng.zlib_ng import crc32
 
 from bagkit.bag.errors import CorruptBagError
-from bagkit.bag.mcapio.chunks import DEFAULT_MAX_CHUNK_SIZE, decompress
+from bagkit.bag.mcapio.chunks import DEFAULT_MAX_CHUNK_SIZE, decompress, walk_chunk
+from bagkit.bag.mcapio.data_section import DataSection
 from bagkit.bag.mcapio.records import (
     FOOTER_RECORD_SIZE,
     MAGIC,
@@ -25,8 +26,6 @@ from bagkit.bag.mcapio.records import (
     ChunkIndex,
     Opcode,
     Schema,
-    iter_records,
-    message_index_dtype,
     parse_channel,
     parse_chunk,
     parse_footer,
@@ -115,15 +114,8 @@ class FileCheck:
     # -- the walk -------------------------------------------------------------------------
 
     def _walk(self) -> None:
-        pos, size = len(MAGIC), self.source.size
-        while pos < size:
-            if pos + RECORD_HEADER.size > size:
-                self._problem(f"truncated at byte {pos}: {size - pos} bytes are no whole record")
-                return
-            opcode, length = RECORD_HEADER.unpack(self.source.read(pos, RECORD_HEADER.size))
-            if length > size - pos - RECORD_HEADER.size:
-                self._problem(f"truncated at byte {pos}: a record of {length} bytes is cut")
-                return
+        records = DataSection(self.source)
+        for pos, opcode, length in records:
             if opcode == Opcode.DATA_END:
                 crc = self.source.read(pos + RECORD_HEADER.size, 4) if length >= 4 else b""
                 self.data_end = (pos, int.from_bytes(crc, "little"))
@@ -135,7 +127,12 @@ class FileCheck:
             except CorruptBagError as exc:
                 self._problem(f"record at byte {pos} unreadable ({exc})")
                 self.damaged.add(pos)
-            pos += RECORD_HEADER.size + length
+        cut_at, cut_length = records.cut_at, records.cut_length
+        if cut_at is not None and cut_length is None:
+            left = self.source.size - cut_at
+            self._problem(f"truncated at byte {cut_at}: {left} bytes are no whole record")
+        elif cut_at is not None:
+            self._problem(f"truncated at byte {cut_at}: a record of {cut_length} bytes is cut")
 
     def _record(self, pos: int, opcode: int, length: int) -> None:
         if opcode in (Opcode.CHUNK, Opcode.MESSAGE_INDEX, Opcode.SCHEMA, Opcode.CHANNEL):
@@ -166,7 +163,10 @@ class FileCheck:
             self._problem(f"{where}: CRC mismatch (the chunk is damaged)")
             self.damaged.add(pos)
             return
-        entries = self._walk_chunk(memoryview(records))
+        # Schema and Channel records are kept too: rosbag2 writes them inside chunks.
+        facts = self.facts
+        walked = walk_chunk(records, schemas=facts.schemas, channels=facts.channels)
+        entries = walked.message_index()
         self.chunks.append(
             _Chunk(
                 pos,
@@ -189,24 +189,6 @@ class FileCheck:
                 f"{chunk.message_end_time}, holds {start} to {end}"
             )
         self._count(entries, records)
-
-    def _walk_chunk(self, records: memoryview) -> dict[int, np.ndarray]:
-        """Message positions per channel; Schema and Channel records kept (rosbag2 puts them
-        inside chunks)."""
-        found: dict[int, list[tuple[int, int]]] = {}
-        for offset, opcode, content in iter_records(records):
-            if opcode == Opcode.MESSAGE:
-                if len(content) < MESSAGE_PREFIX.size:
-                    raise CorruptBagError(f"message record at byte {offset} is too short")
-                channel_id, _, log_time, _ = MESSAGE_PREFIX.unpack_from(content)
-                found.setdefault(channel_id, []).append((log_time, offset))
-            elif opcode == Opcode.SCHEMA:
-                schema = parse_schema(content)
-                self.facts.schemas.setdefault(schema.id, schema)
-            elif opcode == Opcode.CHANNEL:
-                channel = parse_channel(content)
-                self.facts.channels.setdefault(channel.id, channel)
-        return {c: np.array(e, dtype=message_index_dtype()) for c, e in found.items()}
 
     def _count(self, entries: dict[int, np.ndarray], records: bytes) -> None:
         facts = self.facts

@@ -18,8 +18,8 @@ from bagkit.bag.bag_files import bag_metadata, compressor, file_information, fin
 from bagkit.bag.mcapio.chunk_builder import ChunkBuilder, ClosedChunk
 from bagkit.bag.mcapio.file_writer import McapFileWriter
 from bagkit.bag.mcapio.records import Channel, Header, Schema
+from bagkit.bag.messages import TopicInfo
 from bagkit.bag.metadata import BagMetadata, FileInformation, write_metadata
-from bagkit.bag.types import TopicInfo
 from bagkit.bag.writer import DEFAULT_CHUNK_SIZE, LIBRARY
 from bagkit.selection.times import seconds_to_ns
 from bagkit.surgery.errors import SurgeryError

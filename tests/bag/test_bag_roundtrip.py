@@ -211,7 +211,7 @@ def test_topic_filter_skips_chunks_without_the_topic(tmp_path: Path) -> None:
 def test_messages_built_by_the_readers_are_ordinary_frozen_messages() -> None:
     import dataclasses
 
-    from bagkit.bag.types import BagMessage, make_message
+    from bagkit.bag.messages import BagMessage, make_message
 
     fast = make_message("/t", b"\x01", 5, 4, 3)
     assert fast == BagMessage("/t", b"\x01", 5, 4, 3)

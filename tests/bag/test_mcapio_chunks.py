@@ -1,5 +1,6 @@
 """bagkit.bag.mcapio chunk writing and reading: the chunk builder and file writer read back by
-the mcap package, bounded decompression, payload spans checked against the mcap reader."""
+the mcap package, bounded decompression, the walk over a chunk's records, payload spans checked
+against the mcap reader."""
 
 from __future__ import annotations
 
@@ -11,20 +12,92 @@ import numpy as np
 import pytest
 import zstandard
 from mcap.reader import make_reader
-from mcap.records import Channel, Header, Schema
+from mcap.records import Channel, Header, Message, Schema
 
 from bagkit.bag import BagReader
-from bagkit.bag.errors import ChunkError
+from bagkit.bag.errors import ChunkError, CorruptBagError
 from bagkit.bag.mcapio.chunk_builder import ChunkBuilder
-from bagkit.bag.mcapio.chunks import decompress, payload_spans
+from bagkit.bag.mcapio.chunks import decompress, payload_spans, walk_chunk
 from bagkit.bag.mcapio.file_writer import McapFileWriter
-from bagkit.bag.mcapio.records import message_index_dtype
+from bagkit.bag.mcapio.records import (
+    MESSAGE_PREFIX,
+    RECORD_HEADER,
+    Opcode,
+    encode,
+    message_index_dtype,
+)
 
 COMPRESSORS: dict[str, Callable[[bytearray], bytes]] = {
     "zstd": zstandard.ZstdCompressor().compress,
     "lz4": lz4.frame.compress,
     "": bytes,
 }
+
+
+def _chunk_records() -> tuple[list[bytes], list[tuple[int, int, int]]]:
+    """The records of a chunk as rosbag2 writes it (Schema, Channel, then messages), one by one,
+    and for each message (channel id, log time, offset of its record)."""
+    parts = [
+        encode(Schema(id=1, name="pkg/msg/T", encoding="ros2msg", data=b"int32 x")),
+        encode(Channel(id=7, schema_id=1, topic="/t", message_encoding="cdr", metadata={})),
+    ]
+    placed = []
+    for i, (channel_id, log_time) in enumerate([(7, 30), (9, 10), (7, 20)]):
+        placed.append((channel_id, log_time, sum(len(p) for p in parts)))
+        parts.append(
+            encode(
+                Message(
+                    channel_id=channel_id,
+                    sequence=i,
+                    log_time=log_time,
+                    publish_time=log_time,
+                    data=bytes(i * 3),
+                )
+            )
+        )
+    return parts, placed
+
+
+def test_walk_chunk_finds_every_message_and_the_definitions() -> None:
+    parts, placed = _chunk_records()
+    records = b"".join(parts)
+    schemas: dict[int, Schema] = {}
+    channels: dict[int, Channel] = {}
+    walked = walk_chunk(records, schemas=schemas, channels=channels)
+    expected: dict[int, list[tuple[int, int]]] = {}
+    for channel_id, log_time, offset in placed:
+        expected.setdefault(channel_id, []).append((log_time, offset))
+    assert walked.by_channel == expected  # stored order, not time order
+    assert walked.counts() == {7: 2, 9: 1}
+    index = walked.message_index()
+    assert index[7].dtype == message_index_dtype()
+    assert index[7].tolist() == expected[7]
+    assert [s.name for s in schemas.values()] == ["pkg/msg/T"]
+    assert [(c.id, c.topic) for c in channels.values()] == [(7, "/t")]
+    assert walk_chunk(records).counts() == {7: 2, 9: 1}  # definitions not asked for
+
+
+def test_walk_chunk_checks_every_length_before_use() -> None:
+    parts, placed = _chunk_records()
+    records = b"".join(parts)
+    boundaries = {sum(len(p) for p in parts[:n]) for n in range(len(parts))}
+    for cut in range(len(records)):  # every prefix ends mid-record, or between two records
+        if cut in boundaries:
+            walked = walk_chunk(records[:cut]).counts()
+            assert sum(walked.values()) == sum(1 for *_, offset in placed if offset < cut)
+        else:
+            with pytest.raises(CorruptBagError):
+                walk_chunk(records[:cut])
+    # A Message record too short for its fixed fields, though its own length fits the buffer.
+    length = MESSAGE_PREFIX.size - 1
+    short = RECORD_HEADER.pack(Opcode.MESSAGE, length) + bytes(length)
+    with pytest.raises(CorruptBagError, match="too short"):
+        walk_chunk(short)
+    # Definitions met before the damage are kept: salvage still learns the channel.
+    channels: dict[int, Channel] = {}
+    with pytest.raises(CorruptBagError):
+        walk_chunk(records[: placed[0][2]] + short, schemas={}, channels=channels)
+    assert list(channels) == [7]
 
 
 @pytest.mark.parametrize("compression", ["zstd", "lz4", ""])

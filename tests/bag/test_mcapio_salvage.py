@@ -15,6 +15,7 @@ from mcap.stream_reader import StreamReader
 
 from bagkit.bag.errors import CorruptBagError
 from bagkit.bag.mcapio import Source, read_file_index
+from bagkit.bag.mcapio.data_section import DataSection
 from bagkit.bag.mcapio.records import Opcode
 
 RECORD = struct.Struct("<BQ")
@@ -99,3 +100,21 @@ def test_an_unindexed_last_chunk_that_fails_its_crc_is_reported(mcap_bytes: byte
     unchecked = read_file_index(Source(io.BytesIO(bytes(data)), "c.mcap"), check_crc=False)
     assert unchecked.message_count == _intact(mcap_bytes[:end])
     assert unchecked.problems == []
+
+
+def test_the_data_section_walk_stops_where_the_file_is_cut(mcap_bytes: bytes) -> None:
+    starts = _record_starts(mcap_bytes)
+    whole = DataSection(Source(io.BytesIO(mcap_bytes), "whole.mcap"))
+    walked = []
+    for offset, opcode, _ in whole:
+        walked.append((offset, opcode))
+        if opcode == Opcode.DATA_END:
+            break
+    assert walked == starts  # from the Header to the Data End, yielded too
+    assert whole.cut_at is None
+    chunk_at = next(s for s, op in starts if op == Opcode.CHUNK)
+    (length,) = struct.unpack_from("<Q", mcap_bytes, chunk_at + 1)
+    for cut, cut_length in ((chunk_at + 4, None), (chunk_at + RECORD.size + 1, length)):
+        records = DataSection(Source(io.BytesIO(mcap_bytes[:cut]), "cut.mcap"))
+        assert [offset for offset, _, _ in records] == [s for s, _ in starts if s < chunk_at]
+        assert (records.cut_at, records.cut_length) == (chunk_at, cut_length)

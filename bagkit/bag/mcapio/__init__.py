@@ -4,7 +4,10 @@
 - :mod:`~bagkit.bag.mcapio.source`: a file whose size bounds every read
 - :mod:`~bagkit.bag.mcapio.summary`: :class:`FileIndex` from the summary section
 - :mod:`~bagkit.bag.mcapio.salvage`: :func:`read_file_index` (summary, or a scan without one)
-- :mod:`~bagkit.bag.mcapio.chunks`: bounded decompression, CRC, message positions, payload spans
+- :mod:`~bagkit.bag.mcapio.data_section`: the data section's records, walked (salvage, doctor)
+- :mod:`~bagkit.bag.mcapio.chunks`: bounded decompression, CRC, the walk over a chunk's records,
+  message positions, payload spans
+- :mod:`~bagkit.bag.mcapio.message_index`: Message Index records; first/last times per channel
 - :mod:`~bagkit.bag.mcapio.chunk_builder`, :mod:`~bagkit.bag.mcapio.file_writer`: writing
 
 Spec: https://mcap.dev/spec

@@ -1,4 +1,4 @@
-"""Reading chunks: bounded decompression, CRC check, where each message is in the records.
+"""Reading chunks: bounded decompression, CRC check, the walk over a chunk's records.
 
 Decompression never produces more than the chunk declares, and a chunk may declare at most
 ``max_chunk_size`` bytes (:data:`DEFAULT_MAX_CHUNK_SIZE`), so a compression bomb costs one
@@ -6,15 +6,13 @@ error, not the machine's memory. Message positions come from the Message Index r
 numpy arrays (:func:`~bagkit.bag.mcapio.records.message_index_dtype`) instead of the ``mcap``
 package's reader, which builds a Python object per message: kept for "read 100,000 messages ...
 bagkit/mcap reader" of ``python -m benchmarks info`` (figures in benchmarks/README.md,
-"bagkit.bag.mcapio"). numpy is imported by the functions that use it: ``bagkit info`` reads
-message indexes as bytes (:func:`message_index_times`) and starts without numpy
-(benchmarks/README.md, start-up).
+"bagkit.bag.mcapio"), or, for chunks without them, from :func:`walk_chunk`. numpy is imported
+by the functions that use it: ``bagkit info`` starts without numpy (benchmarks/README.md,
+start-up).
 """
 
 from __future__ import annotations
 
-import sys
-from array import array
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -26,19 +24,22 @@ import zstandard
 from zlib_ng.zlib_ng import crc32
 
 from bagkit.bag.errors import ChunkError, CorruptBagError
+from bagkit.bag.mcapio.message_index import message_index_bytes, read_message_indexes
 from bagkit.bag.mcapio.records import (
-    MAX_SECTION_SIZE,
     MESSAGE_INDEX_ENTRY_SIZE,
     MESSAGE_PREFIX,
     MESSAGE_RECORD_HEADER,
     RECORD_HEADER,
+    Channel,
     Chunk,
     ChunkIndex,
     Opcode,
+    Schema,
     iter_records,
     message_index_dtype,
-    message_index_entries,
+    parse_channel,
     parse_chunk,
+    parse_schema,
 )
 from bagkit.bag.mcapio.source import Source
 
@@ -175,86 +176,69 @@ def read_block_records(
     return _load(source, block, check_crc, max_size)[0]
 
 
-def message_index_bytes(source: Source, chunk_index: ChunkIndex) -> dict[int, memoryview]:
-    """The entries of a chunk's Message Index records, by channel, as stored (16 bytes each).
+@dataclass(frozen=True, slots=True)
+class MessagePositions:
+    """Where the Message records of a walked chunk are (:func:`walk_chunk`).
+
+    ``by_channel[channel_id]`` holds ``(log_time, offset)`` of each of the channel's Message
+    records in stored order; ``offset`` is the record's start in the walked buffer, and the
+    whole record lies inside it.
+    """
+
+    by_channel: dict[int, list[tuple[int, int]]]
+
+    def counts(self) -> dict[int, int]:
+        """Messages per channel."""
+        return {channel_id: len(found) for channel_id, found in self.by_channel.items()}
+
+    def message_index(self) -> dict[int, np.ndarray]:
+        """The positions as ``message_index_dtype`` arrays, like Message Index records."""
+        import numpy as np
+
+        dtype = message_index_dtype()
+        return {c: np.array(found, dtype=dtype) for c, found in self.by_channel.items()}
+
+
+def walk_chunk(
+    records: bytes | memoryview,
+    *,
+    schemas: dict[int, Schema] | None = None,
+    channels: dict[int, Channel] | None = None,
+) -> MessagePositions:
+    """Walk the records of a decompressed chunk (or of a run of loose messages).
+
+    The one walker over the records inside a chunk: the reader (chunks without usable Message
+    Index records), salvage and ``bagkit doctor`` use it. Each record's length is checked
+    against ``records``, and each Message record's against its fixed fields, before it is read.
+
+    Args:
+        records: the chunk's records.
+        schemas, channels: when given, the Schema and Channel records met are parsed (bounded)
+            and added to them (the first of an id is kept); rosbag2 writes them inside chunks.
+            Those met before a damaged record are kept.
 
     Raises:
-        CorruptBagError: the records are not where the chunk index says.
+        CorruptBagError: a record runs past the end, a Message record is too short, or a
+            Schema or Channel record asked for is malformed.
     """
-    offsets = chunk_index.message_index_offsets
-    if not offsets:
-        return {}
-    first = min(offsets.values())
-    if chunk_index.message_index_length > MAX_SECTION_SIZE:
-        raise CorruptBagError(f"message indexes of {chunk_index.message_index_length} bytes")
-    block = source.read(first, chunk_index.message_index_length)
-    found: dict[int, memoryview] = {}
-    for offset, opcode, content in iter_records(block):
-        if opcode == Opcode.MESSAGE_INDEX:
-            channel_id, entries = message_index_entries(content)
-            if offsets.get(channel_id) == first + offset:
-                found[channel_id] = entries
-    if found.keys() != offsets.keys():
-        raise CorruptBagError("message indexes are not where the chunk index says")
-    return found
-
-
-def read_message_indexes(source: Source, chunk_index: ChunkIndex) -> dict[int, np.ndarray]:
-    """The Message Index records of a chunk, by channel, as ``message_index_dtype`` arrays.
-
-    Raises:
-        CorruptBagError: the records are not where the chunk index says.
-    """
-    import numpy as np
-
-    dtype = message_index_dtype()
-    return {
-        channel_id: np.frombuffer(entries, dtype=dtype)
-        for channel_id, entries in message_index_bytes(source, chunk_index).items()
-    }
-
-
-def message_index_times(
-    source: Source, chunk_index: ChunkIndex, channels: list[int]
-) -> dict[int, tuple[int, int]]:
-    """(first, last) log time of each of ``channels`` with entries in a chunk's Message Index
-    records, read without numpy (``bagkit info``'s start-up).
-
-    Raises:
-        CorruptBagError: the records are not where the chunk index says.
-    """
-    spans: dict[int, tuple[int, int]] = {}
-    for channel_id, entries in message_index_bytes(source, chunk_index).items():
-        if channel_id not in channels or not len(entries):
-            continue
-        words = array("Q")
-        words.frombytes(entries)
-        if sys.byteorder == "big":  # MCAP is little-endian
-            words.byteswap()
-        log_times = words[0::2]
-        spans[channel_id] = (min(log_times), max(log_times))
-    return spans
-
-
-def walk_message_index(records: bytes | memoryview) -> dict[int, np.ndarray]:
-    """Message positions per channel, found by walking the records (chunks without indexes).
-
-    Raises:
-        CorruptBagError: a record runs past the end, or a Message record is too short.
-    """
-    import numpy as np
-
-    found: dict[int, list[tuple[int, int]]] = {}
+    by_channel: dict[int, list[tuple[int, int]]] = {}
+    unpack = MESSAGE_PREFIX.unpack_from
     for offset, opcode, content in iter_records(records):
         if opcode == Opcode.MESSAGE:
             if len(content) < MESSAGE_PREFIX.size:
                 raise CorruptBagError(f"message record at byte {offset} is too short")
-            channel_id, _, log_time, _ = MESSAGE_PREFIX.unpack_from(content)
-            found.setdefault(channel_id, []).append((log_time, offset))
-    return {
-        channel_id: np.array(entries, dtype=message_index_dtype())
-        for channel_id, entries in found.items()
-    }
+            channel_id, _, log_time, _ = unpack(content)
+            found = by_channel.get(channel_id)
+            if found is None:
+                found = by_channel[channel_id] = []
+            found.append((log_time, offset))
+        elif opcode == Opcode.SCHEMA and schemas is not None:
+            schema = parse_schema(content)
+            schemas.setdefault(schema.id, schema)
+        elif opcode == Opcode.CHANNEL and channels is not None:
+            channel = parse_channel(content)
+            channels.setdefault(channel.id, channel)
+    return MessagePositions(by_channel)
 
 
 def read_chunk(
@@ -277,7 +261,7 @@ def read_chunk(
                 return ChunkContents(records, read_message_indexes(source, block))
             except CorruptBagError:
                 pass  # the records themselves are intact: find the messages in them
-        return ChunkContents(records, walk_message_index(records))
+        return ChunkContents(records, walk_chunk(records).message_index())
     except CorruptBagError as exc:
         raise ChunkError(str(exc)) from None
 

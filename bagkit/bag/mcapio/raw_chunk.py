@@ -13,12 +13,8 @@ from zlib_ng.zlib_ng import crc32
 
 from bagkit.bag.errors import ChunkError, CorruptBagError
 from bagkit.bag.mcapio.chunk_builder import ClosedChunk
-from bagkit.bag.mcapio.chunks import (
-    DEFAULT_MAX_CHUNK_SIZE,
-    decompress,
-    read_message_indexes,
-    walk_message_index,
-)
+from bagkit.bag.mcapio.chunks import DEFAULT_MAX_CHUNK_SIZE, decompress, walk_chunk
+from bagkit.bag.mcapio.message_index import read_message_indexes
 from bagkit.bag.mcapio.records import (
     RECORD_HEADER,
     Chunk,
@@ -109,7 +105,7 @@ def _message_indexes(
     try:
         if records is None:
             records = decompress(chunk.compression, chunk.data, chunk.uncompressed_size, max_size)
-        return walk_message_index(records)
+        return walk_chunk(records).message_index()
     except CorruptBagError as exc:
         raise ChunkError(str(exc)) from None
 

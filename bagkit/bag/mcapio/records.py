@@ -50,7 +50,6 @@ RECORD_HEADER = struct.Struct("<BQ")
 MESSAGE_PREFIX = struct.Struct("<HIQQ")
 # A whole Message record header (opcode, length, then MESSAGE_PREFIX); the payload follows.
 MESSAGE_RECORD_HEADER = struct.Struct("<BQHIQQ")
-MESSAGE_PAYLOAD_OFFSET = MESSAGE_RECORD_HEADER.size
 # One entry of a Message Index record: (log_time u64, offset u64 of the Message record in the
 # chunk); message_index_dtype() is its numpy dtype.
 MESSAGE_INDEX_ENTRY_SIZE = 16

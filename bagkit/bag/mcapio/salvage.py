@@ -11,10 +11,15 @@ in benchmarks/README.md, "bagkit.bag.mcapio").
 from __future__ import annotations
 
 from bagkit.bag.errors import CorruptBagError
-from bagkit.bag.mcapio.chunks import DEFAULT_MAX_CHUNK_SIZE, MessageRun, read_block_records
+from bagkit.bag.mcapio.chunks import (
+    DEFAULT_MAX_CHUNK_SIZE,
+    MessageRun,
+    read_block_records,
+    walk_chunk,
+)
+from bagkit.bag.mcapio.data_section import DataSection
 from bagkit.bag.mcapio.records import (
     CHUNK_PREFIX,
-    MAGIC,
     MAX_SECTION_SIZE,
     MESSAGE_INDEX_ENTRY_SIZE,
     MESSAGE_PREFIX,
@@ -23,7 +28,6 @@ from bagkit.bag.mcapio.records import (
     Cursor,
     Header,
     Opcode,
-    iter_records,
     message_index_entries,
     parse_channel,
     parse_metadata,
@@ -100,18 +104,9 @@ class _Scanner:
 
     def scan(self) -> FileIndex:
         """Walk the data section; return what it holds."""
-        pos = len(MAGIC)
-        stopped_at = None
+        records = DataSection(self.source)
         closed = False  # Data End or Footer reached: the last chunk's indexes are complete
-        size = self.source.size
-        while pos < size:
-            if pos + RECORD_HEADER.size > size:
-                stopped_at = pos
-                break
-            opcode, length = RECORD_HEADER.unpack(self.source.read(pos, RECORD_HEADER.size))
-            if length > size - pos - RECORD_HEADER.size:
-                stopped_at = pos
-                break
+        for pos, opcode, length in records:
             if opcode in (Opcode.DATA_END, Opcode.FOOTER):
                 closed = True
                 break
@@ -121,14 +116,13 @@ class _Scanner:
                 self.index.problems.append(
                     f"{self.source.name}: unreadable record at byte {pos} ({exc}), skipped"
                 )
-            pos += RECORD_HEADER.size + length
         # After a cut, the last chunk's indexes may be incomplete: count it from its records.
         self._settle(trust_indexes=closed)
         self._end_run()
-        if stopped_at is not None:
+        if records.cut_at is not None:
             self.index.problems.append(
-                f"{self.source.name}: truncated at byte {stopped_at}: "
-                f"{size - stopped_at} bytes could not be read"
+                f"{self.source.name}: truncated at byte {records.cut_at}: "
+                f"{self.source.size - records.cut_at} bytes could not be read"
             )
         self._find_channels_in_chunks()
         self._set_times()
@@ -214,20 +208,8 @@ class _Scanner:
         records = read_block_records(
             self.source, chunk_index, check_crc=self.check_crc, max_size=self.max_size
         )
-        counts: dict[int, int] = {}
-        for _, opcode, content in iter_records(records):
-            if opcode == Opcode.MESSAGE:
-                if len(content) < MESSAGE_PREFIX.size:
-                    raise CorruptBagError("message record too short")
-                channel_id = int.from_bytes(content[:2], "little")
-                counts[channel_id] = counts.get(channel_id, 0) + 1
-            elif opcode == Opcode.SCHEMA:
-                schema = parse_schema(content)
-                self.index.schemas.setdefault(schema.id, schema)
-            elif opcode == Opcode.CHANNEL:
-                channel = parse_channel(content)
-                self.index.channels.setdefault(channel.id, channel)
-        return counts
+        index = self.index
+        return walk_chunk(records, schemas=index.schemas, channels=index.channels).counts()
 
     def _find_channels_in_chunks(self) -> None:
         """Writers that put Schema/Channel records inside chunks: find the ones still missing."""

@@ -1,4 +1,4 @@
-"""The records the bag layer hands out: a topic's description and one stored message."""
+"""What the bag layer hands out: a topic's description and one stored message."""
 
 from __future__ import annotations
 

@@ -1,0 +1,134 @@
+"""The Message Index records after a chunk: as bytes, as numpy arrays, first and last times.
+
+``bagkit info`` reads them as bytes (:func:`message_index_times`, :func:`channel_spans`) and
+starts without numpy (benchmarks/README.md, start-up); numpy is imported by
+:func:`read_message_indexes` only.
+"""
+
+from __future__ import annotations
+
+import sys
+from array import array
+from collections.abc import Hashable, Iterable
+from typing import TYPE_CHECKING, TypeVar
+
+from bagkit.bag.errors import CorruptBagError
+from bagkit.bag.mcapio.records import (
+    MAX_SECTION_SIZE,
+    ChunkIndex,
+    Opcode,
+    iter_records,
+    message_index_dtype,
+    message_index_entries,
+)
+from bagkit.bag.mcapio.source import Source
+
+if TYPE_CHECKING:
+    import numpy as np
+
+Span = tuple[int, int]
+"""(first, last) log time in nanoseconds."""
+_Key = TypeVar("_Key", bound=Hashable)
+
+
+def widen(spans: dict[_Key, Span], key: _Key, first: int, last: int) -> None:
+    """Widen ``spans[key]`` to take in ``first`` and ``last`` (set it when absent)."""
+    old = spans.get(key)
+    spans[key] = (first, last) if old is None else (min(old[0], first), max(old[1], last))
+
+
+def message_index_bytes(source: Source, chunk_index: ChunkIndex) -> dict[int, memoryview]:
+    """The entries of a chunk's Message Index records, by channel, as stored (16 bytes each).
+
+    Raises:
+        CorruptBagError: the records are not where the chunk index says.
+    """
+    offsets = chunk_index.message_index_offsets
+    if not offsets:
+        return {}
+    first = min(offsets.values())
+    if chunk_index.message_index_length > MAX_SECTION_SIZE:
+        raise CorruptBagError(f"message indexes of {chunk_index.message_index_length} bytes")
+    block = source.read(first, chunk_index.message_index_length)
+    found: dict[int, memoryview] = {}
+    for offset, opcode, content in iter_records(block):
+        if opcode == Opcode.MESSAGE_INDEX:
+            channel_id, entries = message_index_entries(content)
+            if offsets.get(channel_id) == first + offset:
+                found[channel_id] = entries
+    if found.keys() != offsets.keys():
+        raise CorruptBagError("message indexes are not where the chunk index says")
+    return found
+
+
+def read_message_indexes(source: Source, chunk_index: ChunkIndex) -> dict[int, np.ndarray]:
+    """The Message Index records of a chunk, by channel, as ``message_index_dtype`` arrays.
+
+    Raises:
+        CorruptBagError: the records are not where the chunk index says.
+    """
+    import numpy as np
+
+    dtype = message_index_dtype()
+    return {
+        channel_id: np.frombuffer(entries, dtype=dtype)
+        for channel_id, entries in message_index_bytes(source, chunk_index).items()
+    }
+
+
+def message_index_times(
+    source: Source, chunk_index: ChunkIndex, channels: Iterable[int]
+) -> dict[int, Span]:
+    """(first, last) log time of each of ``channels`` with entries in a chunk's Message Index
+    records, read without numpy.
+
+    Raises:
+        CorruptBagError: the records are not where the chunk index says.
+    """
+    wanted = set(channels)
+    spans: dict[int, Span] = {}
+    for channel_id, entries in message_index_bytes(source, chunk_index).items():
+        if channel_id not in wanted or not len(entries):
+            continue
+        words = array("Q")
+        words.frombytes(entries)
+        if sys.byteorder == "big":  # MCAP is little-endian
+            words.byteswap()
+        log_times = words[0::2]
+        spans[channel_id] = (min(log_times), max(log_times))
+    return spans
+
+
+def channel_spans(source: Source, chunk_indexes: list[ChunkIndex]) -> dict[int, Span]:
+    """(first, last) log time of each channel, from the Message Index records of the chunks.
+
+    Only the chunks that can hold a channel's first or last message are read: the index of a
+    chunk starting after the earliest time found (or ending before the latest) cannot. A chunk
+    whose Message Index records are not where its index says is passed over.
+    """
+    indexed = [c for c in chunk_indexes if c.message_index_offsets]
+    found: dict[int, Span] = {}
+    by_start = sorted(indexed, key=lambda c: c.message_start_time)
+    by_end = sorted(indexed, key=lambda c: -c.message_end_time)
+    for chunks, earliest in ((by_start, True), (by_end, False)):
+        seen: set[int] = set()
+        for chunk in chunks:
+            # Chunks are visited in bound order: once a channel's time is beyond the next
+            # chunk's bound, no later chunk can hold an earlier (later) message of it.
+            wanted = [
+                c
+                for c in chunk.message_index_offsets
+                if c not in seen
+                or (chunk.message_start_time < found[c][0] if earliest else False)
+                or (chunk.message_end_time > found[c][1] if not earliest else False)
+            ]
+            if not wanted:
+                continue
+            try:
+                spans = message_index_times(source, chunk, wanted)
+            except CorruptBagError:
+                spans = {}
+            for channel, (first, last) in spans.items():
+                widen(found, channel, first, last)
+            seen.update(c for c in wanted if c in found)
+    return found

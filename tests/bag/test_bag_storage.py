@@ -1,0 +1,47 @@
+"""The storage back-ends behind bagkit.bag.storage.StorageFile, one bag of both formats."""
+
+from __future__ import annotations
+
+import shutil
+from collections.abc import Callable
+from pathlib import Path
+
+from test_bag_sqlite_hostile import write_db3
+
+from bagkit.bag import BagReader
+from bagkit.bag.mcap_file import McapFile
+from bagkit.bag.sqlite3_file import Sqlite3File
+
+
+def test_back_ends_read_nothing_before_open(tmp_path: Path) -> None:
+    missing = tmp_path / "missing"
+    for storage in (
+        McapFile(missing.with_suffix(".mcap")),
+        Sqlite3File(missing.with_suffix(".db3")),
+    ):
+        assert storage.topics == {} and storage.problems == []
+        storage.close()  # also before open()
+
+
+def test_one_bag_of_mcap_and_sqlite3_files(
+    tmp_path: Path, write_sample_bag: Callable[..., Path]
+) -> None:
+    bag_dir = tmp_path / "mixed"
+    bag_dir.mkdir()
+    (mcap,) = write_sample_bag(n_imu=250, chunk_size=4096).glob("*.mcap")
+    shutil.copy(mcap, bag_dir / "a_0.mcap")
+    write_db3(bag_dir / "b_0.db3", n=30)
+    with BagReader(bag_dir) as bag:
+        assert bag.storage == "mcap,sqlite3"
+        assert bag.has_summary
+        seen: dict[str, list[int]] = {}
+        for message in bag.messages():
+            seen.setdefault(message.topic, []).append(message.log_time)
+        assert set(seen) == {"/imu/data", "/text", "/a", "/b"}
+        # From the indexes (Message Index records, the messages table), no message read.
+        assert bag.topic_spans() == {t: (min(times), max(times)) for t, times in seen.items()}
+        chunks = list(bag.chunks())
+        assert len(chunks) > 1  # the MCAP file's; the SQLite3 file has none
+        assert {chunk.file.name for chunk in chunks} == {"a_0.mcap"}
+        assert sum(len(c.payloads("/imu/data")[0]) for c in chunks) == len(seen["/imu/data"])
+        assert bag.compression == "zstd" and bag.uncompressed_size > bag.compressed_size > 0
