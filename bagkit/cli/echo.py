@@ -68,6 +68,15 @@ Fields = Annotated[
     ),
 ]
 Format = Annotated[EchoFormat, typer.Option("--format", help="yaml or json (one per line).")]
+Where = Annotated[
+    str | None,
+    typer.Option(
+        "--where",
+        help="Only messages satisfying this condition, e.g. 'status[*].level >= 2' "
+        "(PATH OP VALUE, and/or/not; docs/cli.md).",
+        metavar="CONDITION",
+    ),
+]
 FullLength = Annotated[
     bool,
     typer.Option(
@@ -88,6 +97,7 @@ def echo(  # noqa: PLR0917 (typer maps parameters to options)
     fields: Fields = None,
     output: Format = EchoFormat.YAML,
     full_length: FullLength = False,
+    where: Where = None,
 ) -> None:
     from bagkit.bag import BagReader
     from bagkit.data.echo import echo as read_messages
@@ -106,6 +116,7 @@ def echo(  # noqa: PLR0917 (typer maps parameters to options)
             count=count,
             limit=limit,
             on_failure=warn,
+            where=where,
         )
         _write(records, output, bag_start)
     except KeyboardInterrupt:

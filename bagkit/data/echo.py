@@ -22,6 +22,7 @@ from rosbags.typesys.store import Typestore
 from bagkit.bag import BagReader
 from bagkit.data.errors import UndecodableTopicError
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
+from bagkit.selection.conditions import Condition, parse_condition
 from bagkit.selection.errors import EmptyWindowWarning
 from bagkit.selection.fields import select_fields
 from bagkit.selection.times import TimeLike
@@ -41,6 +42,7 @@ def echo(
     count: int | None = None,
     limit: int | None = None,
     on_failure: Callable[[str], None] | None = None,
+    where: str | None = None,
 ) -> Iterator[Plain]:
     """Yield the messages of ``topic`` one at a time, decoded as they are read.
 
@@ -51,11 +53,15 @@ def echo(
         limit: sequences longer than this are cut to their first ``limit`` elements followed
             by ``"... (N more)"`` (None: whole).
         on_failure: called with a message that does not decode (skipped); None raises.
+        where: only messages satisfying this field condition
+            (:mod:`bagkit.selection.conditions`, e.g. ``status[*].level >= 2``).
 
     Raises:
-        BagError, UnknownTopicError, UnknownFieldError, UndecodableTopicError, DecodeError.
+        BagError, UnknownTopicError, UnknownFieldError, UndecodableTopicError, DecodeError;
+        SelectionError for a condition that does not parse or compares text with a number.
     """
     span = TimeRange.parse(start, end)
+    condition = None if where is None else parse_condition(where)
     with BagReader(bag, allow_empty=True) as reader:
         (topic,) = require_topics([topic], reader.topics)
         info = reader.topics[topic]
@@ -67,6 +73,9 @@ def echo(
         except DecodeError as exc:
             raise UndecodableTopicError(f"{topic} cannot be decoded: {exc}") from None
         convert = _converter(types, info.type, canonical, fields, topic, limit)
+        keep = (
+            None if condition is None else _matcher(types, info.type, canonical, condition, topic)
+        )
         window = span.resolve(reader.start_ns, reader.end_ns)
         if reader.message_count:
             outside = outside_warning(str(bag), window, reader.start_ns, reader.end_ns)
@@ -77,6 +86,8 @@ def echo(
             if count is not None and done >= count:
                 return
             try:
+                if keep is not None and not keep(message.data):
+                    continue
                 data = convert(message.data)
             except DecodeError as exc:
                 if on_failure is None:
@@ -90,6 +101,19 @@ def echo(
                 "publish_time": message.publish_time,
                 "data": data,
             }
+
+
+def _matcher(
+    types: MessageTypes, type_name: str, canonical: str, condition: Condition, topic: str
+) -> Callable[[bytes], bool]:
+    """Whether a payload's message satisfies ``condition``; its fields checked first.
+
+    Raises:
+        UnknownFieldError: the condition names a field the type lacks.
+    """
+    condition.check_fields(topic, [leaf.path for leaf in leaf_fields(types.typestore, canonical)])
+    decode = types.decoder(type_name)
+    return lambda data: condition.matches(decode(data))
 
 
 def _converter(  # noqa: PLR0917 (private, called once)

@@ -162,3 +162,28 @@ def test_a_window_outside_the_bag_is_one_warning_and_an_empty_result(
     assert result.returncode == 0, result.stderr
     if command == "echo":
         assert result.stdout == ""
+
+
+def test_echo_where_keeps_the_messages_the_condition_holds_for() -> None:
+    everything = _bagkit("echo", BAG, "/alerts", "--format", "json")
+    records = [json.loads(line) for line in everything.stdout.splitlines()]
+    expected = [r["log_time"] for r in records if any(s["level"] >= 2 for s in r["data"]["status"])]
+    assert 0 < len(expected) < len(records)
+    kept = _bagkit("echo", BAG, "alerts", "--format", "json", "--where", "status[*].level >= 2")
+    assert kept.returncode == 0, kept.stderr
+    assert [json.loads(line)["log_time"] for line in kept.stdout.splitlines()] == expected
+
+
+@pytest.mark.parametrize(
+    ("condition", "error"),
+    [
+        ("status[*].lvl >= 2", "error: /alerts has no field status[*].lvl (did you mean"),
+        ("status[*].level >=", "error: bad condition 'status[*].level >=': expected a value"),
+        ("status[*].name > 2", "error: status[*].name > 2: cannot compare str with int"),
+        ("__import__('os').system('true') == 0", "error: bad condition"),
+    ],
+)
+def test_echo_where_errors_are_one_line(condition: str, error: str) -> None:
+    result = _bagkit("echo", BAG, "/alerts", "--where", condition)
+    assert result.returncode == 2 and result.stdout == ""
+    assert result.stderr.startswith(error) and result.stderr.count("\n") == 1
