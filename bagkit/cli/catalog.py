@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import sys
-from datetime import UTC
+from datetime import timezone
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -95,7 +95,7 @@ def _timestamp(text: str | None) -> pd.Timestamp | None:
         stamp = pd.NaT
     if pd.isna(stamp):  # also "nan" and "": pandas reads them as no time at all
         raise fail(f"not a date and time: {text!r} (e.g. 2026-11-23T14:00Z)")
-    return stamp.tz_localize(UTC) if stamp.tzinfo is None else stamp
+    return stamp.tz_localize(timezone.utc) if stamp.tzinfo is None else stamp
 
 
 @app.command("query", no_args_is_help=True)

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
+from bagkit import extras
 from bagkit.cli.common import (
     EXIT_INTERRUPTED,
     MultiValueCommand,
@@ -145,6 +146,7 @@ def record(  # noqa: PLR0917 (typer maps parameters to options; ros2 bag has the
     log_level: LogLevelOption = LogLevel.INFO,
     output_format: Format = ReportFormat.TABLE,
 ) -> None:
+    extras.require(extras.ROS, "bagkit record")
     from bagkit.ros.memory import keep_freed_memory
     from bagkit.ros.recorder import DEFAULT_QUEUE_BYTES, Recorder, default_output_name
 

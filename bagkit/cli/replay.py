@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Any
 import typer
 from rich.table import Table
 
+from bagkit import extras
 from bagkit.cli.common import (
     CONTEXT_SETTINGS,
     EXIT_INTERRUPTED,
@@ -134,6 +135,7 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
     storage: Storage = None,
     output_format: Format = ReportFormat.TABLE,
 ) -> None:
+    extras.require(extras.ROS, "bagkit replay")
     from bagkit.ros.player import Player
     from bagkit.ros.player_topics import parse_remaps
 

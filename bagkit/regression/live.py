@@ -20,6 +20,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import IO
 
+from bagkit import extras
 from bagkit.bag import BagReader
 from bagkit.compare import compare_bags
 from bagkit.regression.errors import LiveRunError, SpecError
@@ -165,6 +166,7 @@ def check_live(spec: FixtureSpec, workdir: Path, *, startup_timeout: float = 30.
     """
     if not spec.launch:
         raise SpecError(f"{spec.directory / SPEC_FILE}: live mode needs a launch command")
+    extras.require(extras.ROS, "live golden replay")
     workdir.mkdir(parents=True, exist_ok=True)
     candidate = workdir / "candidate"
     start_ns, end_ns = _bag_span(spec.bag)
@@ -227,6 +229,7 @@ def record_golden(
     """
     if not spec.record_launch:
         raise SpecError(f"{spec.directory / SPEC_FILE}: recording needs record_launch")
+    extras.require(extras.ROS, "bagkit golden record")
     workdir.mkdir(parents=True, exist_ok=True)
     recording = workdir / BAG_DIR
     topics = list(dict.fromkeys([*spec.inputs, *spec.outputs, *spec.record_topics]))
