@@ -86,7 +86,7 @@ def fleet_client(
     if scheduler is None and local:
         yield None
         return
-    extras.require(extras.FLEET, "--workers and --scheduler")
+    extras.require(extras.FLEET, "running on Dask (--workers, --scheduler)")
     from distributed import Client
 
     if scheduler is not None:
