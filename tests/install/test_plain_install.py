@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import subprocess
 import sys
 import zipfile
@@ -19,6 +18,7 @@ from pathlib import Path
 
 import pyarrow.parquet as pq
 import pytest
+from wheel_build import build_wheel, uv
 
 from bagkit.bag import BagReader
 
@@ -47,7 +47,13 @@ def run(args: list[str | Path], cwd: Path = REPO) -> subprocess.CompletedProcess
     # Nothing of this environment's Python setup or of a sourced ROS install leaks in.
     env = {k: v for k, v in os.environ.items() if k not in LEAKS}
     return subprocess.run(
-        [str(a) for a in args], cwd=cwd, env=env, capture_output=True, text=True, timeout=600
+        [str(a) for a in args],
+        cwd=cwd,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
     )
 
 
@@ -57,25 +63,17 @@ def counts(bag: Path) -> Counter[str]:
         return Counter(message.topic for message in reader.messages())
 
 
-def build_and_install(root: Path, python: Path) -> Path:
-    """bagkit's wheel, built into ``root`` and installed into ``python``'s venv without extras.
-
-    With uv where this environment has it (seconds), else with pip (slower); the lock as
-    constraints: the versions CI tests, from the package cache.
-    """
-    uv = shutil.which("uv", path=str(Path(sys.executable).parent))
-    if uv:
-        build = [uv, "build", "--quiet", "--wheel", "--out-dir", root, REPO]
-        install = [uv, "pip", "install", "--quiet", "--python", python]
-    else:
-        build = [sys.executable, "-m", "pip", "wheel", "--quiet", "--no-deps", "-w", root, REPO]
-        install = [python, "-m", "pip", "install", "--quiet"]
-    built = run(build)
-    assert built.returncode == 0, built.stderr
-    (wheel,) = root.glob("bagkit-*.whl")
-    installed = run([*install, wheel, "-c", LOCK])
+def install(wheel: Path, python: Path) -> None:
+    """``wheel`` into ``python``'s venv, without extras; the lock as constraints: the versions
+    CI tests, from the package cache."""
+    tool = uv()
+    command = (
+        [tool, "pip", "install", "--quiet", "--python", python]
+        if tool
+        else [python, "-m", "pip", "install", "--quiet"]
+    )
+    installed = run([*command, wheel, "-c", LOCK])
     assert installed.returncode == 0, installed.stderr
-    return wheel
 
 
 @pytest.fixture(scope="module")
@@ -85,7 +83,9 @@ def plain(tmp_path_factory: pytest.TempPathFactory) -> PlainInstall:
     venv = root / "venv"
     assert run([sys.executable, "-m", "venv", venv]).returncode == 0
     python = venv / "bin" / "python"
-    return PlainInstall(build_and_install(root, python), python)
+    wheel = build_wheel(REPO, ["pyproject.toml", "setup.py", "README.md", "bagkit"], root)
+    install(wheel, python)
+    return PlainInstall(wheel, python)
 
 
 def test_the_wheel_holds_bagkit_alone(plain: PlainInstall) -> None:
