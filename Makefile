@@ -75,10 +75,13 @@ test-py: $(XVENV)/.installed
 	$(XVENV)/bin/python -m pytest -q -p no:cacheprovider -m "not ros" -n 2
 	$(XVENV)/bin/python -m pytest -q -p no:cacheprovider tests/install/test_dds_smoke.py
 
-# Re-resolve requirements/lock.txt: the newest versions pyproject.toml allows, for 3.10 - 3.13.
+# Re-resolve requirements/lock.txt for 3.10 - 3.13 after pyproject.toml changed; the versions
+# already locked are kept where still allowed. The newest of everything: make lock UPGRADE=-U;
+# of one package: make lock UPGRADE="-P pandas".
+UPGRADE ?=
 lock: $(STAMP)
 	$(VENV)/bin/uv pip compile --quiet pyproject.toml --extra all --extra dev --universal \
-		--python-version 3.10 -o $(LOCK)
+		--python-version 3.10 $(UPGRADE) -o $(LOCK)
 
 clean:
 	rm -rf $(VENV) .venv-* .pytest_cache .mypy_cache .ruff_cache
