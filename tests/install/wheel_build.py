@@ -28,7 +28,17 @@ def build_wheel(project: Path, members: Sequence[str], out: Path) -> Path:
             shutil.copy2(project / name, source / name)
     tool = uv()
     command = (
-        [tool, "build", "--quiet", "--wheel", "--out-dir", str(out), str(source)]
+        [
+            tool,
+            "build",
+            "--quiet",
+            "--wheel",
+            "--python",
+            sys.executable,
+            "-o",
+            str(out),
+            str(source),
+        ]
         if tool
         else [
             sys.executable,
