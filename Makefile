@@ -1,18 +1,28 @@
-# Everything the project needs is installed here, into .venv, on first use.
+# Everything the project needs is installed here, into .venv, on first use: the exact versions
+# of requirements/lock.txt (docs/install.md says how to refresh it), then bagkit and fusion
+# editable, without dependencies.
 PYTHON ?= python3.11
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
+LOCK := requirements/lock.txt
+SOURCES := pyproject.toml fusion/pyproject.toml setup.py bagkit/ros/record/_take.c $(LOCK)
 # Every ROS process started from here stays on this machine, on a domain of its own.
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 export RMW_IMPLEMENTATION := rmw_fastrtps_cpp
 
-.PHONY: demo test test-fast lint format bench golden clean
+.PHONY: demo test test-fast test-py lint format bench golden lock clean
 
-$(STAMP): pyproject.toml setup.py bagkit/ros/record/_take.c
+# uv (pinned in the lock) installs the lock: pip would take minutes longer.
+define install_locked
+	$(1)/bin/python -m pip install --quiet "$$(grep -m1 '^uv==' $(LOCK))"
+	$(1)/bin/uv pip install --quiet --python $(1)/bin/python -r $(LOCK)
+	$(1)/bin/uv pip install --quiet --python $(1)/bin/python --no-deps -e . -e ./fusion
+endef
+
+$(STAMP): $(SOURCES)
 	$(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[dev]'
+	$(call install_locked,$(VENV))
 	touch $(STAMP)
 
 demo: $(STAMP)
@@ -41,5 +51,37 @@ bench: $(STAMP)
 golden: $(STAMP)
 	ROS_DOMAIN_ID=$${ROS_DOMAIN_ID:-78} $(VENV)/bin/bagkit golden record
 
+# Another Python (3.10 - 3.13, from pyenv unless XPYTHON names it) in .venv-PYV, .venv stays:
+# the offline suite on two workers, then record -> replay -> echo over DDS.
+#   make test-py PYV=3.12                          the lock's versions
+#   make test-py PYV=3.10 RESOLUTION=lowest-direct  the oldest versions pyproject.toml allows
+PYV ?= 3.12
+RESOLUTION ?= locked
+XVENV := .venv-$(PYV)$(if $(filter locked,$(RESOLUTION)),,-$(RESOLUTION))
+XPYTHON ?= $(shell pyenv prefix $$(pyenv versions --bare | grep -m1 '^$(PYV)\.'))/bin/python$(PYV)
+
+$(XVENV)/.installed: $(SOURCES)
+	$(XPYTHON) -m venv --clear $(XVENV)
+ifeq ($(RESOLUTION),locked)
+	$(call install_locked,$(XVENV))
+else
+	$(XVENV)/bin/python -m pip install --quiet "$$(grep -m1 '^uv==' $(LOCK))"
+	$(XVENV)/bin/uv pip install --quiet --python $(XVENV)/bin/python \
+		--resolution $(RESOLUTION) -e '.[all,dev]' -e ./fusion
+endif
+	touch $@
+
+test-py: $(XVENV)/.installed
+	$(XVENV)/bin/python -m pytest -q -p no:cacheprovider -m "not ros" -n 2
+	$(XVENV)/bin/python -m pytest -q -p no:cacheprovider tests/install/test_dds_smoke.py
+
+# Re-resolve requirements/lock.txt for 3.10 - 3.13 after pyproject.toml changed; the versions
+# already locked are kept where still allowed. The newest of everything: make lock UPGRADE=-U;
+# of one package: make lock UPGRADE="-P pandas".
+UPGRADE ?=
+lock: $(STAMP)
+	$(VENV)/bin/uv pip compile --quiet pyproject.toml --extra all --extra dev --universal \
+		--python-version 3.10 $(UPGRADE) -o $(LOCK)
+
 clean:
-	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) .venv-* .pytest_cache .mypy_cache .ruff_cache

@@ -7,15 +7,15 @@ seconds since the sensor publisher started, for example
 
 from __future__ import annotations
 
-import enum
 import math
 import re
 from dataclasses import dataclass
 
+from bagkit.compat import StrEnum
 from fusion.errors import FaultScheduleError
 
 
-class FaultKind(enum.StrEnum):
+class FaultKind(StrEnum):
     """What goes wrong."""
 
     TEMPERATURE_SPIKE = "temperature_spike"  # adds MAGNITUDE degrees C

@@ -7,7 +7,6 @@ interrupted, 141 the reader of our output went away (broken pipe; quiet, as ``ye
 
 from __future__ import annotations
 
-import enum
 import errno
 import functools
 import os
@@ -25,6 +24,7 @@ from typer._click import Command
 from typer._click.exceptions import NoArgsIsHelpError, UsageError
 from typer.core import TyperCommand
 
+from bagkit.compat import StrEnum
 from bagkit.errors import BagkitError
 
 if TYPE_CHECKING:
@@ -75,7 +75,7 @@ MAX_LINE = 1000  # characters of an error or warning message
 _PACKAGE_DIR = Path(__file__).resolve().parents[1]
 
 
-class OutputFormat(enum.StrEnum):
+class OutputFormat(StrEnum):
     """Output format of an inspection command."""
 
     TABLE = "table"
@@ -94,7 +94,7 @@ def _one_line(message: str) -> str:
     return escape(line)
 
 
-class ReportFormat(enum.StrEnum):
+class ReportFormat(StrEnum):
     """Output format of a command whose output is a report, not rows: no csv."""
 
     TABLE = "table"

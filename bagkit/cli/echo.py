@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import enum
 import os
 import sys
 from collections.abc import Iterable
@@ -14,6 +13,7 @@ import typer
 
 from bagkit.cli.common import EXIT_INTERRUPTED, handle_errors, split_list, warn
 from bagkit.cli.selection_options import End, Start
+from bagkit.compat import StrEnum
 
 if TYPE_CHECKING:
     from bagkit.data.echo import Plain
@@ -38,7 +38,7 @@ Examples:
 DEFAULT_TRUNCATE_LENGTH = 128
 
 
-class EchoFormat(enum.StrEnum):
+class EchoFormat(StrEnum):
     """Output formats of ``echo``."""
 
     YAML = "yaml"

@@ -90,7 +90,7 @@ def _size(n: int) -> str:
 
 
 def _time(ns: int) -> str:
-    stamp = datetime.datetime.fromtimestamp(ns // 1_000_000_000, tz=datetime.UTC)
+    stamp = datetime.datetime.fromtimestamp(ns // 1_000_000_000, tz=datetime.timezone.utc)
     seconds, fraction = divmod(ns, 1_000_000_000)
     return f"{stamp:%b %d %Y %H:%M:%S}.{fraction:09d} UTC ({seconds}.{fraction:09d})"
 

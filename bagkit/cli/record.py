@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 
 import typer
 
+from bagkit import extras
 from bagkit.cli.common import (
     EXIT_INTERRUPTED,
     MultiValueCommand,
@@ -148,6 +149,7 @@ def record(  # noqa: PLR0917 (typer maps parameters to options; ros2 bag has the
     log_level: LogLevelOption = LogLevel.INFO,
     output_format: Format = ReportFormat.TABLE,
 ) -> None:
+    extras.require(extras.ROS, "bagkit record")
     from bagkit.ros.record.recorder import Recorder
 
     if storage != "mcap":

@@ -6,16 +6,16 @@ the command itself reads as what it does.
 
 from __future__ import annotations
 
-import enum
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
 from bagkit.cli.common import ReportFormat
+from bagkit.compat import StrEnum
 
 
-class CompressionMode(enum.StrEnum):
+class CompressionMode(StrEnum):
     """``ros2 bag record --compression-mode``: bagkit compresses MCAP chunks in either mode."""
 
     NONE = "none"
@@ -23,14 +23,14 @@ class CompressionMode(enum.StrEnum):
     MESSAGE = "message"
 
 
-class CompressionFormat(enum.StrEnum):
+class CompressionFormat(StrEnum):
     """``--compression-format``: the MCAP chunk compression."""
 
     ZSTD = "zstd"
     LZ4 = "lz4"
 
 
-class LogLevel(enum.StrEnum):
+class LogLevel(StrEnum):
     """``--log-level``: warnings are printed at ``warn`` and below, progress at ``info``."""
 
     DEBUG = "debug"

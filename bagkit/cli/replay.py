@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
+from bagkit import extras
 from bagkit.cli.common import (
     CONTEXT_SETTINGS,
     EXIT_INTERRUPTED,
@@ -135,6 +136,7 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
     storage: Storage = None,
     output_format: Format = ReportFormat.TABLE,
 ) -> None:
+    extras.require(extras.ROS, "bagkit replay")
     from bagkit.ros.replay.player import Player
     from bagkit.ros.replay.topics import parse_remaps
 

@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-import enum
+from bagkit.compat import StrEnum
 
 
-class ExportFormat(enum.StrEnum):
+class ExportFormat(StrEnum):
     """File formats of an export."""
 
     PARQUET = "parquet"

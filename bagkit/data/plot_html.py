@@ -6,6 +6,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
+from bagkit import extras
 from bagkit.data.series import Series, axis_label, decimate
 
 # Points per series in the page (SVG stays responsive at this size; spikes are kept).
@@ -14,7 +15,12 @@ PANEL_HEIGHT_PX = 260
 
 
 def write_html(series: Sequence[Series], path: Path, *, title: str, absolute: bool = False) -> None:
-    """Write the page for ``series`` to ``path``."""
+    """Write the page for ``series`` to ``path``.
+
+    Raises:
+        MissingExtraError: plotly (the plot extra) is not installed.
+    """
+    extras.require(extras.PLOT, "an HTML plot")
     import plotly.graph_objects as go
     from plotly.subplots import make_subplots
 

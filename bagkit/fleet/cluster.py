@@ -15,6 +15,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import TYPE_CHECKING
 
+from bagkit import extras
 from bagkit.fleet.errors import FleetError, SchedulerError
 
 if TYPE_CHECKING:
@@ -79,9 +80,13 @@ def fleet_client(
         SchedulerError: ``scheduler`` cannot be reached.
         FleetError: more local workers than MAX_WORKERS_PER_CORE per core.
     """
-    if scheduler is None and (workers == 0 or (workers is None and bags <= 1)):
-        yield None  # in this process, without importing distributed (slow to import)
+    # In this process, without importing distributed (slow to import); also by default where
+    # the fleet extra is not installed.
+    local = workers == 0 or (workers is None and (bags <= 1 or not extras.installed(extras.FLEET)))
+    if scheduler is None and local:
+        yield None
         return
+    extras.require(extras.FLEET, "running on Dask (--workers, --scheduler)")
     from distributed import Client
 
     if scheduler is not None:

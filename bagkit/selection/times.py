@@ -36,7 +36,12 @@ _NUMBER = r"\d+(?:\.\d*)?|\.\d+"
 _DURATION = re.compile(
     rf"(?:({_NUMBER})h)?(?:({_NUMBER})m(?!s))?(?:({_NUMBER})s)?(?:({_NUMBER})ms)?"
 )
-_EPOCH = dt.datetime(1970, 1, 1, tzinfo=dt.UTC)
+_EPOCH = dt.datetime(1970, 1, 1, tzinfo=dt.timezone.utc)
+# An ISO 8601 date-time: the part fromisoformat reads, a fraction of a second, a zone.
+_ISO_FRACTION = re.compile(
+    r"(\d{4}-\d\d-\d\d)(?:[T ](\d\d(?::\d\d(?::\d\d)?)?))?(?:\.(\d{1,9}))?"
+    r"(Z|z|[+-]\d\d:?\d\d)?"
+)
 _GRAMMAR = "seconds (10, -5, 1m30s), epoch seconds, ISO 8601 or NNNns"
 
 TimeLike = float | int | str | dt.datetime | Any
@@ -125,11 +130,28 @@ def _parse_text(text: str, option: str) -> TimePoint:
     ns = _unsigned_ns(text[1:] if negative else text)
     if ns is not None:
         return _from_ns(-ns if negative else ns, text, option)
+    return TimePoint(Anchor.EPOCH, _iso_ns(text, option))
+
+
+def _iso_ns(text: str, option: str) -> int:
+    """ISO 8601 in ns since 1970, the fraction kept to the nanosecond (naive: UTC).
+
+    The fraction and ``Z`` are read here: Python 3.10's ``fromisoformat`` takes neither a
+    ``Z`` nor fractions of other than 3 or 6 digits, and no version keeps nanoseconds.
+    """
+    match = _ISO_FRACTION.fullmatch(text)
+    if match is None:
+        raise _bad(text, option)
+    date, clock, fraction, zone = match.groups()
+    if zone in (None, "Z", "z"):
+        zone = "+00:00"
+    elif ":" not in zone:
+        zone = f"{zone[:3]}:{zone[3:]}"
     try:
-        stamp = dt.datetime.fromisoformat(text.replace("Z", "+00:00"))
+        stamp = dt.datetime.fromisoformat(f"{date}T{clock or '00:00'}{zone}")
     except ValueError:
         raise _bad(text, option) from None
-    return TimePoint(Anchor.EPOCH, _object_ns(stamp, option))
+    return _object_ns(stamp, option) + (_decimal_ns(f"0.{fraction}", NS_PER_S) if fraction else 0)
 
 
 def _unsigned_ns(text: str) -> int | None:
@@ -181,7 +203,7 @@ def _object_ns(value: Any, option: str) -> int:
         ns = int(value.astype("datetime64[ns]").astype("int64"))
     elif isinstance(value, dt.datetime):
         if value.tzinfo is None:
-            value = value.replace(tzinfo=dt.UTC)
+            value = value.replace(tzinfo=dt.timezone.utc)
         delta = value - _EPOCH
         ns = (delta.days * 86_400 + delta.seconds) * NS_PER_S + delta.microseconds * 1000
     else:

@@ -38,7 +38,7 @@ def span() -> tuple[int, int]:
 
 
 def _iso(ns: int) -> str:
-    stamp = dt.datetime.fromtimestamp(ns // S, tz=dt.UTC)
+    stamp = dt.datetime.fromtimestamp(ns // S, tz=dt.timezone.utc)
     return stamp.strftime("%Y-%m-%dT%H:%M:%S") + f".{ns % S:09d}Z"
 
 

@@ -72,6 +72,10 @@ def test_parquet_per_topic_reads_back_equal(sample_bag: Path, tmp_path: Path) ->
         _assert_equal(pd.read_parquet(path), _frame(sample_bag, topic))
 
 
+# pandas 2's default CSV float parser can be an ulp off; pandas 3's is exact (and deprecates this).
+ROUND_TRIP = {"float_precision": "round_trip"} if int(pd.__version__.split(".")[0]) < 3 else {}
+
+
 def test_csv_reads_back_equal_with_sequences_as_json(sample_bag: Path, tmp_path: Path) -> None:
     result = _run(sample_bag, "-o", tmp_path / "csv", "--format", "csv")
     assert result.returncode == 0, result.stderr
@@ -83,10 +87,11 @@ def test_csv_reads_back_equal_with_sequences_as_json(sample_bag: Path, tmp_path:
             topic_path(tmp_path / "csv", topic, ".csv"),
             dtype={**dtypes, **dict.fromkeys(texts, str)},
             keep_default_na=False,  # an empty string stays one
+            **ROUND_TRIP,
             na_values={c: ["nan"] for c, t in dtypes.items() if t.kind == "f"},
         )
         for column in texts:
-            if expected[column].dtype == object:  # a list column: JSON text
+            if any(isinstance(v, np.ndarray) for v in expected[column]):  # a list: JSON text
                 read[column] = [np.array(json.loads(v)) for v in read[column]]
         read = read.astype({c: expected[c].dtype for c in texts if str(expected[c].dtype) == "str"})
         _assert_equal(read, expected)

@@ -54,7 +54,7 @@ def test_epoch_seconds_from_the_threshold_on() -> None:
 
 
 def test_iso_8601_and_time_objects_are_absolute_and_naive_is_utc() -> None:
-    aware = dt.datetime(2025, 11, 22, 22, 20, 0, 250000, tzinfo=dt.UTC)
+    aware = dt.datetime(2025, 11, 22, 22, 20, 0, 250000, tzinfo=dt.timezone.utc)
     expected = int(aware.timestamp() * 1e6) * 1000
     for value in (
         "2025-11-22T22:20:00.25Z",
@@ -90,3 +90,11 @@ def test_durations(text: str, seconds: float) -> None:
 def test_bad_durations(text: str) -> None:
     with pytest.raises(SelectionError, match=r"^bad --post"):
         parse_duration(text, "--post")
+
+
+def test_iso_8601_keeps_nanoseconds_and_reads_what_python_3_10_does_not() -> None:
+    base = parse_time("2025-11-22T22:20:00Z").ns
+    assert parse_time("2025-11-22T22:20:00.123456789Z").ns == base + 123_456_789
+    assert parse_time("2025-11-22T23:20:00.5+0100").ns == base + 500_000_000
+    assert parse_time("2025-11-22 22:20").ns == base
+    assert parse_time(format_ns(base + 7)).ns == base + 7
