@@ -11,7 +11,6 @@ from typing import TYPE_CHECKING
 
 import typer
 
-from bagkit import extras
 from bagkit.cli.common import (
     EXIT_INTERRUPTED,
     MultiValueCommand,
@@ -55,6 +54,7 @@ from bagkit.cli.record_options import (
 )
 from bagkit.cli.record_table import print_record_table, progress_line
 from bagkit.cli.selection_options import duration_seconds
+from bagkit.extras import ROS, require
 from bagkit.recording.options import DEFAULT_QUEUE_BYTES, RecordOptions
 from bagkit.recording.report import RecordProgress, RecordReport
 
@@ -149,7 +149,7 @@ def record(  # noqa: PLR0917 (typer maps parameters to options; ros2 bag has the
     log_level: LogLevelOption = LogLevel.INFO,
     output_format: Format = ReportFormat.TABLE,
 ) -> None:
-    extras.require(extras.ROS, "bagkit record")
+    require(ROS, "bagkit record")
     from bagkit.ros.record.recorder import Recorder
 
     if storage != "mcap":

@@ -9,7 +9,6 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from bagkit import extras
 from bagkit.cli.common import (
     CONTEXT_SETTINGS,
     EXIT_INTERRUPTED,
@@ -52,6 +51,7 @@ from bagkit.cli.replay_options import (
 from bagkit.cli.selection_options import duration_seconds
 from bagkit.cli.tables import Column, Table, print_table
 from bagkit.errors import BagkitError
+from bagkit.extras import ROS, require
 from bagkit.playback.options import PlayOptions
 from bagkit.playback.timing import DEFAULT_CLOCK_HZ, DEFAULT_DISCOVERY_TIME_S, LATE_THRESHOLD_NS
 from bagkit.selection.times import seconds_to_ns
@@ -136,7 +136,7 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
     storage: Storage = None,
     output_format: Format = ReportFormat.TABLE,
 ) -> None:
-    extras.require(extras.ROS, "bagkit replay")
+    require(ROS, "bagkit replay")
     from bagkit.ros.replay.player import Player
     from bagkit.ros.replay.topics import parse_remaps
 

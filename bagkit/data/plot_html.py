@@ -6,8 +6,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-from bagkit import extras
 from bagkit.data.series import Series, axis_label, decimate
+from bagkit.extras import PLOT, require
 
 # Points per series in the page (SVG stays responsive at this size; spikes are kept).
 POINTS = 20000
@@ -20,7 +20,7 @@ def write_html(series: Sequence[Series], path: Path, *, title: str, absolute: bo
     Raises:
         MissingExtraError: plotly (the plot extra) is not installed.
     """
-    extras.require(extras.PLOT, "an HTML plot")
+    require(PLOT, "an HTML plot")
     import plotly.graph_objects as go
     from plotly.subplots import make_subplots
 

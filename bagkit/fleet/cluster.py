@@ -15,7 +15,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import TYPE_CHECKING
 
-from bagkit import extras
+from bagkit.extras import FLEET, installed, require
 from bagkit.fleet.errors import FleetError, SchedulerError
 
 if TYPE_CHECKING:
@@ -82,11 +82,11 @@ def fleet_client(
     """
     # In this process, without importing distributed (slow to import); also by default where
     # the fleet extra is not installed.
-    local = workers == 0 or (workers is None and (bags <= 1 or not extras.installed(extras.FLEET)))
+    local = workers == 0 or (workers is None and (bags <= 1 or not installed(FLEET)))
     if scheduler is None and local:
         yield None
         return
-    extras.require(extras.FLEET, "running on Dask (--workers, --scheduler)")
+    require(FLEET, "running on Dask (--workers, --scheduler)")
     from distributed import Client
 
     if scheduler is not None:

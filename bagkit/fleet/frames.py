@@ -10,7 +10,7 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from bagkit import extras
+from bagkit.extras import FLEET, require
 from bagkit.fleet.inputs import expand_bags
 
 if TYPE_CHECKING:
@@ -45,7 +45,7 @@ def dataframe(
         BagError and the errors of ``read_dataframe``: the first bag cannot be read.
         MissingExtraError: Dask (the fleet extra) is not installed.
     """
-    extras.require(extras.FLEET, "bagkit.fleet.dataframe")
+    require(FLEET, "bagkit.fleet.dataframe")
     import dask.dataframe as dd
 
     paths = [str(bag) for bag in expand_bags(bags)]

@@ -19,10 +19,10 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from bagkit import extras
 from bagkit.bag import BagReader
 from bagkit.compare import compare_bags
 from bagkit.errors import BagkitError
+from bagkit.extras import ROS, require
 from bagkit.playback.options import PlayOptions
 from bagkit.processes import Command, ProcessError, StopPolicy, Supervisor
 from bagkit.recording.options import RecordOptions
@@ -171,7 +171,7 @@ def check_live(spec: FixtureSpec, workdir: Path, *, startup_timeout: float = 30.
     """
     if not spec.launch:
         raise SpecError(f"{spec.directory / SPEC_FILE}: live mode needs a launch command")
-    extras.require(extras.ROS, "live golden replay")
+    require(ROS, "live golden replay")
     workdir.mkdir(parents=True, exist_ok=True)
     candidate = workdir / "candidate"
     start_ns, _ = _bag_span(spec.bag)
@@ -210,7 +210,7 @@ def record_golden(
     """
     if not spec.record_launch:
         raise SpecError(f"{spec.directory / SPEC_FILE}: recording needs record_launch")
-    extras.require(extras.ROS, "bagkit golden record")
+    require(ROS, "bagkit golden record")
     workdir.mkdir(parents=True, exist_ok=True)
     recording = workdir / BAG_DIR
     topics = tuple(dict.fromkeys([*spec.inputs, *spec.outputs, *spec.record_topics]))

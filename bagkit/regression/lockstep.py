@@ -20,11 +20,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from bagkit import extras
 from bagkit.bag import BagMessage, BagReader, BagWriter, TopicInfo, message_definition
 from bagkit.decode import MessageTypes
 from bagkit.decode.cdr import has_wide_strings
 from bagkit.decode.layout import CdrLayout, PaddingZeroer
+from bagkit.extras import ROS, require
 from bagkit.regression.errors import RegressionError
 from bagkit.regression.processor import Processor
 
@@ -186,7 +186,7 @@ def run_lockstep(
         RegressionError: an input topic is missing or its type is not installed.
         MissingExtraError: rclpy, whose serialization makes the message objects, is not there.
     """
-    extras.require(extras.ROS, "lockstep golden replay (ROS message objects)")
+    require(ROS, "lockstep golden replay (ROS message objects)")
     started = time.perf_counter()
     subscribed = {t for p in processors for t in p.input_topics}
     wanted = list(input_topics) if input_topics is not None else sorted(subscribed)

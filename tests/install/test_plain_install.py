@@ -94,7 +94,7 @@ def test_the_wheel_holds_bagkit_alone(plain: PlainInstall) -> None:
         entry_points = next(n for n in names if n.endswith(".dist-info/entry_points.txt"))
         scripts = wheel.read(entry_points).decode()
     assert {n.split("/")[0] for n in names} == {"bagkit", entry_points.split("/")[0]}
-    assert any(n.startswith("bagkit/ros/_take.") and n.endswith(".so") for n in names)
+    assert any(n.startswith("bagkit/ros/record/_take.") and n.endswith(".so") for n in names)
     assert "bagkit/py.typed" in names
     assert "bagkit = bagkit.cli.launch:run" in scripts
     assert "bagkit = bagkit.pytest_plugin" in scripts  # the pytest plugin
