@@ -74,8 +74,10 @@ else
 endif
 	touch $@
 
+# PYTESTS: which tests (default: the whole offline suite).
+PYTESTS ?= tests
 test-py: $(XVENV)/.installed
-	$(XVENV)/bin/python -m pytest -q -p no:cacheprovider -m "not ros" -n 2
+	$(XVENV)/bin/python -m pytest -q -p no:cacheprovider -m "not ros" -n 2 $(PYTESTS)
 	$(XVENV)/bin/python -m pytest -q -p no:cacheprovider tests/install/test_dds_smoke.py
 
 # Re-resolve requirements/lock.txt for 3.10 - 3.13 after pyproject.toml changed; the versions
