@@ -139,6 +139,8 @@ def test_streams_and_ends_quietly_on_a_closed_pipe_and_ctrl_c(sample_bag: Path) 
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         start_new_session=True,
+        # As from a shell: a test runner's worker may ignore SIGINT, and children inherit that.
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.default_int_handler),  # noqa: PLW1509
     )
     assert proc.stdout is not None and proc.stderr is not None
     assert proc.stdout.readline().startswith(b"# /image at 0.0")

@@ -57,6 +57,8 @@ def test_ctrl_c_stops_the_local_cluster(fleet_bags: list[Path], tmp_path: Path) 
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,
+        # As from a shell: a test runner's worker may ignore SIGINT, and children inherit that.
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.default_int_handler),  # noqa: PLW1509
     )
     try:
         assert proc.stderr is not None
