@@ -197,8 +197,10 @@ def test_record_keeps_every_report_and_the_service_events(recording: Recording) 
     assert len(recording.published) == REPORTS
     # The whole type name, however the table lays it out.
     assert REPORT_TYPE in recording.report
-    assert re.search(rf"{REPORT_TOPIC}\s+{REPORTS} messages, 0 lost", recording.report)
-    assert re.search(rf"{EVENTS_TOPIC}\s+4 messages, 0 lost", recording.report)
+    # At 80 columns the long type names make the table one record per row (cli/tables.py).
+    for topic, count in ((REPORT_TOPIC, REPORTS), (EVENTS_TOPIC, 4)):
+        record = rf"{topic}\n(?: +\S.*\n)*? +messages {count}, lost 0\b"
+        assert re.search(record, recording.report), recording.report
 
 
 @pytest.mark.ros
