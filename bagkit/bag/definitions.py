@@ -35,7 +35,8 @@ INTEGER_TYPES = frozenset(
     }
 )
 """The ROS 2 primitive types that hold integers (bool, byte and char included)."""
-_PRIMITIVES = INTEGER_TYPES | {"float32", "float64", "string", "wstring"}
+PRIMITIVES = INTEGER_TYPES | {"float32", "float64", "string", "wstring"}
+"""Every ROS 2 primitive type name."""
 # The type token of a field or constant line: strip bounds and array suffixes.
 _TYPE_TOKEN = re.compile(r"^([A-Za-z_][A-Za-z0-9_/]*)")
 
@@ -107,7 +108,7 @@ def _dependencies(package: str, text: str) -> list[str]:
         if match is None:
             continue
         token = match.group(1)
-        if token in _PRIMITIVES:
+        if token in PRIMITIVES:
             continue
         if token == "Header":
             dependency = "std_msgs/msg/Header"

@@ -25,10 +25,10 @@ from rosbags.typesys.store import Typestore
 # (object, position after it, wide strings read) from (payload after the header, position).
 ObjectReader = Callable[[Any, int], tuple[object, int, int]]
 
-# struct codes as rosbags reads them (``byte`` signed, ``char`` unsigned).
-_CODES = {
+# struct code of each primitive, one place for both decoders (direct reads ``byte`` as uint8).
+STRUCT_CODES: dict[str, str] = {
     "bool": "?",
-    "byte": "b",
+    "byte": "B",
     "char": "B",
     "int8": "b",
     "uint8": "B",
@@ -41,6 +41,8 @@ _CODES = {
     "float32": "f",
     "float64": "d",
 }
+# As rosbags reads them: ``byte`` signed, so the objects built here equal rosbags' own.
+_CODES = {**STRUCT_CODES, "byte": "b"}
 # numpy types as rosbags makes them (numpy.byte is int8).
 _NUMPY = {"bool": "?", "byte": "i1", "char": "u1", "int8": "i1", "uint8": "u1"} | {
     f"{kind}{bits}": f"{code}{bits // 8}"

@@ -23,28 +23,12 @@ import numpy as np
 from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
 
-from bagkit.decode.cdr import WIDE_UNIT, wide_string
+from bagkit.decode.cdr import STRUCT_CODES, WIDE_UNIT, wide_string
 from bagkit.decode.errors import DecodeError
 from bagkit.decode.flatten import FlatValue
 from bagkit.decode.layout import PRIMITIVE_FORMATS, U32
 from bagkit.decode.typegraph import check_registered
 
-# struct code of each primitive; sizes and numpy dtypes come from the bulk layouts' table.
-_CODES: dict[str, str] = {
-    "bool": "?",
-    "byte": "B",
-    "char": "B",
-    "int8": "b",
-    "uint8": "B",
-    "int16": "h",
-    "uint16": "H",
-    "int32": "i",
-    "uint32": "I",
-    "int64": "q",
-    "uint64": "Q",
-    "float32": "f",
-    "float64": "d",
-}
 _DTYPES = {name: np.dtype(fmt) for name, fmt in PRIMITIVE_FORMATS.items()}
 
 
@@ -134,7 +118,7 @@ class _Codegen:
         kind, rest = desc
         if kind == Nodetype.BASE:
             base = rest[0]
-            if base in _CODES:
+            if base in STRUCT_CODES:
                 self._run.append((path, base, None))
                 return
             self.flush(depth, pooled)
@@ -146,7 +130,7 @@ class _Codegen:
         sub, length = rest
         element = sub[1][0] if sub[0] == Nodetype.BASE else None
         if kind == Nodetype.ARRAY:
-            if element in _CODES:
+            if element in STRUCT_CODES:
                 self._run.append((path, element, length))
                 return
             for i in range(length):
@@ -166,7 +150,7 @@ class _Codegen:
         for start in range(8):
             fmt, pos = "<", start
             for _path, base, count in run:
-                code, size = _CODES[base], _DTYPES[base].itemsize
+                code, size = STRUCT_CODES[base], _DTYPES[base].itemsize
                 if count == 0:
                     continue
                 pad = -pos % size
@@ -252,7 +236,7 @@ class _Codegen:
 
     def sequence(self, sub: Any, element: str | None, path: str, depth: int, pooled: bool) -> None:
         count = self.length(depth)
-        if element in _CODES:
+        if element in STRUCT_CODES:
             self.primitive_sequence(path, element, count, depth, pooled)
             return
         item = self.name("i")

@@ -19,27 +19,9 @@ from typing import Any
 from rosbags.interfaces import Nodetype
 from rosbags.typesys.base import normalize_fieldname
 
+from bagkit.bag.definitions import PRIMITIVES
 from bagkit.decode.errors import DefinitionError
 
-PRIMITIVES = frozenset(
-    {
-        "bool",
-        "byte",
-        "char",
-        "int8",
-        "uint8",
-        "int16",
-        "uint16",
-        "int32",
-        "uint32",
-        "int64",
-        "uint64",
-        "float32",
-        "float64",
-        "string",
-        "wstring",
-    }
-)
 STRINGS = frozenset({"string", "wstring"})
 # rosidl gives a message without fields this one member (CDR has no empty struct).
 EMPTY_STRUCT_MEMBER = ("structure_needs_at_least_one_member", (Nodetype.BASE, ("uint8", 0)))
