@@ -22,7 +22,7 @@ import operator
 import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NoReturn
 
 from bagkit.selection.errors import SelectionError, UnknownFieldError
 from bagkit.selection.fields import unknown_field_message
@@ -207,7 +207,7 @@ class _Parser:
             at = match.end()
         return tokens
 
-    def _fail(self, expected: str) -> None:
+    def _fail(self, expected: str) -> NoReturn:
         if self.at < len(self.tokens):
             _, value, position = self.tokens[self.at]
             found = f"{value!r} at column {position + 1}"
@@ -309,7 +309,6 @@ class _Parser:
             self.at += 1
             return text == "true"
         self._fail("expected a value (a number, 'text', true or false)")
-        raise AssertionError  # unreachable: _fail raises
 
 
 def _evaluate(node: Expression, message: Any) -> bool:

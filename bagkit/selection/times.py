@@ -91,7 +91,7 @@ def parse_time(value: TimeLike, option: str = "time") -> TimePoint:
     if isinstance(value, bool):
         raise _bad(value, option)
     if isinstance(value, numbers.Real):  # numpy's numbers too
-        _seconds_ns(float(value), value, option)  # finite and within int64 ns
+        check_seconds(float(value), value, SelectionError, option)
         if isinstance(value, numbers.Integral):
             return _parse_text(str(int(value)), option)
         return _parse_text(repr(float(value)), option)
@@ -105,7 +105,7 @@ def parse_duration(value: str | float, option: str = "duration") -> int:
         SelectionError: not a duration, negative, or beyond int64 nanoseconds.
     """
     if isinstance(value, int | float) and not isinstance(value, bool):
-        ns = _seconds_ns(float(value), value, option)
+        ns = seconds_to_ns(float(value), value, SelectionError, option)
     elif isinstance(value, str):
         parsed = _unsigned_ns(value.strip())
         if parsed is None:
@@ -189,12 +189,6 @@ def _from_ns(ns: int, given: object, option: str) -> TimePoint:
     return TimePoint(Anchor.END if ns < 0 or str(given).startswith("-") else Anchor.START, ns)
 
 
-def _seconds_ns(seconds: float, given: object, option: str) -> int:
-    if not abs(seconds) < MAX_SECONDS:
-        raise SelectionError(f"bad {option} {given!r}: not a number of seconds within int64 ns")
-    return round(seconds * NS_PER_S)
-
-
 def _object_ns(value: Any, option: str) -> int:
     """ns since 1970 of a ``datetime``, ``pandas.Timestamp`` or ``numpy.datetime64``."""
     if hasattr(value, "to_datetime64"):  # pandas.Timestamp keeps nanoseconds there
@@ -217,13 +211,18 @@ def _bad(value: object, option: str) -> SelectionError:
     return SelectionError(f"bad {option} {value!r}: not a time ({_GRAMMAR})")
 
 
-def check_seconds(seconds: float, given: object, error: type[BagkitError]) -> float:
-    """``seconds``, or ``error`` naming ``given`` when it is not a finite int64-ns time."""
+def check_seconds(
+    seconds: float, given: object, error: type[BagkitError], what: str = "time"
+) -> float:
+    """``seconds``, or ``error`` naming ``what`` and ``given`` when it is not a finite
+    int64-ns time."""
     if not abs(seconds) < MAX_SECONDS:
-        raise error(f"bad time {given!r}: not a number of seconds within int64 ns")
+        raise error(f"bad {what} {given!r}: not a number of seconds within int64 ns")
     return seconds
 
 
-def seconds_to_ns(seconds: float, given: object, error: type[BagkitError]) -> int:
+def seconds_to_ns(
+    seconds: float, given: object, error: type[BagkitError], what: str = "time"
+) -> int:
     """``seconds`` in integer nanoseconds (rounded), checked as :func:`check_seconds`."""
-    return round(check_seconds(seconds, given, error) * 1e9)
+    return round(check_seconds(seconds, given, error, what) * 1e9)
