@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import re
 import sys
 from pathlib import Path
@@ -308,10 +309,11 @@ def _print_report(report: PlayReport) -> None:
         highlight=False,
         soft_wrap=True,
     )
-    console.print(
-        f"timing error: p50 {lateness.p50_ms:.3f} ms, p99 {lateness.p99_ms:.3f} ms, "
+    timing = (
+        f"p50 {lateness.p50_ms:.3f} ms, p99 {lateness.p99_ms:.3f} ms, "
         f"max {lateness.max_ms:.3f} ms, {lateness.late} messages late "
-        f"(> {LATE_THRESHOLD_NS / 1e6:g} ms)",
-        highlight=False,
-        soft_wrap=True,
+        f"(> {LATE_THRESHOLD_NS / 1e6:g} ms)"
     )
+    if math.isnan(lateness.p50_ms):
+        timing = "no message was published on schedule"
+    console.print(f"timing error: {timing}", highlight=False, soft_wrap=True)

@@ -92,6 +92,7 @@ class Player:
         self._outputs: dict[str, TopicOutput] = {}
         self._clock: TopicOutput | None = None
         self._node_created = 0.0
+        self._pass: PassPublisher | None = None  # the pass being published
         self.live_publishers: dict[str, list[str]] = {}
         """Published topic -> other nodes publishing it, found when the replay starts."""
         self.publishable = PublishableTopics()
@@ -229,6 +230,7 @@ class Player:
                     time.sleep(options.delay_s)
                 before = lateness.count
                 bag_ns += self._play_pass(passes, lateness)
+                self._pass = None
                 passes += 1
                 if lateness.count == before:
                     break  # an empty window: looping would only spin
@@ -238,9 +240,12 @@ class Player:
             interrupted = True
             wall_ns = time.monotonic_ns() - wall_start
             unacknowledged = []
+            if self._pass is not None:  # the interrupted pass counts for what it published
+                bag_ns += self._pass.covered_ns
+                self._pass = None
         return PlayReport(
             topics=self._topic_playbacks(passes, complete=not interrupted),
-            messages=lateness.count,
+            messages=sum(output.count for output in self._outputs.values()),
             loops=passes,
             bag_duration_s=bag_ns / 1e9,
             wall_duration_s=wall_ns / 1e9,
@@ -291,6 +296,7 @@ class Player:
             loop=loop,
             controls=self.controls,
         )
+        self._pass = publisher
         return publisher.run(itertools.chain([first], messages), window_start)
 
     def wait_until_acknowledged(self) -> list[str]:

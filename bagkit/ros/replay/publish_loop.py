@@ -68,13 +68,15 @@ class PassPublisher:
         self._next_tick = 0
         self._next_progress = 0
         self._counted_before = (0, 0)  # lateness count and late messages before this pass
+        self.last_log_time = 0
+        """Log time of the last message published in this pass."""
 
     def run(self, messages: Iterator[BagMessage], window_start: int) -> int:
         """Publish ``messages`` on schedule from now; return the bag time they covered (ns)."""
         controls = self.controls
         self._wall_start = time.monotonic_ns()
         controls.start(window_start, self._wall_start)
-        self._window_start = last_log_time = window_start
+        self._window_start = last_log_time = self.last_log_time = window_start
         self._next_tick = self._wall_start + self.tick_ns
         self._next_progress = self._wall_start + self.progress_period_ns
         self._counted_before = (self.lateness.count, self.lateness.late)
@@ -84,31 +86,39 @@ class PassPublisher:
         outputs = self.outputs
         on_progress = self.on_progress
         delays: list[int] = []
-        for message in messages:
-            log_time = message.log_time
-            deadline = controls.timeline.deadline(log_time)
-            if clock is not None:
-                self._tick_clock_until(deadline)
-            if on_progress is not None:
-                self._maybe_report_progress(deadline, last_log_time, delays)
-            if len(delays) >= LATENESS_BLOCK and (
-                deadline - time.monotonic_ns() > LATENESS_SLACK_NS
-                or len(delays) >= LATENESS_BLOCK_MAX
-            ):
-                self.lateness.add_many(delays)
-                delays = []
-            now, deadline = self._wait_controlled(log_time)
-            if clock is not None:
-                clock.publish(clock_message(log_time))
-            output = outputs[message.topic]
-            output.publish(message.data)
-            output.count += 1
-            delays.append(now - deadline)
-            last_log_time = log_time
-        self.lateness.add_many(delays)
+        try:
+            for message in messages:
+                log_time = message.log_time
+                deadline = controls.timeline.deadline(log_time)
+                if clock is not None:
+                    self._tick_clock_until(deadline)
+                if on_progress is not None:
+                    self._maybe_report_progress(deadline, last_log_time, delays)
+                if len(delays) >= LATENESS_BLOCK and (
+                    deadline - time.monotonic_ns() > LATENESS_SLACK_NS
+                    or len(delays) >= LATENESS_BLOCK_MAX
+                ):
+                    self.lateness.add_many(delays)
+                    delays = []
+                now, deadline = self._wait_controlled(log_time)
+                if clock is not None:
+                    clock.publish(clock_message(log_time))
+                output = outputs[message.topic]
+                output.publish(message.data)
+                output.count += 1
+                delays.append(now - deadline)
+                last_log_time = self.last_log_time = log_time
+        finally:
+            # Also on Ctrl-C: what was published is timed and counted (issue 27, item 6).
+            self.lateness.add_many(delays)
         if on_progress is not None:
             self._report_progress(time.monotonic_ns(), last_log_time, [])
         return last_log_time - window_start
+
+    @property
+    def covered_ns(self) -> int:
+        """Bag time published so far in this pass (what an interrupted pass covered)."""
+        return self.last_log_time - self._window_start
 
     def _wait_controlled(self, log_time: int) -> tuple[int, int]:
         """Wait until the message logged at ``log_time`` is due, paused while the controls hold.
