@@ -111,8 +111,8 @@ def test_cli_loop_until_ctrl_c(
     partial = report["messages"] - report["loops"] * per_pass
     assert partial >= 0
     assert report["bag_duration_s"] > report["loops"] * (BAG_SPAN_NS - 100_000_000) / 1e9
-    progress = [line for line in stderr.splitlines() if line.startswith("bag ")]
-    assert progress and "msgs" in progress[-1] and "late" in progress[-1]
+    # No progress line when stderr is not a terminal (a log gets none).
+    assert not [line for line in stderr.splitlines() if line.startswith("bag ")]
 
 
 @pytest.mark.parametrize("case", ["missing", "not a bag", "unknown types", "not cdr", "bad remap"])
