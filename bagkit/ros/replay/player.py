@@ -31,6 +31,7 @@ from bagkit.playback.options import PlayOptions
 from bagkit.playback.report import PlayProgress, PlayReport, TopicPlayback
 from bagkit.playback.source import PlaySource
 from bagkit.ros.errors import PlayerError
+from bagkit.ros.fastdds import segment_size_for
 from bagkit.ros.qos import load_qos_overrides, replay_publisher_qos
 from bagkit.ros.replay.publish_loop import PassPublisher, PassReader
 from bagkit.ros.replay.publishers import (
@@ -149,8 +150,10 @@ class Player:
         )
         mean_size = reader.uncompressed_size // max(reader.message_count, 1) or 1024
         bag_duration_s = (reader.end_ns - reader.start_ns) / 1e9
-        # Fast DDS reads its profile when the participant is created.
-        with process_tuning(options.tune_process):
+        # Fast DDS reads its profile when the participant is created. The player sends: its
+        # shared-memory segment is sized for the bag's largest messages (issue 27, item 5).
+        largest = reader.largest_message(info.name for info, _ in selected)
+        with process_tuning(options.tune_process, segment_size=segment_size_for(largest)):
             node = self._create_node()
         for info, message_class in selected:
             name = options.remap.get(info.name, info.name)
