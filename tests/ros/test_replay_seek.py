@@ -269,3 +269,49 @@ def test_seek_keys_through_a_terminal(
     assert data[:3] == ["data#20", "data#0", "data#1"]
     assert text(listener.messages(STATE)[0].data) == "state#1"
     assert json.loads(stdout)["latched"] == 1
+
+
+def test_each_loop_pass_starts_with_the_latched_state(
+    tmp_path: Path, listener_factory: type[Listener]
+) -> None:
+    bag = write_debug_bag(tmp_path / "bag")
+    listener = listener_factory({DATA: String, STATE: String})
+    report = Player(
+        PlayOptions(bag, start_offset_s=2.5, loops=2, rate=2.0, wait_for=(DATA, STATE), **KNOWN)
+    ).run()
+    wait_for(lambda: len(listener.messages()) == report.messages, 10.0)
+    assert [text(r.data) for r in listener.messages(STATE)] == ["state#1", "state#1"]
+    assert [text(r.data) for r in listener.messages(DATA)] == [
+        f"data#{i}" for i in range(50, 60)
+    ] * 2
+    assert (report.loops, report.latched, report.messages) == (2, 2, 22)
+
+
+@pytest.mark.parametrize(
+    ("latched", "extra", "expected"),
+    [(False, (), []), (True, (DATA,), [(DATA, "data#19"), (STATE, "state#1")])],
+)
+def test_no_latched_and_latched_topics(
+    tmp_path: Path,
+    listener_factory: type[Listener],
+    latched: bool,
+    extra: tuple[str, ...],
+    expected: list[tuple[str, str]],
+) -> None:
+    bag = write_debug_bag(tmp_path / "bag")
+    listener = listener_factory({DATA: String, STATE: String})
+    options = PlayOptions(
+        bag,
+        start_offset_s=1.0,
+        duration_s=0.01,  # the window holds data#20 only
+        latched=latched,
+        latched_topics=extra,
+        wait_for=(DATA, STATE),
+        **KNOWN,
+    )
+    report = Player(options).run()
+    wait_for(lambda: len(listener.messages()) == report.messages, 10.0)
+    got = [(r.topic, text(r.data)) for r in listener.messages()]
+    assert sorted(got[:-1]) == expected  # the latched state first, then the window
+    assert got[-1] == (DATA, "data#20")
+    assert report.latched == len(expected)
