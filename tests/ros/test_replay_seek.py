@@ -18,6 +18,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from rcl_interfaces.msg import Parameter as ParameterMsg
+from rcl_interfaces.msg import ParameterType, ParameterValue, SetParametersResult
+from rcl_interfaces.srv import SetParameters
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -25,6 +28,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from replay_harness import CLI_KNOWN, KNOWN, Listener, bagkit_cli, clock_ns
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
+from std_srvs.srv import Trigger
 from waiting import wait_for
 
 from bagkit.bag import BagWriter, TopicInfo
@@ -315,3 +319,66 @@ def test_no_latched_and_latched_topics(
     assert sorted(got[:-1]) == expected  # the latched state first, then the window
     assert got[-1] == (DATA, "data#20")
     assert report.latched == len(expected)
+
+
+def _call(node: Node, client: Any, request: Any) -> Any:
+    future = client.call_async(request)
+    executor = SingleThreadedExecutor(context=node.context)
+    executor.add_node(node)
+    executor.spin_until_future_complete(future, timeout_sec=30.0)
+    executor.remove_node(node)
+    executor.shutdown()
+    assert future.done(), "no answer"
+    return future.result()
+
+
+def _set(node: Node, client: Any, name: str, value: ParameterValue) -> SetParametersResult:
+    request = SetParameters.Request()
+    request.parameters = [ParameterMsg(name=name, value=value)]
+    return _call(node, client, request).results[0]
+
+
+def test_seek_and_burst_parameters_play_and_stop_services(
+    tmp_path: Path, listener_factory: type[Listener], processes: Any, node: Node
+) -> None:
+    bag = write_debug_bag(tmp_path / "bag")
+    listener = listener_factory({DATA: String, STATE: String})
+    proc = processes.start(
+        [
+            *("bagkit", "play", str(bag), "--start-paused", "--disable-keyboard-controls"),
+            *(*CLI_KNOWN, "--wait-for", DATA, "--wait-for", STATE, "--format", "json"),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    parameters = node.create_client(SetParameters, "/bagkit_player/set_parameters")
+    play = node.create_client(Trigger, "/bagkit_player/play")
+    stop = node.create_client(Trigger, "/bagkit_player/stop")
+    for client in (parameters, play, stop):
+        assert client.wait_for_service(timeout_sec=20.0)
+    text_value = ParameterValue(type=ParameterType.PARAMETER_STRING, string_value="soon")
+    refused = _set(node, parameters, "seek", text_value)
+    assert not refused.successful and "soon" in refused.reason
+    before = ParameterValue(type=ParameterType.PARAMETER_STRING, string_value="-1m")
+    assert _set(node, parameters, "seek", before).successful  # clamped to the first message
+    seconds = ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=1.0)
+    assert _set(node, parameters, "seek", seconds).successful
+    wait_for(lambda: listener.messages(STATE), 15.0, what="the latched state")
+    three = ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=3)
+    burst = _set(node, parameters, "burst", three)
+    assert burst.successful, burst.reason
+    wait_for(lambda: len(listener.messages(DATA)) == 3, 15.0)
+    assert _call(node, play, Trigger.Request()).success
+    assert not _call(node, play, Trigger.Request()).success  # playing already
+    refused = _set(node, parameters, "burst", three)
+    assert not refused.successful and "published 0 of 3" in refused.reason
+    assert _call(node, stop, Trigger.Request()).success
+    stdout, stderr = proc.communicate(timeout=30)
+    assert proc.returncode == 0, stderr
+    assert "before the start" in stderr and stderr.count("warning:") == 1, stderr
+    data = [text(r.data) for r in listener.messages(DATA)]
+    assert data[:3] == ["data#20", "data#21", "data#22"]
+    assert data == [f"data#{i}" for i in range(20, 20 + len(data))]
+    assert len(data) < 40  # stopped before the end
+    assert json.loads(stdout)["messages"] == len(data) + 1
