@@ -14,8 +14,10 @@ import pytest
 from bagkit.bag import BagWriter, TopicInfo
 from bagkit.playback.controls import PlayControls
 from bagkit.playback.errors import PlayerError
+from bagkit.playback.options import PlayWindow
 from bagkit.playback.progress import ProgressLine, progress_text
 from bagkit.playback.report import PlayProgress
+from bagkit.playback.seeking import WindowSpan
 from bagkit.playback.source import SENT_ORDER_WINDOW_NS, MessageOrder, PlaySource
 
 START = 1_700_000_000_000_000_000
@@ -151,3 +153,18 @@ def test_progress_line_says_where_how_fast_and_paused() -> None:
     line.update(progress)
     line.finish()
     assert piped.getvalue() == ""  # not a terminal: no progress at all
+
+
+def test_a_seek_is_clamped_to_the_window_with_a_warning(tmp_path: Path) -> None:
+    bag = write(tmp_path / "a", [("/x", i * 10, i * 10) for i in range(10)])
+    with ExitStack() as stack:
+        source = PlaySource.open([bag], MessageOrder.RECEIVED, stack)
+        span = WindowSpan.of(PlayWindow.create(start_offset=20e-9, duration=30e-9), source)
+        assert (span.start_ns - START, span.last_ns - START) == (20, 49)
+        assert span.clamp(START + 30) == (START + 30, None)
+        target, warning = span.clamp(START + 500)
+        assert target == START + 49 and warning is not None and "past the end" in warning
+        target, warning = span.clamp(START)
+        assert target == START + 20 and warning is not None and "before the start" in warning
+        whole = WindowSpan.of(PlayWindow.create(), source)
+        assert (whole.end_ns, whole.last_ns) == (None, START + 90)

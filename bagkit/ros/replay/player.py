@@ -29,6 +29,7 @@ from bagkit.playback.controls import PlayControls
 from bagkit.playback.lateness import LatenessSamples
 from bagkit.playback.options import PlayOptions
 from bagkit.playback.report import PlayProgress, PlayReport, TopicPlayback
+from bagkit.playback.seeking import WindowSpan
 from bagkit.playback.source import PlaySource
 from bagkit.ros.errors import PlayerError
 from bagkit.ros.fastdds import segment_size_for
@@ -46,7 +47,7 @@ from bagkit.ros.replay.seek_services import serve_seek
 from bagkit.ros.replay.services import serve_controls
 from bagkit.ros.replay.topics import PublishableTopics, publishable_topics
 from bagkit.ros.tuning import precise_timers, process_tuning
-from bagkit.selection.times import TimeLike, format_ns, parse_time, seconds_to_ns
+from bagkit.selection.times import TimeLike, parse_time, seconds_to_ns
 
 _log = logging.getLogger(__name__)
 
@@ -297,7 +298,7 @@ class Player:
     def _play_pass(self, loop: int, lateness: LatenessSamples) -> int:
         """Publish one pass over the window; return the bag time it covered (ns)."""
         reader = self._pass_reader()
-        window_start, _ = self._window_bounds()
+        window_start = self._span().start_ns
         messages = reader.messages_from(window_start)
         # The first chunk is read before the clock starts, so the first message is on time.
         # Later chunks are read inline, right after a publication: a read-ahead thread was
@@ -326,27 +327,20 @@ class Player:
         assert self._reader is not None
         source = self._reader
         topics = list(self._outputs)
-        _, window_end = self._window_bounds()
+        span = self._span()
 
         def messages_from(bag_ns: int) -> Iterator[BagMessage]:
-            return iter(source.messages(topics, bag_ns, window_end))
+            return iter(source.messages(topics, bag_ns, span.end_ns))
 
         def latched_before(bag_ns: int) -> list[BagMessage]:
             return source.latched_before(bag_ns, self._latched) if self._latched else []
 
-        return PassReader(messages_from, latched_before, self._last_time())
+        return PassReader(messages_from, latched_before, span.last_ns)
 
-    def _window_bounds(self) -> tuple[int, int | None]:
-        assert self._reader is not None
-        reader = self._reader
-        return self.window.bounds(reader.start_ns, reader.end_ns, Path(reader.name))
-
-    def _last_time(self) -> int:
-        """The last log time a pass can reach (the window's end)."""
-        assert self._reader is not None
-        _, window_end = self._window_bounds()
-        end_ns = self._reader.end_ns
-        return end_ns if window_end is None else min(window_end - 1, end_ns)
+    def _span(self) -> WindowSpan:
+        if self._reader is None:
+            raise PlayerError("the player is not open: use it as a context manager")
+        return WindowSpan.of(self.window, self._reader)
 
     def seek(self, to: TimeLike) -> int:
         """Continue the replay from bag time ``to`` (rosbag2's ``~/seek``), clamped to the window.
@@ -362,25 +356,19 @@ class Player:
         Raises:
             SelectionError: ``to`` is not a time.
         """
-        if self._reader is None:
-            raise PlayerError("the player is not open: use it as a context manager")
+        span = self._span()
+        assert self._reader is not None
         wanted = parse_time(to, "seek").resolve(self._reader.start_ns, self._reader.end_ns)
-        return self._seek_ns(wanted)
+        return self._seek_ns(span, wanted)
 
     def seek_by(self, step_ns: int) -> int:
         """Seek ``step_ns`` of bag time forward (negative: back) from where the replay is."""
-        return self._seek_ns(self.controls.position() + step_ns)
+        return self._seek_ns(self._span(), self.controls.position() + step_ns)
 
-    def _seek_ns(self, wanted: int) -> int:
-        first, _ = self._window_bounds()
-        last = self._last_time()
-        target = min(max(wanted, first), last)
-        if target != wanted:
-            where = "past the end" if wanted > last else "before the start"
-            self.on_warning(
-                f"seek to {format_ns(wanted)} is {where} of the replayed window "
-                f"({format_ns(first)} to {format_ns(last)}): going to {format_ns(target)}"
-            )
+    def _seek_ns(self, span: WindowSpan, wanted: int) -> int:
+        target, warning = span.clamp(wanted)
+        if warning is not None:
+            self.on_warning(warning)
         self.controls.seek(target)
         return target
 

@@ -103,7 +103,7 @@ class PassPublisher:
         self._pass_wall_start = time.monotonic_ns()
         self._next_progress = self._pass_wall_start + self.progress_period_ns
         self._counted_before = (self.lateness.count, self.lateness.late)
-        self._jump_to(window_start)
+        messages = self._jump_to(window_start, messages)
         delays = self._delays
         try:
             while True:
@@ -128,13 +128,11 @@ class PassPublisher:
         """Bag time published so far in this pass (what an interrupted pass covered)."""
         return self._covered_ns + self.last_log_time - self._segment_start
 
-    def _jump_to(
-        self, bag_ns: int, messages: Iterator[BagMessage] | None = None
-    ) -> Iterator[BagMessage]:
-        """Start at ``bag_ns``: ``/clock`` there, the latched state, then anchor the timeline.
+    def _jump_to(self, bag_ns: int, messages: Iterator[BagMessage]) -> Iterator[BagMessage]:
+        """Start ``messages`` at ``bag_ns``: ``/clock`` there, the latched state, the timeline.
 
-        The first message is read before the anchor, so that reading its chunk is not counted
-        as lateness.
+        The first message is read before the timeline is anchored, so that reading its chunk
+        is not counted as lateness; returns the messages, that one included.
         """
         if self.clock is not None:
             self.clock.publish(clock_message(bag_ns))
@@ -143,12 +141,10 @@ class PassPublisher:
             output.publish(message.data)
             output.count += 1
             self.latched += 1
-        first = next(messages, None) if messages is not None else None
+        first = next(messages, None)
         self._wall_start = time.monotonic_ns()
         self.controls.start(bag_ns, self._wall_start)
         self._next_tick = self._wall_start + self.tick_ns
-        if messages is None:
-            return iter(())
         return itertools.chain([] if first is None else [first], messages)
 
     def _publish_until_interrupted(self, messages: Iterator[BagMessage]) -> bool:
