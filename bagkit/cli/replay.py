@@ -98,12 +98,15 @@ def _bare_clock(args: list[str]) -> list[str]:
 HELP = """Replay BAG over ROS 2 with its recorded timing, scaled by --rate (alias: play).
 
 Publishes each message's stored bytes at start + (log time - start) / rate, after waiting
-until the subscribers known to the graph have matched. In a terminal, space pauses and
-resumes, the right arrow publishes the next message while paused, up/down change the rate
-by 0.1; the player node offers rosbag2's services (~/pause, ~/resume, ~/toggle_paused,
-~/play_next, ~/is_paused, ~/get_rate) and a `rate` parameter.
+until the subscribers known to the graph have matched. Several bags (BAG BAG..., -i BAG)
+play as one timeline. On --start-offset, a seek and each loop, the last message of each
+transient-local topic is published first. In a terminal, space pauses and resumes, the
+right arrow publishes the next message while paused, up/down change the rate by 0.1, the
+left arrow and '.' seek a step back and forward; the player node offers rosbag2's services
+(~/pause, ~/resume, ~/toggle_paused, ~/play_next, ~/is_paused, ~/get_rate, ~/play, ~/stop)
+and the parameters `rate`, `seek` and `burst`.
 
-Progress goes to stderr; per-topic counts and the timing error go to stdout.
+Progress goes to stderr (on a terminal); per-topic counts and the timing error go to stdout.
 
 Example: bagkit play drive/ --clock -r 2 --topics /imu/data /gps/fix
 """
