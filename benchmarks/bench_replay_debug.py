@@ -6,7 +6,8 @@
   (the latched ``/state``, published before the new chunk is read). Target: p99 <= 100 ms.
 - Two bags: two interleaved bags of N messages each (1 kHz each, 0.5 ms apart) against one bag
   of 2N, at rate 1 and 10; the player's own p99 lateness of each, and their ratio (target: the
-  two bags no worse than one, up to the machine's noise: <= 1.5), every message published.
+  two bags no worse than one, up to the machine's noise: <= 1.5; medians of 3 alternated
+  runs), every message published.
 - Memory: a small bag looped 100 times at full speed; resident memory after 10 and after 100
   passes (target: flat, <= 10 % growth).
 
@@ -32,6 +33,7 @@ SEEKS = 20
 SEEK_CEILING_MS = 100.0
 TWO_BAGS_MESSAGES = 10_000  # per bag: 10 s at rate 1
 TWO_BAGS_CEILING = 1.5
+TWO_BAGS_RUNS = 3
 LOOPS = 100
 MEMORY_GROWTH_CEILING = 0.10
 
@@ -133,15 +135,20 @@ def _two_bags(directory: Path) -> bool:
     second = _write(directory / "b", [("/t1", i * 1_000_000 + 500_000) for i in range(count)])
     ok = True
     for rate in (1.0, 10.0):
-        one_p99, one_count = _replay_lateness([one], rate)
-        two_p99, two_count = _replay_lateness([first, second], rate)
+        ones, twos = [], []
+        for _ in range(TWO_BAGS_RUNS):  # alternated, so that the machine's moods hit both
+            ones.append(_replay_lateness([one], rate))
+            twos.append(_replay_lateness([first, second], rate))
+        one_p99 = statistics.median(p99 for p99, _ in ones)
+        two_p99 = statistics.median(p99 for p99, _ in twos)
         ratio = two_p99 / one_p99 if one_p99 > 0 else float("inf")
+        published = {n for _, n in ones + twos}
         print(
-            f"  rate {rate:g}: player's p99 lateness, one bag of {2 * count}: {one_p99:.3f} ms; "
-            f"two bags of {count}: {two_p99:.3f} ms; ratio {ratio:.2f} "
-            f"(target <= {TWO_BAGS_CEILING}); published {one_count} / {two_count}"
+            f"  rate {rate:g}: player's p99 lateness (median of {TWO_BAGS_RUNS}), one bag of "
+            f"{2 * count}: {one_p99:.3f} ms; two bags of {count}: {two_p99:.3f} ms; ratio "
+            f"{ratio:.2f} (target <= {TWO_BAGS_CEILING}); published per run: {sorted(published)}"
         )
-        ok = ok and ratio <= TWO_BAGS_CEILING and one_count == two_count == 2 * count
+        ok = ok and ratio <= TWO_BAGS_CEILING and published == {2 * count}
     return ok
 
 
