@@ -314,6 +314,7 @@ def _print_report(report: PlayReport) -> None:
         f"{report.messages} messages in {report.wall_duration_s:.3f} s "
         f"({report.bag_duration_s:.3f} s of bag time, rate {report.rate:g}"
         + (f", {report.loops} passes" if report.loops > 1 else "")
+        + (f", {report.latched} of them latched state" if report.latched else "")
         + ")",
         highlight=False,
         soft_wrap=True,
