@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
+import math
 import re
 import sys
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import typer
@@ -22,7 +22,7 @@ from bagkit.cli.common import (
     warn,
 )
 from bagkit.cli.replay_options import (
-    Bag,
+    Bags,
     Clock,
     Delay,
     DisableKeyboardControls,
@@ -31,12 +31,17 @@ from bagkit.cli.replay_options import (
     Exclude,
     ExcludeTopics,
     Format,
+    Inputs,
+    LatchedTopics,
     Loop,
+    MessageOrderOption,
+    NoLatched,
     QosOverrides,
     Rate,
     ReadAheadQueueSize,
     Regex,
     Remap,
+    SeekStep,
     StartOffset,
     StartPaused,
     Storage,
@@ -53,17 +58,19 @@ from bagkit.cli.tables import Column, Table, print_table
 from bagkit.errors import BagkitError
 from bagkit.extras import ROS, require
 from bagkit.playback.options import PlayOptions
+from bagkit.playback.progress import ProgressLine
+from bagkit.playback.source import MessageOrder
 from bagkit.playback.timing import DEFAULT_CLOCK_HZ, DEFAULT_DISCOVERY_TIME_S, LATE_THRESHOLD_NS
 from bagkit.selection.times import seconds_to_ns
 
 if TYPE_CHECKING:
     # The player imports rclpy: only `bagkit replay` itself pays for that import.
-    from bagkit.playback.report import PlayProgress, PlayReport
+    from bagkit.playback.report import PlayReport
     from bagkit.ros.replay.player import Player
 
 _NUMBER = re.compile(r"[0-9]*\.?[0-9]+([eE][-+]?[0-9]+)?")
 # Options that take several values, as `ros2 bag play`'s nargs='+' ones: `--topics a b c`.
-_MULTI_VALUE = frozenset({"--topics", "--exclude-topics", "--remap", "-m"})
+_MULTI_VALUE = frozenset({"--topics", "--exclude-topics", "--remap", "-m", "--latched-topics"})
 
 
 class ReplayCommand(MultiValueCommand):
@@ -91,12 +98,15 @@ def _bare_clock(args: list[str]) -> list[str]:
 HELP = """Replay BAG over ROS 2 with its recorded timing, scaled by --rate (alias: play).
 
 Publishes each message's stored bytes at start + (log time - start) / rate, after waiting
-until the subscribers known to the graph have matched. In a terminal, space pauses and
-resumes, the right arrow publishes the next message while paused, up/down change the rate
-by 0.1; the player node offers rosbag2's services (~/pause, ~/resume, ~/toggle_paused,
-~/play_next, ~/is_paused, ~/get_rate) and a `rate` parameter.
+until the subscribers known to the graph have matched. Several bags (BAG BAG..., -i BAG)
+play as one timeline. On --start-offset, a seek and each loop, the last message of each
+transient-local topic is published first. In a terminal, space pauses and resumes, the
+right arrow publishes the next message while paused, up/down change the rate by 0.1, the
+left arrow and '.' seek a step back and forward; the player node offers rosbag2's services
+(~/pause, ~/resume, ~/toggle_paused, ~/play_next, ~/is_paused, ~/get_rate, ~/play, ~/stop)
+and the parameters `rate`, `seek` and `burst`.
 
-Progress goes to stderr; per-topic counts and the timing error go to stdout.
+Progress goes to stderr (on a terminal); per-topic counts and the timing error go to stdout.
 
 Example: bagkit play drive/ --clock -r 2 --topics /imu/data /gps/fix
 """
@@ -110,7 +120,7 @@ HELP_OPTIONS = CONTEXT_SETTINGS
 )
 @handle_errors
 def replay(  # noqa: PLR0917 (typer maps parameters to options)
-    bag: Bag,
+    bags: Bags = None,
     rate: Rate = 1.0,
     topics: Topics = None,
     regex: Regex = None,
@@ -135,14 +145,22 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
     read_ahead_queue_size: ReadAheadQueueSize = 1000,
     storage: Storage = None,
     output_format: Format = ReportFormat.TABLE,
+    inputs: Inputs = None,
+    message_order: MessageOrderOption = MessageOrder.RECEIVED,
+    latched_topics: LatchedTopics = None,
+    no_latched: NoLatched = False,
+    seek_step: SeekStep = 5.0,
 ) -> None:
     require(ROS, "bagkit replay")
     from bagkit.ros.replay.player import Player
     from bagkit.ros.replay.topics import parse_remaps
 
+    all_bags = [*(bags or ()), *(inputs or ())]
+    if not all_bags:
+        raise fail("give a bag to replay: bagkit replay BAG [BAG...] or -i BAG")
+    bag = all_bags[0]
     _check_ros2_options(until_sec, until_nsec, storage, read_ahead_queue_size, wait_for_all_acked)
-    interactive = sys.stderr.isatty()
-    progress = _ProgressLine(interactive=interactive)
+    progress = ProgressLine(sys.stderr, warn)
     options = PlayOptions(
         bag,
         rate=rate,
@@ -164,12 +182,22 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
         discovery_time_s=discovery_time,
         ack_timeout_s=wait_for_all_acked / 1e3 if wait_for_all_acked else _FOREVER_S,
         qos_overrides=qos_overrides,
-        progress_period_s=0.25 if interactive else 5.0,
+        progress_period_s=0.25,
+        more_bags=tuple(all_bags[1:]),
+        message_order=message_order,
+        latched=not no_latched,
+        latched_topics=tuple(split_list(latched_topics)),
+        seek_step_s=seek_step,
     )
-    player = Player(options, on_progress=progress.update, on_live_publishers=_warn_live_publishers)
+    player = Player(
+        options,
+        on_progress=progress.update if progress.interactive else None,
+        on_live_publishers=_warn_live_publishers,
+        on_warning=progress.warn,
+    )
     report = _run(player, keyboard=not disable_keyboard_controls)
     progress.finish()
-    _finish(report, bag, output_format)
+    _finish(report, " + ".join(map(str, all_bags)), output_format)
 
 
 def _check_ros2_options(
@@ -199,9 +227,14 @@ def _run(player: Player, *, keyboard: bool) -> PlayReport:
     """Open the player (which tunes the process), hand it the terminal's keys, replay."""
     from bagkit.playback.keyboard import terminal_controls
 
+    step_ns = player.options.seek_step_ns
     with player:
         _warn_skipped(player)
-        with terminal_controls(player.controls, keyboard=keyboard):
+        with terminal_controls(
+            player.controls,
+            keyboard=keyboard,
+            seek_step=lambda direction: player.seek_by(direction * step_ns),
+        ):
             return player.play()
 
 
@@ -235,7 +268,7 @@ def _warn_skipped(player: Player) -> None:
         warn(f"topics not in the bag: {', '.join(topics.missing)}")
 
 
-def _finish(report: PlayReport, bag: Path, output_format: ReportFormat) -> None:
+def _finish(report: PlayReport, bag: str, output_format: ReportFormat) -> None:
     """The report; warnings, the error of a replay that found nothing readable, the exit status."""
     if output_format is ReportFormat.JSON:
         print_json(report.to_dict())
@@ -261,29 +294,6 @@ def _finish(report: PlayReport, bag: Path, output_format: ReportFormat) -> None:
         raise typer.Exit(EXIT_INTERRUPTED)
 
 
-class _ProgressLine:
-    """The live progress line on stderr: rewritten in place on a terminal, one line otherwise."""
-
-    def __init__(self, *, interactive: bool) -> None:
-        self.interactive = interactive
-        self.shown = False
-
-    def update(self, progress: PlayProgress) -> None:
-        line = (
-            f"bag {progress.bag_time_s:8.2f} s  wall {progress.wall_time_s:8.2f} s  "
-            f"rate {progress.effective_rate:6.2f}x  {progress.messages} msgs  "
-            f"{progress.late} late" + (f"  loop {progress.loop + 1}" if progress.loop else "")
-        )
-        # Plain writes: a rich render costs about a millisecond, which would delay messages.
-        sys.stderr.write(f"\r{line}\x1b[K" if self.interactive else f"{line}\n")
-        sys.stderr.flush()
-        self.shown = True
-
-    def finish(self) -> None:
-        if self.interactive and self.shown:
-            sys.stderr.write("\n")
-
-
 def _print_report(report: PlayReport) -> None:
     damaged = report.unreadable > 0
     table = Table(
@@ -304,14 +314,16 @@ def _print_report(report: PlayReport) -> None:
         f"{report.messages} messages in {report.wall_duration_s:.3f} s "
         f"({report.bag_duration_s:.3f} s of bag time, rate {report.rate:g}"
         + (f", {report.loops} passes" if report.loops > 1 else "")
+        + (f", {report.latched} of them latched state" if report.latched else "")
         + ")",
         highlight=False,
         soft_wrap=True,
     )
-    console.print(
-        f"timing error: p50 {lateness.p50_ms:.3f} ms, p99 {lateness.p99_ms:.3f} ms, "
+    timing = (
+        f"p50 {lateness.p50_ms:.3f} ms, p99 {lateness.p99_ms:.3f} ms, "
         f"max {lateness.max_ms:.3f} ms, {lateness.late} messages late "
-        f"(> {LATE_THRESHOLD_NS / 1e6:g} ms)",
-        highlight=False,
-        soft_wrap=True,
+        f"(> {LATE_THRESHOLD_NS / 1e6:g} ms)"
     )
+    if math.isnan(lateness.p50_ms):
+        timing = "no message was published on schedule"
+    console.print(f"timing error: {timing}", highlight=False, soft_wrap=True)

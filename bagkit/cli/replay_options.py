@@ -11,9 +11,17 @@ from typing import Annotated
 import typer
 
 from bagkit.cli.common import ReportFormat
+from bagkit.playback.source import MessageOrder
 from bagkit.playback.timing import DEFAULT_CLOCK_HZ
 
-Bag = Annotated[Path, typer.Argument(help="Bag directory or .mcap file.", show_default=False)]
+Bags = Annotated[
+    list[Path] | None,
+    typer.Argument(
+        help="Bag directories or .mcap files; several are replayed as one timeline.",
+        show_default=False,
+        metavar="BAG...",
+    ),
+]
 Rate = Annotated[
     float, typer.Option("--rate", "-r", help="Playback speed factor (2 = twice as fast).")
 ]
@@ -158,4 +166,39 @@ Storage = Annotated[
 ]
 Format = Annotated[
     ReportFormat, typer.Option("--format", help="Final report as a table or as JSON.")
+]
+Inputs = Annotated[
+    list[Path] | None,
+    typer.Option(
+        "--input",
+        "-i",
+        help="A bag to replay (rosbag2 Kilted's form); repeated for several, with BAG... too.",
+        show_default=False,
+    ),
+]
+MessageOrderOption = Annotated[
+    MessageOrder,
+    typer.Option(
+        "--message-order",
+        help="Merge and time the bags' messages by log time (received) or send time (sent).",
+    ),
+]
+LatchedTopics = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--latched-topics",
+        help="Also carry over the last message of these (volatile) topics on a late start.",
+    ),
+]
+NoLatched = Annotated[
+    bool,
+    typer.Option(
+        "--no-latched",
+        help="On --start-offset, a seek or a loop, do not first publish the last message of "
+        "each transient-local topic.",
+    ),
+]
+SeekStep = Annotated[
+    float,
+    typer.Option("--seek-step", help="Bag seconds that the seek keys (left arrow, ',' '.') move."),
 ]

@@ -17,8 +17,10 @@ from bagkit.playback.timing import Timeline
 
 # Up and down arrows change the rate by this much, as `ros2 bag play` (Jazzy) does.
 RATE_STEP = 0.1
-# How long a step request waits for the publishing loop to take it.
+# How long a step request waits for the publishing loop to take it (a burst: for each message).
 STEP_TIMEOUT_S = 2.0
+# A burst of 0 messages publishes the rest of the pass: as many steps as a pass can have.
+BURST_REST = 2**62
 
 
 class PlayControls:
@@ -43,6 +45,11 @@ class PlayControls:
         self._suspended = False
         self._steps_requested = 0
         self._steps_taken = 0
+        self._passes_ended = 0
+        self.seek_to: int | None = None
+        """Bag time a seek asked for, until the publishing loop takes it."""
+        self.stopped = False
+        """Set by :meth:`stop`: the publishing loop ends the replay."""
         self.on_rate_change: Callable[[float], None] | None = None
         """Called (outside the lock) with the new rate after each change."""
 
@@ -57,6 +64,51 @@ class PlayControls:
     def holding(self) -> bool:
         """Whether no message may be published on schedule (paused by a user or suspended)."""
         return self.paused or self._suspended
+
+    @property
+    def interrupting(self) -> bool:
+        """Whether the publishing loop must leave its wait: a seek to take, or a stop."""
+        return self.seek_to is not None or self.stopped
+
+    def position(self, now_ns: int | None = None) -> int:
+        """The bag time reached (frozen while held; a pending seek's target)."""
+        with self._changed:
+            if self.seek_to is not None:
+                return self.seek_to
+            if self.holding:
+                return self._frozen_bag_ns
+            return self.timeline.bag_time(_now(now_ns))
+
+    def seek(self, bag_ns: int, now_ns: int | None = None) -> None:
+        """Continue from bag time ``bag_ns`` (the caller clamps it to the window).
+
+        The timeline is re-anchored there at once, paused or not, so the jump is never counted
+        as lateness; the publishing loop takes the seek (:meth:`take_seek`) between messages.
+        """
+        with self._changed:
+            self.seek_to = bag_ns
+            self._frozen_bag_ns = bag_ns
+            self.timeline = Timeline(bag_ns, _now(now_ns), self.rate)
+            self._notify()
+
+    def take_seek(self) -> int | None:
+        """For the publishing loop: the bag time to continue from, if a seek is pending."""
+        with self._changed:
+            target, self.seek_to = self.seek_to, None
+            return target
+
+    def stop(self) -> None:
+        """End the replay after the message being published (``~/stop``)."""
+        with self._changed:
+            self.stopped = True
+            self._notify()
+
+    def end_pass(self) -> None:
+        """For the player: a pass ended; steps not taken yet are forgotten."""
+        with self._changed:
+            self._steps_requested = self._steps_taken
+            self._passes_ended += 1
+            self._notify()
 
     def pause(self, now_ns: int | None = None) -> bool:
         """Pause; return False if already paused."""
@@ -122,16 +174,36 @@ class PlayControls:
 
     def play_next(self, timeout_s: float = STEP_TIMEOUT_S) -> bool:
         """While paused, have the next message published; True once the loop has published it."""
+        return self.burst(1, timeout_s) == 1
+
+    def burst(self, count: int, timeout_s: float = STEP_TIMEOUT_S) -> int:
+        """While paused, publish the next ``count`` messages at once (0: the rest of the pass).
+
+        Returns:
+            How many were published: fewer when the pass ended, the replay stopped, or the
+            loop took none for ``timeout_s``; 0 unless paused.
+        """
         with self._changed:
-            if not self.paused:
-                return False
-            self._steps_requested += 1
-            wanted = self._steps_requested
+            if not self.paused or count < 0:
+                return 0
+            first = self._steps_taken
+            wanted = self._steps_requested = first + (count or BURST_REST)
+            passes = self._passes_ended
             self._notify()
-            taken = self._changed.wait_for(lambda: self._steps_taken >= wanted, timeout_s)
-            if not taken:
-                self._steps_requested = self._steps_taken  # the loop ended; forget the request
-            return taken
+            while self._steps_taken < wanted and passes == self._passes_ended:
+                if not self._wait_for_a_step(self._steps_taken, passes, timeout_s):
+                    break
+            taken = self._steps_taken - first
+            self._steps_requested = self._steps_taken  # forget what was not taken
+            return min(taken, wanted - first)
+
+    def _wait_for_a_step(self, taken: int, passes: int, timeout_s: float) -> bool:
+        """Wait (lock held) for the loop to take a step; False on a timeout, a pass end, a stop."""
+        self._changed.wait_for(
+            lambda: self._steps_taken != taken or passes != self._passes_ended or self.stopped,
+            timeout_s,
+        )
+        return self._steps_taken != taken and not self.stopped
 
     def take_step(self, log_time_ns: int) -> bool:
         """For the publishing loop: whether a step was requested; if so, it is taken now.

@@ -1,7 +1,8 @@
 """Keyboard controls of a replay in a terminal, and a replay that survives Ctrl-Z.
 
 As ``ros2 bag play``: space pauses and resumes, the right arrow publishes the next message while
-paused, the up and down arrows raise and lower the rate by 0.1. The terminal is put in cbreak
+paused, the up and down arrows raise and lower the rate by 0.1. bagkit's own: the left arrow
+(or ``,``/``<``) seeks back a step of bag time, ``.``/``>`` forward. The terminal is put in cbreak
 mode without echo (Ctrl-C and Ctrl-Z still send their signals) and restored on exit, and around
 a suspension: on SIGTSTP the player is held and the terminal restored before the process stops;
 after ``fg`` the timeline re-anchors, so the messages that fell due while stopped are not
@@ -27,18 +28,28 @@ SPACE = b" "
 RIGHT = b"\x1b[C"
 UP = b"\x1b[A"
 DOWN = b"\x1b[B"
+LEFT = b"\x1b[D"
+BACK_KEYS = (LEFT, b",", b"<")
+FORWARD_KEYS = (b".", b">")
 # How often the reader thread checks whether it should stop.
 POLL_S = 0.2
 
 
-def key_actions(controls: PlayControls) -> dict[bytes, Callable[[], object]]:
-    """What each key does to ``controls``."""
-    return {
+def key_actions(
+    controls: PlayControls, seek_step: Callable[[int], object] | None = None
+) -> dict[bytes, Callable[[], object]]:
+    """What each key does to ``controls``; ``seek_step(-1)`` / ``(+1)`` seeks a step back/on."""
+    actions: dict[bytes, Callable[[], object]] = {
         SPACE: controls.toggle_paused,
         RIGHT: controls.play_next,
         UP: lambda: controls.change_rate(RATE_STEP),
         DOWN: lambda: controls.change_rate(-RATE_STEP),
     }
+    if seek_step is not None:
+        step = seek_step
+        actions.update(dict.fromkeys(BACK_KEYS, lambda: step(-1)))
+        actions.update(dict.fromkeys(FORWARD_KEYS, lambda: step(1)))
+    return actions
 
 
 def split_keys(data: bytes) -> list[bytes]:
@@ -53,8 +64,16 @@ def split_keys(data: bytes) -> list[bytes]:
 
 
 @contextmanager
-def terminal_controls(controls: PlayControls, *, keyboard: bool) -> Iterator[None]:
-    """Hold the replay across Ctrl-Z; with ``keyboard`` and a terminal on stdin, read its keys."""
+def terminal_controls(
+    controls: PlayControls,
+    *,
+    keyboard: bool,
+    seek_step: Callable[[int], object] | None = None,
+) -> Iterator[None]:
+    """Hold the replay across Ctrl-Z; with ``keyboard`` and a terminal on stdin, read its keys.
+
+    ``seek_step(direction)`` is called with -1 or +1 by the seek keys.
+    """
     fd = sys.stdin.fileno() if keyboard and sys.stdin.isatty() else None
     saved = termios.tcgetattr(fd) if fd is not None else None
 
@@ -86,7 +105,9 @@ def terminal_controls(controls: PlayControls, *, keyboard: bool) -> Iterator[Non
         if fd is not None:
             enter_raw()
             reader = threading.Thread(
-                target=_read_keys, args=(fd, key_actions(controls), stop), daemon=True
+                target=_read_keys,
+                args=(fd, key_actions(controls, seek_step), stop),
+                daemon=True,
             )
             reader.start()
         yield

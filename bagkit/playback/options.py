@@ -10,7 +10,9 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from bagkit.bag.latched import LatchedOptions
 from bagkit.playback.errors import PlayerError
+from bagkit.playback.source import MessageOrder
 from bagkit.playback.timing import DEFAULT_DISCOVERY_TIME_S
 from bagkit.selection.times import seconds_to_ns
 from bagkit.selection.topics import TopicSelection
@@ -131,6 +133,12 @@ class PlayOptions:
         tune_process: tune the process as ``bagkit replay`` does (:mod:`bagkit.ros.tuning`:
             Fast DDS shared-memory buffers, malloc thresholds, precise timers on the publishing
             thread); False leaves the host process alone.
+        more_bags: further bags replayed with ``bag`` as one timeline (``bagkit play A B``).
+        message_order: merge and schedule by log time (received) or send time (sent).
+        latched: on a late start (``start_offset_s``, a seek, each loop), first publish the
+            last message before it of each latched topic (``--no-latched``: False).
+        latched_topics: topics recorded volatile whose state is carried over too.
+        seek_step_s: bag time one seek key moves back or forward.
 
     Raises:
         PlayerError: an option out of its range, or a regular expression that does not compile.
@@ -160,6 +168,11 @@ class PlayOptions:
     node_name: str = "bagkit_player"
     progress_period_s: float = 0.5
     tune_process: bool = True
+    more_bags: tuple[Path, ...] = ()
+    message_order: MessageOrder = MessageOrder.RECEIVED
+    latched: bool = True
+    latched_topics: tuple[str, ...] = ()
+    seek_step_s: float = 5.0
 
     def __post_init__(self) -> None:
         if not self.rate > 0:
@@ -171,12 +184,31 @@ class PlayOptions:
         if self.loops < 0:
             raise PlayerError(f"loops must be 0 (forever) or positive, got {self.loops}")
         seconds_to_ns(self.progress_period_s, self.progress_period_s, PlayerError)
+        if not self.seek_step_s > 0:
+            raise PlayerError(f"seek step must be positive, got {self.seek_step_s}")
+        if self.latched_topics and not self.latched:
+            raise PlayerError("--latched-topics and --no-latched exclude each other")
         _ = self.window, self.selection  # their own checks
 
     @property
     def window(self) -> PlayWindow:
         """The part of the bag each pass replays."""
         return PlayWindow.create(self.start_offset_s, self.duration_s, self.until_ns)
+
+    @property
+    def bags(self) -> tuple[Path, ...]:
+        """Every bag of the replay, ``bag`` first."""
+        return (Path(self.bag), *self.more_bags)
+
+    @property
+    def latched_options(self) -> LatchedOptions:
+        """Which topics carry their state over to a late start."""
+        return LatchedOptions(enabled=self.latched, extra_topics=self.latched_topics)
+
+    @property
+    def seek_step_ns(self) -> int:
+        """:attr:`seek_step_s` in nanoseconds."""
+        return seconds_to_ns(self.seek_step_s, self.seek_step_s, PlayerError)
 
     @property
     def waits(self) -> SubscriberWaits:

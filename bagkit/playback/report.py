@@ -20,6 +20,13 @@ class PlayProgress:
     messages: int
     late: int
     loop: int
+    bag_ns: int = 0
+    """Log time reached (ns since the epoch)."""
+    fraction: float = 0.0
+    """Share of the replayed window reached (0 to 1)."""
+    rate: float = 1.0
+    """The rate asked for (the controls'), next to the effective one."""
+    paused: bool = False
 
 
 @dataclass(frozen=True, slots=True)
@@ -59,6 +66,8 @@ class PlayReport:
     unacknowledged: list[str] = field(default_factory=list)
     """Reliable topics whose subscribers had not acknowledged every message at the end."""
     interrupted: bool = False
+    latched: int = 0
+    """Of ``messages``, those published as latched state on a late start (not timed)."""
 
     @property
     def unreadable(self) -> int:

@@ -27,6 +27,13 @@ from collections.abc import Iterator, MutableMapping
 from pathlib import Path
 
 PORT_QUEUE_CAPACITY = 65536
+# Fast DDS's shared-memory segment when a profile does not say (512 KiB): a sender whose samples
+# do not fit in it falls back to UDP fragments, which lose whole frames (issue 27: a 640x480
+# rgb8 replay delivered 61 of 95 frames at --rate 1). A sender sizes its segment for
+# SEGMENT_SAMPLES of its largest messages in flight, a power of two, at most MAX_SEGMENT_SIZE.
+DEFAULT_SEGMENT_SIZE = 512 << 10
+SEGMENT_SAMPLES = 16
+MAX_SEGMENT_SIZE = 256 << 20
 PROFILES_FILE_VARIABLE = "FASTRTPS_DEFAULT_PROFILES_FILE"
 # Where Fast DDS 2.x looks for a profile of the user's: these variables, then these files in the
 # working directory. FASTDDS_BUILTIN_TRANSPORTS is the user choosing the transports.
@@ -119,11 +126,23 @@ def user_middleware_setting(
     return None
 
 
+def segment_size_for(largest_message: int) -> int | None:
+    """The shared-memory segment a sender of messages up to ``largest_message`` bytes needs.
+
+    None when Fast DDS's default holds :data:`SEGMENT_SAMPLES` of them.
+    """
+    wanted = SEGMENT_SAMPLES * max(largest_message, 0)
+    if wanted <= DEFAULT_SEGMENT_SIZE:
+        return None
+    return min(1 << (wanted - 1).bit_length(), MAX_SEGMENT_SIZE)
+
+
 @contextlib.contextmanager
 def large_receive_queue(
     environ: MutableMapping[str, str] | None = None,
     *,
     port_queue_capacity: int = PORT_QUEUE_CAPACITY,
+    segment_size: int | None = None,
 ) -> Iterator[bool]:
     """Give the DDS participants created inside the block a large shared-memory receive queue.
 
@@ -137,6 +156,8 @@ def large_receive_queue(
     Args:
         environ: the environment to change (default: ``os.environ``).
         port_queue_capacity: descriptors in the port.
+        segment_size: bytes of the shared-memory segment the participants send from (the
+            player's, :func:`segment_size_for`); None: Fast DDS's default.
 
     Yields:
         Whether the profile is in effect.
@@ -150,7 +171,9 @@ def large_receive_queue(
         try:
             profile.write_text(
                 shared_memory_profile(
-                    localhost=localhost_only(env), port_queue_capacity=port_queue_capacity
+                    localhost=localhost_only(env),
+                    port_queue_capacity=port_queue_capacity,
+                    segment_size=segment_size,
                 )
             )
         except OSError:

@@ -89,7 +89,10 @@ def precise_timers() -> Iterator[None]:
 
 @contextlib.contextmanager
 def process_tuning(
-    enabled: bool = True, environ: MutableMapping[str, str] | None = None
+    enabled: bool = True,
+    environ: MutableMapping[str, str] | None = None,
+    *,
+    segment_size: int | None = None,
 ) -> Iterator[bool]:
     """Tune the process for a recording or a replay; open it around the node's creation.
 
@@ -100,6 +103,8 @@ def process_tuning(
     Args:
         enabled: False: change nothing (``tune_process=False`` in the options).
         environ: the environment to change (default: ``os.environ``).
+        segment_size: the shared-memory segment a sender needs (the player's, for the bag's
+            largest messages); None: Fast DDS's default.
 
     Yields:
         Whether the Fast DDS profile is in effect.
@@ -108,5 +113,5 @@ def process_tuning(
         yield False
         return
     keep_freed_memory()
-    with large_receive_queue(environ) as profile:
+    with large_receive_queue(environ, segment_size=segment_size) as profile:
         yield profile

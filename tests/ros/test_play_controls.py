@@ -12,6 +12,7 @@ from bagkit.playback.controls import RATE_STEP, PlayControls
 from bagkit.playback.errors import PlayerError
 from bagkit.playback.keyboard import DOWN, RIGHT, SPACE, UP, key_actions, split_keys
 from bagkit.playback.options import PlayOptions
+from bagkit.playback.source import MessageOrder
 
 MS = 1_000_000
 
@@ -217,3 +218,42 @@ def test_help_answers_h(command: str) -> None:
     result = CliRunner().invoke(app, [command, "-h"])
     assert result.exit_code == 0
     assert "--start-paused" in result.output and "--exclude-regex" in result.output
+
+
+def test_debug_options_reach_the_player(monkeypatch: pytest.MonkeyPatch) -> None:
+    seen = _options(
+        [
+            *("A", "B", "-i", "C", "--message-order", "sent"),
+            *("--latched-topics", "/x", "/y", "--seek-step", "2"),
+        ],
+        monkeypatch,
+    )
+    assert seen["bag"] == "A"
+    assert [str(path) for path in seen["more_bags"]] == ["B", "C"]  # type: ignore[attr-defined]
+    assert seen["message_order"] is MessageOrder.SENT
+    assert seen["latched_topics"] == ("/x", "/y")
+    assert (seen["latched"], seen["seek_step_s"]) == (True, 2.0)
+    assert _options(["-i", "A", "--no-latched"], monkeypatch)["latched"] is False
+
+
+def test_seek_keys_call_the_seek_step_both_ways() -> None:
+    steps: list[int] = []
+    actions = key_actions(PlayControls(), steps.append)
+    for key in (b"\x1b[D", b",", b"<", b".", b">"):
+        actions[key]()
+    assert steps == [-1, -1, -1, 1, 1]
+    assert b"." not in key_actions(PlayControls())  # no seek without a player to seek
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--topics", "/a"], "give a bag"),
+        (["A", "--no-latched", "--latched-topics", "/x"], "exclude each other"),
+        (["A", "--seek-step", "0"], "seek step must be positive"),
+    ],
+)
+def test_debug_option_errors_are_one_line(args: list[str], message: str) -> None:
+    result = CliRunner().invoke(app, ["play", *args])
+    assert result.exit_code == 2
+    assert message in result.output

@@ -10,9 +10,10 @@ about, then runs the passes (:mod:`~bagkit.ros.replay.publish_loop`) and returns
 from __future__ import annotations
 
 import itertools
+import logging
 import math
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import ExitStack, nullcontext
 from pathlib import Path
 from typing import Any
@@ -22,14 +23,18 @@ from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
-from bagkit.bag import BagReader, TopicInfo
+from bagkit.bag import BagMessage, TopicInfo
+from bagkit.bag.latched import latched_topics
 from bagkit.playback.controls import PlayControls
 from bagkit.playback.lateness import LatenessSamples
 from bagkit.playback.options import PlayOptions
 from bagkit.playback.report import PlayProgress, PlayReport, TopicPlayback
+from bagkit.playback.seeking import WindowSpan
+from bagkit.playback.source import PlaySource
 from bagkit.ros.errors import PlayerError
+from bagkit.ros.fastdds import segment_size_for
 from bagkit.ros.qos import load_qos_overrides, replay_publisher_qos
-from bagkit.ros.replay.publish_loop import PassPublisher
+from bagkit.ros.replay.publish_loop import PassPublisher, PassReader
 from bagkit.ros.replay.publishers import (
     TopicOutput,
     create_clock_output,
@@ -38,10 +43,13 @@ from bagkit.ros.replay.publishers import (
     wait_until_acknowledged,
     wait_until_matched,
 )
+from bagkit.ros.replay.seek_services import serve_seek
 from bagkit.ros.replay.services import serve_controls
 from bagkit.ros.replay.topics import PublishableTopics, publishable_topics
 from bagkit.ros.tuning import precise_timers, process_tuning
-from bagkit.selection.times import seconds_to_ns
+from bagkit.selection.times import TimeLike, parse_time, seconds_to_ns
+
+_log = logging.getLogger(__name__)
 
 
 class Player:
@@ -57,6 +65,7 @@ class Player:
         on_progress: called with a ``PlayProgress`` about every ``options.progress_period_s``.
         on_live_publishers: called once before the first message with the replayed topics
             that other nodes publish too (published name -> those nodes).
+        on_warning: called with each warning (a seek clamped to the window); default: logging.
 
     Example:
         >>> report = Player(PlayOptions(Path("drive"), rate=2.0, clock_hz=100.0)).run()
@@ -72,6 +81,7 @@ class Player:
         context: Context | None = None,
         on_progress: Callable[[PlayProgress], None] | None = None,
         on_live_publishers: Callable[[dict[str, list[str]]], None] | None = None,
+        on_warning: Callable[[str], None] | None = None,
     ) -> None:
         """Set up a replay; nothing is opened until the player is entered."""
         self.options = options
@@ -82,16 +92,20 @@ class Player:
         self.waits = options.waits
         self.on_progress = on_progress
         self.on_live_publishers = on_live_publishers
+        self.on_warning = on_warning or _log.warning
         self.progress_period_ns = seconds_to_ns(
             options.progress_period_s, options.progress_period_s, PlayerError
         )
         self._context = context
         self._stack = ExitStack()
-        self._reader: BagReader | None = None
+        self._reader: PlaySource | None = None
+        self._latched: set[str] = set()  # topics whose state a late start publishes first
+        self._latched_published = 0
         self._node: Node | None = None
         self._outputs: dict[str, TopicOutput] = {}
         self._clock: TopicOutput | None = None
         self._node_created = 0.0
+        self._pass: PassPublisher | None = None  # the pass being published
         self.live_publishers: dict[str, list[str]] = {}
         """Published topic -> other nodes publishing it, found when the replay starts."""
         self.publishable = PublishableTopics()
@@ -128,14 +142,19 @@ class Player:
     def _open(self) -> None:
         options = self.options
         overrides = load_qos_overrides(options.qos_overrides) if options.qos_overrides else {}
-        reader = self._stack.enter_context(BagReader(self.bag_path))
+        reader = PlaySource.open(options.bags, options.message_order, self._stack)
         self._reader = reader
-        self.window.bounds(reader.start_ns, reader.end_ns, self.bag_path)  # raises past the end
+        self.window.bounds(reader.start_ns, reader.end_ns, Path(reader.name))  # raises past end
         selected = self._select_topics(reader.topics)
+        self._latched = latched_topics(
+            reader.topics, options.latched_options, [info.name for info, _ in selected]
+        )
         mean_size = reader.uncompressed_size // max(reader.message_count, 1) or 1024
         bag_duration_s = (reader.end_ns - reader.start_ns) / 1e9
-        # Fast DDS reads its profile when the participant is created.
-        with process_tuning(options.tune_process):
+        # Fast DDS reads its profile when the participant is created. The player sends: its
+        # shared-memory segment is sized for the bag's largest messages (issue 27, item 5).
+        largest = reader.largest_message(info.name for info, _ in selected)
+        with process_tuning(options.tune_process, segment_size=segment_size_for(largest)):
             node = self._create_node()
         for info, message_class in selected:
             name = options.remap.get(info.name, info.name)
@@ -152,6 +171,7 @@ class Player:
         if options.clock_hz is not None:
             self._clock = create_clock_output(node)
         if options.services:
+            self._stack.enter_context(serve_seek(node, self))  # before the executor spins
             self._stack.enter_context(serve_controls(node, self.controls))
 
     def _create_node(self) -> Node:
@@ -186,7 +206,7 @@ class Player:
             topics,
             self.selection,
             clock_published=self.options.clock_hz is not None,
-            bag_path=self.bag_path,
+            bag_path=Path(self._reader.name) if self._reader else self.bag_path,
         )
         return self.publishable.selected
 
@@ -212,6 +232,8 @@ class Player:
         options = self.options
         for output in self._outputs.values():
             output.count = 0
+        self._latched_published = 0
+        self.controls.stopped = False
         lateness = LatenessSamples()
         bag_ns = 0
         passes = 0
@@ -229,8 +251,10 @@ class Player:
                     time.sleep(options.delay_s)
                 before = lateness.count
                 bag_ns += self._play_pass(passes, lateness)
+                self._pass = None
+                self.controls.end_pass()
                 passes += 1
-                if lateness.count == before:
+                if lateness.count == before or self.controls.stopped:
                     break  # an empty window: looping would only spin
             wall_ns = time.monotonic_ns() - wall_start
             unacknowledged = self.wait_until_acknowledged()
@@ -238,9 +262,12 @@ class Player:
             interrupted = True
             wall_ns = time.monotonic_ns() - wall_start
             unacknowledged = []
+            if self._pass is not None:  # the interrupted pass counts for what it published
+                bag_ns += self._pass.covered_ns
+                self._pass = None
         return PlayReport(
             topics=self._topic_playbacks(passes, complete=not interrupted),
-            messages=lateness.count,
+            messages=sum(output.count for output in self._outputs.values()),
             loops=passes,
             bag_duration_s=bag_ns / 1e9,
             wall_duration_s=wall_ns / 1e9,
@@ -252,6 +279,7 @@ class Player:
             problems=list(dict.fromkeys(self._reader.problems)),
             unacknowledged=unacknowledged,
             interrupted=interrupted,
+            latched=self._latched_published,
         )
 
     def _topic_playbacks(self, passes: int, *, complete: bool) -> list[TopicPlayback]:
@@ -269,12 +297,9 @@ class Player:
 
     def _play_pass(self, loop: int, lateness: LatenessSamples) -> int:
         """Publish one pass over the window; return the bag time it covered (ns)."""
-        assert self._reader is not None
-        reader = self._reader
-        window_start, window_end = self.window.bounds(reader.start_ns, reader.end_ns, self.bag_path)
-        messages = iter(
-            reader.messages(topics=list(self._outputs), start_ns=window_start, end_ns=window_end)
-        )
+        reader = self._pass_reader()
+        window_start = self._span().start_ns
+        messages = reader.messages_from(window_start)
         # The first chunk is read before the clock starts, so the first message is on time.
         # Later chunks are read inline, right after a publication: a read-ahead thread was
         # measured to do worse, its GIL hand-offs delaying the publishing loop.
@@ -290,8 +315,82 @@ class Player:
             progress_period_ns=self.progress_period_ns,
             loop=loop,
             controls=self.controls,
+            reader=reader,
         )
-        return publisher.run(itertools.chain([first], messages), window_start)
+        self._pass = publisher
+        try:
+            return publisher.run(itertools.chain([first], messages), window_start)
+        finally:
+            self._latched_published += publisher.latched
+
+    def _pass_reader(self) -> PassReader:
+        assert self._reader is not None
+        source = self._reader
+        topics = list(self._outputs)
+        span = self._span()
+
+        def messages_from(bag_ns: int) -> Iterator[BagMessage]:
+            return iter(source.messages(topics, bag_ns, span.end_ns))
+
+        def latched_before(bag_ns: int) -> list[BagMessage]:
+            return source.latched_before(bag_ns, self._latched) if self._latched else []
+
+        return PassReader(messages_from, latched_before, span.last_ns)
+
+    def _span(self) -> WindowSpan:
+        if self._reader is None:
+            raise PlayerError("the player is not open: use it as a context manager")
+        return WindowSpan.of(self.window, self._reader)
+
+    def seek(self, to: TimeLike) -> int:
+        """Continue the replay from bag time ``to`` (rosbag2's ``~/seek``), clamped to the window.
+
+        ``to`` is a time of bagkit's grammar (:func:`~bagkit.selection.times.parse_time`:
+        seconds from the bag's start, negative from its end, epoch seconds, ISO 8601,
+        ``NNNns``). The latched state there and ``/clock`` are published first; the timeline
+        restarts there, so the jump is no lateness. Paused, it stays paused.
+
+        Returns:
+            The log time (ns) the replay goes on from.
+
+        Raises:
+            SelectionError: ``to`` is not a time.
+        """
+        span = self._span()
+        assert self._reader is not None
+        wanted = parse_time(to, "seek").resolve(self._reader.start_ns, self._reader.end_ns)
+        return self._seek_ns(span, wanted)
+
+    def seek_by(self, step_ns: int) -> int:
+        """Seek ``step_ns`` of bag time forward (negative: back) from where the replay is."""
+        return self._seek_ns(self._span(), self.controls.position() + step_ns)
+
+    def _seek_ns(self, span: WindowSpan, wanted: int) -> int:
+        target, warning = span.clamp(wanted)
+        if warning is not None:
+            self.on_warning(warning)
+        self.controls.seek(target)
+        return target
+
+    def burst(self, count: int) -> int:
+        """While paused, publish the next ``count`` messages at once (0: the rest of the pass).
+
+        Returns:
+            How many were published (0 unless paused), as rosbag2's ``~/burst``.
+        """
+        return self.controls.burst(count)
+
+    def pause(self) -> bool:
+        """Pause; False if already paused."""
+        return self.controls.pause()
+
+    def resume(self) -> bool:
+        """Resume; False if not paused."""
+        return self.controls.resume()
+
+    def stop(self) -> None:
+        """End the replay after the message being published; :meth:`play` returns its report."""
+        self.controls.stop()
 
     def wait_until_acknowledged(self) -> list[str]:
         """Wait until the subscribers of reliable topics have every message; return the others.

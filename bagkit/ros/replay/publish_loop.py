@@ -2,13 +2,17 @@
 
 The timeline is the :class:`~bagkit.playback.controls.PlayControls`' own: a pause, resume, step
 or rate change re-anchors it between two messages, and the loop waits on the controls (woken by
-any change) instead of sleeping; nothing else in the loop keeps timing state.
+any change) instead of sleeping; nothing else in the loop keeps timing state. A seek leaves the
+wait, publishes ``/clock`` at the new time and the latched state there, and goes on from there
+on a timeline anchored anew (the jump is no lateness); a stop ends the pass.
 """
 
 from __future__ import annotations
 
+import itertools
 import time
 from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 
 from bagkit.bag import BagMessage
 from bagkit.playback.controls import PlayControls
@@ -30,6 +34,18 @@ PROGRESS_SLACK_NS = 3_000_000
 PROGRESS_FORCE_S = 2.0
 
 
+@dataclass(frozen=True, slots=True)
+class PassReader:
+    """Where a pass reads: the window's messages from a bag time, the latched state at one."""
+
+    messages_from: Callable[[int], Iterator[BagMessage]]
+    """Messages of the replayed topics from this log time to the window's end, in order."""
+    latched_before: Callable[[int], list[BagMessage]]
+    """The last message before this log time of each latched topic (issue 27, item 1)."""
+    end_ns: int
+    """The window's last log time (for the progress line's percentage)."""
+
+
 class PassPublisher:
     """Publishes one pass over the replayed window, and keeps its timing state.
 
@@ -40,7 +56,8 @@ class PassPublisher:
         lateness: where each message's lateness goes (shared by the passes).
         on_progress: called with a :class:`PlayProgress` about every ``progress_period_ns``.
         loop: the number of this pass (0 first), for progress.
-        controls: pause, step and rate (and the timeline they anchor).
+        controls: pause, step, rate, seek and stop (and the timeline they anchor).
+        reader: where a seek reads from, and the latched state.
     """
 
     def __init__(
@@ -54,6 +71,7 @@ class PassPublisher:
         on_progress: Callable[[PlayProgress], None] | None,
         progress_period_ns: int,
         loop: int,
+        reader: PassReader,
     ) -> None:
         self.outputs = outputs
         self.clock = clock
@@ -63,67 +81,130 @@ class PassPublisher:
         self.progress_period_ns = progress_period_ns
         self.loop = loop
         self.controls = controls
-        self._wall_start = 0
+        self.reader = reader
+        self.latched = 0
+        """Messages published as latched state (not timed) in this pass."""
+        self._covered_ns = 0  # bag time published before the last seek
+        self._segment_start = 0  # where the pass started or the last seek went
+        self._wall_start = 0  # when the pass started or the last seek was taken
+        self._pass_wall_start = 0
+        self._delays: list[int] = []  # lateness samples not yet handed to ``lateness``
         self._window_start = 0
         self._next_tick = 0
         self._next_progress = 0
         self._counted_before = (0, 0)  # lateness count and late messages before this pass
+        self.last_log_time = 0
+        """Log time of the last message published in this pass."""
 
     def run(self, messages: Iterator[BagMessage], window_start: int) -> int:
-        """Publish ``messages`` on schedule from now; return the bag time they covered (ns)."""
-        controls = self.controls
-        self._wall_start = time.monotonic_ns()
-        controls.start(window_start, self._wall_start)
-        self._window_start = last_log_time = window_start
-        self._next_tick = self._wall_start + self.tick_ns
-        self._next_progress = self._wall_start + self.progress_period_ns
+        """Publish the latched state, then ``messages`` on schedule from now (seeks move the
+        pass within the window); return the bag time published (ns)."""
+        self._window_start = self._segment_start = self.last_log_time = window_start
+        self._pass_wall_start = time.monotonic_ns()
+        self._next_progress = self._pass_wall_start + self.progress_period_ns
         self._counted_before = (self.lateness.count, self.lateness.late)
+        messages = self._jump_to(window_start, messages)
+        delays = self._delays
+        try:
+            while True:
+                if self._publish_until_interrupted(messages):
+                    break
+                target = self.controls.take_seek()
+                if self.controls.stopped or target is None:
+                    break
+                self._covered_ns += self.last_log_time - self._segment_start
+                self._segment_start = self.last_log_time = target
+                messages = self._jump_to(target, self.reader.messages_from(target))
+        finally:
+            # Also on Ctrl-C: what was published is timed and counted (issue 27, item 6).
+            self.lateness.add_many(delays)
+            delays.clear()
+        if self.on_progress is not None:
+            self._report_progress(time.monotonic_ns())
+        return self.covered_ns
+
+    @property
+    def covered_ns(self) -> int:
+        """Bag time published so far in this pass (what an interrupted pass covered)."""
+        return self._covered_ns + self.last_log_time - self._segment_start
+
+    def _jump_to(self, bag_ns: int, messages: Iterator[BagMessage]) -> Iterator[BagMessage]:
+        """Start ``messages`` at ``bag_ns``: ``/clock`` there, the latched state, the timeline.
+
+        The first message is read before the timeline is anchored, so that reading its chunk
+        is not counted as lateness; returns the messages, that one included.
+        """
+        if self.clock is not None:
+            self.clock.publish(clock_message(bag_ns))
+        for message in self.reader.latched_before(bag_ns):
+            output = self.outputs[message.topic]
+            output.publish(message.data)
+            output.count += 1
+            self.latched += 1
+        first = next(messages, None)
+        self._wall_start = time.monotonic_ns()
+        self.controls.start(bag_ns, self._wall_start)
+        self._next_tick = self._wall_start + self.tick_ns
+        return itertools.chain([] if first is None else [first], messages)
+
+    def _publish_until_interrupted(self, messages: Iterator[BagMessage]) -> bool:
+        """Publish ``messages`` on schedule; True at their end, False on a seek or a stop."""
+        delays = self._delays
+        controls = self.controls
         clock = self.clock
-        if clock is not None:
-            clock.publish(clock_message(window_start))
         outputs = self.outputs
         on_progress = self.on_progress
-        delays: list[int] = []
         for message in messages:
             log_time = message.log_time
             deadline = controls.timeline.deadline(log_time)
             if clock is not None:
                 self._tick_clock_until(deadline)
             if on_progress is not None:
-                self._maybe_report_progress(deadline, last_log_time, delays)
+                self._maybe_report_progress(deadline)
             if len(delays) >= LATENESS_BLOCK and (
                 deadline - time.monotonic_ns() > LATENESS_SLACK_NS
                 or len(delays) >= LATENESS_BLOCK_MAX
             ):
                 self.lateness.add_many(delays)
-                delays = []
-            now, deadline = self._wait_controlled(log_time)
+                delays.clear()
+            waited = self._wait_controlled(log_time)
+            if waited is None:
+                return False
+            now, deadline = waited
             if clock is not None:
                 clock.publish(clock_message(log_time))
             output = outputs[message.topic]
             output.publish(message.data)
             output.count += 1
             delays.append(now - deadline)
-            last_log_time = log_time
-        self.lateness.add_many(delays)
-        if on_progress is not None:
-            self._report_progress(time.monotonic_ns(), last_log_time, [])
-        return last_log_time - window_start
+            self.last_log_time = log_time
+        return True
 
-    def _wait_controlled(self, log_time: int) -> tuple[int, int]:
+    def _wait_controlled(self, log_time: int) -> tuple[int, int] | None:
         """Wait until the message logged at ``log_time`` is due, paused while the controls hold.
 
         Returns:
-            The time of return and the deadline met (a stepped message's is its step's time).
+            The time of return and the deadline met (a stepped message's is its step's time);
+            None when a seek or a stop interrupts the wait.
         """
         controls = self.controls
         while True:
             generation = controls.generation
+            if controls.interrupting:
+                return None
             if controls.holding:
                 if controls.take_step(log_time):
                     now = time.monotonic_ns()
                     return now, now
-                controls.wait_for_change(generation)
+                if self.on_progress is None:
+                    controls.wait_for_change(generation)
+                    continue
+                # Paused: the progress line keeps saying so.
+                controls.wait_for_change(generation, self.progress_period_ns / 1e9)
+                now = time.monotonic_ns()
+                if now >= self._next_progress:
+                    self._report_progress(now)
+                    self._next_progress = now + self.progress_period_ns
                 continue
             deadline = controls.timeline.deadline(log_time)
             remaining = deadline - time.monotonic_ns()
@@ -135,35 +216,43 @@ class PassPublisher:
     def _tick_clock_until(self, deadline: int) -> None:
         """Publish ``/clock`` at ``clock_hz`` up to ``deadline``."""
         assert self.clock is not None
-        while self._next_tick < deadline:
+        while self._next_tick < deadline and not self.controls.interrupting:
             wait_until(self._next_tick)
             self.clock.publish(clock_message(self.controls.timeline.bag_time(self._next_tick)))
             # After a stall, resume ticking from now instead of bursting the backlog.
             self._next_tick = max(self._next_tick + self.tick_ns, time.monotonic_ns())
 
-    def _maybe_report_progress(self, deadline: int, last_log_time: int, delays: list[int]) -> None:
+    def _maybe_report_progress(self, deadline: int) -> None:
         now = time.monotonic_ns()
         if now >= self._next_progress and (
             deadline - now > PROGRESS_SLACK_NS or now - self._next_progress > PROGRESS_FORCE_S * 1e9
         ):
-            self._report_progress(now, last_log_time, delays)
+            self._report_progress(now)
             self._next_progress = now + self.progress_period_ns
 
-    def _report_progress(self, now: int, last_log_time: int, delays: list[int]) -> None:
-        """Report this pass so far; ``delays`` are the samples not yet handed to ``lateness``."""
+    def _report_progress(self, now: int) -> None:
+        """Report this pass so far (the samples not yet handed to ``lateness`` included)."""
         assert self.on_progress is not None
         count_before, late_before = self._counted_before
-        bag_s = (last_log_time - self._window_start) / 1e9
-        wall_s = (now - self._wall_start) / 1e9
+        delays = self._delays
+        position = self.last_log_time
+        span = self.reader.end_ns - self._window_start
+        segment_wall = now - self._wall_start
         self.on_progress(
             PlayProgress(
-                bag_time_s=bag_s,
-                wall_time_s=wall_s,
-                effective_rate=bag_s / wall_s if wall_s > 0 else 0.0,
+                bag_time_s=(position - self._window_start) / 1e9,
+                wall_time_s=(now - self._pass_wall_start) / 1e9,
+                effective_rate=(position - self._segment_start) / segment_wall
+                if segment_wall > 0
+                else 0.0,
                 messages=self.lateness.count - count_before + len(delays),
                 late=self.lateness.late
                 - late_before
                 + sum(1 for delay in delays if delay > LATE_THRESHOLD_NS),
                 loop=self.loop,
+                bag_ns=position,
+                fraction=min(1.0, (position - self._window_start) / span) if span > 0 else 1.0,
+                rate=self.controls.rate,
+                paused=self.controls.holding,
             )
         )
