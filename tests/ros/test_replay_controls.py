@@ -50,11 +50,15 @@ def indices(received: list[Received]) -> list[int]:
 
 
 def assert_follows_the_bag_spacing(received: list[Received], period_ns: int) -> None:
-    """Inter-arrival times follow the bag's (the tolerances of test_replay's pacing test)."""
+    """Inter-arrival times follow the bag's: no burst after a resume or a step.
+
+    Received in this process, so a loaded machine widens them; a burst would put the median
+    error near a whole period (50 ms), far above these bounds.
+    """
     gaps = [b.received_ns - a.received_ns for a, b in itertools.pairwise(received)]
     errors_ms = sorted(abs(gap - period_ns) / 1e6 for gap in gaps)
-    assert statistics.median(errors_ms) < 2.0, errors_ms
-    assert errors_ms[int(0.9 * len(errors_ms))] < 10.0, errors_ms
+    assert statistics.median(errors_ms) < 0.1 * period_ns / 1e6, errors_ms
+    assert errors_ms[int(0.9 * len(errors_ms))] < 0.4 * period_ns / 1e6, errors_ms
     assert errors_ms[-1] < 150.0, errors_ms
 
 
