@@ -9,6 +9,7 @@ the first and last matching message, ``count`` the matches in it. ``bagkit find`
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -101,3 +102,9 @@ def find_episodes(
         matches.undecodable,
         matches.problems,
     )
+
+
+def episode_windows(episodes: Sequence[Episode], before_ns: int, after_ns: int) -> list[Window]:
+    """The window around each episode: from ``before_ns`` before its first match to
+    ``after_ns`` after its last, that one included (``[start - before, end + after + 1)``)."""
+    return [Window(max(e.start_ns - before_ns, 0), e.end_ns + after_ns + 1) for e in episodes]

@@ -11,7 +11,7 @@ A message that does not decode is counted, never matched.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -19,7 +19,7 @@ import numpy as np
 from bagkit.bag import BagReader
 from bagkit.data.columns import Rows, TopicColumns
 from bagkit.data.engine import Spans, payload_spans
-from bagkit.data.errors import UndecodableTopicError
+from bagkit.data.errors import UndecodableTopicError, UnknownFieldError
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
 from bagkit.selection.conditions import Condition
 from bagkit.selection.topics import require_topics
@@ -82,6 +82,22 @@ class PayloadMatcher:
             for s, n in zip(spans.starts.tolist(), spans.lengths.tolist(), strict=True)
         )
         return self._decoded_mask(payloads, len(spans.starts))
+
+    def mask_records(self, records: bytes, starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+        """Whether each payload at ``starts``/``lengths`` in a chunk's records matches
+        (:class:`bagkit.surgery.select.PayloadFilter`, for ``filter --where``)."""
+        times = np.zeros(len(starts), np.int64)  # not needed to match
+        return self.mask_spans(records, Spans(times, times, starts, lengths))
+
+    @property
+    def problem(self) -> str | None:
+        """The line for messages that did not decode (never matched), or None."""
+        if not self.undecodable:
+            return None
+        return (
+            f"{self.topic}: {self.undecodable} messages could not be decoded, not matched "
+            f"({self.first_failure})"
+        )
 
     def mask_payloads(self, payloads: Sequence[bytes]) -> np.ndarray:
         """Whether each of ``payloads`` (storage without chunks) matches (bool array)."""
@@ -174,11 +190,8 @@ def match_topic(
     matched = np.concatenate(masks) if masks else np.zeros(0, bool)
     order = np.argsort(log_times, kind="stable")  # chunks may overlap in time
     problems = list(reader.problems)
-    if matcher.undecodable:
-        problems.append(
-            f"{topic}: {matcher.undecodable} messages could not be decoded, not matched "
-            f"({matcher.first_failure})"
-        )
+    if matcher.problem:
+        problems.append(matcher.problem)
     return TopicMatches(topic, log_times[order], matched[order], matcher.undecodable, problems)
 
 
@@ -207,3 +220,33 @@ def _match_messages(  # noqa: PLR0917 (private: the loop's state)
             flush()
     if payloads:
         flush()
+
+
+def where_filters(
+    reader: BagReader, condition: Condition, passes: Callable[[str], bool]
+) -> dict[str, PayloadMatcher]:
+    """A matcher for each topic of an open bag that ``passes`` and whose type has every field
+    ``condition`` reads (``filter --where``: the other topics are kept whole).
+
+    Raises:
+        UnknownFieldError: no such topic (the message names the fields of the first one).
+    """
+    types = MessageTypes.from_definitions(reader.definitions)
+    matchers: dict[str, PayloadMatcher] = {}
+    first_error: UnknownFieldError | None = None
+    for name in sorted(reader.topics):
+        if not passes(name) or reader.topics[name].serialization_format != "cdr":
+            continue
+        try:
+            matchers[name] = PayloadMatcher(types, name, reader.topics[name].type, condition)
+        except UndecodableTopicError:
+            continue
+        except UnknownFieldError as exc:
+            first_error = first_error or exc
+    if not matchers:
+        if first_error is not None:
+            raise UnknownFieldError(
+                f"no selected topic has the fields of the condition: {first_error}"
+            )
+        raise UnknownFieldError("no selected topic can be decoded to check the condition")
+    return matchers
