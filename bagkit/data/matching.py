@@ -177,6 +177,7 @@ def match_topic(
     matcher = PayloadMatcher(types, topic, reader.topics[topic].type, condition)
     times: list[np.ndarray] = []
     masks: list[np.ndarray] = []
+    unindexed = 0  # index entries pointing outside their chunk
     if "sqlite3" in reader.storage.split(","):
         _match_messages(reader, topic, window, matcher, times, masks)
     else:
@@ -186,10 +187,13 @@ def match_topic(
             )
             times.append(spans.log_times)
             masks.append(matcher.mask_spans(chunk.records, spans))
+            unindexed += spans.dropped
     log_times = np.concatenate(times) if times else np.zeros(0, np.int64)
     matched = np.concatenate(masks) if masks else np.zeros(0, bool)
     order = np.argsort(log_times, kind="stable")  # chunks may overlap in time
     problems = list(reader.problems)
+    if unindexed:
+        problems.append(f"{topic}: {unindexed} index entries point outside their chunk: lost")
     if matcher.problem:
         problems.append(matcher.problem)
     return TopicMatches(topic, log_times[order], matched[order], matcher.undecodable, problems)
