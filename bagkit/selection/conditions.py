@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any, NoReturn
 
 from bagkit.selection.errors import SelectionError, UnknownFieldError
 from bagkit.selection.fields import unknown_field_message
+from bagkit.selection.topics import absolute_topic_name
 
 if TYPE_CHECKING:
     import numpy as np
@@ -158,6 +159,37 @@ class Condition:
 def parse_condition(text: str) -> Condition:
     """Parse ``text``. Raises SelectionError naming the position of the first problem."""
     return Condition(text)
+
+
+@dataclass(frozen=True, slots=True)
+class TopicCondition:
+    """``TOPIC: CONDITION`` (``--around``, ``--when``): a condition on one topic's messages."""
+
+    topic: str
+    condition: Condition
+
+    @property
+    def text(self) -> str:
+        """As written, normalized: ``/alerts: status[*].level >= 2``."""
+        return f"{self.topic}: {self.condition.text}"
+
+
+def parse_topic_condition(text: str) -> TopicCondition:
+    """Parse ``'TOPIC: CONDITION'`` (topic names hold no colon: the first one separates).
+
+    Raises:
+        SelectionError: no colon, no topic or a topic with blanks, or a condition that does
+            not parse (its position counted in the condition).
+    """
+    topic, colon, rest = text.partition(":")
+    name = topic.strip()
+    if not colon or not name or any(c.isspace() for c in name):
+        raise SelectionError(f"{text!r}: expected 'TOPIC: CONDITION' (e.g. '/alerts: level >= 2')")
+    try:
+        condition = parse_condition(rest.strip())
+    except SelectionError as exc:
+        raise SelectionError(f"{text!r}: {exc}") from None
+    return TopicCondition(absolute_topic_name(name), condition)
 
 
 def _leaf_pattern(path: tuple[Step, ...]) -> re.Pattern[str]:
