@@ -6,6 +6,7 @@ import contextlib
 import re
 import signal
 import threading
+from collections.abc import Callable
 from types import FrameType
 from typing import TYPE_CHECKING
 
@@ -40,21 +41,30 @@ from bagkit.cli.record_options import (
     LogLevelOption,
     MaxBagDuration,
     MaxBagSize,
+    MaxCacheDuration,
     MaxCacheSize,
     NodeName,
     Output,
     PollingInterval,
+    Post,
+    Pre,
     QosOverrides,
     Regex,
+    RepeatAllTransientLocal,
+    RepeatTransientLocal,
+    SnapshotMode,
     Storage,
     Topics,
     TopicsPositional,
     TopicTypes,
+    TriggerOption,
     UseSimTime,
 )
 from bagkit.cli.record_table import print_record_table, progress_line
 from bagkit.cli.selection_options import duration_seconds
 from bagkit.extras import ROS, require
+from bagkit.playback.keyboard import key_presses
+from bagkit.recording.latched import parse_repeat
 from bagkit.recording.options import DEFAULT_QUEUE_BYTES, RecordOptions
 from bagkit.recording.report import RecordProgress, RecordReport
 
@@ -119,6 +129,8 @@ class RecordCommand(MultiValueCommand):
 
 
 COMMAND_CLASS = RecordCommand
+# The key that triggers a snapshot (--snapshot-mode, a terminal on stdin).
+SNAPSHOT_KEY = b"s"
 
 
 @handle_errors
@@ -148,6 +160,13 @@ def record(  # noqa: PLR0917 (typer maps parameters to options; ros2 bag has the
     polling_interval: PollingInterval = 100,
     log_level: LogLevelOption = LogLevel.INFO,
     output_format: Format = ReportFormat.TABLE,
+    snapshot_mode: SnapshotMode = False,
+    max_cache_duration: MaxCacheDuration = None,
+    trigger: TriggerOption = None,
+    pre: Pre = None,
+    post: Post = None,
+    repeat_transient_local: RepeatTransientLocal = None,
+    repeat_all_transient_local: RepeatAllTransientLocal = None,
 ) -> None:
     require(ROS, "bagkit record")
     from bagkit.ros.record.recorder import Recorder
@@ -174,8 +193,16 @@ def record(  # noqa: PLR0917 (typer maps parameters to options; ros2 bag has the
         qos_overrides=qos_overrides,
         use_sim_time=use_sim_time,
         node_name=node_name,
-        queue_bytes=max_cache_size or DEFAULT_QUEUE_BYTES,
+        queue_bytes=(not snapshot_mode and max_cache_size) or DEFAULT_QUEUE_BYTES,
         discovery_period_s=polling_interval / 1000,
+        snapshot_mode=snapshot_mode,
+        snapshot_max_bytes=(snapshot_mode and max_cache_size) or 0,
+        snapshot_max_duration_s=duration_seconds(max_cache_duration, "--max-cache-duration") or 0,
+        triggers=tuple(trigger or ()),
+        pre_s=duration_seconds(pre, "--pre"),
+        post_s=duration_seconds(post, "--post") or 0,
+        repeat_transient_local=parse_repeat(repeat_transient_local or []),
+        repeat_all_transient_local=repeat_all_transient_local,
     )
     recorder = Recorder(options, on_warning=(lambda _message: None) if quiet else warn)
     report, received = _record_until_stopped(recorder)
@@ -216,12 +243,19 @@ def _record_until_stopped(recorder: Recorder) -> tuple[RecordReport, list[int]]:
 
     previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
-        with _ProgressStatus(recorder) as status:
+        with _ProgressStatus(recorder) as status, key_presses(_keys(recorder)):
             report = recorder.run(stop, on_progress=status.update)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     return report, received
+
+
+def _keys(recorder: Recorder) -> dict[bytes, Callable[[], object]]:
+    """What the keys do while recording (a terminal on stdin): s takes a snapshot."""
+    if not recorder.options.snapshot_mode:
+        return {}
+    return {SNAPSHOT_KEY: lambda: recorder.snapshot("key")}
 
 
 class _ProgressStatus:
@@ -242,7 +276,8 @@ class _ProgressStatus:
         line = progress_line(progress, subscribed=self._recorder.subscribed.is_set())
         if self._status is None:
             path = self._recorder.path
-            err_console.print(f"recording to {path} (Ctrl-C to stop)", highlight=False)
+            keys = ", s: snapshot" if self._recorder.options.snapshot_mode else ""
+            err_console.print(f"recording to {path} (Ctrl-C to stop{keys})", highlight=False)
             self._status = self._stack.enter_context(err_console.status(line))
         else:
             self._status.update(line)

@@ -50,6 +50,8 @@ def print_record_table(report: RecordReport) -> None:
     )
     print_table(table)
     _print_notes(report)
+    if report.snapshots is not None:
+        _print_snapshots(report)
 
 
 def _print_notes(report: RecordReport) -> None:
@@ -64,6 +66,29 @@ def _print_notes(report: RecordReport) -> None:
             notes.append(f"{topic.before_clock} taken before the first /clock, not written")
         for note in notes:
             print_wrapped(f"{topic.topic}: {note}".split(" "), lead=INDENT)
+
+
+def _print_snapshots(report: RecordReport) -> None:
+    """Snapshot mode: what each snapshot holds, and what the buffer's bound evicted."""
+    assert report.snapshots is not None
+    evicted = sum(report.evicted.values())
+    print_wrapped(
+        f"snapshot mode: {len(report.snapshots)} snapshot(s); {evicted} messages evicted from "
+        "the buffer by its bound (not lost: not kept by design)".split(" ")
+    )
+    for snapshot in report.snapshots:
+        held = ", ".join(f"{topic} {count}" for topic, count in sorted(snapshot.messages.items()))
+        span = (snapshot.end_ns - snapshot.start_ns) / 1e9
+        before = (snapshot.trigger_ns - snapshot.start_ns) / 1e9
+        line = (
+            f"{snapshot.path.name}: {span:.1f} s ({before:.1f} s before the trigger), "
+            f"trigger {snapshot.trigger}"
+            + (f" (x{snapshot.triggers})" if snapshot.triggers > 1 else "")
+            + f", {sum(snapshot.messages.values())} messages ({held or 'none'})"
+            + f", {snapshot.latched} latched at its start"
+            + (f", FAILED: {snapshot.error}" if snapshot.error else "")
+        )
+        print_wrapped(line.split(" "), lead=INDENT)
 
 
 def progress_line(progress: RecordProgress, *, subscribed: bool) -> str:

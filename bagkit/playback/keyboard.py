@@ -1,5 +1,7 @@
 """Keyboard controls of a replay in a terminal, and a replay that survives Ctrl-Z.
 
+The key reader itself (:func:`key_presses`) also serves ``bagkit record``'s keys.
+
 As ``ros2 bag play``: space pauses and resumes, the right arrow publishes the next message while
 paused, the up and down arrows raise and lower the rate by 0.1. The terminal is put in cbreak
 mode without echo (Ctrl-C and Ctrl-Z still send their signals) and restored on exit, and around
@@ -52,41 +54,49 @@ def split_keys(data: bytes) -> list[bytes]:
     return keys
 
 
-@contextmanager
-def terminal_controls(controls: PlayControls, *, keyboard: bool) -> Iterator[None]:
-    """Hold the replay across Ctrl-Z; with ``keyboard`` and a terminal on stdin, read its keys."""
-    fd = sys.stdin.fileno() if keyboard and sys.stdin.isatty() else None
-    saved = termios.tcgetattr(fd) if fd is not None else None
+class _Terminal:
+    """The controlling terminal on stdin, put in cbreak mode without echo and restored."""
 
-    def enter_raw() -> None:
-        if fd is not None:
-            tty.setcbreak(fd, termios.TCSANOW)
-            attributes = termios.tcgetattr(fd)
+    def __init__(self, enabled: bool) -> None:
+        self.fd = sys.stdin.fileno() if enabled and sys.stdin.isatty() else None
+        self._saved = termios.tcgetattr(self.fd) if self.fd is not None else None
+
+    def enter_raw(self) -> None:
+        if self.fd is not None:
+            tty.setcbreak(self.fd, termios.TCSANOW)
+            attributes = termios.tcgetattr(self.fd)
             attributes[3] &= ~termios.ECHO
-            termios.tcsetattr(fd, termios.TCSANOW, attributes)
+            termios.tcsetattr(self.fd, termios.TCSANOW, attributes)
 
-    def restore() -> None:
-        if fd is not None and saved is not None:
+    def restore(self) -> None:
+        if self.fd is not None and self._saved is not None:
             with suppress(termios.error):  # the terminal hung up: nothing to restore
-                termios.tcsetattr(fd, termios.TCSANOW, saved)
+                termios.tcsetattr(self.fd, termios.TCSANOW, self._saved)
 
-    def on_stop(_signum: int, _frame: FrameType | None) -> None:
-        controls.suspend()
-        restore()
-        # SIGSTOP, not SIGTSTP again: the kernel ignores SIGTSTP in an orphaned process group
-        # (a replay started in a session of its own), which would leave the replay held.
-        os.kill(os.getpid(), signal.SIGSTOP)  # stops here until SIGCONT
-        enter_raw()
-        controls.unsuspend()
 
-    previous = signal.signal(signal.SIGTSTP, on_stop)
+@contextmanager
+def key_presses(actions: dict[bytes, Callable[[], object]]) -> Iterator[bool]:
+    """Run ``actions[key]`` for each key pressed on the terminal on stdin, in a thread.
+
+    Yields whether there is such a terminal (otherwise nothing is read). ``bagkit record``
+    uses it for its keys; :func:`terminal_controls` for the replay's.
+    """
+    terminal = _Terminal(enabled=bool(actions))
+    with _reading_keys(terminal, actions):
+        yield terminal.fd is not None
+
+
+@contextmanager
+def _reading_keys(
+    terminal: _Terminal, actions: dict[bytes, Callable[[], object]]
+) -> Iterator[None]:
     stop = threading.Event()
     reader = None
     try:
-        if fd is not None:
-            enter_raw()
+        if terminal.fd is not None:
+            terminal.enter_raw()
             reader = threading.Thread(
-                target=_read_keys, args=(fd, key_actions(controls), stop), daemon=True
+                target=_read_keys, args=(terminal.fd, actions, stop), daemon=True
             )
             reader.start()
         yield
@@ -94,7 +104,28 @@ def terminal_controls(controls: PlayControls, *, keyboard: bool) -> Iterator[Non
         stop.set()
         if reader is not None:
             reader.join(timeout=2 * POLL_S)
-        restore()
+        terminal.restore()
+
+
+@contextmanager
+def terminal_controls(controls: PlayControls, *, keyboard: bool) -> Iterator[None]:
+    """Hold the replay across Ctrl-Z; with ``keyboard`` and a terminal on stdin, read its keys."""
+    terminal = _Terminal(keyboard)
+
+    def on_stop(_signum: int, _frame: FrameType | None) -> None:
+        controls.suspend()
+        terminal.restore()
+        # SIGSTOP, not SIGTSTP again: the kernel ignores SIGTSTP in an orphaned process group
+        # (a replay started in a session of its own), which would leave the replay held.
+        os.kill(os.getpid(), signal.SIGSTOP)  # stops here until SIGCONT
+        terminal.enter_raw()
+        controls.unsuspend()
+
+    previous = signal.signal(signal.SIGTSTP, on_stop)
+    try:
+        with _reading_keys(terminal, key_actions(controls)):
+            yield
+    finally:
         signal.signal(signal.SIGTSTP, previous)
 
 

@@ -12,6 +12,8 @@ from datetime import datetime
 from pathlib import Path
 
 from bagkit.recording.errors import RecorderOptionsError
+from bagkit.selection.conditions import Condition, parse_topic_condition
+from bagkit.selection.errors import SelectionError
 from bagkit.selection.topics import TopicSelection
 
 # Bounds the memory held between taking and writing: absorbs writer hiccups (a slow disk
@@ -64,6 +66,20 @@ class RecordOptions:
         tune_process: tune the process as ``bagkit record`` does (:mod:`bagkit.ros.tuning`:
             Fast DDS shared-memory queue, malloc thresholds); False leaves the host process
             alone.
+        snapshot_mode: keep the newest messages in memory and write a bag of them under
+            ``output`` at each trigger only (``--snapshot-mode``).
+        snapshot_max_bytes: the snapshot buffer's bound in bytes (``--max-cache-size`` in
+            snapshot mode; 0: none).
+        snapshot_max_duration_s: the snapshot buffer's bound in seconds of log time
+            (``--max-cache-duration``; 0: none).
+        triggers: ``'TOPIC: CONDITION'`` texts: a message on TOPIC that satisfies the field
+            condition triggers a snapshot (``--trigger``).
+        pre_s: a snapshot starts this long before its trigger (None: all that is buffered).
+        post_s: a snapshot goes on this long after its (last) trigger.
+        repeat_transient_local: topic -> how many of its last messages are written at the
+            start of every snapshot and split file (``--repeat-transient-local TOPIC[=N]``).
+        repeat_all_transient_local: repeat the last message of every transient-local topic
+            (``--repeat-all-transient-local``); None: on in snapshot mode, off otherwise.
 
     Raises:
         RecorderOptionsError: nothing selected, a negative limit.
@@ -92,6 +108,14 @@ class RecordOptions:
     queue_bytes: int = DEFAULT_QUEUE_BYTES
     discovery_period_s: float = DISCOVERY_PERIOD_S
     tune_process: bool = True
+    snapshot_mode: bool = False
+    snapshot_max_bytes: int = 0
+    snapshot_max_duration_s: float = 0
+    triggers: tuple[str, ...] = ()
+    pre_s: float | None = None
+    post_s: float = 0
+    repeat_transient_local: Mapping[str, int] = field(default_factory=dict)
+    repeat_all_transient_local: bool | None = None
 
     def __post_init__(self) -> None:
         if self.selection.empty:
@@ -106,6 +130,19 @@ class RecordOptions:
             raise RecorderOptionsError(f"max_messages must be positive, got {self.max_messages}")
         if self.queue_bytes < 1 or self.discovery_period_s <= 0:
             raise RecorderOptionsError("queue_bytes and discovery_period_s must be positive")
+        check_snapshot_options(self)
+
+    @property
+    def repeats_all_transient_local(self) -> bool:
+        """Whether every transient-local topic's last message starts each file and snapshot."""
+        if self.repeat_all_transient_local is None:
+            return self.snapshot_mode
+        return self.repeat_all_transient_local
+
+    @property
+    def trigger_conditions(self) -> list[tuple[str, Condition]]:
+        """The parsed ``triggers``: (absolute topic, condition) each."""
+        return [parse_topic_condition(text) for text in self.triggers]
 
     @property
     def selection(self) -> TopicSelection:
@@ -120,3 +157,31 @@ class RecordOptions:
             exclude_topics=self.exclude_topics,
             exclude_topic_types=self.exclude_topic_types,
         )
+
+
+def check_snapshot_options(options: RecordOptions) -> None:
+    """Raise RecorderOptionsError for snapshot settings that do not go together or parse."""
+    if options.snapshot_mode:
+        if options.snapshot_max_bytes < 0 or options.snapshot_max_duration_s < 0:
+            raise RecorderOptionsError("--max-cache-size and --max-cache-duration must be >= 0")
+        if not (options.snapshot_max_bytes or options.snapshot_max_duration_s):
+            raise RecorderOptionsError(
+                "--snapshot-mode needs a bound: --max-cache-size or --max-cache-duration"
+            )
+    elif options.triggers or options.snapshot_max_duration_s or options.post_s:
+        raise RecorderOptionsError(
+            "--trigger, --max-cache-duration and --post need --snapshot-mode"
+        )
+    if (options.pre_s is not None and options.pre_s < 0) or options.post_s < 0:
+        raise RecorderOptionsError("--pre and --post must be >= 0")
+    if any(depth < 1 for depth in options.repeat_transient_local.values()):
+        raise RecorderOptionsError("--repeat-transient-local: N must be positive")
+    for text in options.triggers:
+        try:
+            topic, _condition = parse_topic_condition(text)
+        except SelectionError as exc:
+            raise RecorderOptionsError(f"--trigger {exc}") from None
+        if not options.selection.matches(topic) and topic not in options.topics:
+            raise RecorderOptionsError(
+                f"--trigger {text!r}: {topic} is not among the recorded topics"
+            )

@@ -55,6 +55,38 @@ class TopicRecord:
 
 
 @dataclass(slots=True)
+class SnapshotRecord:
+    """One snapshot of a snapshot-mode recording: its bag, its window, what it holds."""
+
+    path: Path
+    trigger: str
+    """What opened it: ``service``, ``key``, ``request`` or the ``--trigger`` text."""
+    trigger_ns: int
+    start_ns: int
+    end_ns: int
+    triggers: int = 1
+    """Triggers inside its window (each one extends it)."""
+    messages: dict[str, int] = field(default_factory=dict)
+    latched: int = 0
+    """Copies of latched messages written at its start."""
+    error: str | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready view."""
+        return {
+            "path": str(self.path),
+            "trigger": self.trigger,
+            "trigger_ns": self.trigger_ns,
+            "start_ns": self.start_ns,
+            "end_ns": self.end_ns,
+            "triggers": self.triggers,
+            "messages": dict(sorted(self.messages.items())),
+            "latched": self.latched,
+            "error": self.error,
+        }
+
+
+@dataclass(slots=True)
 class RecordReport:
     """The outcome of a recording: per-topic counts, skipped topics, the error that stopped it."""
 
@@ -65,6 +97,10 @@ class RecordReport:
     topics: list[TopicRecord] = field(default_factory=list)
     skipped: dict[str, str] = field(default_factory=dict)
     error: str | None = None
+    # Snapshot mode only (None otherwise): the snapshots written, and per topic the messages
+    # evicted from the buffer by its bound (by design: not lost, not in a snapshot).
+    snapshots: list[SnapshotRecord] | None = None
+    evicted: dict[str, int] = field(default_factory=dict)
 
     @property
     def messages(self) -> int:
@@ -90,7 +126,7 @@ class RecordReport:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready view."""
-        return {
+        view = {
             "path": str(self.path),
             "duration_s": self.duration_s,
             "discovery_s": self.discovery_s,
@@ -101,6 +137,10 @@ class RecordReport:
             "skipped": dict(self.skipped),
             "error": self.error,
         }
+        if self.snapshots is not None:
+            view["snapshots"] = [s.to_dict() for s in self.snapshots]
+            view["evicted"] = dict(sorted(self.evicted.items()))
+        return view
 
 
 @dataclass(frozen=True, slots=True)

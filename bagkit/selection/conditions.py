@@ -20,12 +20,13 @@ from __future__ import annotations
 
 import operator
 import re
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, NoReturn
 
 from bagkit.selection.errors import SelectionError, UnknownFieldError
 from bagkit.selection.fields import unknown_field_message
+from bagkit.selection.topics import absolute_topic_name
 
 if TYPE_CHECKING:
     import numpy as np
@@ -158,6 +159,21 @@ class Condition:
 def parse_condition(text: str) -> Condition:
     """Parse ``text``. Raises SelectionError naming the position of the first problem."""
     return Condition(text)
+
+
+def parse_topic_condition(text: str) -> tuple[str, Condition]:
+    """Parse ``'TOPIC: CONDITION'`` (``--trigger``) into the absolute topic and its condition.
+
+    Raises:
+        SelectionError: no ``:`` after a topic, or the condition does not parse.
+    """
+    topic, sep, condition = text.partition(":")
+    if not sep or not topic.strip() or not condition.strip():
+        raise SelectionError(f"bad condition {text!r}: expected 'TOPIC: CONDITION'")
+    try:
+        return absolute_topic_name(topic.strip()), parse_condition(condition.strip())
+    except SelectionError as exc:
+        raise SelectionError(f"{text!r}: {exc}") from None
 
 
 def _leaf_pattern(path: tuple[Step, ...]) -> re.Pattern[str]:
@@ -327,7 +343,7 @@ def _values(message: Any, comparison: Comparison) -> list[Any]:
         reached = []
         for value in current:
             if isinstance(step, str):
-                if step not in getattr(value, "__dataclass_fields__", ()):
+                if step not in _field_names(value):
                     raise UnknownFieldError(f"no field {comparison.text!r} in the message")
                 reached.append(getattr(value, step))
             elif not hasattr(value, "__len__") or isinstance(value, str | bytes):
@@ -338,6 +354,15 @@ def _values(message: Any, comparison: Comparison) -> list[Any]:
                 reached.append(value[step])
         current = reached
     return current
+
+
+def _field_names(message: Any) -> Collection[str]:
+    """The fields of a decoded message (a dataclass) or of an rclpy message object."""
+    fields = getattr(message, "__dataclass_fields__", None)
+    if fields is not None:
+        return fields
+    rclpy_fields = getattr(type(message), "get_fields_and_field_types", None)
+    return rclpy_fields() if rclpy_fields is not None else ()
 
 
 def _compare(value: Any, comparison: Comparison) -> bool:

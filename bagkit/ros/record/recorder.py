@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import logging
 import threading
 import time
 from collections.abc import Callable
@@ -27,15 +28,19 @@ from rclpy.signals import SignalHandlerOptions
 from bagkit.bag import BagWriteError, BagWriter
 from bagkit.bag.errors import BagError
 from bagkit.recording.options import RecordOptions, default_output_name
-from bagkit.recording.report import RecordProgress, RecordReport
+from bagkit.recording.report import RecordProgress, RecordReport, SnapshotRecord
 from bagkit.ros.clock import CLOCK_TOPIC
 from bagkit.ros.errors import RecorderOptionsError, RecordingFailedError
 from bagkit.ros.qos import load_qos_overrides
+from bagkit.ros.record.control_services import ControlServices
 from bagkit.ros.record.handoff import HandoffQueue, StopSignal
+from bagkit.ros.record.snapshot import SnapshotSink
 from bagkit.ros.record.subscriptions import Subscriptions, never_called
 from bagkit.ros.record.take_loop import SimClock, TakeLoop
+from bagkit.ros.record.triggers import TriggerError, check_triggers_in_graph
 from bagkit.ros.record.write_loop import FLUSH_PERIOD_S, WriteLoop
 from bagkit.ros.tuning import process_tuning
+from bagkit.selection.times import format_ns
 from bagkit.selection.topics import absolute_topic_name
 
 # A recording that cannot be written for these reasons is a failed run (exit 1), not a bad option.
@@ -44,6 +49,10 @@ _DISK_FULL = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG}
 # counts from there), and at most between two looks afterwards.
 _POLL_STARTING_S = 0.05
 _POLL_S = 0.5
+# How long the start waits for the trigger topics to check their conditions' fields, and how
+# long after the start a trigger topic may be absent before a warning says so.
+TRIGGER_CHECK_WAIT_S = 1.0
+TRIGGER_TOPIC_WAIT_S = 5.0
 # What run() may be told to stop by: an event to set, or a function that says when.
 StopWhen = threading.Event | Callable[[], bool]
 
@@ -97,6 +106,8 @@ class Recorder:
         self._writer: WriteLoop | None = None
         self._threads: list[threading.Thread] = []
         self._started = 0.0
+        self._services: ControlServices | None = None
+        self._absent_triggers: threading.Timer | None = None
 
     def run(
         self,
@@ -221,6 +232,50 @@ class Recorder:
         for thread in self._threads:
             thread.start()
         discovered.wait()
+        if self.options.snapshot_mode:
+            self._start_snapshots()
+
+    def _start_snapshots(self) -> None:
+        """Check the triggers on the topics found, warn about absent ones, offer ~/snapshot.
+
+        Raises:
+            RecorderOptionsError: a trigger names a field its topic's type lacks (the
+                recording is stopped and nothing is left).
+        """
+        assert self._writer is not None and self._subscriptions is not None and self._node
+        sink = self._writer.bag
+        assert isinstance(sink, SnapshotSink)
+        try:
+            check_triggers_in_graph(self._node, sink.triggers, TRIGGER_CHECK_WAIT_S)
+        except TriggerError as exc:
+            self.stop()
+            with contextlib.suppress(OSError):  # no snapshot was written: nothing to keep
+                self.path.rmdir()
+            raise RecorderOptionsError(str(exc)) from None
+        self._absent_triggers = threading.Timer(TRIGGER_TOPIC_WAIT_S, self._warn_absent_triggers)
+        self._absent_triggers.daemon = True
+        self._absent_triggers.start()
+        self._services = ControlServices(
+            self._node.context,
+            self.options.node_name,
+            {"snapshot": lambda: _describe(self.snapshot("service"))},
+        )
+
+    def _warn_absent_triggers(self) -> None:
+        sink = self._writer.bag if self._writer is not None else None
+        if isinstance(sink, SnapshotSink) and not self._stop.is_set():
+            for topic in sink.triggers.unseen():
+                self._warn(
+                    f"trigger topic {topic} has not appeared after "
+                    f"{TRIGGER_TOPIC_WAIT_S:g} s: recording goes on, it triggers once "
+                    "it appears"
+                )
+
+    def _warn(self, message: str) -> None:
+        if self._on_warning is not None:
+            self._on_warning(message)
+        else:
+            logging.getLogger(__name__).warning(message)
 
     def _qos_overrides(self) -> dict[str, QoSProfile]:
         """The overrides file's profiles by absolute topic name.
@@ -233,7 +288,9 @@ class Recorder:
             return {}
         return {absolute_topic_name(k): v for k, v in load_qos_overrides(path).items()}
 
-    def _create_bag(self) -> BagWriter:
+    def _create_bag(self) -> BagWriter | SnapshotSink:
+        if self.options.snapshot_mode:
+            return self._create_snapshot_sink()
         try:
             bag = BagWriter(
                 self.path,
@@ -252,6 +309,32 @@ class Recorder:
             raise RecorderOptionsError(str(exc)) from None
         except BagError as exc:
             raise RecorderOptionsError(str(exc)) from None
+
+    def _create_snapshot_sink(self) -> SnapshotSink:
+        try:
+            return SnapshotSink(self.path, self.options, self._stop.fail).open()
+        except FileExistsError:
+            raise RecorderOptionsError(
+                f"{self.path} already exists (bagkit never overwrites a bag)"
+            ) from None
+        except OSError as exc:
+            raise RecorderOptionsError(
+                f"cannot create {self.path}: {exc.strerror or exc}"
+            ) from None
+
+    def snapshot(self, reason: str = "request") -> SnapshotRecord:
+        """Trigger a snapshot now, as the ``~/snapshot`` service does (snapshot mode only).
+
+        Returns:
+            The snapshot this opened, or the open one it extended (its window grows).
+
+        Raises:
+            RecorderOptionsError: not in snapshot mode, or not started.
+        """
+        sink = self._writer.bag if self._writer is not None else None
+        if not isinstance(sink, SnapshotSink):
+            raise RecorderOptionsError("snapshots need snapshot mode (--snapshot-mode), started")
+        return sink.request(reason)
 
     def _start_node(self, qos_overrides: dict[str, QoSProfile]) -> TakeLoop:
         context = self._context
@@ -303,6 +386,9 @@ class Recorder:
         if self._subscriptions.complete.is_set():
             report.discovery_s = self._subscriptions.complete_at - self._started
         report.topics = sorted(self._writer.records.values(), key=lambda r: r.topic)
+        if isinstance(self._writer.bag, SnapshotSink):
+            report.snapshots = self._writer.bag.snapshots
+            report.evicted = self._writer.bag.evicted
         errors = self._stop.errors
         report.error = errors[0] if errors else None
         if report.error is not None and report.lost:
@@ -310,6 +396,11 @@ class Recorder:
         self._stopped.set()
 
     def _shutdown_node(self) -> None:
+        if self._absent_triggers is not None:
+            self._absent_triggers.cancel()
+        if self._services is not None:
+            self._services.close()
+            self._services = None
         if self._node is not None:
             self._node.destroy_node()
             self._node = None
@@ -341,6 +432,14 @@ class Recorder:
             lost=sum(r.lost for r in records),
             before_clock=sum(r.before_clock for r in records),
         )
+
+
+def _describe(snapshot: SnapshotRecord) -> str:
+    """The ``~/snapshot`` service's answer: which snapshot, and its window."""
+    return (
+        f"{snapshot.path}: {format_ns(snapshot.start_ns)} - {format_ns(snapshot.end_ns)} "
+        f"({snapshot.triggers} trigger(s))"
+    )
 
 
 def _remove_empty_bag(path: Path) -> None:

@@ -21,6 +21,7 @@ from bagkit.ros.tuning import name_native_thread
 
 if TYPE_CHECKING:
     from bagkit.ros.record.recorded_topic import NewTopic
+    from bagkit.ros.record.snapshot import SnapshotSink
 
 # The writer closes a chunk at least this often, so a killed recorder loses at most this much.
 FLUSH_PERIOD_S = 1.0
@@ -31,7 +32,7 @@ class WriteLoop:
     """The writer thread's work: the bag, the per-topic records, whether writing failed.
 
     Args:
-        bag: the open bag.
+        bag: the open bag (in snapshot mode the snapshot sink, which stands for it).
         queue: the hand-off from the take thread.
         stop: failures are reported here (the take thread then stops).
         skip: ``skip(topic, reason)`` leaves a topic that cannot be added out, with a warning.
@@ -39,7 +40,7 @@ class WriteLoop:
 
     def __init__(
         self,
-        bag: BagWriter,
+        bag: BagWriter | SnapshotSink,
         queue: HandoffQueue,
         stop: StopSignal,
         skip: Callable[[str, str], None],

@@ -1,0 +1,180 @@
+"""Snapshot mode over real DDS: data, service and overlapping triggers; latched state at start."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from mcap.reader import make_reader
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from rosbags.highlevel import AnyReader
+from sensor_msgs.msg import Imu
+from std_msgs.msg import String
+from std_srvs.srv import Trigger
+from waiting import wait_for, wait_matched
+
+from bagkit.bag import BagReader
+from bagkit.recording.options import RecordOptions
+from bagkit.ros.errors import RecorderOptionsError
+from bagkit.ros.record.recorder import Recorder
+
+pytestmark = pytest.mark.ros
+
+S = 1_000_000_000
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def alert(level: bytes) -> DiagnosticArray:
+    return DiagnosticArray(status=[DiagnosticStatus(level=level, name="fault", message="x")])
+
+
+class Scene:
+    """Publishers of the tests: an Imu stream, an alert topic, a latched state topic."""
+
+    def __init__(self, node: Node) -> None:
+        self.imu = node.create_publisher(Imu, "/snap/imu", 1000)
+        self.alerts = node.create_publisher(DiagnosticArray, "/snap/alerts", LATCHED)
+        self.state = node.create_publisher(String, "/snap/state", LATCHED)
+        self.sent = 0
+
+    def stream(self, seconds: float, rate_hz: float = 200.0) -> None:
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            msg = Imu()
+            msg.header.stamp.sec = self.sent
+            self.imu.publish(msg)
+            self.sent += 1
+            time.sleep(1 / rate_hz)
+
+
+def options(bag: Path, **fields: Any) -> RecordOptions:
+    return RecordOptions(bag, regex="^/snap/", snapshot_mode=True, **fields)
+
+
+def read_snapshot(path: Path) -> dict[str, list[tuple[int, Any]]]:
+    """(log time, message) per topic, read with rosbags; mcap reads the same count."""
+    by_topic: dict[str, list[tuple[int, Any]]] = {}
+    with AnyReader([path]) as reader:
+        for connection, log_time, raw in reader.messages():
+            message = reader.deserialize(raw, connection.msgtype)
+            by_topic.setdefault(connection.topic, []).append((log_time, message))
+    count = 0
+    for mcap_file in path.glob("*.mcap"):
+        with mcap_file.open("rb") as stream:
+            count += sum(1 for _ in make_reader(stream).iter_messages())
+    assert count == sum(map(len, by_topic.values()))
+    return by_topic
+
+
+def test_data_trigger_writes_the_window_with_the_latched_state_first(
+    node: Node, tmp_path: Path
+) -> None:
+    scene = Scene(node)
+    scene.state.publish(String(data="state 0"))
+    out = tmp_path / "blackbox"
+    opts = options(
+        out,
+        snapshot_max_duration_s=1.0,
+        triggers=("/snap/alerts: status[*].level >= 2",),
+        post_s=0.5,
+    )
+    with Recorder(opts) as recorder:
+        wait_matched(scene.imu, scene.alerts, scene.state)
+        scene.stream(1.5)
+        scene.alerts.publish(alert(DiagnosticStatus.WARN))  # below the condition
+        scene.stream(0.2)
+        scene.state.publish(String(data="state 1"))
+        scene.stream(1.3)  # "state 1" is evicted by now: > 1 s before the trigger
+        scene.alerts.publish(alert(DiagnosticStatus.ERROR))
+        scene.stream(1.0)
+        wait_for(lambda: recorder.progress().messages >= scene.sent + 3)
+    report = recorder.report
+    assert report.error is None and report.lost == 0
+    assert report.snapshots is not None
+    (snapshot,) = report.snapshots
+    assert snapshot.path == out / "snapshot_0"
+    assert snapshot.trigger == "/snap/alerts: status[*].level >= 2"
+    assert (snapshot.path / "metadata.yaml").is_file()
+    taken = report.topic("/snap/imu").messages
+    assert taken == scene.sent
+    by_topic = read_snapshot(snapshot.path)
+    imu_times = [t for t, _ in by_topic["/snap/imu"]]
+    # The window: 1 s before the trigger (the buffer's bound) to 0.5 s after it.
+    assert snapshot.start_ns >= snapshot.trigger_ns - S
+    assert snapshot.end_ns == snapshot.trigger_ns + S // 2
+    assert snapshot.start_ns <= imu_times[0] <= snapshot.start_ns + 50_000_000
+    assert snapshot.end_ns - 50_000_000 <= imu_times[-1] <= snapshot.end_ns
+    assert len(imu_times) == snapshot.messages["/snap/imu"]
+    # Every Imu taken in the window is there, none twice: stamps are consecutive.
+    stamps = [m.header.stamp.sec for _, m in by_topic["/snap/imu"]]
+    assert stamps == list(range(stamps[0], stamps[0] + len(stamps)))
+    # The latched state before the window, copied at its start; the alert that triggered.
+    assert [(t, m.data) for t, m in by_topic["/snap/state"]] == [(snapshot.start_ns, "state 1")]
+    assert snapshot.latched == 1 + 1  # the state and the WARN alert (latched too)
+    alerts = [m.status[0].level for _, m in by_topic["/snap/alerts"]]
+    assert alerts == [ord(DiagnosticStatus.WARN), ord(DiagnosticStatus.ERROR)]
+    # Exact accounting: every Imu taken is evicted or still in memory at the end.
+    assert report.evicted["/snap/imu"] > 0
+    with BagReader(snapshot.path) as reader:
+        assert reader.topic_counts["/snap/imu"] == len(imu_times)
+
+
+def test_service_and_overlapping_triggers(node: Node, tmp_path: Path) -> None:
+    scene = Scene(node)
+    out = tmp_path / "service"
+    client = node.create_client(Trigger, "/snap_recorder/snapshot")
+    with Recorder(
+        options(out, node_name="snap_recorder", snapshot_max_bytes=1 << 20, post_s=0.6)
+    ) as recorder:
+        wait_matched(scene.imu)
+        assert client.wait_for_service(timeout_sec=10)
+        scene.stream(0.5)
+        first = recorder.snapshot("request")
+        scene.stream(0.3)
+        second = client.call_async(Trigger.Request())  # inside the window: extends it
+        _spin_until(node, second)
+        scene.stream(1.2)
+        third = client.call_async(Trigger.Request())  # after it: a second snapshot
+        _spin_until(node, third)
+        scene.stream(0.8)
+    response = second.result()
+    assert response.success and "snapshot_0" in response.message
+    report = recorder.report
+    assert report.error is None and report.snapshots is not None
+    assert [s.path.name for s in report.snapshots] == ["snapshot_0", "snapshot_1"]
+    assert report.snapshots[0] is first
+    assert first.triggers == 2
+    assert first.end_ns - first.trigger_ns > 0.8 * S  # extended past the first 0.6 s
+    assert report.snapshots[1].trigger == "service"
+    for snapshot in report.snapshots:
+        with BagReader(snapshot.path) as reader:
+            assert reader.topic_counts["/snap/imu"] == snapshot.messages["/snap/imu"] > 0
+
+
+def _spin_until(node: Node, future: Any) -> None:
+    executor = SingleThreadedExecutor(context=node.context)
+    executor.add_node(node)
+    try:
+        executor.spin_until_future_complete(future, timeout_sec=10)
+    finally:
+        executor.remove_node(node)
+        executor.shutdown()
+    assert future.done()
+
+
+def test_trigger_on_a_missing_field_is_refused_before_recording(
+    node: Node, tmp_path: Path
+) -> None:
+    Scene(node)  # /snap/alerts has a publisher: its type is known at the start
+    out = tmp_path / "bad"
+    recorder = Recorder(
+        options(out, snapshot_max_duration_s=1, triggers=("/snap/alerts: status[*].levle >= 2",))
+    )
+    with pytest.raises(RecorderOptionsError, match="levle"):
+        recorder.start()
+    assert not out.exists()
