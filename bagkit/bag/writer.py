@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from types import TracebackType
 
@@ -21,7 +21,7 @@ from bagkit.bag.errors import BagError, BagExistsError, BagWriteError
 from bagkit.bag.mcapio.chunk_builder import ChunkBuilder
 from bagkit.bag.mcapio.file_writer import McapFileWriter
 from bagkit.bag.mcapio.records import Header, encode
-from bagkit.bag.messages import TopicInfo
+from bagkit.bag.messages import BagMessage, TopicInfo
 from bagkit.bag.metadata import BagMetadata, FileInformation, write_metadata
 from bagkit.selection.times import seconds_to_ns
 from bagkit.version import __version__
@@ -46,6 +46,8 @@ class BagWriter:
         max_bag_duration_s: split when a file spans this much log time (0: never).
         chunk_size: uncompressed bytes after which a chunk is closed.
         chunk_interval_s: wall time after which a chunk is closed at the next write.
+        file_preamble: returns messages to write at the start of every split file after the
+            first (the latched state), logged at the time of that file's first message.
 
     Raises:
         BagError: unknown compression.
@@ -60,8 +62,10 @@ class BagWriter:
         max_bag_duration_s: float = 0,
         chunk_size: int = DEFAULT_CHUNK_SIZE,
         chunk_interval_s: float = 1.0,
+        file_preamble: Callable[[], Sequence[BagMessage]] | None = None,
     ) -> None:
         self.path = Path(path)
+        self._file_preamble = file_preamble
         self.custom_data: dict[str, str] = {}
         self._compression, self._compress = compressor(compression)
         self._max_bag_size = max_bag_size
@@ -168,7 +172,7 @@ class BagWriter:
         with self._lock:
             self._check_open(topic, 1)
             if (self._max_bag_size or self._max_bag_duration_ns) and self._split_due(log_time):
-                self._close_for(topic, 1, split=True)
+                self._close_for(topic, 1, split_at=log_time)
             self._chunk.add(
                 channel_id,
                 data,
@@ -225,7 +229,7 @@ class BagWriter:
                 zip(payloads, log_times, publish_times, sequences, strict=True)
             ):
                 if splitting and self._split_due(log_time):
-                    self._close_for(topic, len(payloads) - written, split=True)
+                    self._close_for(topic, len(payloads) - written, split_at=log_time)
                     chunk = self._chunk
                 chunk.add(channel_id, data, log_time, publish_time, sequence)
                 if len(chunk.records) >= chunk_size:
@@ -311,14 +315,15 @@ class BagWriter:
                 lost_by_topic={topic: messages},
             )
 
-    def _close_for(self, topic: str, unwritten: int, *, split: bool = False) -> None:
-        """Close the chunk (and with ``split`` the file) in the middle of a batch of ``topic``.
+    def _close_for(self, topic: str, unwritten: int, *, split_at: int | None = None) -> None:
+        """Close the chunk (and with ``split_at``, the next message's log time, the file) in
+        the middle of a batch of ``topic``.
 
         A failure also loses the batch's ``unwritten`` messages: they are counted in the error.
         """
         try:
-            if split:
-                self._split()
+            if split_at is not None:
+                self._split(split_at)
             else:
                 self._close_chunk()
         except BagWriteError as exc:
@@ -340,10 +345,18 @@ class BagWriter:
             return log_time - start >= self._max_bag_duration_ns
         return False
 
-    def _split(self) -> None:
+    def _split(self, log_time: int) -> None:
         self._close_chunk()
         self._finish_file()
         self._open_file()
+        if self._file_preamble is not None:
+            # Logged with the new file's first message, so that the file replays alone.
+            for message in self._file_preamble():
+                channel = self._topics.channels.get(message.topic)
+                if channel is not None:
+                    self._chunk.add(
+                        channel.id, message.data, log_time, message.publish_time, message.sequence
+                    )
 
     def _close_chunk(self) -> None:
         chunk = self._chunk

@@ -10,24 +10,13 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 
+from bagkit.bag.messages import BagMessage
 from bagkit.recording.errors import RecorderOptionsError
 from bagkit.selection.topics import absolute_topic_name
 
 # How many messages of a latched topic are repeated when nothing else is said (rosbag2's too).
 DEFAULT_DEPTH = 1
-
-
-@dataclass(frozen=True, slots=True)
-class HeldMessage:
-    """One serialized message with its times (ns) and publication sequence number."""
-
-    topic: str
-    data: bytes
-    log_time: int
-    publish_time: int
-    sequence: int
 
 
 def parse_repeat(values: Sequence[str]) -> dict[str, int]:
@@ -60,7 +49,7 @@ class LatchedState:
     """
 
     def __init__(self, depths: Mapping[str, int] | None = None) -> None:
-        self._held: dict[str, deque[HeldMessage]] = {
+        self._held: dict[str, deque[BagMessage]] = {
             topic: deque(maxlen=depth) for topic, depth in (depths or {}).items()
         }
 
@@ -78,7 +67,7 @@ class LatchedState:
         held = self._held.get(topic)
         return 0 if held is None else held.maxlen or 0
 
-    def observe(self, message: HeldMessage) -> None:
+    def observe(self, message: BagMessage) -> None:
         """Keep ``message`` if its topic is tracked (the oldest kept one makes room)."""
         held = self._held.get(message.topic)
         if held is not None:
@@ -99,12 +88,12 @@ class LatchedState:
         first = max(0, len(payloads) - (held.maxlen or 0))
         for index in range(first, len(payloads)):
             held.append(
-                HeldMessage(
+                BagMessage(
                     topic, payloads[index], log_times[index], publish_times[index], sequences[index]
                 )
             )
 
-    def messages(self, before_ns: int | None = None) -> list[HeldMessage]:
+    def messages(self, before_ns: int | None = None) -> list[BagMessage]:
         """The kept messages (those older than ``before_ns`` if given), by topic, oldest first."""
         return [
             message

@@ -13,7 +13,8 @@ from collections import Counter, deque
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from bagkit.recording.latched import HeldMessage, LatchedState
+from bagkit.bag.messages import BagMessage
+from bagkit.recording.latched import LatchedState
 
 # What a buffered message costs beyond its payload: the bytes object's header, four list slots
 # and three int objects (measured with tracemalloc: 150 - 165 bytes). Counted in the bound so
@@ -120,13 +121,13 @@ class SnapshotBuffer:
                     found.append(_pick(messages, indexes))
         return found
 
-    def latched_before(self, start_ns: int) -> list[HeldMessage]:
+    def latched_before(self, start_ns: int) -> list[BagMessage]:
         """The last messages of each latched topic logged before ``start_ns``, evicted or held.
 
         As many per topic as the latched state keeps for it, oldest first.
         """
         latched = self.latched
-        by_topic: dict[str, list[HeldMessage]] = {}
+        by_topic: dict[str, list[BagMessage]] = {}
         for message in latched.messages(before_ns=start_ns):
             by_topic.setdefault(message.topic, []).append(message)
         for block in self._blocks:
@@ -212,8 +213,8 @@ def _pick(messages: MessageSlice, indexes: list[int]) -> MessageSlice:
     )
 
 
-def _held(messages: MessageSlice, index: int) -> HeldMessage:
-    return HeldMessage(
+def _held(messages: MessageSlice, index: int) -> BagMessage:
+    return BagMessage(
         messages.topic,
         messages.payloads[index],
         messages.log_times[index],

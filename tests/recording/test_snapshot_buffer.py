@@ -6,8 +6,9 @@ import random
 
 import pytest
 
+from bagkit.bag.messages import BagMessage
 from bagkit.recording.errors import RecorderOptionsError
-from bagkit.recording.latched import HeldMessage, LatchedState, parse_repeat
+from bagkit.recording.latched import LatchedState, parse_repeat
 from bagkit.recording.snapshot_buffer import MESSAGE_OVERHEAD, SnapshotBuffer
 
 S = 1_000_000_000
@@ -92,8 +93,8 @@ def test_latched_before_finds_evicted_and_held_messages() -> None:
 def test_latched_state_keeps_the_last_n() -> None:
     state = LatchedState({"/map": 2})
     for i in range(5):
-        state.observe(HeldMessage("/map", b"m", i, i, i))
-    state.observe(HeldMessage("/other", b"x", 9, 9, 9))
+        state.observe(BagMessage("/map", b"m", i, i, i))
+    state.observe(BagMessage("/other", b"x", 9, 9, 9))
     assert [m.log_time for m in state.messages()] == [3, 4]
     assert [m.log_time for m in state.messages(before_ns=4)] == [3]
 

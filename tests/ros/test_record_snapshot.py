@@ -178,3 +178,45 @@ def test_trigger_on_a_missing_field_is_refused_before_recording(
     with pytest.raises(RecorderOptionsError, match="levle"):
         recorder.start()
     assert not out.exists()
+
+
+def test_every_split_file_starts_with_the_latched_state(node: Node, tmp_path: Path) -> None:
+    scene = Scene(node)
+    scene.state.publish(String(data="state 0"))
+    bag = tmp_path / "split"
+    opts = RecordOptions(
+        bag,
+        regex="^/snap/",
+        max_bag_duration_s=0.5,
+        repeat_all_transient_local=True,
+    )
+    with Recorder(opts) as recorder:
+        wait_matched(scene.imu, scene.state)
+        scene.stream(0.8)
+        scene.state.publish(String(data="state 1"))
+        scene.stream(1.0)
+        wait_for(lambda: recorder.progress().messages >= scene.sent + 2)
+    assert recorder.report.lost == 0
+    files = sorted(bag.glob("*.mcap"), key=lambda p: int(p.stem.rsplit("_", 1)[1]))
+    assert len(files) >= 3
+    states_seen = []
+    for index, path in enumerate(files):
+        with path.open("rb") as stream:
+            messages = [
+                (channel.topic, message.log_time, message.data)
+                for _schema, channel, message in make_reader(stream).iter_messages(
+                    log_time_order=False
+                )
+            ]
+        first_log_time = min(t for _, t, _ in messages)
+        states = [(t, data) for topic, t, data in messages if topic == "/snap/state"]
+        if index:
+            # The copy comes first, logged with the file's first message.
+            assert messages[0][0] == "/snap/state"
+            assert states[0][0] == first_log_time
+        states_seen.append(states[0][1])
+    # Each file's first state message is the latest one before it.
+    with BagReader(bag) as reader:
+        published = [m.data for m in reader.messages(topics=["/snap/state"])]
+    assert states_seen[0] == published[0]
+    assert states_seen[-1].endswith(b"state 1\x00")

@@ -34,6 +34,7 @@ from bagkit.ros.errors import RecorderOptionsError, RecordingFailedError
 from bagkit.ros.qos import load_qos_overrides
 from bagkit.ros.record.control_services import ControlServices
 from bagkit.ros.record.handoff import HandoffQueue, StopSignal
+from bagkit.ros.record.latched_topics import LatchedRepeats
 from bagkit.ros.record.snapshot import SnapshotSink
 from bagkit.ros.record.subscriptions import Subscriptions, never_called
 from bagkit.ros.record.take_loop import SimClock, TakeLoop
@@ -52,7 +53,7 @@ _POLL_S = 0.5
 # How long the start waits for the trigger topics to check their conditions' fields, and how
 # long after the start a trigger topic may be absent before a warning says so.
 TRIGGER_CHECK_WAIT_S = 1.0
-TRIGGER_TOPIC_WAIT_S = 5.0
+TRIGGER_TOPIC_WAIT_S = 10.0
 # What run() may be told to stop by: an event to set, or a function that says when.
 StopWhen = threading.Event | Callable[[], bool]
 
@@ -108,6 +109,12 @@ class Recorder:
         self._started = 0.0
         self._services: ControlServices | None = None
         self._absent_triggers: threading.Timer | None = None
+        # Latched state repeated at the start of each split file (snapshots keep their own).
+        self._latched = (
+            LatchedRepeats(options)
+            if LatchedRepeats.wanted(options) and not options.snapshot_mode
+            else None
+        )
 
     def run(
         self,
@@ -220,7 +227,9 @@ class Recorder:
             self._shutdown_node()
             raise
         assert self._subscriptions is not None
-        self._writer = WriteLoop(bag, self._queue, self._stop, self._subscriptions.skip)
+        self._writer = WriteLoop(
+            bag, self._queue, self._stop, self._subscriptions.skip, self._latched
+        )
         self._started = time.monotonic()
         discovered = threading.Event()
         self._threads = [
@@ -298,6 +307,7 @@ class Recorder:
                 max_bag_size=self.options.max_bag_size,
                 max_bag_duration_s=self.options.max_bag_duration_s,
                 chunk_interval_s=FLUSH_PERIOD_S,
+                file_preamble=self._latched.state.messages if self._latched else None,
             ).open()
             bag.custom_data.update(self.options.custom_data)
             return bag

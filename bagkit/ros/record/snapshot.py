@@ -19,15 +19,13 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from rclpy.qos import DurabilityPolicy
-
 from bagkit.bag import TopicInfo
 from bagkit.recording.errors import RecorderOptionsError
-from bagkit.recording.latched import DEFAULT_DEPTH, LatchedState
+from bagkit.recording.latched import LatchedState
 from bagkit.recording.options import RecordOptions
 from bagkit.recording.report import SnapshotRecord
 from bagkit.recording.snapshot_buffer import MessageSlice, SnapshotBuffer
-from bagkit.ros.qos import parse_offered_qos_profiles
+from bagkit.ros.record.latched_topics import latched_depth
 from bagkit.ros.record.snapshot_writer import (
     SnapshotEnd,
     SnapshotMessages,
@@ -121,7 +119,7 @@ class SnapshotSink:
         text = definition or ""
         with self._lock:
             self._topics[topic.name] = (topic, text)
-            depth = self._latched_depth(topic)
+            depth = latched_depth(topic, self._options)
             if depth:
                 self._latched.track(topic.name, depth)
             window = self._window
@@ -131,13 +129,6 @@ class SnapshotSink:
             self.triggers.add_topic(topic)
         except TriggerError as exc:
             self._on_error(str(exc))
-
-    def _latched_depth(self, topic: TopicInfo) -> int:
-        if topic.name in self._repeat:
-            return self._repeat[topic.name]
-        if self._options.repeats_all_transient_local and _offered_transient_local(topic):
-            return DEFAULT_DEPTH
-        return 0
 
     def write_batch(
         self,
@@ -258,11 +249,3 @@ class SnapshotSink:
 
 def _ns(seconds: float) -> int:
     return seconds_to_ns(seconds, seconds, RecorderOptionsError, "seconds")
-
-
-def _offered_transient_local(topic: TopicInfo) -> bool:
-    """Whether every publisher of ``topic`` offered transient-local durability (latched)."""
-    offered = parse_offered_qos_profiles(topic.offered_qos_profiles)
-    return bool(offered) and all(
-        profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for profile in offered
-    )

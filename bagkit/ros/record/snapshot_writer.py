@@ -18,7 +18,7 @@ from pathlib import Path
 
 from bagkit.bag import BagWriteError, BagWriter, TopicInfo
 from bagkit.bag.errors import BagError
-from bagkit.recording.latched import HeldMessage
+from bagkit.bag.messages import BagMessage
 from bagkit.recording.report import SnapshotRecord
 from bagkit.recording.snapshot_buffer import MessageSlice
 from bagkit.ros.tuning import name_native_thread
@@ -30,7 +30,7 @@ class SnapshotStart:
 
     record: SnapshotRecord
     topics: list[tuple[TopicInfo, str]]
-    latched: list[HeldMessage]
+    latched: list[BagMessage]
 
 
 @dataclass(frozen=True, slots=True)

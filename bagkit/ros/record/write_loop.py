@@ -20,6 +20,7 @@ from bagkit.ros.record.handoff import Batch, BatchPart, HandoffQueue, StopSignal
 from bagkit.ros.tuning import name_native_thread
 
 if TYPE_CHECKING:
+    from bagkit.ros.record.latched_topics import LatchedRepeats
     from bagkit.ros.record.recorded_topic import NewTopic
     from bagkit.ros.record.snapshot import SnapshotSink
 
@@ -36,6 +37,7 @@ class WriteLoop:
         queue: the hand-off from the take thread.
         stop: failures are reported here (the take thread then stops).
         skip: ``skip(topic, reason)`` leaves a topic that cannot be added out, with a warning.
+        latched: keeps the last messages of latched topics for the start of each split file.
     """
 
     def __init__(
@@ -44,8 +46,10 @@ class WriteLoop:
         queue: HandoffQueue,
         stop: StopSignal,
         skip: Callable[[str, str], None],
+        latched: LatchedRepeats | None = None,
     ) -> None:
         self.bag = bag
+        self.latched = latched
         self.queue = queue
         self.stop = stop
         self.records: dict[str, TopicRecord] = {}
@@ -87,6 +91,8 @@ class WriteLoop:
     def _add_topic(self, new: NewTopic) -> None:
         name = new.info.name
         self.records[name] = new.topic.record
+        if self.latched is not None:
+            self.latched.add_topic(new.info)
         if self.failed:
             return
         try:
@@ -133,6 +139,10 @@ class WriteLoop:
                 publish_times=taken.sources,
                 sequences=taken.sequences,
             )
+            if self.latched is not None:
+                self.latched.state.observe_batch(
+                    record.topic, taken.payloads, log_times, taken.sources, taken.sequences
+                )
         except BagWriteError as exc:
             self._write_failed(exc)
         except BagError as exc:
