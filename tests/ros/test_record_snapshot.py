@@ -167,9 +167,7 @@ def _spin_until(node: Node, future: Any) -> None:
     assert future.done()
 
 
-def test_trigger_on_a_missing_field_is_refused_before_recording(
-    node: Node, tmp_path: Path
-) -> None:
+def test_trigger_on_a_missing_field_is_refused_before_recording(node: Node, tmp_path: Path) -> None:
     Scene(node)  # /snap/alerts has a publisher: its type is known at the start
     out = tmp_path / "bad"
     recorder = Recorder(
