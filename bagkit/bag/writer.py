@@ -66,6 +66,7 @@ class BagWriter:
     ) -> None:
         self.path = Path(path)
         self._file_preamble = file_preamble
+        self._split_requested = False
         self.custom_data: dict[str, str] = {}
         self._compression, self._compress = compressor(compression)
         self._max_bag_size = max_bag_size
@@ -171,7 +172,8 @@ class BagWriter:
         channel_id = self._channel_id(topic)
         with self._lock:
             self._check_open(topic, 1)
-            if (self._max_bag_size or self._max_bag_duration_ns) and self._split_due(log_time):
+            splitting = self._max_bag_size or self._max_bag_duration_ns or self._split_requested
+            if splitting and self._split_due(log_time):
                 self._close_for(topic, 1, split_at=log_time)
             self._chunk.add(
                 channel_id,
@@ -220,9 +222,9 @@ class BagWriter:
             sequences = (0,) * len(payloads)
         if not len(payloads) == len(log_times) == len(publish_times) == len(sequences):
             raise ValueError("write_batch: payloads, times and sequences differ in length")
-        splitting = self._max_bag_size or self._max_bag_duration_ns
         chunk_size = self._chunk_size
         with self._lock:
+            splitting = self._max_bag_size or self._max_bag_duration_ns or self._split_requested
             self._check_open(topic, len(payloads))
             chunk = self._chunk
             for written, (data, log_time, publish_time, sequence) in enumerate(
@@ -237,6 +239,11 @@ class BagWriter:
                     chunk = self._chunk
             if time.monotonic() - self._chunk.opened >= self._chunk_interval_s:
                 self._close_chunk()
+
+    def request_split(self) -> None:
+        """Start a new file before the next message (``~/split_bagfile``); nothing happens
+        while the current file is empty. Safe from any thread."""
+        self._split_requested = True
 
     def flush(self) -> None:
         """Close the open chunk now, so that everything written so far is on disk.
@@ -330,7 +337,7 @@ class BagWriter:
             lost = exc.lost_by_topic
             if unwritten:
                 lost[topic] = lost.get(topic, 0) + unwritten
-            raise BagWriteError(str(exc), lost_by_topic=lost) from exc
+            raise BagWriteError(exc.reason, lost_by_topic=lost) from exc
 
     def _split_due(self, log_time: int) -> bool:
         storage = self._file
@@ -338,6 +345,8 @@ class BagWriter:
         chunk = self._chunk
         if storage.message_count + chunk.count == 0:
             return False
+        if self._split_requested:
+            return True
         if self._max_bag_size and storage.offset + len(chunk.records) >= self._max_bag_size:
             return True
         if self._max_bag_duration_ns:
@@ -346,6 +355,7 @@ class BagWriter:
         return False
 
     def _split(self, log_time: int) -> None:
+        self._split_requested = False
         self._close_chunk()
         self._finish_file()
         self._open_file()

@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import re
 import signal
+import sys
 import threading
 from collections.abc import Callable
 from types import FrameType
@@ -53,6 +54,7 @@ from bagkit.cli.record_options import (
     RepeatAllTransientLocal,
     RepeatTransientLocal,
     SnapshotMode,
+    StartPaused,
     Storage,
     Topics,
     TopicsPositional,
@@ -129,7 +131,8 @@ class RecordCommand(MultiValueCommand):
 
 
 COMMAND_CLASS = RecordCommand
-# The key that triggers a snapshot (--snapshot-mode, a terminal on stdin).
+# The keys, when stdin is a terminal: pause/resume, a snapshot (--snapshot-mode).
+PAUSE_KEY = b" "
 SNAPSHOT_KEY = b"s"
 
 
@@ -167,6 +170,7 @@ def record(  # noqa: PLR0917 (typer maps parameters to options; ros2 bag has the
     post: Post = None,
     repeat_transient_local: RepeatTransientLocal = None,
     repeat_all_transient_local: RepeatAllTransientLocal = None,
+    start_paused: StartPaused = False,
 ) -> None:
     require(ROS, "bagkit record")
     from bagkit.ros.record.recorder import Recorder
@@ -203,6 +207,7 @@ def record(  # noqa: PLR0917 (typer maps parameters to options; ros2 bag has the
         post_s=duration_seconds(post, "--post") or 0,
         repeat_transient_local=parse_repeat(repeat_transient_local or []),
         repeat_all_transient_local=repeat_all_transient_local,
+        start_paused=start_paused,
     )
     recorder = Recorder(options, on_warning=(lambda _message: None) if quiet else warn)
     report, received = _record_until_stopped(recorder)
@@ -252,10 +257,12 @@ def _record_until_stopped(recorder: Recorder) -> tuple[RecordReport, list[int]]:
 
 
 def _keys(recorder: Recorder) -> dict[bytes, Callable[[], object]]:
-    """What the keys do while recording (a terminal on stdin): s takes a snapshot."""
-    if not recorder.options.snapshot_mode:
-        return {}
-    return {SNAPSHOT_KEY: lambda: recorder.snapshot("key")}
+    """What the keys do while recording (a terminal on stdin): space pauses and resumes (as
+    ``ros2 bag record``), s takes a snapshot."""
+    keys: dict[bytes, Callable[[], object]] = {PAUSE_KEY: recorder.toggle_paused}
+    if recorder.options.snapshot_mode:
+        keys[SNAPSHOT_KEY] = lambda: recorder.snapshot("key")
+    return keys
 
 
 class _ProgressStatus:
@@ -276,7 +283,11 @@ class _ProgressStatus:
         line = progress_line(progress, subscribed=self._recorder.subscribed.is_set())
         if self._status is None:
             path = self._recorder.path
-            keys = ", s: snapshot" if self._recorder.options.snapshot_mode else ""
+            keys = ""
+            if sys.stdin.isatty():  # the keys are read from the terminal only
+                keys = ", space: pause" + (
+                    ", s: snapshot" if self._recorder.options.snapshot_mode else ""
+                )
             err_console.print(f"recording to {path} (Ctrl-C to stop{keys})", highlight=False)
             self._status = self._stack.enter_context(err_console.status(line))
         else:

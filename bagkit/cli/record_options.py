@@ -222,3 +222,11 @@ RepeatAllTransientLocal = Annotated[
         show_default=False,
     ),
 ]
+StartPaused = Annotated[
+    bool,
+    typer.Option(
+        "--start-paused",
+        help="Start paused: messages are counted, not written, until the space key or the "
+        "~/resume service.",
+    ),
+]

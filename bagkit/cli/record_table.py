@@ -64,6 +64,8 @@ def _print_notes(report: RecordReport) -> None:
             )
         if topic.before_clock:
             notes.append(f"{topic.before_clock} taken before the first /clock, not written")
+        if topic.paused:
+            notes.append(f"{topic.paused} taken while paused, not written (not lost)")
         for note in notes:
             print_wrapped(f"{topic.topic}: {note}".split(" "), lead=INDENT)
 
@@ -98,6 +100,10 @@ def progress_line(progress: RecordProgress, *, subscribed: bool) -> str:
     lost = f", [red]{progress.lost} lost[/]" if progress.lost else ""
     if progress.before_clock:
         lost += f", {progress.before_clock} before the first /clock (not written)"
+    if progress.paused:
+        lost += f", {progress.paused} while paused"
+    if progress.is_paused:
+        return f"paused (space or ~/resume to resume): {progress.messages} messages{lost}"
     return (
         f"recording {progress.topics} topics: {progress.messages} messages, "
         f"{_human_bytes(progress.bytes)}{lost} ({progress.elapsed_s:.0f} s)"

@@ -80,6 +80,8 @@ class RecordOptions:
             start of every snapshot and split file (``--repeat-transient-local TOPIC[=N]``).
         repeat_all_transient_local: repeat the last message of every transient-local topic
             (``--repeat-all-transient-local``); None: on in snapshot mode, off otherwise.
+        start_paused: start paused (``--start-paused``): messages are counted as ``paused``
+            until ``Recorder.resume()``, the ``~/resume`` service or the space key.
 
     Raises:
         RecorderOptionsError: nothing selected, a negative limit.
@@ -116,6 +118,7 @@ class RecordOptions:
     post_s: float = 0
     repeat_transient_local: Mapping[str, int] = field(default_factory=dict)
     repeat_all_transient_local: bool | None = None
+    start_paused: bool = False
 
     def __post_init__(self) -> None:
         if self.selection.empty:

@@ -26,6 +26,8 @@ class TopicRecord:
     last_ns: int = 0
     # Taken before the first /clock with --use-sim-time: not written (no time to stamp with).
     before_clock: int = 0
+    # Taken while the recording was paused: not written by request, not lost.
+    paused: int = 0
 
     @property
     def lost(self) -> int:
@@ -51,6 +53,7 @@ class TopicRecord:
             "rate_hz": self.rate_hz,
             "bytes": self.bytes,
             "before_clock": self.before_clock,
+            "paused": self.paused,
         }
 
 
@@ -153,6 +156,9 @@ class RecordProgress:
     bytes: int
     lost: int
     before_clock: int = 0
+    paused: int = 0
+    """Messages taken while paused (not written, not lost)."""
+    is_paused: bool = False
 
 
 def loss_summary(records: list[TopicRecord]) -> str:

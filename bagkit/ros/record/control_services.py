@@ -1,10 +1,13 @@
-"""The recorder's services: ``~/snapshot`` (rosbag2's name) and the others it is given.
+"""The recorder's services, with rosbag2's names: ``~/pause``, ``~/resume``, ``~/is_paused``,
+and ``~/split_bagfile`` or, in snapshot mode, ``~/snapshot``.
 
-``rosbag2_interfaces`` has no wheel, so the services use ``std_srvs`` types: ``Trigger`` for
-actions (``~/snapshot``). They live on a node of their own, ``<node_name>_control``, spun by an
-executor in a thread: the recorder's node has no executor (its take thread drains its raw
-subscriptions itself, which an executor would compete for). The names are the recorder node's
-private ones (``/<node_name>/snapshot``), as ``ros2 bag record`` offers them.
+``rosbag2_interfaces`` has no wheel, so every service is a ``std_srvs/srv/Trigger``: ``success``
+says whether it was done (``~/is_paused``: whether the recording is paused, as rosbag2's
+``IsPaused.paused``), ``message`` what was done. They live on a node of their own,
+``<node_name>_control``, spun by an executor in a thread: the recorder's node has no executor
+(its take thread drains its raw subscriptions itself, which an executor would compete for).
+The names are the recorder node's private ones (``/<node_name>/pause``), as ``ros2 bag
+record`` offers them.
 """
 
 from __future__ import annotations
@@ -12,6 +15,7 @@ from __future__ import annotations
 import contextlib
 import threading
 from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING
 
 from rclpy.context import Context
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -19,9 +23,40 @@ from rclpy.node import Node
 from std_srvs.srv import Trigger
 
 from bagkit.errors import BagkitError
+from bagkit.recording.report import SnapshotRecord
+from bagkit.selection.times import format_ns
 
-# What an action service does: returns the response's message, raises BagkitError on failure.
-Action = Callable[[], str]
+if TYPE_CHECKING:
+    from bagkit.ros.record.recorder import Recorder
+
+# What a service does: returns the response's success and message; BagkitError: failed.
+Action = Callable[[], tuple[bool, str]]
+
+
+def recorder_actions(recorder: Recorder) -> dict[str, Action]:
+    """The services of ``recorder`` by name."""
+
+    def is_paused() -> tuple[bool, str]:
+        return recorder.is_paused, "paused" if recorder.is_paused else "recording"
+
+    actions: dict[str, Action] = {
+        "pause": lambda: (True, "paused" if recorder.pause() else "was paused already"),
+        "resume": lambda: (True, "resumed" if recorder.resume() else "was not paused"),
+        "is_paused": is_paused,
+    }
+    if recorder.options.snapshot_mode:
+        actions["snapshot"] = lambda: (True, describe_snapshot(recorder.snapshot("service")))
+    else:
+        actions["split_bagfile"] = lambda: (True, recorder.split())
+    return actions
+
+
+def describe_snapshot(snapshot: SnapshotRecord) -> str:
+    """The ``~/snapshot`` service's answer: which snapshot, and its window."""
+    return (
+        f"{snapshot.path}: {format_ns(snapshot.start_ns)} - {format_ns(snapshot.end_ns)} "
+        f"({snapshot.triggers} trigger(s))"
+    )
 
 
 class ControlServices:
@@ -66,8 +101,7 @@ def _trigger_callback(
 ) -> Callable[[Trigger.Request, Trigger.Response], Trigger.Response]:
     def serve(_request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         try:
-            response.message = action()
-            response.success = True
+            response.success, response.message = action()
         except BagkitError as exc:
             response.message = str(exc)
             response.success = False

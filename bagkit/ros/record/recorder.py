@@ -32,16 +32,16 @@ from bagkit.recording.report import RecordProgress, RecordReport, SnapshotRecord
 from bagkit.ros.clock import CLOCK_TOPIC
 from bagkit.ros.errors import RecorderOptionsError, RecordingFailedError
 from bagkit.ros.qos import load_qos_overrides
-from bagkit.ros.record.control_services import ControlServices
+from bagkit.ros.record.control_services import ControlServices, recorder_actions
 from bagkit.ros.record.handoff import HandoffQueue, StopSignal
 from bagkit.ros.record.latched_topics import LatchedRepeats
+from bagkit.ros.record.pause import PauseGate
 from bagkit.ros.record.snapshot import SnapshotSink
 from bagkit.ros.record.subscriptions import Subscriptions, never_called
 from bagkit.ros.record.take_loop import SimClock, TakeLoop
 from bagkit.ros.record.triggers import TriggerError, check_triggers_in_graph
 from bagkit.ros.record.write_loop import FLUSH_PERIOD_S, WriteLoop
 from bagkit.ros.tuning import process_tuning
-from bagkit.selection.times import format_ns
 from bagkit.selection.topics import absolute_topic_name
 
 # A recording that cannot be written for these reasons is a failed run (exit 1), not a bad option.
@@ -109,6 +109,7 @@ class Recorder:
         self._started = 0.0
         self._services: ControlServices | None = None
         self._absent_triggers: threading.Timer | None = None
+        self._gate = PauseGate(paused=options.start_paused)
         # Latched state repeated at the start of each split file (snapshots keep their own).
         self._latched = (
             LatchedRepeats(options)
@@ -228,7 +229,12 @@ class Recorder:
             raise
         assert self._subscriptions is not None
         self._writer = WriteLoop(
-            bag, self._queue, self._stop, self._subscriptions.skip, self._latched
+            bag,
+            self._queue,
+            self._stop,
+            self._subscriptions.skip,
+            latched=self._latched,
+            gate=self._gate,
         )
         self._started = time.monotonic()
         discovered = threading.Event()
@@ -243,9 +249,13 @@ class Recorder:
         discovered.wait()
         if self.options.snapshot_mode:
             self._start_snapshots()
+        assert self._node is not None
+        self._services = ControlServices(
+            self._node.context, self.options.node_name, recorder_actions(self)
+        )
 
     def _start_snapshots(self) -> None:
-        """Check the triggers on the topics found, warn about absent ones, offer ~/snapshot.
+        """Check the triggers on the topics found; warn later about absent ones.
 
         Raises:
             RecorderOptionsError: a trigger names a field its topic's type lacks (the
@@ -264,11 +274,6 @@ class Recorder:
         self._absent_triggers = threading.Timer(TRIGGER_TOPIC_WAIT_S, self._warn_absent_triggers)
         self._absent_triggers.daemon = True
         self._absent_triggers.start()
-        self._services = ControlServices(
-            self._node.context,
-            self.options.node_name,
-            {"snapshot": lambda: _describe(self.snapshot("service"))},
-        )
 
     def _warn_absent_triggers(self) -> None:
         sink = self._writer.bag if self._writer is not None else None
@@ -331,6 +336,41 @@ class Recorder:
             raise RecorderOptionsError(
                 f"cannot create {self.path}: {exc.strerror or exc}"
             ) from None
+
+    @property
+    def is_paused(self) -> bool:
+        """Whether the recording is paused (messages are taken, counted, not written)."""
+        return self._gate.paused
+
+    def pause(self) -> bool:
+        """Pause (``~/pause``, the space key); return whether it was recording."""
+        return self._gate.set_paused(True)
+
+    def resume(self) -> bool:
+        """Resume (``~/resume``); the last latched messages taken meanwhile are written.
+
+        Returns whether it was paused.
+        """
+        changed = self._gate.set_paused(False)
+        self._queue.put_control("wake")  # the writer writes the held latched messages now
+        return changed
+
+    def toggle_paused(self) -> None:
+        """Pause if recording, resume if paused (the space key)."""
+        if not self.pause():
+            self.resume()
+
+    def split(self) -> str:
+        """Start a new file before the next message (``~/split_bagfile``); return a description.
+
+        Raises:
+            RecorderOptionsError: in snapshot mode (each snapshot is a bag of its own).
+        """
+        bag = self._writer.bag if self._writer is not None else None
+        if not isinstance(bag, BagWriter):
+            raise RecorderOptionsError("split: no bag file to split (snapshot mode or not started)")
+        bag.request_split()
+        return f"{self.path}: a new file starts with the next message"
 
     def snapshot(self, reason: str = "request") -> SnapshotRecord:
         """Trigger a snapshot now, as the ``~/snapshot`` service does (snapshot mode only).
@@ -441,15 +481,9 @@ class Recorder:
             bytes=sum(r.bytes for r in records),
             lost=sum(r.lost for r in records),
             before_clock=sum(r.before_clock for r in records),
+            paused=sum(r.paused for r in records),
+            is_paused=self._gate.paused,
         )
-
-
-def _describe(snapshot: SnapshotRecord) -> str:
-    """The ``~/snapshot`` service's answer: which snapshot, and its window."""
-    return (
-        f"{snapshot.path}: {format_ns(snapshot.start_ns)} - {format_ns(snapshot.end_ns)} "
-        f"({snapshot.triggers} trigger(s))"
-    )
 
 
 def _remove_empty_bag(path: Path) -> None:

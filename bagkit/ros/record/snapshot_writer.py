@@ -141,9 +141,7 @@ class SnapshotWriter:
             bag.close()
 
     def _fail(self, record: SnapshotRecord, exc: BagError) -> None:
-        message = str(exc)
-        if isinstance(exc, BagWriteError):
-            message = message.removesuffix(f" ({exc.messages_lost} messages lost)")
+        message = exc.reason if isinstance(exc, BagWriteError) else str(exc)
         record.error = message
         bag = self._bags.pop(record.path, None)
         if bag is not None:
