@@ -18,6 +18,7 @@ from bagkit.bag.bag_files import (
 )
 from bagkit.bag.bag_topics import BagTopics
 from bagkit.bag.errors import BagError, BagExistsError, BagWriteError
+from bagkit.bag.file_rotation import FileRotation
 from bagkit.bag.mcapio.chunk_builder import ChunkBuilder
 from bagkit.bag.mcapio.file_writer import McapFileWriter
 from bagkit.bag.mcapio.records import Header, encode
@@ -48,6 +49,8 @@ class BagWriter:
         chunk_interval_s: wall time after which a chunk is closed at the next write.
         file_preamble: returns messages to write at the start of every split file after the
             first (the latched state), logged at the time of that file's first message.
+        rotation: keep the newest files only, and guard the free space
+            (:mod:`bagkit.bag.file_rotation`); ``metadata.yaml`` lists the files that exist.
 
     Raises:
         BagError: unknown compression.
@@ -63,10 +66,16 @@ class BagWriter:
         chunk_size: int = DEFAULT_CHUNK_SIZE,
         chunk_interval_s: float = 1.0,
         file_preamble: Callable[[], Sequence[BagMessage]] | None = None,
+        rotation: FileRotation | None = None,
     ) -> None:
         self.path = Path(path)
         self._file_preamble = file_preamble
         self._split_requested = False
+        self._rotation = rotation or FileRotation()
+        # Messages per channel of each finished file, and of the open one.
+        self._file_counts: list[dict[int, int]] = []
+        self._open_file_counts: dict[int, int] = {}
+        self._files_opened = 0
         self.custom_data: dict[str, str] = {}
         self._compression, self._compress = compressor(compression)
         self._max_bag_size = max_bag_size
@@ -294,7 +303,9 @@ class BagWriter:
         return self._file.append(*parts, lost=lost)
 
     def _open_file(self) -> None:
-        path = self.path / f"{self.path.name}_{len(self._files)}.mcap"
+        # Numbered on: a circular bag's deleted files leave gaps at the start.
+        path = self.path / f"{self.path.name}_{self._files_opened}.mcap"
+        self._files_opened += 1
         self._file = McapFileWriter.create(
             path,
             Header(profile=Profile.ROS2, library=LIBRARY),
@@ -358,6 +369,8 @@ class BagWriter:
         self._split_requested = False
         self._close_chunk()
         self._finish_file()
+        for _ in range(self._rotation.excess(len(self._files) + 1)):
+            self._delete_oldest_file()
         self._open_file()
         if self._file_preamble is not None:
             # Logged with the new file's first message, so that the file replays alone.
@@ -376,6 +389,7 @@ class BagWriter:
         # A new builder for later messages: the closed one's buffer is compressed without a copy.
         self._chunk = ChunkBuilder()
         lost = self._topics.by_topic(chunk.message_counts())
+        self._guard_free_space(lost)
         if self._file is None:
             raise BagWriteError(
                 f"{self.path}: no file open after an earlier error", lost_by_topic=lost
@@ -383,6 +397,27 @@ class BagWriter:
         self._file.write_chunk(chunk.close(self._compression, self._compress), lost=lost)
         for channel_id, count in chunk.message_counts().items():
             self._topics.counts[channel_id] += count
+            self._open_file_counts[channel_id] = self._open_file_counts.get(channel_id, 0) + count
+
+    def _guard_free_space(self, lost: dict[str, int]) -> None:
+        """Below the free-space floor: delete the oldest file of a circular bag, else stop."""
+        floor = self._rotation.min_free
+        if floor is None:
+            return
+        while floor.below(self.path):
+            if not (self._rotation.max_files and self._files):
+                raise BagWriteError(
+                    f"{self.path}: less than {floor.text} free: stopped before the disk fills",
+                    lost_by_topic=lost,
+                )
+            self._delete_oldest_file()
+
+    def _delete_oldest_file(self) -> None:
+        """Circular recording: the oldest finished file goes, with its messages' counts."""
+        oldest = self._files.pop(0)
+        for channel_id, count in self._file_counts.pop(0).items():
+            self._topics.counts[channel_id] -= count
+        (self.path / oldest.path).unlink(missing_ok=True)
 
     def _bag_metadata(self) -> BagMetadata:
         files = list(self._files)
@@ -404,5 +439,7 @@ class BagWriter:
             )
         finally:
             self._files.append(file_information(storage))
+            self._file_counts.append(self._open_file_counts)
+            self._open_file_counts = {}
             self._file = None
             storage.close()

@@ -41,9 +41,11 @@ from bagkit.cli.record_options import (
     LogLevel,
     LogLevelOption,
     MaxBagDuration,
+    MaxBagFiles,
     MaxBagSize,
     MaxCacheDuration,
     MaxCacheSize,
+    MinFreeSpace,
     NodeName,
     Output,
     PollingInterval,
@@ -171,6 +173,8 @@ def record(  # noqa: PLR0917 (typer maps parameters to options; ros2 bag has the
     repeat_transient_local: RepeatTransientLocal = None,
     repeat_all_transient_local: RepeatAllTransientLocal = None,
     start_paused: StartPaused = False,
+    max_bag_files: MaxBagFiles = 0,
+    min_free_space: MinFreeSpace = None,
 ) -> None:
     require(ROS, "bagkit record")
     from bagkit.ros.record.recorder import Recorder
@@ -208,6 +212,8 @@ def record(  # noqa: PLR0917 (typer maps parameters to options; ros2 bag has the
         repeat_transient_local=parse_repeat(repeat_transient_local or []),
         repeat_all_transient_local=repeat_all_transient_local,
         start_paused=start_paused,
+        max_bag_files=max_bag_files,
+        min_free_space=min_free_space,
     )
     recorder = Recorder(options, on_warning=(lambda _message: None) if quiet else warn)
     report, received = _record_until_stopped(recorder)

@@ -230,3 +230,20 @@ StartPaused = Annotated[
         "~/resume service.",
     ),
 ]
+MaxBagFiles = Annotated[
+    int,
+    typer.Option(
+        "--max-bag-files",
+        help="With -b or -d: keep the newest N files, deleting the oldest (0: all).",
+        min=0,
+    ),
+]
+MinFreeSpace = Annotated[
+    str | None,
+    typer.Option(
+        "--min-free-space",
+        help="Keep this much disk free (2GiB, 500MB, 5%): delete the oldest file with "
+        "--max-bag-files, else stop with an error before the disk fills.",
+        metavar="SIZE",
+    ),
+]

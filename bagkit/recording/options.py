@@ -11,6 +11,8 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
 
+from bagkit.bag.errors import BagError
+from bagkit.bag.file_rotation import FileRotation, FreeSpace
 from bagkit.recording.errors import RecorderOptionsError
 from bagkit.selection.conditions import Condition, parse_topic_condition
 from bagkit.selection.errors import SelectionError
@@ -80,6 +82,9 @@ class RecordOptions:
             start of every snapshot and split file (``--repeat-transient-local TOPIC[=N]``).
         repeat_all_transient_local: repeat the last message of every transient-local topic
             (``--repeat-all-transient-local``); None: on in snapshot mode, off otherwise.
+        max_bag_files: circular recording: keep the newest N files of a split bag (0: all).
+        min_free_space: a free-space floor (``2GiB``, ``5%``): below it the oldest file of a
+            circular bag is deleted, else the recording stops with an error (None: no guard).
         start_paused: start paused (``--start-paused``): messages are counted as ``paused``
             until ``Recorder.resume()``, the ``~/resume`` service or the space key.
 
@@ -119,6 +124,8 @@ class RecordOptions:
     repeat_transient_local: Mapping[str, int] = field(default_factory=dict)
     repeat_all_transient_local: bool | None = None
     start_paused: bool = False
+    max_bag_files: int = 0
+    min_free_space: str | None = None
 
     def __post_init__(self) -> None:
         if self.selection.empty:
@@ -134,6 +141,13 @@ class RecordOptions:
         if self.queue_bytes < 1 or self.discovery_period_s <= 0:
             raise RecorderOptionsError("queue_bytes and discovery_period_s must be positive")
         check_snapshot_options(self)
+        check_rotation_options(self)
+
+    @property
+    def rotation(self) -> FileRotation:
+        """The circular-recording and free-space settings, parsed."""
+        floor = None if self.min_free_space is None else FreeSpace.parse(self.min_free_space)
+        return FileRotation(self.max_bag_files, floor)
 
     @property
     def repeats_all_transient_local(self) -> bool:
@@ -188,3 +202,19 @@ def check_snapshot_options(options: RecordOptions) -> None:
             raise RecorderOptionsError(
                 f"--trigger {text!r}: {topic} is not among the recorded topics"
             )
+
+
+def check_rotation_options(options: RecordOptions) -> None:
+    """Raise RecorderOptionsError for --max-bag-files / --min-free-space that cannot work."""
+    if options.max_bag_files < 0:
+        raise RecorderOptionsError("--max-bag-files must be >= 0")
+    if options.max_bag_files and not (options.max_bag_size or options.max_bag_duration_s):
+        raise RecorderOptionsError("--max-bag-files needs splitting: -b or -d")
+    if options.snapshot_mode and (options.max_bag_files or options.min_free_space):
+        raise RecorderOptionsError(
+            "--max-bag-files and --min-free-space do not apply to --snapshot-mode"
+        )
+    try:
+        _ = options.rotation
+    except BagError as exc:
+        raise RecorderOptionsError(str(exc)) from None

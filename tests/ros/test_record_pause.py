@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import yaml
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
@@ -101,3 +102,28 @@ def test_pause_resume_split_through_the_services(node: Node, tmp_path: Path) -> 
     assert states == ["while paused 2"]
     assert stamps == list(range(stamps[0], stamps[0] + len(stamps)))
     assert len(stamps) == imu_record.messages
+
+
+def test_circular_recording_keeps_the_newest_files(node: Node, tmp_path: Path) -> None:
+    imu = node.create_publisher(Imu, "/pz/circle", 1000)
+    bag = tmp_path / "circle"
+    opts = RecordOptions(bag, topics=("/pz/circle",), max_bag_duration_s=0.3, max_bag_files=2)
+    with Recorder(opts) as recorder:
+        wait_matched(imu)
+        for i in range(400):
+            msg = Imu()
+            msg.header.stamp.sec = i
+            imu.publish(msg)
+            time.sleep(0.005)
+        wait_for(lambda: recorder.progress().messages >= 400)
+    assert recorder.report.lost == 0
+    info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    listed = info["relative_file_paths"]
+    assert len(listed) == 2
+    assert sorted(listed) == sorted(p.name for p in bag.glob("*.mcap"))
+    imu_of = deserializer("sensor_msgs/msg/Imu")
+    with BagReader(bag) as reader:
+        stamps = [imu_of(m.data).header.stamp.sec for m in reader.messages()]
+    # The newest messages, in order, up to the last one published.
+    assert stamps == list(range(stamps[0], 400))
+    assert info["message_count"] == len(stamps) < 400

@@ -15,7 +15,7 @@ from __future__ import annotations
 import contextlib
 import threading
 from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 from rclpy.context import Context
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -23,17 +23,29 @@ from rclpy.node import Node
 from std_srvs.srv import Trigger
 
 from bagkit.errors import BagkitError
+from bagkit.recording.options import RecordOptions
 from bagkit.recording.report import SnapshotRecord
 from bagkit.selection.times import format_ns
 
-if TYPE_CHECKING:
-    from bagkit.ros.record.recorder import Recorder
+
+class Controlled(Protocol):
+    """What the services control: the recorder (:class:`~bagkit.ros.record.recorder.Recorder`)."""
+
+    options: RecordOptions
+
+    @property
+    def is_paused(self) -> bool: ...
+    def pause(self) -> bool: ...
+    def resume(self) -> bool: ...
+    def split(self) -> str: ...
+    def snapshot(self, reason: str = ...) -> SnapshotRecord: ...
+
 
 # What a service does: returns the response's success and message; BagkitError: failed.
 Action = Callable[[], tuple[bool, str]]
 
 
-def recorder_actions(recorder: Recorder) -> dict[str, Action]:
+def recorder_actions(recorder: Controlled) -> dict[str, Action]:
     """The services of ``recorder`` by name."""
 
     def is_paused() -> tuple[bool, str]:

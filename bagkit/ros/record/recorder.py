@@ -313,6 +313,7 @@ class Recorder:
                 max_bag_duration_s=self.options.max_bag_duration_s,
                 chunk_interval_s=FLUSH_PERIOD_S,
                 file_preamble=self._latched.state.messages if self._latched else None,
+                rotation=self.options.rotation,
             ).open()
             bag.custom_data.update(self.options.custom_data)
             return bag
