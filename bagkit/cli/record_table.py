@@ -6,6 +6,7 @@ from typing import TYPE_CHECKING
 
 from bagkit.cli.common import format_rate
 from bagkit.cli.tables import INDENT, Column, Styled, Table, print_line, print_table, print_wrapped
+from bagkit.recording.loss_causes import large_message_cause
 
 if TYPE_CHECKING:
     from bagkit.recording.report import RecordProgress, RecordReport
@@ -64,6 +65,9 @@ def _print_notes(report: RecordReport) -> None:
             )
         if topic.before_clock:
             notes.append(f"{topic.before_clock} taken before the first /clock, not written")
+        cause = large_message_cause(topic.topic, topic.gaps, topic.messages, topic.bytes)
+        if cause is not None:
+            notes.append(cause.removeprefix(f"{topic.topic}: "))
         if topic.paused:
             notes.append(f"{topic.paused} taken while paused, not written (not lost)")
         for note in notes:

@@ -161,13 +161,18 @@ class RecordProgress:
     is_paused: bool = False
 
 
+# Where the recorder stores loss_summary in metadata.yaml's custom_data (bagkit doctor reads it).
+LOSS_CUSTOM_DATA_KEY = "bagkit.record.loss"
+
+
 def loss_summary(records: list[TopicRecord]) -> str:
-    """JSON ``{topic: {messages, gaps, overflow, write_failed, publishers}}`` (custom_data is
-    string -> string)."""
+    """JSON ``{topic: {messages, bytes, gaps, overflow, write_failed, publishers}}``
+    (custom_data is string -> string)."""
     return json.dumps(
         {
             r.topic: {
                 "messages": r.messages,
+                "bytes": r.bytes,
                 "gaps": r.gaps,
                 "overflow": r.overflow,
                 "write_failed": r.write_failed,

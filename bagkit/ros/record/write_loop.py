@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 from bagkit.bag import BagWriteError, BagWriter
 from bagkit.bag.errors import BagError
-from bagkit.recording.report import TopicRecord, loss_summary
+from bagkit.recording.report import LOSS_CUSTOM_DATA_KEY, TopicRecord, loss_summary
 from bagkit.ros.record.handoff import Batch, BatchPart, HandoffQueue, StopSignal
 from bagkit.ros.tuning import name_native_thread
 
@@ -194,7 +194,7 @@ class WriteLoop:
         bag = self.bag
         records = list(self.records.values())
         bag.custom_data[CUSTOM_DATA_PREFIX + "lost"] = str(sum(r.lost for r in records))
-        bag.custom_data[CUSTOM_DATA_PREFIX + "loss"] = loss_summary(records)
+        bag.custom_data[LOSS_CUSTOM_DATA_KEY] = loss_summary(records)
         try:
             bag.close()
         except BagWriteError as exc:
