@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import os
+import pty
+import signal
+import subprocess
 import time
 from pathlib import Path
 from typing import Any
@@ -16,6 +20,7 @@ from rosbags.highlevel import AnyReader
 from sensor_msgs.msg import Imu
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
+from test_record_cli import report_json
 from waiting import wait_for, wait_matched
 
 from bagkit.bag import BagReader
@@ -218,3 +223,45 @@ def test_every_split_file_starts_with_the_latched_state(node: Node, tmp_path: Pa
         published = [m.data for m in reader.messages(topics=["/snap/state"])]
     assert states_seen[0] == published[0]
     assert states_seen[-1].endswith(b"state 1\x00")
+
+
+def test_the_s_key_in_a_terminal_triggers_a_snapshot(
+    node: Node, processes: Any, tmp_path: Path
+) -> None:
+    scene = Scene(node)
+    out = tmp_path / "keyed"
+    controller, terminal = pty.openpty()
+    try:
+        recorder = processes.start(
+            [
+                "bagkit",
+                "record",
+                "-e",
+                "^/snap/",
+                "-o",
+                str(out),
+                "--snapshot-mode",
+                "--max-cache-duration",
+                "5",
+                "--format",
+                "json",
+            ],
+            stdin=terminal,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+        )
+        wait_matched(scene.imu, timeout=30)
+        scene.stream(0.5)
+        os.write(controller, b"s")
+        wait_for((out / "snapshot_0" / "metadata.yaml").is_file, 10)
+        scene.stream(0.2)
+        recorder.send_signal(signal.SIGINT)
+        stdout, stderr = recorder.communicate(timeout=30)
+    finally:
+        os.close(controller)
+        os.close(terminal)
+    assert recorder.returncode == 130, stderr.decode()
+    (snapshot,) = report_json(stdout)["snapshots"]
+    assert snapshot["trigger"] == "key"
+    with BagReader(out / "snapshot_0") as reader:
+        assert reader.topic_counts["/snap/imu"] == snapshot["messages"]["/snap/imu"] > 0
