@@ -2,7 +2,8 @@
 ``bagkit record -a --snapshot-mode --trigger '/alerts: status[*].level >= 2'`` (docs/record.md).
 
 The documented run keeps 30 s and goes on 5 s; the test keeps 8 s and goes on 3 s, so that it
-ends sooner; what it checks does not depend on the numbers.
+ends sooner; what it checks does not depend on the numbers. The snapshot is then replayed alone
+(its sensor topics, with --clock) through the logger, alert and fusion nodes: the alert again.
 """
 
 from __future__ import annotations
@@ -15,6 +16,8 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from rclpy.serialization import deserialize_message
+from replay_harness import CLI_KNOWN, Listener, bagkit_cli
 from rosbags.highlevel import AnyReader
 from test_record_cli import report_json
 from test_record_fusion import ALERT_RAISED, wait_for_line
@@ -32,8 +35,8 @@ SPIKE = "temperature_spike@14+3"
 TRIGGER = "/alerts: status[*].level >= 2"
 
 
-def test_snapshot_of_the_alert_holds_the_window_and_the_latched_state(
-    processes: Any, tmp_path: Path
+def test_snapshot_of_the_alert_holds_the_window_and_replays_alone(
+    processes: Any, tmp_path: Path, listener_factory: type[Listener]
 ) -> None:
     report = _record_the_fault(processes, tmp_path)
     assert report["lost"] == 0 and report["error"] is None
@@ -63,6 +66,35 @@ def test_snapshot_of_the_alert_holds_the_window_and_the_latched_state(
     assert any("temperature" in name for name, level in levels.items() if level >= 2)
     with BagReader(path) as reader:
         assert reader.topic_counts[topics.IMU] == snapshot["messages"][topics.IMU]
+    _replay_raises_the_same_alert(path, processes, listener_factory)
+
+
+def _replay_raises_the_same_alert(
+    snapshot: Path, processes: Any, listener_factory: type[Listener]
+) -> None:
+    """The snapshot alone, its sensor topics replayed through the nodes: the alert again."""
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    listener = listener_factory({topics.ALERTS: DiagnosticArray})
+    processes.start(
+        ["fusion", "launch", "--use-sim-time", "--only", "data_logger,alert_system,sensor_fusion"]
+    )
+    sensors = [topics.IMU, topics.GPS, topics.TEMPERATURE, topics.PRESSURE]
+    result = bagkit_cli(
+        "replay", str(snapshot), "--clock", "--format", "json", *CLI_KNOWN,
+        *[arg for topic in sensors for arg in ("--topics", topic)],
+        *[arg for topic in ["/clock", *sensors] for arg in ("--wait-for", topic)],
+        "--wait-timeout", "30",
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    time.sleep(0.5)
+    levels = [
+        {s.name: ord(s.level) for s in deserialize_message(r.data, DiagnosticArray).status}
+        for r in listener.messages(topics.ALERTS)
+    ]
+    assert any(
+        level >= 2 for state in levels for name, level in state.items() if "temperature" in name
+    ), levels
 
 
 def _record_the_fault(processes: Any, tmp_path: Path) -> dict[str, Any]:
@@ -98,6 +130,8 @@ def _record_the_fault(processes: Any, tmp_path: Path) -> dict[str, Any]:
     recorder.send_signal(signal.SIGINT)
     stdout, stderr = recorder.communicate(timeout=60)
     assert recorder.returncode == 130, stderr.decode()
+    launcher.send_signal(signal.SIGINT)  # the live system's alerts must not reach the replay's
+    launcher.wait(timeout=30)
     return report_json(stdout)
 
 
