@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import resource
 import subprocess
 from collections.abc import Iterator
 from pathlib import Path
@@ -74,3 +75,47 @@ def test_min_free_space_stops_with_one_error_line(
     with BagReader(bag) as reader:
         assert reader.message_count == report["messages"] > 0
     assert (bag / "metadata.yaml").is_file()
+
+
+def test_disk_full_during_a_snapshot_is_one_error_line_and_earlier_snapshots_stay(
+    node: Node, processes: object, tmp_path: Path
+) -> None:
+    publisher = node.create_publisher(
+        String, "/guard/snap", QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+    )
+    out = tmp_path / "snaps"
+    proc = record(
+        processes,
+        "/guard/snap",
+        "-o",
+        str(out),
+        "--snapshot-mode",
+        "--max-cache-size",
+        str(8 << 20),
+        "--compression-mode",
+        "none",
+        "--trigger",
+        "/guard/snap: data == 'go'",
+        "--format",
+        "json",
+    )
+    wait_for(lambda: publisher.get_subscription_count() > 0, STARTUP_TIMEOUT_S)
+    limit = 200_000  # bytes per file: the first snapshot fits, the second does not
+    resource.prlimit(proc.pid, resource.RLIMIT_FSIZE, (limit, limit))
+    for _ in range(5):
+        publisher.publish(String(data="small"))
+    publisher.publish(String(data="go"))
+    wait_for((out / "snapshot_0" / "metadata.yaml").is_file, 10)
+    for _ in range(40):
+        publisher.publish(String(data=os.urandom(5000).hex()))
+    publisher.publish(String(data="go"))
+    stdout, stderr = proc.communicate(timeout=30)
+    assert proc.returncode == 1, stderr.decode()
+    errors = [line for line in stderr.decode().splitlines() if line.startswith("error")]
+    assert len(errors) == 1 and "snapshot_1" in errors[0] and "File too large" in errors[0]
+    report = report_json(stdout)
+    first, second = report["snapshots"]
+    assert first["error"] is None and second["error"] is not None
+    assert report["lost"] == 0  # every message was taken; the second snapshot is cut
+    with BagReader(out / "snapshot_0") as reader:
+        assert reader.topic_counts["/guard/snap"] == first["messages"]["/guard/snap"] == 6
