@@ -265,3 +265,43 @@ def test_the_s_key_in_a_terminal_triggers_a_snapshot(
     assert snapshot["trigger"] == "key"
     with BagReader(out / "snapshot_0") as reader:
         assert reader.topic_counts["/snap/imu"] == snapshot["messages"]["/snap/imu"] > 0
+
+
+def test_pre_post_windows_and_extension_without_dds(tmp_path: Path) -> None:
+    """The sink on its own (the writer thread's calls, a fake clock): --pre, --post, extension."""
+    from bagkit.bag import TopicInfo
+    from bagkit.ros.record.snapshot import SnapshotSink
+    from bagkit.ros.serialization import serialize
+
+    now = [0]
+    errors: list[str] = []
+    opts = options(tmp_path / "sink", snapshot_max_duration_s=10, pre_s=1.0, post_s=0.5)
+    sink = SnapshotSink(opts.output, opts, errors.append, now_ns=lambda: now[0]).open()
+    sink.add_topic(TopicInfo("/snap/imu", "sensor_msgs/msg/Imu"), "")
+    payload = serialize(Imu())
+
+    def feed(until_s: float) -> None:
+        while now[0] < until_s * S:
+            now[0] += S // 100
+            sink.write_batch(
+                "/snap/imu", [payload], log_times=[now[0]], publish_times=[now[0]],
+                sequences=[now[0] // (S // 100)],
+            )  # fmt: skip
+
+    feed(5.0)
+    first = sink.request("request")  # at 5 s: 4 s - 5.5 s
+    feed(5.3)
+    assert sink.request("request") is first  # inside the window: extends it to 5.8 s
+    feed(7.0)  # the window closes 0.25 s after its end
+    second = sink.request("request")  # a new snapshot: 6 s - 7.5 s
+    feed(8.0)
+    sink.close()
+    assert not errors
+    assert (first.start_ns, first.trigger_ns, first.end_ns) == (4 * S, 5 * S, 58 * S // 10)
+    assert first.triggers == 2
+    assert (second.start_ns, second.end_ns) == (6 * S, 75 * S // 10)
+    for snapshot in (first, second):
+        with BagReader(snapshot.path) as reader:
+            times = [m.log_time for m in reader.messages()]
+        assert times == list(range(snapshot.start_ns, snapshot.end_ns + 1, S // 100))
+        assert snapshot.messages["/snap/imu"] == len(times)
