@@ -45,7 +45,12 @@ def test_snapshot_of_the_alert_holds_the_window_and_replays_alone(
     snapshot = snapshots[0]
     assert snapshot["trigger"] == TRIGGER
     start, trigger, end = snapshot["start_ns"], snapshot["trigger_ns"], snapshot["end_ns"]
-    assert end - trigger == POST_S * S
+    # --post after the trigger; a later alert inside the window (another state change while
+    # the temperature is at ERROR) extends it.
+    if snapshot["triggers"] == 1:
+        assert end - trigger == POST_S * S
+    else:
+        assert end - trigger > POST_S * S
     # Everything buffered before the trigger: the buffer's bound, give or take one message.
     assert CACHE_S * S - 200_000_000 <= trigger - start <= CACHE_S * S
     path = Path(snapshot["path"])
