@@ -41,6 +41,7 @@ class BagWriteError(BagError):
     """Writing failed (disk full, unwritable directory); what was flushed before stays readable.
 
     Attributes:
+        reason: what failed, without the count of lost messages.
         lost_by_topic: messages accepted by ``write()`` that are not in the bag, per topic.
     """
 
@@ -48,7 +49,13 @@ class BagWriteError(BagError):
 
     def __init__(self, message: str, *, lost_by_topic: dict[str, int] | None = None) -> None:
         super().__init__(message)
+        self.reason = message
         self.lost_by_topic = dict(lost_by_topic or {})
+
+    def __str__(self) -> str:
+        """The reason, with the count of ``lost_by_topic`` (one count, always the current one)."""
+        lost = self.messages_lost
+        return f"{self.reason} ({lost} messages lost)" if lost else self.reason
 
     @property
     def messages_lost(self) -> int:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from types import TracebackType
 
@@ -18,10 +18,11 @@ from bagkit.bag.bag_files import (
 )
 from bagkit.bag.bag_topics import BagTopics
 from bagkit.bag.errors import BagError, BagExistsError, BagWriteError
+from bagkit.bag.file_rotation import FileRotation
 from bagkit.bag.mcapio.chunk_builder import ChunkBuilder
 from bagkit.bag.mcapio.file_writer import McapFileWriter
 from bagkit.bag.mcapio.records import Header, encode
-from bagkit.bag.messages import TopicInfo
+from bagkit.bag.messages import BagMessage, TopicInfo
 from bagkit.bag.metadata import BagMetadata, FileInformation, write_metadata
 from bagkit.selection.times import seconds_to_ns
 from bagkit.version import __version__
@@ -46,6 +47,10 @@ class BagWriter:
         max_bag_duration_s: split when a file spans this much log time (0: never).
         chunk_size: uncompressed bytes after which a chunk is closed.
         chunk_interval_s: wall time after which a chunk is closed at the next write.
+        file_preamble: returns messages to write at the start of every split file after the
+            first (the latched state), logged at the time of that file's first message.
+        rotation: keep the newest files only, and guard the free space
+            (:mod:`bagkit.bag.file_rotation`); ``metadata.yaml`` lists the files that exist.
 
     Raises:
         BagError: unknown compression.
@@ -60,8 +65,17 @@ class BagWriter:
         max_bag_duration_s: float = 0,
         chunk_size: int = DEFAULT_CHUNK_SIZE,
         chunk_interval_s: float = 1.0,
+        file_preamble: Callable[[], Sequence[BagMessage]] | None = None,
+        rotation: FileRotation | None = None,
     ) -> None:
         self.path = Path(path)
+        self._file_preamble = file_preamble
+        self._split_requested = False
+        self._rotation = rotation or FileRotation()
+        # Messages per channel of each finished file, and of the open one.
+        self._file_counts: list[dict[int, int]] = []
+        self._open_file_counts: dict[int, int] = {}
+        self._files_opened = 0
         self.custom_data: dict[str, str] = {}
         self._compression, self._compress = compressor(compression)
         self._max_bag_size = max_bag_size
@@ -167,8 +181,9 @@ class BagWriter:
         channel_id = self._channel_id(topic)
         with self._lock:
             self._check_open(topic, 1)
-            if (self._max_bag_size or self._max_bag_duration_ns) and self._split_due(log_time):
-                self._close_for(topic, 1, split=True)
+            splitting = self._max_bag_size or self._max_bag_duration_ns or self._split_requested
+            if splitting and self._split_due(log_time):
+                self._close_for(topic, 1, split_at=log_time)
             self._chunk.add(
                 channel_id,
                 data,
@@ -216,16 +231,16 @@ class BagWriter:
             sequences = (0,) * len(payloads)
         if not len(payloads) == len(log_times) == len(publish_times) == len(sequences):
             raise ValueError("write_batch: payloads, times and sequences differ in length")
-        splitting = self._max_bag_size or self._max_bag_duration_ns
         chunk_size = self._chunk_size
         with self._lock:
+            splitting = self._max_bag_size or self._max_bag_duration_ns or self._split_requested
             self._check_open(topic, len(payloads))
             chunk = self._chunk
             for written, (data, log_time, publish_time, sequence) in enumerate(
                 zip(payloads, log_times, publish_times, sequences, strict=True)
             ):
                 if splitting and self._split_due(log_time):
-                    self._close_for(topic, len(payloads) - written, split=True)
+                    self._close_for(topic, len(payloads) - written, split_at=log_time)
                     chunk = self._chunk
                 chunk.add(channel_id, data, log_time, publish_time, sequence)
                 if len(chunk.records) >= chunk_size:
@@ -233,6 +248,11 @@ class BagWriter:
                     chunk = self._chunk
             if time.monotonic() - self._chunk.opened >= self._chunk_interval_s:
                 self._close_chunk()
+
+    def request_split(self) -> None:
+        """Start a new file before the next message (``~/split_bagfile``); nothing happens
+        while the current file is empty. Safe from any thread."""
+        self._split_requested = True
 
     def flush(self) -> None:
         """Close the open chunk now, so that everything written so far is on disk.
@@ -283,7 +303,9 @@ class BagWriter:
         return self._file.append(*parts, lost=lost)
 
     def _open_file(self) -> None:
-        path = self.path / f"{self.path.name}_{len(self._files)}.mcap"
+        # Numbered on: a circular bag's deleted files leave gaps at the start.
+        path = self.path / f"{self.path.name}_{self._files_opened}.mcap"
+        self._files_opened += 1
         self._file = McapFileWriter.create(
             path,
             Header(profile=Profile.ROS2, library=LIBRARY),
@@ -311,21 +333,22 @@ class BagWriter:
                 lost_by_topic={topic: messages},
             )
 
-    def _close_for(self, topic: str, unwritten: int, *, split: bool = False) -> None:
-        """Close the chunk (and with ``split`` the file) in the middle of a batch of ``topic``.
+    def _close_for(self, topic: str, unwritten: int, *, split_at: int | None = None) -> None:
+        """Close the chunk (and with ``split_at``, the next message's log time, the file) in
+        the middle of a batch of ``topic``.
 
         A failure also loses the batch's ``unwritten`` messages: they are counted in the error.
         """
         try:
-            if split:
-                self._split()
+            if split_at is not None:
+                self._split(split_at)
             else:
                 self._close_chunk()
         except BagWriteError as exc:
             lost = exc.lost_by_topic
             if unwritten:
                 lost[topic] = lost.get(topic, 0) + unwritten
-            raise BagWriteError(str(exc), lost_by_topic=lost) from exc
+            raise BagWriteError(exc.reason, lost_by_topic=lost) from exc
 
     def _split_due(self, log_time: int) -> bool:
         storage = self._file
@@ -333,6 +356,8 @@ class BagWriter:
         chunk = self._chunk
         if storage.message_count + chunk.count == 0:
             return False
+        if self._split_requested:
+            return True
         if self._max_bag_size and storage.offset + len(chunk.records) >= self._max_bag_size:
             return True
         if self._max_bag_duration_ns:
@@ -340,10 +365,21 @@ class BagWriter:
             return log_time - start >= self._max_bag_duration_ns
         return False
 
-    def _split(self) -> None:
+    def _split(self, log_time: int) -> None:
+        self._split_requested = False
         self._close_chunk()
         self._finish_file()
+        for _ in range(self._rotation.excess(len(self._files) + 1)):
+            self._delete_oldest_file()
         self._open_file()
+        if self._file_preamble is not None:
+            # Logged with the new file's first message, so that the file replays alone.
+            for message in self._file_preamble():
+                channel = self._topics.channels.get(message.topic)
+                if channel is not None:
+                    self._chunk.add(
+                        channel.id, message.data, log_time, message.publish_time, message.sequence
+                    )
 
     def _close_chunk(self) -> None:
         chunk = self._chunk
@@ -353,6 +389,7 @@ class BagWriter:
         # A new builder for later messages: the closed one's buffer is compressed without a copy.
         self._chunk = ChunkBuilder()
         lost = self._topics.by_topic(chunk.message_counts())
+        self._guard_free_space(lost)
         if self._file is None:
             raise BagWriteError(
                 f"{self.path}: no file open after an earlier error", lost_by_topic=lost
@@ -360,6 +397,27 @@ class BagWriter:
         self._file.write_chunk(chunk.close(self._compression, self._compress), lost=lost)
         for channel_id, count in chunk.message_counts().items():
             self._topics.counts[channel_id] += count
+            self._open_file_counts[channel_id] = self._open_file_counts.get(channel_id, 0) + count
+
+    def _guard_free_space(self, lost: dict[str, int]) -> None:
+        """Below the free-space floor: delete the oldest file of a circular bag, else stop."""
+        floor = self._rotation.min_free
+        if floor is None:
+            return
+        while floor.below(self.path):
+            if not (self._rotation.max_files and self._files):
+                raise BagWriteError(
+                    f"{self.path}: less than {floor.text} free: stopped before the disk fills",
+                    lost_by_topic=lost,
+                )
+            self._delete_oldest_file()
+
+    def _delete_oldest_file(self) -> None:
+        """Circular recording: the oldest finished file goes, with its messages' counts."""
+        oldest = self._files.pop(0)
+        for channel_id, count in self._file_counts.pop(0).items():
+            self._topics.counts[channel_id] -= count
+        (self.path / oldest.path).unlink(missing_ok=True)
 
     def _bag_metadata(self) -> BagMetadata:
         files = list(self._files)
@@ -381,5 +439,7 @@ class BagWriter:
             )
         finally:
             self._files.append(file_information(storage))
+            self._file_counts.append(self._open_file_counts)
+            self._open_file_counts = {}
             self._file = None
             storage.close()

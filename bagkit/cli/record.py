@@ -5,7 +5,9 @@ from __future__ import annotations
 import contextlib
 import re
 import signal
+import sys
 import threading
+from collections.abc import Callable
 from types import FrameType
 from typing import TYPE_CHECKING
 
@@ -39,22 +41,34 @@ from bagkit.cli.record_options import (
     LogLevel,
     LogLevelOption,
     MaxBagDuration,
+    MaxBagFiles,
     MaxBagSize,
+    MaxCacheDuration,
     MaxCacheSize,
+    MinFreeSpace,
     NodeName,
     Output,
     PollingInterval,
+    Post,
+    Pre,
     QosOverrides,
     Regex,
+    RepeatAllTransientLocal,
+    RepeatTransientLocal,
+    SnapshotMode,
+    StartPaused,
     Storage,
     Topics,
     TopicsPositional,
     TopicTypes,
+    TriggerOption,
     UseSimTime,
 )
 from bagkit.cli.record_table import print_record_table, progress_line
 from bagkit.cli.selection_options import duration_seconds
 from bagkit.extras import ROS, require
+from bagkit.playback.keyboard import key_presses
+from bagkit.recording.latched import parse_repeat
 from bagkit.recording.options import DEFAULT_QUEUE_BYTES, RecordOptions
 from bagkit.recording.report import RecordProgress, RecordReport
 
@@ -73,6 +87,9 @@ HELP = (
     "subscribed), finishes the bag and prints per topic: messages, lost, rate and bytes. Lost "
     "counts gaps in the publishers' sequence numbers (loss inside the middleware), write-queue "
     "overflows and write failures. -d/--max-bag-duration splits the bag, as in ros2 bag.\n\n"
+    "Black box: --snapshot-mode keeps the newest messages in memory and writes a bag per "
+    "trigger (--trigger 'TOPIC: CONDITION', ~/snapshot, the s key); --max-bag-files, "
+    "--min-free-space, --start-paused and the space key as in docs/record.md.\n\n"
     "Example: bagkit record --topics /imu/data /gps/fix -o run1 --duration 60\n\n"
     "Exit status: 0 after --duration, 130 after Ctrl-C, 143 after SIGTERM (the bag is complete "
     "in all three), 1 when recording failed (disk full: the bag keeps what was written), "
@@ -119,6 +136,9 @@ class RecordCommand(MultiValueCommand):
 
 
 COMMAND_CLASS = RecordCommand
+# The keys, when stdin is a terminal: pause/resume, a snapshot (--snapshot-mode).
+PAUSE_KEY = b" "
+SNAPSHOT_KEY = b"s"
 
 
 @handle_errors
@@ -148,6 +168,16 @@ def record(  # noqa: PLR0917 (typer maps parameters to options; ros2 bag has the
     polling_interval: PollingInterval = 100,
     log_level: LogLevelOption = LogLevel.INFO,
     output_format: Format = ReportFormat.TABLE,
+    snapshot_mode: SnapshotMode = False,
+    max_cache_duration: MaxCacheDuration = None,
+    trigger: TriggerOption = None,
+    pre: Pre = None,
+    post: Post = None,
+    repeat_transient_local: RepeatTransientLocal = None,
+    repeat_all_transient_local: RepeatAllTransientLocal = None,
+    start_paused: StartPaused = False,
+    max_bag_files: MaxBagFiles = 0,
+    min_free_space: MinFreeSpace = None,
 ) -> None:
     require(ROS, "bagkit record")
     from bagkit.ros.record.recorder import Recorder
@@ -174,8 +204,19 @@ def record(  # noqa: PLR0917 (typer maps parameters to options; ros2 bag has the
         qos_overrides=qos_overrides,
         use_sim_time=use_sim_time,
         node_name=node_name,
-        queue_bytes=max_cache_size or DEFAULT_QUEUE_BYTES,
+        queue_bytes=(not snapshot_mode and max_cache_size) or DEFAULT_QUEUE_BYTES,
         discovery_period_s=polling_interval / 1000,
+        snapshot_mode=snapshot_mode,
+        snapshot_max_bytes=(snapshot_mode and max_cache_size) or 0,
+        snapshot_max_duration_s=duration_seconds(max_cache_duration, "--max-cache-duration") or 0,
+        triggers=tuple(trigger or ()),
+        pre_s=duration_seconds(pre, "--pre"),
+        post_s=duration_seconds(post, "--post") or 0,
+        repeat_transient_local=parse_repeat(repeat_transient_local or []),
+        repeat_all_transient_local=repeat_all_transient_local,
+        start_paused=start_paused,
+        max_bag_files=max_bag_files,
+        min_free_space=min_free_space,
     )
     recorder = Recorder(options, on_warning=(lambda _message: None) if quiet else warn)
     report, received = _record_until_stopped(recorder)
@@ -216,12 +257,21 @@ def _record_until_stopped(recorder: Recorder) -> tuple[RecordReport, list[int]]:
 
     previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
-        with _ProgressStatus(recorder) as status:
+        with _ProgressStatus(recorder) as status, key_presses(_keys(recorder)):
             report = recorder.run(stop, on_progress=status.update)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     return report, received
+
+
+def _keys(recorder: Recorder) -> dict[bytes, Callable[[], object]]:
+    """What the keys do while recording (a terminal on stdin): space pauses and resumes (as
+    ``ros2 bag record``), s takes a snapshot."""
+    keys: dict[bytes, Callable[[], object]] = {PAUSE_KEY: recorder.toggle_paused}
+    if recorder.options.snapshot_mode:
+        keys[SNAPSHOT_KEY] = lambda: recorder.snapshot("key")
+    return keys
 
 
 class _ProgressStatus:
@@ -242,7 +292,12 @@ class _ProgressStatus:
         line = progress_line(progress, subscribed=self._recorder.subscribed.is_set())
         if self._status is None:
             path = self._recorder.path
-            err_console.print(f"recording to {path} (Ctrl-C to stop)", highlight=False)
+            keys = ""
+            if sys.stdin.isatty():  # the keys are read from the terminal only
+                keys = ", space: pause" + (
+                    ", s: snapshot" if self._recorder.options.snapshot_mode else ""
+                )
+            err_console.print(f"recording to {path} (Ctrl-C to stop{keys})", highlight=False)
             self._status = self._stack.enter_context(err_console.status(line))
         else:
             self._status.update(line)

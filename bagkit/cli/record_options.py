@@ -150,7 +150,8 @@ MaxCacheSize = Annotated[
     int | None,
     typer.Option(
         "--max-cache-size",
-        help="Bytes held between taking and writing messages (default 64 MiB).",
+        help="Bytes held between taking and writing messages (default 64 MiB); with "
+        "--snapshot-mode, the snapshot buffer's bound.",
         min=1 << 20,
         show_default=False,
     ),
@@ -161,3 +162,88 @@ PollingInterval = Annotated[
 ]
 LogLevelOption = Annotated[LogLevel, typer.Option("--log-level", help="error: no warnings.")]
 Format = Annotated[ReportFormat, typer.Option("--format", help="Final report as a table or JSON.")]
+SnapshotMode = Annotated[
+    bool,
+    typer.Option(
+        "--snapshot-mode",
+        help="Keep the newest messages in memory (--max-cache-size, --max-cache-duration) and "
+        "write a bag of them under the output at each trigger: --trigger, the ~/snapshot "
+        "service, the s key.",
+    ),
+]
+MaxCacheDuration = Annotated[
+    str | None,
+    typer.Option(
+        "--max-cache-duration",
+        help="With --snapshot-mode: keep this many seconds of messages (or 1m30s).",
+        metavar="DURATION",
+    ),
+]
+TriggerOption = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--trigger",
+        help="'TOPIC: CONDITION': a message satisfying the field condition triggers a "
+        "snapshot, e.g. '/alerts: status[*].level >= 2'. Repeatable.",
+        metavar="'TOPIC: CONDITION'",
+    ),
+]
+Pre = Annotated[
+    str | None,
+    typer.Option(
+        "--pre",
+        help="A snapshot starts this long before its trigger (default: all that is buffered).",
+        metavar="DURATION",
+    ),
+]
+Post = Annotated[
+    str | None,
+    typer.Option(
+        "--post",
+        help="A snapshot goes on this long after its trigger; a trigger meanwhile extends it.",
+        metavar="DURATION",
+    ),
+]
+RepeatTransientLocal = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--repeat-transient-local",
+        help="Write the last N (default 1) messages of TOPIC at the start of every snapshot and "
+        "split file.",
+        metavar="TOPIC[=N]",
+    ),
+]
+RepeatAllTransientLocal = Annotated[
+    bool | None,
+    typer.Option(
+        "--repeat-all-transient-local/--no-repeat-all-transient-local",
+        help="Repeat the last message of every transient-local topic at the start of every "
+        "snapshot and split file (default: on with --snapshot-mode).",
+        show_default=False,
+    ),
+]
+StartPaused = Annotated[
+    bool,
+    typer.Option(
+        "--start-paused",
+        help="Start paused: messages are counted, not written, until the space key or the "
+        "~/resume service.",
+    ),
+]
+MaxBagFiles = Annotated[
+    int,
+    typer.Option(
+        "--max-bag-files",
+        help="With -b or -d: keep the newest N files, deleting the oldest (0: all).",
+        min=0,
+    ),
+]
+MinFreeSpace = Annotated[
+    str | None,
+    typer.Option(
+        "--min-free-space",
+        help="Keep this much disk free (2GiB, 500MB, 5%): delete the oldest file with "
+        "--max-bag-files, else stop with an error before the disk fills.",
+        metavar="SIZE",
+    ),
+]

@@ -6,6 +6,7 @@ from typing import TYPE_CHECKING
 
 from bagkit.cli.common import format_rate
 from bagkit.cli.tables import INDENT, Column, Styled, Table, print_line, print_table, print_wrapped
+from bagkit.recording.loss_causes import large_message_cause
 
 if TYPE_CHECKING:
     from bagkit.recording.report import RecordProgress, RecordReport
@@ -50,6 +51,8 @@ def print_record_table(report: RecordReport) -> None:
     )
     print_table(table)
     _print_notes(report)
+    if report.snapshots is not None:
+        _print_snapshots(report)
 
 
 def _print_notes(report: RecordReport) -> None:
@@ -62,8 +65,36 @@ def _print_notes(report: RecordReport) -> None:
             )
         if topic.before_clock:
             notes.append(f"{topic.before_clock} taken before the first /clock, not written")
+        cause = large_message_cause(topic.topic, topic.gaps, topic.messages, topic.bytes)
+        if cause is not None:
+            notes.append(cause.removeprefix(f"{topic.topic}: "))
+        if topic.paused:
+            notes.append(f"{topic.paused} taken while paused, not written (not lost)")
         for note in notes:
             print_wrapped(f"{topic.topic}: {note}".split(" "), lead=INDENT)
+
+
+def _print_snapshots(report: RecordReport) -> None:
+    """Snapshot mode: what each snapshot holds, and what the buffer's bound evicted."""
+    assert report.snapshots is not None
+    evicted = sum(report.evicted.values())
+    print_wrapped(
+        f"snapshot mode: {len(report.snapshots)} snapshot(s); {evicted} messages evicted from "
+        "the buffer by its bound (not lost: not kept by design)".split(" ")
+    )
+    for snapshot in report.snapshots:
+        held = ", ".join(f"{topic} {count}" for topic, count in sorted(snapshot.messages.items()))
+        span = (snapshot.end_ns - snapshot.start_ns) / 1e9
+        before = (snapshot.trigger_ns - snapshot.start_ns) / 1e9
+        line = (
+            f"{snapshot.path.name}: {span:.1f} s ({before:.1f} s before the trigger), "
+            f"trigger {snapshot.trigger}"
+            + (f" (x{snapshot.triggers})" if snapshot.triggers > 1 else "")
+            + f", {sum(snapshot.messages.values())} messages ({held or 'none'})"
+            + f", {snapshot.latched} latched at its start"
+            + (f", FAILED: {snapshot.error}" if snapshot.error else "")
+        )
+        print_wrapped(line.split(" "), lead=INDENT)
 
 
 def progress_line(progress: RecordProgress, *, subscribed: bool) -> str:
@@ -73,6 +104,10 @@ def progress_line(progress: RecordProgress, *, subscribed: bool) -> str:
     lost = f", [red]{progress.lost} lost[/]" if progress.lost else ""
     if progress.before_clock:
         lost += f", {progress.before_clock} before the first /clock (not written)"
+    if progress.paused:
+        lost += f", {progress.paused} while paused"
+    if progress.is_paused:
+        return f"paused (space or ~/resume to resume): {progress.messages} messages{lost}"
     return (
         f"recording {progress.topics} topics: {progress.messages} messages, "
         f"{_human_bytes(progress.bytes)}{lost} ({progress.elapsed_s:.0f} s)"

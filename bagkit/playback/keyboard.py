@@ -1,5 +1,7 @@
 """Keyboard controls of a replay in a terminal, and a replay that survives Ctrl-Z.
 
+The key reader itself (:func:`key_presses`) also serves ``bagkit record``'s keys.
+
 As ``ros2 bag play``: space pauses and resumes, the right arrow publishes the next message while
 paused, the up and down arrows raise and lower the rate by 0.1. bagkit's own: the left arrow
 (or ``,``/``<``) seeks back a step of bag time, ``.``/``>`` forward. The terminal is put in cbreak
@@ -63,6 +65,59 @@ def split_keys(data: bytes) -> list[bytes]:
     return keys
 
 
+class _Terminal:
+    """The controlling terminal on stdin, put in cbreak mode without echo and restored."""
+
+    def __init__(self, enabled: bool) -> None:
+        self.fd = sys.stdin.fileno() if enabled and sys.stdin.isatty() else None
+        self._saved = termios.tcgetattr(self.fd) if self.fd is not None else None
+
+    def enter_raw(self) -> None:
+        if self.fd is not None:
+            tty.setcbreak(self.fd, termios.TCSANOW)
+            attributes = termios.tcgetattr(self.fd)
+            attributes[3] &= ~termios.ECHO
+            termios.tcsetattr(self.fd, termios.TCSANOW, attributes)
+
+    def restore(self) -> None:
+        if self.fd is not None and self._saved is not None:
+            with suppress(termios.error):  # the terminal hung up: nothing to restore
+                termios.tcsetattr(self.fd, termios.TCSANOW, self._saved)
+
+
+@contextmanager
+def key_presses(actions: dict[bytes, Callable[[], object]]) -> Iterator[bool]:
+    """Run ``actions[key]`` for each key pressed on the terminal on stdin, in a thread.
+
+    Yields whether there is such a terminal (otherwise nothing is read). ``bagkit record``
+    uses it for its keys; :func:`terminal_controls` for the replay's.
+    """
+    terminal = _Terminal(enabled=bool(actions))
+    with _reading_keys(terminal, actions):
+        yield terminal.fd is not None
+
+
+@contextmanager
+def _reading_keys(
+    terminal: _Terminal, actions: dict[bytes, Callable[[], object]]
+) -> Iterator[None]:
+    stop = threading.Event()
+    reader = None
+    try:
+        if terminal.fd is not None:
+            terminal.enter_raw()
+            reader = threading.Thread(
+                target=_read_keys, args=(terminal.fd, actions, stop), daemon=True
+            )
+            reader.start()
+        yield
+    finally:
+        stop.set()
+        if reader is not None:
+            reader.join(timeout=2 * POLL_S)
+        terminal.restore()
+
+
 @contextmanager
 def terminal_controls(
     controls: PlayControls,
@@ -74,48 +129,22 @@ def terminal_controls(
 
     ``seek_step(direction)`` is called with -1 or +1 by the seek keys.
     """
-    fd = sys.stdin.fileno() if keyboard and sys.stdin.isatty() else None
-    saved = termios.tcgetattr(fd) if fd is not None else None
-
-    def enter_raw() -> None:
-        if fd is not None:
-            tty.setcbreak(fd, termios.TCSANOW)
-            attributes = termios.tcgetattr(fd)
-            attributes[3] &= ~termios.ECHO
-            termios.tcsetattr(fd, termios.TCSANOW, attributes)
-
-    def restore() -> None:
-        if fd is not None and saved is not None:
-            with suppress(termios.error):  # the terminal hung up: nothing to restore
-                termios.tcsetattr(fd, termios.TCSANOW, saved)
+    terminal = _Terminal(keyboard)
 
     def on_stop(_signum: int, _frame: FrameType | None) -> None:
         controls.suspend()
-        restore()
+        terminal.restore()
         # SIGSTOP, not SIGTSTP again: the kernel ignores SIGTSTP in an orphaned process group
         # (a replay started in a session of its own), which would leave the replay held.
         os.kill(os.getpid(), signal.SIGSTOP)  # stops here until SIGCONT
-        enter_raw()
+        terminal.enter_raw()
         controls.unsuspend()
 
     previous = signal.signal(signal.SIGTSTP, on_stop)
-    stop = threading.Event()
-    reader = None
     try:
-        if fd is not None:
-            enter_raw()
-            reader = threading.Thread(
-                target=_read_keys,
-                args=(fd, key_actions(controls, seek_step), stop),
-                daemon=True,
-            )
-            reader.start()
-        yield
+        with _reading_keys(terminal, key_actions(controls, seek_step)):
+            yield
     finally:
-        stop.set()
-        if reader is not None:
-            reader.join(timeout=2 * POLL_S)
-        restore()
         signal.signal(signal.SIGTSTP, previous)
 
 

@@ -11,7 +11,11 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
 
+from bagkit.bag.errors import BagError
+from bagkit.bag.file_rotation import FileRotation, FreeSpace
 from bagkit.recording.errors import RecorderOptionsError
+from bagkit.selection.conditions import TopicCondition, parse_topic_condition
+from bagkit.selection.errors import SelectionError
 from bagkit.selection.topics import TopicSelection
 
 # Bounds the memory held between taking and writing: absorbs writer hiccups (a slow disk
@@ -64,6 +68,25 @@ class RecordOptions:
         tune_process: tune the process as ``bagkit record`` does (:mod:`bagkit.ros.tuning`:
             Fast DDS shared-memory queue, malloc thresholds); False leaves the host process
             alone.
+        snapshot_mode: keep the newest messages in memory and write a bag of them under
+            ``output`` at each trigger only (``--snapshot-mode``).
+        snapshot_max_bytes: the snapshot buffer's bound in bytes (``--max-cache-size`` in
+            snapshot mode; 0: none).
+        snapshot_max_duration_s: the snapshot buffer's bound in seconds of log time
+            (``--max-cache-duration``; 0: none).
+        triggers: ``'TOPIC: CONDITION'`` texts: a message on TOPIC that satisfies the field
+            condition triggers a snapshot (``--trigger``).
+        pre_s: a snapshot starts this long before its trigger (None: all that is buffered).
+        post_s: a snapshot goes on this long after its (last) trigger.
+        repeat_transient_local: topic -> how many of its last messages are written at the
+            start of every snapshot and split file (``--repeat-transient-local TOPIC[=N]``).
+        repeat_all_transient_local: repeat the last message of every transient-local topic
+            (``--repeat-all-transient-local``); None: on in snapshot mode, off otherwise.
+        max_bag_files: circular recording: keep the newest N files of a split bag (0: all).
+        min_free_space: a free-space floor (``2GiB``, ``5%``): below it the oldest file of a
+            circular bag is deleted, else the recording stops with an error (None: no guard).
+        start_paused: start paused (``--start-paused``): messages are counted as ``paused``
+            until ``Recorder.resume()``, the ``~/resume`` service or the space key.
 
     Raises:
         RecorderOptionsError: nothing selected, a negative limit.
@@ -92,6 +115,17 @@ class RecordOptions:
     queue_bytes: int = DEFAULT_QUEUE_BYTES
     discovery_period_s: float = DISCOVERY_PERIOD_S
     tune_process: bool = True
+    snapshot_mode: bool = False
+    snapshot_max_bytes: int = 0
+    snapshot_max_duration_s: float = 0
+    triggers: tuple[str, ...] = ()
+    pre_s: float | None = None
+    post_s: float = 0
+    repeat_transient_local: Mapping[str, int] = field(default_factory=dict)
+    repeat_all_transient_local: bool | None = None
+    start_paused: bool = False
+    max_bag_files: int = 0
+    min_free_space: str | None = None
 
     def __post_init__(self) -> None:
         if self.selection.empty:
@@ -106,6 +140,26 @@ class RecordOptions:
             raise RecorderOptionsError(f"max_messages must be positive, got {self.max_messages}")
         if self.queue_bytes < 1 or self.discovery_period_s <= 0:
             raise RecorderOptionsError("queue_bytes and discovery_period_s must be positive")
+        check_snapshot_options(self)
+        check_rotation_options(self)
+
+    @property
+    def rotation(self) -> FileRotation:
+        """The circular-recording and free-space settings, parsed."""
+        floor = None if self.min_free_space is None else FreeSpace.parse(self.min_free_space)
+        return FileRotation(self.max_bag_files, floor)
+
+    @property
+    def repeats_all_transient_local(self) -> bool:
+        """Whether every transient-local topic's last message starts each file and snapshot."""
+        if self.repeat_all_transient_local is None:
+            return self.snapshot_mode
+        return self.repeat_all_transient_local
+
+    @property
+    def trigger_conditions(self) -> list[TopicCondition]:
+        """The parsed ``triggers``."""
+        return [parse_topic_condition(text) for text in self.triggers]
 
     @property
     def selection(self) -> TopicSelection:
@@ -120,3 +174,47 @@ class RecordOptions:
             exclude_topics=self.exclude_topics,
             exclude_topic_types=self.exclude_topic_types,
         )
+
+
+def check_snapshot_options(options: RecordOptions) -> None:
+    """Raise RecorderOptionsError for snapshot settings that do not go together or parse."""
+    if options.snapshot_mode:
+        if options.snapshot_max_bytes < 0 or options.snapshot_max_duration_s < 0:
+            raise RecorderOptionsError("--max-cache-size and --max-cache-duration must be >= 0")
+        if not (options.snapshot_max_bytes or options.snapshot_max_duration_s):
+            raise RecorderOptionsError(
+                "--snapshot-mode needs a bound: --max-cache-size or --max-cache-duration"
+            )
+    elif options.triggers or options.snapshot_max_duration_s or options.post_s:
+        raise RecorderOptionsError(
+            "--trigger, --max-cache-duration and --post need --snapshot-mode"
+        )
+    if (options.pre_s is not None and options.pre_s < 0) or options.post_s < 0:
+        raise RecorderOptionsError("--pre and --post must be >= 0")
+    if any(depth < 1 for depth in options.repeat_transient_local.values()):
+        raise RecorderOptionsError("--repeat-transient-local: N must be positive")
+    for text in options.triggers:
+        try:
+            topic = parse_topic_condition(text).topic
+        except SelectionError as exc:
+            raise RecorderOptionsError(f"--trigger {exc}") from None
+        if not options.selection.matches(topic) and topic not in options.topics:
+            raise RecorderOptionsError(
+                f"--trigger {text!r}: {topic} is not among the recorded topics"
+            )
+
+
+def check_rotation_options(options: RecordOptions) -> None:
+    """Raise RecorderOptionsError for --max-bag-files / --min-free-space that cannot work."""
+    if options.max_bag_files < 0:
+        raise RecorderOptionsError("--max-bag-files must be >= 0")
+    if options.max_bag_files and not (options.max_bag_size or options.max_bag_duration_s):
+        raise RecorderOptionsError("--max-bag-files needs splitting: -b or -d")
+    if options.snapshot_mode and (options.max_bag_files or options.min_free_space):
+        raise RecorderOptionsError(
+            "--max-bag-files and --min-free-space do not apply to --snapshot-mode"
+        )
+    try:
+        _ = options.rotation
+    except BagError as exc:
+        raise RecorderOptionsError(str(exc)) from None

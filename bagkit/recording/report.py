@@ -26,6 +26,8 @@ class TopicRecord:
     last_ns: int = 0
     # Taken before the first /clock with --use-sim-time: not written (no time to stamp with).
     before_clock: int = 0
+    # Taken while the recording was paused: not written by request, not lost.
+    paused: int = 0
 
     @property
     def lost(self) -> int:
@@ -51,6 +53,39 @@ class TopicRecord:
             "rate_hz": self.rate_hz,
             "bytes": self.bytes,
             "before_clock": self.before_clock,
+            "paused": self.paused,
+        }
+
+
+@dataclass(slots=True)
+class SnapshotRecord:
+    """One snapshot of a snapshot-mode recording: its bag, its window, what it holds."""
+
+    path: Path
+    trigger: str
+    """What opened it: ``service``, ``key``, ``request`` or the ``--trigger`` text."""
+    trigger_ns: int
+    start_ns: int
+    end_ns: int
+    triggers: int = 1
+    """Triggers inside its window (each one extends it)."""
+    messages: dict[str, int] = field(default_factory=dict)
+    latched: int = 0
+    """Copies of latched messages written at its start."""
+    error: str | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready view."""
+        return {
+            "path": str(self.path),
+            "trigger": self.trigger,
+            "trigger_ns": self.trigger_ns,
+            "start_ns": self.start_ns,
+            "end_ns": self.end_ns,
+            "triggers": self.triggers,
+            "messages": dict(sorted(self.messages.items())),
+            "latched": self.latched,
+            "error": self.error,
         }
 
 
@@ -65,6 +100,10 @@ class RecordReport:
     topics: list[TopicRecord] = field(default_factory=list)
     skipped: dict[str, str] = field(default_factory=dict)
     error: str | None = None
+    # Snapshot mode only (None otherwise): the snapshots written, and per topic the messages
+    # evicted from the buffer by its bound (by design: not lost, not in a snapshot).
+    snapshots: list[SnapshotRecord] | None = None
+    evicted: dict[str, int] = field(default_factory=dict)
 
     @property
     def messages(self) -> int:
@@ -90,7 +129,7 @@ class RecordReport:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready view."""
-        return {
+        view = {
             "path": str(self.path),
             "duration_s": self.duration_s,
             "discovery_s": self.discovery_s,
@@ -101,6 +140,10 @@ class RecordReport:
             "skipped": dict(self.skipped),
             "error": self.error,
         }
+        if self.snapshots is not None:
+            view["snapshots"] = [s.to_dict() for s in self.snapshots]
+            view["evicted"] = dict(sorted(self.evicted.items()))
+        return view
 
 
 @dataclass(frozen=True, slots=True)
@@ -113,15 +156,23 @@ class RecordProgress:
     bytes: int
     lost: int
     before_clock: int = 0
+    paused: int = 0
+    """Messages taken while paused (not written, not lost)."""
+    is_paused: bool = False
+
+
+# Where the recorder stores loss_summary in metadata.yaml's custom_data (bagkit doctor reads it).
+LOSS_CUSTOM_DATA_KEY = "bagkit.record.loss"
 
 
 def loss_summary(records: list[TopicRecord]) -> str:
-    """JSON ``{topic: {messages, gaps, overflow, write_failed, publishers}}`` (custom_data is
-    string -> string)."""
+    """JSON ``{topic: {messages, bytes, gaps, overflow, write_failed, publishers}}``
+    (custom_data is string -> string)."""
     return json.dumps(
         {
             r.topic: {
                 "messages": r.messages,
+                "bytes": r.bytes,
                 "gaps": r.gaps,
                 "overflow": r.overflow,
                 "write_failed": r.write_failed,

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import operator
 import re
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, NoReturn
 
@@ -359,7 +359,7 @@ def _values(message: Any, comparison: Comparison) -> list[Any]:
         reached = []
         for value in current:
             if isinstance(step, str):
-                if step not in getattr(value, "__dataclass_fields__", ()):
+                if step not in _field_names(value):
                     raise UnknownFieldError(f"no field {comparison.text!r} in the message")
                 reached.append(getattr(value, step))
             elif not hasattr(value, "__len__") or isinstance(value, str | bytes):
@@ -370,6 +370,15 @@ def _values(message: Any, comparison: Comparison) -> list[Any]:
                 reached.append(value[step])
         current = reached
     return current
+
+
+def _field_names(message: Any) -> Collection[str]:
+    """The fields of a decoded message (a dataclass) or of an rclpy message object."""
+    fields = getattr(message, "__dataclass_fields__", None)
+    if fields is not None:
+        return fields
+    rclpy_fields = getattr(type(message), "get_fields_and_field_types", None)
+    return rclpy_fields() if rclpy_fields is not None else ()
 
 
 def _compare(value: Any, comparison: Comparison) -> bool:

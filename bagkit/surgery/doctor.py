@@ -8,6 +8,7 @@ times, topics), every schema decodable (:class:`bagkit.decode.MessageTypes`) and
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,6 +18,8 @@ from bagkit.bag.errors import BagError, BagNotFoundError, NotABagError
 from bagkit.bag.mcapio import MAGIC, Source, read_file_index
 from bagkit.bag.metadata import METADATA_FILENAME, BagMetadata, read_metadata
 from bagkit.decode import DecodeError, MessageTypes, SchemaError
+from bagkit.recording.loss_causes import large_message_cause
+from bagkit.recording.report import LOSS_CUSTOM_DATA_KEY
 from bagkit.surgery.file_check import FileCheck, FileFacts
 
 
@@ -89,7 +92,24 @@ def diagnose(path: Path, *, deep: bool = False) -> DoctorReport:
             Finding(METADATA_FILENAME, p) for p in _metadata_problems(metadata, facts, bag_dir)
         )
     report.findings.extend(Finding("bag", p) for p in decoders.problems())
+    if metadata is not None:
+        report.findings.extend(Finding("bag", n, note=True) for n in _loss_causes(metadata))
     return report
+
+
+def _loss_causes(metadata: BagMetadata) -> list[str]:
+    """Why the recorder lost messages, from its counts in custom_data (bagkit record's)."""
+    try:
+        loss = json.loads(metadata.custom_data.get(LOSS_CUSTOM_DATA_KEY, "{}"))
+        causes = [
+            large_message_cause(
+                topic, int(c.get("gaps", 0)), int(c.get("messages", 0)), int(c.get("bytes", 0))
+            )
+            for topic, c in loss.items()
+        ]
+    except (ValueError, TypeError, AttributeError):
+        return ["the recorder's loss counts (custom_data bagkit.record.loss) are not readable"]
+    return [cause for cause in causes if cause is not None]
 
 
 def _storage_files(path: Path) -> tuple[Path | None, list[Path]]:

@@ -161,6 +161,7 @@ def test_metadata_and_channel_qos(node: Node, tmp_path: Path) -> None:
     assert yaml.safe_load(info["custom_data"]["bagkit.record.loss"]) == {
         "/meta/latched": {
             "messages": 1,
+            "bytes": recorder.report.topic("/meta/latched").bytes,
             "gaps": 0,
             "overflow": 0,
             "write_failed": 0,

@@ -103,9 +103,7 @@ class McapFileWriter:
                 self._handle.truncate(offset)
                 self._handle.seek(offset)
             raise BagWriteError(
-                f"cannot write {self.path}: {exc.strerror or exc}"
-                + (f" ({sum(lost.values())} messages lost)" if lost else ""),
-                lost_by_topic=lost,
+                f"cannot write {self.path}: {exc.strerror or exc}", lost_by_topic=lost
             ) from exc
         self.offset = offset + sum(len(part) for part in parts)
         return offset

@@ -21,8 +21,9 @@ QUEUE_WAIT_S = 1.0
 # One topic's messages of a batch.
 BatchPart = tuple["RecordedTopic", "TakenMessages"]
 # What the writer receives: a batch to write ("batch"), a batch dropped on a full queue
-# ("dropped"), a new topic to add to the bag ("topic"), the end of the recording ("end").
-ItemKind = Literal["batch", "dropped", "topic", "end"]
+# ("dropped"), a new topic to add to the bag ("topic"), the end of the recording ("end"), a
+# nudge to look at its state now ("wake": a resume).
+ItemKind = Literal["batch", "dropped", "topic", "end", "wake"]
 
 
 @dataclass(frozen=True, slots=True)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import logging
 import threading
 import time
 from collections.abc import Callable
@@ -27,13 +28,18 @@ from rclpy.signals import SignalHandlerOptions
 from bagkit.bag import BagWriteError, BagWriter
 from bagkit.bag.errors import BagError
 from bagkit.recording.options import RecordOptions, default_output_name
-from bagkit.recording.report import RecordProgress, RecordReport
+from bagkit.recording.report import RecordProgress, RecordReport, SnapshotRecord
 from bagkit.ros.clock import CLOCK_TOPIC
 from bagkit.ros.errors import RecorderOptionsError, RecordingFailedError
 from bagkit.ros.qos import load_qos_overrides
+from bagkit.ros.record.control_services import ControlServices, recorder_actions
 from bagkit.ros.record.handoff import HandoffQueue, StopSignal
+from bagkit.ros.record.latched_topics import LatchedRepeats
+from bagkit.ros.record.pause import PauseGate
+from bagkit.ros.record.snapshot import SnapshotSink
 from bagkit.ros.record.subscriptions import Subscriptions, never_called
 from bagkit.ros.record.take_loop import SimClock, TakeLoop
+from bagkit.ros.record.triggers import TriggerError, check_triggers_in_graph
 from bagkit.ros.record.write_loop import FLUSH_PERIOD_S, WriteLoop
 from bagkit.ros.tuning import process_tuning
 from bagkit.selection.topics import absolute_topic_name
@@ -44,6 +50,10 @@ _DISK_FULL = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG}
 # counts from there), and at most between two looks afterwards.
 _POLL_STARTING_S = 0.05
 _POLL_S = 0.5
+# How long the start waits for the trigger topics to check their conditions' fields, and how
+# long after the start a trigger topic may be absent before a warning says so.
+TRIGGER_CHECK_WAIT_S = 1.0
+TRIGGER_TOPIC_WAIT_S = 10.0
 # What run() may be told to stop by: an event to set, or a function that says when.
 StopWhen = threading.Event | Callable[[], bool]
 
@@ -97,6 +107,15 @@ class Recorder:
         self._writer: WriteLoop | None = None
         self._threads: list[threading.Thread] = []
         self._started = 0.0
+        self._services: ControlServices | None = None
+        self._absent_triggers: threading.Timer | None = None
+        self._gate = PauseGate(paused=options.start_paused)
+        # Latched state repeated at the start of each split file (snapshots keep their own).
+        self._latched = (
+            LatchedRepeats(options)
+            if LatchedRepeats.wanted(options) and not options.snapshot_mode
+            else None
+        )
 
     def run(
         self,
@@ -209,7 +228,14 @@ class Recorder:
             self._shutdown_node()
             raise
         assert self._subscriptions is not None
-        self._writer = WriteLoop(bag, self._queue, self._stop, self._subscriptions.skip)
+        self._writer = WriteLoop(
+            bag,
+            self._queue,
+            self._stop,
+            self._subscriptions.skip,
+            latched=self._latched,
+            gate=self._gate,
+        )
         self._started = time.monotonic()
         discovered = threading.Event()
         self._threads = [
@@ -221,6 +247,49 @@ class Recorder:
         for thread in self._threads:
             thread.start()
         discovered.wait()
+        if self.options.snapshot_mode:
+            self._start_snapshots()
+        assert self._node is not None
+        self._services = ControlServices(
+            self._node.context, self.options.node_name, recorder_actions(self)
+        )
+
+    def _start_snapshots(self) -> None:
+        """Check the triggers on the topics found; warn later about absent ones.
+
+        Raises:
+            RecorderOptionsError: a trigger names a field its topic's type lacks (the
+                recording is stopped and nothing is left).
+        """
+        assert self._writer is not None and self._subscriptions is not None and self._node
+        sink = self._writer.bag
+        assert isinstance(sink, SnapshotSink)
+        try:
+            check_triggers_in_graph(self._node, sink.triggers, TRIGGER_CHECK_WAIT_S)
+        except TriggerError as exc:
+            self.stop()
+            with contextlib.suppress(OSError):  # no snapshot was written: nothing to keep
+                self.path.rmdir()
+            raise RecorderOptionsError(str(exc)) from None
+        self._absent_triggers = threading.Timer(TRIGGER_TOPIC_WAIT_S, self._warn_absent_triggers)
+        self._absent_triggers.daemon = True
+        self._absent_triggers.start()
+
+    def _warn_absent_triggers(self) -> None:
+        sink = self._writer.bag if self._writer is not None else None
+        if isinstance(sink, SnapshotSink) and not self._stop.is_set():
+            for topic in sink.triggers.unseen():
+                self._warn(
+                    f"trigger topic {topic} has not appeared after "
+                    f"{TRIGGER_TOPIC_WAIT_S:g} s: recording goes on, it triggers once "
+                    "it appears"
+                )
+
+    def _warn(self, message: str) -> None:
+        if self._on_warning is not None:
+            self._on_warning(message)
+        else:
+            logging.getLogger(__name__).warning(message)
 
     def _qos_overrides(self) -> dict[str, QoSProfile]:
         """The overrides file's profiles by absolute topic name.
@@ -233,7 +302,9 @@ class Recorder:
             return {}
         return {absolute_topic_name(k): v for k, v in load_qos_overrides(path).items()}
 
-    def _create_bag(self) -> BagWriter:
+    def _create_bag(self) -> BagWriter | SnapshotSink:
+        if self.options.snapshot_mode:
+            return self._create_snapshot_sink()
         try:
             bag = BagWriter(
                 self.path,
@@ -241,6 +312,8 @@ class Recorder:
                 max_bag_size=self.options.max_bag_size,
                 max_bag_duration_s=self.options.max_bag_duration_s,
                 chunk_interval_s=FLUSH_PERIOD_S,
+                file_preamble=self._latched.state.messages if self._latched else None,
+                rotation=self.options.rotation,
             ).open()
             bag.custom_data.update(self.options.custom_data)
             return bag
@@ -252,6 +325,67 @@ class Recorder:
             raise RecorderOptionsError(str(exc)) from None
         except BagError as exc:
             raise RecorderOptionsError(str(exc)) from None
+
+    def _create_snapshot_sink(self) -> SnapshotSink:
+        try:
+            return SnapshotSink(self.path, self.options, self._stop.fail).open()
+        except FileExistsError:
+            raise RecorderOptionsError(
+                f"{self.path} already exists (bagkit never overwrites a bag)"
+            ) from None
+        except OSError as exc:
+            raise RecorderOptionsError(
+                f"cannot create {self.path}: {exc.strerror or exc}"
+            ) from None
+
+    @property
+    def is_paused(self) -> bool:
+        """Whether the recording is paused (messages are taken, counted, not written)."""
+        return self._gate.paused
+
+    def pause(self) -> bool:
+        """Pause (``~/pause``, the space key); return whether it was recording."""
+        return self._gate.set_paused(True)
+
+    def resume(self) -> bool:
+        """Resume (``~/resume``); the last latched messages taken meanwhile are written.
+
+        Returns whether it was paused.
+        """
+        changed = self._gate.set_paused(False)
+        self._queue.put_control("wake")  # the writer writes the held latched messages now
+        return changed
+
+    def toggle_paused(self) -> None:
+        """Pause if recording, resume if paused (the space key)."""
+        if not self.pause():
+            self.resume()
+
+    def split(self) -> str:
+        """Start a new file before the next message (``~/split_bagfile``); return a description.
+
+        Raises:
+            RecorderOptionsError: in snapshot mode (each snapshot is a bag of its own).
+        """
+        bag = self._writer.bag if self._writer is not None else None
+        if not isinstance(bag, BagWriter):
+            raise RecorderOptionsError("split: no bag file to split (snapshot mode or not started)")
+        bag.request_split()
+        return f"{self.path}: a new file starts with the next message"
+
+    def snapshot(self, reason: str = "request") -> SnapshotRecord:
+        """Trigger a snapshot now, as the ``~/snapshot`` service does (snapshot mode only).
+
+        Returns:
+            The snapshot this opened, or the open one it extended (its window grows).
+
+        Raises:
+            RecorderOptionsError: not in snapshot mode, or not started.
+        """
+        sink = self._writer.bag if self._writer is not None else None
+        if not isinstance(sink, SnapshotSink):
+            raise RecorderOptionsError("snapshots need snapshot mode (--snapshot-mode), started")
+        return sink.request(reason)
 
     def _start_node(self, qos_overrides: dict[str, QoSProfile]) -> TakeLoop:
         context = self._context
@@ -303,6 +437,9 @@ class Recorder:
         if self._subscriptions.complete.is_set():
             report.discovery_s = self._subscriptions.complete_at - self._started
         report.topics = sorted(self._writer.records.values(), key=lambda r: r.topic)
+        if isinstance(self._writer.bag, SnapshotSink):
+            report.snapshots = self._writer.bag.snapshots
+            report.evicted = self._writer.bag.evicted
         errors = self._stop.errors
         report.error = errors[0] if errors else None
         if report.error is not None and report.lost:
@@ -310,6 +447,11 @@ class Recorder:
         self._stopped.set()
 
     def _shutdown_node(self) -> None:
+        if self._absent_triggers is not None:
+            self._absent_triggers.cancel()
+        if self._services is not None:
+            self._services.close()
+            self._services = None
         if self._node is not None:
             self._node.destroy_node()
             self._node = None
@@ -340,6 +482,8 @@ class Recorder:
             bytes=sum(r.bytes for r in records),
             lost=sum(r.lost for r in records),
             before_clock=sum(r.before_clock for r in records),
+            paused=sum(r.paused for r in records),
+            is_paused=self._gate.paused,
         )
 
 

@@ -4,7 +4,8 @@ Every message taken is, at the end, either in the bag (``messages``) or counted 
 topic: ``gaps`` (holes in publication sequence numbers: lost inside the middleware),
 ``overflow`` (dropped on a full hand-off queue), ``write_failed`` (handed to the bag writer but
 not in the bag, from :class:`~bagkit.bag.BagWriteError`'s ``lost_by_topic``, or taken after
-writing failed). No rclpy import.
+writing failed); or, not lost, ``paused`` (taken while paused, :mod:`~bagkit.ros.record.pause`).
+No rclpy import.
 """
 
 from __future__ import annotations
@@ -15,12 +16,15 @@ from typing import TYPE_CHECKING
 
 from bagkit.bag import BagWriteError, BagWriter
 from bagkit.bag.errors import BagError
-from bagkit.recording.report import TopicRecord, loss_summary
+from bagkit.recording.report import LOSS_CUSTOM_DATA_KEY, TopicRecord, loss_summary
 from bagkit.ros.record.handoff import Batch, BatchPart, HandoffQueue, StopSignal
 from bagkit.ros.tuning import name_native_thread
 
 if TYPE_CHECKING:
+    from bagkit.ros.record.latched_topics import LatchedRepeats
+    from bagkit.ros.record.pause import PauseGate
     from bagkit.ros.record.recorded_topic import NewTopic
+    from bagkit.ros.record.snapshot import SnapshotSink
 
 # The writer closes a chunk at least this often, so a killed recorder loses at most this much.
 FLUSH_PERIOD_S = 1.0
@@ -31,20 +35,27 @@ class WriteLoop:
     """The writer thread's work: the bag, the per-topic records, whether writing failed.
 
     Args:
-        bag: the open bag.
+        bag: the open bag (in snapshot mode the snapshot sink, which stands for it).
         queue: the hand-off from the take thread.
         stop: failures are reported here (the take thread then stops).
         skip: ``skip(topic, reason)`` leaves a topic that cannot be added out, with a warning.
+        latched: keeps the last messages of latched topics for the start of each split file.
+        gate: says whether the recording is paused.
     """
 
     def __init__(
         self,
-        bag: BagWriter,
+        bag: BagWriter | SnapshotSink,
         queue: HandoffQueue,
         stop: StopSignal,
         skip: Callable[[str, str], None],
+        *,
+        latched: LatchedRepeats | None = None,
+        gate: PauseGate | None = None,
     ) -> None:
         self.bag = bag
+        self.latched = latched
+        self.gate = gate
         self.queue = queue
         self.stop = stop
         self.records: dict[str, TopicRecord] = {}
@@ -80,12 +91,18 @@ class WriteLoop:
                 self._add_topic(payload)
             elif kind == "dropped":
                 self._count_dropped(payload)
+            elif kind == "wake":
+                self._write_released()
             else:
                 self._write_batch(payload)
 
     def _add_topic(self, new: NewTopic) -> None:
         name = new.info.name
         self.records[name] = new.topic.record
+        if self.latched is not None:
+            self.latched.add_topic(new.info)
+        if self.gate is not None:
+            self.gate.add_topic(new.info)
         if self.failed:
             return
         try:
@@ -104,6 +121,7 @@ class WriteLoop:
                 topic.record.overflow += len(taken)
 
     def _write_batch(self, batch: Batch) -> None:
+        self._write_released()
         for part in batch.parts:
             topic, taken = part
             if topic.record.topic in self._left_out:
@@ -111,8 +129,16 @@ class WriteLoop:
             topic.count_gaps(taken.sequences)
             if self.failed:
                 topic.record.write_failed += len(taken)
-            else:
+            elif self.gate is None or not self.gate.hold(part, batch.sim_time):
                 self._write(part, batch.sim_time)
+
+    def _write_released(self) -> None:
+        """After a resume: the last latched messages taken while paused."""
+        if self.gate is None or self.failed:
+            return
+        for part in self.gate.release():
+            part[0].record.paused -= len(part[1])
+            self._write(part, None)
 
     def _write(self, part: BatchPart, sim_time: int | None) -> None:
         """Write one topic's messages of a batch; what the writer loses is taken back out."""
@@ -132,6 +158,10 @@ class WriteLoop:
                 publish_times=taken.sources,
                 sequences=taken.sequences,
             )
+            if self.latched is not None:
+                self.latched.state.observe_batch(
+                    record.topic, taken.payloads, log_times, taken.sources, taken.sequences
+                )
         except BagWriteError as exc:
             self._write_failed(exc)
         except BagError as exc:
@@ -140,6 +170,7 @@ class WriteLoop:
             self._write_failed(BagWriteError(str(exc)))
 
     def _flush(self) -> None:
+        self._write_released()
         if not self.failed:
             try:
                 self.bag.flush()
@@ -155,7 +186,7 @@ class WriteLoop:
                 record.write_failed += lost
         self.failed = True
         # The report's error line gives the loss of the whole recording, not this chunk's.
-        self.stop.fail(str(exc).removesuffix(f" ({exc.messages_lost} messages lost)"))
+        self.stop.fail(exc.reason)
 
     def _finish(self) -> None:
         """Flush, store the loss counts in metadata.yaml's custom data, close the bag."""
@@ -163,7 +194,7 @@ class WriteLoop:
         bag = self.bag
         records = list(self.records.values())
         bag.custom_data[CUSTOM_DATA_PREFIX + "lost"] = str(sum(r.lost for r in records))
-        bag.custom_data[CUSTOM_DATA_PREFIX + "loss"] = loss_summary(records)
+        bag.custom_data[LOSS_CUSTOM_DATA_KEY] = loss_summary(records)
         try:
             bag.close()
         except BagWriteError as exc:

@@ -1,0 +1,159 @@
+"""Snapshot triggers on the data: ``--trigger 'TOPIC: CONDITION'`` checked on each message.
+
+The trigger topic's serialized messages are deserialized with rclpy (its C type support, the
+fastest decoder here) and the condition of :mod:`bagkit.selection.conditions` is evaluated on
+the message objects. The condition's fields are checked against the topic's definition as soon
+as the topic is known, so that a misspelt field stops the recording at once.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from rclpy.node import Node
+from rosidl_parser.definition import AbstractNestedType, NamespacedType
+
+from bagkit.bag import TopicInfo
+from bagkit.errors import BagkitError
+from bagkit.ros.message_classes import import_message_type
+from bagkit.ros.serialization import deserializer
+from bagkit.selection.conditions import Condition
+from bagkit.selection.errors import SelectionError
+
+# How often the graph is looked at while waiting for the trigger topics at the start.
+GRAPH_POLL_S = 0.05
+
+
+class TriggerError(BagkitError):
+    """A trigger that cannot be evaluated: a field its topic's type lacks, an undecodable type."""
+
+    exit_code = 2
+
+
+@dataclass(slots=True)
+class _TopicTriggers:
+    conditions: list[tuple[str, Condition]]
+    decode: Callable[[bytes], Any] | None = None
+    seen: bool = False
+
+
+class DataTriggers:
+    """The ``--trigger`` conditions, by topic.
+
+    Args:
+        triggers: (text as given, absolute topic, condition) per trigger.
+    """
+
+    def __init__(self, triggers: Sequence[tuple[str, str, Condition]]) -> None:
+        self._by_topic: dict[str, _TopicTriggers] = {}
+        for text, topic, condition in triggers:
+            entry = self._by_topic.setdefault(topic, _TopicTriggers([]))
+            entry.conditions.append((text, condition))
+
+    @property
+    def topics(self) -> list[str]:
+        """The trigger topics."""
+        return sorted(self._by_topic)
+
+    def unseen(self) -> list[str]:
+        """Trigger topics that have not appeared (no publisher found yet)."""
+        return sorted(t for t, entry in self._by_topic.items() if not entry.seen)
+
+    def add_topic(self, info: TopicInfo) -> None:
+        """Check the conditions of ``info``'s topic against its type; prepare its decoder.
+
+        Raises:
+            TriggerError: a condition names a field the type lacks, or the type cannot be read.
+        """
+        entry = self._by_topic.get(info.name)
+        if entry is None:
+            return
+        entry.seen = True
+        self.check(info.name, info.type)
+        entry.decode = deserializer(info.type)
+
+    def check(self, topic: str, type_name: str) -> None:
+        """Raise TriggerError if a condition on ``topic`` names a field ``type_name`` lacks."""
+        entry = self._by_topic.get(topic)
+        if entry is None:
+            return
+        try:
+            paths = leaf_paths(import_message_type(type_name))
+        except BagkitError as exc:
+            raise TriggerError(f"--trigger on {topic}: {exc}") from None
+        for text, condition in entry.conditions:
+            try:
+                condition.check_fields(topic, paths)
+            except SelectionError as exc:
+                raise TriggerError(f"--trigger {text!r}: {exc}") from None
+
+    def matching(self, topic: str, payloads: Sequence[bytes]) -> list[tuple[int, str]]:
+        """(index, trigger text) of each message of ``topic`` that satisfies a condition.
+
+        Raises:
+            TriggerError: a value cannot be compared (text with a number).
+        """
+        entry = self._by_topic.get(topic)
+        if entry is None or entry.decode is None:
+            return []
+        found = []
+        for index, data in enumerate(payloads):
+            message = entry.decode(data)
+            for text, condition in entry.conditions:
+                try:
+                    hit = condition.matches(message)
+                except SelectionError as exc:
+                    raise TriggerError(f"--trigger {text!r}: {exc}") from None
+                if hit:
+                    found.append((index, text))
+                    break
+        return found
+
+
+def check_triggers_in_graph(node: Node, triggers: DataTriggers, wait_s: float) -> None:
+    """Check the triggers of the topics ``node``'s graph shows, waiting ``wait_s`` for them.
+
+    A topic that does not appear in time is checked when it is subscribed.
+
+    Raises:
+        TriggerError: a condition names a field its topic's type lacks.
+    """
+    deadline = time.monotonic() + wait_s
+    checked: set[str] = set()
+    while True:
+        graph = dict(node.get_topic_names_and_types())
+        for topic in triggers.topics:
+            types = graph.get(topic, [])
+            if topic in checked or len(types) != 1:
+                continue
+            try:
+                import_message_type(types[0])
+            except BagkitError:
+                continue  # not installed: the topic is skipped with a warning of its own
+            triggers.check(topic, types[0])
+            checked.add(topic)
+        if len(checked) == len(triggers.topics) or time.monotonic() >= deadline:
+            return
+        time.sleep(GRAPH_POLL_S)
+
+
+def leaf_paths(message_class: Any, prefix: str = "") -> list[str]:
+    """The leaf field paths of an rclpy message class (``status[].level``), as
+    :mod:`bagkit.selection.fields` writes them (every array as ``[]``)."""
+    paths = []
+    names = message_class.get_fields_and_field_types()
+    for name, slot in zip(names, message_class.SLOT_TYPES, strict=True):
+        path = f"{prefix}.{name}" if prefix else name
+        element = slot
+        if isinstance(slot, AbstractNestedType):
+            path += "[]"
+            element = slot.value_type
+        if isinstance(element, NamespacedType):
+            nested = import_message_type("/".join([*element.namespaces, element.name]))
+            paths.extend(leaf_paths(nested, path))
+        else:
+            paths.append(path)
+    return paths
