@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import threading
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from typing import Protocol
 
 from rclpy.context import Context
@@ -22,9 +22,9 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from std_srvs.srv import Trigger
 
-from bagkit.errors import BagkitError
 from bagkit.recording.options import RecordOptions
 from bagkit.recording.report import SnapshotRecord
+from bagkit.ros.trigger_service import Action, trigger_callback
 from bagkit.selection.times import format_ns
 
 
@@ -39,10 +39,6 @@ class Controlled(Protocol):
     def resume(self) -> bool: ...
     def split(self) -> str: ...
     def snapshot(self, reason: str = ...) -> SnapshotRecord: ...
-
-
-# What a service does: returns the response's success and message; BagkitError: failed.
-Action = Callable[[], tuple[bool, str]]
 
 
 def recorder_actions(recorder: Controlled) -> dict[str, Action]:
@@ -88,7 +84,7 @@ class ControlServices:
             enable_rosout=False,
         )
         for name, action in actions.items():
-            self._node.create_service(Trigger, f"/{node_name}/{name}", _trigger_callback(action))
+            self._node.create_service(Trigger, f"/{node_name}/{name}", trigger_callback(action))
         self._executor = SingleThreadedExecutor(context=context)
         self._executor.add_node(self._node)
         self._thread = threading.Thread(
@@ -106,17 +102,3 @@ class ControlServices:
         self._executor.shutdown(timeout_sec=1.0)
         self._thread.join(timeout=2.0)
         self._node.destroy_node()
-
-
-def _trigger_callback(
-    action: Action,
-) -> Callable[[Trigger.Request, Trigger.Response], Trigger.Response]:
-    def serve(_request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
-        try:
-            response.success, response.message = action()
-        except BagkitError as exc:
-            response.message = str(exc)
-            response.success = False
-        return response
-
-    return serve

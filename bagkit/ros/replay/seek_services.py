@@ -17,7 +17,7 @@ wheel, and no installable service type carries a time or a count, so:
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Protocol
 
@@ -27,6 +27,7 @@ from rclpy.parameter import Parameter
 from std_srvs.srv import Trigger
 
 from bagkit.errors import BagkitError
+from bagkit.ros.trigger_service import trigger_callback
 from bagkit.selection.times import TimeLike, format_ns
 
 SEEK_PARAMETER = "seek"
@@ -57,23 +58,13 @@ def serve_seek(node: Node, player: SeekablePlayer) -> Iterator[None]:
         "stop": lambda: (_stopped(player), "stopping"),
     }
     for name, answer in services.items():
-        node.create_service(Trigger, f"~/{name}", _trigger(answer))
+        node.create_service(Trigger, f"~/{name}", trigger_callback(answer))
     yield
 
 
 def _stopped(player: SeekablePlayer) -> bool:
     player.stop()
     return True
-
-
-def _trigger(
-    answer: Callable[[], tuple[bool, str]],
-) -> Callable[[Trigger.Request, Trigger.Response], Trigger.Response]:
-    def callback(_request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
-        response.success, response.message = answer()
-        return response
-
-    return callback
 
 
 def _on_parameters(player: SeekablePlayer, parameters: list[Parameter]) -> SetParametersResult:

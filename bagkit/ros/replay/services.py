@@ -16,7 +16,7 @@ The services are served by an executor on a thread of their own while the player
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
@@ -26,6 +26,7 @@ from rclpy.parameter import Parameter
 from std_srvs.srv import Trigger
 
 from bagkit.playback.controls import PlayControls
+from bagkit.ros.trigger_service import Action, trigger_callback
 
 RATE_PARAMETER = "rate"
 
@@ -41,7 +42,7 @@ def serve_controls(node: Node, controls: PlayControls) -> Iterator[None]:
         node.set_parameters([Parameter(RATE_PARAMETER, value=rate)])
 
     controls.on_rate_change = sync_parameter
-    answers: dict[str, Callable[[], tuple[bool, str]]] = {
+    answers: dict[str, Action] = {
         "pause": lambda: (controls.pause(), ""),
         "resume": lambda: (controls.resume(), ""),
         "toggle_paused": lambda: (True, "paused" if controls.toggle_paused() else "playing"),
@@ -50,7 +51,7 @@ def serve_controls(node: Node, controls: PlayControls) -> Iterator[None]:
         "get_rate": lambda: (True, f"{controls.rate:g}"),
     }
     for name, answer in answers.items():
-        node.create_service(Trigger, f"~/{name}", _trigger_callback(answer))
+        node.create_service(Trigger, f"~/{name}", trigger_callback(answer))
     executor = SingleThreadedExecutor(context=node.context)
     executor.add_node(node)
     thread = threading.Thread(target=_spin, args=(executor,), name="player-services", daemon=True)
@@ -61,16 +62,6 @@ def serve_controls(node: Node, controls: PlayControls) -> Iterator[None]:
         controls.on_rate_change = None
         executor.shutdown(timeout_sec=1.0)
         thread.join(timeout=2.0)
-
-
-def _trigger_callback(
-    answer: Callable[[], tuple[bool, str]],
-) -> Callable[[Trigger.Request, Trigger.Response], Trigger.Response]:
-    def callback(_request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
-        response.success, response.message = answer()
-        return response
-
-    return callback
 
 
 def _set_rate(controls: PlayControls, parameters: list[Parameter]) -> SetParametersResult:
