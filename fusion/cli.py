@@ -152,6 +152,21 @@ def _print_check(result: LiveCheck) -> None:
     console.print("targets met" if result.targets_met() else "[red]targets missed[/]")
 
 
+@app.command(
+    help="Ask the running data logger for its current summary (the /logger/get_summary "
+    "service): per sensor topic the messages it has seen. Exits 1 when it is not running."
+)
+@handle_errors
+def summary(
+    timeout: float = typer.Option(10.0, "--timeout", min=0.1, help="Seconds to wait."),
+) -> None:
+    from fusion.nodes.summary_client import request_summary
+
+    response = request_summary(timeout)
+    console.print(response.message, markup=False, highlight=False)
+    raise typer.Exit(0 if response.success else 1)
+
+
 def main() -> None:
     """Entry point of the ``fusion`` console script; no arguments means ``fusion launch``."""
     if len(sys.argv) == 1:

@@ -29,6 +29,7 @@ from bagkit.data.service_calls import (
     pair_calls,
 )
 from bagkit.decode import DecodeError, MessageTypes
+from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER
 from bagkit.selection.services import is_service_event_topic, service_name, service_type
 from bagkit.selection.topics import absolute_topic_name
 
@@ -171,5 +172,6 @@ def plain_message(message: Any, limit: int | None = None) -> Any:
         return {
             f.name.rstrip("_"): plain_message(getattr(message, f.name), limit)
             for f in dataclasses.fields(message)
+            if f.name != EMPTY_STRUCT_MEMBER[0]
         }
     return str(message)
