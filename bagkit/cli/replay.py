@@ -32,11 +32,15 @@ from bagkit.cli.replay_options import (
     ExcludeTopics,
     Format,
     Loop,
+    PublishServiceRequests,
     QosOverrides,
     Rate,
     ReadAheadQueueSize,
     Regex,
     Remap,
+    ServiceRequestsSource,
+    ServiceRequestsSourceOption,
+    ServiceTimeout,
     StartOffset,
     StartPaused,
     Storage,
@@ -59,6 +63,7 @@ from bagkit.selection.times import seconds_to_ns
 if TYPE_CHECKING:
     # The player imports rclpy: only `bagkit replay` itself pays for that import.
     from bagkit.playback.report import PlayProgress, PlayReport
+    from bagkit.playback.service_responses import ServiceReplaySummary
     from bagkit.ros.replay.player import Player
 
 _NUMBER = re.compile(r"[0-9]*\.?[0-9]+([eE][-+]?[0-9]+)?")
@@ -134,6 +139,9 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
     qos_overrides: QosOverrides = None,
     read_ahead_queue_size: ReadAheadQueueSize = 1000,
     storage: Storage = None,
+    publish_service_requests: PublishServiceRequests = False,
+    service_requests_source: ServiceRequestsSourceOption = ServiceRequestsSource.SERVICE,
+    service_timeout: ServiceTimeout = 5.0,
     output_format: Format = ReportFormat.TABLE,
 ) -> None:
     require(ROS, "bagkit replay")
@@ -164,9 +172,13 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
         discovery_time_s=discovery_time,
         ack_timeout_s=wait_for_all_acked / 1e3 if wait_for_all_acked else _FOREVER_S,
         qos_overrides=qos_overrides,
+        publish_service_requests=publish_service_requests,
+        service_requests_source=service_requests_source.value,
+        service_timeout_s=service_timeout,
         progress_period_s=0.25 if interactive else 5.0,
     )
     player = Player(options, on_progress=progress.update, on_live_publishers=_warn_live_publishers)
+    player.on_warning = warn
     report = _run(player, keyboard=not disable_keyboard_controls)
     progress.finish()
     _finish(report, bag, output_format)
@@ -259,6 +271,8 @@ def _finish(report: PlayReport, bag: Path, output_format: ReportFormat) -> None:
         )
     if report.interrupted:
         raise typer.Exit(EXIT_INTERRUPTED)
+    if report.service_requests is not None and not report.service_requests.ok:
+        raise typer.Exit(1)
 
 
 class _ProgressLine:
@@ -315,3 +329,22 @@ def _print_report(report: PlayReport) -> None:
         highlight=False,
         soft_wrap=True,
     )
+    if report.service_requests is not None:
+        _print_service_requests(report.service_requests)
+
+
+def _print_service_requests(summary: ServiceReplaySummary) -> None:
+    """The requests sent and how the live responses compared, then each call that did not."""
+    totals = {k: summary.total(k) for k in ("sent", "matched", "differed", "unanswered")}
+    line = ", ".join(f"{n} {k}" for k, n in totals.items())
+    if summary.total("not_recorded"):
+        line += f", {summary.total('not_recorded')} without a recorded response"
+    console.print(f"service requests: {line}", highlight=False, soft_wrap=True)
+    for call in summary.calls:
+        what = "; ".join(call.differences) if call.differences else call.outcome
+        console.print(
+            f"  {call.service} #{call.sequence_number}: {what}",
+            highlight=False,
+            soft_wrap=True,
+            markup=False,
+        )

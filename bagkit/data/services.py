@@ -1,6 +1,6 @@
 """Services in a bag: their event topics read, calls paired, counted and timed.
 
-The reading side of :mod:`bagkit.data.service_calls` (which is pure): ``bagkit info`` lists
+The reading side of :mod:`bagkit.bag.service_calls` (which is pure): ``bagkit info`` lists
 :func:`service_summaries`, ``bagkit echo BAG /service`` prints :func:`echo_calls`.
 """
 
@@ -15,9 +15,7 @@ from typing import Any
 import numpy as np
 
 from bagkit.bag import BagReader
-from bagkit.data.echo import Plain
-from bagkit.data.errors import UndecodableTopicError
-from bagkit.data.service_calls import (
+from bagkit.bag.service_calls import (
     EVENT_NAMES,
     LatencySummary,
     ServiceCall,
@@ -28,6 +26,8 @@ from bagkit.data.service_calls import (
     latency_summary,
     pair_calls,
 )
+from bagkit.data.echo import Plain
+from bagkit.data.errors import UndecodableTopicError
 from bagkit.decode import DecodeError, MessageTypes
 from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER
 from bagkit.selection.services import is_service_event_topic, service_name, service_type

@@ -126,6 +126,13 @@ class PlayOptions:
         ack_timeout_s: at the end, seconds to wait for subscribers of reliable topics to
             acknowledge every message.
         qos_overrides: rosbag2 QoS overrides file (``topic: {reliability: ..., ...}``).
+        publish_service_requests: instead of republishing service events, call each service
+            with its recorded requests at their times and compare the live responses with the
+            recorded ones (:mod:`bagkit.ros.replay.service_requests`).
+        service_requests_source: which recorded events hold the requests to send:
+            ``service_introspection`` (the server's) or ``client_introspection`` (the client's).
+        service_timeout_s: after the last request, how long answers are waited for; requests
+            still unanswered then (a service that is not there) count as unanswered.
         node_name: name of the player's node.
         progress_period_s: seconds between two calls of the player's ``on_progress``.
         tune_process: tune the process as ``bagkit replay`` does (:mod:`bagkit.ros.tuning`:
@@ -157,6 +164,9 @@ class PlayOptions:
     discovery_time_s: float = DEFAULT_DISCOVERY_TIME_S
     ack_timeout_s: float = 10.0
     qos_overrides: Path | None = None
+    publish_service_requests: bool = False
+    service_requests_source: str = "service_introspection"
+    service_timeout_s: float = 5.0
     node_name: str = "bagkit_player"
     progress_period_s: float = 0.5
     tune_process: bool = True
@@ -171,6 +181,13 @@ class PlayOptions:
         if self.loops < 0:
             raise PlayerError(f"loops must be 0 (forever) or positive, got {self.loops}")
         seconds_to_ns(self.progress_period_s, self.progress_period_s, PlayerError)
+        if self.service_requests_source not in ("service_introspection", "client_introspection"):
+            raise PlayerError(
+                f"service requests source {self.service_requests_source!r}: use "
+                "service_introspection or client_introspection"
+            )
+        if self.service_timeout_s < 0:
+            raise PlayerError(f"service timeout must not be negative, got {self.service_timeout_s}")
         _ = self.window, self.selection  # their own checks
 
     @property

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+from bagkit.playback.service_responses import ServiceReplaySummary
 from bagkit.playback.timing import LatenessSummary
 
 
@@ -59,6 +60,8 @@ class PlayReport:
     unacknowledged: list[str] = field(default_factory=list)
     """Reliable topics whose subscribers had not acknowledged every message at the end."""
     interrupted: bool = False
+    service_requests: ServiceReplaySummary | None = None
+    """With ``publish_service_requests``: requests sent and how the live responses compared."""
 
     @property
     def unreadable(self) -> int:
@@ -69,4 +72,6 @@ class PlayReport:
         """The report as plain JSON-ready data."""
         data = asdict(self)
         data["unreadable"] = self.unreadable
+        if self.service_requests is not None:
+            data["service_requests"] = self.service_requests.to_dict()
         return data

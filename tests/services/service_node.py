@@ -34,6 +34,7 @@ def main() -> None:
     parser.add_argument("--client-introspection", action="store_true")
     parser.add_argument("--wait-subscriber", action="store_true")
     parser.add_argument("--delay", type=float, default=0.0)
+    parser.add_argument("--metadata", action="store_true", help="METADATA introspection")
     args = parser.parse_args()
     rclpy.init()
     node = Node("service_node")
@@ -45,8 +46,9 @@ def main() -> None:
 
     if not args.no_server:
         service = node.create_service(SetBool, SERVICE, handle)
+        state = ServiceIntrospectionState.METADATA if args.metadata else None
         service.configure_introspection(
-            node.get_clock(), EVENT_QOS, ServiceIntrospectionState.CONTENTS
+            node.get_clock(), EVENT_QOS, state or ServiceIntrospectionState.CONTENTS
         )
     executor = SingleThreadedExecutor()
     executor.add_node(node)

@@ -38,6 +38,7 @@ from bagkit.ros.replay.publishers import (
     wait_until_acknowledged,
     wait_until_matched,
 )
+from bagkit.ros.replay.service_requests import ServiceRequests
 from bagkit.ros.replay.services import serve_controls
 from bagkit.ros.replay.topics import PublishableTopics, publishable_topics
 from bagkit.ros.tuning import precise_timers, process_tuning
@@ -91,6 +92,9 @@ class Player:
         self._node: Node | None = None
         self._outputs: dict[str, TopicOutput] = {}
         self._clock: TopicOutput | None = None
+        self._service_requests: ServiceRequests | None = None
+        self.on_warning: Callable[[str], None] | None = None
+        """Called with each warning of the service requests (a METADATA-only service)."""
         self._node_created = 0.0
         self.live_publishers: dict[str, list[str]] = {}
         """Published topic -> other nodes publishing it, found when the replay starts."""
@@ -149,10 +153,29 @@ class Player:
                     messages_per_s=self._replay_rate_hz(count, bag_duration_s),
                 )
             self._outputs[info.name] = create_output(node, info, message_class, name, qos)
+            if options.publish_service_requests and ServiceRequests.handles(info):
+                self._outputs[info.name] = self._requests(node).output(
+                    info, self._outputs[info.name]
+                )
         if options.clock_hz is not None:
             self._clock = create_clock_output(node)
         if options.services:
             self._stack.enter_context(serve_controls(node, self.controls))
+
+    def _requests(self, node: Node) -> ServiceRequests:
+        """The sender of recorded service requests (``publish_service_requests``)."""
+        if self._service_requests is None:
+            assert self._reader is not None
+            self._service_requests = self._stack.enter_context(
+                ServiceRequests(
+                    node,
+                    self._reader,
+                    source=self.options.service_requests_source,
+                    timeout_s=self.options.service_timeout_s,
+                    on_warning=self.on_warning,
+                )
+            )
+        return self._service_requests
 
     def _create_node(self) -> Node:
         context = self._context
@@ -220,7 +243,13 @@ class Player:
         try:
             if self.waits.before_start or self.waits.topics:
                 self.wait_until_matched()
-            self.live_publishers = other_publishers(self.node, list(self._outputs.values()))
+            published = [
+                output
+                for output in self._outputs.values()
+                # Their events are not published: the requests are sent instead.
+                if not (options.publish_service_requests and ServiceRequests.handles(output.info))
+            ]
+            self.live_publishers = other_publishers(self.node, published)
             if self.live_publishers and self.on_live_publishers is not None:
                 self.on_live_publishers(self.live_publishers)
             wall_start = time.monotonic_ns()
@@ -234,10 +263,14 @@ class Player:
                     break  # an empty window: looping would only spin
             wall_ns = time.monotonic_ns() - wall_start
             unacknowledged = self.wait_until_acknowledged()
+            requests = self._service_requests
+            service_requests = requests.finish() if requests is not None else None
         except KeyboardInterrupt:
             interrupted = True
             wall_ns = time.monotonic_ns() - wall_start
             unacknowledged = []
+            requests = self._service_requests
+            service_requests = requests.summary if requests is not None else None
         return PlayReport(
             topics=self._topic_playbacks(passes, complete=not interrupted),
             messages=lateness.count,
@@ -252,6 +285,7 @@ class Player:
             problems=list(dict.fromkeys(self._reader.problems)),
             unacknowledged=unacknowledged,
             interrupted=interrupted,
+            service_requests=service_requests,
         )
 
     def _topic_playbacks(self, passes: int, *, complete: bool) -> list[TopicPlayback]:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
-from bagkit.data.service_calls import (
+from bagkit.bag.service_calls import (
     REQUEST_RECEIVED,
     REQUEST_SENT,
     RESPONSE_RECEIVED,
