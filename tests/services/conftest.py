@@ -72,3 +72,11 @@ def service_bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
     bag = tmp_path_factory.mktemp("services") / "calls"
     record_calls(bag, ["-a"], ["--client-introspection"])
     return bag
+
+
+@pytest.fixture(scope="session")
+def server_bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """``bagkit record --services /svc/toggle`` of ``CALLS`` calls, the server's events only."""
+    bag = tmp_path_factory.mktemp("services") / "server"
+    record_calls(bag, ["--services", "/svc/toggle"], [])
+    return bag

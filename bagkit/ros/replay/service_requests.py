@@ -142,6 +142,10 @@ class ServiceRequests:
             ) from None
         calls = self._recorded_calls(info.name, srv_class.Event)
         client = self._node.create_client(srv_class, name)
+        # A request sent before the server is discovered is lost: wait for it (a service that
+        # is not there costs the timeout once, and its requests count unanswered).
+        if not client.wait_for_service(timeout_sec=self.timeout_s):
+            self._warn(f"{name} is not available: its requests will go unanswered")
         self._services[info.name] = _Service(name, client, srv_class.Event, calls)
         publisher_output.publish = functools.partial(self._on_event, info.name)
         return publisher_output
