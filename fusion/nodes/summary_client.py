@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import time
+from collections.abc import Iterator
+
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
@@ -45,3 +48,21 @@ def request_summary(timeout_s: float = 10.0) -> Trigger.Response:
         executor.shutdown()
         node.destroy_node()
         context.try_shutdown()
+
+
+def request_summaries(period_s: float, timeout_s: float) -> Iterator[str]:
+    """Ask every ``period_s`` seconds until Ctrl-C; yield each answer (or why there is none).
+
+    What ``fusion summary --every`` prints, and what a golden recording of fusion calls
+    (fixtures/nominal/spec.yaml, ``record_launch``).
+    """
+    try:
+        while True:
+            started = time.monotonic()
+            try:
+                yield request_summary(timeout_s).message
+            except SummaryUnavailableError as exc:
+                yield f"no answer: {exc}"
+            time.sleep(max(0.0, period_s - (time.monotonic() - started)))
+    except KeyboardInterrupt:
+        return
