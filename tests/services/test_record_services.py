@@ -113,3 +113,21 @@ def test_services_and_exclusions_select_event_topics(tmp_path: Path) -> None:
     # The server's side only: one request and one response event per call.
     assert (summary.counts.events, summary.counts.requests) == (2 * CALLS, CALLS)
     assert summary.latency.count == CALLS
+
+
+def test_stats_reach_request_and_response_fields_and_latency(service_bag: Path) -> None:
+    out = subprocess.run(
+        [BAGKIT, "stats", "summary", str(service_bag), "--format", "json"],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
+    result = json.loads(out)
+    (topic,) = [t for t in result["topics"] if t["topic"] == TOPIC]
+    fields = {f["field"]: f for f in topic["fields"]}
+    # Requests carried by the client's and the server's request events, alternating data.
+    assert fields["request[].data"]["count"] == 2 * CALLS
+    assert fields["response[].success"]["count"] == 2 * CALLS
+    (latency,) = result["services"]
+    assert (latency["service"], latency["count"]) == ("/svc/toggle", CALLS)
+    assert 0 < latency["p50_s"] <= latency["p99_s"] <= latency["max_s"]
