@@ -107,7 +107,7 @@ def test_changed_summary_service_handler_fails(tmp_path: Path) -> None:
     copy = mutated_copy(
         tmp_path, "fusion/processors/data_logger.py", SUMMARY_ANSWER, SUMMARY_ANSWER_MUTATED
     )
-    result, report = run_golden(copy, "nominal")
+    result, report = run_golden(copy, "fast")
     assert result.returncode == 1, result.stdout + result.stderr
     topics = failing(report)
     assert set(topics) == {"/logger/get_summary/_service_event"}

@@ -170,5 +170,5 @@ def stamp_ns(stamp: Any) -> int:
     return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
 
-# fusion's nominal flight: the sensor topics at their rates, about 30 s.
+# fusion's nominal flight: the sensor topics at their rates, 37 s.
 NOMINAL_BAG = Path(__file__).resolve().parents[2] / "fixtures" / "nominal" / "golden"
