@@ -84,7 +84,9 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
         warn(problem)
     services = _service_latencies(bags, {t.topic for t in result.topics})
     if output is OutputFormat.JSON:
-        print_json(_json_safe({**result.to_dict(), "services": services}))
+        # "services" only where there are some: otherwise the JSON is the library's result.
+        extra = {"services": services} if services else {}
+        print_json(_json_safe({**result.to_dict(), **extra}))
     elif output is OutputFormat.CSV:
         _print_csv(result)
     else:
