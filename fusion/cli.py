@@ -152,6 +152,32 @@ def _print_check(result: LiveCheck) -> None:
     console.print("targets met" if result.targets_met() else "[red]targets missed[/]")
 
 
+@app.command(
+    help="Ask the running data logger for its current summary (the /logger/get_summary "
+    "service): per sensor topic the messages it has seen. Exits 1 when it is not running."
+)
+@handle_errors
+def summary(
+    timeout: float = typer.Option(10.0, "--timeout", min=0.1, help="Seconds to wait."),
+    every: float = typer.Option(
+        0.0,
+        "--every",
+        min=0.0,
+        help="Ask again every this many seconds until Ctrl-C (0: once). A logger that does "
+        "not answer is asked again.",
+    ),
+) -> None:
+    from fusion.nodes.summary_client import request_summaries, request_summary
+
+    if every > 0:
+        for message in request_summaries(every, timeout):
+            console.print(message, markup=False, highlight=False)
+        raise typer.Exit(0)
+    response = request_summary(timeout)
+    console.print(response.message, markup=False, highlight=False)
+    raise typer.Exit(0 if response.success else 1)
+
+
 def main() -> None:
     """Entry point of the ``fusion`` console script; no arguments means ``fusion launch``."""
     if len(sys.argv) == 1:

@@ -19,6 +19,10 @@ BARO_ALTITUDE = "/fusion/baro_altitude"
 # estimate is scored against in tests and recorded bags.
 TRUTH = "/sim/truth"
 
+# The data logger's service: its current per-topic message counts, on request
+# (std_srvs/srv/Trigger); introspection events on LOGGER_GET_SUMMARY + "/_service_event".
+LOGGER_GET_SUMMARY = "/logger/get_summary"
+
 SENSOR_TOPICS: tuple[str, ...] = (IMU, GPS, TEMPERATURE, PRESSURE)
 
 TOPIC_TYPES: dict[str, type] = {

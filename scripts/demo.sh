@@ -46,11 +46,17 @@ sleep 1  # the recorder is in the graph before the first sensor message
 start "$BIN/fusion" launch >"$OUT/logs/live-system.log" 2>&1
 system=${pids[-1]}
 sleep "$LIVE_SECONDS"
+# A service call, recorded with the topics (-a: topics and services): the logger's summary.
+summary=$("$BIN/fusion" summary 2>&1 || true)
+sleep 0.5  # the call's introspection events reach the recorder
 stop "$recorder" "$system"
 sed -n '3,$p' "$OUT/logs/record-live.log"  # the recorder's report: messages and losses per topic
 echo
 echo "alerts raised and cleared by the alert system (faults scheduled in fusion/config/params.yaml):"
 grep '^\[alert_system\]' "$OUT/logs/live-system.log" || echo "(none)"
+echo
+echo "the data logger's answer to fusion summary (service /logger/get_summary):"
+echo "$summary"
 echo
 echo "the data logger's last summary:"
 awk '/^\[data_logger\].*summary at/ { last = "" } /^\[data_logger\]/ { last = last $0 "\n" }

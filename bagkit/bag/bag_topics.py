@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 from mcap.well_known import SchemaEncoding
 
 from bagkit.bag.definitions import canonical_type_name, message_definition, type_description_hash
 from bagkit.bag.errors import BagError, UnknownMessageTypeError
 from bagkit.bag.mcapio.records import Channel, Schema
 from bagkit.bag.messages import TopicInfo
+from bagkit.selection.services import is_service_event_type
 
 
 class BagTopics:
@@ -68,7 +71,14 @@ class BagTopics:
 
 
 def _with_type_hash(topic: TopicInfo) -> TopicInfo:
-    """``topic`` with its type hash filled from the installed type description when missing."""
+    """``topic`` with its type hash filled from the installed type description when missing.
+
+    A service-event topic gets none: rosbags checks each channel's hash against its own and
+    cannot compute a service event's (it names the type ``pkg/srv/msg/Name_Event``), so with
+    it rosbags would refuse the whole bag (docs/record.md, "Services").
+    """
+    if is_service_event_type(topic.type):
+        return dataclasses.replace(topic, type_description_hash="")
     if topic.type_description_hash:
         return topic
     try:

@@ -73,7 +73,7 @@ def _interface_file(package: str, kind: str, name: str, suffix: str) -> Path | N
     return None
 
 
-# Service-event topics (``pkg/srv/Name_Event``) store the service's ``.srv`` text, as rosbag2 does.
+# A service-event type ``pkg/srv/Name_Event`` is generated from the service's ``.srv`` file.
 _SERVICE_EVENT_SUFFIX = "_Event"
 
 
@@ -126,8 +126,13 @@ def message_definition(type_name: str) -> str:
     """Return the full ``ros2msg`` definition of a message type, as rosbag2 stores it.
 
     That is the type's ``.msg`` text followed, for each dependency (recursively, each once),
-    by a line of 80 ``=``, a line ``MSG: pkg/Name`` and the dependency's text. A service-event
-    type ``pkg/srv/Name_Event`` is defined by the service's ``.srv`` text.
+    by a line of 80 ``=``, a line ``MSG: pkg/Name`` and the dependency's text.
+
+    A service-event type ``pkg/srv/Name_Event`` is defined as rosidl generates it
+    (``ServiceEventInfo info``, ``Name_Request[<=1] request``, ``Name_Response[<=1] response``),
+    the request and response as dependencies ``MSG: pkg/Name_Request`` and
+    ``MSG: pkg/Name_Response``: rosbag2 Jazzy stores the bare ``.srv`` text, which rosbags
+    cannot parse; this form every reader of ``ros2msg`` opens (docs/record.md, "Services").
 
     Args:
         type_name: ``pkg/msg/Name`` (``pkg/Name`` is accepted) or ``pkg/srv/Name_Event``.
@@ -136,7 +141,8 @@ def message_definition(type_name: str) -> str:
         UnknownMessageTypeError: the type or one of its dependencies is not installed.
     """
     root = canonical_type_name(type_name)
-    root_text = _msg_text(root)
+    inline = _service_event_parts(root)
+    root_text = inline.pop(root) if inline else _msg_text(root)
     parts = [root_text]
     seen = {root}
     queue = _dependencies(_split_type_name(root)[0], root_text)
@@ -145,11 +151,35 @@ def message_definition(type_name: str) -> str:
         if dependency in seen:
             continue
         seen.add(dependency)
-        text = _msg_text(dependency)
+        text = inline[dependency] if dependency in inline else _msg_text(dependency)
         package, _, name = _split_type_name(dependency)
         parts.append(f"{DEFINITION_SEPARATOR}\nMSG: {package}/{name}\n{text}")
         queue.extend(d for d in _dependencies(package, text) if d not in seen)
     return "\n".join(parts)
+
+
+def _service_event_parts(type_name: str) -> dict[str, str]:
+    """The texts of a ``pkg/srv/Name_Event`` and of its request and response; ``{}`` for others.
+
+    Raises:
+        UnknownMessageTypeError: the service's ``.srv`` is not installed.
+    """
+    package, kind, name = _split_type_name(type_name)
+    if kind != "srv" or not name.endswith(_SERVICE_EVENT_SUFFIX):
+        return {}
+    base = name.removesuffix(_SERVICE_EVENT_SUFFIX)
+    lines = _msg_text(type_name).splitlines(keepends=True)
+    cut = next((i for i, line in enumerate(lines) if line.strip() == "---"), len(lines))
+    request, response = f"{package}/msg/{base}_Request", f"{package}/msg/{base}_Response"
+    return {
+        type_name: (
+            "service_msgs/ServiceEventInfo info\n"
+            f"{package}/{base}_Request[<=1] request\n"
+            f"{package}/{base}_Response[<=1] response\n"
+        ),
+        request: "".join(lines[:cut]),
+        response: "".join(lines[cut + 1 :]),
+    }
 
 
 @functools.cache

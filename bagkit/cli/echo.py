@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import itertools
 import os
 import sys
 from collections.abc import Iterable
@@ -24,6 +25,10 @@ YAML by default (a '# TOPIC at SEC s' comment, then topic, log_time, publish_tim
 message under data, documents separated by ---); --format json prints one object per line with
 the same keys. --fields prints only those leaves as {dotted.path: value}. Decoded from the
 definitions stored in the bag; the first message appears at once on any bag size.
+
+A recorded service (TOPIC = /service, its events on /service/_service_event) prints one record
+per call: client_gid, sequence_number, the events seen, request, response and latency_s (the
+client's REQUEST_SENT to RESPONSE_RECEIVED where recorded, else the server's); -n applies.
 
 Examples:
 
@@ -101,12 +106,17 @@ def echo(  # noqa: PLR0917 (typer maps parameters to options)
 ) -> None:
     from bagkit.bag import BagReader
     from bagkit.data.echo import echo as read_messages
+    from bagkit.data.services import echo_calls, names_service
 
     # Output is a stream: Ctrl-C ends it quietly, as a closed pipe (| head) does every command.
     limit = None if full_length or output is EchoFormat.JSON else DEFAULT_TRUNCATE_LENGTH
     try:
         with BagReader(bag, allow_empty=True) as reader:
             bag_start = reader.start_ns
+        if names_service(bag, topic):
+            calls = echo_calls(bag, topic, limit=limit)
+            _write(itertools.islice(calls, count), output, bag_start)
+            return
         records = read_messages(
             bag,
             topic,

@@ -7,6 +7,7 @@ import datetime
 import json
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import typer
 import yaml
@@ -32,6 +33,9 @@ from bagkit.cli.tables import (
     print_wrapped,
 )
 
+if TYPE_CHECKING:
+    from bagkit.data.services import ServiceSummary
+
 HELP = """Show what a bag holds: files, size, storage, duration, start and end, message count,
 and per topic its type, count, rate, serialization format and offered QoS.
 
@@ -39,6 +43,8 @@ BAG is a bag directory (split or not, with or without metadata.yaml), a single .
 single .db3 file. Only summaries and indexes are read, so this is instant on multi-GB bags; a
 crashed recording without a summary is salvaged and what could not be read is reported.
 A topic's rate is (count - 1) / (last - first log time), "-" below two messages.
+Services recorded from their introspection events (NAME/_service_event) are listed with their
+event, request and response counts and their latency (median, 99th percentile, maximum).
 
 Example: bagkit info my_bag -v
 """
@@ -106,6 +112,46 @@ def _custom_data_value(value: str, verbose: bool) -> str:
     if isinstance(document, dict):
         return f"JSON, {len(document)} entries (-v or --format json to see them)"
     return value
+
+
+def _services(bag: str, result: BagInfo) -> list[ServiceSummary]:
+    """The bag's services; their events are decoded (numpy, the decoder) only if it has any."""
+    from bagkit.selection.services import is_service_event_topic
+
+    if not any(is_service_event_topic(t.topic, [t.type]) for t in result.topics):
+        return []
+    from bagkit.data.services import service_summaries
+
+    return service_summaries(bag)
+
+
+def _print_services(services: list[ServiceSummary]) -> None:
+    table = Table(
+        [
+            Column("Service", style="cyan"),
+            Column("Type"),
+            Column("Events", numeric=True),
+            Column("Requests", numeric=True),
+            Column("Responses", numeric=True),
+            Column("Latency p50/p99/max", numeric=True),
+        ],
+        "Services",
+    )
+    for service in services:
+        latency = service.latency
+        values = (latency.p50_ns, latency.p99_ns, latency.max_ns)
+        timing = "/".join(f"{v / 1e6:.3g}" for v in values if v is not None)
+        timing = f"{timing} ms" if timing else "-"
+        counts = service.counts
+        table.add_row(
+            service.service,
+            service.type,
+            f"{counts.events:,}",
+            f"{counts.requests:,}",
+            f"{counts.responses:,}",
+            timing,
+        )
+    print_table(table)
 
 
 def _print_table(info: BagInfo, verbose: bool) -> None:
@@ -182,14 +228,17 @@ def info(  # noqa: PLR0917 (typer maps parameters to options)
         raise fail(f"--storage {storage}: bagkit reads mcap and sqlite3 bags")
     with _reading(bag):
         result = bag_info(bag, check_crc=check_crc)
+        services = [] if topic_name else _services(bag, result)
     if storage is not None and result.storage != storage:
         raise fail(f"{bag} is a {result.storage} bag, not {storage}")
     if topic_name:
         for topic in result.topics:
             sys.stdout.write(f"{topic.topic}\n")
     elif output_format is ReportFormat.JSON:
-        print_json(result.to_dict())
+        print_json({**result.to_dict(), "services": [s.to_dict() for s in services]})
     else:
         _print_table(result, verbose)
+        if services:
+            _print_services(services)
     for problem in result.problems:
         warn(problem)

@@ -25,7 +25,9 @@ from bagkit.cli.common import (
     warn,
 )
 from bagkit.cli.record_options import (
+    AllServices,
     AllTopics,
+    AllTopicsAndServices,
     CompressionFormat,
     CompressionFormatOption,
     CompressionMode,
@@ -33,6 +35,7 @@ from bagkit.cli.record_options import (
     CustomData,
     Duration,
     ExcludeRegex,
+    ExcludeServices,
     ExcludeTopics,
     ExcludeTopicTypes,
     Format,
@@ -55,6 +58,7 @@ from bagkit.cli.record_options import (
     Regex,
     RepeatAllTransientLocal,
     RepeatTransientLocal,
+    Services,
     SnapshotMode,
     StartPaused,
     Storage,
@@ -131,6 +135,7 @@ class RecordCommand(MultiValueCommand):
 
     multi_value = frozenset(
         {"--topics", "--topic-types", "--exclude-topics", "--exclude-topic-types", "--custom-data"}
+        | {"--services", "--exclude-services"}
     )
     bag_positional = False  # the positional arguments are topics
 
@@ -147,6 +152,10 @@ def record(  # noqa: PLR0917 (typer maps parameters to options; ros2 bag has the
     topics: Topics = None,
     topic_types: TopicTypes = None,
     all_topics: AllTopics = False,
+    all_topics_and_services: AllTopicsAndServices = False,
+    services: Services = None,
+    all_services: AllServices = False,
+    exclude_services: ExcludeServices = None,
     regex: Regex = None,
     exclude_regex: ExcludeRegex = None,
     exclude_topics: ExcludeTopics = None,
@@ -188,7 +197,10 @@ def record(  # noqa: PLR0917 (typer maps parameters to options; ros2 bag has the
     options = RecordOptions(
         output=output,
         topics=tuple(split_list(topics_positional) + split_list(topics)),
-        all_topics=all_topics,
+        all_topics=all_topics or all_topics_and_services,
+        services=tuple(split_list(services)),
+        all_services=all_services or all_topics_and_services,
+        exclude_services=tuple(split_list(exclude_services)),
         regex=regex,
         exclude_regex=exclude_regex,
         include_hidden=include_hidden,

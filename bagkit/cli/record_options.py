@@ -56,8 +56,28 @@ TopicTypes = Annotated[
     list[str] | None,
     typer.Option("--topic-types", help="Record topics of these types.", metavar="TYPE..."),
 ]
+AllTopicsAndServices = Annotated[
+    bool,
+    typer.Option("--all", "-a", help="Record every topic (not hidden ones) and every service."),
+]
 AllTopics = Annotated[
-    bool, typer.Option("--all", "-a", "--all-topics", help="Record every topic (not hidden ones).")
+    bool, typer.Option("--all-topics", help="Record every topic (not hidden ones).")
+]
+AllServices = Annotated[
+    bool,
+    typer.Option("--all-services", help="Record every service's introspection events."),
+]
+Services = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--services",
+        help="Record these services' introspection events (NAME/_service_event).",
+        metavar="SERVICE...",
+    ),
+]
+ExcludeServices = Annotated[
+    list[str] | None,
+    typer.Option("--exclude-services", help="Leave out these services.", metavar="SERVICE..."),
 ]
 Regex = Annotated[
     str | None,

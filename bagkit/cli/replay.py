@@ -36,12 +36,16 @@ from bagkit.cli.replay_options import (
     Loop,
     MessageOrderOption,
     NoLatched,
+    PublishServiceRequests,
     QosOverrides,
     Rate,
     ReadAheadQueueSize,
     Regex,
     Remap,
     SeekStep,
+    ServiceRequestsSource,
+    ServiceRequestsSourceOption,
+    ServiceTimeout,
     StartOffset,
     StartPaused,
     Storage,
@@ -66,6 +70,7 @@ from bagkit.selection.times import seconds_to_ns
 if TYPE_CHECKING:
     # The player imports rclpy: only `bagkit replay` itself pays for that import.
     from bagkit.playback.report import PlayReport
+    from bagkit.playback.service_responses import ServiceReplaySummary
     from bagkit.ros.replay.player import Player
 
 _NUMBER = re.compile(r"[0-9]*\.?[0-9]+([eE][-+]?[0-9]+)?")
@@ -144,6 +149,9 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
     qos_overrides: QosOverrides = None,
     read_ahead_queue_size: ReadAheadQueueSize = 1000,
     storage: Storage = None,
+    publish_service_requests: PublishServiceRequests = False,
+    service_requests_source: ServiceRequestsSourceOption = ServiceRequestsSource.SERVICE,
+    service_timeout: ServiceTimeout = 5.0,
     output_format: Format = ReportFormat.TABLE,
     inputs: Inputs = None,
     message_order: MessageOrderOption = MessageOrder.RECEIVED,
@@ -188,6 +196,9 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
         latched=not no_latched,
         latched_topics=tuple(split_list(latched_topics)),
         seek_step_s=seek_step,
+        publish_service_requests=publish_service_requests,
+        service_requests_source=service_requests_source.value,
+        service_timeout_s=service_timeout,
     )
     player = Player(
         options,
@@ -292,6 +303,8 @@ def _finish(report: PlayReport, bag: str, output_format: ReportFormat) -> None:
         )
     if report.interrupted:
         raise typer.Exit(EXIT_INTERRUPTED)
+    if report.service_requests is not None and not report.service_requests.ok:
+        raise typer.Exit(1)
 
 
 def _print_report(report: PlayReport) -> None:
@@ -327,3 +340,22 @@ def _print_report(report: PlayReport) -> None:
     if math.isnan(lateness.p50_ms):
         timing = "no message was published on schedule"
     console.print(f"timing error: {timing}", highlight=False, soft_wrap=True)
+    if report.service_requests is not None:
+        _print_service_requests(report.service_requests)
+
+
+def _print_service_requests(summary: ServiceReplaySummary) -> None:
+    """The requests sent and how the live responses compared, then each call that did not."""
+    totals = {k: summary.total(k) for k in ("sent", "matched", "differed", "unanswered")}
+    line = ", ".join(f"{n} {k}" for k, n in totals.items())
+    if summary.total("not_recorded"):
+        line += f", {summary.total('not_recorded')} without a recorded response"
+    console.print(f"service requests: {line}", highlight=False, soft_wrap=True)
+    for call in summary.calls:
+        what = "; ".join(call.differences) if call.differences else call.outcome
+        console.print(
+            f"  {call.service} #{call.sequence_number}: {what}",
+            highlight=False,
+            soft_wrap=True,
+            markup=False,
+        )

@@ -11,6 +11,7 @@ from typing import Annotated
 import typer
 
 from bagkit.cli.common import ReportFormat
+from bagkit.compat import StrEnum
 from bagkit.playback.source import MessageOrder
 from bagkit.playback.timing import DEFAULT_CLOCK_HZ
 
@@ -201,4 +202,37 @@ NoLatched = Annotated[
 SeekStep = Annotated[
     float,
     typer.Option("--seek-step", help="Bag seconds that the seek keys (left arrow, ',' '.') move."),
+]
+PublishServiceRequests = Annotated[
+    bool,
+    typer.Option(
+        "--publish-service-requests",
+        help="Call the recorded services with their recorded requests (instead of republishing "
+        "the events) and compare the live responses with the recorded ones; exit 1 when one "
+        "differs or is not answered.",
+    ),
+]
+
+
+class ServiceRequestsSource(StrEnum):
+    """``--service-requests-source``: whose recorded events hold the requests to send."""
+
+    SERVICE = "service_introspection"
+    CLIENT = "client_introspection"
+
+
+ServiceRequestsSourceOption = Annotated[
+    ServiceRequestsSource,
+    typer.Option(
+        "--service-requests-source",
+        help="Requests from the server's events (service_introspection) or the client's.",
+    ),
+]
+ServiceTimeout = Annotated[
+    float,
+    typer.Option(
+        "--service-timeout",
+        help="Seconds answers are waited for after the last request; then unanswered.",
+        min=0.0,
+    ),
 ]

@@ -82,12 +82,61 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
         warn(f"topic {topic} skipped: {reason}")
     for problem in result.problems:
         warn(problem)
+    services = _service_latencies(bags, {t.topic for t in result.topics})
     if output is OutputFormat.JSON:
-        print_json(_json_safe(result.to_dict()))
+        # "services" only where there are some: otherwise the JSON is the library's result.
+        extra = {"services": services} if services else {}
+        print_json(_json_safe({**result.to_dict(), **extra}))
     elif output is OutputFormat.CSV:
         _print_csv(result)
     else:
         _print_tables(result)
+        _print_services(services)
+
+
+def _service_latencies(bags: list[Path], topics: set[str]) -> list[dict[str, Any]]:
+    """Per service whose event topic was summarized: its call latency (count, p50, p99, max
+    in seconds), from the whole bag (calls are paired across the window's edges)."""
+    from bagkit.data.services import service_summaries
+    from bagkit.selection.services import is_service_event_topic
+
+    if not any(is_service_event_topic(t) for t in topics):
+        return []
+    found = []
+    for bag in bags:
+        for service in service_summaries(bag):
+            if service.topic not in topics:
+                continue
+            latency = service.latency
+            found.append(
+                {
+                    "bag": str(bag),
+                    "service": service.service,
+                    "count": latency.count,
+                    **{
+                        key: None if value is None else value / 1e9
+                        for key, value in (
+                            ("p50_s", latency.p50_ns),
+                            ("p99_s", latency.p99_ns),
+                            ("max_s", latency.max_ns),
+                        )
+                    },
+                }
+            )
+    return found
+
+
+def _print_services(services: list[dict[str, Any]]) -> None:
+    for service in services:
+        print_line([])
+        figures = [
+            f"{name} {_number(service[key] * 1e3 if service[key] is not None else None)} ms"
+            for name, key in (("p50", "p50_s"), ("p99", "p99_s"), ("max", "max_s"))
+        ]
+        print_wrapped(
+            [Styled(service["service"], "bold"), f"latency: {service['count']} calls,", *figures],
+            sep="  ",
+        )
 
 
 def _summarize(

@@ -26,7 +26,7 @@ from rosbags.typesys import Stores, get_typestore
 from rosbags.typesys.base import normalize_fieldname
 from rosbags.typesys.store import Typestore
 
-from bagkit.bag.definitions import canonical_type_name
+from bagkit.bag.definitions import DEFINITION_SEPARATOR, canonical_type_name
 from bagkit.decode.cdr import has_wide_strings, payload_reader
 from bagkit.decode.direct import ValueReader, value_reader
 from bagkit.decode.errors import DecodeError, DefinitionError, SchemaError
@@ -232,9 +232,11 @@ def _service_event_types(event: str, text: str) -> dict[str, TypeDef]:
     """Types of a ``pkg/srv/Name_Event`` from the ``.srv`` text that rosbag2 stores for it.
 
     rosidl generates ``Name_Event`` as ``ServiceEventInfo info``, ``Name_Request[<=1] request``
-    and ``Name_Response[<=1] response``.
+    and ``Name_Response[<=1] response``; bagkit's recorder stores that generated form (a
+    ``ros2msg`` definition like any other), rosbag2 the ``.srv`` text (a ``---`` line).
     """
-    if "---" not in text:
+    own_text = text.split(DEFINITION_SEPARATOR, 1)[0]
+    if not any(line.strip() == "---" for line in own_text.splitlines()):
         return parse_definition(text, event)
     base = event.removesuffix("_Event")
     request_text, response_text = text.split("---", 1)

@@ -128,6 +128,13 @@ class PlayOptions:
         ack_timeout_s: at the end, seconds to wait for subscribers of reliable topics to
             acknowledge every message.
         qos_overrides: rosbag2 QoS overrides file (``topic: {reliability: ..., ...}``).
+        publish_service_requests: instead of republishing service events, call each service
+            with its recorded requests at their times and compare the live responses with the
+            recorded ones (:mod:`bagkit.ros.replay.service_requests`).
+        service_requests_source: which recorded events hold the requests to send:
+            ``service_introspection`` (the server's) or ``client_introspection`` (the client's).
+        service_timeout_s: after the last request, how long answers are waited for; requests
+            still unanswered then (a service that is not there) count as unanswered.
         node_name: name of the player's node.
         progress_period_s: seconds between two calls of the player's ``on_progress``.
         tune_process: tune the process as ``bagkit replay`` does (:mod:`bagkit.ros.tuning`:
@@ -165,6 +172,9 @@ class PlayOptions:
     discovery_time_s: float = DEFAULT_DISCOVERY_TIME_S
     ack_timeout_s: float = 10.0
     qos_overrides: Path | None = None
+    publish_service_requests: bool = False
+    service_requests_source: str = "service_introspection"
+    service_timeout_s: float = 5.0
     node_name: str = "bagkit_player"
     progress_period_s: float = 0.5
     tune_process: bool = True
@@ -188,6 +198,13 @@ class PlayOptions:
             raise PlayerError(f"seek step must be positive, got {self.seek_step_s}")
         if self.latched_topics and not self.latched:
             raise PlayerError("--latched-topics and --no-latched exclude each other")
+        if self.service_requests_source not in ("service_introspection", "client_introspection"):
+            raise PlayerError(
+                f"service requests source {self.service_requests_source!r}: use "
+                "service_introspection or client_introspection"
+            )
+        if self.service_timeout_s < 0:
+            raise PlayerError(f"service timeout must not be negative, got {self.service_timeout_s}")
         _ = self.window, self.selection  # their own checks
 
     @property

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+from bagkit.playback.service_responses import ServiceReplaySummary
 from bagkit.playback.timing import LatenessSummary
 
 
@@ -68,6 +69,8 @@ class PlayReport:
     interrupted: bool = False
     latched: int = 0
     """Of ``messages``, those published as latched state on a late start (not timed)."""
+    service_requests: ServiceReplaySummary | None = None
+    """With ``publish_service_requests``: requests sent and how the live responses compared."""
 
     @property
     def unreadable(self) -> int:
@@ -78,4 +81,6 @@ class PlayReport:
         """The report as plain JSON-ready data."""
         data = asdict(self)
         data["unreadable"] = self.unreadable
+        if self.service_requests is not None:
+            data["service_requests"] = self.service_requests.to_dict()
         return data

@@ -16,6 +16,7 @@ from bagkit.bag.file_rotation import FileRotation, FreeSpace
 from bagkit.recording.errors import RecorderOptionsError
 from bagkit.selection.conditions import TopicCondition, parse_topic_condition
 from bagkit.selection.errors import SelectionError
+from bagkit.selection.services import RecordSelection
 from bagkit.selection.topics import TopicSelection
 
 # Bounds the memory held between taking and writing: absorbs writer hiccups (a slow disk
@@ -50,6 +51,10 @@ class RecordOptions:
         exclude_topics: leave out these topics, named ones included.
         exclude_topic_types: leave out topics of these types.
         include_unpublished: also subscribe to selected topics that have no publisher.
+        services: services whose introspection events to record (``/name/_service_event``).
+        all_services: record every service's events (``ros2 bag record --all-services``; ``-a``
+            is ``all_topics`` and ``all_services``).
+        exclude_services: leave out these services, named ones included.
         custom_data: key -> value pairs for metadata.yaml's ``custom_data``.
         compression: MCAP chunk compression: ``zstd``, ``lz4`` or ``none``.
         max_bag_size: split into a new file at this many bytes (0: never).
@@ -103,6 +108,9 @@ class RecordOptions:
     exclude_topics: tuple[str, ...] = ()
     exclude_topic_types: tuple[str, ...] = ()
     include_unpublished: bool = False
+    services: tuple[str, ...] = ()
+    all_services: bool = False
+    exclude_services: tuple[str, ...] = ()
     custom_data: Mapping[str, str] = field(default_factory=dict)
     compression: str = "zstd"
     max_bag_size: int = 0
@@ -130,7 +138,8 @@ class RecordOptions:
     def __post_init__(self) -> None:
         if self.selection.empty:
             raise RecorderOptionsError(
-                "nothing to record: name topics, or use --all, --regex or --topic-types"
+                "nothing to record: name topics or services, or use --all, --all-services, --regex "
+                "or --topic-types"
             )
         if self.max_bag_size < 0 or self.max_bag_duration_s < 0:
             raise RecorderOptionsError("--max-bag-size and --max-bag-duration must be >= 0")
@@ -162,9 +171,9 @@ class RecordOptions:
         return [parse_topic_condition(text) for text in self.triggers]
 
     @property
-    def selection(self) -> TopicSelection:
-        """The topic options as a :class:`~bagkit.selection.topics.TopicSelection`."""
-        return TopicSelection.create(
+    def selection(self) -> RecordSelection:
+        """The topic and service options, a :class:`~bagkit.selection.services.RecordSelection`."""
+        topics = TopicSelection.create(
             self.topics,
             all_topics=self.all_topics,
             regex=self.regex,
@@ -173,6 +182,12 @@ class RecordOptions:
             topic_types=self.topic_types,
             exclude_topics=self.exclude_topics,
             exclude_topic_types=self.exclude_topic_types,
+        )
+        return RecordSelection.of(
+            topics,
+            self.services,
+            all_services=self.all_services,
+            exclude_services=self.exclude_services,
         )
 
 

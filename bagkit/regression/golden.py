@@ -64,6 +64,7 @@ def check_lockstep(spec: FixtureSpec, workdir: Path) -> GoldenCheck:
         processors=_processors(spec),
         input_topics=spec.inputs,
         output_topics=spec.outputs,
+        services=spec.services,
     )
     report = compare_bags(spec.bag, candidate, spec.compare_options("lockstep"))
     return GoldenCheck(spec, "lockstep", candidate, report, result)
@@ -96,6 +97,7 @@ def update_golden(spec: FixtureSpec) -> GoldenUpdate:
             input_topics=spec.inputs,
             output_topics=spec.outputs,
             copy_topics=kept,
+            services=spec.services,
         )
         if compare_bags(spec.bag, fresh, spec.compare_options("lockstep")).passed:
             return GoldenUpdate(result, rewritten=False)

@@ -29,6 +29,7 @@ from bagkit.recording.options import RecordOptions
 from bagkit.regression.errors import LiveRunError, SpecError
 from bagkit.regression.golden import GoldenCheck, update_golden
 from bagkit.regression.spec import BAG_DIR, SPEC_FILE, FixtureSpec
+from bagkit.selection.services import event_topic
 
 if TYPE_CHECKING:
     from bagkit.ros.record.recorder import Recorder
@@ -134,9 +135,11 @@ def _replay_inputs(spec: FixtureSpec) -> None:
     options = PlayOptions(
         spec.bag,
         rate=spec.live_rate,
-        topics=tuple(spec.inputs),
+        topics=(*spec.inputs, *map(event_topic, spec.services)),
         clock_hz=CLOCK_HZ,
         services=False,
+        # The golden's requests go to the live services; their events are outputs.
+        publish_service_requests=bool(spec.services),
     )
     try:
         Player(options).run()

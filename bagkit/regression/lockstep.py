@@ -27,6 +27,7 @@ from bagkit.decode.layout import CdrLayout, PaddingZeroer
 from bagkit.extras import ROS, require
 from bagkit.regression.errors import RegressionError
 from bagkit.regression.processor import Processor
+from bagkit.regression.services import LockstepServices
 
 
 @dataclass(frozen=True, slots=True)
@@ -168,6 +169,7 @@ def run_lockstep(
     input_topics: Sequence[str] | None = None,
     output_topics: Sequence[str] = (),
     copy_topics: Sequence[str] = (),
+    services: Sequence[str] = (),
 ) -> LockstepResult:
     """Run ``golden``'s inputs through ``processors`` into the bag ``output``.
 
@@ -182,6 +184,8 @@ def run_lockstep(
         copy_topics: topics of the golden copied unchanged into the output, inputs or not
             (this is how a golden is rewritten with new expected outputs); the golden's
             metadata.yaml ``custom_data`` is then kept too.
+        services: services whose recorded requests the processors answer
+            (:mod:`bagkit.regression.services`); their event topics are written to the output.
 
     Raises:
         RegressionError: an input topic is missing or its type is not installed.
@@ -205,7 +209,8 @@ def run_lockstep(
                     info = reader.topics[t]
                     out.add_topic(info, reader.definitions.get(info.type))
             timers = _Timers(processors, out)
-            done, start_ns, end_ns = _feed(reader, decoders, routes, copied, out, timers)
+            answered = LockstepServices(reader, processors, services) if services else None
+            done, start_ns, end_ns = _feed(reader, decoders, routes, copied, out, timers, answered)
             counts = {t: n for t, n in out.counts.items() if t not in copied}
     return LockstepResult(
         output=output,
@@ -238,14 +243,20 @@ def _feed(  # noqa: PLR0917 (the run's parts, passed as they are)
     copied: list[str],
     out: _OutputBag,
     timers: _Timers,
+    services: LockstepServices | None = None,
 ) -> tuple[int, int, int]:
     """Feed every input message to its processors in log-time order, timers between them;
     return (messages fed, first and last log time)."""
     start_ns = end_ns = 0
     done = 0
-    for bag_msg in reader.messages(topics=sorted({*decoders, *copied})):
+    service_topics = services.topics if services is not None else set()
+    for bag_msg in reader.messages(topics=sorted({*decoders, *copied, *service_topics})):
         if bag_msg.topic in copied:
             out.copy(bag_msg)
+        if bag_msg.topic in service_topics and services is not None:
+            timers.fire_until(bag_msg.log_time + 1)
+            services.feed(bag_msg, out.write)
+            continue
         if bag_msg.topic not in decoders:
             continue
         if not done:

@@ -24,6 +24,11 @@ Lockstep hands each input message (a ROS message object) to every processor whos
 ``on_timer`` on bag time every ``timer_period_ns``; what they return is written to the
 candidate bag. A processor must take time only from ``now_ns`` and own its random generators,
 so that the same bag gives the same bytes.
+
+A processor may also answer service requests: ``services`` maps service names to their rclpy
+service types and ``on_request(service, request, now_ns)`` returns the response. Lockstep
+hands it the golden's recorded requests of the services the spec names (``services:``) at
+their log times (:mod:`bagkit.regression.services`); both are optional.
 """
 
 from __future__ import annotations

@@ -20,6 +20,8 @@ import yaml
 from bagkit.compare import CompareOptions, options_from_mapping
 from bagkit.compare.errors import CompareError
 from bagkit.regression.errors import SpecError
+from bagkit.regression.services import service_ignore_fields
+from bagkit.selection.services import event_topic
 from bagkit.selection.topics import absolute_topic_name
 
 SPEC_FILE = "spec.yaml"
@@ -53,6 +55,9 @@ class FixtureSpec:
         modes: the modes this fixture runs in (default: those the spec describes).
         lockstep: the raw ``compare:`` section for lockstep runs.
         live: the raw ``live_compare:`` section for live replays through DDS.
+        services: services whose recorded requests are sent to the system under test (live)
+            or handed to the processors' ``on_request`` (lockstep); their event topics
+            (``NAME/_service_event``) are among ``outputs``.
     """
 
     name: str
@@ -71,6 +76,7 @@ class FixtureSpec:
     modes: tuple[str, ...] = ()
     lockstep: Mapping[str, Any] = field(default_factory=dict)
     live: Mapping[str, Any] = field(default_factory=dict)
+    services: tuple[str, ...] = ()
 
     @property
     def bag(self) -> Path:
@@ -80,6 +86,9 @@ class FixtureSpec:
     def compare_options(self, mode: str = "lockstep", **overrides: Any) -> CompareOptions:
         """Comparison options for ``mode`` (``lockstep`` or ``live``) over the output topics."""
         section = self.live if mode == "live" else self.lockstep
+        if self.services:
+            ignored = list(section.get("ignore_fields") or [])
+            section = {**section, "ignore_fields": ignored + service_ignore_fields(self.services)}
         try:
             return options_from_mapping(section, topics=self.outputs, **overrides)
         except CompareError as exc:
@@ -188,13 +197,21 @@ def load_spec(path: Path) -> FixtureSpec:
         raise SpecError(f"{file}: live_rate and duration must be numbers") from exc
     if not 0 < live_rate < 1e6 or not 0 < duration < 1e6:
         raise SpecError(f"{file}: live_rate and duration must be positive")
+    services = _topics(data, "services", file, required=False)
     spec = FixtureSpec(
         name=file.parent.name,
         directory=file.parent,
         description=str(data.get("description", "")),
         duration_s=duration,
         inputs=_topics(data, "inputs", file),
-        outputs=_topics(data, "outputs", file),
+        outputs=tuple(
+            dict.fromkeys(
+                [
+                    *_topics(data, "outputs", file, required=not services),
+                    *map(event_topic, services),
+                ]
+            )
+        ),
         processor=processor,
         processor_args=_mapping(data, "processor_args", file),
         launch=launch,
@@ -205,6 +222,7 @@ def load_spec(path: Path) -> FixtureSpec:
         modes=_modes(data, file, {"lockstep": processor is not None, "live": bool(launch)}),
         lockstep=_mapping(data, "compare", file),
         live=_mapping(data, "live_compare", file),
+        services=services,
     )
     spec.compare_options("lockstep")  # fail now, not in the middle of a run
     spec.compare_options("live")

@@ -13,6 +13,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.service_introspection import ServiceIntrospectionState
 
 from bagkit.errors import BagkitError
 from fusion import topics
@@ -34,6 +35,20 @@ STATE_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
+
+# Service introspection events: a call's REQUEST_RECEIVED and RESPONSE_SENT are published
+# back to back; with keep-last 1 (rclpy's examples pass the system default) the first is
+# overwritten before delivery in most calls. 100 holds every event of a burst of calls.
+EVENT_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=100,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+_INTROSPECTION = {
+    "metadata": ServiceIntrospectionState.METADATA,
+    "contents": ServiceIntrospectionState.CONTENTS,
+}
 
 
 def topic_qos(topic: str) -> QoSProfile:
@@ -84,10 +99,26 @@ class ProcessorNode(Node):
                 functools.partial(self._on_message, topic),
                 topic_qos(topic),
             )
+        for service, service_type in self.processor.services.items():
+            self._offer(service, service_type)
         period_ns = self.processor.timer_period_ns
         if period_ns is not None:
             # The node clock: follows /clock under use_sim_time.
             self.create_timer(period_ns / 1e9, self._on_timer)
+
+    def _offer(self, name: str, service_type: type) -> None:
+        """Serve ``name`` from the processor's ``on_request``; introspection as the processor's
+        ``service_introspection`` parameter says, with a deep event queue (EVENT_QOS)."""
+
+        def answer(request: Any, _response: Any) -> Any:
+            response = self.processor.on_request(name, request, self._now_ns())
+            self._publish([])  # log what the handler queued
+            return response
+
+        service = self.create_service(service_type, name, answer)
+        state = getattr(self.processor, "service_introspection", "off")
+        if state != "off":
+            service.configure_introspection(self.get_clock(), EVENT_QOS, _INTROSPECTION[state])
 
     def _now_ns(self) -> int:
         return self.get_clock().now().nanoseconds

@@ -42,6 +42,8 @@ class ProcessorBase:
     input_topics: tuple[str, ...] = ()
     output_topics: tuple[str, ...] = ()
     timer_period_ns: int | None = None
+    # Service name -> its rclpy service type; requests go to ``on_request``.
+    services: dict[str, type] = {}  # noqa: RUF012 (read only; overridden per class)
 
     def __init__(self) -> None:
         self._log: list[LogLine] = []
@@ -54,6 +56,10 @@ class ProcessorBase:
     def on_timer(self, now_ns: int) -> list[Output]:
         """Do nothing."""
         return []
+
+    def on_request(self, service: str, request: Any, now_ns: int) -> Any:
+        """Answer a request of one of ``services``; the base class offers none."""
+        raise NotImplementedError(service)
 
     def drain_log(self) -> list[LogLine]:
         """Return and forget the log lines produced since the last call."""

@@ -7,9 +7,11 @@ from collections.abc import Mapping
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from std_srvs.srv import Trigger
 
 from bagkit.regression import Output
 from fusion import topics
+from fusion.errors import ConfigError
 from fusion.params import Params
 from fusion.processors.base import ProcessorBase, Severity
 from fusion.processors.messages import numeric_fields, stamp, stamp_ns
@@ -17,7 +19,10 @@ from fusion.stats import StreamMoments
 
 PARAMETER_DESCRIPTIONS: dict[str, str] = {
     "summary_period": "Seconds of node-clock time between two summaries on /logger/summary.",
+    "service_introspection": "Introspection of /logger/get_summary: off, metadata or contents "
+    "(events on /logger/get_summary/_service_event, QoS depth 100; docs/record.md).",
 }
+INTROSPECTION_STATES = ("off", "metadata", "contents")
 
 STAT_NAMES = ("count", "nan", "min", "max", "mean", "std")
 
@@ -31,12 +36,19 @@ class DataLogger(ProcessorBase):
 
     input_topics = topics.SENSOR_TOPICS
     output_topics = (topics.LOGGER_SUMMARY,)
+    services = {topics.LOGGER_GET_SUMMARY: Trigger}  # noqa: RUF012 (read only)
 
     def __init__(self, params: Mapping[str, object] | None = None) -> None:
         super().__init__()
         p = Params("data_logger", params)
         self.timer_period_ns = round(p.number("summary_period", positive=True) * 1e9)
         self.stats = {topic: StreamMoments() for topic in self.input_topics}
+        self.service_introspection = p.text("service_introspection")
+        if self.service_introspection not in INTROSPECTION_STATES:
+            raise ConfigError(
+                f"data_logger: service_introspection must be one of "
+                f"{', '.join(INTROSPECTION_STATES)}, got {self.service_introspection!r}"
+            )
 
     def on_message(self, topic: str, msg: Any, now_ns: int) -> list[Output]:
         """Add the message's numeric fields to the topic's statistics."""
@@ -48,6 +60,14 @@ class DataLogger(ProcessorBase):
             fields = " ".join(f"{name}={value:.6g}" for name, value in values.items())
             self.log(Severity.DEBUG, f"{topic} stamp={stamp_ns(msg.header.stamp)} {fields}")
         return []
+
+    def on_request(self, service: str, request: Any, now_ns: int) -> Any:
+        """``/logger/get_summary``: success once every sensor topic has data; the message
+        counts per topic (``/imu/data: 120; /gps/fix: 12; ...``)."""
+        response = Trigger.Response()
+        response.success = all(m.messages for m in self.stats.values())
+        response.message = "; ".join(f"{t}: {m.messages}" for t, m in self.stats.items())
+        return response
 
     def on_timer(self, now_ns: int) -> list[Output]:
         """Publish the summary and log it as a table."""

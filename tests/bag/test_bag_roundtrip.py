@@ -249,12 +249,19 @@ def test_crcs_validate_with_the_mcap_library(write_sample_bag: Callable[..., Pat
     assert isinstance(records[-1], Footer) and records[-1].summary_crc != 0
 
 
-def test_service_event_definition_is_the_srv_text_as_rosbag2_stores_it() -> None:
+def test_service_event_definition_is_the_generated_event_message() -> None:
     import sys
 
-    srv = Path(sys.prefix) / "share/rcl_interfaces/srv/GetParameters.srv"
+    srv = (Path(sys.prefix) / "share/rcl_interfaces/srv/GetParameters.srv").read_text()
+    request, response = srv.split("---\n")
     text = message_definition("rcl_interfaces/srv/GetParameters_Event")
-    assert text.startswith(srv.read_text())
+    assert text.startswith(
+        "service_msgs/ServiceEventInfo info\n"
+        "rcl_interfaces/GetParameters_Request[<=1] request\n"
+        "rcl_interfaces/GetParameters_Response[<=1] response\n"
+    )
+    assert f"\nMSG: rcl_interfaces/GetParameters_Request\n{request}" in text
+    assert f"\nMSG: rcl_interfaces/GetParameters_Response\n{response}" in text
     assert "\nMSG: rcl_interfaces/ParameterValue\n" in text
     assert type_description_hash("rcl_interfaces/srv/GetParameters_Event").startswith("RIHS01_")
 

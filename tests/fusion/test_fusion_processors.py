@@ -55,6 +55,25 @@ def test_registry_and_parameter_descriptions() -> None:
         create_processor("alert_system", {"temperature.temperature.warn": [50.0, 10.0]})
 
 
+def test_data_logger_answers_summary_requests() -> None:
+    from std_srvs.srv import Trigger
+
+    logger = create_processor("data_logger")
+    assert logger.services == {topics.LOGGER_GET_SUMMARY: Trigger}
+    empty = logger.on_request(topics.LOGGER_GET_SUMMARY, Trigger.Request(), 0)
+    assert not empty.success
+    result = run_loop(2.05)
+    for topic in topics.SENSOR_TOPICS:
+        for msg in result.messages(topic):
+            logger.on_message(topic, msg, 0)
+    answer = logger.on_request(topics.LOGGER_GET_SUMMARY, Trigger.Request(), 0)
+    counts = {t: len(result.messages(t)) for t in topics.SENSOR_TOPICS}
+    assert answer.success
+    assert answer.message == "; ".join(f"{t}: {n}" for t, n in counts.items())
+    with pytest.raises(ConfigError, match="service_introspection"):
+        create_processor("data_logger", {"service_introspection": "on"})
+
+
 def test_sensor_rates_and_output_stamps() -> None:
     result = run_loop(10.05)  # ticks at 0.1 s ... 10.0 s
     counts = {topic: len(result.messages(topic)) for topic in topics.SENSOR_TOPICS}

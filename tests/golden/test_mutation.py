@@ -18,6 +18,8 @@ from typing import Any
 REPO = Path(__file__).resolve().parents[2]
 EXPONENT = "_EXPONENT = 0.190263"
 PRESSURE_ERROR_BOUNDS = "error: [70000.0, 108000.0]"
+SUMMARY_ANSWER = 'f"{t}: {m.messages}"'
+SUMMARY_ANSWER_MUTATED = 'f"{t}: {m.messages + 1}"'
 
 
 def mutated_copy(tmp_path: Path, file: str, old: str, new: str) -> Path:
@@ -97,6 +99,19 @@ def test_changed_alert_threshold_fails(tmp_path: Path) -> None:
     assert ("missing_event", "alert_system: pressure", "ERROR") in kinds
     assert ("extra_event", "alert_system: pressure", "WARN") in kinds
     assert "alert_system: pressure" in result.stdout
+
+
+def test_changed_summary_service_handler_fails(tmp_path: Path) -> None:
+    # The data logger's /logger/get_summary answers count one message too many: the
+    # recorded calls, answered again in lockstep, differ in the response.
+    copy = mutated_copy(
+        tmp_path, "fusion/processors/data_logger.py", SUMMARY_ANSWER, SUMMARY_ANSWER_MUTATED
+    )
+    result, report = run_golden(copy, "fast")
+    assert result.returncode == 1, result.stdout + result.stderr
+    topics = failing(report)
+    assert set(topics) == {"/logger/get_summary/_service_event"}
+    assert topics["/logger/get_summary/_service_event"]["failed_fields"] == ["response[].message"]
 
 
 def test_unmutated_copy_passes(tmp_path: Path) -> None:

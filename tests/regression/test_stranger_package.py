@@ -55,6 +55,9 @@ def test_record_a_golden_pass_then_fail_on_a_changed_constant(stranger: Path) ->
     # command per reading (computed again by lockstep)
     assert counts["/thermostat/temperature"] >= 50
     assert counts["/thermostat/heater"] == counts["/thermostat/temperature"]
+    # The technician's status calls, every 2 s: the server's request and response events.
+    events = counts["/thermostat/status/_service_event"]
+    assert events >= 2 and events % 2 == 0
 
     passed = pytest_in(stranger, "-v")
     assert passed.returncode == 0, passed.stdout + passed.stderr

@@ -44,6 +44,7 @@ from bagkit.ros.replay.publishers import (
     wait_until_matched,
 )
 from bagkit.ros.replay.seek_services import serve_seek
+from bagkit.ros.replay.service_requests import ServiceRequests
 from bagkit.ros.replay.services import serve_controls
 from bagkit.ros.replay.topics import PublishableTopics, publishable_topics
 from bagkit.ros.tuning import precise_timers, process_tuning
@@ -104,6 +105,7 @@ class Player:
         self._node: Node | None = None
         self._outputs: dict[str, TopicOutput] = {}
         self._clock: TopicOutput | None = None
+        self._service_requests: ServiceRequests | None = None
         self._node_created = 0.0
         self._pass: PassPublisher | None = None  # the pass being published
         self.live_publishers: dict[str, list[str]] = {}
@@ -168,11 +170,30 @@ class Player:
                     messages_per_s=self._replay_rate_hz(count, bag_duration_s),
                 )
             self._outputs[info.name] = create_output(node, info, message_class, name, qos)
+            if options.publish_service_requests and ServiceRequests.handles(info):
+                self._outputs[info.name] = self._requests(node).output(
+                    info, self._outputs[info.name]
+                )
         if options.clock_hz is not None:
             self._clock = create_clock_output(node)
         if options.services:
             self._stack.enter_context(serve_seek(node, self))  # before the executor spins
             self._stack.enter_context(serve_controls(node, self.controls))
+
+    def _requests(self, node: Node) -> ServiceRequests:
+        """The sender of recorded service requests (``publish_service_requests``)."""
+        if self._service_requests is None:
+            assert self._reader is not None
+            self._service_requests = self._stack.enter_context(
+                ServiceRequests(
+                    node,
+                    self._reader,
+                    source=self.options.service_requests_source,
+                    timeout_s=self.options.service_timeout_s,
+                    on_warning=self.on_warning,
+                )
+            )
+        return self._service_requests
 
     def _create_node(self) -> Node:
         context = self._context
@@ -242,7 +263,13 @@ class Player:
         try:
             if self.waits.before_start or self.waits.topics:
                 self.wait_until_matched()
-            self.live_publishers = other_publishers(self.node, list(self._outputs.values()))
+            published = [
+                output
+                for output in self._outputs.values()
+                # Their events are not published: the requests are sent instead.
+                if not (options.publish_service_requests and ServiceRequests.handles(output.info))
+            ]
+            self.live_publishers = other_publishers(self.node, published)
             if self.live_publishers and self.on_live_publishers is not None:
                 self.on_live_publishers(self.live_publishers)
             wall_start = time.monotonic_ns()
@@ -258,6 +285,8 @@ class Player:
                     break  # an empty window: looping would only spin
             wall_ns = time.monotonic_ns() - wall_start
             unacknowledged = self.wait_until_acknowledged()
+            requests = self._service_requests
+            service_requests = requests.finish() if requests is not None else None
         except KeyboardInterrupt:
             interrupted = True
             wall_ns = time.monotonic_ns() - wall_start
@@ -265,6 +294,8 @@ class Player:
             if self._pass is not None:  # the interrupted pass counts for what it published
                 bag_ns += self._pass.covered_ns
                 self._pass = None
+            requests = self._service_requests
+            service_requests = requests.summary if requests is not None else None
         return PlayReport(
             topics=self._topic_playbacks(passes, complete=not interrupted),
             messages=sum(output.count for output in self._outputs.values()),
@@ -280,6 +311,7 @@ class Player:
             unacknowledged=unacknowledged,
             interrupted=interrupted,
             latched=self._latched_published,
+            service_requests=service_requests,
         )
 
     def _topic_playbacks(self, passes: int, *, complete: bool) -> list[TopicPlayback]:

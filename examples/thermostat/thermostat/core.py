@@ -5,12 +5,14 @@ from __future__ import annotations
 from typing import Any
 
 from std_msgs.msg import Float64
+from std_srvs.srv import Trigger
 
 SETPOINT_C = 21.0
 KP = 0.35  # heater power per degree below the setpoint
 KI = 0.02  # heater power per degree-second below the setpoint
 INPUT = "/thermostat/temperature"
 OUTPUT = "/thermostat/heater"
+STATUS = "/thermostat/status"
 
 
 class Controller:
@@ -23,6 +25,7 @@ class Controller:
     input_topics = (INPUT,)
     output_topics = (OUTPUT,)
     timer_period_ns = None
+    services = {STATUS: Trigger}  # noqa: RUF012 (read only)
 
     def __init__(self) -> None:
         self.integral = 0.0
@@ -39,6 +42,12 @@ class Controller:
 
     def on_timer(self, now_ns: int) -> list[tuple[str, Any]]:
         return []
+
+    def on_request(self, service: str, request: Any, now_ns: int) -> Any:
+        """``/thermostat/status``: the control law's configuration (what a technician asks)."""
+        return Trigger.Response(
+            success=True, message=f"setpoint {SETPOINT_C:g} C, kp {KP:g}, ki {KI:g}"
+        )
 
 
 def make_processors() -> list[Controller]:

@@ -1,0 +1,177 @@
+"""Services in a bag: their event topics read, calls paired, counted and timed.
+
+The reading side of :mod:`bagkit.bag.service_calls` (which is pure): ``bagkit info`` lists
+:func:`service_summaries`, ``bagkit echo BAG /service`` prints :func:`echo_calls`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Iterator
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bagkit.bag import BagReader
+from bagkit.bag.service_calls import (
+    EVENT_NAMES,
+    LatencySummary,
+    ServiceCall,
+    ServiceCounts,
+    ServiceEvent,
+    count_events,
+    event_from_message,
+    latency_summary,
+    pair_calls,
+)
+from bagkit.data.echo import Plain
+from bagkit.data.errors import UndecodableTopicError
+from bagkit.decode import DecodeError, MessageTypes
+from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER
+from bagkit.selection.services import is_service_event_topic, service_name, service_type
+from bagkit.selection.topics import absolute_topic_name
+
+
+@dataclass(frozen=True, slots=True)
+class ServiceSummary:
+    """A service of a bag: its type, event topic, counts (as ``ros2 bag info -v``), latency."""
+
+    service: str
+    type: str
+    topic: str
+    counts: ServiceCounts
+    latency: LatencySummary
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON form (``bagkit info --format json``'s ``services``)."""
+        return asdict(self)
+
+
+def service_topics(reader: BagReader) -> dict[str, str]:
+    """Service name -> its event topic, for every service-event topic of an open bag."""
+    return {
+        service_name(absolute_topic_name(name)): name
+        for name, info in sorted(reader.topics.items())
+        if is_service_event_topic(absolute_topic_name(name), [info.type])
+    }
+
+
+def find_service(reader: BagReader, name: str) -> str | None:
+    """The event topic of service ``name`` (``/x`` or ``/x/_service_event``), None if absent."""
+    wanted = absolute_topic_name(name)
+    topics = service_topics(reader)
+    if wanted in topics:
+        return topics[wanted]
+    return next((t for t in topics.values() if absolute_topic_name(t) == wanted), None)
+
+
+def read_events(reader: BagReader, types: MessageTypes, topic: str) -> Iterator[ServiceEvent]:
+    """The events of one service-event topic, decoded, in log-time order.
+
+    Raises:
+        UndecodableTopicError: the event type cannot be decoded from the bag's definition.
+    """
+    try:
+        decode = types.decoder(reader.topics[topic].type)
+    except DecodeError as exc:
+        raise UndecodableTopicError(f"{topic} cannot be decoded: {exc}") from None
+    for message in reader.messages([topic]):
+        yield event_from_message(decode(message.data), message.log_time)
+
+
+def service_summaries(bag: str | Path) -> list[ServiceSummary]:
+    """Every service of ``bag`` with its counts and latency; undecodable ones are left out."""
+    summaries = []
+    with BagReader(bag, allow_empty=True) as reader:
+        types = MessageTypes.from_definitions(reader.definitions)
+        for service, topic in service_topics(reader).items():
+            try:
+                events = list(read_events(reader, types, topic))
+            except (UndecodableTopicError, DecodeError):
+                continue
+            summaries.append(
+                ServiceSummary(
+                    service=service,
+                    type=service_type(reader.topics[topic].type),
+                    topic=topic,
+                    counts=count_events(events),
+                    latency=latency_summary(pair_calls(events)),
+                )
+            )
+    return summaries
+
+
+def read_calls(bag: str | Path, service: str) -> list[ServiceCall]:
+    """The calls of one service of ``bag``, paired, in the bag's order.
+
+    Raises:
+        UndecodableTopicError: the bag has no such service, or its events do not decode.
+    """
+    with BagReader(bag, allow_empty=True) as reader:
+        topic = find_service(reader, service)
+        if topic is None:
+            raise UndecodableTopicError(f"no service {absolute_topic_name(service)} in {bag}")
+        types = MessageTypes.from_definitions(reader.definitions)
+        return pair_calls(read_events(reader, types, topic))
+
+
+def echo_calls(bag: str | Path, service: str, *, limit: int | None = None) -> Iterator[Plain]:
+    """Each call of ``service`` as plain data: ids, events seen, request, response, latency.
+
+    Raises:
+        UndecodableTopicError: the bag has no such service, or its events do not decode.
+    """
+    with BagReader(bag, allow_empty=True) as reader:
+        topic = find_service(reader, service)
+        if topic is None:
+            raise UndecodableTopicError(f"no service {absolute_topic_name(service)} in {bag}")
+        types = MessageTypes.from_definitions(reader.definitions)
+        calls = pair_calls(read_events(reader, types, topic))
+    for call in calls:
+        latency = call.latency_ns
+        yield {
+            "topic": topic,
+            "log_time": call.log_time_ns,
+            "service": service_name(absolute_topic_name(topic)),
+            "client_gid": call.call[0].hex(),
+            "sequence_number": call.call[1],
+            "events": [EVENT_NAMES[k] for k in sorted(call.events) if k < len(EVENT_NAMES)],
+            "request": plain_message(call.request, limit),
+            "response": plain_message(call.response, limit),
+            "latency_s": None if latency is None else latency / 1e9,
+            "latency_side": call.latency_side,
+        }
+
+
+def names_service(bag: str | Path, name: str) -> bool:
+    """Whether ``name`` is a service of ``bag`` and not one of its topics (``echo``'s choice)."""
+    with BagReader(bag, allow_empty=True) as reader:
+        topics = {absolute_topic_name(t) for t in reader.topics}
+        return absolute_topic_name(name) not in topics and find_service(reader, name) is not None
+
+
+def plain_message(message: Any, limit: int | None = None) -> Any:
+    """A decoded message as nested dicts and lists (numbers as Python's); None stays None.
+
+    ``limit``: sequences longer than this are cut as ``echo`` cuts them.
+    """
+    if message is None or isinstance(message, (bool, int, float, str)):
+        return message
+    if isinstance(message, np.ndarray):
+        return plain_message(message.tolist(), limit)
+    if isinstance(message, np.generic):
+        return message.item()
+    if isinstance(message, (list, tuple)):
+        items = [plain_message(item, limit) for item in message]
+        if limit is not None and len(items) > limit:
+            return [*items[:limit], f"... ({len(items) - limit} more)"]
+        return items
+    if dataclasses.is_dataclass(message):
+        return {
+            f.name.rstrip("_"): plain_message(getattr(message, f.name), limit)
+            for f in dataclasses.fields(message)
+            if f.name != EMPTY_STRUCT_MEMBER[0]
+        }
+    return str(message)
