@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import datetime
 import re
 from dataclasses import dataclass, field
@@ -289,11 +290,19 @@ def _check_inside(bag_dir: Path, names: list[str], source: str) -> None:
         root = bag_dir.resolve()
         for name in names:
             for candidate in (bag_dir / name, bag_dir / PurePosixPath(name).name):
+                if candidate.is_symlink() and not candidate.exists():
+                    _raise_on_loop(candidate)  # Python 3.13's resolve() lets a loop through
                 present = candidate.is_symlink() or candidate.exists()
                 if present and not candidate.resolve().is_relative_to(root):
                     raise NotABagError(f"{source}: {name!r} resolves outside the bag directory")
-    except (OSError, RuntimeError) as exc:  # RuntimeError: a symlink loop (Python 3.11)
+    except (OSError, RuntimeError) as exc:  # RuntimeError: a symlink loop (Python 3.10-3.12)
         raise NotABagError(f"{source}: cannot resolve the listed files ({exc})") from exc
+
+
+def _raise_on_loop(link: Path) -> None:
+    """Raise OSError or RuntimeError when ``link`` is a symlink loop; a dangling link passes."""
+    with contextlib.suppress(FileNotFoundError):
+        link.resolve(strict=True)
 
 
 def read_metadata(bag_dir: Path) -> BagMetadata | None:

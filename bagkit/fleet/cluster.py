@@ -53,7 +53,9 @@ def local_cluster(n_workers: int) -> LocalCluster:
             processes=True,
             n_workers=n_workers,
             threads_per_worker=1,
-            silence_logs=logging.ERROR,
+            # CRITICAL: a worker's failed heartbeat while the cluster closes is logged as an
+            # ERROR with a traceback; bagkit reports every task's failure itself.
+            silence_logs=logging.CRITICAL,
             preload=["bagkit.fleet.worker"],
         )
 
