@@ -158,11 +158,13 @@ def test_duration_counts_from_subscription_and_the_table_fits_80_columns(
     assert all(len(line) <= 80 for line in lines[1:]), stdout.decode()
     assert any(late in line.split() for line in lines), stdout.decode()
     # The publishers appeared 2 s after the bag did: a --duration counted from start would
-    # have ended before them (0 messages). It ran 1 s past the subscriptions instead.
+    # have ended before them (0 messages). It ran 1 s past the subscriptions instead. (How long
+    # after its own start the recorder subscribed depends on how slowly it started: the bag
+    # directory exists before rclpy is up.)
     title = re.search(r"\(([0-9.]+) s,\s+topics subscribed after ([0-9.]+) s\)", stdout.decode())
     assert title is not None, stdout.decode()
     total, discovery = float(title.group(1)), float(title.group(2))
-    assert discovery >= 1.0 and total >= discovery + 0.9
+    assert discovery > 0.0 and total >= discovery + 0.9
     with BagReader(bag) as reader:
         counts = reader.topic_counts
     assert counts[late] > 0 and counts["/opt/other"] > 0
