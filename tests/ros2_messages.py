@@ -14,6 +14,21 @@ STRING = "std_msgs/msg/String"
 TEMPERATURE = "sensor_msgs/msg/Temperature"
 # rosbag2's "infinite" durations in metadata.yaml (version 9).
 _INFINITE = "    sec: 9223372036\n    nsec: 854775807"
+# rosbag2 Jazzy's schema (as in its sqlite3 test bags).
+DB3_SCHEMA = """
+CREATE TABLE schema(schema_version INTEGER PRIMARY KEY, ros_distro TEXT NOT NULL);
+CREATE TABLE metadata(id INTEGER PRIMARY KEY, metadata_version INTEGER NOT NULL,
+                      metadata TEXT NOT NULL);
+CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL,
+                    serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL,
+                    type_description_hash TEXT NOT NULL);
+CREATE TABLE message_definitions(id INTEGER PRIMARY KEY, topic_type TEXT NOT NULL,
+                                 encoding TEXT NOT NULL, encoded_message_definition TEXT NOT NULL,
+                                 type_description_hash TEXT NOT NULL);
+CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL,
+                      timestamp INTEGER NOT NULL, data BLOB NOT NULL);
+CREATE INDEX timestamp_idx ON messages (timestamp ASC);
+"""
 
 
 def qos_yaml(*, depth: int, reliability: str, durability: str) -> str:

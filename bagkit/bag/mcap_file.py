@@ -26,7 +26,8 @@ from bagkit.bag.mcapio import (
     read_chunk,
     read_file_index,
 )
-from bagkit.bag.mcapio.message_index import Span, channel_spans, widen
+from bagkit.bag.mcapio.latest import Latest, latest_before
+from bagkit.bag.mcapio.message_index import Span, channel_spans, read_message_indexes, widen
 from bagkit.bag.mcapio.records import MESSAGE_RECORD_HEADER, RECORD_HEADER, ChunkIndex, Opcode
 from bagkit.bag.messages import BagMessage, TopicInfo, make_message
 from bagkit.bag.storage import BagChunk
@@ -292,6 +293,60 @@ class McapFile:
                 f"{self.path.name}: chunk at byte {offset}: {lost} message index entries point "
                 "at no message: those messages are lost"
             )
+
+    def last_messages(self, topics: set[str], before_ns: int) -> dict[str, BagMessage]:
+        """The last message with ``log_time < before_ns`` of each of ``topics`` that has one.
+
+        Found from the Message Index records of the chunks near ``before_ns`` (see
+        :mod:`bagkit.bag.mcapio.latest`); only the chunks holding the messages are read.
+        """
+        found: dict[str, tuple[tuple[int, int, int], BagMessage]] = {}
+        latest = latest_before(
+            self._sorted_blocks, self._channel_ids(topics), before_ns, self._block_index
+        )
+        chunks: dict[int, ChunkContents | None] = {}  # by file offset: each read once
+        for channel, where in latest.items():
+            at = extent(where.block)[0]
+            if at not in chunks:
+                chunks[at] = self._read(where.block)
+            message = self._message_at(chunks[at], where)
+            topic = self._channel_topics[channel]
+            if message is not None and (topic not in found or where.key() > found[topic][0]):
+                found[topic] = (where.key(), message)
+        return {topic: message for topic, (_, message) in found.items()}
+
+    def _block_index(self, block: Block, channels: set[int]) -> dict[int, np.ndarray] | None:
+        """The message index of a block: its Message Index records, else the chunk read."""
+        if _indexed(block):
+            if channels.isdisjoint(block.message_index_offsets):
+                return {}
+            try:
+                return read_message_indexes(self._source, block)
+            except CorruptBagError:
+                pass  # read the chunk itself
+        chunk = self._read(block)
+        return chunk.message_index if chunk is not None else None
+
+    def _message_at(self, chunk: ChunkContents | None, where: Latest) -> BagMessage | None:
+        """The Message record at ``where`` in its block's ``chunk`` (None when unreadable, and
+        a problem when no message is there)."""
+        if chunk is None:
+            return None
+        records, offset = chunk.records, where.offset
+        if offset + MESSAGE_RECORD_HEADER.size <= len(records):
+            opcode, length, channel_id, sequence, log_time, publish_time = (
+                MESSAGE_RECORD_HEADER.unpack_from(records, offset)
+            )
+            end = offset + RECORD_HEADER.size + length
+            topic = self._channel_topics.get(channel_id)
+            if opcode == Opcode.MESSAGE and end <= len(records) and topic is not None:
+                data = records[offset + MESSAGE_RECORD_HEADER.size : end]
+                return make_message(topic, data, log_time, publish_time, sequence)
+        self.problems.append(
+            f"{self.path.name}: chunk at byte {extent(where.block)[0]}: a message index entry "
+            "points at no message: that message is lost"
+        )
+        return None
 
     def chunks(self, topics: set[str] | None) -> Iterator[BagChunk]:
         """Yield the chunks holding messages of ``topics`` (all when None), in file order."""

@@ -292,6 +292,22 @@ class BagReader:
         else:
             yield from heapq.merge(*streams, key=lambda m: m.log_time)
 
+    def last_messages(self, topics: Iterable[str], before_ns: int) -> dict[str, BagMessage]:
+        """The last message with ``log_time < before_ns`` of each of ``topics`` that has one.
+
+        From the indexes of each file (MCAP Message Index records, an SQL query), not by
+        reading the bag from its start; over several files, the latest (ties: the later file,
+        as :meth:`messages` yields it last). See :mod:`bagkit.bag.latched`.
+        """
+        self._check_open()
+        wanted = set(topics)
+        found: dict[str, BagMessage] = {}
+        for storage in self._storage:
+            for topic, message in storage.last_messages(wanted, before_ns).items():
+                if topic not in found or message.log_time >= found[topic].log_time:
+                    found[topic] = message
+        return found
+
     def chunks(self, topics: Iterable[str] | None = None) -> Iterator[BagChunk]:
         """Yield the decompressed MCAP chunks holding ``topics``, file by file, in file order.
 

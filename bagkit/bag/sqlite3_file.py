@@ -196,6 +196,31 @@ class Sqlite3File:
         """None: SQLite3 has no chunks (bulk readers fall back to :meth:`messages`)."""
         return iter(())
 
+    def last_messages(self, topics: set[str], before_ns: int) -> dict[str, BagMessage]:
+        """The last valid row with ``timestamp < before_ns`` of each of ``topics`` that has one
+        (ties: the last row id), one indexed query per topic."""
+        found: dict[str, BagMessage] = {}
+        if self._db is None or before_ns <= INT64_MIN:
+            return found
+        upper = min(before_ns, INT64_MAX)
+        for topic in sorted(topics):
+            ids = [i for i, t in self._topic_ids.items() if t == topic]
+            if not ids:
+                continue
+            marks = ",".join("?" * len(ids))
+            query = (
+                f"SELECT timestamp, data FROM messages WHERE topic_id IN ({marks}) "
+                f"AND timestamp < ? AND {_VALID_ROW} ORDER BY timestamp DESC, rowid DESC LIMIT 1"
+            )
+            try:
+                row = self._db.execute(query, (*ids, upper)).fetchone()
+            except sqlite3.Error as exc:
+                self._problem(f"last message of {topic} unreadable ({exc})")
+                continue
+            if row is not None:
+                found[topic] = make_message(topic, row[1], row[0], row[0], 0)
+        return found
+
     def messages(
         self, topics: set[str] | None, start_ns: int | None, end_ns: int | None
     ) -> Iterator[BagMessage]:

@@ -103,6 +103,10 @@ class StorageFile(Protocol):
         """Yield the messages of ``topics`` (all when None) with ``start_ns <= log_time <
         end_ns`` in log-time order (ties in storage order)."""
 
+    def last_messages(self, topics: set[str], before_ns: int) -> dict[str, BagMessage]:
+        """The last message with ``log_time < before_ns`` of each of ``topics`` that has one
+        (ties: the one stored last), found from indexes, not by reading from the start."""
+
     def chunks(self, topics: set[str] | None) -> Iterator[BagChunk]:
         """Yield the chunks holding messages of ``topics`` in file order (none: no chunks)."""
 

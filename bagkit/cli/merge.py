@@ -2,27 +2,36 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import typer
 
 from bagkit.cli.common import ReportFormat, err_console, handle_errors
+from bagkit.cli.selection_options import End, Start
 from bagkit.cli.surgery_options import (
     CheckCrc,
     Compression,
     Force,
     Format,
+    LatchedTopics,
     MaxBagDuration,
     MaxBagSize,
+    NoLatched,
     Output,
+    latched_options,
     output_options,
     print_report,
 )
 from bagkit.surgery.rewrite import merge_bags
+from bagkit.surgery.select import Selection
 
-HELP = """Merge BAGs into one new bag OUT in log-time order (equal times: in the order the
-bags are given), with every topic's definition and QoS. A topic must have the same type in
-every bag. Chunks that do not overlap other inputs in time are copied as stored.
+HELP = """Merge BAGs into one new bag OUT stored in log-time order (equal times: in the
+order the bags are given), with every topic's definition and QoS and each bag's custom_data.
+A topic must have the same type in every bag. Chunks that do not overlap other inputs in time
+and are stored in order are copied as stored. --start/--end keep a time range (read against
+the first and last message of all BAGs); with --start the latched state comes first (the
+last message before it of each transient-local topic, as filter does).
 
 Example: bagkit merge drive_part1 drive_part2 -o drive
 """
@@ -33,6 +42,10 @@ def merge(
     bags: list[Path] = typer.Argument(..., help="The bags to merge (directories or .mcap files)."),
     *,
     output: Output,
+    start: Start = None,
+    end: End = None,
+    latched_topics: LatchedTopics = None,
+    no_latched: NoLatched = False,
     compression: Compression = "zstd",
     max_bag_size: MaxBagSize = 0,
     max_bag_duration: MaxBagDuration = 0.0,
@@ -44,6 +57,8 @@ def merge(
     options = output_options(
         compression, max_bag_size, max_bag_duration, force=force, check_crc=check_crc
     )
+    selection = Selection.create(start=start, end=end)
+    selection = replace(selection, latched=latched_options(latched_topics, no_latched))
     with err_console.status(f"merging {len(bags)} bags"):
-        report = merge_bags(bags, output, options=options)
+        report = merge_bags(bags, output, selection, options)
     print_report(report, output_format)

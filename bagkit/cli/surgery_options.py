@@ -7,13 +7,19 @@ the three print a report as a table for people or JSON for scripts.
 
 from __future__ import annotations
 
+from dataclasses import asdict
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from bagkit.cli.common import ReportFormat, console, print_json, warn
+from bagkit.bag.latched import LatchedOptions
+from bagkit.cli.common import ReportFormat, console, print_json, split_list, warn
+from bagkit.selection.times import format_ns
 from bagkit.surgery.rewrite import OutputOptions, RewriteReport
+
+if TYPE_CHECKING:
+    from bagkit.data.episodes import Episodes
 
 Output = Annotated[
     Path,
@@ -48,6 +54,22 @@ MaxBagDuration = Annotated[
         help="Split OUT into files spanning at most this many seconds (0: never).",
     ),
 ]
+LatchedTopics = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--latched-topics",
+        help="With --start: also carry over the last message before it of these topics "
+        "recorded volatile (transient-local ones always are; several, repeated or a,b).",
+    ),
+]
+NoLatched = Annotated[
+    bool,
+    typer.Option(
+        "--no-latched",
+        help="With --start: do not write the latched state (the last message before the "
+        "start of each transient-local topic) first.",
+    ),
+]
 Format = Annotated[
     ReportFormat,
     typer.Option("--format", help="table (for people) or json (for scripts)."),
@@ -72,6 +94,11 @@ def output_options(
     )
 
 
+def latched_options(latched_topics: list[str] | None, no_latched: bool) -> LatchedOptions:
+    """The library's latched-state options from ``--latched-topics`` and ``--no-latched``."""
+    return LatchedOptions(enabled=not no_latched, extra_topics=tuple(split_list(latched_topics)))
+
+
 def print_report(report: RewriteReport, output_format: ReportFormat) -> None:
     """What a rewrite wrote (stdout) and lost (stderr warnings)."""
     if output_format == ReportFormat.JSON:
@@ -80,7 +107,9 @@ def print_report(report: RewriteReport, output_format: ReportFormat) -> None:
         console.print(
             f"wrote {report.output}: {report.message_count:,} messages "
             f"({len(report.topic_counts)} topics, {len(report.files)} files, "
-            f"{report.chunks_copied} chunks copied as stored)",
+            f"{report.chunks_copied} chunks copied as stored"
+            + (f", {report.latched_messages} latched" if report.latched_messages else "")
+            + ")",
             highlight=False,
             soft_wrap=True,
         )
@@ -88,3 +117,26 @@ def print_report(report: RewriteReport, output_format: ReportFormat) -> None:
         warn(warning)
     for problem in report.problems:
         warn(f"lost: {problem}")
+
+
+def print_cuts(found: Episodes, reports: list[RewriteReport], output_format: ReportFormat) -> None:
+    """What ``filter --around`` wrote: one bag per episode (JSON: one object each)."""
+    if output_format == ReportFormat.JSON:
+        print_json(
+            [
+                {"episode": asdict(episode), **report.to_dict()}
+                for episode, report in zip(found.episodes, reports, strict=True)
+            ]
+        )
+    else:
+        for episode, report in zip(found.episodes, reports, strict=True):
+            console.print(
+                f"{found.topic} from {format_ns(episode.start_ns)} to "
+                f"{format_ns(episode.end_ns)} ({episode.count} matches): ",
+                end="",
+                highlight=False,
+                soft_wrap=True,
+            )
+            print_report(report, ReportFormat.TABLE)
+    for problem in found.problems:
+        warn(problem)

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import pyarrow as pa
 
-from bagkit.data.engine import BulkGroup, decode_bulk, payload_spans
+from bagkit.data.engine import BulkGroup, Spans, decode_bulk, payload_spans
 from bagkit.decode import DecodeError, LeafField, MessageTypes
 from bagkit.decode.flatten import STRING_TYPES
 from bagkit.decode.layout import PRIMITIVE_FORMATS, CdrLayout
@@ -183,11 +183,16 @@ class TopicColumns:
         self, records: bytes, index: np.ndarray, window: Window, reserve: Callable[[int], Rows]
     ) -> Rows:
         """Decode the messages of this topic in one chunk into ``reserve(count)``."""
-        buf = np.frombuffer(records, dtype=np.uint8)
         spans = payload_spans(records, index, window.start_ns, window.end_ns)
         self.unindexed += spans.dropped
         if self.matcher is not None:
-            spans = spans.take(self.matcher.mask(records, spans.starts, spans.lengths))
+            spans = spans.take(self.matcher.mask_records(records, spans.starts, spans.lengths))
+        return self.decode_spans(records, spans, reserve)
+
+    def decode_spans(self, records: bytes, spans: Spans, reserve: Callable[[int], Rows]) -> Rows:
+        """Decode the payloads at ``spans`` of a chunk's records into ``reserve(count)``, in
+        the order of ``spans``."""
+        buf = np.frombuffer(records, dtype=np.uint8)
         columns = reserve(len(spans.starts))
         columns.log_times[:] = spans.log_times
         columns.publish_times[:] = spans.publish_times

@@ -79,7 +79,7 @@ def echo(
         matcher = (
             None
             if condition is None
-            else PayloadMatcher(types, info.type, condition, topic, bulk=False)
+            else PayloadMatcher(types, topic, info.type, condition, bulk=False)
         )
         window = span.resolve(reader.start_ns, reader.end_ns)
         if reader.message_count:
@@ -106,11 +106,10 @@ def echo(
                 "publish_time": message.publish_time,
                 "data": data,
             }
-        if matcher is not None and matcher.failures:
-            lost = f"{topic}: {matcher.failures} messages could not be decoded"
+        if matcher is not None and matcher.problem is not None:
             if on_failure is None:
-                raise DecodeError(f"{lost} ({matcher.first_failure})")
-            on_failure(f"{lost} ({matcher.first_failure})")
+                raise DecodeError(matcher.problem)
+            on_failure(matcher.problem)
 
 
 def _converter(  # noqa: PLR0917 (private, called once)

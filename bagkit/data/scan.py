@@ -92,7 +92,7 @@ class Scan:
         found = list(self.reader.problems)
         for topic, columns in self.topics.items():
             matcher = columns.matcher
-            failures = columns.failures + (matcher.failures if matcher else 0)
+            failures = columns.failures + (matcher.undecodable if matcher else 0)
             if failures:
                 first = columns.first_failure or (matcher.first_failure if matcher else "")
                 found.append(f"{topic}: {failures} messages could not be decoded ({first})")
@@ -160,7 +160,7 @@ def plan_scan(
         matcher = None
         if where is not None:
             try:
-                matcher = PayloadMatcher(types, info.type, where, name, bulk=bulk)
+                matcher = PayloadMatcher(types, name, info.type, where, bulk=bulk)
             except UnknownFieldError:
                 if topics is not None and len(topics) == 1:
                     raise

@@ -4,7 +4,7 @@ Fixed-layout types are matched a chunk at a time: the columns the condition read
 in bulk (:mod:`bagkit.decode.bulk`) and compared as numpy arrays (:meth:`Condition.mask`).
 Conditions on sequences, and payloads the bulk decoder hands back, are decoded one by one and
 matched on the message object (:meth:`Condition.matches`). A payload that does not decode is
-counted in :attr:`PayloadMatcher.failures` and never matches.
+counted in :attr:`PayloadMatcher.undecodable` and never matches.
 """
 
 from __future__ import annotations
@@ -22,7 +22,8 @@ from bagkit.selection.conditions import Condition
 
 
 class PayloadMatcher:
-    """Matches the payloads of ``topic`` (type ``type_name``) against ``condition``.
+    """Matches the payloads of ``topic`` (type ``type_name``) against ``condition``; a
+    :class:`bagkit.surgery.select.PayloadFilter` (``filter --where``).
 
     The condition's fields and value types are checked against the type on construction.
 
@@ -39,9 +40,9 @@ class PayloadMatcher:
     def __init__(
         self,
         types: MessageTypes,
+        topic: str,
         type_name: str,
         condition: Condition,
-        topic: str,
         *,
         bulk: bool = True,
     ) -> None:
@@ -64,8 +65,18 @@ class PayloadMatcher:
         )
         self.texts = texts
         self.decode = types.decoder(type_name)
-        self.failures = 0
+        self.undecodable = 0
         self.first_failure = ""
+
+    @property
+    def problem(self) -> str | None:
+        """The line for messages that did not decode (never matched), or None."""
+        if not self.undecodable:
+            return None
+        return (
+            f"{self.topic}: {self.undecodable} messages could not be decoded, not matched "
+            f"({self.first_failure})"
+        )
 
     def matches(self, data: bytes | memoryview) -> bool:
         """Whether one payload satisfies the condition (False, and counted, if it does not
@@ -73,11 +84,11 @@ class PayloadMatcher:
         try:
             return self.condition.matches(self.decode(data), self.octets)
         except DecodeError as exc:
-            self.failures += 1
+            self.undecodable += 1
             self.first_failure = self.first_failure or str(exc)
             return False
 
-    def mask(self, records: bytes, starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+    def mask_records(self, records: bytes, starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:
         """Which of the payloads ``records[starts[i] : starts[i] + lengths[i]]`` match."""
         keep = np.zeros(len(starts), dtype=bool)
         leftover = np.arange(len(starts))

@@ -180,7 +180,8 @@ def run_lockstep(
         output_topics: topics created in the output even if nothing is published on them
             (their type and QoS are taken from the golden bag).
         copy_topics: topics of the golden copied unchanged into the output, inputs or not
-            (this is how a golden is rewritten with new expected outputs).
+            (this is how a golden is rewritten with new expected outputs); the golden's
+            metadata.yaml ``custom_data`` is then kept too.
 
     Raises:
         RegressionError: an input topic is missing or its type is not installed.
@@ -197,6 +198,8 @@ def run_lockstep(
         with BagWriter(output, chunk_interval_s=math.inf) as writer:
             out = _OutputBag(writer, reader.topics)
             copied = [t for t in copy_topics if t in reader.topics]
+            if copied and reader.metadata is not None:  # a golden rewritten: keep what it knew
+                writer.custom_data.update(reader.metadata.custom_data)
             for t in [*copied, *output_topics]:
                 if t in reader.topics and t not in out.counts:
                     info = reader.topics[t]

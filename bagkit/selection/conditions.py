@@ -182,22 +182,35 @@ def parse_condition(text: str) -> Condition:
     return Condition(text)
 
 
-def parse_topic_condition(text: str) -> tuple[str, Condition]:
-    """``'/alerts: status[*].level >= 2'`` -> (``/alerts``, its condition).
+@dataclass(frozen=True, slots=True)
+class TopicCondition:
+    """``TOPIC: CONDITION`` (``--around``, ``--when``): a condition on one topic's messages."""
 
-    The topic is what comes before the first ``': '`` (a topic name holds no space), made
-    absolute as every command names topics.
+    topic: str
+    condition: Condition
+
+    @property
+    def text(self) -> str:
+        """As written, normalized: ``/alerts: status[*].level >= 2``."""
+        return f"{self.topic}: {self.condition.text}"
+
+
+def parse_topic_condition(text: str) -> TopicCondition:
+    """Parse ``'TOPIC: CONDITION'`` (topic names hold no colon: the first one separates).
 
     Raises:
-        SelectionError: no ``TOPIC:`` in front, or the condition does not parse.
+        SelectionError: no colon, no topic or a topic with blanks, or a condition that does
+            not parse (its position counted in the condition).
     """
-    topic, sep, condition = text.partition(":")
-    topic = topic.strip()
-    if not sep or not topic or any(c.isspace() for c in topic):
-        raise SelectionError(
-            f"{text!r} is not 'TOPIC: CONDITION' (e.g. '/alerts: status[*].level >= 2')"
-        )
-    return absolute_topic_name(topic), parse_condition(condition.strip())
+    topic, colon, rest = text.partition(":")
+    name = topic.strip()
+    if not colon or not name or any(c.isspace() for c in name):
+        raise SelectionError(f"{text!r}: expected 'TOPIC: CONDITION' (e.g. '/alerts: level >= 2')")
+    try:
+        condition = parse_condition(rest.strip())
+    except SelectionError as exc:
+        raise SelectionError(f"{text!r}: {exc}") from None
+    return TopicCondition(absolute_topic_name(name), condition)
 
 
 def _leaf_pattern(path: tuple[Step, ...]) -> re.Pattern[str]:

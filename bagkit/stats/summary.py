@@ -149,7 +149,7 @@ class SummaryRun:
                 accumulator = wanted[message.topic]
                 matcher = self.matchers.get(message.topic)
                 if matcher is not None:
-                    failures = matcher.failures
+                    failures = matcher.undecodable
                     matched = matcher.matches(message.data)
                     _count_failures(matcher, accumulator, failures)
                     if not matched:
@@ -167,7 +167,7 @@ class SummaryRun:
         topic = accumulator.topic
         try:
             matcher = PayloadMatcher(
-                self.types, accumulator.type_name, self.where, topic, bulk=self.bulk
+                self.types, topic, accumulator.type_name, self.where, bulk=self.bulk
             )
         except UnknownFieldError:
             if single:
@@ -199,8 +199,8 @@ class SummaryRun:
                 log_times, starts, lengths = log_times[keep], starts[keep], lengths[keep]
             matcher = self.matchers.get(topic)
             if matcher is not None:
-                failures = matcher.failures
-                keep = matcher.mask(chunk.records, starts, lengths)
+                failures = matcher.undecodable
+                keep = matcher.mask_records(chunk.records, starts, lengths)
                 _count_failures(matcher, accumulator, failures)
                 log_times, starts, lengths = log_times[keep], starts[keep], lengths[keep]
             accumulator.add_times(log_times)
@@ -323,8 +323,8 @@ def finish_summary(run: SummaryRun, paths: list[str]) -> Summary:
 
 def _count_failures(matcher: PayloadMatcher, accumulator: TopicAccumulator, before: int) -> None:
     """Count the messages the matcher could not decode since it had ``before`` failures."""
-    if matcher.failures > before:
-        accumulator.fail(DecodeError(matcher.first_failure), matcher.failures - before)
+    if matcher.undecodable > before:
+        accumulator.fail(DecodeError(matcher.first_failure), matcher.undecodable - before)
 
 
 def _named(label: str, problem: str) -> str:

@@ -26,12 +26,12 @@ from bagkit.bag.definitions import canonical_type_name
 from bagkit.bag.errors import ChunkError
 from bagkit.bag.mcapio import Block, FileIndex, Source, count_messages, extent, read_chunk
 from bagkit.bag.mcapio.chunk_builder import ClosedChunk
-from bagkit.bag.mcapio.raw_chunk import check_raw_chunk, read_raw_chunk
+from bagkit.bag.mcapio.raw_chunk import check_raw_chunk, read_raw_chunk, stored_in_log_time_order
 from bagkit.bag.mcapio.records import ChunkIndex
 from bagkit.bag.messages import TopicInfo
 from bagkit.surgery.output import OutputBag
 from bagkit.surgery.runs import Run, emit, open_run
-from bagkit.surgery.select import Selection
+from bagkit.surgery.select import PayloadFilter, Selection
 
 _END = 1 << 64
 # Chunks read and waiting for their CRC check: enough to keep every core busy.
@@ -47,6 +47,7 @@ class InputFile:
     index: FileIndex
     known: dict[str, TopicInfo] = field(default_factory=dict)  # topics as the bag lists them
     channel_map: dict[int, int] = field(default_factory=dict)  # input id -> output id
+    content: dict[int, PayloadFilter] = field(default_factory=dict)  # input id -> --where
     problems: list[str] = field(default_factory=list)
 
 
@@ -123,14 +124,31 @@ class _CheckedCopies:
         self._out.copy_chunk(chunk)
 
 
+@dataclass(frozen=True)
+class CopyOptions:
+    """How chunks are read and when they may be copied as stored.
+
+    Attributes:
+        check_crc: check each chunk's CRC (a damaged chunk's messages are lost, reported).
+        stored_order: True: a chunk whose messages are stored out of log-time order (as
+            recorders writing per-topic batches store them) is opened and its messages written
+            in order, so the output is stored in log-time order (``merge``); False: it is
+            copied as stored (readers order by index; ``filter``, ``recover``).
+    """
+
+    check_crc: bool = True
+    stored_order: bool = False
+
+
 def copy_files(
-    files: list[InputFile], out: OutputBag, selection: Selection, *, check_crc: bool = True
+    files: list[InputFile], out: OutputBag, selection: Selection, options: CopyOptions
 ) -> None:
     """Copy the selected messages of ``files`` into ``out`` in log-time order (ties: file order).
 
     Opened messages wait in one heap until no block still to be read may hold an earlier one.
     Problems (chunks that cannot be read) are appended to each file's ``problems``.
     """
+    check_crc = options.check_crc
     streams = [_Stream(f, rank) for rank, f in enumerate(files)]
     pending: list[Run] = []
     copies = _CheckedCopies(out, check_crc)
@@ -151,7 +169,7 @@ def copy_files(
             if pending:
                 bound = min(bound, *(run.head() for run in pending))
             if block.message_end_time < bound and _may_copy(stream.file, block, selection, out):
-                _copy(stream, block, selection, copies, pending, check_crc)
+                _copy(stream, block, selection, copies, pending, options)
             else:
                 _open(stream, block, selection, check_crc, pending)
     finally:
@@ -164,22 +182,23 @@ def _copy(  # noqa: PLR0917 (the loop's state, passed as it is)
     selection: Selection,
     copies: _CheckedCopies,
     pending: list[Run],
-    check_crc: bool,
+    options: CopyOptions,
 ) -> None:
     """Copy a chunk as it is stored (or open it when its records show it cannot be)."""
     assert isinstance(block, ChunkIndex)
     # A chunk without Message Index records is decompressed to find its messages: its CRC is
     # checked then, not decompressed a second time on the pool.
-    inline = check_crc and not block.message_index_offsets
+    inline = options.check_crc and not block.message_index_offsets
     try:
         chunk = read_raw_chunk(stream.file.source, block, check_crc=inline)
     except ChunkError as exc:
         _lost(stream.file, block, str(exc))
         return
-    if _identity(stream.file, chunk.message_counts):
+    in_order = not options.stored_order or stored_in_log_time_order(chunk)
+    if in_order and _identity(stream.file, chunk.message_counts):
         copies.add(stream.file, block, chunk, checked=inline)
-    else:  # an index-less chunk holding channels that are not copied as they are
-        _open(stream, block, selection, check_crc, pending)
+    else:  # stored out of order, or an index-less chunk holding channels not copied as is
+        _open(stream, block, selection, options.check_crc, pending)
 
 
 def _may_copy(file: InputFile, block: Block, selection: Selection, out: OutputBag) -> bool:
@@ -195,9 +214,10 @@ def _may_copy(file: InputFile, block: Block, selection: Selection, out: OutputBa
 
 
 def _identity(file: InputFile, channel_ids: Iterable[int]) -> bool:
-    """Whether every one of ``channel_ids`` is selected and keeps its id in the output."""
-    mapping = file.channel_map
-    return all(mapping.get(c) == c for c in channel_ids)
+    """Whether every one of ``channel_ids`` is selected whole (no content filter) and keeps
+    its id in the output."""
+    mapping, content = file.channel_map, file.content
+    return all(mapping.get(c) == c and c not in content for c in channel_ids)
 
 
 def _open(
@@ -214,7 +234,9 @@ def _open(
     except ChunkError as exc:
         _lost(file, block, str(exc))
         return
-    run, bad = open_run(contents.records, contents.message_index, mapping, selection, stream.order)
+    run, bad = open_run(
+        contents.records, contents.message_index, mapping, selection, stream.order, file.content
+    )
     stream.order += 1 << 64
     if run is not None:
         pending.append(run)

@@ -9,3 +9,10 @@ class SurgeryError(BagkitError):
     """A bag cannot be rewritten as asked (bad option, output exists, nothing to write)."""
 
     exit_code = 2
+
+
+class NothingToCutError(SurgeryError):
+    """``--around``'s condition holds for no message: no window to cut (a result, not bad
+    input)."""
+
+    exit_code = 1

@@ -18,7 +18,7 @@ from bagkit.bag.bag_files import bag_metadata, compressor, file_information, fin
 from bagkit.bag.mcapio.chunk_builder import ChunkBuilder, ClosedChunk
 from bagkit.bag.mcapio.file_writer import McapFileWriter
 from bagkit.bag.mcapio.records import Channel, Header, Schema
-from bagkit.bag.messages import TopicInfo
+from bagkit.bag.messages import BagMessage, TopicInfo
 from bagkit.bag.metadata import BagMetadata, FileInformation, write_metadata
 from bagkit.bag.writer import DEFAULT_CHUNK_SIZE, LIBRARY
 from bagkit.selection.times import seconds_to_ns
@@ -98,6 +98,7 @@ class OutputBag:
         self.topics: dict[str, TopicInfo] = {}
         self.counts: dict[int, int] = {}
         self.chunks_copied = 0
+        self.custom_data: dict[str, str] = {}  # metadata.yaml's, as the caller merged them
         self._files: list[FileInformation] = []
         self._file: McapFileWriter | None = None
         self._chunk = ChunkBuilder()
@@ -159,6 +160,14 @@ class OutputBag:
             if len(chunk.records) >= self._chunk_size:
                 self._close_chunk()
             i = j
+
+    def write_message(self, channel_id: int, message: BagMessage, log_time: int) -> None:
+        """Append one message under ``channel_id`` (this bag's) at ``log_time``, its publish
+        time, sequence and payload as stored: the latched state written before a window."""
+        self._split_if_due(log_time, len(message.data))
+        self._chunk.add(channel_id, message.data, log_time, message.publish_time, message.sequence)
+        if len(self._chunk.records) >= self._chunk_size:
+            self._close_chunk()
 
     def copy_chunk(self, chunk: ClosedChunk) -> None:
         """Append a chunk as it is stored (its channel ids must be this bag's)."""
@@ -242,4 +251,4 @@ class OutputBag:
 
     def _metadata(self) -> BagMetadata:
         topics = [(t, self.counts[self.channels[n].id]) for n, t in self.topics.items()]
-        return bag_metadata(self._files, topics)
+        return bag_metadata(self._files, topics, self.custom_data)

@@ -11,7 +11,8 @@ from bagkit.bag import BagReader
 from bagkit.bag.mcapio import MAGIC, Source, read_file_index
 from bagkit.selection.topics import require_topics
 from bagkit.selection.windows import outside_warning
-from bagkit.surgery.copy import InputFile, copy_files, topics_of
+from bagkit.surgery.carry import latched_messages, merged_custom_data, write_latched
+from bagkit.surgery.copy import CopyOptions, InputFile, copy_files, topics_of
 from bagkit.surgery.errors import SurgeryError
 from bagkit.surgery.output import OutputBag
 from bagkit.surgery.select import Selection
@@ -25,7 +26,8 @@ class RewriteReport:
         output: the bag written.
         files: its storage files.
         input_messages: messages the inputs' indexes (or salvage) counted.
-        topic_counts: messages written per topic.
+        topic_counts: messages written per topic (the latched state's included).
+        latched_messages: messages of the latched state written before the window.
         chunks_copied: chunks copied as they were stored.
         problems: what was lost or could not be read, one line each.
         warnings: what the user should know that lost nothing (a time window outside the
@@ -37,6 +39,7 @@ class RewriteReport:
     input_messages: int = 0
     topic_counts: dict[str, int] = field(default_factory=dict)
     chunks_copied: int = 0
+    latched_messages: int = 0
     problems: list[str] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
 
@@ -54,6 +57,7 @@ class RewriteReport:
             "message_count": self.message_count,
             "topic_counts": self.topic_counts,
             "chunks_copied": self.chunks_copied,
+            "latched_messages": self.latched_messages,
             "problems": self.problems,
             "warnings": self.warnings,
         }
@@ -73,7 +77,8 @@ class OutputOptions:
 def filter_bag(
     bag: Path, output: Path, selection: Selection, options: OutputOptions | None = None
 ) -> RewriteReport:
-    """Write the messages of ``bag`` that ``selection`` keeps to a new bag ``output``.
+    """Write the messages of ``bag`` that ``selection`` keeps to a new bag ``output``; with a
+    start, the latched state before it first (:mod:`~bagkit.surgery.carry`).
 
     Raises:
         BagError: the input cannot be opened. SurgeryError: see :class:`OutputBag`.
@@ -87,10 +92,14 @@ def merge_bags(
     selection: Selection | None = None,
     options: OutputOptions | None = None,
 ) -> RewriteReport:
-    """Merge ``bags`` into one new bag in log-time order (ties: in the order given)."""
+    """Merge ``bags`` into one new bag stored in log-time order (ties: in the order given).
+
+    Chunks stored out of log-time order (per-topic batches) are opened and written in order.
+    """
     if not bags:
         raise SurgeryError("no input bag")
-    return _rewrite(list(bags), output, selection or Selection(), options or OutputOptions())
+    selection = selection or Selection()
+    return _rewrite(list(bags), output, selection, options or OutputOptions(), stored_order=True)
 
 
 def recover_bag(bag: Path, output: Path, options: OutputOptions | None = None) -> RewriteReport:
@@ -99,13 +108,21 @@ def recover_bag(bag: Path, output: Path, options: OutputOptions | None = None) -
 
 
 def _rewrite(
-    bags: list[Path], output: Path, selection: Selection, options: OutputOptions
+    bags: list[Path],
+    output: Path,
+    selection: Selection,
+    options: OutputOptions,
+    *,
+    stored_order: bool = False,
 ) -> RewriteReport:
     _check_output(bags, output)
     report = RewriteReport(output=output)
-    spans: list[tuple[int, int]] = []
-    with _opened_inputs(bags, report, spans) as files:
-        selection = _resolve(selection, bags, files, spans, report)
+    inputs = _Inputs()
+    with _opened_inputs(bags, report, inputs) as files:
+        selection = _resolve(selection, bags, files, inputs.spans, report)
+        latched = latched_messages(
+            bags, {n: t for f in files for n, t in f.known.items()}, selection
+        )
         out = OutputBag(
             output,
             compression=options.compression,
@@ -113,19 +130,33 @@ def _rewrite(
             max_bag_duration_s=options.max_bag_duration_s,
             force=options.force,
         )
+        out.custom_data = merged_custom_data(inputs.custom_data)
         try:
             _add_topics(files, out, selection)
-            copy_files(files, out, selection, check_crc=options.check_crc)
+            if latched and selection.window.start_ns is not None:
+                write_latched(out, latched, selection.window.start_ns)
+            copy_files(files, out, selection, CopyOptions(options.check_crc, stored_order))
             report.files = out.commit()
         except BaseException:
             out.abort()
             raise
     for file in files:
         report.problems.extend(file.problems)
+    report.problems += [f.problem for f in selection.content.values() if f.problem]
     report.input_messages = sum(f.index.message_count for f in files)
     report.topic_counts = {n: out.counts[c.id] for n, c in out.channels.items()}
     report.chunks_copied = out.chunks_copied
+    report.latched_messages = len(latched)
     return report
+
+
+@dataclass
+class _Inputs:
+    """What the inputs' readers told: each bag's (first, last) log time when it has messages,
+    and each bag's (name, custom_data)."""
+
+    spans: list[tuple[int, int]] = field(default_factory=list)
+    custom_data: list[tuple[str, dict[str, str]]] = field(default_factory=list)
 
 
 def _check_output(bags: list[Path], output: Path) -> None:
@@ -138,10 +169,10 @@ def _check_output(bags: list[Path], output: Path) -> None:
 
 @contextlib.contextmanager
 def _opened_inputs(
-    bags: list[Path], report: RewriteReport, spans: list[tuple[int, int]]
+    bags: list[Path], report: RewriteReport, inputs: _Inputs
 ) -> Iterator[list[InputFile]]:
-    """Every MCAP file of ``bags`` in order, with its index (summary or salvage); the first
-    and last log time of each bag with messages are appended to ``spans``."""
+    """Every MCAP file of ``bags`` in order, with its index (summary or salvage); what each
+    bag's reader tells is appended to ``inputs``."""
     files: list[InputFile] = []
     handles = []
     try:
@@ -149,7 +180,9 @@ def _opened_inputs(
             with BagReader(bag, allow_empty=True) as reader:
                 paths, known, missing = list(reader.files), dict(reader.topics), reader.problems
                 if reader.message_count:
-                    spans.append((reader.start_ns, reader.end_ns))
+                    inputs.spans.append((reader.start_ns, reader.end_ns))
+                custom_data = dict(reader.metadata.custom_data) if reader.metadata else {}
+                inputs.custom_data.append((bag.name, custom_data))
             report.problems.extend(p for p in missing if "missing" in p or "unreadable" in p)
             for path in paths:
                 handle = open(path, "rb")  # noqa: SIM115 (closed below)
@@ -196,6 +229,8 @@ def _add_topics(files: list[InputFile], out: OutputBag, selection: Selection) ->
         for channel_id, topic, definition in topics_of(file.index, file.known):
             if not selection.topic_passes(topic.name):
                 continue
+            if topic.name in selection.content:
+                file.content[channel_id] = selection.content[topic.name]
             known = types.setdefault(topic.name, topic.type)
             if known != topic.type:
                 raise SurgeryError(

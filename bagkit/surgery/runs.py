@@ -7,6 +7,7 @@ and payload as stored) into the output's chunk, the channel id rewritten in plac
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Literal
 
@@ -15,7 +16,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from bagkit.bag.mcapio.records import MESSAGE_PREFIX, MESSAGE_RECORD_HEADER, RECORD_HEADER, Opcode
 from bagkit.surgery.output import OutputBag
-from bagkit.surgery.select import Selection
+from bagkit.surgery.select import PayloadFilter, Selection
 
 _LOG_TIME_AT = RECORD_HEADER.size + 2 + 4  # channel id (u16), sequence (u32), then log time
 _CHANNEL_AT = RECORD_HEADER.size
@@ -47,20 +48,22 @@ class Run:
         return self.cursor >= len(self.times)
 
 
-def open_run(
+def open_run(  # noqa: PLR0917 (the opened chunk and how it is selected)
     records: bytes,
     message_index: dict[int, np.ndarray],
     mapping: dict[int, int],
     selection: Selection,
     rank: int,
+    content: Mapping[int, PayloadFilter] | None = None,
 ) -> tuple[Run | None, int]:
     """The selected, whole Message records of a chunk as a run, and how many entries pointed at
-    no whole Message record."""
-    parts = [(e, mapping[c]) for c, e in message_index.items() if c in mapping and len(e)]
+    no whole Message record. ``content``: filters of input channels (``--where``)."""
+    parts = [(c, e) for c, e in message_index.items() if c in mapping and len(e)]
     if not parts:
         return None, 0
-    offsets = np.concatenate([e["offset"] for e, _ in parts]).astype(np.int64)
-    channels = np.concatenate([np.full(len(e), c, np.uint16) for e, c in parts])
+    offsets = np.concatenate([e["offset"] for _, e in parts]).astype(np.int64)
+    inputs = np.concatenate([np.full(len(e), c, np.uint16) for c, e in parts])
+    channels = np.concatenate([np.full(len(e), mapping[c], np.uint16) for c, e in parts])
     size = len(records)
     valid = offsets <= size - MESSAGE_RECORD_HEADER.size
     buf = np.frombuffer(records, np.uint8)
@@ -81,6 +84,11 @@ def open_run(
         keep &= times >= np.uint64(max(window.start_ns, 0))
     if window.end_ns is not None:
         keep &= times < np.uint64(min(max(window.end_ns, 0), _MAX_TIME))
+    for channel, payload_filter in (content or {}).items():
+        rows = np.flatnonzero(keep & (inputs == channel))
+        if len(rows):
+            starts = offsets[rows] + MESSAGE_RECORD_HEADER.size
+            keep[rows] = payload_filter.mask_records(records, starts, ends[rows] - starts)
     order = np.flatnonzero(keep)
     order = order[np.lexsort((offsets[order], times[order]))]
     if not len(order):

@@ -10,23 +10,48 @@ its first message). Pure: no ROS, no files.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Protocol
 
+from bagkit.bag.latched import LatchedOptions
 from bagkit.selection.times import TimeLike
 from bagkit.selection.topics import TopicSelection
 from bagkit.selection.windows import TimeRange, Window
 
+if TYPE_CHECKING:
+    import numpy as np
+
 _EVERY_TOPIC = TopicSelection(all_topics=True, include_hidden=True)
+
+
+class PayloadFilter(Protocol):
+    """Which messages of a topic pass by their content (``--where``), payloads not decoded
+    here: the caller's (``bagkit.data.matching.PayloadMatcher``, a layer above)."""
+
+    def mask_records(self, records: bytes, starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+        """Whether each payload at ``starts``/``lengths`` in a chunk's records passes."""
+
+    @property
+    def problem(self) -> str | None:
+        """What could not be matched (undecodable messages, dropped), or None."""
 
 
 @dataclass(frozen=True)
 class Selection:
-    """The topics to keep, the time range as given, and (once resolved) its log-time window."""
+    """The topics to keep, the time range as given, and (once resolved) its log-time window.
+
+    Attributes:
+        latched: the latched state written before a window's start (see
+            :mod:`bagkit.bag.latched`): on by default.
+        content: topics whose messages pass only when their filter says so (``--where``).
+    """
 
     topics: TopicSelection = _EVERY_TOPIC
     span: TimeRange = field(default_factory=TimeRange)
     window: Window = field(default_factory=Window)
+    latched: LatchedOptions = field(default_factory=LatchedOptions)
+    content: Mapping[str, PayloadFilter] = field(default_factory=dict)
 
     @classmethod
     def create(  # noqa: PLR0917 (the options of ``bagkit filter``, in its order)

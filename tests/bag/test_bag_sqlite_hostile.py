@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from ros2_messages import DB3_SCHEMA as SCHEMA
 from rosbags.typesys import Stores, get_typestore
 
 from bagkit.bag import BagReader, CorruptBagError, NotABagError
@@ -18,21 +19,6 @@ BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 STRING = "std_msgs/msg/String"
 START = 1_700_000_000_000_000_000
-# rosbag2 Jazzy's schema (as in its sqlite3 test bags).
-SCHEMA = """
-CREATE TABLE schema(schema_version INTEGER PRIMARY KEY, ros_distro TEXT NOT NULL);
-CREATE TABLE metadata(id INTEGER PRIMARY KEY, metadata_version INTEGER NOT NULL,
-                      metadata TEXT NOT NULL);
-CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL,
-                    serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL,
-                    type_description_hash TEXT NOT NULL);
-CREATE TABLE message_definitions(id INTEGER PRIMARY KEY, topic_type TEXT NOT NULL,
-                                 encoding TEXT NOT NULL, encoded_message_definition TEXT NOT NULL,
-                                 type_description_hash TEXT NOT NULL);
-CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL,
-                      timestamp INTEGER NOT NULL, data BLOB NOT NULL);
-CREATE INDEX timestamp_idx ON messages (timestamp ASC);
-"""
 
 
 def _payload(text: str) -> bytes:

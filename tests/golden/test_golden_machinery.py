@@ -167,3 +167,19 @@ def test_accepting_unchanged_behaviour_rewrites_no_fixture(tmp_path: Path) -> No
     assert update.returncode == 0, update.stdout + update.stderr
     assert update.stdout.count("unchanged, nothing rewritten") == 3, update.stdout
     assert digest(fixtures) == before
+
+
+def test_update_keeps_the_goldens_custom_data(fixture_dir: Path) -> None:
+    """A rewritten golden keeps metadata.yaml's custom_data (the recorder's loss figures)."""
+    metadata_file = fixture_dir / "golden" / "metadata.yaml"
+    metadata = yaml.safe_load(metadata_file.read_text())
+    kept = {"bagkit.record.lost": "3", "site": "test field"}
+    metadata["rosbag2_bagfile_information"]["custom_data"] = kept
+    metadata_file.write_text(yaml.safe_dump(metadata, sort_keys=False))
+    spec_file = fixture_dir / "spec.yaml"
+    spec_data = yaml.safe_load(spec_file.read_text())
+    spec_data["processor_args"]["nodes"]["sensor_fusion"] = {"qnh": 101335.0}
+    spec_file.write_text(yaml.safe_dump(spec_data))
+    assert update_golden(load_spec(fixture_dir)).rewritten
+    with BagReader(fixture_dir / "golden") as bag:
+        assert bag.metadata is not None and bag.metadata.custom_data == kept

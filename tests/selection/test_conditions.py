@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bagkit.selection.conditions import parse_condition
+from bagkit.selection.conditions import parse_condition, parse_topic_condition
 from bagkit.selection.errors import SelectionError, UnknownFieldError
 
 
@@ -154,3 +154,14 @@ def test_comparing_text_with_a_number_is_one_error() -> None:
         reads = condition.bulk_columns(["accel.x"])
         assert reads is not None
         condition.mask({"accel.x": np.zeros(2)}, reads)
+
+
+def test_topic_condition_splits_at_the_first_colon() -> None:
+    trigger = parse_topic_condition("alerts:  message == 'a: b' and level >= 2")
+    assert trigger.topic == "/alerts"
+    assert trigger.condition.text == "message == 'a: b' and level >= 2"
+    assert trigger.text == "/alerts: message == 'a: b' and level >= 2"
+    with pytest.raises(SelectionError, match="expected 'TOPIC: CONDITION'"):
+        parse_topic_condition("level >= 2")
+    with pytest.raises(SelectionError, match="'/alerts: level >=': bad condition"):
+        parse_topic_condition("/alerts: level >=")

@@ -21,7 +21,9 @@ from bagkit.bag.mcapio.records import (
     ChunkIndex,
     Opcode,
     encode_message_index,
+    iter_records,
     parse_chunk,
+    parse_message_index,
 )
 from bagkit.bag.mcapio.source import Source
 
@@ -108,6 +110,27 @@ def _message_indexes(
         return walk_chunk(records).message_index()
     except CorruptBagError as exc:
         raise ChunkError(str(exc)) from None
+
+
+def stored_in_log_time_order(chunk: ClosedChunk) -> bool:
+    """Whether the chunk's messages are stored in log-time order, from its Message Index
+    records (nothing decompressed). Recorders writing per-topic batches store them out of it."""
+    import numpy as np
+
+    parts = [
+        parse_message_index(content)[1]
+        for _, opcode, content in iter_records(chunk.message_indexes)
+        if opcode == Opcode.MESSAGE_INDEX
+    ]
+    if len(parts) > 1:
+        entries = np.concatenate(parts)
+        entries = entries[np.argsort(entries["offset"], kind="stable")]
+    elif parts:
+        entries = parts[0]
+    else:
+        return True
+    times = entries["log_time"]
+    return bool((times[1:] >= times[:-1]).all())
 
 
 def check_raw_chunk(chunk: ClosedChunk, max_size: int = DEFAULT_MAX_CHUNK_SIZE) -> None:

@@ -1,0 +1,110 @@
+"""Episodes: where a condition holds over a topic's messages, as (start, end, count) spans.
+
+An episode is a run of consecutive messages of the topic that match (log-time order); runs
+separated by less than ``gap_ns`` (from the last match of one to the first of the next) merge
+into one, whatever did not match between them. ``start_ns``/``end_ns`` are the log times of
+the first and last matching message, ``count`` the matches in it. ``bagkit find`` lists them,
+``bagkit filter --around`` cuts a bag around each.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bagkit.bag import BagReader
+from bagkit.data.matching import match_topic
+from bagkit.selection.conditions import TopicCondition
+from bagkit.selection.windows import Window
+
+
+@dataclass(frozen=True, slots=True)
+class Episode:
+    """Where a condition held: first and last matching log time (ns), matches in between."""
+
+    start_ns: int
+    end_ns: int
+    count: int
+
+
+@dataclass
+class Episodes:
+    """The episodes of one topic condition in one bag, and what could not be matched.
+
+    Attributes:
+        topic: the topic.
+        episodes: in time order.
+        messages: messages of the topic looked at.
+        undecodable: those that did not decode (counted, never matched).
+        problems: what could not be read, one line each.
+    """
+
+    topic: str
+    episodes: list[Episode]
+    messages: int = 0
+    undecodable: int = 0
+    problems: list[str] = field(default_factory=list)
+
+
+def episodes_of(log_times: np.ndarray, matched: np.ndarray, gap_ns: int = 0) -> list[Episode]:
+    """The episodes of a topic's messages (pure).
+
+    Args:
+        log_times: every message's log time (ns), ascending.
+        matched: whether each matched (bool, same length).
+        gap_ns: runs of matches less than this apart (last of one to first of the next)
+            merge into one episode; 0 keeps every run apart.
+    """
+    flags = np.concatenate(([False], np.asarray(matched, dtype=bool), [False]))
+    edges = np.diff(flags.astype(np.int8))
+    firsts = np.flatnonzero(edges == 1)  # index of each run's first message
+    lasts = np.flatnonzero(edges == -1) - 1  # and of its last
+    if not len(firsts):
+        return []
+    times = np.asarray(log_times, dtype=np.int64)
+    # A run opens a new episode unless it starts within gap_ns of the previous run's end.
+    apart = times[firsts[1:]] - times[lasts[:-1]] >= gap_ns
+    opens = np.concatenate(([0], np.flatnonzero(apart) + 1))
+    closes = np.concatenate((opens[1:] - 1, [len(firsts) - 1]))
+    run_counts = np.cumsum(lasts - firsts + 1)
+    before = np.concatenate(([0], run_counts))
+    return [
+        Episode(int(times[firsts[o]]), int(times[lasts[c]]), int(before[c + 1] - before[o]))
+        for o, c in zip(opens.tolist(), closes.tolist(), strict=True)
+    ]
+
+
+def find_episodes(
+    reader: BagReader, trigger: TopicCondition, gap_ns: int = 0, window: Window | None = None
+) -> Episodes:
+    """The episodes of ``trigger`` (``TOPIC: CONDITION``) in an open bag.
+
+    Fixed-layout topics are matched in bulk with numpy, others message by message
+    (:mod:`bagkit.data.matching`).
+
+    Args:
+        reader: the open bag.
+        trigger: the topic and the condition on its messages.
+        gap_ns: see :func:`episodes_of`.
+        window: only messages in it (the whole bag when None).
+
+    Raises:
+        UnknownTopicError, UnknownFieldError, UndecodableTopicError; SelectionError when a
+        value cannot be compared with its field.
+    """
+    matches = match_topic(reader, trigger.topic, trigger.condition, window)
+    return Episodes(
+        matches.topic,
+        episodes_of(matches.log_times, matches.matched, gap_ns),
+        len(matches.log_times),
+        matches.undecodable,
+        matches.problems,
+    )
+
+
+def episode_windows(episodes: Sequence[Episode], before_ns: int, after_ns: int) -> list[Window]:
+    """The window around each episode: from ``before_ns`` before its first match to
+    ``after_ns`` after its last, that one included (``[start - before, end + after + 1)``)."""
+    return [Window(max(e.start_ns - before_ns, 0), e.end_ns + after_ns + 1) for e in episodes]

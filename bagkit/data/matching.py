@@ -1,0 +1,143 @@
+"""Which messages of a topic satisfy a condition, over a whole bag (``find``, ``--around``).
+
+The matching itself is :class:`bagkit.decode.matcher.PayloadMatcher` (the one matcher, shared
+with ``--where`` on export, plot and stats): the columns a condition reads decoded in bulk with
+numpy for fixed layouts, decoded messages otherwise. A message that does not decode is counted,
+never matched.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bagkit.bag import BagReader
+from bagkit.data.engine import payload_spans
+from bagkit.data.errors import UndecodableTopicError, UnknownFieldError
+from bagkit.decode import DecodeError, MessageTypes
+from bagkit.decode.matcher import PayloadMatcher, matched_payloads
+from bagkit.selection.conditions import Condition
+from bagkit.selection.topics import require_topics
+from bagkit.selection.windows import Window
+
+# Messages of chunkless storage (.db3) are matched this many at a time.
+MESSAGES_PER_BATCH = 8192
+
+
+@dataclass
+class TopicMatches:
+    """Every message of one topic in a window, in log-time order, and whether it matched.
+
+    Attributes:
+        topic: the topic.
+        log_times: int64 ns, ascending (ties in storage order).
+        matched: bool, one per message (False for messages that did not decode).
+        undecodable: messages that did not decode.
+        problems: what could not be read, one line each (the bag's and the decoder's).
+    """
+
+    topic: str
+    log_times: np.ndarray
+    matched: np.ndarray
+    undecodable: int = 0
+    problems: list[str] = field(default_factory=list)
+
+    @property
+    def count(self) -> int:
+        """Messages that matched."""
+        return int(self.matched.sum())
+
+
+def match_topic(
+    reader: BagReader, topic: str, condition: Condition, window: Window | None = None
+) -> TopicMatches:
+    """Match every message of ``topic`` in ``window`` (the whole bag when None) of an open bag.
+
+    Raises:
+        UnknownTopicError, UnknownFieldError, UndecodableTopicError; SelectionError when a
+        value cannot be compared with its field (text with a number).
+    """
+    (topic,) = require_topics([topic], reader.topics)
+    window = window or Window()
+    types = MessageTypes.from_definitions(reader.definitions)
+    try:
+        matcher = PayloadMatcher(types, topic, reader.topics[topic].type, condition)
+    except DecodeError as exc:
+        raise UndecodableTopicError(f"{topic} cannot be decoded: {exc}") from None
+    times: list[np.ndarray] = []
+    masks: list[np.ndarray] = []
+    if "sqlite3" in reader.storage.split(","):
+        _match_messages(reader, topic, window, matcher, times, masks)
+    else:
+        for chunk in reader.chunks([topic]):
+            spans = payload_spans(
+                chunk.records, chunk.message_index[topic], window.start_ns, window.end_ns
+            )
+            times.append(spans.log_times)
+            masks.append(matcher.mask_records(chunk.records, spans.starts, spans.lengths))
+    log_times = np.concatenate(times) if times else np.zeros(0, np.int64)
+    matched = np.concatenate(masks) if masks else np.zeros(0, bool)
+    order = np.argsort(log_times, kind="stable")  # chunks may overlap in time
+    problems = list(reader.problems)
+    if matcher.problem:
+        problems.append(matcher.problem)
+    return TopicMatches(topic, log_times[order], matched[order], matcher.undecodable, problems)
+
+
+def _match_messages(  # noqa: PLR0917 (private: the loop's state)
+    reader: BagReader,
+    topic: str,
+    window: Window,
+    matcher: PayloadMatcher,
+    times: list[np.ndarray],
+    masks: list[np.ndarray],
+) -> None:
+    """Storage without chunks (also a bag mixing .db3 and .mcap files): message by message."""
+    payloads: list[bytes] = []
+    log_times: list[int] = []
+
+    def flush() -> None:
+        times.append(np.array(log_times, dtype=np.int64))
+        masks.append(matched_payloads(matcher, payloads))
+        payloads.clear()
+        log_times.clear()
+
+    for message in reader.messages([topic], window.start_ns, window.end_ns):
+        payloads.append(message.data)
+        log_times.append(message.log_time)
+        if len(payloads) >= MESSAGES_PER_BATCH:
+            flush()
+    if payloads:
+        flush()
+
+
+def where_filters(
+    reader: BagReader, condition: Condition, passes: Callable[[str], bool]
+) -> dict[str, PayloadMatcher]:
+    """A matcher for each topic of an open bag that ``passes`` and whose type has every field
+    ``condition`` reads (``filter --where``: the other topics are kept whole).
+
+    Raises:
+        UnknownFieldError: no such topic (the message names the fields of the first one).
+    """
+    types = MessageTypes.from_definitions(reader.definitions)
+    matchers: dict[str, PayloadMatcher] = {}
+    first_error: UnknownFieldError | None = None
+    for name in sorted(reader.topics):
+        if not passes(name) or reader.topics[name].serialization_format != "cdr":
+            continue
+        try:
+            matchers[name] = PayloadMatcher(types, name, reader.topics[name].type, condition)
+        except DecodeError:  # the type cannot be decoded: the topic is kept whole
+            continue
+        except UnknownFieldError as exc:
+            first_error = first_error or exc
+    if not matchers:
+        if first_error is not None:
+            raise UnknownFieldError(
+                f"no selected topic has the fields of the condition: {first_error}"
+            )
+        raise UnknownFieldError("no selected topic can be decoded to check the condition")
+    return matchers
