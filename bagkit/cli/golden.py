@@ -11,6 +11,7 @@ import typer
 
 from bagkit.cli.common import console, err_console, fail, handle_errors, note
 from bagkit.cli.fleet_options import Scheduler, Workers
+from bagkit.cli.selection_options import End, Start
 from bagkit.regression.spec import FixtureSpec, find_fixtures, load_spec
 
 app = typer.Typer(
@@ -134,3 +135,44 @@ def record(fixtures: list[Path] | None = FIXTURES_ARG) -> None:
         size = sum(f.stat().st_size for f in spec.bag.iterdir())
         listed = ", ".join(f"{t} {n}" for t, n in sorted(counts.items()))
         console.print(f"{spec.name}: {spec.bag} {size / 1e6:.2f} MB; {listed}", highlight=False)
+
+
+@app.command("add", no_args_is_help=True)
+@handle_errors
+def add(
+    fixture: Path = typer.Argument(
+        ..., help="The new fixture folder, e.g. fixtures/gps_outage.", show_default=False
+    ),
+    bag: Path = typer.Option(..., "--from", help="The recording to cut.", metavar="BAG"),
+    start: Start = None,
+    end: End = None,
+    like: Path | None = typer.Option(
+        None,
+        "--like",
+        help="A fixture whose spec.yaml to copy (its processor makes the expected outputs).",
+        metavar="FIXTURE",
+    ),
+) -> None:
+    """Make a fixture from a window of a recording: FIXTURE/golden and FIXTURE/spec.yaml.
+
+    The window (--start/--end, with the latched state from before it) is cut from BAG. With
+    --like, the spec is copied and the window's inputs run through its processor in lockstep,
+    the system starting at the window's start: the golden holds the inputs and those outputs,
+    and pytest runs the fixture at once. Without it, the golden is the window as recorded and
+    spec.yaml a commented template naming its topics.
+
+    Example: bagkit golden add fixtures/gps_outage --from flight1 --start 12 --end 22
+    --like fixtures/faults
+    """
+    from bagkit.regression.add import AddOptions, add_fixture
+
+    if "" not in sys.path and os.getcwd() not in sys.path:  # as _specs: factories from here
+        sys.path.insert(0, os.getcwd())
+    added = add_fixture(fixture, AddOptions(bag, start, end, like))
+    listed = ", ".join(f"{t} {n}" for t, n in added.counts.items())
+    if added.lockstep is not None:
+        made = ", ".join(f"{t} {n}" for t, n in sorted(added.lockstep.output_counts.items()))
+        listed += f"; outputs from lockstep: {made}"
+    console.print(f"{fixture}: {fixture / 'golden'}; {listed}", highlight=False, soft_wrap=True)
+    if added.spec is None:
+        note(f"edit {fixture / 'spec.yaml'}: name the system under test and its outputs")
