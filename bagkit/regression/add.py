@@ -11,14 +11,16 @@ from __future__ import annotations
 
 import shutil
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from bagkit.bag import BagReader
+from bagkit.data.episodes import episode_windows, find_episodes
 from bagkit.regression.errors import RegressionError
 from bagkit.regression.lockstep import LockstepResult, run_lockstep
 from bagkit.regression.processor import make_processors
 from bagkit.regression.spec import BAG_DIR, SPEC_FILE, FixtureSpec, load_spec
+from bagkit.selection.conditions import parse_topic_condition
 from bagkit.selection.times import TimeLike
 from bagkit.surgery.rewrite import filter_bag
 from bagkit.surgery.select import Selection
@@ -32,12 +34,19 @@ class AddOptions:
         bag: the recording to cut.
         start, end: the window (:mod:`bagkit.selection.times`, read against ``bag``).
         like: a fixture folder whose ``spec.yaml`` the new fixture copies (None: a template).
+        around: instead of start/end, ``TOPIC: CONDITION``: the window of its first episode
+            (matches less than ``gap_ns`` apart merged), ``before_ns`` before its first match
+            to ``after_ns`` after its last.
     """
 
     bag: Path
     start: TimeLike | None = None
     end: TimeLike | None = None
     like: Path | None = None
+    around: str | None = None
+    before_ns: int = 0
+    after_ns: int = 0
+    gap_ns: int = 0
 
 
 @dataclass(frozen=True, slots=True)
@@ -49,6 +58,8 @@ class AddedFixture:
     spec: FixtureSpec | None
     counts: dict[str, int]
     lockstep: LockstepResult | None = None
+    episodes: int = 0
+    """With ``around``: the episodes found (the first one is the fixture's window)."""
 
 
 def add_fixture(directory: Path, options: AddOptions) -> AddedFixture:
@@ -62,6 +73,7 @@ def add_fixture(directory: Path, options: AddOptions) -> AddedFixture:
     if directory.exists() and any(directory.iterdir()):
         raise RegressionError(f"{directory} exists and is not empty: choose a new folder")
     like = None if options.like is None else load_spec(options.like)
+    options, episodes = _around(options)
     directory.mkdir(parents=True, exist_ok=True)
     try:
         with tempfile.TemporaryDirectory(dir=directory, prefix=".add-") as tmp:
@@ -75,7 +87,7 @@ def add_fixture(directory: Path, options: AddOptions) -> AddedFixture:
             if like is None:
                 window.rename(directory / BAG_DIR)
                 (directory / SPEC_FILE).write_text(_template(options, counts, types))
-                return AddedFixture(directory, None, counts)
+                return AddedFixture(directory, None, counts, episodes=episodes)
             (directory / SPEC_FILE).write_text(_copied(options, like))
             spec = load_spec(directory)
             result = run_lockstep(
@@ -89,13 +101,32 @@ def add_fixture(directory: Path, options: AddOptions) -> AddedFixture:
     except BaseException:
         shutil.rmtree(directory, ignore_errors=True)
         raise
-    return AddedFixture(directory, spec, counts, result)
+    return AddedFixture(directory, spec, counts, result, episodes)
+
+
+def _around(options: AddOptions) -> tuple[AddOptions, int]:
+    """``options`` with the window of the first episode of ``around`` as start and end (in
+    absolute ns), and how many episodes there were."""
+    if options.around is None:
+        return options, 0
+    if options.start is not None or options.end is not None:
+        raise RegressionError("--around sets the window: it takes no --start or --end")
+    trigger = parse_topic_condition(options.around)
+    with BagReader(options.bag) as reader:
+        found = find_episodes(reader, trigger, options.gap_ns)
+    if not found.episodes:
+        raise RegressionError(f"{options.bag}: {trigger.text!r} holds for no message")
+    (window,) = episode_windows(found.episodes[:1], options.before_ns, options.after_ns)
+    return replace(options, start=f"{window.start_ns}ns", end=f"{window.end_ns}ns"), len(
+        found.episodes
+    )
 
 
 def _origin(options: AddOptions) -> str:
     start = "the start" if options.start is None else str(options.start)
     end = "the end" if options.end is None else str(options.end)
-    return f"# Cut by `bagkit golden add` from {options.bag}, from {start} to {end}.\n"
+    why = "" if options.around is None else f" (around the first episode of {options.around!r})"
+    return f"# Cut by `bagkit golden add` from {options.bag}, from {start} to {end}{why}.\n"
 
 
 def _copied(options: AddOptions, like: FixtureSpec) -> str:

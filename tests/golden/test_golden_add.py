@@ -80,3 +80,26 @@ def test_without_like_the_window_is_kept_and_the_spec_is_a_template(tmp_path: Pa
     again = _bagkit(copy, "golden", "add", "fixtures/raw", "--from", "fixtures/faults/golden")
     assert again.returncode != 0 and again.stderr.startswith("error: fixtures/raw exists")
     assert again.stderr.count("\n") == 1
+
+
+def test_around_takes_the_first_episode_with_its_margins(tmp_path: Path) -> None:
+    from bagkit.data.episodes import find_episodes
+    from bagkit.regression.add import AddOptions, add_fixture
+    from bagkit.regression.golden import check_lockstep
+    from bagkit.selection.conditions import parse_topic_condition
+
+    faults = load_spec(Path(__file__).resolve().parents[2] / "fixtures" / "faults")
+    trigger = "/alerts: status[*].level >= 2"
+    with BagReader(faults.bag) as reader:
+        found = find_episodes(reader, parse_topic_condition(trigger))
+    first = found.episodes[0]
+    assert len(found.episodes) > 1
+    options = AddOptions(
+        faults.bag, like=faults.directory, around=trigger, before_ns=10**9, after_ns=3 * 10**9
+    )
+    added = add_fixture(tmp_path / "alert", options)
+    assert added.episodes == len(found.episodes)
+    with BagReader(tmp_path / "alert" / "golden") as window:
+        inputs = [m.log_time for m in window.messages(faults.inputs)]
+    assert first.start_ns - 10**9 <= min(inputs) and max(inputs) <= first.end_ns + 3 * 10**9
+    assert check_lockstep(load_spec(tmp_path / "alert"), tmp_path / "work").passed
