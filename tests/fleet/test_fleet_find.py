@@ -133,3 +133,48 @@ def test_cli_bad_input_is_one_line(
     assert result.returncode == 2, result.stderr
     assert result.stderr.startswith(error) and result.stderr.count("\n") == 1, result.stderr
     assert not (tmp_path / "PWNED").exists()
+
+
+def test_catalog_events_store_the_episodes_and_search_only_what_changed(
+    fleet_dir: Path, tmp_path: Path
+) -> None:
+    import shutil
+
+    from bagkit.fleet.events import events_path, query_events, read_events
+
+    root = tmp_path / "bags"
+    shutil.copytree(fleet_dir, root)
+    catalog = tmp_path / "cat.parquet"
+    event = f"high={WHEN}"
+    built = _bagkit("catalog", root, "-o", catalog, "--events", event, "--workers", "0",
+                    cwd=tmp_path)  # fmt: skip
+    assert built.returncode == 0, built.stderr
+    from bagkit.fleet import expand_bags
+
+    bags = expand_bags([root])
+    expected = find_fleet(bags, when=WHEN).episodes
+    frame = read_events(events_path(catalog))
+    had = query_events(frame, "high")
+    assert [(p, int(s.value), int(e.value), c) for p, s, e, c in zip(
+        had["path"], had["start"], had["end"], had["count"], strict=True
+    )] == [(e.bag, e.start_ns, e.end_ns, e.count) for e in expected]  # fmt: skip
+    # A window: only the episodes of the first bag's first second.
+    first = expected[0]
+    early = query_events(frame, "high", end=f"{first.start_ns}ns")
+    assert set(early["path"]) == {first.bag}
+
+    shutil.rmtree(bags[0])  # a bag gone, the others unchanged: nothing searched again
+    again = _bagkit("catalog", root, "-o", catalog, "--events", event, "--workers", "0",
+                    cwd=tmp_path)  # fmt: skip
+    assert again.returncode == 0, again.stderr
+    assert "1 removed" in again.stderr
+    left = read_events(events_path(catalog))
+    assert str(bags[0]) not in set(left["path"])
+    assert len(left) == len(frame[frame["path"] != str(bags[0])])
+
+    listed = _bagkit("catalog", "query", catalog, "--event", "high", "--format", "json",
+                     cwd=tmp_path)  # fmt: skip
+    assert listed.returncode == 0, listed.stderr
+    assert {r["path"] for r in json.loads(listed.stdout)} == {str(b) for b in bags[1:]}
+    unknown = _bagkit("catalog", "query", catalog, "--event", "low", cwd=tmp_path)
+    assert unknown.returncode == 2 and unknown.stderr.startswith("error: no event 'low'")
