@@ -54,7 +54,7 @@ OUT/<bag>_<n>/, from --before before its first match to --after after its last, 
 its latched state.
 
 Example: bagkit filter drive -o imu_only --topics /imu/data /gps/fix --start 1763850000
-Example: bagkit filter flight -o cuts --around '/alerts: level >= 2' --before 10 --after 5
+Example: bagkit filter flight -o cuts --around '/alerts: status[*].level >= 2' --before 10 --after 5
 """
 WHERE_HELP = (
     "Keep only the messages satisfying CONDITION (e.g. 'linear_acceleration.z < 0') of the "

@@ -68,6 +68,7 @@ def match_topic(
         raise UndecodableTopicError(f"{topic} cannot be decoded: {exc}") from None
     times: list[np.ndarray] = []
     masks: list[np.ndarray] = []
+    unindexed = 0  # index entries pointing outside their chunk
     if "sqlite3" in reader.storage.split(","):
         _match_messages(reader, topic, window, matcher, times, masks)
     else:
@@ -77,10 +78,13 @@ def match_topic(
             )
             times.append(spans.log_times)
             masks.append(matcher.mask_records(chunk.records, spans.starts, spans.lengths))
+            unindexed += spans.dropped
     log_times = np.concatenate(times) if times else np.zeros(0, np.int64)
     matched = np.concatenate(masks) if masks else np.zeros(0, bool)
     order = np.argsort(log_times, kind="stable")  # chunks may overlap in time
     problems = list(reader.problems)
+    if unindexed:
+        problems.append(f"{topic}: {unindexed} index entries point outside their chunk: lost")
     if matcher.problem:
         problems.append(matcher.problem)
     return TopicMatches(topic, log_times[order], matched[order], matcher.undecodable, problems)

@@ -10,7 +10,7 @@ from pathlib import Path
 from bagkit.selection.times import Anchor, TimePoint
 from bagkit.selection.windows import TimeRange, Window
 from bagkit.surgery.errors import SurgeryError
-from bagkit.surgery.rewrite import OutputOptions, RewriteReport, filter_bag
+from bagkit.surgery.rewrite import OutputOptions, RewriteReport, check_output, filter_bag
 from bagkit.surgery.select import Selection
 
 
@@ -43,6 +43,7 @@ def cut_windows(
     """
     if any(w.start_ns is None or w.end_ns is None for w in windows):
         raise SurgeryError("a window to cut needs a start and an end")
+    check_output([bag], output)
     if output.exists() and not output.is_dir():
         raise SurgeryError(f"{output} is not a directory")
     if not output.parent.is_dir():

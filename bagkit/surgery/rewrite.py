@@ -115,7 +115,7 @@ def _rewrite(
     *,
     stored_order: bool = False,
 ) -> RewriteReport:
-    _check_output(bags, output)
+    check_output(bags, output)
     report = RewriteReport(output=output)
     inputs = _Inputs()
     with _opened_inputs(bags, report, inputs) as files:
@@ -159,7 +159,8 @@ class _Inputs:
     custom_data: list[tuple[str, dict[str, str]]] = field(default_factory=list)
 
 
-def _check_output(bags: list[Path], output: Path) -> None:
+def check_output(bags: Sequence[Path], output: Path) -> None:
+    """Raise SurgeryError when ``output`` is, holds or is inside one of ``bags``."""
     target = output.resolve()
     for bag in bags:
         source = bag.resolve()
