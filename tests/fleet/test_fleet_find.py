@@ -178,3 +178,17 @@ def test_catalog_events_store_the_episodes_and_search_only_what_changed(
     assert {r["path"] for r in json.loads(listed.stdout)} == {str(b) for b in bags[1:]}
     unknown = _bagkit("catalog", "query", catalog, "--event", "low", cwd=tmp_path)
     assert unknown.returncode == 2 and unknown.stderr.startswith("error: no event 'low'")
+
+
+def test_stats_where_on_dask_equals_one_process(fleet_bags: list[Path], client: Client) -> None:
+    from bagkit.fleet import summarize_fleet
+    from bagkit.stats import summarize
+
+    where = "linear_acceleration.z > 9.85 or angular_velocity.x < -0.03"
+    here = summarize(fleet_bags, topics=["/imu/data"], where=where)
+    there = summarize_fleet(fleet_bags, client=client, topics=["/imu/data"], where=where)
+    matched = sum(e.count for e in find_fleet(fleet_bags, when=WHEN).episodes)
+    assert here.topics[0].count == there.topics[0].count == matched
+    for mine, theirs in zip(here.topics[0].fields, there.topics[0].fields, strict=True):
+        assert (mine.count, mine.min, mine.max) == (theirs.count, theirs.min, theirs.max)
+        assert mine.mean == pytest.approx(theirs.mean, rel=1e-12, abs=1e-12)
