@@ -192,3 +192,17 @@ def test_stats_where_on_dask_equals_one_process(fleet_bags: list[Path], client: 
     for mine, theirs in zip(here.topics[0].fields, there.topics[0].fields, strict=True):
         assert (mine.count, mine.min, mine.max) == (theirs.count, theirs.min, theirs.max)
         assert mine.mean == pytest.approx(theirs.mean, rel=1e-12, abs=1e-12)
+
+
+def test_export_where_over_many_bags_keeps_what_find_matches(
+    fleet_dir: Path, tmp_path: Path
+) -> None:
+    from bagkit.fleet import expand_bags
+
+    where = WHEN.partition(": ")[2]
+    done = _bagkit("export", fleet_dir, "-t", "/imu/data", "-o", "out", "--where", where,
+                   "--workers", "0", cwd=tmp_path)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    bags = expand_bags([fleet_dir])
+    rows = sum(len(pd.read_parquet(f)) for f in (tmp_path / "out").rglob("*.parquet"))
+    assert rows == sum(e.count for e in find_fleet(bags, when=WHEN).episodes)
