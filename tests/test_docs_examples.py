@@ -50,6 +50,7 @@ RECORDINGS = {
     "day2": "faults",
     "part1": "nominal",
     "part2": "faults",
+    "incident": "faults",
 }
 SHELL_FENCES = {"bash", "sh", "shell"}
 NEEDS_ROS = {("record",), ("replay",), ("play",), ("golden", "record")}

@@ -21,6 +21,8 @@ from bagkit.errors import BagkitError
 if TYPE_CHECKING:
     import pandas as pd
 
+    from bagkit.fleet.catalog import CatalogPlan
+
 
 class _BuildByDefault(typer.core.TyperGroup):
     """``bagkit catalog ROOT...`` is ``bagkit catalog build ROOT...``."""
@@ -52,15 +54,28 @@ def build(
         show_default=False,
     ),
     output: Path = typer.Option(..., "--output", "-o", help="The catalogue (.parquet)."),
+    events: list[str] | None = typer.Option(
+        None,
+        "--events",
+        help="NAME='TOPIC: CONDITION': store the episodes where it holds in each bag "
+        "(repeat for several), for query --event NAME.",
+        metavar="NAME=TRIGGER",
+    ),
     workers: Workers = None,
     scheduler: Scheduler = None,
 ) -> None:
     """Build or update a catalogue: bags unchanged since the last update are not reopened.
 
+    With --events, the episodes of each named condition go to OUTPUT's .events.parquet
+    beside it (a bag is searched again when it changed or the condition did).
+
     Example: bagkit catalog /data/flights -o flights.parquet
+    --events gps_lost='/gps/fix: status.status < 0'
     """
     from bagkit.fleet.catalog import complete_update, plan_update, write_catalog
+    from bagkit.fleet.events import parse_events
 
+    named = parse_events(events or [])
     plan = plan_update(roots, output)
     changed = bool(plan.to_open or plan.removed) or not output.exists()
     if plan.to_open:
@@ -78,11 +93,36 @@ def build(
         f"{len(plan.bags) - len(plan.to_open)} unchanged, {plan.removed} removed",
         highlight=False,
     )
+    if named:
+        _update_events(plan, named, output, workers, scheduler)
+
+
+def _update_events(
+    plan: CatalogPlan,
+    named: dict[str, str],
+    output: Path,
+    workers: int | None,
+    scheduler: str | None,
+) -> None:
+    from bagkit.fleet.events import events_path, update_events
+
+    with fleet_run(plan.bags, workers=workers, scheduler=scheduler, label="searching") as (
+        client,
+        _,
+    ):
+        frame = update_events(plan, named, output, client)
+    found = frame[frame["count"] > 0]
+    for name in named:
+        bags = found[found["event"] == name]["path"].nunique()
+        episodes = int((found["event"] == name).sum())
+        err_console.print(
+            f"{events_path(output)}: {name}: {episodes} episodes in {bags} bags", highlight=False
+        )
 
 
 @app.command("query", no_args_is_help=True)
 @handle_errors
-def query(
+def query(  # noqa: PLR0917 (typer maps parameters to options)
     catalog: Path = typer.Argument(..., help="A catalogue written by bagkit catalog."),
     topic: str | None = typer.Option(
         None, "--topic", "-t", help="Bags with messages on this topic (a glob: '/gps/*')."
@@ -95,19 +135,33 @@ def query(
     end: str | None = typer.Option(
         None, "--end", help="Bags with messages at or before this time."
     ),
+    event: str | None = typer.Option(
+        None,
+        "--event",
+        help="Episodes of this event (catalog --events NAME=...) within the time range.",
+        metavar="NAME",
+    ),
     output: OutputFormat = typer.Option(OutputFormat.TABLE, "--format", help="table, json or csv."),
 ) -> None:
-    """Rows of the catalogue with messages on a topic within a time range.
+    """Rows of the catalogue with messages on a topic within a time range; with --event, the
+    episodes of a named event (which bags had it, when).
 
     Example: bagkit catalog query flights.parquet -t /gps/fix --start 2026-11-01 --end 2026-11-08
+
+    Example: bagkit catalog query flights.parquet --event gps_lost --start 2026-11-18
     """
     from bagkit.fleet.catalog import query as select
     from bagkit.fleet.catalog import read_catalog
+    from bagkit.fleet.events import events_path, query_events, read_events
 
     if not catalog.exists():
         raise BagkitError(f"{catalog}: no such catalogue")
-    rows = select(read_catalog(catalog), topic=topic, start=start, end=end)
-    columns = ["path", "topic", "type", "count", "start", "end", "duration"]
+    if event is not None:
+        rows = query_events(read_events(events_path(catalog)), event, start, end)
+        columns = ["path", "event", "topic", "start", "end", "count"]
+    else:
+        rows = select(read_catalog(catalog), topic=topic, start=start, end=end)
+        columns = ["path", "topic", "type", "count", "start", "end", "duration"]
     if output is OutputFormat.JSON:
         records = rows[columns].astype({"start": "string", "end": "string"})
         print_json(records.astype(object).where(records.notna(), None).to_dict("records"))

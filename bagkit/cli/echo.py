@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from bagkit.cli.common import EXIT_INTERRUPTED, handle_errors, split_list, warn
-from bagkit.cli.selection_options import End, Start
+from bagkit.cli.selection_options import End, Start, Where
 from bagkit.compat import StrEnum
 
 if TYPE_CHECKING:
@@ -73,15 +73,6 @@ Fields = Annotated[
     ),
 ]
 Format = Annotated[EchoFormat, typer.Option("--format", help="yaml or json (one per line).")]
-Where = Annotated[
-    str | None,
-    typer.Option(
-        "--where",
-        help="Only messages satisfying this condition, e.g. 'status[*].level >= 2' "
-        "(PATH OP VALUE, and/or/not; docs/cli.md).",
-        metavar="CONDITION",
-    ),
-]
 FullLength = Annotated[
     bool,
     typer.Option(
@@ -128,21 +119,26 @@ def echo(  # noqa: PLR0917 (typer maps parameters to options)
             on_failure=warn,
             where=where,
         )
-        _write(records, output, bag_start)
+        if not _write(records, output, bag_start) and where is not None:
+            warn(f"no message satisfies {where!r}")
     except KeyboardInterrupt:
         # No "interrupted" line: the reader asked for it, the output so far is complete.
         _quiet_exit(EXIT_INTERRUPTED)
 
 
-def _write(records: Iterable[Plain], output: EchoFormat, bag_start: int) -> None:
-    """Print each record as it comes (flushed: a reader sees the first one at once)."""
+def _write(records: Iterable[Plain], output: EchoFormat, bag_start: int) -> int:
+    """Print each record as it comes (flushed: a reader sees the first one at once); return
+    how many."""
     from bagkit.data.echo import to_json, to_yaml
 
+    written = 0
     for record in records:
         sys.stdout.write(
             to_json(record) + "\n" if output is EchoFormat.JSON else to_yaml(record, bag_start)
         )
         sys.stdout.flush()
+        written += 1
+    return written
 
 
 def _quiet_exit(code: int) -> None:

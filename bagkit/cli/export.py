@@ -10,7 +10,7 @@ import typer
 from bagkit.cli.common import console, handle_errors, split_list, warn
 from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers
 from bagkit.cli.progress import DelayedProgress
-from bagkit.cli.selection_options import End, Start
+from bagkit.cli.selection_options import End, Start, Where
 from bagkit.data.formats import ExportFormat
 
 if TYPE_CHECKING:
@@ -24,7 +24,8 @@ Columns: log_time and publish_time (int64 ns), then every leaf field under its d
 Parquet and JSON text in CSV. OUT is a directory (/imu/data -> OUT/imu/data.parquet), or a
 .parquet/.csv file when one topic is exported; --dataset writes a folder of part files per
 topic. Undecodable topics are skipped with a warning; a damaged bag exports what is intact and
-the loss is reported.
+the loss is reported. --where keeps the messages satisfying a condition (with several topics,
+those whose type lacks its fields are left out).
 
 Several bags (several BAGs, a directory of bags, a glob, a listing file) run on a local Dask
 cluster (or --scheduler), each into OUT/<its path relative to the bags' common folder>; a bag
@@ -37,6 +38,8 @@ Examples:
   bagkit export flight1 -t /imu/data -o imu.csv --start 10 --end 70
 
   bagkit export flight1 -o out --topics /gps/fix --topics /imu/data --fields 'header.stamp.*'
+
+  bagkit export flight1 -t /imu/data -o low.parquet --where 'linear_acceleration.z < 0'
 
   bagkit export 'flights/2026-11-*' -o flights_parquet -t /imu/data --workers 4
 """
@@ -61,6 +64,7 @@ def export(  # noqa: PLR0917 (typer maps parameters to options)
     ),
     start: Start = None,
     end: End = None,
+    where: Where = None,
     dataset: bool = typer.Option(
         False, "--dataset", help="Parquet: a folder of part files per topic (OUT/imu/data/)."
     ),
@@ -68,7 +72,10 @@ def export(  # noqa: PLR0917 (typer maps parameters to options)
     scheduler: Scheduler = None,
 ) -> None:
     from bagkit.fleet.inputs import STORAGE_SUFFIXES, expand_bags, is_bag_directory
+    from bagkit.selection.conditions import parse_condition
 
+    if where is not None:
+        parse_condition(where)  # a bad condition is one error, not one per bag
     if file_format is None:
         file_format = ExportFormat.CSV if out.suffix == ".csv" else ExportFormat.PARQUET
     options = {
@@ -78,10 +85,11 @@ def export(  # noqa: PLR0917 (typer maps parameters to options)
         "start": start,
         "end": end,
         "dataset": dataset,
+        "where": where,
     }
     named = inputs[0] if len(inputs) == 1 else None
     if named is not None and (named.suffix in STORAGE_SUFFIXES or is_bag_directory(named)):
-        _print_report(_export_one(named, out, options))
+        _print_report(_export_one(named, out, options), where=where)
         return
     _export_many(expand_bags(inputs), out, options, workers=workers, scheduler=scheduler)
 
@@ -116,20 +124,22 @@ def _export_many(
             failed += 1
             continue
         console.print(f"{result.bag} -> {result.out}", highlight=False, soft_wrap=True)
-        _print_report(result.report, indent="  ")
+        _print_report(result.report, indent="  ", where=options["where"])
     if failed:
         raise typer.Exit(1)
 
 
-def _print_report(report: ExportReport, indent: str = "") -> None:
+def _print_report(report: ExportReport, indent: str = "", where: str | None = None) -> None:
     for topic, reason in report.skipped.items():
         warn(f"topic {topic} skipped: {reason}")
     for problem in report.problems:
         warn(f"lost: {problem}")
+    if where is not None and not any(report.rows.values()):
+        warn(f"no message satisfies {where!r}")
     for topic, files in report.files.items():
-        where = files[0].parent if len(files) > 1 else files[0]
+        written = files[0].parent if len(files) > 1 else files[0]
         console.print(
-            f"{indent}{topic}: {report.rows[topic]:,} rows -> {where}",
+            f"{indent}{topic}: {report.rows[topic]:,} rows -> {written}",
             highlight=False,
             soft_wrap=True,
         )

@@ -11,6 +11,7 @@ import typer
 
 from bagkit.cli.common import console, err_console, fail, handle_errors, note
 from bagkit.cli.fleet_options import Scheduler, Workers
+from bagkit.cli.selection_options import End, Start
 from bagkit.regression.spec import FixtureSpec, find_fixtures, load_spec
 
 app = typer.Typer(
@@ -134,3 +135,57 @@ def record(fixtures: list[Path] | None = FIXTURES_ARG) -> None:
         size = sum(f.stat().st_size for f in spec.bag.iterdir())
         listed = ", ".join(f"{t} {n}" for t, n in sorted(counts.items()))
         console.print(f"{spec.name}: {spec.bag} {size / 1e6:.2f} MB; {listed}", highlight=False)
+
+
+@app.command("add", no_args_is_help=True)
+@handle_errors
+def add(  # noqa: PLR0917 (typer maps parameters to options)
+    fixture: Path = typer.Argument(
+        ..., help="The new fixture folder, e.g. fixtures/gps_outage.", show_default=False
+    ),
+    bag: Path = typer.Option(..., "--from", help="The recording to cut.", metavar="BAG"),
+    start: Start = None,
+    end: End = None,
+    around: str | None = typer.Option(
+        None,
+        "--around",
+        help="'TOPIC: CONDITION': the window of its first episode (instead of --start/--end).",
+        metavar="TRIGGER",
+    ),
+    before: str = typer.Option("0", "--before", help="With --around: this long before it."),
+    after: str = typer.Option("0", "--after", help="With --around: this long after it."),
+    like: Path | None = typer.Option(
+        None,
+        "--like",
+        help="A fixture whose spec.yaml to copy (its processor makes the expected outputs).",
+        metavar="FIXTURE",
+    ),
+) -> None:
+    """Make a fixture from a window of a recording: FIXTURE/golden and FIXTURE/spec.yaml.
+
+    The window (--start/--end, or --around 'TOPIC: CONDITION' --before SEC --after SEC: around
+    its first episode; with the latched state from before it) is cut from BAG. With
+    --like, the spec is copied and the window's inputs run through its processor in lockstep,
+    the system starting at the window's start: the golden holds the inputs and those outputs,
+    and pytest runs the fixture at once. Without it, the golden is the window as recorded and
+    spec.yaml a commented template naming its topics.
+
+    Example: bagkit golden add fixtures/gps_outage --from flight1 --around
+    '/alerts: status[*].level >= 2' --before 5 --after 5 --like fixtures/faults
+    """
+    from bagkit.regression.add import AddOptions, add_fixture
+    from bagkit.selection.times import parse_duration
+
+    if "" not in sys.path and os.getcwd() not in sys.path:  # as _specs: factories from here
+        sys.path.insert(0, os.getcwd())
+    margins = parse_duration(before, "--before"), parse_duration(after, "--after")
+    added = add_fixture(fixture, AddOptions(bag, start, end, like, around, *margins))
+    if added.episodes > 1:
+        note(f"{added.episodes} episodes of {around!r}: the first one made the fixture")
+    listed = ", ".join(f"{t} {n}" for t, n in added.counts.items())
+    if added.lockstep is not None:
+        made = ", ".join(f"{t} {n}" for t, n in sorted(added.lockstep.output_counts.items()))
+        listed += f"; outputs from lockstep: {made}"
+    console.print(f"{fixture}: {fixture / 'golden'}; {listed}", highlight=False, soft_wrap=True)
+    if added.spec is None:
+        note(f"edit {fixture / 'spec.yaml'}: name the system under test and its outputs")

@@ -43,6 +43,7 @@ _COMMANDS = {
     "echo": _Lazy("bagkit.cli.echo", "echo", "Print the messages of a topic."),
     "export": _Lazy("bagkit.cli.export", "export", "Write topics to Parquet or CSV files."),
     "filter": _Lazy("bagkit.cli.filter", "filter_command", "Copy a selection of a bag."),
+    "find": _Lazy("bagkit.cli.find", "find", "Find the episodes where a condition holds."),
     "golden": _Lazy("bagkit.cli.golden", "app", "Golden-bag regression checks."),
     "info": _Lazy("bagkit.cli.info", "info", "Show what a bag holds (like ros2 bag info)."),
     "merge": _Lazy("bagkit.cli.merge", "merge", "Merge bags into one, in log-time order."),

@@ -8,7 +8,7 @@ import typer
 
 from bagkit.cli import common
 from bagkit.cli.common import console, handle_errors, split_list
-from bagkit.cli.selection_options import End, Start
+from bagkit.cli.selection_options import End, Start, Where
 
 HELP = """Plot fields of BAG over time into OUT: .png (matplotlib) or .html (an interactive page
 with zoom, hover and series toggled in the legend, that opens with no network access).
@@ -16,13 +16,16 @@ with zoom, hover and series toggled in the legend, that opens with no network ac
 SERIES are TOPIC:FIELD, the field a dotted path or glob (/imu/data:linear_acceleration.*):
 one panel per field, labelled with its unit where the message definition or the type implies
 one. --bag adds bags drawn over the first (golden against candidate), aligned on each bag's
-start; --absolute puts every bag on UTC log time instead.
+start; --absolute puts every bag on UTC log time instead. --where plots only the messages
+satisfying a condition (each series' topic must have its fields).
 
 Examples:
 
   bagkit plot flight1 /imu/data:linear_acceleration.z /barometer/pressure:fluid_pressure -o p.png
 
   bagkit plot golden /fusion/odometry:pose.pose.position.z --bag candidate -o altitude.html
+
+  bagkit plot flight1 /imu/data:linear_acceleration.z --where 'angular_velocity.z > 0.1' -o t.png
 """
 
 
@@ -43,6 +46,7 @@ def plot(  # noqa: PLR0917 (typer maps parameters to options)
     ),
     start: Start = None,
     end: End = None,
+    where: Where = None,
 ) -> None:
     from bagkit.data.errors import DataError
     from bagkit.data.series import load_series
@@ -52,10 +56,13 @@ def plot(  # noqa: PLR0917 (typer maps parameters to options)
         raise DataError(f"{out}: the output must end in .png or .html")
     bags = [bag, *(Path(b) for b in split_list(more_bags))]
     with common.err_console.status("reading ..."):
-        found = load_series(bags, series, absolute=absolute, start=start, end=end)
+        found = load_series(bags, series, absolute=absolute, start=start, end=end, where=where)
     if not found and (start is not None or end is not None):
         console.print(f"0 series: nothing in the time window, {out} not written", highlight=False)
         return  # the window's warning said why: an empty result, as every command gives
+    if not found and where is not None:
+        console.print(f"0 series: no message satisfies {where!r}, {out} not written")
+        return
     if not found:
         raise DataError("no message of the requested topics in the bag")
     if suffix == ".png":

@@ -1,4 +1,5 @@
-"""The options every bag command shares for choosing messages: ``--start``/``--end``.
+"""The options every bag command shares for choosing messages: ``--start``/``--end``,
+``--where``.
 
 One declaration, one help text, one grammar (bagkit.selection.times; docs/cli.md's table).
 """
@@ -22,6 +23,16 @@ End = Annotated[
     str | None,
     typer.Option(
         "--end", help="Messages logged before TIME (exclusive), read as --start.", metavar="TIME"
+    ),
+]
+
+Where = Annotated[
+    str | None,
+    typer.Option(
+        "--where",
+        help="Only messages satisfying this condition, e.g. 'status[*].level >= 2' "
+        "(PATH OP VALUE, and/or/not; docs/cli.md).",
+        metavar="CONDITION",
     ),
 ]
 

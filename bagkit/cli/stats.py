@@ -24,7 +24,7 @@ from bagkit.cli.common import (
 )
 from bagkit.cli.fleet_options import Scheduler, Workers
 from bagkit.cli.progress import DelayedProgress
-from bagkit.cli.selection_options import End, Start
+from bagkit.cli.selection_options import End, Start, Where
 from bagkit.cli.stats_options import Bulk, Fields, Format, Inputs, Topics
 from bagkit.cli.tables import Cell, Column, Styled, Table, print_line, print_table, print_wrapped
 
@@ -48,6 +48,7 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
     fields: Fields = None,
     start: Start = None,
     end: End = None,
+    where: Where = None,
     output: Format = OutputFormat.TABLE,
     bulk: Bulk = True,
     workers: Workers = None,
@@ -64,10 +65,16 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
     Several bags run on a local Dask cluster (or --scheduler), one task per bag, with the
     same results as in one process; see docs/fleet.md.
 
+    --where keeps the messages satisfying a condition (topics whose type lacks its fields are
+    left out): bagkit stats summary flight1 -t /imu/data --where 'linear_acceleration.z < 0'
+
     Example: bagkit stats summary 'flights/2026-11-*' -t /imu/data --workers 4
     """
     from bagkit.fleet import expand_bags
+    from bagkit.selection.conditions import parse_condition
 
+    if where is not None:
+        parse_condition(where)  # a bad condition is one error, before any bag is read
     bags = expand_bags(inputs)
     options = {
         "topics": split_list(topics) or None,
@@ -76,6 +83,7 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
         "end": end,
         "bulk": bulk,
         "check_crc": check_crc,
+        "where": where,
     }
     result = _summarize(bags, options, workers=workers, scheduler=scheduler)
     for topic, reason in result.skipped.items():
@@ -191,7 +199,7 @@ def _print_tables(result: Summary) -> None:
     span = (
         [f"{_utc(result.start_ns)} ..", f"{_utc(result.end_ns)},"]
         if result.start_ns is not None and result.end_ns is not None
-        else ["no message in the time window,"]
+        else ["no message selected,"]
     )
     print_wrapped(
         [

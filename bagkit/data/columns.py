@@ -24,6 +24,7 @@ from bagkit.data.engine import BulkGroup, Spans, decode_bulk, payload_spans
 from bagkit.decode import DecodeError, LeafField, MessageTypes
 from bagkit.decode.flatten import STRING_TYPES
 from bagkit.decode.layout import PRIMITIVE_FORMATS, CdrLayout
+from bagkit.decode.matcher import PayloadMatcher, matched_payloads
 from bagkit.selection.windows import Window
 
 _ARROW_TYPES: dict[str, pa.DataType] = {
@@ -147,6 +148,8 @@ class TopicColumns:
         type_name: its type as the bag names it.
         leaves: the fields to read (``leaf_fields`` of the type, maybe a selection).
         bulk: decode fixed-layout payloads with numpy (False: all through the general decoder).
+        matcher: only the messages it matches (``--where``); those it cannot decode are
+            counted in its ``failures``.
 
     Raises:
         SchemaError: the type cannot be decoded.
@@ -160,9 +163,11 @@ class TopicColumns:
         leaves: Sequence[LeafField],
         *,
         bulk: bool = True,
+        matcher: PayloadMatcher | None = None,
     ) -> None:
         canonical = types.resolve(type_name)
         self.topic = topic
+        self.matcher = matcher
         self.type_name = type_name
         self.leaves = list(leaves)
         self.schema = arrow_schema(self.leaves)
@@ -180,6 +185,8 @@ class TopicColumns:
         """Decode the messages of this topic in one chunk into ``reserve(count)``."""
         spans = payload_spans(records, index, window.start_ns, window.end_ns)
         self.unindexed += spans.dropped
+        if self.matcher is not None:
+            spans = spans.take(self.matcher.mask_records(records, spans.starts, spans.lengths))
         return self.decode_spans(records, spans, reserve)
 
     def decode_spans(self, records: bytes, spans: Spans, reserve: Callable[[int], Rows]) -> Rows:
@@ -212,6 +219,11 @@ class TopicColumns:
         reserve: Callable[[int], Rows],
     ) -> Rows:
         """Messages given one by one (storage without chunks), all through the general path."""
+        if self.matcher is not None:
+            keep = matched_payloads(self.matcher, payloads).tolist()
+            payloads = [p for p, kept in zip(payloads, keep, strict=True) if kept]
+            log_times = [t for t, kept in zip(log_times, keep, strict=True) if kept]
+            publish_times = [t for t, kept in zip(publish_times, keep, strict=True) if kept]
         columns = reserve(len(payloads))
         columns.log_times[:] = log_times
         columns.publish_times[:] = publish_times

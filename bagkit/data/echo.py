@@ -22,7 +22,8 @@ from rosbags.typesys.store import Typestore
 from bagkit.bag import BagReader
 from bagkit.data.errors import UndecodableTopicError
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
-from bagkit.selection.conditions import Condition, parse_condition
+from bagkit.decode.matcher import PayloadMatcher
+from bagkit.selection.conditions import parse_condition
 from bagkit.selection.errors import EmptyWindowWarning
 from bagkit.selection.fields import select_fields
 from bagkit.selection.times import TimeLike
@@ -52,7 +53,9 @@ def echo(
         count: stop after this many messages.
         limit: sequences longer than this are cut to their first ``limit`` elements followed
             by ``"... (N more)"`` (None: whole).
-        on_failure: called with a message that does not decode (skipped); None raises.
+        on_failure: called with a message that does not decode (skipped); None raises. With
+            ``where``, messages the condition cannot decode are not matched and counted in
+            one call at the end.
         where: only messages satisfying this field condition
             (:mod:`bagkit.selection.conditions`, e.g. ``status[*].level >= 2``).
 
@@ -73,8 +76,10 @@ def echo(
         except DecodeError as exc:
             raise UndecodableTopicError(f"{topic} cannot be decoded: {exc}") from None
         convert = _converter(types, info.type, canonical, fields, topic, limit)
-        keep = (
-            None if condition is None else _matcher(types, info.type, canonical, condition, topic)
+        matcher = (
+            None
+            if condition is None
+            else PayloadMatcher(types, topic, info.type, condition, bulk=False)
         )
         window = span.resolve(reader.start_ns, reader.end_ns)
         if reader.message_count:
@@ -85,9 +90,9 @@ def echo(
         for message in reader.messages([topic], window.start_ns, window.end_ns):
             if count is not None and done >= count:
                 return
+            if matcher is not None and not matcher.matches(message.data):
+                continue
             try:
-                if keep is not None and not keep(message.data):
-                    continue
                 data = convert(message.data)
             except DecodeError as exc:
                 if on_failure is None:
@@ -101,19 +106,10 @@ def echo(
                 "publish_time": message.publish_time,
                 "data": data,
             }
-
-
-def _matcher(
-    types: MessageTypes, type_name: str, canonical: str, condition: Condition, topic: str
-) -> Callable[[bytes], bool]:
-    """Whether a payload's message satisfies ``condition``; its fields checked first.
-
-    Raises:
-        UnknownFieldError: the condition names a field the type lacks.
-    """
-    condition.check_fields(topic, [leaf.path for leaf in leaf_fields(types.typestore, canonical)])
-    decode = types.decoder(type_name)
-    return lambda data: condition.matches(decode(data))
+        if matcher is not None and matcher.problem is not None:
+            if on_failure is None:
+                raise DecodeError(matcher.problem)
+            on_failure(matcher.problem)
 
 
 def _converter(  # noqa: PLR0917 (private, called once)

@@ -42,6 +42,16 @@ class Spans:
     lengths: np.ndarray
     dropped: int = 0
 
+    def take(self, keep: np.ndarray) -> Spans:
+        """The spans where ``keep`` (bool, one per span) is true."""
+        return Spans(
+            self.log_times[keep],
+            self.publish_times[keep],
+            self.starts[keep],
+            self.lengths[keep],
+            self.dropped,
+        )
+
 
 def payload_spans(
     records: bytes, index: np.ndarray, start_ns: int | None, end_ns: int | None

@@ -24,6 +24,7 @@ from bagkit.bag import BagReader
 from bagkit.data.errors import DataError
 from bagkit.data.formats import ExportFormat
 from bagkit.data.scan import Scan, plan_scan
+from bagkit.selection.conditions import parse_condition
 from bagkit.selection.errors import EmptyWindowWarning
 from bagkit.selection.times import TimeLike
 from bagkit.selection.windows import TimeRange
@@ -72,17 +73,23 @@ def export(
     end: TimeLike | None = None,
     dataset: bool = False,
     progress: ProgressCallback | None = None,
+    where: str | None = None,
 ) -> ExportReport:
     """Write the decodable ``topics`` (all when None) of ``bag`` under ``out``.
 
+    ``where``: only messages satisfying this condition (:mod:`bagkit.selection.conditions`);
+    with several topics, those whose type lacks its fields are left out.
+
     Raises:
         BagError, UnknownTopicError, UnknownFieldError; DataError when no topic can be
-        exported or ``out`` names a single file for several topics.
+        exported or ``out`` names a single file for several topics; SelectionError for a
+        condition that does not parse or compares text with a number.
     """
     out, file_format = Path(out), ExportFormat(file_format)
     span = TimeRange.parse(start, end)
+    condition = None if where is None else parse_condition(where)
     with BagReader(bag, allow_empty=True) as reader:
-        scan = plan_scan(reader, topics, fields, span, label=str(bag))
+        scan = plan_scan(reader, topics, fields, span, label=str(bag), where=condition)
         report = ExportReport(skipped=dict(scan.skipped))
         if scan.outside is not None:
             warnings.warn(scan.outside, EmptyWindowWarning, stacklevel=2)

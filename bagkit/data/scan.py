@@ -14,7 +14,9 @@ from bagkit.data.columns import Rows, TopicColumns
 from bagkit.data.errors import UnknownFieldError
 from bagkit.data.table import ColumnTable
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
+from bagkit.decode.matcher import PayloadMatcher
 from bagkit.prefetch import prefetch
+from bagkit.selection.conditions import Condition
 from bagkit.selection.fields import select_fields
 from bagkit.selection.topics import require_topics
 from bagkit.selection.windows import TimeRange, Window, outside_warning
@@ -89,11 +91,11 @@ class Scan:
         """What was lost: unreadable parts of the bag, messages that do not decode."""
         found = list(self.reader.problems)
         for topic, columns in self.topics.items():
-            if columns.failures:
-                found.append(
-                    f"{topic}: {columns.failures} messages could not be decoded "
-                    f"({columns.first_failure})"
-                )
+            matcher = columns.matcher
+            failures = columns.failures + (matcher.undecodable if matcher else 0)
+            if failures:
+                first = columns.first_failure or (matcher.first_failure if matcher else "")
+                found.append(f"{topic}: {failures} messages could not be decoded ({first})")
             if columns.unindexed:
                 found.append(
                     f"{topic}: {columns.unindexed} index entries point outside their chunk"
@@ -109,6 +111,7 @@ def plan_scan(
     *,
     label: str,
     bulk: bool = True,
+    where: Condition | None = None,
 ) -> Scan:
     """Which topics of ``reader`` can be decoded, with which fields, in which time window.
 
@@ -120,9 +123,12 @@ def plan_scan(
             error.
         span: ``--start``/``--end``, resolved against this bag.
         label: the bag as the user named it, for the window's warning.
+        where: only the messages satisfying this condition; as with ``fields``, with several
+            topics those without its fields are left out, with one topic that is an error.
 
     Raises:
-        UnknownTopicError, UnknownFieldError.
+        UnknownTopicError, UnknownFieldError; SelectionError for a condition comparing text
+        with a number.
     """
     if topics is not None:
         topics = require_topics(topics, reader.topics)
@@ -151,7 +157,17 @@ def plan_scan(
                 continue
         else:
             leaves = select_fields(leaves, fields, topic=name)
-        scan.topics[name] = TopicColumns(types, name, info.type, leaves, bulk=bulk)
+        matcher = None
+        if where is not None:
+            try:
+                matcher = PayloadMatcher(types, name, info.type, where, bulk=bulk)
+            except UnknownFieldError:
+                if topics is not None and len(topics) == 1:
+                    raise
+                continue  # several topics: those without the condition's fields are left out
+        scan.topics[name] = TopicColumns(types, name, info.type, leaves, bulk=bulk, matcher=matcher)
     if fields and not scan.topics and not scan.skipped:
         raise UnknownFieldError(f"no topic of {label} has a field {', '.join(fields)}")
+    if where is not None and not scan.topics and not scan.skipped:
+        raise UnknownFieldError(f"no topic of {label} has the fields of {where.text!r}")
     return scan

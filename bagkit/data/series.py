@@ -16,6 +16,7 @@ from bagkit.data.scan import plan_scan
 from bagkit.data.units import field_unit
 from bagkit.decode import MessageTypes
 from bagkit.decode.flatten import STRING_TYPES
+from bagkit.selection.conditions import Condition, parse_condition
 from bagkit.selection.errors import EmptyWindowWarning
 from bagkit.selection.times import TimeLike
 from bagkit.selection.topics import require_topics
@@ -71,16 +72,20 @@ def load_series(
     absolute: bool = False,
     start: TimeLike | None = None,
     end: TimeLike | None = None,
+    where: str | None = None,
 ) -> list[Series]:
     """Every numeric field that ``specs`` name, from every bag, in spec order, bag order;
-    ``start``/``end`` resolved against each bag (:mod:`bagkit.selection.times`).
+    ``start``/``end`` resolved against each bag (:mod:`bagkit.selection.times`); ``where``
+    keeps the messages satisfying a condition (each spec's topic must have its fields).
 
     Raises:
         BagError, UnknownTopicError, UnknownFieldError, UndecodableTopicError; DataError for
-        a field that is not a number (a string, a variable-length sequence).
+        a field that is not a number (a string, a variable-length sequence); SelectionError
+        for a bad condition.
     """
     wanted = [parse_spec(spec) for spec in specs]
     span = TimeRange.parse(start, end)
+    condition = None if where is None else parse_condition(where)
     paths = [Path(bag) for bag in bags]
     per_spec: list[list[Series]] = [[] for _ in wanted]
     for label, path in zip(bag_labels(paths), paths, strict=True):
@@ -88,7 +93,14 @@ def load_series(
             types = MessageTypes.from_definitions(reader.definitions)
             for found, (topic, field) in zip(per_spec, wanted, strict=True):
                 found.extend(
-                    _topic_series(reader, types, (label, str(path)), (topic, field), span, absolute)
+                    _topic_series(
+                        reader,
+                        types,
+                        (label, str(path)),
+                        (topic, field),
+                        (span, condition),
+                        absolute,
+                    )
                 )
     return [s for found in per_spec for s in found]
 
@@ -98,12 +110,13 @@ def _topic_series(  # noqa: PLR0917 (private, called once)
     types: MessageTypes,
     labels: tuple[str, str],
     spec: tuple[str, str],
-    span: TimeRange,
+    selection: tuple[TimeRange, Condition | None],
     absolute: bool,
 ) -> list[Series]:
     (topic,), field = require_topics([spec[0]], reader.topics), spec[1]
     label, given = labels  # the legend's short name; the path as given, for warnings
-    scan = plan_scan(reader, [topic], [field], span, label=given)
+    span, where = selection
+    scan = plan_scan(reader, [topic], [field], span, label=given, where=where)
     if scan.outside is not None:
         warnings.warn(scan.outside, EmptyWindowWarning, stacklevel=3)
     if topic in scan.skipped:

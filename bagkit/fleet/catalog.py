@@ -177,14 +177,24 @@ def query(
         names = frame["topic"].fillna("")
         keep &= names.map(lambda name: name_matches(absolute_topic_name(name), pattern))
     for side, value in (("start", start), ("end", end)):
-        if value is None:
-            continue
-        point = parse_time(value, f"--{side}")
-        if not point.absolute:
-            raise SelectionError(
-                f"bad --{side} {value!r}: a catalogue query takes absolute times "
-                "(ISO 8601 or epoch seconds)"
-            )
-        stamp = pd.Timestamp(point.ns, unit="ns", tz="UTC")
-        keep &= frame["end"] >= stamp if side == "start" else frame["start"] <= stamp
+        stamp = absolute_stamp(value, side)
+        if stamp is not None:
+            keep &= frame["end"] >= stamp if side == "start" else frame["start"] <= stamp
     return frame[keep].reset_index(drop=True)
+
+
+def absolute_stamp(value: TimeLike | None, side: str) -> pd.Timestamp | None:
+    """``--start``/``--end`` of a catalogue query as a UTC timestamp (None stays None).
+
+    Raises:
+        SelectionError: a time that is not absolute, or not a time.
+    """
+    if value is None:
+        return None
+    point = parse_time(value, f"--{side}")
+    if not point.absolute:
+        raise SelectionError(
+            f"bad --{side} {value!r}: a catalogue query takes absolute times "
+            "(ISO 8601 or epoch seconds)"
+        )
+    return pd.Timestamp(point.ns, unit="ns", tz="UTC")

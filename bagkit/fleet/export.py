@@ -78,11 +78,13 @@ def export_fleet(
     end: TimeLike | None = None,
     dataset: bool = False,
     done: ItemDone | None = None,
+    where: str | None = None,
 ) -> list[BagExport]:
     """Export every bag of ``bags`` into its folder under ``out``, on ``client``'s workers.
 
     Times ``start``/``end`` are read per bag, as by a single-bag export (seconds after that
-    bag's start, or absolute). Results are in the order of ``bags``.
+    bag's start, or absolute); ``where`` keeps the messages satisfying a condition, as a
+    single-bag export. Results are in the order of ``bags``.
 
     Raises:
         FleetError: ``out`` is a file name, or two bags would share a folder.
@@ -99,6 +101,7 @@ def export_fleet(
         start=start,
         end=end,
         dataset=dataset,
+        where=where,
     )
     jobs = [(str(bag), folder) for bag, folder in zip(bags, folders, strict=True)]
     return run_each(task, jobs, client, done)

@@ -20,6 +20,7 @@ from bagkit.bag import BagError, BagReader
 from bagkit.decode import MessageTypes
 from bagkit.fleet.errors import FleetError
 from bagkit.fleet.execute import ItemDone, run_each
+from bagkit.selection.conditions import parse_condition
 from bagkit.selection.fields import FieldSelection
 from bagkit.selection.times import TimeLike
 from bagkit.selection.topics import absolute_topic_name
@@ -54,7 +55,11 @@ class BagPartial:
 
 
 def _new_run(
-    fields: Sequence[str] | None, start: TimeLike | None, end: TimeLike | None, bulk: bool
+    fields: Sequence[str] | None,
+    start: TimeLike | None,
+    end: TimeLike | None,
+    bulk: bool,
+    where: str | None = None,
 ) -> SummaryRun:
     return SummaryRun(
         MessageTypes(),
@@ -63,6 +68,7 @@ def _new_run(
         bulk,
         progress=None,
         prefetch=False,
+        where=None if where is None else parse_condition(where),
     )
 
 
@@ -75,9 +81,10 @@ def summarize_bag(
     end: TimeLike | None = None,
     bulk: bool = True,
     check_crc: bool = True,
+    where: str | None = None,
 ) -> BagPartial:
     """The partial summary of one bag (what a worker computes); arguments as ``summarize``."""
-    run = _new_run(fields, start, end, bulk)
+    run = _new_run(fields, start, end, bulk, where)
     try:
         with BagReader(bag, allow_empty=True, check_crc=check_crc) as reader:
             run.read(reader, topics, bag)
@@ -134,6 +141,7 @@ def merge_partials(
     fields: Sequence[str] | None = None,
     start: TimeLike | None = None,
     end: TimeLike | None = None,
+    where: str | None = None,
 ) -> Summary:
     """The summary of the bags of ``parts`` (in their order), as ``summarize`` would give it.
 
@@ -145,7 +153,7 @@ def merge_partials(
     if not readable:
         raise FleetError(f"no bag could be read ({parts[0].error if parts else 'no bag given'})")
     topics = check_topics(set().union(*(part.topics for part in readable)), topics, len(parts))
-    run = _new_run(fields, start, end, bulk=True)
+    run = _new_run(fields, start, end, bulk=True, where=where)
     for part in parts:
         if part.error is not None:
             run.problems.append(f"{part.bag}: not read: {part.error}")
@@ -165,6 +173,7 @@ def summarize_fleet(
     bulk: bool = True,
     check_crc: bool = True,
     done: ItemDone | None = None,
+    where: str | None = None,
 ) -> Summary:
     """``bagkit.stats.summarize`` of ``bags``, one task per bag on ``client`` (here when None).
 
@@ -185,6 +194,7 @@ def summarize_fleet(
         end=end,
         bulk=bulk,
         check_crc=check_crc,
+        where=where,
     )
     parts = run_each(task, paths, client, done)
-    return merge_partials(parts, topics=topics, fields=fields, start=start, end=end)
+    return merge_partials(parts, topics=topics, fields=fields, start=start, end=end, where=where)

@@ -39,6 +39,8 @@ STOP_TIMEOUT_S = 15.0
 # After the replay, how long the last outputs may take to reach the recorder (a loaded machine).
 OUTPUTS_TIMEOUT_S = 10.0
 POLL_S = 0.05
+# A live system has this long to publish its first message once launched.
+FIRST_MESSAGE_TIMEOUT_S = 60.0
 # /clock between the inputs: the rate the live fixtures were measured at (20 of 20 passes),
 # finer than a bare --clock's 40 Hz.
 CLOCK_HZ = 100
@@ -77,6 +79,23 @@ def _start_system(
             procs.start(Command(name, command, log=log_dir / f"{name}.log"))
         except ProcessError as exc:
             raise LiveRunError(str(exc)) from exc
+
+
+def _first_message(recorder: Recorder, procs: Supervisor) -> float:
+    """The monotonic time at which the recorder has its first message.
+
+    Raises:
+        LiveRunError: a process exited, or no message came within FIRST_MESSAGE_TIMEOUT_S.
+    """
+    give_up = time.monotonic() + FIRST_MESSAGE_TIMEOUT_S
+    while not recorder.progress().messages:
+        _check_running(procs)
+        if time.monotonic() > give_up or recorder.stopped.wait(POLL_S):
+            raise LiveRunError(
+                f"no message recorded within {FIRST_MESSAGE_TIMEOUT_S:.0f} s of starting the "
+                "system (see the logs)"
+            )
+    return time.monotonic()
 
 
 def _prepare_graph(
@@ -203,7 +222,8 @@ def record_golden(
     """Record ``spec``'s golden bag from the live system; return its message counts by topic.
 
     A recorder records the inputs, outputs and ``record_topics`` while the spec's
-    ``record_launch`` commands run the whole system on the wall clock for ``duration``. With a
+    ``record_launch`` commands run the whole system on the wall clock for ``duration`` from
+    its first message (a golden shorter than that is said through ``log``). With a
     processor factory, the recorded outputs are then replaced by lockstep's (the recorder joins
     a little after the nodes, so the live outputs start from a state the bag does not hold).
 
@@ -221,7 +241,9 @@ def record_golden(
     with _processes(workdir / "logs") as procs, _recording(RecordOptions(recording, topics)) as rec:
         _start_system(procs, workdir / "logs", spec.record_launch, "system")
         log(f"{spec.name}: recording {spec.duration_s:.0f} s of the live system ...")
-        deadline = time.monotonic() + spec.duration_s + 1.0
+        # The duration counts from the system's first message, not from its launch: its
+        # processes take seconds to start, which a deadline from launch took off the golden.
+        deadline = _first_message(rec, procs) + spec.duration_s + 1.0
         while time.monotonic() < deadline and not rec.stopped.wait(POLL_S):
             _check_running(procs)
     size = sum(f.stat().st_size for f in recording.iterdir())
@@ -233,4 +255,11 @@ def record_golden(
     if spec.processor is not None:
         update_golden(spec)
     with BagReader(spec.bag) as reader:
-        return dict(reader.topic_counts)
+        span_s = (reader.end_ns - reader.start_ns) / 1e9 if reader.message_count else 0.0
+        counts = dict(reader.topic_counts)
+    if span_s < spec.duration_s:
+        log(
+            f"{spec.name}: the golden spans {span_s:.1f} s of the {spec.duration_s:g} s asked: "
+            "the system stopped publishing or the recorder stopped early (see the logs)"
+        )
+    return counts

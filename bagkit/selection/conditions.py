@@ -115,33 +115,54 @@ class Condition:
                 stack.extend(reversed(node.items))
         return found
 
-    def check_fields(self, topic: str, leaf_paths: Sequence[str]) -> None:
+    def check_fields(
+        self, topic: str, leaf_paths: Sequence[str], text_paths: Collection[str] | None = None
+    ) -> None:
         """Raise UnknownFieldError when a path names no field of the topic's leaf paths.
 
         ``leaf_paths`` are :mod:`bagkit.selection.fields` paths (``a.b``, ``c[0]``, ``d[].e``).
+        With ``text_paths`` (those of ``leaf_paths`` holding strings), a comparison of text
+        with a number is a SelectionError before any message is read.
         """
         for comparison in self.comparisons():
             pattern = _leaf_pattern(comparison.path)
-            if not any(pattern.fullmatch(path) for path in leaf_paths):
+            matched = [path for path in leaf_paths if pattern.fullmatch(path)]
+            if not matched:
                 raise UnknownFieldError(unknown_field_message(topic, [comparison.text], leaf_paths))
+            if text_paths is None:
+                continue
+            text_field = all(path in text_paths for path in matched)
+            if text_field != isinstance(comparison.value, str):
+                raise SelectionError(
+                    f"{comparison.text} {comparison.op} {comparison.value!r}: cannot compare "
+                    f"{'str' if text_field else 'a number'} with "
+                    f"{type(comparison.value).__name__} ({topic})"
+                )
 
-    def matches(self, message: Any) -> bool:
+    def matches(self, message: Any, octets: Collection[Comparison] = ()) -> bool:
         """Whether a decoded message (fields as attributes) satisfies the condition.
+
+        ``octets``: comparisons reading ``byte``/``char`` fields, which a decoder may give as
+        signed; they compare as the octet (0-255) ROS 2 defines.
 
         Raises:
             SelectionError: a path names no field of the message, or a value cannot be compared.
         """
-        return _evaluate(self.tree, message)
+        return _evaluate(self.tree, message, octets)
+
+    def reads(self, leaf_paths: Sequence[str]) -> dict[Comparison, list[str]]:
+        """The leaf paths each comparison reads (``status[*].level``: ``status[].level``)."""
+        return {
+            comparison: [p for p in leaf_paths if _leaf_pattern(comparison.path).fullmatch(p)]
+            for comparison in self.comparisons()
+        }
 
     def bulk_columns(self, leaf_paths: Sequence[str]) -> dict[Comparison, list[str]] | None:
         """The numpy columns each comparison reads, or None when one needs a sequence."""
-        known = list(leaf_paths)
-        columns = {}
-        for comparison in self.comparisons():
-            names = [p for p in known if _leaf_pattern(comparison.path).fullmatch(p)]
+        columns = self.reads(leaf_paths)
+        for names in columns.values():
             if not names or any("[]" in name for name in names):
                 return None
-            columns[comparison] = names
         return columns
 
     def mask(
@@ -343,12 +364,15 @@ class _Parser:
         self._fail("expected a value (a number, 'text', true or false)")
 
 
-def _evaluate(node: Expression, message: Any) -> bool:
+def _evaluate(node: Expression, message: Any, octets: Collection[Comparison]) -> bool:
     if isinstance(node, Comparison):
-        return any(_compare(value, node) for value in _values(message, node))
+        values = _values(message, node)
+        if node in octets:
+            values = [v & 0xFF if isinstance(v, int) else v for v in values]
+        return any(_compare(value, node) for value in values)
     if node.kind == "not":
-        return not _evaluate(node.items[0], message)
-    results = (_evaluate(item, message) for item in node.items)
+        return not _evaluate(node.items[0], message, octets)
+    results = (_evaluate(item, message, octets) for item in node.items)
     return any(results) if node.kind == "or" else all(results)
 
 

@@ -19,7 +19,10 @@ import numpy as np
 from bagkit.bag import BagChunk, BagReader
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
 from bagkit.decode.layout import CdrLayout
+from bagkit.decode.matcher import PayloadMatcher
 from bagkit.prefetch import prefetch
+from bagkit.selection.conditions import Condition, parse_condition
+from bagkit.selection.errors import UnknownFieldError
 from bagkit.selection.fields import FieldSelection
 from bagkit.selection.times import TimeLike
 from bagkit.selection.topics import absolute_topic_name, require_topics
@@ -48,6 +51,10 @@ class SummaryRun:
     bulk: bool
     progress: ProgressCallback | None
     prefetch: bool = True
+    where: Condition | None = None
+    """Only messages satisfying it; topics whose type lacks its fields are left out (an
+    error when the one topic asked for lacks them)."""
+    matchers: dict[str, PayloadMatcher] = field(default_factory=dict)
     window: Window = field(default_factory=Window)
     done: int = 0
     total: int = 0
@@ -120,10 +127,13 @@ class SummaryRun:
                 self.problems.append(outside)
         wanted: dict[str, TopicAccumulator] = {}
         named = None if topics is None else {absolute_topic_name(t) for t in topics}
+        self.matchers = {}
         for name, info in reader.topics.items():
             if named is not None and absolute_topic_name(name) not in named:
                 continue
             accumulator = self.accumulator(name, info.type, info.serialization_format, label)
+            if accumulator is not None and self.where is not None:
+                accumulator = self._filtered(accumulator, len(named or ()) == 1)
             if accumulator is not None:
                 wanted[name] = accumulator
             else:  # skipped: its messages are not read
@@ -137,11 +147,36 @@ class SummaryRun:
         elif wanted:
             for message in reader.messages(wanted, self.window.start_ns, self.window.end_ns):
                 accumulator = wanted[message.topic]
+                matcher = self.matchers.get(message.topic)
+                if matcher is not None:
+                    failures = matcher.undecodable
+                    matched = matcher.matches(message.data)
+                    _count_failures(matcher, accumulator, failures)
+                    if not matched:
+                        continue
                 accumulator.add_times(np.array([message.log_time]))
                 if accumulator.leaves:
                     accumulator.add_payloads((message.data,))
                 self.advance(1, every=ROW_BATCH)
         self.problems.extend(_named(label, problem) for problem in reader.problems)
+
+    def _filtered(self, accumulator: TopicAccumulator, single: bool) -> TopicAccumulator | None:
+        """``accumulator`` with the matcher of ``where`` for this bag, or None when the topic's
+        type lacks the condition's fields (left out, unless it is the one topic asked for)."""
+        assert self.where is not None
+        topic = accumulator.topic
+        try:
+            matcher = PayloadMatcher(
+                self.types, topic, accumulator.type_name, self.where, bulk=self.bulk
+            )
+        except UnknownFieldError:
+            if single:
+                raise
+            if not accumulator.count:
+                del self.accumulators[topic]
+            return None
+        self.matchers[topic] = matcher
+        return accumulator
 
     def advance(self, messages: int, every: int = 1) -> None:
         """Count ``messages`` as done; report progress (each time ``done`` passes a multiple
@@ -162,6 +197,12 @@ class SummaryRun:
             if self.window.bounded:
                 keep = self.window.mask(log_times)
                 log_times, starts, lengths = log_times[keep], starts[keep], lengths[keep]
+            matcher = self.matchers.get(topic)
+            if matcher is not None:
+                failures = matcher.undecodable
+                keep = matcher.mask_records(chunk.records, starts, lengths)
+                _count_failures(matcher, accumulator, failures)
+                log_times, starts, lengths = log_times[keep], starts[keep], lengths[keep]
             accumulator.add_times(log_times)
             if not len(starts) or not accumulator.leaves:  # counted; no field to decode
                 continue
@@ -179,6 +220,7 @@ def summarize(
     progress: ProgressCallback | None = None,
     bulk: bool = True,
     check_crc: bool = True,
+    where: str | None = None,
 ) -> Summary:
     """Count, rate and exact statistics of every numeric field, pooled over ``bags``.
 
@@ -194,6 +236,9 @@ def summarize(
         bulk: decode fixed-layout messages in bulk with numpy; False decodes every message
             with the general decoder (slower; to cross-check the bulk path).
         check_crc: check each chunk's CRC as it is read (a damaged chunk is a problem).
+        where: only messages satisfying this condition (:mod:`bagkit.selection.conditions`);
+            topics whose type lacks its fields are left out, unless one topic is asked for
+            (then UnknownFieldError).
 
     Raises:
         BagError: a bag cannot be opened (see ``bagkit.bag``).
@@ -205,7 +250,8 @@ def summarize(
     if not paths:
         raise StatsError("no bag given")
     span = TimeRange.parse(start, end)
-    run = SummaryRun(MessageTypes(), FieldSelection(fields), span, bulk, progress)
+    condition = None if where is None else parse_condition(where)
+    run = SummaryRun(MessageTypes(), FieldSelection(fields), span, bulk, progress, where=condition)
     readers: list[BagReader] = []
     try:
         for path in paths:
@@ -258,7 +304,9 @@ def finish_summary(run: SummaryRun, paths: list[str]) -> Summary:
         if run.skipped and not run.accumulators:
             reasons = "; ".join(f"{t}: {why}" for t, why in sorted(run.skipped.items()))
             raise NothingToSummarizeError(f"no topic of {bags} can be decoded ({reasons})")
-        if run.span.bounded:  # the window missed: said once per bag, an empty summary
+        if run.where is not None:  # nothing matched: said once, an empty summary
+            run.problems.append(f"no message satisfies {run.where.text!r} in {bags}")
+        if run.span.bounded or run.where is not None:  # the window missed: said once per bag
             return Summary(tuple(paths), None, None, (), dict(run.skipped), tuple(run.problems))
         raise NothingToSummarizeError(f"no messages to summarize in {bags}")
     if run.fields and not results:
@@ -271,6 +319,12 @@ def finish_summary(run: SummaryRun, paths: list[str]) -> Summary:
         skipped=dict(sorted(run.skipped.items())),
         problems=tuple(run.problems),
     )
+
+
+def _count_failures(matcher: PayloadMatcher, accumulator: TopicAccumulator, before: int) -> None:
+    """Count the messages the matcher could not decode since it had ``before`` failures."""
+    if matcher.undecodable > before:
+        accumulator.fail(DecodeError(matcher.first_failure), matcher.undecodable - before)
 
 
 def _named(label: str, problem: str) -> str:

@@ -1,0 +1,155 @@
+"""``bagkit find``: the episodes where ``TOPIC: CONDITION`` holds, over many bags on Dask.
+
+One task per bag runs :func:`bagkit.data.episodes.find_episodes` (the same code in this
+process and on a worker), so the Dask path gives what the in-process one gives; results come
+back in the order of the bags. A bag without the topic has no episode; a bag that cannot be
+read is reported and the others are searched.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Iterable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from bagkit.bag import BagError, BagReader
+from bagkit.data.episodes import Episode, find_episodes
+from bagkit.fleet.errors import FleetError
+from bagkit.fleet.execute import ItemDone, run_each
+from bagkit.selection.conditions import parse_topic_condition
+from bagkit.selection.errors import UnknownTopicError
+from bagkit.selection.times import TimeLike
+from bagkit.selection.windows import TimeRange
+
+if TYPE_CHECKING:
+    import pyarrow as pa
+    from distributed import Client
+
+COLUMNS = ("bag", "topic", "start_ns", "end_ns", "count")
+
+
+@dataclass(frozen=True, slots=True)
+class FoundEpisode:
+    """One episode of one bag: first and last matching log time (ns), matches in it."""
+
+    bag: str
+    topic: str
+    start_ns: int
+    end_ns: int
+    count: int
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+@dataclass(slots=True)
+class BagEpisodes:
+    """What one bag gave (sent from a worker): its episodes, or why it could not be read."""
+
+    bag: str
+    episodes: list[Episode] = field(default_factory=list)
+    has_topic: bool = True
+    problems: list[str] = field(default_factory=list)
+    error: str | None = None
+
+
+@dataclass(slots=True)
+class FindResult:
+    """The episodes of every bag, in bag order then time order, and what could not be read."""
+
+    topic: str
+    episodes: list[FoundEpisode]
+    problems: list[str]
+    unread: int = 0
+    """Bags that could not be read at all."""
+
+    def to_arrow(self) -> pa.Table:
+        """One row per episode: ``bag``, ``topic``, ``start_ns``, ``end_ns``, ``count``."""
+        import pyarrow as pa
+
+        schema = pa.schema(
+            [
+                ("bag", pa.string()),
+                ("topic", pa.string()),
+                ("start_ns", pa.int64()),
+                ("end_ns", pa.int64()),
+                ("count", pa.int64()),
+            ]
+        )
+        columns = {name: [getattr(e, name) for e in self.episodes] for name in COLUMNS}
+        return pa.Table.from_pydict(columns, schema=schema)
+
+
+def episodes_in_bag(
+    bag: str,
+    *,
+    when: str,
+    gap_ns: int = 0,
+    start: TimeLike | None = None,
+    end: TimeLike | None = None,
+) -> BagEpisodes:
+    """The episodes of ``when`` (``TOPIC: CONDITION``) in one bag (what a worker runs).
+
+    Raises:
+        UnknownFieldError, SelectionError: the condition does not fit the topic's type.
+    """
+    trigger = parse_topic_condition(when)
+    try:
+        with BagReader(bag, allow_empty=True) as reader:
+            window = TimeRange.parse(start, end).resolve(reader.start_ns, reader.end_ns)
+            try:
+                found = find_episodes(reader, trigger, gap_ns, window)
+            except UnknownTopicError:
+                return BagEpisodes(bag, has_topic=False)
+    except BagError as exc:
+        return BagEpisodes(bag, error=str(exc))
+    problems = [p if p.startswith(bag) else f"{bag}: {p}" for p in found.problems]
+    return BagEpisodes(bag, found.episodes, problems=problems)
+
+
+def find_fleet(
+    bags: Iterable[str | Path],
+    *,
+    when: str,
+    gap_ns: int = 0,
+    start: TimeLike | None = None,
+    end: TimeLike | None = None,
+    client: Client | None = None,
+    done: ItemDone | None = None,
+) -> FindResult:
+    """The episodes of ``when`` in every bag, one task per bag on ``client`` (here when None).
+
+    Args:
+        when: ``'TOPIC: CONDITION'`` (:func:`~bagkit.selection.conditions.parse_topic_condition`).
+        gap_ns: matches less than this apart merge into one episode
+            (:func:`~bagkit.data.episodes.episodes_of`).
+        start, end: only messages in this window of each bag (seconds from its own start ...).
+        done: called with the index of each bag once it is searched.
+
+    Raises:
+        SelectionError: ``when`` does not parse (before any bag is read), or its condition
+            does not fit the topic's type; FleetError: no bag could be read, or none has
+            the topic.
+    """
+    trigger = parse_topic_condition(when)
+    paths = [str(bag) for bag in bags]
+    task = functools.partial(episodes_in_bag, when=when, gap_ns=gap_ns, start=start, end=end)
+    parts: list[BagEpisodes] = run_each(task, paths, client, done)
+    readable = [part for part in parts if part.error is None]
+    if not readable:
+        raise FleetError(f"no bag could be read ({parts[0].error if parts else 'no bag given'})")
+    if not any(part.has_topic for part in readable):
+        raise UnknownTopicError(f"none of the bags has the topic {trigger.topic}")
+    episodes: list[FoundEpisode] = []
+    problems: list[str] = []
+    for part in parts:
+        if part.error is not None:
+            problems.append(f"{part.bag}: not read: {part.error}")
+        problems.extend(part.problems)
+        episodes.extend(
+            FoundEpisode(part.bag, trigger.topic, e.start_ns, e.end_ns, e.count)
+            for e in part.episodes
+        )
+    return FindResult(trigger.topic, episodes, problems, len(parts) - len(readable))

@@ -1,0 +1,156 @@
+"""``bagkit golden add``: a time window of a bag made into a golden fixture folder.
+
+The window is cut with ``filter``'s code (the latched state from before it written first).
+With a spec to copy (``like``), the window's inputs are run through that spec's processors in
+lockstep, the system under test starting at the window's start, and the golden holds the
+inputs and those outputs, as ``golden update`` makes them; with no spec, the golden is the
+window as recorded and ``spec.yaml`` a commented template naming its topics.
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from bagkit.bag import BagReader
+from bagkit.data.episodes import episode_windows, find_episodes
+from bagkit.regression.errors import RegressionError
+from bagkit.regression.lockstep import LockstepResult, run_lockstep
+from bagkit.regression.processor import make_processors
+from bagkit.regression.spec import BAG_DIR, SPEC_FILE, FixtureSpec, load_spec
+from bagkit.selection.conditions import parse_topic_condition
+from bagkit.selection.times import TimeLike
+from bagkit.surgery.rewrite import filter_bag
+from bagkit.surgery.select import Selection
+
+
+@dataclass(frozen=True, slots=True)
+class AddOptions:
+    """Where a new fixture comes from.
+
+    Attributes:
+        bag: the recording to cut.
+        start, end: the window (:mod:`bagkit.selection.times`, read against ``bag``).
+        like: a fixture folder whose ``spec.yaml`` the new fixture copies (None: a template).
+        around: instead of start/end, ``TOPIC: CONDITION``: the window of its first episode
+            (matches less than ``gap_ns`` apart merged), ``before_ns`` before its first match
+            to ``after_ns`` after its last.
+    """
+
+    bag: Path
+    start: TimeLike | None = None
+    end: TimeLike | None = None
+    like: Path | None = None
+    around: str | None = None
+    before_ns: int = 0
+    after_ns: int = 0
+    gap_ns: int = 0
+
+
+@dataclass(frozen=True, slots=True)
+class AddedFixture:
+    """What ``golden add`` wrote: the folder, its spec (None for a template), the window's
+    topics with their message counts, and the lockstep run that made the outputs."""
+
+    directory: Path
+    spec: FixtureSpec | None
+    counts: dict[str, int]
+    lockstep: LockstepResult | None = None
+    episodes: int = 0
+    """With ``around``: the episodes found (the first one is the fixture's window)."""
+
+
+def add_fixture(directory: Path, options: AddOptions) -> AddedFixture:
+    """Write the fixture folder ``directory`` (``spec.yaml`` and ``golden/``) from a window.
+
+    Raises:
+        RegressionError: ``directory`` exists and is not empty, or the window is empty.
+        BagError, SelectionError, SurgeryError: the bag or the window cannot be read.
+        SpecError: ``like`` has no valid spec.
+    """
+    if directory.exists() and any(directory.iterdir()):
+        raise RegressionError(f"{directory} exists and is not empty: choose a new folder")
+    like = None if options.like is None else load_spec(options.like)
+    options, episodes = _around(options)
+    directory.mkdir(parents=True, exist_ok=True)
+    try:
+        with tempfile.TemporaryDirectory(dir=directory, prefix=".add-") as tmp:
+            window = Path(tmp) / "window"
+            filter_bag(options.bag, window, Selection.create(start=options.start, end=options.end))
+            with BagReader(window, allow_empty=True) as reader:
+                counts = dict(sorted(reader.topic_counts.items()))
+                types = {name: info.type for name, info in reader.topics.items()}
+            if not any(counts.values()):
+                raise RegressionError(f"no message of {options.bag} in the window")
+            if like is None:
+                window.rename(directory / BAG_DIR)
+                (directory / SPEC_FILE).write_text(_template(options, counts, types))
+                return AddedFixture(directory, None, counts, episodes=episodes)
+            (directory / SPEC_FILE).write_text(_copied(options, like))
+            spec = load_spec(directory)
+            result = run_lockstep(
+                window,
+                directory / BAG_DIR,
+                processors=make_processors(spec.processor or "", spec.processor_args),
+                input_topics=spec.inputs,
+                output_topics=spec.outputs,
+                copy_topics=[t for t in counts if t not in spec.outputs],
+            )
+    except BaseException:
+        shutil.rmtree(directory, ignore_errors=True)
+        raise
+    return AddedFixture(directory, spec, counts, result, episodes)
+
+
+def _around(options: AddOptions) -> tuple[AddOptions, int]:
+    """``options`` with the window of the first episode of ``around`` as start and end (in
+    absolute ns), and how many episodes there were."""
+    if options.around is None:
+        return options, 0
+    if options.start is not None or options.end is not None:
+        raise RegressionError("--around sets the window: it takes no --start or --end")
+    trigger = parse_topic_condition(options.around)
+    with BagReader(options.bag) as reader:
+        found = find_episodes(reader, trigger, options.gap_ns)
+    if not found.episodes:
+        raise RegressionError(f"{options.bag}: {trigger.text!r} holds for no message")
+    (window,) = episode_windows(found.episodes[:1], options.before_ns, options.after_ns)
+    return replace(options, start=f"{window.start_ns}ns", end=f"{window.end_ns}ns"), len(
+        found.episodes
+    )
+
+
+def _origin(options: AddOptions) -> str:
+    start = "the start" if options.start is None else str(options.start)
+    end = "the end" if options.end is None else str(options.end)
+    why = "" if options.around is None else f" (around the first episode of {options.around!r})"
+    return f"# Cut by `bagkit golden add` from {options.bag}, from {start} to {end}{why}.\n"
+
+
+def _copied(options: AddOptions, like: FixtureSpec) -> str:
+    """``like``'s spec.yaml, under a line saying where the window comes from."""
+    if like.processor is None:
+        raise RegressionError(
+            f"{like.directory / SPEC_FILE}: --like needs a spec with a processor (lockstep "
+            "makes the expected outputs of the window)"
+        )
+    text = (like.directory / SPEC_FILE).read_text()
+    return _origin(options) + f"# Spec copied from {like.directory}.\n" + text
+
+
+def _template(options: AddOptions, counts: dict[str, int], types: dict[str, str]) -> str:
+    topics = "\n".join(f"#   {t}: {types[t]}, {n} messages" for t, n in counts.items())
+    return (
+        _origin(options)
+        + "# golden/ holds the window as recorded. Name the system under test, split the\n"
+        "# topics into inputs and outputs, then `bagkit golden update` makes the expected\n"
+        "# outputs from the inputs (docs/regression.md, 'The spec').\n"
+        f"# Topics of the window:\n{topics}\n"
+        "description: ''\n"
+        "# processor: my_package.regression:make_processors   # lockstep\n"
+        "# launch: ros2 run my_package my_node                # live\n"
+        f"inputs: [{', '.join(counts)}]\n"
+        "outputs: []\n"
+    )

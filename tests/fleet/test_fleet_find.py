@@ -1,0 +1,208 @@
+"""``bagkit find``: episodes over many bags equal an oracle's, on Dask as in one process.
+
+The oracle reads every Imu payload with the mcap library, decodes it with rosbags, and walks
+the messages in a plain Python loop: consecutive matching messages are one episode, and a
+match less than ``gap`` after the last one (messages that do not match between them) joins
+it.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from distributed import Client
+from fleet_bags import IMU, STORE
+from mcap.reader import make_reader
+
+from bagkit.fleet.errors import FleetError
+from bagkit.fleet.find import FoundEpisode, find_fleet
+from bagkit.selection.errors import SelectionError, UnknownFieldError, UnknownTopicError
+
+BAGKIT = str(Path(sys.executable).with_name("bagkit"))
+WHEN = "/imu/data: linear_acceleration.z > 9.85 or angular_velocity.x < -0.03"
+
+
+def _oracle(bags: list[Path], gap_ns: int) -> list[FoundEpisode]:
+    found = []
+    for bag in bags:
+        rows = []
+        for file in sorted(bag.glob("*.mcap")):
+            with open(file, "rb") as f:
+                for _, _channel, message in make_reader(f).iter_messages(topics=["/imu/data"]):
+                    msg = STORE.deserialize_cdr(message.data, IMU)
+                    hit = msg.linear_acceleration.z > 9.85 or msg.angular_velocity.x < -0.03
+                    rows.append((message.log_time, hit))
+        frame = pd.DataFrame(rows, columns=["t", "hit"]).sort_values("t", kind="stable")
+        current: list[int] | None = None  # [start, end, count]
+        previous_hit = False
+        for t, hit in zip(frame["t"].tolist(), frame["hit"].tolist(), strict=True):
+            after_hit, previous_hit = previous_hit, hit
+            if not hit:
+                continue
+            if current is not None and (after_hit or t - current[1] < gap_ns):
+                current[1], current[2] = t, current[2] + 1
+                continue
+            if current is not None:
+                found.append(FoundEpisode(str(bag), "/imu/data", *current))
+            current = [t, t, 1]
+        if current is not None:
+            found.append(FoundEpisode(str(bag), "/imu/data", *current))
+    return found
+
+
+@pytest.mark.parametrize("gap_ns", [0, 10_000_000, 25_000_000, 200_000_000])
+def test_episodes_equal_the_oracle(fleet_bags: list[Path], gap_ns: int) -> None:
+    expected = _oracle(fleet_bags, gap_ns)
+    assert len(expected) > len(fleet_bags), "the condition must make several episodes"
+    result = find_fleet(fleet_bags, when=WHEN, gap_ns=gap_ns)
+    assert result.episodes == expected
+    assert result.problems == [] and result.unread == 0
+
+
+def test_dask_gives_what_one_process_gives(fleet_bags: list[Path], client: Client) -> None:
+    here = find_fleet(fleet_bags, when=WHEN, gap_ns=20_000_000)
+    done: list[int] = []
+    there = find_fleet(fleet_bags, when=WHEN, gap_ns=20_000_000, client=client, done=done.append)
+    assert there.episodes == here.episodes and there.episodes
+    assert sorted(done) == list(range(len(fleet_bags)))
+
+
+def test_a_window_of_each_bag(fleet_bags: list[Path]) -> None:
+    whole = find_fleet(fleet_bags, when=WHEN)
+    part = find_fleet(fleet_bags, when=WHEN, start="1", end="2")
+    assert part.episodes
+    for episode in part.episodes:
+        assert episode in whole.episodes  # gap 0: windowing cuts no run of one message
+
+
+def test_bad_input(fleet_bags: list[Path], tmp_path: Path) -> None:
+    with pytest.raises(SelectionError, match="expected 'TOPIC: CONDITION'"):
+        find_fleet(fleet_bags, when="linear_acceleration.z > 1")
+    with pytest.raises(UnknownFieldError, match="no field"):
+        find_fleet(fleet_bags, when="/imu/data: status[*].level > 1")
+    with pytest.raises(UnknownTopicError, match="none of the bags has the topic /nowhere"):
+        find_fleet(fleet_bags, when="/nowhere: x > 1")
+    (tmp_path / "broken.mcap").write_bytes(b"not a bag")
+    with pytest.raises(FleetError, match="no bag could be read"):
+        find_fleet([tmp_path / "broken.mcap"], when=WHEN)
+    result = find_fleet([*fleet_bags[:1], tmp_path / "broken.mcap"], when=WHEN)
+    assert result.unread == 1 and any("broken.mcap: not read" in p for p in result.problems)
+
+
+def _bagkit(*args: str | Path, cwd: Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [BAGKIT, *map(str, args)], capture_output=True, text=True, timeout=300, cwd=cwd, check=False
+    )
+
+
+def test_cli_json_and_parquet_hold_the_episodes(fleet_dir: Path, tmp_path: Path) -> None:
+    from bagkit.fleet import expand_bags
+
+    expected = [e.to_dict() for e in _oracle(expand_bags([fleet_dir]), 20_000_000)]
+    shown = _bagkit("find", fleet_dir, "--when", WHEN, "--gap", "20ms", "--format", "json",
+                    "--workers", "0", cwd=tmp_path)  # fmt: skip
+    assert shown.returncode == 0, shown.stderr
+    assert json.loads(shown.stdout) == expected
+    written = _bagkit("find", fleet_dir, "--when", WHEN, "--gap", "0.02", "-o", "e.parquet",
+                      "--workers", "0", cwd=tmp_path)  # fmt: skip
+    assert written.returncode == 0, written.stderr
+    assert pd.read_parquet(tmp_path / "e.parquet").to_dict("records") == expected
+    table = _bagkit("find", fleet_dir, "--when", WHEN, "--workers", "0", cwd=tmp_path)
+    assert table.returncode == 0 and "episodes of /imu/data" in table.stdout
+
+
+@pytest.mark.parametrize(
+    ("args", "error"),
+    [
+        (["--when", "x > 1"], "error: 'x > 1': expected 'TOPIC: CONDITION'"),
+        (["--when", "/imu/data: z >"], "error: '/imu/data: z >': bad condition"),
+        (["--when", WHEN, "--gap", "-1"], "error: bad --gap"),
+        (["--when", WHEN, "--format", "parquet"], "error: --format parquet and -o/--output"),
+        (["--when", "/imu/data: __import__('os').system('touch PWNED') == 0"], "error: "),
+    ],
+)
+def test_cli_bad_input_is_one_line(
+    fleet_dir: Path, tmp_path: Path, args: list[str], error: str
+) -> None:
+    result = _bagkit("find", fleet_dir, *args, "--workers", "0", cwd=tmp_path)
+    assert result.returncode == 2, result.stderr
+    assert result.stderr.startswith(error) and result.stderr.count("\n") == 1, result.stderr
+    assert not (tmp_path / "PWNED").exists()
+
+
+def test_catalog_events_store_the_episodes_and_search_only_what_changed(
+    fleet_dir: Path, tmp_path: Path
+) -> None:
+    import shutil
+
+    from bagkit.fleet.events import events_path, query_events, read_events
+
+    root = tmp_path / "bags"
+    shutil.copytree(fleet_dir, root)
+    catalog = tmp_path / "cat.parquet"
+    event = f"high={WHEN}"
+    built = _bagkit("catalog", root, "-o", catalog, "--events", event, "--workers", "0",
+                    cwd=tmp_path)  # fmt: skip
+    assert built.returncode == 0, built.stderr
+    from bagkit.fleet import expand_bags
+
+    bags = expand_bags([root])
+    expected = find_fleet(bags, when=WHEN).episodes
+    frame = read_events(events_path(catalog))
+    had = query_events(frame, "high")
+    assert [(p, int(s.value), int(e.value), c) for p, s, e, c in zip(
+        had["path"], had["start"], had["end"], had["count"], strict=True
+    )] == [(e.bag, e.start_ns, e.end_ns, e.count) for e in expected]  # fmt: skip
+    # A window: only the episodes of the first bag's first second.
+    first = expected[0]
+    early = query_events(frame, "high", end=f"{first.start_ns}ns")
+    assert set(early["path"]) == {first.bag}
+
+    shutil.rmtree(bags[0])  # a bag gone, the others unchanged: nothing searched again
+    again = _bagkit("catalog", root, "-o", catalog, "--events", event, "--workers", "0",
+                    cwd=tmp_path)  # fmt: skip
+    assert again.returncode == 0, again.stderr
+    assert "1 removed" in again.stderr
+    left = read_events(events_path(catalog))
+    assert str(bags[0]) not in set(left["path"])
+    assert len(left) == len(frame[frame["path"] != str(bags[0])])
+
+    listed = _bagkit("catalog", "query", catalog, "--event", "high", "--format", "json",
+                     cwd=tmp_path)  # fmt: skip
+    assert listed.returncode == 0, listed.stderr
+    assert {r["path"] for r in json.loads(listed.stdout)} == {str(b) for b in bags[1:]}
+    unknown = _bagkit("catalog", "query", catalog, "--event", "low", cwd=tmp_path)
+    assert unknown.returncode == 2 and unknown.stderr.startswith("error: no event 'low'")
+
+
+def test_stats_where_on_dask_equals_one_process(fleet_bags: list[Path], client: Client) -> None:
+    from bagkit.fleet import summarize_fleet
+    from bagkit.stats import summarize
+
+    where = "linear_acceleration.z > 9.85 or angular_velocity.x < -0.03"
+    here = summarize(fleet_bags, topics=["/imu/data"], where=where)
+    there = summarize_fleet(fleet_bags, client=client, topics=["/imu/data"], where=where)
+    matched = sum(e.count for e in find_fleet(fleet_bags, when=WHEN).episodes)
+    assert here.topics[0].count == there.topics[0].count == matched
+    for mine, theirs in zip(here.topics[0].fields, there.topics[0].fields, strict=True):
+        assert (mine.count, mine.min, mine.max) == (theirs.count, theirs.min, theirs.max)
+        assert mine.mean == pytest.approx(theirs.mean, rel=1e-12, abs=1e-12)
+
+
+def test_export_where_over_many_bags_keeps_what_find_matches(
+    fleet_dir: Path, tmp_path: Path
+) -> None:
+    from bagkit.fleet import expand_bags
+
+    where = WHEN.partition(": ")[2]
+    done = _bagkit("export", fleet_dir, "-t", "/imu/data", "-o", "out", "--where", where,
+                   "--workers", "0", cwd=tmp_path)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    bags = expand_bags([fleet_dir])
+    rows = sum(len(pd.read_parquet(f)) for f in (tmp_path / "out").rglob("*.parquet"))
+    assert rows == sum(e.count for e in find_fleet(bags, when=WHEN).episodes)

@@ -1,0 +1,105 @@
+"""``bagkit golden add``: a window of a recording becomes a fixture that pytest runs at once.
+
+In a temporary copy of the repository (as the mutation proof): a window of the faults
+fixture's golden is made a fixture ``--like fixtures/faults``; its lockstep test passes on the
+unchanged code, and fails once the code under test is changed by 1%.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import yaml
+from test_mutation import EXPONENT, failing, mutated_copy, run_golden
+
+from bagkit.bag import BagReader
+from bagkit.regression.spec import load_spec
+
+BAGKIT = str(Path(sys.executable).with_name("bagkit"))
+
+
+def _bagkit(copy: Path, *args: str) -> subprocess.CompletedProcess[str]:
+    env = dict(os.environ, PYTHONPATH=str(copy))
+    return subprocess.run(
+        [BAGKIT, *args], cwd=copy, env=env, capture_output=True, text=True, timeout=300, check=False
+    )
+
+
+def test_a_window_made_a_fixture_passes_then_catches_a_mutation(tmp_path: Path) -> None:
+    copy = mutated_copy(tmp_path, "fusion/estimation/isa.py", EXPONENT, EXPONENT)
+    added = _bagkit(
+        copy, "golden", "add", "fixtures/incident", "--from", "fixtures/faults/golden",
+        "--start", "5", "--end", "15", "--like", "fixtures/faults",
+    )  # fmt: skip
+    assert added.returncode == 0, added.stderr
+    fixture = copy / "fixtures" / "incident"
+    assert sorted(p.name for p in fixture.iterdir()) == ["golden", "spec.yaml"]
+    spec, faults = load_spec(fixture), load_spec(copy / "fixtures" / "faults")
+    assert (spec.inputs, spec.outputs, spec.processor) == (
+        faults.inputs,
+        faults.outputs,
+        faults.processor,
+    )
+    with BagReader(fixture / "golden") as window, BagReader(faults.bag) as whole:
+        assert window.start_ns >= whole.start_ns + 5 * 10**9
+        assert window.end_ns < whole.start_ns + 15 * 10**9
+        for topic in spec.inputs:  # the inputs are the window's, as recorded
+            inside = [
+                m.log_time
+                for m in whole.messages([topic])
+                if whole.start_ns + 5 * 10**9 <= m.log_time < whole.start_ns + 15 * 10**9
+            ]
+            assert [m.log_time for m in window.messages([topic])] == inside
+    assert yaml.safe_load((fixture / "spec.yaml").read_text()) == yaml.safe_load(
+        (copy / "fixtures" / "faults" / "spec.yaml").read_text()
+    )
+
+    passed, _ = run_golden(copy, "incident")
+    assert passed.returncode == 0, passed.stdout + passed.stderr
+
+    isa = copy / "fusion" / "estimation" / "isa.py"
+    isa.write_text(isa.read_text().replace(EXPONENT, f"_EXPONENT = {0.190263 * 1.01!r}"))
+    failed, report = run_golden(copy, "incident")
+    assert failed.returncode == 1, failed.stdout + failed.stderr
+    assert "pose.pose.position.z" in failing(report)["/fusion/baro_altitude"]["failed_fields"]
+
+
+def test_without_like_the_window_is_kept_and_the_spec_is_a_template(tmp_path: Path) -> None:
+    copy = mutated_copy(tmp_path, "fusion/estimation/isa.py", EXPONENT, EXPONENT)
+    added = _bagkit(
+        copy, "golden", "add", "fixtures/raw", "--from", "fixtures/faults/golden", "--end", "3"
+    )
+    assert added.returncode == 0, added.stderr
+    text = (copy / "fixtures" / "raw" / "spec.yaml").read_text()
+    with BagReader(copy / "fixtures" / "raw" / "golden") as window:
+        for topic, count in window.topic_counts.items():
+            assert f"#   {topic}: {window.topics[topic].type}, {count} messages" in text
+    again = _bagkit(copy, "golden", "add", "fixtures/raw", "--from", "fixtures/faults/golden")
+    assert again.returncode != 0 and again.stderr.startswith("error: fixtures/raw exists")
+    assert again.stderr.count("\n") == 1
+
+
+def test_around_takes_the_first_episode_with_its_margins(tmp_path: Path) -> None:
+    from bagkit.data.episodes import find_episodes
+    from bagkit.regression.add import AddOptions, add_fixture
+    from bagkit.regression.golden import check_lockstep
+    from bagkit.selection.conditions import parse_topic_condition
+
+    faults = load_spec(Path(__file__).resolve().parents[2] / "fixtures" / "faults")
+    trigger = "/alerts: status[*].level >= 2"
+    with BagReader(faults.bag) as reader:
+        found = find_episodes(reader, parse_topic_condition(trigger))
+    first = found.episodes[0]
+    assert len(found.episodes) > 1
+    options = AddOptions(
+        faults.bag, like=faults.directory, around=trigger, before_ns=10**9, after_ns=3 * 10**9
+    )
+    added = add_fixture(tmp_path / "alert", options)
+    assert added.episodes == len(found.episodes)
+    with BagReader(tmp_path / "alert" / "golden") as window:
+        inputs = [m.log_time for m in window.messages(faults.inputs)]
+    assert first.start_ns - 10**9 <= min(inputs) and max(inputs) <= first.end_ns + 3 * 10**9
+    assert check_lockstep(load_spec(tmp_path / "alert"), tmp_path / "work").passed
