@@ -9,11 +9,9 @@ from dataclasses import dataclass
 from typing import Any
 
 from bagkit.compare.options import CompareOptions, Tolerance
-from bagkit.compare.result import Divergence, FieldResult, TopicResult, Value
+from bagkit.compare.result import SHAPE_KINDS, Divergence, FieldResult, TopicResult, Value
 
 STAMP_FIELDS = ("header.stamp.sec", "header.stamp.nanosec")
-# Divergences no pass rate excuses: the messages do not have the same shape.
-SHAPE_KINDS = frozenset({"missing_field", "extra_field", "length", "type"})
 
 
 @dataclass(frozen=True, slots=True)

@@ -58,6 +58,10 @@ class FieldResult:
         return self.failed == 0
 
 
+# Divergences no pass rate excuses: the messages do not have the same shape.
+SHAPE_KINDS = frozenset({"missing_field", "extra_field", "length", "type"})
+
+
 @dataclass(slots=True)
 class TopicResult:
     """How one topic of the candidate compares with the golden."""
@@ -93,6 +97,13 @@ class TopicResult:
     def failed_fields(self) -> list[FieldResult]:
         """The fields with at least one value out of tolerance."""
         return [f for f in self.fields if not f.passed]
+
+    @property
+    def shape_fields(self) -> list[str]:
+        """Fields of another shape (a sequence's length, a field missing, extra or retyped),
+        as ``path (kind)``, among the divergences kept."""
+        found = {f"{d.field} ({d.kind})" for d in self.divergences if d.kind in SHAPE_KINDS}
+        return sorted(found)
 
 
 @dataclass(slots=True)

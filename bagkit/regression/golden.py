@@ -36,7 +36,8 @@ class GoldenCheck:
             if topic.passed:
                 continue
             fields = ", ".join(
-                f"{f.path} (max |err| {f.max_abs_error:.3g})" for f in topic.failed_fields
+                [f"{f.path} (max |err| {f.max_abs_error:.3g})" for f in topic.failed_fields]
+                + topic.shape_fields
             )
             counts = f"missing {topic.missing}, extra {topic.extra}"
             lines.append(f"  {topic.topic}: {counts}; fields: {fields or '-'}")

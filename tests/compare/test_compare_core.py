@@ -247,6 +247,14 @@ def test_sequence_fields_compare_length_and_elements() -> None:
     ]
 
 
+def test_a_length_only_difference_names_its_field() -> None:
+    golden = [stamped(0, **{"status[].level": [2, 1]})]
+    candidate = [stamped(0, **{"status[].level": [2, 1, 1]})]
+    result = compare_samples("/t", "T", golden, candidate, CompareOptions())
+    assert not result.passed and result.failed_fields == []
+    assert result.shape_fields == ["status[].level (length)"]
+
+
 def test_brackets_in_field_globs_are_literal() -> None:
     options = CompareOptions(
         ignore_fields=("/s:status[].values[].value",),
