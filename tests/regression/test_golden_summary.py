@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from bagkit.bag import BagReader
+from bagkit.regression.spec import load_spec
 
 REPO = Path(__file__).resolve().parents[2]
 EXAMPLE = REPO / "examples" / "thermostat"
@@ -56,9 +57,11 @@ def project(tmp_path: Path) -> Path:
     return copy
 
 
-def golden_heater_count(project: Path) -> int:
-    with BagReader(project / "fixtures" / "office" / "golden") as golden:
-        return golden.topic_counts["/thermostat/heater"]
+def golden_output_counts(project: Path) -> tuple[int, int]:
+    """The spec's compared topics (outputs, service events among them) and their messages."""
+    spec = load_spec(project / "fixtures" / "office")
+    with BagReader(spec.bag) as golden:
+        return len(spec.outputs), sum(golden.topic_counts[t] for t in spec.outputs)
 
 
 def test_a_pass_then_a_mutation_that_fails_lockstep(project: Path) -> None:
@@ -66,7 +69,8 @@ def test_a_pass_then_a_mutation_that_fails_lockstep(project: Path) -> None:
     assert passed.returncode == 0, passed.stdout + passed.stderr
     head, rows = table((project / SUMMARY).read_text())
     assert head == "## Golden fixtures: pass (1)"
-    matched = f"1 topic(s), {golden_heater_count(project)} messages match the golden"
+    topics, messages = golden_output_counts(project)
+    matched = f"{topics} topic(s), {messages} messages match the golden"
     assert rows == [["office", "lockstep", "passed", matched, ""]]
 
     core = project / "thermostat" / "core.py"
@@ -79,9 +83,13 @@ def test_a_pass_then_a_mutation_that_fails_lockstep(project: Path) -> None:
     ((fixture, mode, result, verdict, report),) = rows
     assert (fixture, mode, result) == ("office", "lockstep", "failed")
     folder = project / "golden_failures" / "office-lockstep"
-    (heater,) = [t for t in json.loads((folder / "report.json").read_text())["topics"]]
-    (data,) = heater["fields"]
-    assert verdict == f"/thermostat/heater: data (max \\|err\\| {data['max_abs_error']:.3g})"
+    topics = {t["topic"]: t for t in json.loads((folder / "report.json").read_text())["topics"]}
+    (data,) = topics["/thermostat/heater"]["fields"]
+    # The heater's power, then the status answers (they state the gain) of the service.
+    heater, status = verdict.split("; ")
+    assert heater == f"/thermostat/heater: data (max \\|err\\| {data['max_abs_error']:.3g})"
+    assert status.startswith("/thermostat/status/_service_event: response[].message")
+    assert set(topics) == {"/thermostat/heater", "/thermostat/status/_service_event"}
     assert report == "`golden_failures/office-lockstep/report.html`"
     assert (project / report.strip("`")).is_file()
 
