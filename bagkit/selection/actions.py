@@ -19,9 +19,16 @@ STATUS_TOPIC = "status"
 STATUS_TYPE = "action_msgs/msg/GoalStatusArray"
 ACTION_SERVICES = ("send_goal", "get_result", "cancel_goal")
 _SERVICE_EVENT = "/_service_event"
+
+
+def is_action_type(type_name: str) -> bool:
+    """Whether ``type_name`` is derived from an action, ``pkg/action/Name_Part``."""
+    return type_name.split("/")[1:2] == ["action"]
+
+
 # Each part's name under ``_action/`` and whether a type fits it.
 _PART_TYPES = {
-    FEEDBACK_TOPIC: lambda t: "/action/" in t and t.endswith("_FeedbackMessage"),
+    FEEDBACK_TOPIC: lambda t: is_action_type(t) and t.endswith("_FeedbackMessage"),
     STATUS_TOPIC: lambda t: t == STATUS_TYPE,
     **{f"{s}{_SERVICE_EVENT}": lambda t: t.endswith("_Event") for s in ACTION_SERVICES},
 }
