@@ -68,15 +68,20 @@ def _bagkit(*args: str) -> str:
     ).stdout
 
 
+@pytest.mark.parametrize("selection", [["--actions", ACTION], ["-a"]], ids=["actions", "all"])
 def test_record_actions_keeps_feedback_and_status(
-    node: Node, spinning: MultiThreadedExecutor, processes: Any, tmp_path: Path
+    node: Node,
+    spinning: MultiThreadedExecutor,
+    processes: Any,
+    tmp_path: Path,
+    selection: list[str],
 ) -> None:
     group = ReentrantCallbackGroup()
     server = ActionServer(node, Fibonacci, ACTION, _execute, callback_group=group)
     client = ActionClient(node, Fibonacci, ACTION, callback_group=group)
     bag = tmp_path / "fib"
     recorder = processes.start(
-        ["bagkit", "record", "--actions", ACTION, "-o", str(bag), "--log-level", "warn"],
+        ["bagkit", "record", *selection, "-o", str(bag), "--log-level", "warn"],
         stderr=subprocess.PIPE,
         text=True,
     )
@@ -103,7 +108,7 @@ def test_record_actions_keeps_feedback_and_status(
 
     assert len(received) == ORDER - 1
     info = json.loads(_bagkit("info", str(bag), "--format", "json"))
-    counts = {t["topic"]: t["count"] for t in info["topics"]}
+    counts = {t["topic"]: t["count"] for t in info["topics"] if "/_action/" in t["topic"]}
     assert set(counts) == {FEEDBACK, STATUS}
     assert info["actions"] == [
         {
