@@ -18,6 +18,7 @@ FEEDBACK_TOPIC = "feedback"
 STATUS_TOPIC = "status"
 STATUS_TYPE = "action_msgs/msg/GoalStatusArray"
 ACTION_SERVICES = ("send_goal", "get_result", "cancel_goal")
+# services.SERVICE_EVENT_SUFFIX: services.py imports this module, not the other way round.
 _SERVICE_EVENT = "/_service_event"
 
 
