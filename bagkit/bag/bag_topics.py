@@ -10,6 +10,7 @@ from bagkit.bag.definitions import canonical_type_name, message_definition, type
 from bagkit.bag.errors import BagError, UnknownMessageTypeError
 from bagkit.bag.mcapio.records import Channel, Schema
 from bagkit.bag.messages import TopicInfo
+from bagkit.selection.actions import is_action_type
 from bagkit.selection.services import is_service_event_type
 
 
@@ -75,9 +76,10 @@ def _with_type_hash(topic: TopicInfo) -> TopicInfo:
 
     A service-event topic gets none: rosbags checks each channel's hash against its own and
     cannot compute a service event's (it names the type ``pkg/srv/msg/Name_Event``), so with
-    it rosbags would refuse the whole bag (docs/record.md, "Services").
+    it rosbags would refuse the whole bag (docs/record.md, "Services"). Nor does a type derived
+    from an action (``pkg/action/Name_FeedbackMessage``), for the same reason.
     """
-    if is_service_event_type(topic.type):
+    if is_service_event_type(topic.type) or is_action_type(topic.type):
         return dataclasses.replace(topic, type_description_hash="")
     if topic.type_description_hash:
         return topic

@@ -14,6 +14,7 @@ import re
 import sys
 from pathlib import Path
 
+from bagkit.bag.action_definitions import action_part_texts, split_action_part
 from bagkit.bag.errors import UnknownMessageTypeError
 
 # rosbag2 separates the definitions of dependencies with this line (80 '=').
@@ -82,6 +83,9 @@ def _interface_source(type_name: str) -> tuple[str, str, str, str]:
     package, kind, name = _split_type_name(type_name)
     if kind == "srv" and name.endswith(_SERVICE_EVENT_SUFFIX):
         return package, kind, name.removesuffix(_SERVICE_EVENT_SUFFIX), ".srv"
+    action_part = split_action_part(name) if kind == "action" else None
+    if action_part is not None:
+        return package, kind, action_part[0], ".action"
     return package, kind, name, ".msg"
 
 
@@ -133,15 +137,19 @@ def message_definition(type_name: str) -> str:
     the request and response as dependencies ``MSG: pkg/Name_Request`` and
     ``MSG: pkg/Name_Response``: rosbag2 Jazzy stores the bare ``.srv`` text, which rosbags
     cannot parse; this form every reader of ``ros2msg`` opens (docs/record.md, "Services").
+    A type derived from an action, ``pkg/action/Name_FeedbackMessage`` and the others of
+    :mod:`bagkit.bag.action_definitions`, is built from ``Name.action`` the same way, its
+    sibling parts as dependencies ``MSG: pkg/Name_Feedback`` and so on.
 
     Args:
-        type_name: ``pkg/msg/Name`` (``pkg/Name`` is accepted) or ``pkg/srv/Name_Event``.
+        type_name: ``pkg/msg/Name`` (``pkg/Name`` is accepted), ``pkg/srv/Name_Event`` or
+            ``pkg/action/Name_Part``.
 
     Raises:
         UnknownMessageTypeError: the type or one of its dependencies is not installed.
     """
     root = canonical_type_name(type_name)
-    inline = _service_event_parts(root)
+    inline = _service_event_parts(root) or _action_parts(root)
     root_text = inline.pop(root) if inline else _msg_text(root)
     parts = [root_text]
     seen = {root}
@@ -180,6 +188,26 @@ def _service_event_parts(type_name: str) -> dict[str, str]:
         request: "".join(lines[:cut]),
         response: "".join(lines[cut + 1 :]),
     }
+
+
+def _action_parts(type_name: str) -> dict[str, str]:
+    """The texts of a ``pkg/action/Name_Part`` and of its sibling parts; ``{}`` for others.
+
+    The root is keyed by its own name, the siblings as the ``pkg/msg/Name_Part`` its fields
+    refer to.
+
+    Raises:
+        UnknownMessageTypeError: the action's ``.action`` is not installed.
+    """
+    package, kind, name = _split_type_name(type_name)
+    action_part = split_action_part(name) if kind == "action" else None
+    if action_part is None:
+        return {}
+    stem, suffix = action_part
+    texts = action_part_texts(package, stem, _msg_text(type_name))
+    parts = {f"{package}/msg/{stem}_{part}": text for part, text in texts.items()}
+    parts[type_name] = texts[suffix]
+    return parts
 
 
 @functools.cache

@@ -13,6 +13,7 @@ import typer
 import yaml
 
 from bagkit.bag import BagInfo, bag_info, safe_yaml
+from bagkit.bag.action_info import ActionSummary, action_summaries
 from bagkit.cli import common
 from bagkit.cli.common import (
     ReportFormat,
@@ -45,6 +46,8 @@ crashed recording without a summary is salvaged and what could not be read is re
 A topic's rate is (count - 1) / (last - first log time), "-" below two messages.
 Services recorded from their introspection events (NAME/_service_event) are listed with their
 event, request and response counts and their latency (median, 99th percentile, maximum).
+Actions (NAME/_action/feedback and NAME/_action/status) are listed with the message counts of
+their parts.
 
 Example: bagkit info my_bag -v
 """
@@ -154,6 +157,28 @@ def _print_services(services: list[ServiceSummary]) -> None:
     print_table(table)
 
 
+def _print_actions(actions: list[ActionSummary]) -> None:
+    table = Table(
+        [
+            Column("Action", style="cyan"),
+            Column("Type"),
+            Column("Feedback", numeric=True),
+            Column("Status", numeric=True),
+            Column("Service events", numeric=True),
+        ],
+        "Actions",
+    )
+    for action in actions:
+        table.add_row(
+            action.action,
+            action.type or "-",
+            f"{action.feedback:,}",
+            f"{action.status:,}",
+            f"{action.service_events:,}",
+        )
+    print_table(table)
+
+
 def _print_table(info: BagInfo, verbose: bool) -> None:
     directory = Path(info.path) if Path(info.path).is_dir() else None
     files = [str(Path(f).relative_to(directory)) if directory else f for f in info.files]
@@ -231,14 +256,23 @@ def info(  # noqa: PLR0917 (typer maps parameters to options)
         services = [] if topic_name else _services(bag, result)
     if storage is not None and result.storage != storage:
         raise fail(f"{bag} is a {result.storage} bag, not {storage}")
+    actions = action_summaries(result.topics)
     if topic_name:
         for topic in result.topics:
             sys.stdout.write(f"{topic.topic}\n")
     elif output_format is ReportFormat.JSON:
-        print_json({**result.to_dict(), "services": [s.to_dict() for s in services]})
+        print_json(
+            {
+                **result.to_dict(),
+                "services": [s.to_dict() for s in services],
+                "actions": [a.to_dict() for a in actions],
+            }
+        )
     else:
         _print_table(result, verbose)
         if services:
             _print_services(services)
+        if actions:
+            _print_actions(actions)
     for problem in result.problems:
         warn(problem)

@@ -25,6 +25,8 @@ from bagkit.cli.common import (
     warn,
 )
 from bagkit.cli.record_options import (
+    Actions,
+    AllActions,
     AllServices,
     AllTopics,
     AllTopicsAndServices,
@@ -34,6 +36,7 @@ from bagkit.cli.record_options import (
     CompressionModeOption,
     CustomData,
     Duration,
+    ExcludeActions,
     ExcludeRegex,
     ExcludeServices,
     ExcludeTopics,
@@ -135,7 +138,7 @@ class RecordCommand(MultiValueCommand):
 
     multi_value = frozenset(
         {"--topics", "--topic-types", "--exclude-topics", "--exclude-topic-types", "--custom-data"}
-        | {"--services", "--exclude-services"}
+        | {"--services", "--exclude-services", "--actions", "--exclude-actions"}
     )
     bag_positional = False  # the positional arguments are topics
 
@@ -156,6 +159,9 @@ def record(  # noqa: PLR0917 (typer maps parameters to options; ros2 bag has the
     services: Services = None,
     all_services: AllServices = False,
     exclude_services: ExcludeServices = None,
+    actions: Actions = None,
+    all_actions: AllActions = False,
+    exclude_actions: ExcludeActions = None,
     regex: Regex = None,
     exclude_regex: ExcludeRegex = None,
     exclude_topics: ExcludeTopics = None,
@@ -201,6 +207,9 @@ def record(  # noqa: PLR0917 (typer maps parameters to options; ros2 bag has the
         services=tuple(split_list(services)),
         all_services=all_services or all_topics_and_services,
         exclude_services=tuple(split_list(exclude_services)),
+        actions=tuple(split_list(actions)),
+        all_actions=all_actions or all_topics_and_services,
+        exclude_actions=tuple(split_list(exclude_actions)),
         regex=regex,
         exclude_regex=exclude_regex,
         include_hidden=include_hidden,

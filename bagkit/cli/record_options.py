@@ -58,7 +58,7 @@ TopicTypes = Annotated[
 ]
 AllTopicsAndServices = Annotated[
     bool,
-    typer.Option("--all", "-a", help="Record every topic (not hidden ones) and every service."),
+    typer.Option("--all", "-a", help="Record every topic (not hidden ones), service and action."),
 ]
 AllTopics = Annotated[
     bool, typer.Option("--all-topics", help="Record every topic (not hidden ones).")
@@ -78,6 +78,22 @@ Services = Annotated[
 ExcludeServices = Annotated[
     list[str] | None,
     typer.Option("--exclude-services", help="Leave out these services.", metavar="SERVICE..."),
+]
+AllActions = Annotated[
+    bool,
+    typer.Option("--all-actions", help="Record every action's feedback and status topics."),
+]
+Actions = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--actions",
+        help="Record these actions' feedback and status (NAME/_action/feedback, .../status).",
+        metavar="ACTION...",
+    ),
+]
+ExcludeActions = Annotated[
+    list[str] | None,
+    typer.Option("--exclude-actions", help="Leave out these actions.", metavar="ACTION..."),
 ]
 Regex = Annotated[
     str | None,

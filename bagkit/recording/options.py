@@ -55,6 +55,11 @@ class RecordOptions:
         all_services: record every service's events (``ros2 bag record --all-services``; ``-a``
             is ``all_topics`` and ``all_services``).
         exclude_services: leave out these services, named ones included.
+        actions: actions whose feedback and status topics to record (``/name/_action/...``; the
+            goal, result and cancel services' events too where introspection publishes them).
+        all_actions: record every action (``ros2 bag record --all-actions``, Kilted; ``-a``
+            sets it too).
+        exclude_actions: leave out these actions, named ones included.
         custom_data: key -> value pairs for metadata.yaml's ``custom_data``.
         compression: MCAP chunk compression: ``zstd``, ``lz4`` or ``none``.
         max_bag_size: split into a new file at this many bytes (0: never).
@@ -111,6 +116,9 @@ class RecordOptions:
     services: tuple[str, ...] = ()
     all_services: bool = False
     exclude_services: tuple[str, ...] = ()
+    actions: tuple[str, ...] = ()
+    all_actions: bool = False
+    exclude_actions: tuple[str, ...] = ()
     custom_data: Mapping[str, str] = field(default_factory=dict)
     compression: str = "zstd"
     max_bag_size: int = 0
@@ -138,8 +146,8 @@ class RecordOptions:
     def __post_init__(self) -> None:
         if self.selection.empty:
             raise RecorderOptionsError(
-                "nothing to record: name topics or services, or use --all, --all-services, --regex "
-                "or --topic-types"
+                "nothing to record: name topics, services or actions, or use --all, "
+                "--all-services, --all-actions, --regex or --topic-types"
             )
         if self.max_bag_size < 0 or self.max_bag_duration_s < 0:
             raise RecorderOptionsError("--max-bag-size and --max-bag-duration must be >= 0")
@@ -172,7 +180,7 @@ class RecordOptions:
 
     @property
     def selection(self) -> RecordSelection:
-        """The topic and service options, a :class:`~bagkit.selection.services.RecordSelection`."""
+        """The topic, service and action options, a :class:`RecordSelection`."""
         topics = TopicSelection.create(
             self.topics,
             all_topics=self.all_topics,
@@ -188,6 +196,9 @@ class RecordOptions:
             self.services,
             all_services=self.all_services,
             exclude_services=self.exclude_services,
+            actions=self.actions,
+            all_actions=self.all_actions,
+            exclude_actions=self.exclude_actions,
         )
 
 

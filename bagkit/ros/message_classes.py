@@ -11,6 +11,8 @@ from bagkit.ros.errors import MessageClassNotFoundError
 def import_message_type(type_name: str) -> Any:
     """Return the generated Python class for ``pkg/msg/Name`` (``pkg/Name`` is accepted too).
 
+    An action's part, ``pkg/action/Name_FeedbackMessage`` and the like, is found too.
+
     Raises:
         MessageClassNotFoundError: the package is not installed or has no such message.
     """
@@ -22,6 +24,11 @@ def import_message_type(type_name: str) -> Any:
     package, kind, name = parts
     try:
         module = importlib.import_module(f"{package}.{kind}")
+        if kind == "action" and not hasattr(module, name):
+            # pkg.action exports the actions only; their parts (Name_FeedbackMessage, ...)
+            # live in the action's generated module.
+            action = getattr(module, name.split("_", 1)[0])
+            module = importlib.import_module(action.__module__)
         return getattr(module, name)
     except (ImportError, AttributeError) as exc:
         raise MessageClassNotFoundError(f"message type {type_name} is not installed") from exc

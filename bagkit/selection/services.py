@@ -4,7 +4,9 @@ A service ``/name`` with introspection on publishes each call's events on the hi
 ``/name/_service_event`` (type ``pkg/srv/Name_Event``). rosbag2 counts a topic as a service's
 when its name ends in ``/_service_event`` and its type is a ``srv`` ``_Event``; such topics are
 selected only by the service options (``--services``, ``--all-services``, ``-a``), never by the
-topic options (``--all-topics``, ``--regex``, ``--include-hidden-topics``). No rclpy import.
+topic options (``--all-topics``, ``--regex``, ``--include-hidden-topics``). An action's topics
+(:mod:`bagkit.selection.actions`) are selected the same way, by the action options. No rclpy
+import.
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 from dataclasses import dataclass, fields
 
+from bagkit.selection.actions import action_topic_part
 from bagkit.selection.topics import TopicSelection, absolute_topic_name
 
 SERVICE_EVENT_SUFFIX = "/_service_event"
@@ -45,14 +48,17 @@ def service_type(event_type: str) -> str:
 
 @dataclass(frozen=True, slots=True)
 class RecordSelection(TopicSelection):
-    """Topics as :class:`TopicSelection` selects them, plus services' event topics.
+    """Topics as :class:`TopicSelection` selects them, plus services' and actions' topics.
 
-    ``exclude`` (``--exclude-regex``) applies to event topics too, as in rosbag2.
+    ``exclude`` (``--exclude-regex``) applies to event and action topics too, as in rosbag2.
     """
 
     services: frozenset[str] = frozenset()
     all_services: bool = False
     exclude_services: frozenset[str] = frozenset()
+    actions: frozenset[str] = frozenset()
+    all_actions: bool = False
+    exclude_actions: frozenset[str] = frozenset()
 
     @classmethod
     def of(
@@ -62,31 +68,49 @@ class RecordSelection(TopicSelection):
         *,
         all_services: bool = False,
         exclude_services: Iterable[str] = (),
+        actions: Iterable[str] = (),
+        all_actions: bool = False,
+        exclude_actions: Iterable[str] = (),
     ) -> RecordSelection:
-        """``topics`` extended by the service options (names with or without a leading ``/``)."""
+        """``topics`` extended by the service and action options (names with or without ``/``)."""
         return cls(
             **{f.name: getattr(topics, f.name) for f in fields(TopicSelection)},
-            services=frozenset(absolute_topic_name(s).rstrip("/") for s in services),
+            services=_names(services),
             all_services=all_services,
-            exclude_services=frozenset(absolute_topic_name(s) for s in exclude_services),
+            exclude_services=_names(exclude_services),
+            actions=_names(actions),
+            all_actions=all_actions,
+            exclude_actions=_names(exclude_actions),
         )
 
     @property
     def empty(self) -> bool:
-        """Whether nothing can be selected, topic or service."""
+        """Whether nothing can be selected, topic, service or action."""
         topics_empty = super(RecordSelection, self).empty
-        return topics_empty and not self.services and not self.all_services
+        services_empty = not self.services and not self.all_services
+        return topics_empty and services_empty and not self.actions and not self.all_actions
 
     def matches(self, name: str, types: Iterable[str] = ()) -> bool:
-        """Whether topic ``name`` is selected; a service's event topic by the service options."""
+        """Whether topic ``name`` is selected; a service's or action's by their own options."""
         types = list(types)
         if name in self.topics:
             return super(RecordSelection, self).matches(name, types)
+        if self.exclude is not None and self.exclude.search(name):
+            return False
+        action_part = action_topic_part(name, types)
+        if action_part is not None:
+            action = action_part[0]
+            if action in self.exclude_actions:
+                return False
+            return self.all_actions or action in self.actions
         if not is_service_event_topic(name, types):
             return super(RecordSelection, self).matches(name, types)
         service = service_name(name)
         if service in self.exclude_services:
             return False
-        if self.exclude is not None and self.exclude.search(name):
-            return False
         return self.all_services or service in self.services
+
+
+def _names(names: Iterable[str]) -> frozenset[str]:
+    """Service or action names, absolute and without a trailing ``/``."""
+    return frozenset(absolute_topic_name(n).rstrip("/") for n in names)

@@ -129,8 +129,8 @@ class Subscriptions:
             self.skip(found.name, f"message type {type_name} is not installed")
             return
         try:
-            # Read now rather than by the writer: a type without a definition on disk (an
-            # action's or a service's inner message) is skipped before it is subscribed.
+            # Read now rather than by the writer: a type without a definition on disk (a
+            # service's bare request published as a topic) is skipped before it is subscribed.
             definition = message_definition(type_name)
         except UnknownDefinitionError as exc:
             self.skip(found.name, f"no message definition for the bag: {exc}")
