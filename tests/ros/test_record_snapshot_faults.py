@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosbags.highlevel import AnyReader
@@ -146,3 +147,26 @@ def test_a_trigger_topic_that_never_appears_warns_once(
     (snapshot,) = report["snapshots"]
     assert snapshot["trigger"] == "service"
     assert texts(out / "snapshot_0") == [("/faults/chatter", text) for text in published]
+
+
+def test_a_bad_trigger_field_on_a_late_topic_is_bad_input(
+    node: Node, processes: Any, tmp_path: Path
+) -> None:
+    chatter = node.create_publisher(String, "/faults/chatter", 100)
+    out = tmp_path / "late"
+    trigger = "/faults/late: status[*].levle >= 2"
+    proc = record(
+        processes, out, "late_recorder", "--max-cache-duration", "60", "--trigger", trigger
+    )
+    wait_matched(chatter, timeout=STARTUP_TIMEOUT_S)
+    time.sleep(2.0)  # past the start's check of the trigger topics (1 s)
+    assert proc.poll() is None
+    late = node.create_publisher(DiagnosticArray, "/faults/late", 10)
+    late.publish(DiagnosticArray())
+    stdout, stderr = proc.communicate(timeout=30)
+    assert proc.returncode == 2, stderr.decode()
+    lines = stderr.decode().splitlines()
+    errors = [line for line in lines if line.startswith("error:")]
+    assert len(errors) == 1 and "levle" in errors[0] and trigger in errors[0], lines
+    assert "Traceback" not in stderr.decode()
+    assert report_json(stdout)["error"] == errors[0].removeprefix("error: ")
