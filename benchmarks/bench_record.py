@@ -29,6 +29,10 @@ shared). Targets:
   can slow a run to a tenth, which makes ``inline``, which cannot take while it writes, no
   ceiling there);
 - peak RSS of a 10x longer recording (paced Imu) <= 1.5x the short one;
+- snapshot mode (``snapshot``: the recorder with a 64 MiB ``--max-cache-size``, never
+  triggered) under the Imu flood, interleaved with ``count`` and the plain ``recorder``, best
+  of three: rate >= 90% of ``count``, 0 lost (every message sent was taken: into the buffer or
+  evicted by its bound); peak RSS <= (the cache bound + the plain recorder's peak RSS) x 1.1;
 and reports the CPU per message of the recorder and of ``count`` on that paced topic.
 
 The publisher and subscriber processes are ``benchmarks/record_peers.py``.
@@ -53,7 +57,7 @@ from bagkit.ros.fastdds import (
     localhost_only,
     shared_memory_profile,
 )
-from benchmarks.record_peers import READY_TIMEOUT_S, TOPIC
+from benchmarks.record_peers import READY_TIMEOUT_S, SNAPSHOT_CACHE_BYTES, TOPIC
 
 IMU_SECONDS = 10.0
 IMAGE_SECONDS = 5.0
@@ -61,6 +65,9 @@ RSS_SHORT_S = 2.0
 RSS_RATE_HZ = 2000.0
 RATE_FLOOR = 0.9
 RSS_CEILING = 1.5
+# Snapshot mode's peak RSS may exceed the cache bound plus the plain recorder's by this factor.
+SNAPSHOT_RSS_MARGIN = 1.1
+SNAPSHOT_ROUNDS = 3
 # Interleaved runs per mode, best kept. Imu gets more: the middleware's receive thread costs
 # 10 - 29 us per message from run to run in either subscriber (same code, same machine), so
 # three runs often compare one's cheap run with the other's dear one.
@@ -204,6 +211,7 @@ def main() -> bool:
     ok &= _image_flood()
     _image_with_a_large_segment()
     ok &= _memory_and_cpu()
+    ok &= snapshot_flood()
     return bool(ok)
 
 
@@ -313,3 +321,27 @@ def _memory_and_cpu() -> bool:
         f"recorder {cpu['rec']:.0f} us, count {cpu['count']:.0f} us"
     )
     return growth <= RSS_CEILING and _complete(long)
+
+
+def snapshot_flood() -> bool:
+    """The snapshot-mode target: rate against ``count``, 0 lost, peak RSS against the bound."""
+    print(
+        f"Imu flood into snapshot mode ({SNAPSHOT_CACHE_BYTES >> 20} MiB cache, no trigger), "
+        f"{IMU_SECONDS:g} s per run, best of {SNAPSHOT_ROUNDS}:"
+    )
+    runs = _best_of(("count", "recorder", "snapshot"), "imu", IMU_SECONDS, SNAPSHOT_ROUNDS)
+    for mode, result in runs.items():
+        print(_line(mode, result))
+    snapshot, plain = runs["snapshot"], runs["recorder"]
+    ratio = snapshot["rate"] / runs["count"]["rate"]
+    ceiling = (SNAPSHOT_CACHE_BYTES + plain["peak_rss"]) * SNAPSHOT_RSS_MARGIN
+    taken = snapshot["messages"]
+    print(
+        f"  snapshot/count rate {ratio:.2f} (target >= {RATE_FLOOR}); taken {taken}/"
+        f"{snapshot['sent']} (evicted by the bound {snapshot['evicted']}), lost "
+        f"{snapshot['lost']}; peak RSS {snapshot['peak_rss'] / 2**20:.0f} MiB, ceiling "
+        f"{ceiling / 2**20:.0f} MiB = ({SNAPSHOT_CACHE_BYTES >> 20} MiB cache + the plain "
+        f"recorder's {plain['peak_rss'] / 2**20:.0f} MiB) x {SNAPSHOT_RSS_MARGIN}"
+    )
+    complete = taken == snapshot["sent"] and snapshot["lost"] == 0
+    return ratio >= RATE_FLOOR and complete and snapshot["peak_rss"] <= ceiling

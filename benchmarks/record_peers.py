@@ -2,7 +2,8 @@
 
 Run as ``python -m benchmarks.record_peers publish KIND SECONDS RATE_HZ`` or ``... subscribe
 MODE KIND OUT``; a subscriber runs until SIGINT, then writes its counts, CPU and peak RSS as JSON
-to OUT. The modes (see bench_record's docstring): ``count``, ``inline``, ``naive``, ``recorder``.
+to OUT. The modes (see bench_record's docstring): ``count``, ``inline``, ``naive``, ``recorder``,
+``snapshot`` (the recorder in snapshot mode, never triggered).
 """
 
 from __future__ import annotations
@@ -21,6 +22,8 @@ from typing import Any
 TOPIC = "/bench/record"
 IMAGE_BYTES = 1 << 20
 READY_TIMEOUT_S = 30.0
+# The ``snapshot`` mode's --max-cache-size: the Imu flood fills it in a few seconds.
+SNAPSHOT_CACHE_BYTES = 64 << 20
 
 
 def _message_type(kind: str) -> Any:
@@ -118,8 +121,14 @@ def subscribe(mode: str, kind: str, out: Path, *, default_transport: bool = Fals
     # allocator or the transport's queue. The default-transport runs vary the queue only.
     keep_freed_memory()
     ready = out.with_suffix(".ready")
-    if mode == "recorder":
-        result = _run_recorder(out.with_suffix(".bag"), ready, stop, tune=not default_transport)
+    if mode in ("recorder", "snapshot"):
+        result = _run_recorder(
+            out.with_suffix(".bag"),
+            ready,
+            stop,
+            tune=not default_transport,
+            snapshot_bytes=SNAPSHOT_CACHE_BYTES if mode == "snapshot" else 0,
+        )
     else:
         with process_tuning(not default_transport):
             result = _run_subscriber(mode, kind, out.with_suffix(".bag"), ready, stop)
@@ -156,11 +165,21 @@ def _thread_cpu() -> dict[str, float]:
     return totals
 
 
-def _run_recorder(bag: Path, ready: Path, stop: dict[str, bool], *, tune: bool) -> dict[str, Any]:
+def _run_recorder(
+    bag: Path, ready: Path, stop: dict[str, bool], *, tune: bool, snapshot_bytes: int = 0
+) -> dict[str, Any]:
+    """``snapshot_bytes``: snapshot mode with this cache bound (0: a plain recording)."""
     from bagkit.recording.options import RecordOptions
     from bagkit.ros.record.recorder import Recorder
 
-    recorder = Recorder(RecordOptions(bag, topics=(TOPIC,), tune_process=tune))
+    options = RecordOptions(
+        bag,
+        topics=(TOPIC,),
+        tune_process=tune,
+        snapshot_mode=bool(snapshot_bytes),
+        snapshot_max_bytes=snapshot_bytes,
+    )
+    recorder = Recorder(options)
     recorder.start()
     ready.touch()
     while not stop["now"]:
@@ -173,6 +192,7 @@ def _run_recorder(bag: Path, ready: Path, stop: dict[str, bool], *, tune: bool) 
         "bytes": topic.bytes if topic else 0,
         "span_ns": (topic.last_ns - topic.first_ns) if topic else 0,
         "lost": report.lost,
+        "evicted": sum(report.evicted.values()),
         "error": report.error,
         "threads": threads,
     }
@@ -321,7 +341,7 @@ def _cli() -> None:
     pub.add_argument("seconds", type=float)
     pub.add_argument("rate_hz", type=float)
     sub = roles.add_parser("subscribe")
-    sub.add_argument("mode", choices=["count", "inline", "naive", "recorder"])
+    sub.add_argument("mode", choices=["count", "inline", "naive", "recorder", "snapshot"])
     sub.add_argument("kind", choices=["imu", "image"])
     sub.add_argument("out", type=Path)
     sub.add_argument("--default-transport", action="store_true")

@@ -258,7 +258,7 @@ def _print_outcome(
         if not report.messages and received == [] and report.error is None:
             warn("no message was recorded")
     if report.error is not None:
-        raise fail(report.error, 1)
+        raise fail(report.error, report.error_exit_code)
     if received:
         raise typer.Exit(EXIT_INTERRUPTED if received[0] == signal.SIGINT else 128 + received[0])
 

@@ -100,6 +100,9 @@ class RecordReport:
     topics: list[TopicRecord] = field(default_factory=list)
     skipped: dict[str, str] = field(default_factory=dict)
     error: str | None = None
+    # The exit status ``error`` calls for: 1 a failed run, 2 bad input found while recording
+    # (a trigger's field that a topic appearing late lacks).
+    error_exit_code: int = 1
     # Snapshot mode only (None otherwise): the snapshots written, and per topic the messages
     # evicted from the buffer by its bound (by design: not lost, not in a snapshot).
     snapshots: list[SnapshotRecord] | None = None

@@ -274,9 +274,11 @@ def test_pre_post_windows_and_extension_without_dds(tmp_path: Path) -> None:
     from bagkit.ros.serialization import serialize
 
     now = [0]
-    errors: list[str] = []
+    errors: list[tuple[str, int]] = []
     opts = options(tmp_path / "sink", snapshot_max_duration_s=10, pre_s=1.0, post_s=0.5)
-    sink = SnapshotSink(opts.output, opts, errors.append, now_ns=lambda: now[0]).open()
+    sink = SnapshotSink(
+        opts.output, opts, lambda *error: errors.append(error), now_ns=lambda: now[0]
+    ).open()
     sink.add_topic(TopicInfo("/snap/imu", "sensor_msgs/msg/Imu"), "")
     payload = serialize(Imu())
 

@@ -97,6 +97,8 @@ class StopSignal:
 
     wake: Callable[[], None] = lambda: None
     errors: list[str] = field(default_factory=list)
+    # The exit status the first error calls for: 1 a failed run, 2 bad input found late.
+    exit_code: int = 1
     event: threading.Event = field(default_factory=threading.Event)
 
     def is_set(self) -> bool:
@@ -108,7 +110,10 @@ class StopSignal:
         self.event.set()
         self.wake()
 
-    def fail(self, message: str) -> None:
-        """Stop the recording because of ``message`` (the first one is the report's error)."""
+    def fail(self, message: str, exit_code: int = 1) -> None:
+        """Stop the recording because of ``message`` (the first one is the report's error,
+        ``exit_code`` its exit status)."""
+        if not self.errors:
+            self.exit_code = exit_code
         self.errors.append(message)
         self.set()

@@ -442,6 +442,7 @@ class Recorder:
             report.evicted = self._writer.bag.evicted
         errors = self._stop.errors
         report.error = errors[0] if errors else None
+        report.error_exit_code = self._stop.exit_code
         if report.error is not None and report.lost:
             report.error += f" ({report.lost} messages lost)"
         self._stopped.set()

@@ -54,7 +54,8 @@ class SnapshotSink:
     Args:
         path: the output directory (created here); snapshot N goes to ``path/snapshot_N``.
         options: the recording's options (bounds, triggers, pre/post, latched repeats).
-        on_error: called with the error line when a snapshot cannot be written.
+        on_error: called with the error line and the exit status it calls for: 1 when a
+            snapshot cannot be written, 2 for a trigger's field that a late topic lacks.
         now_ns: the current log time (the system clock; with sim time, the newest message's).
     """
 
@@ -62,7 +63,7 @@ class SnapshotSink:
         self,
         path: Path,
         options: RecordOptions,
-        on_error: Callable[[str], None],
+        on_error: Callable[[str, int], None],
         now_ns: Callable[[], int] = time.time_ns,
     ) -> None:
         self.path = path
@@ -98,9 +99,12 @@ class SnapshotSink:
         """
         self.path.mkdir(parents=True)
         self._writer = SnapshotWriter(
-            self._options.compression, dict(self.custom_data), self._on_error
+            self._options.compression, dict(self.custom_data), self._write_failed
         )
         return self
+
+    def _write_failed(self, message: str) -> None:
+        self._on_error(message, 1)
 
     @property
     def evicted(self) -> dict[str, int]:
@@ -126,7 +130,7 @@ class SnapshotSink:
         try:
             self.triggers.add_topic(topic)
         except TriggerError as exc:
-            self._on_error(str(exc))
+            self._on_error(str(exc), exc.exit_code)
 
     def write_batch(
         self,
