@@ -109,12 +109,17 @@ def read_calls(bag: str | Path, service: str) -> list[ServiceCall]:
     Raises:
         UndecodableTopicError: the bag has no such service, or its events do not decode.
     """
+    return _service_calls(bag, service)[1]
+
+
+def _service_calls(bag: str | Path, service: str) -> tuple[str, list[ServiceCall]]:
+    """The event topic of ``service`` in ``bag`` and its calls, paired."""
     with BagReader(bag, allow_empty=True) as reader:
         topic = find_service(reader, service)
         if topic is None:
             raise UndecodableTopicError(f"no service {absolute_topic_name(service)} in {bag}")
         types = MessageTypes.from_definitions(reader.definitions)
-        return pair_calls(read_events(reader, types, topic))
+        return topic, pair_calls(read_events(reader, types, topic))
 
 
 def echo_calls(bag: str | Path, service: str, *, limit: int | None = None) -> Iterator[Plain]:
@@ -123,12 +128,7 @@ def echo_calls(bag: str | Path, service: str, *, limit: int | None = None) -> It
     Raises:
         UndecodableTopicError: the bag has no such service, or its events do not decode.
     """
-    with BagReader(bag, allow_empty=True) as reader:
-        topic = find_service(reader, service)
-        if topic is None:
-            raise UndecodableTopicError(f"no service {absolute_topic_name(service)} in {bag}")
-        types = MessageTypes.from_definitions(reader.definitions)
-        calls = pair_calls(read_events(reader, types, topic))
+    topic, calls = _service_calls(bag, service)
     for call in calls:
         latency = call.latency_ns
         yield {
