@@ -13,10 +13,12 @@ export RMW_IMPLEMENTATION := rmw_fastrtps_cpp
 
 .PHONY: demo test test-fast test-py lint format bench golden lock clean
 
-# uv (pinned in the lock) installs the lock: pip would take minutes longer.
+# uv (pinned in the lock) installs the lock: pip would take minutes longer. Unlike pip, uv
+# writes no bytecode unless asked; where PYTHONDONTWRITEBYTECODE is set (as in CI) every process
+# would then compile numpy, pandas and rclpy from source at each start (benchmarks/README.md).
 define install_locked
 	$(1)/bin/python -m pip install --quiet "$$(grep -m1 '^uv==' $(LOCK))"
-	$(1)/bin/uv pip install --quiet --python $(1)/bin/python -r $(LOCK)
+	$(1)/bin/uv pip install --quiet --compile-bytecode --python $(1)/bin/python -r $(LOCK)
 	$(1)/bin/uv pip install --quiet --python $(1)/bin/python --no-deps -e . -e ./fusion
 endef
 
@@ -31,6 +33,7 @@ demo: $(STAMP)
 # The tests that start no DDS participant on two workers, then those that do, one at a time
 # (their timing is what they measure).
 test: $(STAMP)
+	$(PY) -m compileall -q bagkit fusion
 	$(PY) -m pytest -q -m "not ros" -n 2
 	$(PY) -m pytest -q -m ros --durations=10
 

@@ -70,8 +70,10 @@ def test_launch_publishes_at_rate_raises_alerts_and_tracks_altitude(
     for rate in check.rates:
         # Loose enough for a loaded 2-core CI machine; `fusion check` holds the 10 % target.
         assert rate.within(0.15), rate
-        # A timer starved by a loaded CPU fires late (a longer gap, then a shorter one).
-        assert rate.max_gap_s < 2.5 / rate.nominal_hz, rate
+        # A timer starved by a loaded CPU fires late (a longer gap, then a shorter one): 3.2
+        # periods seen on a loaded CI run. A publisher that bursts (a second's messages at once)
+        # leaves a gap of about 10.
+        assert rate.max_gap_s < 5.0 / rate.nominal_hz, rate
     assert any(alert.startswith("/temperature: temperature") for alert in check.alerts)
     assert check.altitude_samples >= 70
     assert check.fused_rms_m < GPS_VERTICAL_SIGMA
