@@ -72,7 +72,7 @@ ifeq ($(RESOLUTION),locked)
 	$(call install_locked,$(XVENV))
 else
 	$(XVENV)/bin/python -m pip install --quiet "$$(grep -m1 '^uv==' $(LOCK))"
-	$(XVENV)/bin/uv pip install --quiet --python $(XVENV)/bin/python \
+	$(XVENV)/bin/uv pip install --quiet --compile-bytecode --python $(XVENV)/bin/python \
 		--resolution $(RESOLUTION) -e '.[all,dev]' -e ./fusion
 endif
 	touch $@
@@ -80,6 +80,7 @@ endif
 # PYTESTS: which tests (default: the whole offline suite).
 PYTESTS ?= tests
 test-py: $(XVENV)/.installed
+	$(XVENV)/bin/python -m compileall -q bagkit fusion
 	$(XVENV)/bin/python -m pytest -q -p no:cacheprovider -m "not ros" -n 2 $(PYTESTS)
 	$(XVENV)/bin/python -m pytest -q -p no:cacheprovider tests/install/test_dds_smoke.py
 

@@ -149,11 +149,17 @@ def add(  # noqa: PLR0917 (typer maps parameters to options)
     around: str | None = typer.Option(
         None,
         "--around",
-        help="'TOPIC: CONDITION': the window of its first episode (instead of --start/--end).",
+        help="'TOPIC: CONDITION': the window of one of its episodes (instead of --start/--end).",
         metavar="TRIGGER",
     ),
     before: str = typer.Option("0", "--before", help="With --around: this long before it."),
     after: str = typer.Option("0", "--after", help="With --around: this long after it."),
+    episode: int = typer.Option(
+        1, "--episode", help="With --around: which episode, 1 = the first (as find lists them)."
+    ),
+    gap: str = typer.Option(
+        "0", "--gap", help="With --around: matches closer than this merge into one episode."
+    ),
     like: Path | None = typer.Option(
         None,
         "--like",
@@ -164,7 +170,8 @@ def add(  # noqa: PLR0917 (typer maps parameters to options)
     """Make a fixture from a window of a recording: FIXTURE/golden and FIXTURE/spec.yaml.
 
     The window (--start/--end, or --around 'TOPIC: CONDITION' --before SEC --after SEC: around
-    its first episode; with the latched state from before it) is cut from BAG. With
+    its first episode, or the --episode N that find lists; with the latched state from before
+    it) is cut from BAG. With
     --like, the spec is copied and the window's inputs run through its processor in lockstep,
     the system starting at the window's start: the golden holds the inputs and those outputs,
     and pytest runs the fixture at once. Without it, the golden is the window as recorded and
@@ -178,10 +185,23 @@ def add(  # noqa: PLR0917 (typer maps parameters to options)
 
     if "" not in sys.path and os.getcwd() not in sys.path:  # as _specs: factories from here
         sys.path.insert(0, os.getcwd())
-    margins = parse_duration(before, "--before"), parse_duration(after, "--after")
-    added = add_fixture(fixture, AddOptions(bag, start, end, like, around, *margins))
+    options = AddOptions(
+        bag,
+        start,
+        end,
+        like,
+        around,
+        before_ns=parse_duration(before, "--before"),
+        after_ns=parse_duration(after, "--after"),
+        gap_ns=parse_duration(gap, "--gap"),
+        episode=episode,
+    )
+    added = add_fixture(fixture, options)
     if added.episodes > 1:
-        note(f"{added.episodes} episodes of {around!r}: the first one made the fixture")
+        note(
+            f"{added.episodes} episodes of {around!r}: episode {episode} made the fixture "
+            "(--episode N for another)"
+        )
     listed = ", ".join(f"{t} {n}" for t, n in added.counts.items())
     if added.lockstep is not None:
         made = ", ".join(f"{t} {n}" for t, n in sorted(added.lockstep.output_counts.items()))

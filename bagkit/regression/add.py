@@ -34,9 +34,9 @@ class AddOptions:
         bag: the recording to cut.
         start, end: the window (:mod:`bagkit.selection.times`, read against ``bag``).
         like: a fixture folder whose ``spec.yaml`` the new fixture copies (None: a template).
-        around: instead of start/end, ``TOPIC: CONDITION``: the window of its first episode
-            (matches less than ``gap_ns`` apart merged), ``before_ns`` before its first match
-            to ``after_ns`` after its last.
+        around: instead of start/end, ``TOPIC: CONDITION``: the window of its ``episode``-th
+            episode (1: the first; matches less than ``gap_ns`` apart merged), ``before_ns``
+            before its first match to ``after_ns`` after its last.
     """
 
     bag: Path
@@ -47,6 +47,7 @@ class AddOptions:
     before_ns: int = 0
     after_ns: int = 0
     gap_ns: int = 0
+    episode: int = 1
 
 
 @dataclass(frozen=True, slots=True)
@@ -59,7 +60,7 @@ class AddedFixture:
     counts: dict[str, int]
     lockstep: LockstepResult | None = None
     episodes: int = 0
-    """With ``around``: the episodes found (the first one is the fixture's window)."""
+    """With ``around``: the episodes found (``options.episode`` is the fixture's window)."""
 
 
 def add_fixture(directory: Path, options: AddOptions) -> AddedFixture:
@@ -105,7 +106,7 @@ def add_fixture(directory: Path, options: AddOptions) -> AddedFixture:
 
 
 def _around(options: AddOptions) -> tuple[AddOptions, int]:
-    """``options`` with the window of the first episode of ``around`` as start and end (in
+    """``options`` with the window of the chosen episode of ``around`` as start and end (in
     absolute ns), and how many episodes there were."""
     if options.around is None:
         return options, 0
@@ -116,7 +117,13 @@ def _around(options: AddOptions) -> tuple[AddOptions, int]:
         found = find_episodes(reader, trigger, options.gap_ns)
     if not found.episodes:
         raise RegressionError(f"{options.bag}: {trigger.text!r} holds for no message")
-    (window,) = episode_windows(found.episodes[:1], options.before_ns, options.after_ns)
+    if not 1 <= options.episode <= len(found.episodes):
+        raise RegressionError(
+            f"{options.bag}: episode {options.episode} of {trigger.text!r} asked for, "
+            f"there are {len(found.episodes)} (bagkit find lists them)"
+        )
+    chosen = found.episodes[options.episode - 1]
+    (window,) = episode_windows([chosen], options.before_ns, options.after_ns)
     return replace(options, start=f"{window.start_ns}ns", end=f"{window.end_ns}ns"), len(
         found.episodes
     )
@@ -125,7 +132,11 @@ def _around(options: AddOptions) -> tuple[AddOptions, int]:
 def _origin(options: AddOptions) -> str:
     start = "the start" if options.start is None else str(options.start)
     end = "the end" if options.end is None else str(options.end)
-    why = "" if options.around is None else f" (around the first episode of {options.around!r})"
+    why = (
+        ""
+        if options.around is None
+        else f" (around episode {options.episode} of {options.around!r})"
+    )
     return f"# Cut by `bagkit golden add` from {options.bag}, from {start} to {end}{why}.\n"
 
 

@@ -103,3 +103,40 @@ def test_around_takes_the_first_episode_with_its_margins(tmp_path: Path) -> None
         inputs = [m.log_time for m in window.messages(faults.inputs)]
     assert first.start_ns - 10**9 <= min(inputs) and max(inputs) <= first.end_ns + 3 * 10**9
     assert check_lockstep(load_spec(tmp_path / "alert"), tmp_path / "work").passed
+
+
+def test_episode_picks_another_episode_and_one_past_the_last_is_one_line(tmp_path: Path) -> None:
+    from bagkit.data.episodes import find_episodes
+    from bagkit.selection.conditions import parse_topic_condition
+
+    faults = load_spec(Path(__file__).resolve().parents[2] / "fixtures" / "faults")
+    trigger = "/alerts: status[*].level >= 2"
+    with BagReader(faults.bag) as reader:
+        found = find_episodes(reader, parse_topic_condition(trigger), 10**9)
+    assert len(found.episodes) > 1
+    last = found.episodes[-1]
+    fixture = tmp_path / "last"
+    common = ["--from", str(faults.bag), "--around", trigger, "--gap", "1", "--after", "1"]
+    made = _bagkit(
+        tmp_path, "golden", "add", str(fixture), *common, "--episode", str(len(found.episodes))
+    )
+    assert made.returncode == 0, made.stderr
+    assert f"{len(found.episodes)} episodes" in made.stderr
+    with BagReader(fixture / "golden") as window:
+        times = [m.log_time for m in window.messages(["/alerts"])]
+    # The window starts at the episode's first match (the latched copies are logged there too).
+    assert min(times) == last.start_ns and max(times) <= last.end_ns + 10**9
+
+    past = _bagkit(
+        tmp_path,
+        "golden",
+        "add",
+        str(tmp_path / "past"),
+        *common,
+        "--episode",
+        str(len(found.episodes) + 1),
+    )
+    assert past.returncode == 2, past.stderr
+    lines = past.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:") and "there are" in lines[0]
+    assert not (tmp_path / "past").exists()
