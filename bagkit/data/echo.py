@@ -23,6 +23,7 @@ from bagkit.bag import BagReader
 from bagkit.data.errors import UndecodableTopicError
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
 from bagkit.decode.matcher import PayloadMatcher
+from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER
 from bagkit.selection.conditions import parse_condition
 from bagkit.selection.errors import EmptyWindowWarning
 from bagkit.selection.fields import select_fields
@@ -134,6 +135,7 @@ def _message(msg: Any, store: Typestore, typename: str, limit: int | None) -> Pl
     return {
         name: _field(getattr(msg, normalize_fieldname(name)), desc, store, limit)
         for name, desc in store.fielddefs[typename][1]
+        if name != EMPTY_STRUCT_MEMBER[0]  # CDR's stand-in, not a field of the .msg
     }
 
 

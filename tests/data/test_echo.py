@@ -176,3 +176,22 @@ def test_echo_imports_no_ros(tmp_path: Path) -> None:
     )
     assert result.returncode == 0 and "log_time" in result.stdout
     assert result.stderr == "[]"
+
+
+def test_an_empty_message_is_an_empty_mapping(tmp_path: Path) -> None:
+    from bagkit.bag import BagWriter, TopicInfo
+
+    empty = "std_msgs/msg/Empty"
+    data = bytes(
+        JAZZY.serialize_cdr(JAZZY.types[empty](structure_needs_at_least_one_member=0), empty)
+    )
+    with BagWriter(tmp_path / "empty") as bag:
+        bag.add_topic(TopicInfo("/tick", empty))
+        for i in range(3):
+            bag.write("/tick", data, log_time=1_000 + i, publish_time=1_000 + i)
+    records = [
+        json.loads(line)
+        for line in _echo(tmp_path / "empty", "/tick", "--format", "json").stdout.splitlines()
+    ]
+    assert [r["data"] for r in records] == [{}, {}, {}]
+    assert "structure_needs" not in _echo(tmp_path / "empty", "/tick").stdout
