@@ -28,7 +28,8 @@ definitions stored in the bag; the first message appears at once on any bag size
 
 A recorded service (TOPIC = /service, its events on /service/_service_event) prints one record
 per call: client_gid, sequence_number, the events seen, request, response and latency_s (the
-client's REQUEST_SENT to RESPONSE_RECEIVED where recorded, else the server's); -n applies.
+client's REQUEST_SENT to RESPONSE_RECEIVED where recorded, else the server's); -n, --start,
+--end and --where apply ('response.success == false or latency_s > 0.1').
 
 Examples:
 
@@ -96,8 +97,10 @@ def echo(  # noqa: PLR0917 (typer maps parameters to options)
     where: Where = None,
 ) -> None:
     from bagkit.bag import BagReader
+    from bagkit.data.call_selection import CallSelection
     from bagkit.data.echo import echo as read_messages
     from bagkit.data.services import echo_calls, names_service
+    from bagkit.selection.errors import SelectionError
 
     # Output is a stream: Ctrl-C ends it quietly, as a closed pipe (| head) does every command.
     limit = None if full_length or output is EchoFormat.JSON else DEFAULT_TRUNCATE_LENGTH
@@ -105,8 +108,12 @@ def echo(  # noqa: PLR0917 (typer maps parameters to options)
         with BagReader(bag, allow_empty=True) as reader:
             bag_start = reader.start_ns
         if names_service(bag, topic):
-            calls = echo_calls(bag, topic, limit=limit)
-            _write(itertools.islice(calls, count), output, bag_start)
+            if fields:
+                raise SelectionError("--fields: a service prints whole calls (use --where)")
+            selection = CallSelection(start, end, where)
+            calls = echo_calls(bag, topic, limit=limit, selection=selection)
+            if not _write(itertools.islice(calls, count), output, bag_start) and where:
+                warn(f"no call satisfies {where!r}")
             return
         records = read_messages(
             bag,

@@ -26,6 +26,7 @@ from bagkit.bag.service_calls import (
     latency_summary,
     pair_calls,
 )
+from bagkit.data.call_selection import CallSelection
 from bagkit.data.echo import Plain
 from bagkit.data.errors import UndecodableTopicError
 from bagkit.decode import DecodeError, MessageTypes
@@ -112,23 +113,36 @@ def read_calls(bag: str | Path, service: str) -> list[ServiceCall]:
     return _service_calls(bag, service)[1]
 
 
-def _service_calls(bag: str | Path, service: str) -> tuple[str, list[ServiceCall]]:
-    """The event topic of ``service`` in ``bag`` and its calls, paired."""
+def _service_calls(
+    bag: str | Path, service: str, selection: CallSelection | None = None
+) -> tuple[str, list[ServiceCall]]:
+    """The event topic of ``service`` in ``bag`` and its calls, paired (those ``selection``
+    keeps)."""
     with BagReader(bag, allow_empty=True) as reader:
         topic = find_service(reader, service)
         if topic is None:
             raise UndecodableTopicError(f"no service {absolute_topic_name(service)} in {bag}")
         types = MessageTypes.from_definitions(reader.definitions)
-        return topic, pair_calls(read_events(reader, types, topic))
+        keep = (selection or CallSelection()).resolve(reader, types, topic)
+        return topic, [c for c in pair_calls(read_events(reader, types, topic)) if keep(c)]
 
 
-def echo_calls(bag: str | Path, service: str, *, limit: int | None = None) -> Iterator[Plain]:
+def echo_calls(
+    bag: str | Path,
+    service: str,
+    *,
+    limit: int | None = None,
+    selection: CallSelection | None = None,
+) -> Iterator[Plain]:
     """Each call of ``service`` as plain data: ids, events seen, request, response, latency.
+
+    ``selection``: only the calls in its window that satisfy its condition.
 
     Raises:
         UndecodableTopicError: the bag has no such service, or its events do not decode.
+        UnknownFieldError, SelectionError: the condition does not fit the service's calls.
     """
-    topic, calls = _service_calls(bag, service)
+    topic, calls = _service_calls(bag, service, selection)
     for call in calls:
         latency = call.latency_ns
         yield {

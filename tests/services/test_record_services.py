@@ -71,6 +71,45 @@ def test_echo_pairs_each_request_with_its_response(service_bag: Path) -> None:
         assert call["latency_s"] > 0
 
 
+def _echo_calls(bag: Path, *args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [BAGKIT, "echo", str(bag), "/svc/toggle", "--format", "json", *args],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+
+
+def test_echo_of_a_service_keeps_the_calls_of_a_window_and_a_condition(service_bag: Path) -> None:
+    every = [json.loads(line) for line in _echo_calls(service_bag).stdout.splitlines()]
+    assert len(every) == CALLS
+
+    kept = _echo_calls(service_bag, "--where", "response.success == true and latency_s > 0")
+    assert kept.returncode == 0, kept.stderr
+    numbers = [json.loads(line)["sequence_number"] for line in kept.stdout.splitlines()]
+    assert numbers == [c["sequence_number"] for c in every if c["response"]["success"]]
+    assert 0 < len(numbers) < CALLS
+
+    third = every[2]["log_time"]
+    later = _echo_calls(service_bag, "--start", f"{third}ns", "-n", "2")
+    numbers = [json.loads(line)["sequence_number"] for line in later.stdout.splitlines()]
+    assert numbers == [c["sequence_number"] for c in every if c["log_time"] >= third][:2]
+
+    none = _echo_calls(service_bag, "--where", "latency_s < 0")
+    assert none.returncode == 0 and none.stdout == ""
+    assert "no call satisfies" in none.stderr
+
+    for bad in (
+        ["--where", "response.nope > 1"],
+        ["--where", "response.message > 1"],
+        ["--fields", "request.data"],
+    ):
+        refused = _echo_calls(service_bag, *bad)
+        lines = refused.stderr.strip().splitlines()
+        assert refused.returncode == 2 and len(lines) == 1, (bad, refused.stderr)
+        assert lines[0].startswith("error:") and "Traceback" not in refused.stderr
+
+
 def test_rosbags_reads_the_events(service_bag: Path) -> None:
     with AnyReader([service_bag]) as reader:
         connections = [c for c in reader.connections if c.topic == TOPIC]
