@@ -89,7 +89,7 @@ def _satisfies(condition: Condition, call: ServiceCall) -> bool:
     fields = _CallFields(
         call.request, call.response, None if latency is None else latency / 1e9, call.call[1]
     )
-    read = {comparison.path[0] for comparison in condition.comparisons()}
+    read = {str(comparison.path[0]) for comparison in condition.comparisons()}
     if any(getattr(fields, name) is None for name in read):
         return False
     return condition.matches(fields)
