@@ -7,12 +7,13 @@ file, the same ``metadata.yaml`` totals, and the rosbag2 metadata record before 
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
 import lz4.frame
 import zstandard
 
 from bagkit.bag.errors import BagError
+from bagkit.bag.mcapio.chunk_builder import Buffer, Compress
 from bagkit.bag.mcapio.file_writer import McapFileWriter
 from bagkit.bag.mcapio.records import Channel, Metadata, Schema
 from bagkit.bag.messages import TopicInfo
@@ -20,22 +21,38 @@ from bagkit.bag.metadata import BagMetadata, FileInformation
 
 COMPRESSIONS = ("zstd", "lz4", "none")
 
-Compress = Callable[[bytearray], bytes]
-
 
 def compressor(compression: str) -> tuple[str, Compress]:
     """The chunk compression's name in MCAP (``""`` for none) and its function.
+
+    The function takes a chunk's records in pieces and returns the compressed data in pieces:
+    one zstd or LZ4 frame that declares its size, or for ``none`` the pieces themselves (no
+    copy).
 
     Raises:
         BagError: not one of :data:`COMPRESSIONS`.
     """
     if compression == "zstd":
-        return "zstd", zstandard.ZstdCompressor(level=1).compress
-    if compression == "lz4":
-        return "lz4", lz4.frame.compress
-    if compression == "none":
-        return "", bytes
-    raise BagError(f"unknown compression {compression!r} (choose from {', '.join(COMPRESSIONS)})")
+        compress_one = zstandard.ZstdCompressor(level=1).compress
+    elif compression == "lz4":
+        compress_one = lz4.frame.compress
+    elif compression == "none":
+        return "", _uncompressed
+    else:
+        raise BagError(
+            f"unknown compression {compression!r} (choose from {', '.join(COMPRESSIONS)})"
+        )
+
+    def compress(pieces: Sequence[Buffer]) -> list[bytes]:
+        # One copy into a buffer of the right size and a one-shot compression: a streaming
+        # compressor copies its input into its own window anyway, and was no faster.
+        return [compress_one(pieces[0] if len(pieces) == 1 else b"".join(pieces))]
+
+    return compression, compress
+
+
+def _uncompressed(pieces: Sequence[Buffer]) -> Sequence[Buffer]:
+    return pieces
 
 
 def file_information(storage: McapFileWriter) -> FileInformation:

@@ -192,7 +192,7 @@ class BagWriter:
                 sequence,
             )
             if (
-                len(self._chunk.records) >= self._chunk_size
+                self._chunk.held + len(self._chunk.records) >= self._chunk_size
                 or time.monotonic() - self._chunk.opened >= self._chunk_interval_s
             ):
                 self._close_chunk()
@@ -243,7 +243,7 @@ class BagWriter:
                     self._close_for(topic, len(payloads) - written, split_at=log_time)
                     chunk = self._chunk
                 chunk.add(channel_id, data, log_time, publish_time, sequence)
-                if len(chunk.records) >= chunk_size:
+                if chunk.held + len(chunk.records) >= chunk_size:
                     self._close_for(topic, len(payloads) - written - 1)
                     chunk = self._chunk
             if time.monotonic() - self._chunk.opened >= self._chunk_interval_s:
@@ -358,7 +358,7 @@ class BagWriter:
             return False
         if self._split_requested:
             return True
-        if self._max_bag_size and storage.offset + len(chunk.records) >= self._max_bag_size:
+        if self._max_bag_size and storage.offset + chunk.size >= self._max_bag_size:
             return True
         if self._max_bag_duration_ns:
             start = min(storage.start_time or chunk.start, chunk.start)

@@ -149,7 +149,7 @@ class OutputBag:
         while i < n:
             self._split_if_due(int(times[i]), int(lengths[i]))
             chunk = self._chunk
-            room = self._chunk_size - len(chunk.records)
+            room = self._chunk_size - chunk.size
             j = max(i + 1, int(np.searchsorted(ends, offsets[i] + room, side="right")))
             chunk.add_records(
                 data[offsets[i] : ends[j - 1]],
@@ -157,7 +157,7 @@ class OutputBag:
                 times[i:j],
                 offsets[i:j] - offsets[i],
             )
-            if len(chunk.records) >= self._chunk_size:
+            if chunk.size >= self._chunk_size:
                 self._close_chunk()
             i = j
 
@@ -166,7 +166,7 @@ class OutputBag:
         time, sequence and payload as stored: the latched state written before a window."""
         self._split_if_due(log_time, len(message.data))
         self._chunk.add(channel_id, message.data, log_time, message.publish_time, message.sequence)
-        if len(self._chunk.records) >= self._chunk_size:
+        if self._chunk.size >= self._chunk_size:
             self._close_chunk()
 
     def copy_chunk(self, chunk: ClosedChunk) -> None:
@@ -221,7 +221,7 @@ class OutputBag:
         chunk = self._chunk
         if file.message_count + chunk.count == 0:
             return
-        due = bool(self._max_size) and file.offset + len(chunk.records) + size >= self._max_size
+        due = bool(self._max_size) and file.offset + chunk.size + size >= self._max_size
         if self._max_duration:
             start = min(file.start_time or chunk.start, chunk.start)
             due = due or log_time - start >= self._max_duration

@@ -16,6 +16,7 @@ import zstandard
 from bag_samples import STRING, string_cdr
 
 from bagkit.bag import BagReader, TopicInfo
+from bagkit.bag.bag_files import compressor
 from bagkit.bag.bag_topics import BagTopics
 from bagkit.bag.mcapio.chunk_builder import ChunkBuilder, ClosedChunk
 from bagkit.bag.mcapio.file_writer import McapFileWriter
@@ -52,7 +53,7 @@ def _bomb_bag(path: Path, compression: str, data: bytes, declared: int) -> Path:
     intact = ChunkBuilder()
     for i in range(INTACT):
         intact.add(1, string_cdr(f"m{i}"), 1000 + i, 1000 + i, i)
-    writer.write_chunk(intact.close("", bytes), lost={})
+    writer.write_chunk(intact.close("", compressor("none")[1]), lost={})
     header = encode_chunk_header(
         Chunk(
             message_start_time=2000,
@@ -64,7 +65,7 @@ def _bomb_bag(path: Path, compression: str, data: bytes, declared: int) -> Path:
         )
     )
     writer.write_chunk(
-        ClosedChunk(header, data, b"", {}, 2000, 2000, compression, declared, {}), lost={}
+        ClosedChunk(header, (data,), b"", {}, 2000, 2000, compression, declared, {}), lost={}
     )
     writer.finish([schema], [channel])  # type: ignore[list-item]
     writer.close()

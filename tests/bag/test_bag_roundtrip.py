@@ -368,3 +368,48 @@ def test_large_payloads_between_small_ones_read_back_everywhere(
     assert [deserialize(r.data, STRING).data for r in records if isinstance(r, Message)] == texts
     assert len(chunks) >= 5
     assert {c.compression for c in chunks} == {"" if compression == "none" else compression}
+
+
+def test_incompressible_images_are_stored_uncompressed_and_read_back_everywhere(
+    tmp_path: Path,
+) -> None:
+    # Noise images between texts (each larger than a chunk, so each its own chunk): the images'
+    # chunks are stored uncompressed in a zstd bag, the texts compressed; every reader agrees.
+    import numpy as np
+
+    image_type = "sensor_msgs/msg/CompressedImage"
+    image = TYPESTORE.types[image_type]
+    rng = np.random.default_rng(3)
+    images = [rng.integers(0, 256, 1_200_000 + i, dtype=np.uint8) for i in range(4)]
+    with BagWriter(tmp_path / "bag", chunk_interval_s=3600) as bag:
+        bag.add_topic(TopicInfo("/camera", image_type))
+        bag.add_topic(TopicInfo("/text", STRING))
+        for i, data in enumerate(images):
+            bag.write_batch("/text", [string_cdr("small " * 200_000)], log_times=[10 * i])
+            header = TYPESTORE.types["std_msgs/msg/Header"](
+                stamp=TYPESTORE.types["builtin_interfaces/msg/Time"](sec=i, nanosec=0),
+                frame_id="camera",
+            )
+            cdr = bytes(
+                TYPESTORE.serialize_cdr(image(header=header, format="jpeg", data=data), image_type)
+            )
+            bag.write_batch("/camera", [cdr], log_times=[10 * i + 1])
+
+    with BagReader(tmp_path / "bag") as reader:
+        got = [deserialize(m.data, image_type).data for m in reader.messages(topics=["/camera"])]
+        assert reader.problems == []
+        assert reader.compression == "none,zstd"  # as `bagkit info` shows it
+    assert all(np.array_equal(a, b) for a, b in zip(got, images, strict=True))
+    with AnyReader([tmp_path / "bag"], default_typestore=TYPESTORE) as reader:
+        decoded = [
+            reader.deserialize(raw, c.msgtype).data
+            for c, _, raw in reader.messages()
+            if c.topic == "/camera"
+        ]
+    assert all(np.array_equal(a, b) for a, b in zip(decoded, images, strict=True))
+    with open(tmp_path / "bag" / "bag_0.mcap", "rb") as f:
+        mcap = make_reader(f, validate_crcs=True)
+        assert len(list(mcap.iter_messages())) == 8
+        summary = mcap.get_summary()
+    assert summary is not None
+    assert {c.compression for c in summary.chunk_indexes} == {"", "zstd"}

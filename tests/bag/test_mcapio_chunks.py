@@ -15,8 +15,9 @@ from mcap.reader import make_reader
 from mcap.records import Channel, Header, Message, Schema
 
 from bagkit.bag import BagReader
+from bagkit.bag.bag_files import compressor
 from bagkit.bag.errors import ChunkError, CorruptBagError
-from bagkit.bag.mcapio.chunk_builder import ChunkBuilder
+from bagkit.bag.mcapio.chunk_builder import LARGE_PAYLOAD, SAMPLED_CHUNK, ChunkBuilder
 from bagkit.bag.mcapio.chunks import decompress, payload_spans, walk_chunk
 from bagkit.bag.mcapio.file_writer import McapFileWriter
 from bagkit.bag.mcapio.records import (
@@ -27,11 +28,8 @@ from bagkit.bag.mcapio.records import (
     message_index_dtype,
 )
 
-COMPRESSORS: dict[str, Callable[[bytearray], bytes]] = {
-    "zstd": zstandard.ZstdCompressor().compress,
-    "lz4": lz4.frame.compress,
-    "": bytes,
-}
+COMPRESSORS = {name: compressor(name)[1] for name in ("zstd", "lz4", "none")}
+COMPRESSORS[""] = COMPRESSORS.pop("none")
 
 
 def _chunk_records() -> tuple[list[bytes], list[tuple[int, int, int]]]:
@@ -134,6 +132,42 @@ def test_chunks_built_and_written_read_back_with_mcap(tmp_path: Path, compressio
     assert summary.statistics.message_count == 150
     assert summary.statistics.channel_message_counts == {1: 75, 2: 75}
     assert len(summary.chunk_indexes) == 3
+
+
+@pytest.mark.parametrize("compression", ["zstd", "lz4", ""])
+def test_large_payloads_are_chunked_by_reference_and_read_back(
+    tmp_path: Path, compression: str
+) -> None:
+    # Small and large (kept by reference) payloads mixed in one chunk, then chunks of noise, a
+    # large one (its sample does not compress) and a small one (its data does not): both stored
+    # uncompressed whatever the compression asked.
+    schema = Schema(id=1, name="pkg/msg/T", encoding="ros2msg", data=b"uint8[] x")
+    channels = [Channel(id=1, schema_id=1, topic="/t", message_encoding="cdr", metadata={})]
+    path = tmp_path / "f.mcap"
+    writer = McapFileWriter.create(path, Header(profile="ros2", library="t"), [schema], channels)
+    mixed = [b"s" * 10, b"L" * LARGE_PAYLOAD, b"t" * 20, bytes(range(256)) * 1000, b"u"]
+    rng = np.random.default_rng(1)
+    noise = [rng.bytes(SAMPLED_CHUNK), rng.bytes(1000)]
+    chunks = [mixed, [b"v", noise[0], b"w"], [noise[1]]]
+    for number, payloads in enumerate(chunks):
+        builder = ChunkBuilder()
+        for i, data in enumerate(payloads):
+            builder.add(1, data, 100 * number + i, 100 * number + i, i)
+        assert builder.size == sum(31 + len(data) for data in payloads)
+        writer.write_chunk(builder.close(compression, COMPRESSORS[compression]), lost={})
+    writer.finish([schema], channels)
+    writer.close()
+    expected = [data for payloads in chunks for data in payloads]
+    with open(path, "rb") as f:
+        reader = make_reader(f, validate_crcs=True)
+        got = [m.data for _, _, m in reader.iter_messages(log_time_order=False)]
+        summary = reader.get_summary()
+    assert got == expected
+    assert summary is not None
+    assert [c.compression for c in summary.chunk_indexes] == [compression, "", ""]
+    with BagReader(path) as bag:
+        assert [m.data for m in bag.messages()] == expected
+        assert bag.problems == []
 
 
 def test_decompression_never_exceeds_the_declared_size() -> None:

@@ -88,7 +88,9 @@ def extent(block: Block) -> tuple[int, int]:
     return block.chunk_start_offset, block.chunk_length
 
 
-def decompress(compression: str, data: bytes | memoryview, size: int, max_size: int) -> bytes:
+def decompress(
+    compression: str, data: bytes | bytearray | memoryview, size: int, max_size: int
+) -> bytes:
     """Decompress chunk records (``""``, ``zstd`` or ``lz4``) declared to be ``size`` bytes.
 
     Never allocates more than ``size`` bytes (plus one) of output, whatever the data says.

@@ -1,15 +1,16 @@
 """One MCAP file being written: appends that never leave a partial record, and the summary.
 
-Records go to an unbuffered file in one ``write`` per chunk (chunk, then its Message Index
-records), so a killed process leaves whole records behind; a failed write cuts the file back to
-its last whole record. The summary (Schema, Channel, Statistics, Chunk Index and Metadata Index
-groups, Summary Offsets, Footer with the summary CRC) is encoded with the ``mcap`` package's
-record classes.
+Records go to an unbuffered file in one ``writev`` per chunk (its header, its data in pieces,
+then its Message Index records), so a killed process leaves whole records behind; a failed
+write cuts the file back to its last whole record. The summary (Schema, Channel, Statistics,
+Chunk Index and Metadata Index groups, Summary Offsets, Footer with the summary CRC) is encoded
+with the ``mcap`` package's record classes.
 """
 
 from __future__ import annotations
 
 import contextlib
+import os
 import struct
 from collections.abc import Iterable
 from pathlib import Path
@@ -18,7 +19,7 @@ from typing import BinaryIO
 from zlib_ng.zlib_ng import crc32
 
 from bagkit.bag.errors import BagWriteError
-from bagkit.bag.mcapio.chunk_builder import ClosedChunk
+from bagkit.bag.mcapio.chunk_builder import Buffer, ClosedChunk
 from bagkit.bag.mcapio.records import (
     MAGIC,
     Channel,
@@ -36,6 +37,8 @@ from bagkit.bag.mcapio.records import (
 )
 
 _SUMMARY_CRC = struct.Struct("<I")
+# Buffers per writev call: below every system's IOV_MAX (1024 on Linux).
+_MAX_PARTS = 512
 
 
 class McapFileWriter:
@@ -82,7 +85,7 @@ class McapFileWriter:
         )
         return writer
 
-    def append(self, *parts: bytes | bytearray, lost: dict[str, int] | None = None) -> int:
+    def append(self, *parts: Buffer, lost: dict[str, int] | None = None) -> int:
         """Write ``parts`` one after the other at the end of the file; return their offset.
 
         Raises:
@@ -90,14 +93,18 @@ class McapFileWriter:
                 back to where it was, so it stays readable.
         """
         offset = self.offset
+        views = [memoryview(part).cast("B") for part in parts if len(part)]
         try:
-            for part in parts:
-                view = memoryview(part)
-                while view:
-                    written = self._handle.write(view)
-                    if written is None:
-                        raise OSError("write would block")
-                    view = view[written:]
+            fd = self._handle.fileno()
+            while views:
+                written = os.writev(fd, views[:_MAX_PARTS])
+                if not written:
+                    raise OSError("the write wrote nothing")
+                while views and written >= len(views[0]):
+                    written -= len(views[0])
+                    del views[0]
+                if written:
+                    views[0] = views[0][written:]
         except OSError as exc:
             with contextlib.suppress(OSError):
                 self._handle.truncate(offset)
@@ -115,7 +122,7 @@ class McapFileWriter:
             BagWriteError: as for :meth:`append`.
         """
         index_start = self.offset + chunk.length
-        offset = self.append(chunk.header, chunk.data, chunk.message_indexes, lost=lost)
+        offset = self.append(chunk.header, *chunk.pieces, chunk.message_indexes, lost=lost)
         self.chunk_indexes.append(
             ChunkIndex(
                 message_start_time=chunk.message_start_time,
@@ -127,7 +134,7 @@ class McapFileWriter:
                 },
                 message_index_length=len(chunk.message_indexes),
                 compression=chunk.compression,
-                compressed_size=len(chunk.data),
+                compressed_size=chunk.compressed_size,
                 uncompressed_size=chunk.uncompressed_size,
             )
         )

@@ -79,7 +79,7 @@ def read_raw_chunk(
         parts.append(part)
     return ClosedChunk(
         header=record[:header_length],
-        data=record[header_length:],
+        pieces=(record[header_length:],),
         message_indexes=b"".join(parts),
         index_offsets=offsets,
         message_start_time=chunk.message_start_time,
@@ -147,7 +147,7 @@ def check_raw_chunk(chunk: ClosedChunk, max_size: int = DEFAULT_MAX_CHUNK_SIZE) 
 
 
 def _decompressed(
-    compression: str, data: bytes | memoryview, size: int, crc: int, max_size: int
+    compression: str, data: bytes | bytearray | memoryview, size: int, crc: int, max_size: int
 ) -> bytes:
     """The chunk's records, checked against ``crc`` unless it is 0 (MCAP's "no CRC")."""
     records = decompress(compression, data, size, max_size)

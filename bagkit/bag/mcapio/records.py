@@ -303,11 +303,14 @@ def encode(record: McapRecord) -> bytes:
     return bytes(builder.end())
 
 
-def encode_chunk_header(chunk: Chunk) -> bytes:
+def encode_chunk_header(chunk: Chunk, data_length: int | None = None) -> bytes:
     """Serialize a Chunk record up to its compressed data, which the caller writes after it.
 
     Writing the (large) data separately saves copying it into one record buffer.
+    ``data_length``: the data's length when ``chunk.data`` does not hold it (default: its own).
     """
+    if data_length is None:
+        data_length = len(chunk.data)
     prefix = CHUNK_PREFIX.pack(
         chunk.message_start_time,
         chunk.message_end_time,
@@ -315,8 +318,8 @@ def encode_chunk_header(chunk: Chunk) -> bytes:
         chunk.uncompressed_crc,
     )
     compression = chunk.compression.encode("utf-8")
-    content_prefix = prefix + _U32.pack(len(compression)) + compression + _U64.pack(len(chunk.data))
-    return RECORD_HEADER.pack(Opcode.CHUNK, len(content_prefix) + len(chunk.data)) + content_prefix
+    content_prefix = prefix + _U32.pack(len(compression)) + compression + _U64.pack(data_length)
+    return RECORD_HEADER.pack(Opcode.CHUNK, len(content_prefix) + data_length) + content_prefix
 
 
 def encode_message_index(channel_id: int, entries: bytes) -> bytes:

@@ -4,13 +4,14 @@ Two threads do the work: the take thread (:mod:`~bagkit.ros.record.take_loop`) o
 subscribes (:mod:`~bagkit.ros.record.subscriptions`) and takes messages in bursts; the writer
 thread (:mod:`~bagkit.ros.record.write_loop`) writes them and accounts for loss. They meet in a
 queue bounded in bytes (:mod:`~bagkit.ros.record.handoff`). This module holds the life cycle:
-the bag, the node, the threads, and the run that stops them.
+the output (created by :mod:`~bagkit.ros.record.output`), the node, the threads, the trigger
+checks of snapshot mode (:mod:`~bagkit.ros.record.triggers`) and the run (stopped as
+:mod:`~bagkit.ros.record.run_until` says).
 """
 
 from __future__ import annotations
 
 import contextlib
-import errno
 import logging
 import threading
 import time
@@ -22,40 +23,27 @@ import rclpy
 from rclpy.context import Context
 from rclpy.guard_condition import GuardCondition
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile
 from rclpy.signals import SignalHandlerOptions
 
-from bagkit.bag import BagWriteError, BagWriter
-from bagkit.bag.errors import BagError
+from bagkit.bag import BagWriter
 from bagkit.recording.options import RecordOptions, default_output_name
 from bagkit.recording.report import RecordProgress, RecordReport, SnapshotRecord
-from bagkit.ros.clock import CLOCK_TOPIC
 from bagkit.ros.errors import RecorderOptionsError, RecordingFailedError
 from bagkit.ros.qos import load_qos_overrides
 from bagkit.ros.record.control_services import ControlServices, recorder_actions
 from bagkit.ros.record.handoff import HandoffQueue, StopSignal
 from bagkit.ros.record.latched_topics import LatchedRepeats
+from bagkit.ros.record.output import create_output
 from bagkit.ros.record.pause import PauseGate
+from bagkit.ros.record.run_until import POLL_S, StopWhen, wait_until_done
 from bagkit.ros.record.snapshot import SnapshotSink
-from bagkit.ros.record.subscriptions import Subscriptions, never_called
+from bagkit.ros.record.subscriptions import Subscriptions
 from bagkit.ros.record.take_loop import SimClock, TakeLoop
-from bagkit.ros.record.triggers import TriggerError, check_triggers_in_graph
-from bagkit.ros.record.write_loop import FLUSH_PERIOD_S, WriteLoop
+from bagkit.ros.record.triggers import TriggerError, start_trigger_checks
+from bagkit.ros.record.write_loop import WriteLoop
 from bagkit.ros.tuning import process_tuning
 from bagkit.selection.topics import absolute_topic_name
-
-# A recording that cannot be written for these reasons is a failed run (exit 1), not a bad option.
-_DISK_FULL = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG}
-# How often run() looks at its stop conditions before the topics are subscribed (the duration
-# counts from there), and at most between two looks afterwards.
-_POLL_STARTING_S = 0.05
-_POLL_S = 0.5
-# How long the start waits for the trigger topics to check their conditions' fields, and how
-# long after the start a trigger topic may be absent before a warning says so.
-TRIGGER_CHECK_WAIT_S = 1.0
-TRIGGER_TOPIC_WAIT_S = 10.0
-# What run() may be told to stop by: an event to set, or a function that says when.
-StopWhen = threading.Event | Callable[[], bool]
 
 
 class Recorder:
@@ -122,7 +110,7 @@ class Recorder:
         stop: StopWhen | None = None,
         *,
         on_progress: Callable[[RecordProgress], None] | None = None,
-        progress_period_s: float = _POLL_S,
+        progress_period_s: float = POLL_S,
     ) -> RecordReport:
         """Record until ``stop``, ``options.duration_s``, ``options.max_messages`` or a failure.
 
@@ -144,39 +132,19 @@ class Recorder:
         """
         self.start()
         try:
-            self._wait(_should_stop(stop), on_progress, progress_period_s)
+            assert self._subscriptions is not None
+            wait_until_done(
+                self.options,
+                self._subscriptions,
+                self._stopped,
+                self.progress,
+                stop=stop,
+                on_progress=on_progress,
+                progress_period_s=progress_period_s,
+            )
         finally:
             report = self.stop()
         return report
-
-    def _wait(
-        self,
-        should_stop: Callable[[float], bool],
-        on_progress: Callable[[RecordProgress], None] | None,
-        progress_period_s: float,
-    ) -> None:
-        """Return when told to stop, at a limit of the options, or when the bag is finished."""
-        options = self.options
-        next_progress = 0.0
-        while not self._stopped.is_set():
-            now = time.monotonic()
-            if on_progress is not None and now >= next_progress:
-                on_progress(self.progress())
-                next_progress = now + progress_period_s
-            subscribed = self.subscribed.is_set()
-            wait = min(_POLL_S, progress_period_s) if subscribed else _POLL_STARTING_S
-            if options.duration_s is not None and subscribed:
-                assert self._subscriptions is not None
-                remaining = self._subscriptions.complete_at + options.duration_s - now
-                if remaining <= 0:
-                    return
-                wait = min(wait, remaining)
-            if options.max_messages is not None:
-                if self.progress().messages >= options.max_messages:
-                    return
-                wait = _POLL_STARTING_S
-            if should_stop(wait):
-                return
 
     def __enter__(self) -> Recorder:
         self.start()
@@ -218,7 +186,12 @@ class Recorder:
             RecordingFailedError: the bag cannot be written (a full disk); nothing is left.
         """
         overrides = self._qos_overrides()
-        bag = self._create_bag()
+        bag = create_output(
+            self.path,
+            self.options,
+            file_preamble=self._latched.state.messages if self._latched else None,
+            on_snapshot_error=self._stop.fail,
+        )
         try:
             # Fast DDS reads its profile when the participant is created.
             with process_tuning(self.options.tune_process):
@@ -261,29 +234,18 @@ class Recorder:
             RecorderOptionsError: a trigger names a field its topic's type lacks (the
                 recording is stopped and nothing is left).
         """
-        assert self._writer is not None and self._subscriptions is not None and self._node
+        assert self._writer is not None and self._node is not None
         sink = self._writer.bag
         assert isinstance(sink, SnapshotSink)
         try:
-            check_triggers_in_graph(self._node, sink.triggers, TRIGGER_CHECK_WAIT_S)
+            self._absent_triggers = start_trigger_checks(
+                self._node, sink.triggers, stopping=self._stop.is_set, warn=self._warn
+            )
         except TriggerError as exc:
             self.stop()
             with contextlib.suppress(OSError):  # no snapshot was written: nothing to keep
                 self.path.rmdir()
             raise RecorderOptionsError(str(exc)) from None
-        self._absent_triggers = threading.Timer(TRIGGER_TOPIC_WAIT_S, self._warn_absent_triggers)
-        self._absent_triggers.daemon = True
-        self._absent_triggers.start()
-
-    def _warn_absent_triggers(self) -> None:
-        sink = self._writer.bag if self._writer is not None else None
-        if isinstance(sink, SnapshotSink) and not self._stop.is_set():
-            for topic in sink.triggers.unseen():
-                self._warn(
-                    f"trigger topic {topic} has not appeared after "
-                    f"{TRIGGER_TOPIC_WAIT_S:g} s: recording goes on, it triggers once "
-                    "it appears"
-                )
 
     def _warn(self, message: str) -> None:
         if self._on_warning is not None:
@@ -301,42 +263,6 @@ class Recorder:
         if path is None:
             return {}
         return {absolute_topic_name(k): v for k, v in load_qos_overrides(path).items()}
-
-    def _create_bag(self) -> BagWriter | SnapshotSink:
-        if self.options.snapshot_mode:
-            return self._create_snapshot_sink()
-        try:
-            bag = BagWriter(
-                self.path,
-                compression=self.options.compression,
-                max_bag_size=self.options.max_bag_size,
-                max_bag_duration_s=self.options.max_bag_duration_s,
-                chunk_interval_s=FLUSH_PERIOD_S,
-                file_preamble=self._latched.state.messages if self._latched else None,
-                rotation=self.options.rotation,
-            ).open()
-            bag.custom_data.update(self.options.custom_data)
-            return bag
-        except BagWriteError as exc:
-            cause = exc.__cause__
-            if isinstance(cause, OSError) and cause.errno in _DISK_FULL:
-                _remove_empty_bag(self.path)
-                raise RecordingFailedError(str(exc)) from None
-            raise RecorderOptionsError(str(exc)) from None
-        except BagError as exc:
-            raise RecorderOptionsError(str(exc)) from None
-
-    def _create_snapshot_sink(self) -> SnapshotSink:
-        try:
-            return SnapshotSink(self.path, self.options, self._stop.fail).open()
-        except FileExistsError:
-            raise RecorderOptionsError(
-                f"{self.path} already exists (bagkit never overwrites a bag)"
-            ) from None
-        except OSError as exc:
-            raise RecorderOptionsError(
-                f"cannot create {self.path}: {exc.strerror or exc}"
-            ) from None
 
     @property
     def is_paused(self) -> bool:
@@ -411,14 +337,7 @@ class Recorder:
             on_warning=self._on_warning,
             include_unpublished=self.options.include_unpublished,
         )
-        clock = None
-        if self.options.use_sim_time:
-            from rosgraph_msgs.msg import Clock
-
-            best_effort = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
-            clock = SimClock(
-                node.create_subscription(Clock, CLOCK_TOPIC, never_called, best_effort, raw=True)
-            )
+        clock = SimClock.subscribe(node) if self.options.use_sim_time else None
         return TakeLoop(
             self._subscriptions,
             self._queue,
@@ -486,33 +405,3 @@ class Recorder:
             paused=sum(r.paused for r in records),
             is_paused=self._gate.paused,
         )
-
-
-def _remove_empty_bag(path: Path) -> None:
-    """Remove what a bag that could not even start left behind: empty files, the directory."""
-    if not path.is_dir():
-        return
-    for child in path.iterdir():
-        if child.is_file() and child.stat().st_size == 0:
-            child.unlink()
-    with contextlib.suppress(OSError):  # something else is in there: not ours to remove
-        path.rmdir()
-
-
-def _never() -> bool:
-    return False
-
-
-def _should_stop(stop: StopWhen | None) -> Callable[[float], bool]:
-    """``stop`` as ``wait(seconds)``: wait up to that long, return whether to stop."""
-    if isinstance(stop, threading.Event):
-        return stop.wait
-    condition = stop if stop is not None else _never
-
-    def wait(seconds: float) -> bool:
-        if condition():
-            return True
-        time.sleep(seconds)
-        return condition()
-
-    return wait

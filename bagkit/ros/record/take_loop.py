@@ -14,12 +14,14 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.subscription import Subscription
 
-from bagkit.ros.clock import clock_ns
+from bagkit.ros.clock import CLOCK_TOPIC, clock_ns
 from bagkit.ros.record.handoff import Batch, BatchPart, HandoffQueue, StopSignal
 from bagkit.ros.record.recorded_topic import RecordedTopic
-from bagkit.ros.record.subscriptions import Subscriptions
+from bagkit.ros.record.subscriptions import Subscriptions, never_called
 from bagkit.ros.record.take import TakenMessages, take_serialized
 from bagkit.ros.tuning import name_native_thread
 
@@ -51,6 +53,16 @@ class SimClock:
         self.now_ns = 0
         # Until the first /clock there is no time to stamp with: messages are left out.
         self.started = False
+
+    @classmethod
+    def subscribe(cls, node: Node) -> SimClock:
+        """Subscribe ``node`` to ``/clock`` (best effort, raw: taken by :meth:`update`)."""
+        from rosgraph_msgs.msg import Clock
+
+        best_effort = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
+        return cls(
+            node.create_subscription(Clock, CLOCK_TOPIC, never_called, best_effort, raw=True)
+        )
 
     def update(self) -> None:
         """Take every waiting clock message; the last one is the time."""

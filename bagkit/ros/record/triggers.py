@@ -8,6 +8,7 @@ as the topic is known, so that a misspelt field stops the recording at once.
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -25,6 +26,10 @@ from bagkit.selection.errors import SelectionError
 
 # How often the graph is looked at while waiting for the trigger topics at the start.
 GRAPH_POLL_S = 0.05
+# How long the start waits for the trigger topics to check their conditions' fields, and how
+# long after the start a trigger topic may be absent before a warning says so.
+TRIGGER_CHECK_WAIT_S = 1.0
+TRIGGER_TOPIC_WAIT_S = 10.0
 
 
 class TriggerError(BagkitError):
@@ -111,6 +116,37 @@ class DataTriggers:
                     found.append((index, text))
                     break
         return found
+
+
+def start_trigger_checks(
+    node: Node,
+    triggers: DataTriggers,
+    *,
+    stopping: Callable[[], bool],
+    warn: Callable[[str], None],
+) -> threading.Timer:
+    """Check the triggers on the topics found (up to TRIGGER_CHECK_WAIT_S for them to appear);
+    return the timer that warns TRIGGER_TOPIC_WAIT_S later about trigger topics still absent
+    (unless ``stopping()`` by then). Cancel it when the recording stops.
+
+    Raises:
+        TriggerError: a condition names a field its topic's type lacks.
+    """
+    check_triggers_in_graph(node, triggers, TRIGGER_CHECK_WAIT_S)
+
+    def warn_absent() -> None:
+        if stopping():
+            return
+        for topic in triggers.unseen():
+            warn(
+                f"trigger topic {topic} has not appeared after {TRIGGER_TOPIC_WAIT_S:g} s: "
+                "recording goes on, it triggers once it appears"
+            )
+
+    timer = threading.Timer(TRIGGER_TOPIC_WAIT_S, warn_absent)
+    timer.daemon = True
+    timer.start()
+    return timer
 
 
 def check_triggers_in_graph(node: Node, triggers: DataTriggers, wait_s: float) -> None:
