@@ -64,7 +64,12 @@ class PayloadMatcher:
             CdrLayout.of(types.typestore, canonical) if bulk and self.reads is not None else None
         )
         self.texts = texts
-        self.decode = types.decoder(type_name)
+        self._types = types
+        self._type_name = type_name
+        # The bulk path decodes only the payloads it hands back: rosbags' code for the general
+        # decoder is generated on first need (per bag: a large share of `find`'s time, see
+        # benchmarks/README.md).
+        self._decode = None if self.layout is not None else types.decoder(type_name)
         self.undecodable = 0
         self.first_failure = ""
 
@@ -81,8 +86,10 @@ class PayloadMatcher:
     def matches(self, data: bytes | memoryview) -> bool:
         """Whether one payload satisfies the condition (False, and counted, if it does not
         decode)."""
+        if self._decode is None:
+            self._decode = self._types.decoder(self._type_name)
         try:
-            return self.condition.matches(self.decode(data), self.octets)
+            return self.condition.matches(self._decode(data), self.octets)
         except DecodeError as exc:
             self.undecodable += 1
             self.first_failure = self.first_failure or str(exc)
