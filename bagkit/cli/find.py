@@ -109,7 +109,7 @@ def _write_parquet(result: FindResult, out: Path | None) -> None:
     assert out is not None
     out.parent.mkdir(parents=True, exist_ok=True)
     pq.write_table(result.to_arrow(), out, compression="zstd")
-    console.print(f"{len(result.episodes)} episodes -> {out}", highlight=False, soft_wrap=True)
+    console.print(f"{result.count} episodes -> {out}", highlight=False, soft_wrap=True)
 
 
 def _utc(ns: int) -> str:
@@ -120,7 +120,7 @@ def _utc(ns: int) -> str:
 def _print_table(result: FindResult) -> None:
     from bagkit.cli.tables import Column, Table, print_table
 
-    if not result.episodes:
+    if not result.count:
         console.print(f"0 episodes of {result.topic}", highlight=False)
         return
     table = Table(
@@ -131,7 +131,7 @@ def _print_table(result: FindResult) -> None:
             Column("seconds", numeric=True),
             Column("count", numeric=True),
         ],
-        title=f"{len(result.episodes)} episodes of {result.topic}",
+        title=f"{result.count} episodes of {result.topic}",
     )
     for e in result.episodes:
         seconds = f"{(e.end_ns - e.start_ns) / 1e9:.3f}"

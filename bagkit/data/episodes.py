@@ -29,51 +29,70 @@ class Episode:
     count: int
 
 
+NO_SPANS = np.zeros((0, 3), dtype=np.int64)
+"""No episode, as :func:`episode_spans` gives it (copy before changing)."""
+
+
 @dataclass
 class Episodes:
     """The episodes of one topic condition in one bag, and what could not be matched.
 
     Attributes:
         topic: the topic.
-        episodes: in time order.
+        spans: one row per episode in time order: first and last matching log time (ns),
+            matches (int64, shape (n, 3); see :func:`episode_spans`).
         messages: messages of the topic looked at.
         undecodable: those that did not decode (counted, never matched).
         problems: what could not be read, one line each.
     """
 
     topic: str
-    episodes: list[Episode]
+    spans: np.ndarray
     messages: int = 0
     undecodable: int = 0
     problems: list[str] = field(default_factory=list)
 
+    @property
+    def episodes(self) -> list[Episode]:
+        """The episodes in time order."""
+        return as_episodes(self.spans)
 
-def episodes_of(log_times: np.ndarray, matched: np.ndarray, gap_ns: int = 0) -> list[Episode]:
-    """The episodes of a topic's messages (pure).
+
+def episode_spans(log_times: np.ndarray, matched: np.ndarray, gap_ns: int = 0) -> np.ndarray:
+    """The episodes of a topic's messages as rows ``(start_ns, end_ns, count)`` (pure).
+
+    Arrays, not objects: a fleet task sends its bag's thousands of episodes back to the
+    client, and unpickling one dataclass each cost more than finding them.
 
     Args:
         log_times: every message's log time (ns), ascending.
         matched: whether each matched (bool, same length).
         gap_ns: runs of matches less than this apart (last of one to first of the next)
             merge into one episode; 0 keeps every run apart.
+
+    Returns:
+        int64, shape (episodes, 3), in time order.
     """
     flags = np.concatenate(([False], np.asarray(matched, dtype=bool), [False]))
     edges = np.diff(flags.astype(np.int8))
     firsts = np.flatnonzero(edges == 1)  # index of each run's first message
     lasts = np.flatnonzero(edges == -1) - 1  # and of its last
     if not len(firsts):
-        return []
+        return NO_SPANS.copy()
     times = np.asarray(log_times, dtype=np.int64)
     # A run opens a new episode unless it starts within gap_ns of the previous run's end.
     apart = times[firsts[1:]] - times[lasts[:-1]] >= gap_ns
     opens = np.concatenate(([0], np.flatnonzero(apart) + 1))
     closes = np.concatenate((opens[1:] - 1, [len(firsts) - 1]))
-    run_counts = np.cumsum(lasts - firsts + 1)
-    before = np.concatenate(([0], run_counts))
-    return [
-        Episode(int(times[firsts[o]]), int(times[lasts[c]]), int(before[c + 1] - before[o]))
-        for o, c in zip(opens.tolist(), closes.tolist(), strict=True)
-    ]
+    before = np.concatenate(([0], np.cumsum(lasts - firsts + 1)))
+    return np.stack(
+        [times[firsts[opens]], times[lasts[closes]], before[closes + 1] - before[opens]], axis=1
+    ).astype(np.int64, copy=False)
+
+
+def as_episodes(spans: np.ndarray) -> list[Episode]:
+    """The rows of :func:`episode_spans` as Episodes."""
+    return [Episode(start, end, count) for start, end, count in spans.tolist()]
 
 
 def find_episodes(
@@ -87,7 +106,7 @@ def find_episodes(
     Args:
         reader: the open bag.
         trigger: the topic and the condition on its messages.
-        gap_ns: see :func:`episodes_of`.
+        gap_ns: see :func:`episode_spans`.
         window: only messages in it (the whole bag when None).
 
     Raises:
@@ -97,7 +116,7 @@ def find_episodes(
     matches = match_topic(reader, trigger.topic, trigger.condition, window)
     return Episodes(
         matches.topic,
-        episodes_of(matches.log_times, matches.matched, gap_ns),
+        episode_spans(matches.log_times, matches.matched, gap_ns),
         len(matches.log_times),
         matches.undecodable,
         matches.problems,

@@ -44,9 +44,15 @@ def local_cluster(n_workers: int) -> LocalCluster:
     import dask
     from distributed import LocalCluster
 
-    # Dask sets MALLOC_TRIM_THRESHOLD_ in its workers to give memory back sooner; with it glibc
-    # maps and unmaps every large buffer afresh, and summaries run 1.6-2x slower.
-    with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}):
+    settings = {
+        # Dask sets MALLOC_TRIM_THRESHOLD_ in its workers to give memory back sooner; with it
+        # glibc maps and unmaps every large buffer afresh, and summaries run 1.6-2x slower.
+        "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
+        # The dashboard's statistical profiler samples each worker's stack every 10 ms, in a
+        # thread that takes the GIL from the task (benchmarks/README.md, find on 2 workers).
+        "distributed.worker.profile.enabled": False,
+    }
+    with dask.config.set(settings):
         return LocalCluster(
             host=LOOPBACK,
             dashboard_address=f"{LOOPBACK}:0" if dashboard_available() else None,

@@ -110,7 +110,7 @@ def _search(job: tuple[str, str, str]) -> BagEpisodes:
 
 def _rows(name: str, when: str, bag: str, part: BagEpisodes) -> list[dict[str, object]]:
     topic = parse_topic_condition(when).topic
-    if not part.episodes:  # searched, nothing found (or not readable): count 0
+    if not len(part.spans):  # searched, nothing found (or not readable): count 0
         return [dict(event=name, when=when, path=bag, topic=topic, start=None, end=None, count=0)]
     return [
         dict(
@@ -118,11 +118,11 @@ def _rows(name: str, when: str, bag: str, part: BagEpisodes) -> list[dict[str, o
             when=when,
             path=bag,
             topic=topic,
-            start=e.start_ns,
-            end=e.end_ns,
-            count=e.count,
+            start=start,
+            end=end,
+            count=count,
         )
-        for e in part.episodes
+        for start, end, count in part.spans.tolist()
     ]
 
 

@@ -14,8 +14,10 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from bagkit.bag import BagError, BagReader
-from bagkit.data.episodes import Episode, find_episodes
+from bagkit.data.episodes import NO_SPANS, find_episodes
 from bagkit.fleet.errors import FleetError
 from bagkit.fleet.execute import ItemDone, run_each
 from bagkit.selection.conditions import parse_topic_condition
@@ -46,10 +48,14 @@ class FoundEpisode:
 
 @dataclass(slots=True)
 class BagEpisodes:
-    """What one bag gave (sent from a worker): its episodes, or why it could not be read."""
+    """What one bag gave (sent from a worker): its episodes, or why it could not be read.
+
+    ``spans``: one row ``(start_ns, end_ns, count)`` per episode
+    (:func:`~bagkit.data.episodes.episode_spans`).
+    """
 
     bag: str
-    episodes: list[Episode] = field(default_factory=list)
+    spans: np.ndarray = field(default_factory=NO_SPANS.copy)
     has_topic: bool = True
     problems: list[str] = field(default_factory=list)
     error: str | None = None
@@ -57,29 +63,47 @@ class BagEpisodes:
 
 @dataclass(slots=True)
 class FindResult:
-    """The episodes of every bag, in bag order then time order, and what could not be read."""
+    """The episodes of every bag, in bag order then time order, and what could not be read.
+
+    Held as arrays (bags with episodes, and their :attr:`BagEpisodes.spans`): a fleet finds
+    hundreds of thousands of episodes, most of which are written to Parquet, never looked at
+    one by one.
+    """
 
     topic: str
-    episodes: list[FoundEpisode]
+    parts: list[BagEpisodes]
+    """The bags that have episodes, in bag order."""
     problems: list[str]
     unread: int = 0
     """Bags that could not be read at all."""
+
+    @property
+    def count(self) -> int:
+        """How many episodes."""
+        return sum(len(part.spans) for part in self.parts)
+
+    @property
+    def episodes(self) -> list[FoundEpisode]:
+        """Every episode as an object (made on each call)."""
+        return [
+            FoundEpisode(part.bag, self.topic, start, end, count)
+            for part in self.parts
+            for start, end, count in part.spans.tolist()
+        ]
 
     def to_arrow(self) -> pa.Table:
         """One row per episode: ``bag``, ``topic``, ``start_ns``, ``end_ns``, ``count``."""
         import pyarrow as pa
 
-        schema = pa.schema(
-            [
-                ("bag", pa.string()),
-                ("topic", pa.string()),
-                ("start_ns", pa.int64()),
-                ("end_ns", pa.int64()),
-                ("count", pa.int64()),
-            ]
+        spans = np.concatenate([NO_SPANS, *(part.spans for part in self.parts)])
+        repeats = [len(part.spans) for part in self.parts]
+        bags = np.repeat(np.array([part.bag for part in self.parts], dtype=object), repeats)
+        columns = [bags, np.full(len(spans), self.topic, dtype=object), *spans.T]
+        types = [pa.string(), pa.string(), pa.int64(), pa.int64(), pa.int64()]
+        return pa.table(
+            [pa.array(values, type=kind) for values, kind in zip(columns, types, strict=True)],
+            names=list(COLUMNS),
         )
-        columns = {name: [getattr(e, name) for e in self.episodes] for name in COLUMNS}
-        return pa.Table.from_pydict(columns, schema=schema)
 
 
 def episodes_in_bag(
@@ -106,7 +130,7 @@ def episodes_in_bag(
     except BagError as exc:
         return BagEpisodes(bag, error=str(exc))
     problems = [p if p.startswith(bag) else f"{bag}: {p}" for p in found.problems]
-    return BagEpisodes(bag, found.episodes, problems=problems)
+    return BagEpisodes(bag, found.spans, problems=problems)
 
 
 def find_fleet(
@@ -124,7 +148,7 @@ def find_fleet(
     Args:
         when: ``'TOPIC: CONDITION'`` (:func:`~bagkit.selection.conditions.parse_topic_condition`).
         gap_ns: matches less than this apart merge into one episode
-            (:func:`~bagkit.data.episodes.episodes_of`).
+            (:func:`~bagkit.data.episodes.episode_spans`).
         start, end: only messages in this window of each bag (seconds from its own start ...).
         done: called with the index of each bag once it is searched.
 
@@ -142,14 +166,10 @@ def find_fleet(
         raise FleetError(f"no bag could be read ({parts[0].error if parts else 'no bag given'})")
     if not any(part.has_topic for part in readable):
         raise UnknownTopicError(f"none of the bags has the topic {trigger.topic}")
-    episodes: list[FoundEpisode] = []
     problems: list[str] = []
     for part in parts:
         if part.error is not None:
             problems.append(f"{part.bag}: not read: {part.error}")
         problems.extend(part.problems)
-        episodes.extend(
-            FoundEpisode(part.bag, trigger.topic, e.start_ns, e.end_ns, e.count)
-            for e in part.episodes
-        )
-    return FindResult(trigger.topic, episodes, problems, len(parts) - len(readable))
+    found = [part for part in readable if len(part.spans)]
+    return FindResult(trigger.topic, found, problems, len(parts) - len(readable))

@@ -16,7 +16,7 @@ from ros2_messages import DB3_SCHEMA
 from rosbags.typesys import Stores, get_typestore
 
 from bagkit.bag import BagReader, BagWriter, TopicInfo
-from bagkit.data.episodes import Episode, episodes_of, find_episodes
+from bagkit.data.episodes import Episode, episode_spans, find_episodes
 from bagkit.data.matching import match_topic
 from bagkit.selection.conditions import parse_condition, parse_topic_condition
 from bagkit.selection.errors import SelectionError, UnknownFieldError
@@ -46,24 +46,28 @@ def as_tuples(episodes: list[Episode]) -> list[tuple[int, int, int]]:
     return [(e.start_ns, e.end_ns, e.count) for e in episodes]
 
 
+def spans(times: np.ndarray, matched: np.ndarray, gap_ns: int = 0) -> list[tuple[int, ...]]:
+    return [tuple(row) for row in episode_spans(times, matched, gap_ns).tolist()]
+
+
 @pytest.mark.parametrize("seed", range(6))
 @pytest.mark.parametrize("gap_ns", [0, 1, 5, 40, 10**9])
-def test_episodes_of_equals_the_pandas_oracle(seed: int, gap_ns: int) -> None:
+def test_episode_spans_equal_the_pandas_oracle(seed: int, gap_ns: int) -> None:
     rng = np.random.default_rng(seed)
     n = int(rng.integers(0, 400))
     times = np.cumsum(rng.integers(0, 12, n)).astype(np.int64)  # ties too
     matched = rng.random(n) < rng.uniform(0.05, 0.9)
-    assert as_tuples(episodes_of(times, matched, gap_ns)) == oracle(times, matched, gap_ns)
+    assert spans(times, matched, gap_ns) == oracle(times, matched, gap_ns)
 
 
 def test_episode_boundaries() -> None:
     times = np.array([0, 10, 20, 30, 40, 50])
     matched = np.array([True, True, False, True, False, True])
-    assert as_tuples(episodes_of(times, matched)) == [(0, 10, 2), (30, 30, 1), (50, 50, 1)]
+    assert spans(times, matched) == [(0, 10, 2), (30, 30, 1), (50, 50, 1)]
     # 30 - 10 = 20: a gap of 20 keeps them apart (merge only when closer), 21 merges.
-    assert as_tuples(episodes_of(times, matched, 20)) == [(0, 10, 2), (30, 30, 1), (50, 50, 1)]
-    assert as_tuples(episodes_of(times, matched, 21)) == [(0, 50, 4)]
-    assert episodes_of(times, np.zeros(6, bool), 10**9) == []
+    assert spans(times, matched, 20) == [(0, 10, 2), (30, 30, 1), (50, 50, 1)]
+    assert spans(times, matched, 21) == [(0, 50, 4)]
+    assert spans(times, np.zeros(6, bool), 10**9) == []
 
 
 def _imu(z: float, i: int) -> bytes:
