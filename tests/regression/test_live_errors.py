@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import re
 import sys
 from pathlib import Path
 
 import pytest
 import yaml
-from doubler_fixture import write_fixture
+from doubler_fixture import write_core, write_fixture
 
 from bagkit.regression.errors import LiveRunError, SpecError
 from bagkit.regression.live import check_live, record_golden
@@ -64,3 +65,38 @@ def test_modes_need_their_system(tmp_path: Path) -> None:
     with_commands(fixture, modes=["live"])
     with pytest.raises(SpecError, match="mode live needs launch"):
         load_spec(fixture)
+
+
+# Once the recorder subscribes, publishes /value at 10 Hz for one second, then stays up silent.
+FALLS_SILENT = (
+    "import time, rclpy; from std_msgs.msg import Float64; rclpy.init(); "
+    "node = rclpy.create_node('falls_silent'); pub = node.create_publisher(Float64, '/value', 10)\n"
+    "while not pub.get_subscription_count(): time.sleep(0.05)\n"
+    "for i in range(10): pub.publish(Float64(data=float(i))); time.sleep(0.1)\n"
+    "time.sleep(60)"
+)
+
+
+@pytest.mark.ros
+def test_a_golden_shorter_than_asked_says_which_topic_ended_early(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    write_core(tmp_path)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    fixture = write_fixture(tmp_path / "ramp")
+    spec = yaml.safe_load((fixture / "spec.yaml").read_text())
+    spec.update(duration=3, record_launch=[[sys.executable, "-c", FALLS_SILENT]])
+    (fixture / "spec.yaml").write_text(yaml.safe_dump(spec))
+    said: list[str] = []
+    counts = record_golden(load_spec(fixture), tmp_path / "work", log=said.append)
+    assert counts["/value"] == 10
+    short = [line for line in said if "asked" in line]
+    assert len(short) == 1, said
+    # The ten messages span 0.9 s (a loaded machine may stretch it), not the 3 s asked.
+    match = re.search(
+        r"spans ([\d.]+) s of the 3 s asked "
+        r"\(/doubled 0\.00-[\d.]+ s, /sum [^,]+, /value 0\.00-([\d.]+) s\)",
+        short[0],
+    )
+    assert match is not None, short[0]
+    assert match.group(1) == f"{float(match.group(2)):.1f}" and 0.8 < float(match.group(2)) < 3
