@@ -86,6 +86,14 @@ class Listener:
             received = sorted(self.received, key=lambda r: r.received_ns)
         return [r for r in received if topic is None or r.topic == topic]
 
+    def wait_for_publisher(self, topic: str, timeout: float = 30.0) -> None:
+        """Until a publisher of ``topic`` is matched: what it sends before is lost (volatile)."""
+        subscription = next(s for t, _, s in self.subscriptions if t == topic)
+        deadline = time.monotonic() + timeout
+        while not subscription.get_publisher_count():
+            assert time.monotonic() < deadline, f"no publisher of {topic} within {timeout:g} s"
+            time.sleep(0.02)
+
     def wait_for_count(self, count: int, timeout: float = 10.0) -> list[Received]:
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline and len(self.messages()) < count:

@@ -35,6 +35,8 @@ def test_sim_time_nodes_follow_the_clock(listener_factory: type[Listener], proce
 
     listener = listener_factory({"/logger/summary": DiagnosticArray})
     processes.start(["fusion", "run", "data_logger", "--use-sim-time"])
+    # Matched before the replay starts: the first summaries come half a second of wall time in.
+    listener.wait_for_publisher("/logger/summary")
     topics = [arg for topic in SENSOR_TOPICS for arg in ("--topics", topic)]
     waits = [arg for topic in ["/clock", *SENSOR_TOPICS] for arg in ("--wait-for", topic)]
     result = bagkit_cli(
