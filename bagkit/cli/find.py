@@ -21,8 +21,8 @@ messages, merged when the next match comes less than --gap after the last one.
 
 Each episode has its bag, topic, first and last matching log time (ns) and how many messages
 matched. The condition is the --where language (docs/cli.md): fixed-layout topics are matched
-in bulk with numpy. Several bags run on a local Dask cluster (--workers, or --scheduler), one
-task per bag, with the same result as in one process. A bag without the topic has no
+in bulk with numpy. Several bags run on a local Dask cluster (--workers, or --scheduler),
+each bag on one worker, with the same result as in one process. A bag without the topic has no
 episode; one that cannot be read is reported and the exit status is 1.
 
 Examples:

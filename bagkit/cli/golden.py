@@ -61,7 +61,7 @@ def check(
 
     Exit status 0 when every fixture matches, 1 when one differs (its report is in
     FAILURES/<fixture>-<mode>/report.html), 2 for unusable input. Several lockstep checks run
-    on a local Dask cluster (or --scheduler), one task per fixture; live checks run one after
+    on a local Dask cluster (or --scheduler); live checks run one after
     another in this process (they share DDS and the wall clock).
 
     Example: bagkit golden check fixtures/takeoff --mode all

@@ -62,7 +62,7 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
     booleans count as 0/1 and strings are left out. std is the sample standard deviation
     (ddof=1, as pandas). Messages are decoded from the definitions stored in the bag.
 
-    Several bags run on a local Dask cluster (or --scheduler), one task per bag, with the
+    Several bags run on a local Dask cluster (or --scheduler), each bag on one worker, with the
     same results as in one process; see docs/fleet.md.
 
     --where keeps the messages satisfying a condition (topics whose type lacks its fields are

@@ -13,7 +13,6 @@ be read, has one row whose topic is empty and whose problems say why.
 
 from __future__ import annotations
 
-import math
 import os
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -23,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pandas as pd
 
-from bagkit.fleet.describe import COLUMNS, bag_stamp, describe_bags
+from bagkit.fleet.describe import COLUMNS, bag_stamp, describe_bag
 from bagkit.fleet.errors import CatalogError
 from bagkit.fleet.execute import ItemDone, run_each
 from bagkit.fleet.inputs import expand_bags
@@ -36,10 +35,6 @@ if TYPE_CHECKING:
     from distributed import Client
 
 NAT_NS = np.iinfo(np.int64).min
-# Bags described per task: enough to make the scheduler's per-task cost small against the
-# reads (a summary read is a few milliseconds), few enough to balance the workers.
-MAX_BATCH = 64
-TASKS_PER_WORKER = 4
 
 
 def _utc(values: list[Any]) -> pd.Series:
@@ -125,11 +120,6 @@ def plan_update(roots: Iterable[str | Path], output: str | Path) -> CatalogPlan:
     return CatalogPlan(bags, kept, to_open, removed)
 
 
-def _batches(paths: list[str], workers: int) -> list[list[str]]:
-    size = max(1, min(MAX_BATCH, math.ceil(len(paths) / max(1, workers * TASKS_PER_WORKER))))
-    return [paths[i : i + size] for i in range(0, len(paths), size)]
-
-
 def complete_update(
     plan: CatalogPlan, client: Client | None, done: ItemDone | None = None
 ) -> pd.DataFrame:
@@ -138,17 +128,8 @@ def complete_update(
     Args:
         done: called with the index (in ``plan.to_open``) of each bag described.
     """
-    workers = len(client.scheduler_info()["workers"]) if client is not None else 1
-    batches = _batches(plan.to_open, workers)
-    starts = [sum(len(b) for b in batches[:i]) for i in range(len(batches))]
-
-    def batch_done(index: int) -> None:
-        if done is not None:
-            for offset in range(len(batches[index])):
-                done(starts[index] + offset)
-
-    described = run_each(describe_bags, batches, client, batch_done)
-    new = to_frame(row for batch in described for rows in batch for row in rows)
+    described = run_each(describe_bag, plan.to_open, client, done)
+    new = to_frame(row for rows in described for row in rows)
     frame = pd.concat([plan.kept, new], ignore_index=True) if len(plan.kept) else new
     order = {bag: i for i, bag in enumerate(plan.bags)}
     frame = frame.sort_values("path", key=lambda p: p.map(order), kind="stable")

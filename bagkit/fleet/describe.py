@@ -7,7 +7,6 @@ pandas.
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -78,8 +77,3 @@ def describe_bag(path: str) -> list[dict[str, Any]]:
             ]
     except BagError as exc:
         return [_row(path, stamp, problems=str(exc))]
-
-
-def describe_bags(paths: Sequence[str]) -> list[list[dict[str, Any]]]:
-    """:func:`describe_bag` of each path (one task's batch)."""
-    return [describe_bag(path) for path in paths]

@@ -1,12 +1,18 @@
-"""Run one function per item (a bag, a batch of bags) in this process or on a Dask cluster.
+"""Run one function per item (a bag, a fixture) in this process or on a Dask cluster.
 
-Results come back in the order of the items whatever order the tasks finish in, so that what
-is merged from them does not depend on scheduling. Tasks lost with a worker are rerun by Dask
-on another one; Ctrl-C cancels what has not run.
+On a cluster, items go to the workers a few per task, in order: a task costs the driver and
+the scheduler a few milliseconds of CPU, which on a small machine is taken from the workers
+(benchmarks/README.md, find on 2 workers). Each worker still gets several tasks, so that one
+that finishes early takes more. Results come back in the order of the items whatever order
+the tasks finish in, so that what is merged from them does not depend on scheduling. Tasks
+lost with a worker are rerun by Dask on another one; Ctrl-C cancels what has not run.
 """
 
 from __future__ import annotations
 
+import functools
+import itertools
+import math
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, TypeVar
 
@@ -20,6 +26,25 @@ R = TypeVar("R")
 
 ItemDone = Callable[[int], None]
 """Called with the index of each item whose task has finished."""
+
+# Tasks per worker to aim for: enough to balance the workers, few enough that each task's
+# cost is small against its items' reads.
+TASKS_PER_WORKER = 4
+MAX_BATCH = 64
+"""Items per task at most (a task lost with its worker is rerun whole)."""
+
+
+def batch_ranges(items: int, workers: int) -> list[range]:
+    """Consecutive index ranges covering ``items``, of sizes differing by one at most: about
+    TASKS_PER_WORKER per worker, more where that would pass MAX_BATCH items (pure)."""
+    tasks = min(items, max(workers * TASKS_PER_WORKER, math.ceil(items / MAX_BATCH)))
+    bounds = [items * k // tasks for k in range(tasks + 1)] if tasks else [0]
+    return [range(a, b) for a, b in itertools.pairwise(bounds)]
+
+
+def _run_batch(func: Callable[[T], R], batch: Sequence[T]) -> list[R]:
+    """One task: ``func`` over its items, in order."""
+    return [func(item) for item in batch]
 
 
 def run_each(
@@ -42,17 +67,20 @@ def run_each(
         return results
     from distributed import KilledWorker, as_completed
 
+    ranges = batch_ranges(len(items), len(client.scheduler_info()["workers"]))
+    task = functools.partial(_run_batch, func)
     # pure=False: a bag read twice is read again (it may have changed on disk).
-    futures = client.map(func, items, pure=False)
-    index_of = {future.key: i for i, future in enumerate(futures)}
+    futures = client.map(task, [[items[i] for i in span] for span in ranges], pure=False)
+    range_of = {future.key: span for future, span in zip(futures, ranges, strict=True)}
     gathered: dict[int, R] = {}
     try:
-        for future in as_completed(futures):
-            index = index_of[future.key]
-            gathered[index] = future.result()
-            future.release()
-            if done is not None:
-                done(index)
+        # with_results: gathered by the client's event loop as each task ends, not with a
+        # round trip from this thread per result.
+        for future, results in as_completed(futures, with_results=True):
+            for index, result in zip(range_of[future.key], results, strict=True):
+                gathered[index] = result
+                if done is not None:
+                    done(index)
     except KilledWorker as exc:
         client.cancel(futures)
         raise FleetError(f"a task killed every worker that ran it, given up: {exc}") from None

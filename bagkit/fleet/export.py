@@ -1,4 +1,4 @@
-"""``bagkit export`` over many bags: one task per bag, each bag into a folder of its own.
+"""``bagkit export`` over many bags: each bag on one worker, into a folder of its own.
 
 Each bag is exported by :func:`bagkit.data.export.export` exactly as it would be alone, under
 ``OUT/<the bag's path relative to the bags' common folder>`` (``flights/day1/bag_00`` and

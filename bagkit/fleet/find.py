@@ -1,6 +1,6 @@
 """``bagkit find``: the episodes where ``TOPIC: CONDITION`` holds, over many bags on Dask.
 
-One task per bag runs :func:`bagkit.data.episodes.find_episodes` (the same code in this
+Each bag is searched by :func:`bagkit.data.episodes.find_episodes` (the same code in this
 process and on a worker), so the Dask path gives what the in-process one gives; results come
 back in the order of the bags. A bag without the topic has no episode; a bag that cannot be
 read is reported and the others are searched.
@@ -143,7 +143,7 @@ def find_fleet(
     client: Client | None = None,
     done: ItemDone | None = None,
 ) -> FindResult:
-    """The episodes of ``when`` in every bag, one task per bag on ``client`` (here when None).
+    """The episodes of ``when`` in every bag, on ``client``'s workers (here when None).
 
     Args:
         when: ``'TOPIC: CONDITION'`` (:func:`~bagkit.selection.conditions.parse_topic_condition`).

@@ -1,6 +1,6 @@
-"""``bagkit stats summary`` over many bags: one task per bag, partial statistics merged exactly.
+"""``bagkit stats summary`` over many bags: per-bag partial statistics merged exactly.
 
-Each task runs the summary's own accumulation over one bag and returns its accumulators: counts,
+A worker runs the summary's own accumulation over one bag and returns its accumulators: counts,
 first/last log times and, per field, the running moments (count, NaN and infinity counts,
 min/max, shifted mean and sum of squared deviations). The driver merges them in the order of
 the bags: counts, min and max exactly, mean and M2 with Chan et al.'s parallel formula
@@ -175,7 +175,7 @@ def summarize_fleet(
     done: ItemDone | None = None,
     where: str | None = None,
 ) -> Summary:
-    """``bagkit.stats.summarize`` of ``bags``, one task per bag on ``client`` (here when None).
+    """``bagkit.stats.summarize`` of ``bags``, on ``client``'s workers (here when None).
 
     Args:
         done: called with the index of each bag once it is summarized.

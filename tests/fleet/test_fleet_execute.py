@@ -1,0 +1,44 @@
+"""bagkit.fleet.execute: items batched into tasks, results in item order, each item reported."""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+from distributed import Client
+
+from bagkit.fleet.execute import MAX_BATCH, TASKS_PER_WORKER, batch_ranges, run_each
+
+
+@pytest.mark.parametrize("items", [0, 1, 7, 8, 9, 40, 513, 20_000])
+@pytest.mark.parametrize("workers", [1, 2, 3, 32])
+def test_batches_cover_every_item_once_in_order(items: int, workers: int) -> None:
+    ranges = batch_ranges(items, workers)
+    assert [i for span in ranges for i in span] == list(range(items))
+    assert all(0 < len(span) <= MAX_BATCH for span in ranges)
+    # Several tasks per worker (as many as there are items, if fewer), evenly sized.
+    assert len(ranges) >= min(items, workers * TASKS_PER_WORKER)
+    assert max(map(len, ranges), default=0) - min(map(len, ranges), default=0) <= 1
+    # No more tasks than that, unless one task fewer would hold more than MAX_BATCH items.
+    fewer = len(ranges) - 1
+    assert len(ranges) == min(items, workers * TASKS_PER_WORKER) or -(-items // fewer) > MAX_BATCH
+
+
+def test_results_come_in_item_order_and_each_item_is_reported(client: Client) -> None:
+    items = list(range(37))
+    reported: list[int] = []
+    got = run_each(lambda i: (i * i, os.getpid()), items, client, reported.append)
+    assert [square for square, _ in got] == [i * i for i in items]
+    assert sorted(reported) == items
+    assert len({pid for _, pid in got}) == 2, "both workers took tasks"
+    assert os.getpid() not in {pid for _, pid in got}
+
+
+def test_a_failing_item_raises_its_error(client: Client) -> None:
+    def fail_on_five(i: int) -> int:
+        if i == 5:
+            raise ValueError("item five")
+        return i
+
+    with pytest.raises(ValueError, match="item five"):
+        run_each(fail_on_five, list(range(20)), client)
