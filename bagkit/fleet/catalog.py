@@ -25,7 +25,7 @@ import pandas as pd
 from bagkit.fleet.describe import COLUMNS, bag_stamp, describe_bag
 from bagkit.fleet.errors import CatalogError
 from bagkit.fleet.execute import ItemDone, run_each
-from bagkit.fleet.inputs import expand_bags
+from bagkit.fleet.inputs import bag_paths
 from bagkit.selection.errors import SelectionError
 from bagkit.selection.fields import name_matches
 from bagkit.selection.times import TimeLike, parse_time
@@ -106,7 +106,7 @@ class CatalogPlan:
 def plan_update(roots: Iterable[str | Path], output: str | Path) -> CatalogPlan:
     """Find the bags under ``roots`` and those of them the catalogue at ``output`` lacks or
     describes as they were before a change."""
-    bags = [str(bag) for bag in expand_bags(roots)]
+    bags = bag_paths(roots)
     old = read_catalog(output) if Path(output).exists() else to_frame([])
     known: dict[str, tuple[int, int]] = {}
     for path, size, mtime in zip(

@@ -39,22 +39,31 @@ def is_bag_directory(path: str | Path) -> bool:
     return storage
 
 
-def find_bags(root: Path) -> Iterator[Path]:
-    """Bags under ``root``: bag directories (not searched further) and loose storage files."""
+def find_bags(root: str) -> Iterator[str]:
+    """Bags under ``root``: bag directories (not searched further) and loose storage files.
+
+    Strings, not Paths: a catalogue update of 1,000 unchanged bags is mostly this walk
+    (benchmarks/README.md, "fleet"). Joined as ``Path`` would join them (``root`` as
+    ``str(Path(...))`` gives it).
+    """
     if is_bag_directory(root):
         yield root
         return
-    # Strings, not Paths, while walking: a catalogue update of 1,000 unchanged bags is mostly
-    # this walk (benchmarks/README.md, "fleet").
     for directory, subdirs, files in os.walk(root, followlinks=False):
         subdirs.sort()
         bags = [d for d in subdirs if is_bag_directory(os.path.join(directory, d))]
         for name in bags:
-            yield Path(directory, name)
+            yield _joined(directory, name)
         subdirs[:] = [d for d in subdirs if d not in bags and not d.startswith(".")]
         for name in sorted(files):
             if name.endswith(STORAGE_SUFFIXES):
-                yield Path(directory, name)
+                yield _joined(directory, name)
+
+
+def _joined(directory: str, name: str) -> str:
+    """``str(Path(directory, name))`` for what os.walk gives: ``./a`` is ``a``."""
+    path = os.path.join(directory, name)
+    return path[2:] if path.startswith("./") else path
 
 
 def _listing(path: Path) -> list[Path]:
@@ -66,31 +75,30 @@ def _listing(path: Path) -> list[Path]:
     return [path.parent / entry for entry in entries if entry]
 
 
-def _expand(item: Path, *, listed: bool = False) -> Iterator[Path]:
+def _expand(item: Path, *, listed: bool = False) -> Iterator[str]:
     text = str(item)
     if glob.has_magic(text):
         for match in sorted(glob.glob(text, recursive=True)):
             yield from _expand(Path(match), listed=listed)
     elif item.is_dir():
-        yield from find_bags(item)
+        yield from find_bags(text)
     elif item.suffix in LISTING_SUFFIXES and item.is_file() and not listed:
         # Listings are not followed from listings: no cycle to guard against.
         for entry in _listing(item):
             yield from _expand(entry, listed=True)
     else:
         # A storage file, or a path that does not exist: reading it reports what is wrong.
-        yield item
+        yield text
 
 
-def expand_bags(items: Iterable[str | Path]) -> list[Path]:
-    """Every bag named by ``items``, each once, in the order given.
+def bag_paths(items: Iterable[str | Path]) -> list[str]:
+    """:func:`expand_bags` as strings (``str`` of each Path), without making the Paths.
 
     Raises:
-        NoBagsError: nothing names a bag, or a path given (not a glob) does not exist: the
-            same error every command gives for a missing path.
+        NoBagsError: as :func:`expand_bags`.
     """
     items = list(items)
-    seen: dict[str, Path] = {}
+    seen: dict[str, str] = {}
     for item in items:
         path = Path(item)
         if not glob.has_magic(str(item)) and not os.path.lexists(path):
@@ -100,3 +108,13 @@ def expand_bags(items: Iterable[str | Path]) -> list[Path]:
     if not seen:
         raise NoBagsError(f"no bag in {', '.join(str(i) for i in items) or 'the inputs'}")
     return list(seen.values())
+
+
+def expand_bags(items: Iterable[str | Path]) -> list[Path]:
+    """Every bag named by ``items``, each once, in the order given.
+
+    Raises:
+        NoBagsError: nothing names a bag, or a path given (not a glob) does not exist: the
+            same error every command gives for a missing path.
+    """
+    return [Path(bag) for bag in bag_paths(items)]

@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 
 from bagkit.fleet import NoBagsError, expand_bags
+from bagkit.fleet.inputs import bag_paths
 
 
 def _bag(path: Path) -> Path:
@@ -40,3 +41,22 @@ def test_nothing_to_read_is_an_error(tmp_path: Path) -> None:
 def test_a_missing_path_is_one_error_as_in_every_command(tmp_path: Path) -> None:
     with pytest.raises(NoBagsError, match=r"gone: no such file or directory$"):
         expand_bags([tmp_path / "gone"])
+
+
+ROOTS = [".", "./", "fleet", "fleet/", "./fleet", "fleet//day2", "fleet/*"]
+
+
+@pytest.mark.parametrize("root", ROOTS)
+def test_bag_paths_are_the_strings_of_expand_bags(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, root: str
+) -> None:
+    """The catalogue stores bag_paths: the same text as str() of expand_bags' Paths."""
+    for bag in ["fleet/a", "fleet/day2/b", "fleet/day2/c", "fleet/.hidden/z"]:
+        (tmp_path / bag).mkdir(parents=True)
+        (tmp_path / bag / "metadata.yaml").write_text("x")
+    (tmp_path / "fleet" / "loose.mcap").write_bytes(b"x")
+    monkeypatch.chdir(tmp_path)
+    found = bag_paths([root])
+    assert found == [str(path) for path in expand_bags([root])]
+    assert found == [str(Path(path)) for path in found] and "fleet/day2/b" in found
+    assert bag_paths([tmp_path / root]) == [str(p) for p in expand_bags([tmp_path / root])]
