@@ -36,8 +36,12 @@ MAX_BATCH = 64
 
 def batch_ranges(items: int, workers: int) -> list[range]:
     """Consecutive index ranges covering ``items``, of sizes differing by one at most: about
-    TASKS_PER_WORKER per worker, more where that would pass MAX_BATCH items (pure)."""
-    tasks = min(items, max(workers * TASKS_PER_WORKER, math.ceil(items / MAX_BATCH)))
+    TASKS_PER_WORKER per worker, more where that would pass MAX_BATCH items; one item each
+    when no worker is known yet (a scheduler whose workers are still coming) (pure)."""
+    if workers < 1:
+        tasks = items
+    else:
+        tasks = min(items, max(workers * TASKS_PER_WORKER, math.ceil(items / MAX_BATCH)))
     bounds = [items * k // tasks for k in range(tasks + 1)] if tasks else [0]
     return [range(a, b) for a, b in itertools.pairwise(bounds)]
 

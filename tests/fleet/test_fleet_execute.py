@@ -24,6 +24,10 @@ def test_batches_cover_every_item_once_in_order(items: int, workers: int) -> Non
     assert len(ranges) == min(items, workers * TASKS_PER_WORKER) or -(-items // fewer) > MAX_BATCH
 
 
+def test_without_workers_yet_each_item_is_a_task() -> None:
+    assert batch_ranges(5, 0) == [range(i, i + 1) for i in range(5)]
+
+
 def test_results_come_in_item_order_and_each_item_is_reported(client: Client) -> None:
     items = list(range(37))
     reported: list[int] = []
