@@ -62,7 +62,8 @@ def episode_spans(log_times: np.ndarray, matched: np.ndarray, gap_ns: int = 0) -
     """The episodes of a topic's messages as rows ``(start_ns, end_ns, count)`` (pure).
 
     Arrays, not objects: a fleet task sends its bag's thousands of episodes back to the
-    client, and unpickling one dataclass each cost more than finding them.
+    driver, and unpickling one dataclass per episode took CPU the workers needed
+    (benchmarks/README.md, find on 2 workers).
 
     Args:
         log_times: every message's log time (ns), ascending.

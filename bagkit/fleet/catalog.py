@@ -74,8 +74,8 @@ def read_catalog(path: str | Path) -> pd.DataFrame:
     import pyarrow.parquet as pq
 
     try:
-        # One file: ParquetFile, not pd.read_parquet's dataset machinery (a fifth of the time
-        # of an unchanged update, benchmarks/README.md "fleet"); the frame is the same.
+        # One file: ParquetFile, without pd.read_parquet's dataset machinery, which was much
+        # of an unchanged update's time (benchmarks/README.md "fleet"); the frame is the same.
         frame = pq.ParquetFile(path).read().to_pandas()
     except (OSError, ValueError) as exc:
         raise CatalogError(f"{path}: not a readable Parquet catalogue ({exc})") from None
