@@ -29,7 +29,7 @@ from bagkit.cli.stats_options import Bulk, Fields, Format, Inputs, Topics
 from bagkit.cli.tables import Cell, Column, Styled, Table, print_line, print_table, print_wrapped
 
 if TYPE_CHECKING:
-    from bagkit.stats import Summary
+    from bagkit.stats import FieldStats, Summary
 
 # Below this many seconds a summary finishes without a progress bar flashing by.
 
@@ -90,16 +90,17 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
         warn(f"topic {topic} skipped: {reason}")
     for problem in result.problems:
         warn(problem)
-    services = _service_latencies(bags, {t.topic for t in result.topics})
+    summarized = {t.topic for t in result.topics}
     if output is OutputFormat.JSON:
+        services = _service_latencies(bags, summarized)
         # "services" only where there are some: otherwise the JSON is the library's result.
         extra = {"services": services} if services else {}
         print_json(_json_safe({**result.to_dict(), **extra}))
     elif output is OutputFormat.CSV:
-        _print_csv(result)
+        _print_csv(result, _latency_rows(bags, summarized))
     else:
         _print_tables(result)
-        _print_services(services)
+        _print_services(_service_latencies(bags, summarized))
 
 
 def _service_latencies(bags: list[Path], topics: set[str]) -> list[dict[str, Any]]:
@@ -132,6 +133,38 @@ def _service_latencies(bags: list[Path], topics: set[str]) -> list[dict[str, Any
                 }
             )
     return found
+
+
+def _latency_rows(bags: list[Path], topics: set[str]) -> dict[str, FieldStats]:
+    """Per summarized event topic, CSV's ``latency_s`` row: the latency (s) of the service's
+    answered calls, pooled over the bags (the table and JSON give p50/p99/max per bag)."""
+    import numpy as np
+
+    from bagkit.data.services import call_latencies
+    from bagkit.selection.services import is_service_event_topic
+    from bagkit.stats import FieldStats
+
+    if not any(is_service_event_topic(t) for t in topics):
+        return {}
+    pooled: dict[str, list[int]] = {}
+    for bag in bags:
+        for topic, latencies in call_latencies(bag).items():
+            if topic in topics:
+                pooled.setdefault(topic, []).extend(latencies)
+    rows = {}
+    for topic, latencies in pooled.items():
+        seconds = np.array(latencies, dtype=np.float64) / 1e9
+        count = len(seconds)
+        rows[topic] = FieldStats(
+            "latency_s",
+            count,
+            0,
+            float(seconds.min()) if count else None,
+            float(seconds.max()) if count else None,
+            float(seconds.mean()) if count else None,
+            float(seconds.std(ddof=1)) if count > 1 else None,
+        )
+    return rows
 
 
 def _print_services(services: list[dict[str, Any]]) -> None:
@@ -230,7 +263,7 @@ def _print_tables(result: Summary) -> None:
 FIELD_COLUMNS = ("field", "count", "nan", "min", "max", "mean", "std")
 
 
-def _print_csv(result: Summary) -> None:
+def _print_csv(result: Summary, latencies: dict[str, FieldStats]) -> None:
     writer = csv.writer(sys.stdout, lineterminator="\n")
     writer.writerow(
         [
@@ -249,9 +282,11 @@ def _print_csv(result: Summary) -> None:
     )
     for topic in result.topics:
         head = [topic.topic, topic.type, topic.count, _csv(topic.rate_hz)]
-        if not topic.fields:
+        latency = latencies.get(topic.topic)
+        fields = (*topic.fields, latency) if latency is not None else topic.fields
+        if not fields:
             writer.writerow([*head, "", "", "", "", "", "", ""])
-        for f in topic.fields:
+        for f in fields:
             writer.writerow(
                 [
                     *head,

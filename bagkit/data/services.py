@@ -84,24 +84,38 @@ def read_events(reader: BagReader, types: MessageTypes, topic: str) -> Iterator[
 
 def service_summaries(bag: str | Path) -> list[ServiceSummary]:
     """Every service of ``bag`` with its counts and latency; undecodable ones are left out."""
-    summaries = []
     with BagReader(bag, allow_empty=True) as reader:
-        types = MessageTypes.from_definitions(reader.definitions)
-        for service, topic in service_topics(reader).items():
-            try:
-                events = list(read_events(reader, types, topic))
-            except (UndecodableTopicError, DecodeError):
-                continue
-            summaries.append(
-                ServiceSummary(
-                    service=service,
-                    type=service_type(reader.topics[topic].type),
-                    topic=topic,
-                    counts=count_events(events),
-                    latency=latency_summary(pair_calls(events)),
-                )
+        return [
+            ServiceSummary(
+                service=service,
+                type=service_type(reader.topics[topic].type),
+                topic=topic,
+                counts=count_events(events),
+                latency=latency_summary(pair_calls(events)),
             )
-    return summaries
+            for service, topic, events in _service_events(reader)
+        ]
+
+
+def call_latencies(bag: str | Path) -> dict[str, list[int]]:
+    """Event topic -> the latency (ns) of each answered call of its service, in the bag's
+    order; undecodable services are left out."""
+    with BagReader(bag, allow_empty=True) as reader:
+        return {
+            topic: [c.latency_ns for c in pair_calls(events) if c.latency_ns is not None]
+            for _, topic, events in _service_events(reader)
+        }
+
+
+def _service_events(reader: BagReader) -> Iterator[tuple[str, str, list[ServiceEvent]]]:
+    """(service, event topic, its events) of every service of an open bag that decodes."""
+    types = MessageTypes.from_definitions(reader.definitions)
+    for service, topic in service_topics(reader).items():
+        try:
+            events = list(read_events(reader, types, topic))
+        except (UndecodableTopicError, DecodeError):
+            continue
+        yield service, topic, events
 
 
 def read_calls(bag: str | Path, service: str) -> list[ServiceCall]:

@@ -2,17 +2,20 @@
 
 from __future__ import annotations
 
+import csv
+import io
 import json
 import subprocess
 from pathlib import Path
 
+import numpy as np
 import pytest
 from conftest import BAGKIT, CALLS, record_calls
 from mcap.reader import make_reader
 from rosbags.highlevel import AnyReader
 
 from bagkit.bag import BagReader, bag_info
-from bagkit.data.services import service_summaries
+from bagkit.data.services import read_calls, service_summaries
 
 pytestmark = pytest.mark.ros
 
@@ -170,3 +173,17 @@ def test_stats_reach_request_and_response_fields_and_latency(service_bag: Path) 
     (latency,) = result["services"]
     assert (latency["service"], latency["count"]) == ("/svc/toggle", CALLS)
     assert 0 < latency["p50_s"] <= latency["p99_s"] <= latency["max_s"]
+    # CSV: one more row of the event topic, field latency_s, against the paired calls.
+    table = subprocess.run(
+        [BAGKIT, "stats", "summary", str(service_bag), "--format", "csv"],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
+    (row,) = [r for r in csv.DictReader(io.StringIO(table)) if r["field"] == "latency_s"]
+    seconds = np.array([c.latency_ns for c in read_calls(service_bag, "/svc/toggle")]) / 1e9
+    assert (row["topic"], int(row["count"]), int(row["nan_count"])) == (TOPIC, CALLS, 0)
+    expected = {"min": seconds.min(), "max": seconds.max(), "mean": seconds.mean()}
+    assert {k: float(row[k]) for k in expected} == pytest.approx(expected, rel=1e-12)
+    assert float(row["std"]) == pytest.approx(seconds.std(ddof=1), rel=1e-9)
+    assert float(row["max"]) == latency["max_s"]
