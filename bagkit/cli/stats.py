@@ -142,7 +142,7 @@ def _latency_rows(bags: list[Path], topics: set[str]) -> dict[str, FieldStats]:
 
     from bagkit.data.services import call_latencies
     from bagkit.selection.services import is_service_event_topic
-    from bagkit.stats import FieldStats
+    from bagkit.stats import value_stats
 
     if not any(is_service_event_topic(t) for t in topics):
         return {}
@@ -151,20 +151,10 @@ def _latency_rows(bags: list[Path], topics: set[str]) -> dict[str, FieldStats]:
         for topic, latencies in call_latencies(bag).items():
             if topic in topics:
                 pooled.setdefault(topic, []).extend(latencies)
-    rows = {}
-    for topic, latencies in pooled.items():
-        seconds = np.array(latencies, dtype=np.float64) / 1e9
-        count = len(seconds)
-        rows[topic] = FieldStats(
-            "latency_s",
-            count,
-            0,
-            float(seconds.min()) if count else None,
-            float(seconds.max()) if count else None,
-            float(seconds.mean()) if count else None,
-            float(seconds.std(ddof=1)) if count > 1 else None,
-        )
-    return rows
+    return {
+        topic: value_stats("latency_s", np.array(latencies, dtype=np.float64) / 1e9)
+        for topic, latencies in pooled.items()
+    }
 
 
 def _print_services(services: list[dict[str, Any]]) -> None:

@@ -256,15 +256,15 @@ def record_golden(
         update_golden(spec)
     with BagReader(spec.bag) as reader:
         span_s = (reader.end_ns - reader.start_ns) / 1e9 if reader.message_count else 0.0
-        counts = dict(reader.topic_counts)
-        # Which topic started late or ended early tells a slow start from an early stop.
-        spans = ", ".join(
-            f"{topic} {(first - reader.start_ns) / 1e9:.2f}-{(last - reader.start_ns) / 1e9:.2f} s"
-            for topic, (first, last) in sorted(reader.topic_spans().items())
-        )
-    if span_s < spec.duration_s:
-        log(
-            f"{spec.name}: the golden spans {span_s:.1f} s of the {spec.duration_s:g} s asked "
-            f"({spans}): the system stopped publishing or the recorder stopped early"
-        )
-    return counts
+        if span_s < spec.duration_s:
+            # Which topic started late or ended early tells a slow start from an early stop.
+            spans = ", ".join(
+                f"{topic} {(first - reader.start_ns) / 1e9:.2f}-"
+                f"{(last - reader.start_ns) / 1e9:.2f} s"
+                for topic, (first, last) in sorted(reader.topic_spans().items())
+            )
+            log(
+                f"{spec.name}: the golden spans {span_s:.1f} s of the {spec.duration_s:g} s "
+                f"asked ({spans}): the system stopped publishing or the recorder stopped early"
+            )
+        return dict(reader.topic_counts)

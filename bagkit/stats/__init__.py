@@ -5,6 +5,7 @@
 
 from __future__ import annotations
 
+from bagkit.stats.accumulate import value_stats
 from bagkit.stats.errors import NothingToSummarizeError, StatsError, UnknownTopicError
 from bagkit.stats.moments import Moments
 from bagkit.stats.result import FieldStats, Summary, TopicStats
@@ -19,4 +20,5 @@ __all__ = [
     "TopicStats",
     "UnknownTopicError",
     "summarize",
+    "value_stats",
 ]

@@ -175,22 +175,29 @@ class TopicAccumulator:
             else:
                 moments, column = self.scalars, self.column[leaf.path]
                 leaf_std = std[column]
-            fields.append(_field_stats(leaf, moments, column, float(leaf_std)))
+            as_int = leaf.base in INTEGER_TYPES
+            fields.append(_field_stats(leaf.path, as_int, moments, column, float(leaf_std)))
         rate = message_rate(self.count, self.first_ns, self.last_ns)
         return TopicStats(
             self.topic, self.type_name, self.count, rate, tuple(fields), self.failures
         )
 
 
-def _field_stats(leaf: LeafField, moments: Moments, column: int, std: float) -> FieldStats:
+def value_stats(name: str, values: np.ndarray) -> FieldStats:
+    """The statistics of one column of numbers, as those of a float field named ``name``."""
+    moments = Moments(1)
+    moments.add(np.asarray(values, dtype=np.float64).reshape(-1, 1))
+    return _field_stats(name, False, moments, 0, float(moments.std()[0]))
+
+
+def _field_stats(name: str, as_int: bool, moments: Moments, column: int, std: float) -> FieldStats:
     count = int(moments.count[column])
     nan_count = int(moments.nan_count[column])
     if count == 0:
-        return FieldStats(leaf.path, 0, nan_count, None, None, None, None)
+        return FieldStats(name, 0, nan_count, None, None, None, None)
     low, high = float(moments.min[column]), float(moments.max[column])
-    as_int = leaf.base in INTEGER_TYPES
     return FieldStats(
-        leaf.path,
+        name,
         count,
         nan_count,
         int(low) if as_int else low,

@@ -157,14 +157,18 @@ def test_services_and_exclusions_select_event_topics(tmp_path: Path) -> None:
     assert summary.latency.count == CALLS
 
 
-def test_stats_reach_request_and_response_fields_and_latency(service_bag: Path) -> None:
-    out = subprocess.run(
-        [BAGKIT, "stats", "summary", str(service_bag), "--format", "json"],
+def stats_summary(bag: Path, output: str) -> str:
+    """``bagkit stats summary BAG --format OUTPUT``'s stdout."""
+    return subprocess.run(
+        [BAGKIT, "stats", "summary", str(bag), "--format", output],
         capture_output=True,
         text=True,
         check=True,
     ).stdout
-    result = json.loads(out)
+
+
+def test_stats_reach_request_and_response_fields_and_latency(service_bag: Path) -> None:
+    result = json.loads(stats_summary(service_bag, "json"))
     (topic,) = [t for t in result["topics"] if t["topic"] == TOPIC]
     fields = {f["field"]: f for f in topic["fields"]}
     # Requests carried by the client's and the server's request events, alternating data.
@@ -174,12 +178,7 @@ def test_stats_reach_request_and_response_fields_and_latency(service_bag: Path) 
     assert (latency["service"], latency["count"]) == ("/svc/toggle", CALLS)
     assert 0 < latency["p50_s"] <= latency["p99_s"] <= latency["max_s"]
     # CSV: one more row of the event topic, field latency_s, against the paired calls.
-    table = subprocess.run(
-        [BAGKIT, "stats", "summary", str(service_bag), "--format", "csv"],
-        capture_output=True,
-        text=True,
-        check=True,
-    ).stdout
+    table = stats_summary(service_bag, "csv")
     (row,) = [r for r in csv.DictReader(io.StringIO(table)) if r["field"] == "latency_s"]
     seconds = np.array([c.latency_ns for c in read_calls(service_bag, "/svc/toggle")]) / 1e9
     assert (row["topic"], int(row["count"]), int(row["nan_count"])) == (TOPIC, CALLS, 0)

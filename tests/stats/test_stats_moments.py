@@ -6,6 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from bagkit.stats import value_stats
 from bagkit.stats.moments import Moments
 
 
@@ -49,3 +50,15 @@ def test_one_value_has_no_std() -> None:
     moments.add(np.array([[3.0]]))
     moments.add(np.empty((0, 1)))
     assert moments.count[0] == 1 and moments.mean[0] == 3.0 and np.isnan(moments.std()[0])
+
+
+def test_value_stats_equal_numpy_and_say_none_without_values() -> None:
+    values = np.random.default_rng(3).normal(0.004, 0.001, 57)
+    got = value_stats("latency_s", np.append(values, np.nan))
+    assert (got.field, got.count, got.nan_count) == ("latency_s", 57, 1)
+    assert (got.min, got.max) == (values.min(), values.max())
+    assert got.mean == pytest.approx(values.mean(), rel=1e-12)
+    assert got.std == pytest.approx(values.std(ddof=1), rel=1e-12)
+    one = value_stats("x", np.array([2.5]))
+    assert (one.count, one.mean, one.std) == (1, 2.5, None)
+    assert value_stats("x", np.array([])).min is None
