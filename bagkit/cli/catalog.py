@@ -73,13 +73,20 @@ def build(
     --events gps_lost='/gps/fix: status.status < 0'
     """
     from bagkit.fleet.catalog import complete_update, plan_update, write_catalog
+    from bagkit.fleet.cluster import CATALOG_RATE
     from bagkit.fleet.events import parse_events
 
     named = parse_events(events or [])
     plan = plan_update(roots, output)
     changed = bool(plan.to_open or plan.removed) or not output.exists()
     if plan.to_open:
-        with fleet_run(plan.to_open, workers=workers, scheduler=scheduler, label="cataloguing") as (
+        with fleet_run(
+            plan.to_open,
+            workers=workers,
+            scheduler=scheduler,
+            label="cataloguing",
+            rate=CATALOG_RATE,
+        ) as (
             client,
             done,
         ):
@@ -104,9 +111,12 @@ def _update_events(
     workers: int | None,
     scheduler: str | None,
 ) -> None:
+    from bagkit.fleet.cluster import FIND_RATE
     from bagkit.fleet.events import events_path, update_events
 
-    with fleet_run(plan.bags, workers=workers, scheduler=scheduler, label="searching") as (
+    with fleet_run(
+        plan.bags, workers=workers, scheduler=scheduler, label="searching", rate=FIND_RATE
+    ) as (
         client,
         _,
     ):

@@ -113,9 +113,12 @@ def _export_many(
     scheduler: str | None,
 ) -> None:
     from bagkit.cli.fleet_options import fleet_run
+    from bagkit.fleet.cluster import EXPORT_RATE
     from bagkit.fleet.export import export_fleet
 
-    with fleet_run(bags, workers=workers, scheduler=scheduler, label="exporting") as (client, done):
+    with fleet_run(
+        bags, workers=workers, scheduler=scheduler, label="exporting", rate=EXPORT_RATE
+    ) as (client, done):
         results = export_fleet(bags, out, client=client, done=done, **options)
     failed = 0
     for result in results:

@@ -73,6 +73,7 @@ def find(  # noqa: PLR0917 (typer maps parameters to options)
 ) -> None:
     from bagkit.data.errors import DataError
     from bagkit.fleet import expand_bags
+    from bagkit.fleet.cluster import FIND_RATE
     from bagkit.fleet.find import find_fleet
     from bagkit.selection.conditions import parse_topic_condition
     from bagkit.selection.times import parse_duration
@@ -84,7 +85,9 @@ def find(  # noqa: PLR0917 (typer maps parameters to options)
     parse_topic_condition(when)  # a bad condition is one error before any bag is read
     gap_ns = parse_duration(gap, "--gap")
     bags = expand_bags(inputs)
-    with fleet_run(bags, workers=workers, scheduler=scheduler, label="searching") as (
+    with fleet_run(
+        bags, workers=workers, scheduler=scheduler, label="searching", rate=FIND_RATE
+    ) as (
         client,
         done,
     ):

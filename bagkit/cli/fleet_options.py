@@ -19,6 +19,8 @@ from bagkit.cli.common import err_console, note
 if TYPE_CHECKING:
     from distributed import Client
 
+    from bagkit.fleet.cluster import WorkRate
+
 BAGS_HELP = "Bags, directories searched for bags, globs, or .txt files listing bag paths"
 
 Workers = Annotated[
@@ -26,8 +28,8 @@ Workers = Annotated[
     typer.Option(
         "--workers",
         min=0,
-        help="Local Dask worker processes (default: one per core for several bags; "
-        "0: in this process).",
+        help="Local Dask worker processes (default: one per core when the bags are enough "
+        "work to pay for a cluster's start; 0: in this process).",
         metavar="N",
     ),
 ]
@@ -44,17 +46,32 @@ Scheduler = Annotated[
 
 @contextmanager
 def fleet_run(
-    bags: Sequence[str | Path], *, workers: int | None, scheduler: str | None, label: str
+    bags: Sequence[str | Path],
+    *,
+    workers: int | None,
+    scheduler: str | None,
+    label: str,
+    rate: WorkRate,
 ) -> Iterator[tuple[Client | None, Callable[[int], None]]]:
     """The Dask client for a run over ``bags`` (None: in this process) and its progress call.
 
-    The progress bar counts bags and bytes; the dashboard of a local cluster is announced.
+    ``rate``: what the command costs in one process, which decides whether a local cluster is
+    started when neither ``workers`` nor ``scheduler`` is given. The progress bar counts bags
+    and bytes; the dashboard of a local cluster is announced.
     """
     from bagkit.fleet import fleet_client
-    from bagkit.fleet.progress import BagProgress
+    from bagkit.fleet.progress import BagProgress, bag_size
 
+    sizes = [bag_size(bag) for bag in bags]
     with (
-        fleet_client(workers=workers, scheduler=scheduler, bags=len(bags), announce=note) as client,
-        BagProgress(bags, err_console, label=label) as done,
+        fleet_client(
+            workers=workers,
+            scheduler=scheduler,
+            bags=len(bags),
+            size_bytes=sum(sizes),
+            rate=rate,
+            announce=note,
+        ) as client,
+        BagProgress(bags, err_console, label=label, sizes=sizes) as done,
     ):
         yield client, done

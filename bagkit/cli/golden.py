@@ -67,6 +67,7 @@ def check(
     Example: bagkit golden check fixtures/takeoff --mode all
     """
     from bagkit.cli.fleet_options import fleet_run
+    from bagkit.fleet.cluster import LOCKSTEP_RATE
     from bagkit.regression.batch import check_fixtures
 
     mode = "live" if live else mode
@@ -78,7 +79,9 @@ def check(
         for each in (spec.modes if mode == "all" else (mode,))
     ]
     bags = [spec.bag for spec, each in jobs if each == "lockstep"]
-    with fleet_run(bags, workers=workers, scheduler=scheduler, label="checking") as (client, done):
+    with fleet_run(
+        bags, workers=workers, scheduler=scheduler, label="checking", rate=LOCKSTEP_RATE
+    ) as (client, done):
         outcomes = check_fixtures(
             jobs,
             failures,

@@ -175,14 +175,21 @@ def _summarize(
 ) -> Summary:
     """Summarize in this process (a progress bar over messages) or on Dask (over bags)."""
     from bagkit.fleet import fleet_client, summarize_fleet
-    from bagkit.fleet.progress import BagProgress
+    from bagkit.fleet.cluster import SUMMARY_RATE
+    from bagkit.fleet.progress import BagProgress, bag_size
     from bagkit.stats import summarize
 
+    sizes = [bag_size(bag) for bag in bags]
     with fleet_client(
-        workers=workers, scheduler=scheduler, bags=len(bags), announce=note
+        workers=workers,
+        scheduler=scheduler,
+        bags=len(bags),
+        size_bytes=sum(sizes),
+        rate=SUMMARY_RATE,
+        announce=note,
     ) as client:
         if client is not None:
-            with BagProgress(bags, err_console, label="summarizing") as done:
+            with BagProgress(bags, err_console, label="summarizing", sizes=sizes) as done:
                 return summarize_fleet(bags, client=client, done=done, **options)
         progress = DelayedProgress("summarizing")
         try:

@@ -13,6 +13,7 @@ import logging
 import os
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from bagkit.extras import FLEET, installed, require
@@ -27,6 +28,43 @@ LOOPBACK = "127.0.0.1"
 # Each local worker is a process of its own (about 100 MB): more than a few per core only
 # share the cores, and a mistyped count must not start thousands of processes.
 MAX_WORKERS_PER_CORE = 4
+
+
+# A local cluster of two workers starts in about 1.3 s here and then runs a job at about 1.8x
+# one process: it pays from about 3 s of work in one process. The margin covers a busy machine
+# (benchmarks/README.md, "Dask only when it pays").
+CLUSTER_PAYS_FROM_S = 4.0
+
+
+@dataclass(frozen=True, slots=True)
+class WorkRate:
+    """What a fleet command costs in one process, measured (benchmarks/README.md).
+
+    Attributes:
+        per_bag_s: seconds per bag, whatever its size (opening it, its summary).
+        per_mib_s: seconds per MiB of bag files.
+    """
+
+    per_bag_s: float
+    per_mib_s: float
+
+    def seconds(self, bags: int, size_bytes: int) -> float:
+        """The estimated time of ``bags`` bags of ``size_bytes`` in all, in one process."""
+        return self.per_bag_s * bags + self.per_mib_s * size_bytes / 2**20
+
+
+# What each fleet command costs in one process, from its in-process runs over 40 bags of 30 MB
+# and 1,000 bags of 6 kB (catalog), and the repository's fixtures (golden check).
+SUMMARY_RATE = WorkRate(per_bag_s=0.005, per_mib_s=0.0025)
+FIND_RATE = WorkRate(per_bag_s=0.005, per_mib_s=0.002)
+EXPORT_RATE = WorkRate(per_bag_s=0.01, per_mib_s=0.0055)
+CATALOG_RATE = WorkRate(per_bag_s=0.0005, per_mib_s=0.0007)
+LOCKSTEP_RATE = WorkRate(per_bag_s=0.3, per_mib_s=0.5)
+
+
+def cluster_pays(rate: WorkRate, bags: int, size_bytes: int, cores: int) -> bool:
+    """Whether a local cluster on ``cores`` cores finishes this work sooner than one process."""
+    return bags > 1 and cores > 1 and rate.seconds(bags, size_bytes) >= CLUSTER_PAYS_FROM_S
 
 
 def default_workers() -> int:
@@ -72,16 +110,19 @@ def fleet_client(
     workers: int | None,
     scheduler: str | None,
     bags: int,
+    size_bytes: int,
+    rate: WorkRate,
     announce: Callable[[str], None] | None = None,
 ) -> Iterator[Client | None]:
     """The Dask client of a run over ``bags`` bags, or None to run in this process.
 
     Args:
-        workers: local worker processes; None: one per core when there is more than one bag,
-            in this process for one; 0: in this process.
+        workers: local worker processes; None: one per core where :func:`cluster_pays` says a
+            cluster is worth its start, else in this process; 0: in this process.
         scheduler: the address of an existing ``dask.distributed`` scheduler (``workers`` is
             then ignored).
-        bags: how many bags the run reads.
+        bags: how many bags the run reads; ``size_bytes``: their files' bytes in all.
+        rate: what the command costs in one process.
         announce: told where the dashboard of a local cluster is.
 
     Raises:
@@ -90,7 +131,10 @@ def fleet_client(
     """
     # In this process, without importing distributed (slow to import); also by default where
     # the fleet extra is not installed.
-    local = workers == 0 or (workers is None and (bags <= 1 or not installed(FLEET)))
+    local = workers == 0 or (
+        workers is None
+        and not (installed(FLEET) and cluster_pays(rate, bags, size_bytes, default_workers()))
+    )
     if scheduler is None and local:
         yield None
         return

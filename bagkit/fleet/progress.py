@@ -35,12 +35,18 @@ class BagProgress:
     """A transient rich progress bar on ``console``: bags done of all, bytes done of all.
 
     Call the instance with the index of each finished bag; use it as a context manager.
+    ``sizes``: the bags' sizes where the caller has them (else :func:`bag_size` of each).
     """
 
     def __init__(
-        self, bags: Sequence[str | Path], console: Console, *, label: str = "bags"
+        self,
+        bags: Sequence[str | Path],
+        console: Console,
+        *,
+        label: str = "bags",
+        sizes: Sequence[int] | None = None,
     ) -> None:
-        self._sizes = [bag_size(bag) for bag in bags]
+        self._sizes = list(sizes) if sizes is not None else [bag_size(bag) for bag in bags]
         self._count = 0
         self._bar = Progress(
             TextColumn(label),

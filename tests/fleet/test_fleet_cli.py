@@ -48,6 +48,14 @@ def test_one_bag_runs_in_process(fleet_bags: list[Path]) -> None:
     assert "Dask" not in notes
 
 
+def test_small_bags_run_in_process_by_default(fleet_dir: Path) -> None:
+    # Six bags of a few kB: a cluster's start would cost more than the work.
+    default, notes = _summary(str(fleet_dir))
+    here, _ = _summary(str(fleet_dir), "--workers", "0")
+    assert "Dask" not in notes
+    assert default == here
+
+
 def test_ctrl_c_stops_the_local_cluster(fleet_bags: list[Path], tmp_path: Path) -> None:
     for i in range(300):  # enough tasks to be interrupted in the middle
         (tmp_path / f"bag_{i}").symlink_to(fleet_bags[i % len(fleet_bags)])
