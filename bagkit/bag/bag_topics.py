@@ -39,7 +39,7 @@ class BagTopics:
                 )
             return []
         records: list[Schema | Channel] = []
-        topic = _with_type_hash(topic)
+        topic = _with_type_hash(topic, definition)
         schema = self.schemas.get(topic.type)
         if schema is None:
             schema = _schema(len(self.schemas) + 1, topic.type, definition)
@@ -71,8 +71,12 @@ class BagTopics:
         return [(topic, self.counts[self.channels[name].id]) for name, topic in self.topics.items()]
 
 
-def _with_type_hash(topic: TopicInfo) -> TopicInfo:
-    """``topic`` with its type hash filled from the installed type description when missing.
+def _with_type_hash(topic: TopicInfo, definition: str | None) -> TopicInfo:
+    """``topic`` with its type hash filled from the installed type description when missing
+    and the bag stores the installed definition (``definition`` None or the same text).
+
+    A definition of another version of the type (a bag recorded before a message changed)
+    gets no hash: the installed type's would claim the bag holds today's type.
 
     A service-event topic gets none: rosbags checks each channel's hash against its own and
     cannot compute a service event's (it names the type ``pkg/srv/msg/Name_Event``), so with
@@ -83,8 +87,11 @@ def _with_type_hash(topic: TopicInfo) -> TopicInfo:
         return dataclasses.replace(topic, type_description_hash="")
     if topic.type_description_hash:
         return topic
+    canonical = canonical_type_name(topic.type)
     try:
-        hash_string = type_description_hash(canonical_type_name(topic.type))
+        if definition is not None and definition != message_definition(canonical):
+            return topic
+        hash_string = type_description_hash(canonical)
     except UnknownMessageTypeError:
         return topic
     return TopicInfo(

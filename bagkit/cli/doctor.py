@@ -15,8 +15,12 @@ indexes against the records, the summary against the content, metadata.yaml agai
 (file list, counts, times, topics), every schema decodable; with --deep every message too.
 Prints one line per problem; exit code 0 healthy, 1 problems found, 2 unreadable. Lines
 starting with "note:" describe valid data worth knowing (they do not count as problems).
+With --against-installed, each topic's stored message definition is compared instead with the
+one installed today (the ROS packages this Python or AMENT_PREFIX_PATH sees): every field added,
+removed, retyped or moved is named; exit 1 when a topic drifted.
 
 Example: bagkit doctor drive --deep
+Example: bagkit doctor fixtures/takeoff/golden --against-installed
 """
 
 
@@ -24,9 +28,16 @@ Example: bagkit doctor drive --deep
 def doctor(
     bag: Path = typer.Argument(..., help="Bag directory, its metadata.yaml, or a .mcap file."),
     deep: bool = typer.Option(False, "--deep", help="Also decode every message."),
+    against_installed: bool = typer.Option(
+        False,
+        "--against-installed",
+        help="Compare each topic's stored definition with the installed one instead.",
+    ),
     output_format: Format = ReportFormat.TABLE,
 ) -> None:
     """Check a bag; one line per problem."""
+    if against_installed:
+        _drift(bag, output_format)
     with err_console.status(f"checking {bag}"):
         report = diagnose(bag, deep=deep)
     if output_format == ReportFormat.JSON:
@@ -43,3 +54,32 @@ def doctor(
                 markup=False,
             )
     raise typer.Exit(0 if report.healthy else 1)
+
+
+def _drift(bag: Path, output_format: ReportFormat) -> None:
+    """Print each topic's drift from the installed definitions; exit 1 when one drifted."""
+    from bagkit.decode.drift import DriftStatus, bag_drift
+
+    drifts = bag_drift(bag)
+    if output_format == ReportFormat.JSON:
+        print_json({"bag": str(bag), "topics": [drift.to_dict() for drift in drifts]})
+    else:
+        for drift in drifts:
+            console.print(
+                f"{drift.topic} ({drift.type}): {drift.status.value}",
+                highlight=False,
+                soft_wrap=True,
+                markup=False,
+            )
+            for change in drift.changes:
+                console.print(f"  {change}", highlight=False, soft_wrap=True, markup=False)
+    drifted = [d.topic for d in drifts if d.status == DriftStatus.DRIFTED]
+    if drifted:
+        err_console.print(
+            f"{bag}: {len(drifted)} of {len(drifts)} topics drifted from the installed "
+            f"definitions: {', '.join(drifted)}",
+            highlight=False,
+            soft_wrap=True,
+            markup=False,
+        )
+    raise typer.Exit(1 if drifted else 0)
