@@ -5,8 +5,8 @@ continues one); in ```console blocks the lines starting with ``$ `` (the others 
 A command runs when it is a ``bagkit`` command (``.venv/bin/bagkit`` and ``VAR=value``
 prefixes allowed) and, by rule:
 
-- it needs no ROS graph: not ``record``, ``replay``/``play``, ``golden record``, nor a live
-  golden mode (those are the ROS tests' business);
+- it needs no ROS graph: not ``record``, ``replay``/``play``, ``control``, ``golden record``,
+  nor a live golden mode (those are the ROS tests' business);
 - every bag or file it takes as an argument exists in its working directory. That directory
   holds a copy of ``fixtures/`` and, under the names the docs give a recording of the demo
   system (``flight1``, ``drive``, ``day1`` ...), bags made from the fixtures (:data:`RECORDINGS`;
@@ -53,7 +53,7 @@ RECORDINGS = {
     "incident": "faults",
 }
 SHELL_FENCES = {"bash", "sh", "shell"}
-NEEDS_ROS = {("record",), ("replay",), ("play",), ("golden", "record")}
+NEEDS_ROS = {("record",), ("replay",), ("play",), ("control",), ("golden", "record")}
 
 
 @dataclass(frozen=True)

@@ -7,6 +7,7 @@ from bagkit.playback.errors import PlayerError
 from bagkit.recording.errors import RecorderOptionsError
 
 __all__ = [
+    "ControlError",
     "MessageClassNotFoundError",
     "PlayerError",
     "QosProfileError",
@@ -19,6 +20,11 @@ __all__ = [
 
 class RosError(BagkitError):
     """A ROS 2 runtime problem (graph, QoS, middleware)."""
+
+
+class ControlError(RosError):
+    """A control of a running recorder or player that cannot be used: unknown, not offered,
+    offered by several nodes, or not answered."""
 
 
 class MessageClassNotFoundError(RosError):
