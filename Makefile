@@ -1,7 +1,14 @@
 # Everything the project needs is installed here, into .venv, on first use: the exact versions
 # of requirements/lock.txt (docs/install.md says how to refresh it), then bagkit and fusion
 # editable, without dependencies.
-PYTHON ?= python3.11
+# The first Python 3.10 - 3.13 found (the ROS 2 Jazzy wheels exist for each): the machine's
+# python3 where it is one (Ubuntu 24.04's 3.12), else python3.12, 3.11, 3.13, 3.10.
+# PYTHON=/path/to/python to choose.
+PYTHONS := python3 python3.12 python3.11 python3.13 python3.10
+ifeq ($(origin PYTHON),undefined)
+PYTHON := $(firstword $(foreach p,$(PYTHONS),$(shell $(p) -c 'import sys; \
+	print("$(p)") if (3, 10) <= sys.version_info[:2] <= (3, 13) else None' 2>/dev/null)))
+endif
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
@@ -11,7 +18,7 @@ SOURCES := pyproject.toml fusion/pyproject.toml setup.py bagkit/ros/record/_take
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 export RMW_IMPLEMENTATION := rmw_fastrtps_cpp
 
-.PHONY: demo test test-fast test-py lint format bench golden lock clean
+.PHONY: demo test test-fast test-py lint format bench golden lock dist clean
 
 # uv (pinned in the lock) installs the lock: pip would take minutes longer. Unlike pip, uv
 # writes no bytecode unless asked; where PYTHONDONTWRITEBYTECODE is set (as in CI) every process
@@ -23,6 +30,8 @@ define install_locked
 endef
 
 $(STAMP): $(SOURCES)
+	@test -n "$(PYTHON)" || { echo "error: no Python 3.10-3.13 found (tried $(PYTHONS)); \
+		give one: make PYTHON=/path/to/python3.12" >&2; exit 2; }
 	$(PYTHON) -m venv $(VENV)
 	$(call install_locked,$(VENV))
 	touch $(STAMP)
@@ -92,5 +101,12 @@ lock: $(STAMP)
 	$(VENV)/bin/uv pip compile --quiet pyproject.toml --extra all --extra dev --universal \
 		--python-version 3.10 $(UPGRADE) -o $(LOCK)
 
+# The wheels and source distributions of bagkit and bagkit-fusion, in dist/ (bagkit's wheel is
+# built for this machine's Python and platform: it holds the recorder's C extension).
+dist: $(STAMP)
+	$(VENV)/bin/uv build --quiet --out-dir dist .
+	$(VENV)/bin/uv build --quiet --out-dir dist fusion
+	@ls -1 dist
+
 clean:
-	rm -rf $(VENV) .venv-* .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) .venv-* .pytest_cache .mypy_cache .ruff_cache dist

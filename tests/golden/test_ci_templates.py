@@ -212,14 +212,17 @@ class Job:
         return runs, (self.summary.read_text() if self.summary else runs[-1].output)
 
 
-def installs_bagkit(installs: list[str]) -> None:
-    assert [line.strip() for line in installs] == ["python -m pip install 'bagkit[ros]'"]
+def installs_bagkit(installs: list[str], variables: dict[str, Any]) -> None:
+    """One install line, of the requirement the template's ``BAGKIT`` names (with ``ros``)."""
+    assert [line.strip() for line in installs] == ['python -m pip install "$BAGKIT"']
+    assert str(variables["BAGKIT"]).startswith("bagkit[ros] @ git+https://")
 
 
 def github_job(name: str, project: Path, summary: Path) -> Job:
-    job = load("github-actions.yml")["jobs"][name]
+    workflow = load("github-actions.yml")
+    job = workflow["jobs"][name]
     steps, installs = strip_installs(github_steps(job))
-    installs_bagkit(installs)
+    installs_bagkit(installs, workflow["env"])
     (upload,) = [s for s in job["steps"] if str(s.get("uses", "")).startswith("actions/upload")]
     assert upload["if"] == "always()"
     (verdict,) = [s for s in steps if "GITHUB_STEP_SUMMARY" in "\n".join(s.commands)]
@@ -234,7 +237,7 @@ def gitlab_job(name: str, project: Path) -> Job:
     config = load("gitlab-ci.yml")
     job = config[name]
     steps, installs = strip_installs(gitlab_steps(config, job))
-    installs_bagkit(installs)
+    installs_bagkit(installs, config["variables"])
     artifacts = job["artifacts"]
     assert artifacts["when"] == "always"
     variables = {**config.get("variables", {}), **job.get("variables", {})}
