@@ -30,9 +30,8 @@ LOOPBACK = "127.0.0.1"
 MAX_WORKERS_PER_CORE = 4
 
 
-# A local cluster of two workers starts in about 1.3 s here and then runs a job at about 1.8x
-# one process: it pays from about 3 s of work in one process. The margin covers a busy machine
-# (benchmarks/README.md, "Dask only when it pays").
+# In-process work from which a local cluster pays for its start: its start-up and speed-up are
+# measured in benchmarks/README.md, "Dask only when it pays", with a margin for a busy machine.
 CLUSTER_PAYS_FROM_S = 4.0
 
 
