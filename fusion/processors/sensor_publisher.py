@@ -13,7 +13,7 @@ from sensor_msgs.msg import FluidPressure, Imu, NavSatFix, NavSatStatus, Tempera
 from bagkit.regression import Output
 from fusion import topics
 from fusion.estimation import GeodeticOrigin, pressure_at_altitude
-from fusion.faults import FaultKind, FaultSchedule
+from fusion.faults import SENSORS, FaultKind, FaultSchedule
 from fusion.params import Params
 from fusion.processors.base import ProcessorBase, Severity
 from fusion.processors.messages import quaternion_from_euler, stamp
@@ -38,7 +38,8 @@ PARAMETER_DESCRIPTIONS: dict[str, str] = {
     "rates.temperature": "Thermometer rate (Hz) on /temperature.",
     "rates.pressure": "Barometer rate (Hz) on /barometer/pressure.",
     "faults": "Fault schedule: 'KIND@START+DURATION[=MAGNITUDE], ...' in seconds since start; "
-    "kinds temperature_spike (C), pressure_spike (Pa), gps_loss, imu_stuck. Empty: no faults.",
+    "kinds temperature_spike (C), pressure_spike (Pa), gps_loss, imu_stuck, dropout:SENSOR "
+    "(imu, gps, temperature, pressure: silent). Empty: no faults.",
     "fault_period": "Repeat the fault schedule every this many seconds (0: run it once).",
     "flight.latitude": "Latitude (deg) of the take-off point.",
     "flight.longitude": "Longitude (deg) of the take-off point.",
@@ -74,7 +75,7 @@ PARAMETER_DESCRIPTIONS: dict[str, str] = {
     "thermometer.offset": "Thermometer constant offset (C).",
 }
 
-_SENSORS = ("imu", "gps", "temperature", "pressure")
+_SENSORS = SENSORS
 
 
 def _diagonal(a: float, b: float, c: float) -> list[float]:
@@ -136,7 +137,7 @@ class SensorPublisher(ProcessorBase):
         self._next_due_ns: dict[str, int] = {}
         self._last_sample_ns: dict[str, int] = {}
         self._last_imu: Imu | None = None
-        self._active_faults: set[FaultKind] = set()
+        self._active_faults: set[str] = set()
 
     def on_timer(self, now_ns: int) -> list[Output]:
         """Publish every sensor whose next sample is due."""
@@ -159,6 +160,8 @@ class SensorPublisher(ProcessorBase):
             # Late by more than a period (a starved timer, a jump of the sim clock): skip the
             # missed samples but stay in phase with the original schedule.
             self._next_due_ns[name] = due + period * max(1, (now_ns - due) // period + 1)
+            if self.faults.active(FaultKind.DROPOUT, t, name):
+                continue  # silent: the next sample's noise covers the gap (its dt)
             dt = (now_ns - self._last_sample_ns.get(name, now_ns - period)) / 1e9
             self._last_sample_ns[name] = now_ns
             out += self._sample(name, state, t, now_ns, max(dt, 1e-9))
@@ -179,11 +182,11 @@ class SensorPublisher(ProcessorBase):
         return [(topics.TEMPERATURE, self._temperature(state, t, now_ns))]
 
     def _log_fault_changes(self, t: float) -> None:
-        active = {kind for kind in FaultKind if self.faults.active(kind, t) is not None}
-        for kind in sorted(active - self._active_faults):
-            self.log(Severity.INFO, f"fault injected: {kind.value} at t={t:.1f} s")
-        for kind in sorted(self._active_faults - active):
-            self.log(Severity.INFO, f"fault cleared: {kind.value} at t={t:.1f} s")
+        active = {fault.label for fault in self.faults.active_faults(t)}
+        for label in sorted(active - self._active_faults):
+            self.log(Severity.INFO, f"fault injected: {label} at t={t:.1f} s")
+        for label in sorted(self._active_faults - active):
+            self.log(Severity.INFO, f"fault cleared: {label} at t={t:.1f} s")
         self._active_faults = active
 
     def _imu(self, state: TrajectoryState, t: float, now_ns: int, dt: float) -> Imu:

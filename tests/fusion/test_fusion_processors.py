@@ -201,6 +201,20 @@ def test_publisher_schedule_survives_late_ticks_and_clock_jumps() -> None:
     assert published[3000] == {topics.IMU} | slow
 
 
+def test_a_dropout_silences_its_sensor_for_its_duration() -> None:
+    result = run_loop(10.05, {"sensor_publisher": {"faults": "dropout:gps@3+2.5, dropout@6+1"}})
+    # Fault times count from the publisher's first tick, 0.1 s after START_NS.
+    first_ns = START_NS + 100_000_000
+    gps = [(stamp_ns(m.header.stamp) - first_ns) / 1e9 for m in result.messages(topics.GPS)]
+    imu = [(stamp_ns(m.header.stamp) - first_ns) / 1e9 for m in result.messages(topics.IMU)]
+    # 1 Hz GPS from the first tick: the samples due at 3, 4 and 5 s fall in [3, 5.5).
+    assert len(gps) == 10 - 3 and not any(3.0 <= t < 5.5 for t in gps)
+    # 10 Hz IMU: the ten samples due in [6, 7) are missing, the others are there.
+    assert len(imu) == 100 - 10 and not any(6.0 - 1e-9 <= t < 7.0 - 1e-9 for t in imu)
+    assert imu[0] == 0.0
+    assert len(result.messages(topics.TEMPERATURE)) == 20
+
+
 def test_topics_outside_input_topics_are_ignored() -> None:
     imu = run_loop(0.15, nodes=("sensor_publisher",)).messages(topics.IMU)[0]
     for name in NODE_NAMES:

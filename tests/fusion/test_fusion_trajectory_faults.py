@@ -55,7 +55,28 @@ def test_fault_schedule_parses_and_activates() -> None:
     assert repeating.active(FaultKind.PRESSURE_SPIKE, 21.5) is not None
 
 
-@pytest.mark.parametrize("text", ["gps_loss@3", "wind@1+1", "gps_loss@a+1", "gps_loss@1+1=x"])
+def test_a_dropout_names_its_sensor() -> None:
+    schedule = FaultSchedule.parse("dropout:gps@5+2, dropout@20+1")
+    assert [(f.sensor, f.label) for f in schedule.faults] == [
+        ("gps", "dropout:gps"),
+        ("imu", "dropout:imu"),  # the default sensor
+    ]
+    assert schedule.active(FaultKind.DROPOUT, 6.0, "gps") is not None
+    assert schedule.active(FaultKind.DROPOUT, 6.0, "imu") is None
+    assert schedule.active(FaultKind.DROPOUT, 20.5, "imu") is not None
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "gps_loss@3",
+        "wind@1+1",
+        "gps_loss@a+1",
+        "gps_loss@1+1=x",
+        "dropout:lidar@1+1",  # not a sensor of the publisher
+        "gps_loss:gps@1+1",  # only a dropout names a sensor
+    ],
+)
 def test_bad_fault_schedules_are_rejected(text: str) -> None:
     with pytest.raises(FaultScheduleError):
         FaultSchedule.parse(text)
