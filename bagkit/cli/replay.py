@@ -36,6 +36,7 @@ from bagkit.cli.replay_options import (
     Loop,
     MessageOrderOption,
     NoLatched,
+    OnDriftOption,
     PublishServiceRequests,
     QosOverrides,
     Rate,
@@ -61,7 +62,7 @@ from bagkit.cli.selection_options import duration_seconds
 from bagkit.cli.tables import Column, Table, print_table
 from bagkit.errors import BagkitError
 from bagkit.extras import ROS, require
-from bagkit.playback.options import PlayOptions
+from bagkit.playback.options import OnDrift, PlayOptions
 from bagkit.playback.progress import ProgressLine
 from bagkit.playback.source import MessageOrder
 from bagkit.playback.timing import DEFAULT_CLOCK_HZ, DEFAULT_DISCOVERY_TIME_S, LATE_THRESHOLD_NS
@@ -158,6 +159,7 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
     latched_topics: LatchedTopics = None,
     no_latched: NoLatched = False,
     seek_step: SeekStep = 5.0,
+    on_drift: OnDriftOption = OnDrift.SKIP,
 ) -> None:
     require(ROS, "bagkit replay")
     from bagkit.ros.replay.player import Player
@@ -196,6 +198,7 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
         latched=not no_latched,
         latched_topics=tuple(split_list(latched_topics)),
         seek_step_s=seek_step,
+        on_drift=on_drift,
         publish_service_requests=publish_service_requests,
         service_requests_source=service_requests_source.value,
         service_timeout_s=service_timeout,
@@ -277,6 +280,12 @@ def _warn_skipped(player: Player) -> None:
         warn(f"not replaying topics whose serialization format is not cdr: {listed}")
     if topics.missing:
         warn(f"topics not in the bag: {', '.join(topics.missing)}")
+    for name, changes in sorted(topics.drifted.items()):
+        raw = player.options.on_drift is OnDrift.RAW
+        done = "published as recorded" if raw else "not replayed (--on-drift raw: as recorded)"
+        warn(
+            f"{name}: its definition differs from the installed one ({'; '.join(changes)}): {done}"
+        )
 
 
 def _finish(report: PlayReport, bag: str, output_format: ReportFormat) -> None:

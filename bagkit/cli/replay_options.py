@@ -12,6 +12,7 @@ import typer
 
 from bagkit.cli.common import ReportFormat
 from bagkit.compat import StrEnum
+from bagkit.playback.options import OnDrift
 from bagkit.playback.source import MessageOrder
 from bagkit.playback.timing import DEFAULT_CLOCK_HZ
 
@@ -175,6 +176,14 @@ Inputs = Annotated[
         "-i",
         help="A bag to replay (rosbag2 Kilted's form); repeated for several, with BAG... too.",
         show_default=False,
+    ),
+]
+OnDriftOption = Annotated[
+    OnDrift,
+    typer.Option(
+        "--on-drift",
+        help="A topic whose stored definition differs from the installed type's: skip it, "
+        "or publish it raw (as recorded).",
     ),
 ]
 MessageOrderOption = Annotated[

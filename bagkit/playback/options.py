@@ -11,11 +11,21 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from bagkit.bag.latched import LatchedOptions
+from bagkit.compat import StrEnum
 from bagkit.playback.errors import PlayerError
 from bagkit.playback.source import MessageOrder
 from bagkit.playback.timing import DEFAULT_DISCOVERY_TIME_S
 from bagkit.selection.times import seconds_to_ns
 from bagkit.selection.topics import TopicSelection
+
+
+class OnDrift(StrEnum):
+    """What a replay does with a topic whose stored definition differs from the installed one."""
+
+    SKIP = "skip"
+    """Publish nothing on it (its subscribers would get messages of another layout)."""
+    RAW = "raw"
+    """Publish its bytes as recorded."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -146,6 +156,8 @@ class PlayOptions:
             last message before it of each latched topic (``--no-latched``: False).
         latched_topics: topics recorded volatile whose state is carried over too.
         seek_step_s: bag time one seek key moves back or forward.
+        on_drift: a topic whose stored definition differs from the installed type's
+            (:mod:`bagkit.decode.drift`): skipped, or published as recorded.
 
     Raises:
         PlayerError: an option out of its range, or a regular expression that does not compile.
@@ -183,6 +195,7 @@ class PlayOptions:
     latched: bool = True
     latched_topics: tuple[str, ...] = ()
     seek_step_s: float = 5.0
+    on_drift: OnDrift = OnDrift.SKIP
 
     def __post_init__(self) -> None:
         if not self.rate > 0:

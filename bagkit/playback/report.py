@@ -60,6 +60,9 @@ class PlayReport:
     """Topic -> message type that is not installed (not replayed)."""
     skipped_formats: dict[str, str] = field(default_factory=dict)
     """Topic -> serialization format other than ``cdr`` (not replayed)."""
+    drifted: dict[str, list[str]] = field(default_factory=dict)
+    """Topic -> how its stored definition differs from the installed one (not replayed
+    unless ``on_drift`` is raw)."""
     missing_topics: list[str] = field(default_factory=list)
     """Topics asked for with ``topics`` that the bag does not have."""
     problems: list[str] = field(default_factory=list)

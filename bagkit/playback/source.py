@@ -75,6 +75,14 @@ class PlaySource:
         readers = [stack.enter_context(BagReader(path)) for path in paths]
         return cls(readers, order)
 
+    def definition(self, topic: str) -> str | None:
+        """The stored definition of ``topic``'s type in the first bag holding it (None: none)."""
+        for reader in self.readers:
+            info = reader.topics.get(topic)
+            if info is not None:
+                return reader.definitions.get(info.type)
+        return None
+
     @property
     def name(self) -> str:
         """The bags, for messages: ``drive`` or ``drive + lidar``."""

@@ -228,6 +228,8 @@ class Player:
             self.selection,
             clock_published=self.options.clock_hz is not None,
             bag_path=Path(self._reader.name) if self._reader else self.bag_path,
+            definition=self._reader.definition if self._reader else lambda _: None,
+            on_drift=self.options.on_drift,
         )
         return self.publishable.selected
 
@@ -305,6 +307,7 @@ class Player:
             rate=options.rate,
             lateness=lateness.summary(),
             skipped_types=dict(self.publishable.skipped_types),
+            drifted=dict(self.publishable.drifted),
             skipped_formats=dict(self.publishable.skipped_formats),
             missing_topics=list(self.publishable.missing),
             problems=list(dict.fromkeys(self._reader.problems)),

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from bagkit.bag import TopicInfo
+from bagkit.decode.drift import DriftStatus, topic_drift
+from bagkit.playback.options import OnDrift
 from bagkit.ros.clock import CLOCK_TOPIC
 from bagkit.ros.errors import MessageClassNotFoundError, PlayerError
 from bagkit.ros.message_classes import import_message_type
@@ -25,6 +27,9 @@ class PublishableTopics:
     """Topic -> its serialization format, not cdr."""
     missing: list[str] = field(default_factory=list)
     """Topics named by the selection that the bag does not have."""
+    drifted: dict[str, list[str]] = field(default_factory=dict)
+    """Topic -> how its stored definition differs from the installed one (skipped unless
+    published raw)."""
 
 
 def publishable_topics(
@@ -33,8 +38,13 @@ def publishable_topics(
     *,
     clock_published: bool,
     bag_path: Path,
+    definition: Callable[[str], str | None] = lambda _: None,
+    on_drift: OnDrift = OnDrift.SKIP,
 ) -> PublishableTopics:
     """The topics of ``topics`` to publish; a recorded ``/clock`` not when the player makes one.
+
+    ``definition`` gives a topic's stored definition: a topic whose definition drifted from
+    the installed type's is in ``drifted``, and published only with ``on_drift`` RAW.
 
     Raises:
         PlayerError: nothing is left to publish (the message says why).
@@ -53,10 +63,15 @@ def publishable_topics(
         except MessageClassNotFoundError:
             found.skipped_types[name] = info.type
             continue
+        drift = topic_drift(info, definition(name))
+        if drift.status is DriftStatus.DRIFTED:
+            found.drifted[name] = drift.changes
+            if on_drift is OnDrift.SKIP:
+                continue
         found.selected.append((info, message_class))
     if not found.selected:
         reason = "no topic of the bag matches the topic selection"
-        if found.skipped_types or found.skipped_formats:
+        if found.skipped_types or found.skipped_formats or found.drifted:
             reason = "no selected topic can be published: " + "; ".join(
                 [
                     f"{name}: {type_name} not installed"
@@ -65,6 +80,11 @@ def publishable_topics(
                 + [
                     f"{name}: serialization format {fmt!r} is not cdr"
                     for name, fmt in sorted(found.skipped_formats.items())
+                ]
+                + [
+                    f"{name}: its definition drifted from the installed one "
+                    f"({'; '.join(changes)}; --on-drift raw publishes it as recorded)"
+                    for name, changes in sorted(found.drifted.items())
                 ]
             )
         raise PlayerError(f"nothing to replay in {bag_path}: {reason}")
