@@ -10,18 +10,17 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import domains
 import pytest
 
 from bagkit.processes import Command, StopPolicy, Supervisor
 
 # Set before anything creates a ROS context: rclpy reads these when a context initializes, and
-# every subprocess a test starts inherits them. The domain is derived from the pid so that two
-# test sessions running at once on this machine do not see each other.
+# every subprocess a test starts inherits them. Each test process (each xdist worker) holds
+# domains of its own, so that no two running at once on this machine see each other.
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
-if "BAGKIT_TEST_DOMAIN_ID" not in os.environ:
-    os.environ["BAGKIT_TEST_DOMAIN_ID"] = str(100 + os.getpid() % 130)
-os.environ["ROS_DOMAIN_ID"] = os.environ["BAGKIT_TEST_DOMAIN_ID"]
+domains.assign()
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 # The rosbag2 test bags live outside the repository (CI and the developers' machines have them
