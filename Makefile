@@ -35,7 +35,7 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(PY) -m compileall -q bagkit fusion
 	$(PY) -m pytest -q -m "not ros" -n 2
-	$(PY) -m pytest -q -m ros -n 2 --durations=10
+	$(PY) -m pytest -q -m ros -n 2 --dist loadgroup --durations=10
 
 # The fast loop: every test that starts no DDS participant, on two worker processes.
 test-fast: $(STAMP)

@@ -35,6 +35,9 @@ INTEROP_DIR = Path(
 DDS_FIXTURES = frozenset({"node", "context", "listener_factory", "processes"})
 # Names whose presence in a test module means its tests create participants themselves.
 _DDS_MODULE_NAMES = ("Recorder", "Player", "play")
+# Session fixtures that record or build for tens of seconds, by the xdist group of the tests
+# that use them: under `--dist loadgroup` a group runs on one worker, which makes them once.
+SHARED_FIXTURES = {"workspace": "colcon", "service_bag": "services", "server_bag": "services"}
 
 
 def _starts_dds(module: types.ModuleType | None) -> bool:
@@ -52,13 +55,17 @@ def _starts_dds(module: types.ModuleType | None) -> bool:
     )
 
 
+@pytest.hookimpl(tryfirst=True)  # before xdist reads the groups
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     """Mark every test that starts DDS `ros`, from the fixtures it uses or its module's imports,
-    so that `pytest -m "not ros"` is the fast loop without a middleware."""
+    so that `pytest -m "not ros"` is the fast loop without a middleware; group the users of a
+    shared fixture."""
     for item in items:
         fixtures = set(getattr(item, "fixturenames", ()))
         if fixtures & DDS_FIXTURES or _starts_dds(getattr(item, "module", None)):
             item.add_marker(pytest.mark.ros)
+        for group in {SHARED_FIXTURES[name] for name in fixtures & SHARED_FIXTURES.keys()}:
+            item.add_marker(pytest.mark.xdist_group(group))
 
 
 @pytest.fixture(scope="session")
