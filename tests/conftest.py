@@ -35,9 +35,10 @@ INTEROP_DIR = Path(
 DDS_FIXTURES = frozenset({"node", "context", "listener_factory", "processes"})
 # Names whose presence in a test module means its tests create participants themselves.
 _DDS_MODULE_NAMES = ("Recorder", "Player", "play")
-# Session fixtures that record or build for tens of seconds, by the xdist group of the tests
-# that use them: under `--dist loadgroup` a group runs on one worker, which makes them once.
-SHARED_FIXTURES = {"workspace": "colcon", "service_bag": "services", "server_bag": "services"}
+# Tests that share session fixtures which build or record for tens of seconds (the colcon
+# workspace; the services' bags), by where they are: under `--dist loadgroup` each group runs on
+# one xdist worker, which makes them once.
+SHARED_FIXTURE_GROUPS = {"tests/ros/test_user_package.py": "colcon", "tests/services/": "services"}
 
 
 def _starts_dds(module: types.ModuleType | None) -> bool:
@@ -55,17 +56,33 @@ def _starts_dds(module: types.ModuleType | None) -> bool:
     )
 
 
-@pytest.hookimpl(tryfirst=True)  # before xdist reads the groups
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     """Mark every test that starts DDS `ros`, from the fixtures it uses or its module's imports,
-    so that `pytest -m "not ros"` is the fast loop without a middleware; group the users of a
-    shared fixture."""
+    so that `pytest -m "not ros"` is the fast loop without a middleware."""
     for item in items:
         fixtures = set(getattr(item, "fixturenames", ()))
         if fixtures & DDS_FIXTURES or _starts_dds(getattr(item, "module", None)):
             item.add_marker(pytest.mark.ros)
-        for group in {SHARED_FIXTURES[name] for name in fixtures & SHARED_FIXTURES.keys()}:
-            item.add_marker(pytest.mark.xdist_group(group))
+
+
+def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
+    """``--dist loadgroup`` that also groups by ``SHARED_FIXTURE_GROUPS``.
+
+    Named here by path, not by an ``xdist_group`` mark: xdist 3.8 sends a mark's group to the
+    scheduler in the node id, and pytest 9.2 no longer lets it change one (pytest-xdist#1386).
+    """
+    if config.getvalue("dist") != "loadgroup":
+        return None
+    from xdist.scheduler import LoadGroupScheduling
+
+    class SharedFixtureScheduling(LoadGroupScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            for prefix, group in SHARED_FIXTURE_GROUPS.items():
+                if nodeid.startswith(prefix):
+                    return group
+            return str(super()._split_scope(nodeid))
+
+    return SharedFixtureScheduling(config, log)
 
 
 @pytest.fixture(scope="session")
