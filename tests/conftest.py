@@ -10,18 +10,17 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import domains
 import pytest
 
 from bagkit.processes import Command, StopPolicy, Supervisor
 
 # Set before anything creates a ROS context: rclpy reads these when a context initializes, and
-# every subprocess a test starts inherits them. The domain is derived from the pid so that two
-# test sessions running at once on this machine do not see each other.
+# every subprocess a test starts inherits them. Each test process (each xdist worker) holds
+# domains of its own, so that no two running at once on this machine see each other.
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
-if "BAGKIT_TEST_DOMAIN_ID" not in os.environ:
-    os.environ["BAGKIT_TEST_DOMAIN_ID"] = str(100 + os.getpid() % 130)
-os.environ["ROS_DOMAIN_ID"] = os.environ["BAGKIT_TEST_DOMAIN_ID"]
+domains.assign()
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 # The rosbag2 test bags live outside the repository (CI and the developers' machines have them
@@ -36,6 +35,10 @@ INTEROP_DIR = Path(
 DDS_FIXTURES = frozenset({"node", "context", "listener_factory", "processes"})
 # Names whose presence in a test module means its tests create participants themselves.
 _DDS_MODULE_NAMES = ("Recorder", "Player", "play")
+# Tests that share session fixtures which build or record for tens of seconds (the colcon
+# workspace; the services' bags), by where they are: under `--dist loadgroup` each group runs on
+# one xdist worker, which makes them once.
+SHARED_FIXTURE_GROUPS = {"tests/ros/test_user_package.py": "colcon", "tests/services/": "services"}
 
 
 def _starts_dds(module: types.ModuleType | None) -> bool:
@@ -60,6 +63,26 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
         fixtures = set(getattr(item, "fixturenames", ()))
         if fixtures & DDS_FIXTURES or _starts_dds(getattr(item, "module", None)):
             item.add_marker(pytest.mark.ros)
+
+
+def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
+    """``--dist loadgroup`` that also groups by ``SHARED_FIXTURE_GROUPS``.
+
+    Named here by path, not by an ``xdist_group`` mark: xdist 3.8 sends a mark's group to the
+    scheduler in the node id, and pytest 9.2 no longer lets it change one (pytest-xdist#1386).
+    """
+    if config.getvalue("dist") != "loadgroup":
+        return None
+    from xdist.scheduler import LoadGroupScheduling
+
+    class SharedFixtureScheduling(LoadGroupScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            for prefix, group in SHARED_FIXTURE_GROUPS.items():
+                if nodeid.startswith(prefix):
+                    return group
+            return str(super()._split_scope(nodeid))
+
+    return SharedFixtureScheduling(config, log)
 
 
 @pytest.fixture(scope="session")

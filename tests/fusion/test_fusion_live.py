@@ -185,5 +185,7 @@ def test_nodes_run_on_sim_time(processes: Any) -> None:
     # 10 Hz of sim time. A loaded machine delivers /clock in bursts: a tick then lands late
     # (a 0.15 s step, the next one 0.05 s) or, after a long jump, resumes from the new time.
     assert sorted(steps)[len(steps) // 2] == 0.1
-    sim_span = imu_stamps[-1] - imu_stamps[0]
-    assert len(steps) == pytest.approx(sim_span / 0.1, rel=0.15)
+    # At most one tick per period of sim time; fewer where a burst made the timer skip ahead,
+    # more often with another DDS test running beside this one.
+    periods = (imu_stamps[-1] - imu_stamps[0]) / 0.1
+    assert 0.75 * periods <= len(steps) <= periods + 1

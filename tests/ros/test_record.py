@@ -185,6 +185,18 @@ def test_publisher_with_weaker_qos_joining_later_is_recorded(node: Node, tmp_pat
             String, "/mixed", QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
         )
         wait_matched(best_effort)
+        # The recorder replaced its reliable subscription: until the old one is off the graph,
+        # the reliable publisher may still count it as its match, and publish to nobody.
+        wait_for(
+            lambda: (
+                [
+                    info.qos_profile.reliability
+                    for info in node.get_subscriptions_info_by_topic("/mixed")
+                ]
+                == [ReliabilityPolicy.BEST_EFFORT]
+            ),
+            what="the recorder's best-effort subscription alone",
+        )
         wait_matched(reliable)
         for i in range(1, 4):
             reliable.publish(String(data=f"reliable {i}"))

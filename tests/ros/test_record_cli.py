@@ -60,7 +60,7 @@ def test_sigint_finishes_the_bag(node: Node, processes: object, tmp_path: Path) 
     for text in published:
         publisher.publish(String(data=text))
         time.sleep(0.005)
-    time.sleep(0.3)
+    assert publisher.wait_for_all_acked(Duration(seconds=10))  # in the recorder
     proc.send_signal(signal.SIGINT)
     stdout, stderr = proc.communicate(timeout=20)
     assert proc.returncode == 130, stderr.decode()
@@ -83,12 +83,16 @@ def test_sigkill_keeps_all_but_the_last_second(
     wait_for(lambda: publisher.get_subscription_count() > 0, STARTUP_TIMEOUT_S)
     sent: list[tuple[float, str]] = []
     start = time.monotonic()
-    i = 0
-    while time.monotonic() - start < 4.0:
-        text = f"killed {i}"
+    # For 4 s, and until over 150 messages went out more than two flush periods ago: a loaded
+    # machine oversleeps each 10 ms, and would otherwise send too few to tell.
+    while (
+        time.monotonic() - start < 4.0
+        or len(sent) <= 150
+        or sent[150][0] > (time.monotonic() - 2 * FLUSH_PERIOD_S)
+    ):
+        text = f"killed {len(sent)}"
         publisher.publish(String(data=text))
         sent.append((time.monotonic(), text))
-        i += 1
         time.sleep(0.01)
     killed_at = time.monotonic()
     os.killpg(proc.pid, signal.SIGKILL)
@@ -124,7 +128,7 @@ def test_split_bag_reads_back_as_one(node: Node, processes: object, tmp_path: Pa
         published.append(f"split {len(published)}")
         publisher.publish(String(data=published[-1]))
         time.sleep(0.01)
-    time.sleep(0.3)
+    assert publisher.wait_for_all_acked(Duration(seconds=10))  # in the recorder
     proc.send_signal(signal.SIGTERM)
     stdout, stderr = proc.communicate(timeout=20)
     assert proc.returncode == 143, stderr.decode()
@@ -305,18 +309,24 @@ def test_existing_or_unwritable_output_exits_2(processes: object, tmp_path: Path
 
 
 def shared_memory_ports(pid: int) -> dict[int, int]:
-    """Sizes of this session's domain's Fast DDS shared-memory ports that ``pid`` maps.
+    """Sizes of the Fast DDS shared-memory ports in this process's domain that ``pid`` listens
+    on (it holds the port's ``_el`` lock file open).
 
-    Ports are files that outlive their processes; the few outside the domain's port range
-    (7000, 7001) are shared by every domain and may have been sized by anyone.
+    Not every port it maps: it also maps the ports of the participants it sends to, and a port
+    is a file that outlives its process, sized by whoever created it (an earlier recorder with
+    participant id 0 leaves a large one that the next participant 0 reuses). The few outside
+    the domain's range (7000, 7001) are shared by every domain and may have been sized by anyone.
     """
     first = 7400 + 250 * int(os.environ["ROS_DOMAIN_ID"])
     ports = {}
-    for line in Path(f"/proc/{pid}/maps").read_text().splitlines():
-        name = line.split()[-1]
-        number = name.removeprefix("/dev/shm/fastrtps_port")
-        if number != name and number.isdigit() and first <= int(number) < first + 250:
-            ports[int(number)] = os.stat(name).st_size
+    for fd in Path(f"/proc/{pid}/fd").iterdir():
+        try:
+            name = os.readlink(fd)
+        except OSError:  # closed meanwhile
+            continue
+        number = name.removeprefix("/dev/shm/fastrtps_port").removesuffix("_el")
+        if number.isdigit() and first <= int(number) < first + 250 and name.endswith("_el"):
+            ports[int(number)] = os.stat(f"/dev/shm/fastrtps_port{number}").st_size
     return ports
 
 
@@ -342,7 +352,7 @@ def test_record_gives_itself_a_large_receive_queue_unless_the_user_has_a_profile
     wait_for(lambda: publisher.get_subscription_count() > 0, STARTUP_TIMEOUT_S)
     for i in range(20):
         publisher.publish(String(data=f"q{i}"))
-    time.sleep(0.3)
+    assert publisher.wait_for_all_acked(Duration(seconds=10))  # in the recorder
     ports = shared_memory_ports(proc.pid)
     proc.send_signal(signal.SIGINT)
     stdout, stderr = proc.communicate(timeout=20)
