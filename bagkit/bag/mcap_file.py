@@ -119,8 +119,9 @@ class McapFile:
         self.start_ns = self.index.message_start_time
         self.end_ns = self.index.message_end_time
         chunks = self.index.chunk_indexes
+        with_messages = [c for c in chunks if c.message_start_time <= c.message_end_time]
         self._sorted_blocks = sorted(
-            [*chunks, *self.index.message_runs],
+            [*with_messages, *self.index.message_runs],
             key=lambda b: (b.message_start_time, extent(b)[0]),
         )
         self.compressed_size = sum(c.compressed_size for c in chunks)
