@@ -26,15 +26,14 @@ from rosbags.typesys import Stores, get_typestore
 from rosbags.typesys.base import normalize_fieldname
 from rosbags.typesys.store import Typestore
 
-from bagkit.bag.definitions import DEFINITION_SEPARATOR, canonical_type_name
+from bagkit.bag.definitions import canonical_type_name
 from bagkit.decode.cdr import has_wide_strings, payload_reader
 from bagkit.decode.direct import ValueReader, value_reader
 from bagkit.decode.errors import DecodeError, DefinitionError, SchemaError
 from bagkit.decode.flatten import FlatValue, field_getter
-from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER, TypeDef, parse_definition
+from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER, TypeDef
+from bagkit.decode.stored import parse_stored
 from bagkit.decode.typegraph import check_type_graph
-
-_SERVICE_EVENT_INFO = "service_msgs/msg/ServiceEventInfo"
 
 
 @dataclass(slots=True)
@@ -66,11 +65,7 @@ class MessageTypes:
         if canonical in self.typestore.fielddefs:
             return
         try:
-            if "/srv/" in canonical and canonical.endswith("_Event"):
-                parsed = _service_event_types(canonical, text)
-            else:
-                parsed = parse_definition(text, canonical)
-            self._register(parsed)
+            self._register(parse_stored(text, canonical))
         except DefinitionError as exc:
             self.problems[name] = f"definition of {name} cannot be parsed ({exc})"
         except KeyError as exc:
@@ -226,29 +221,3 @@ def _references(parsed: Mapping[str, Any]) -> list[str]:
         for _, desc in fields:
             visit(desc)
     return list(dict.fromkeys(found))
-
-
-def _service_event_types(event: str, text: str) -> dict[str, TypeDef]:
-    """Types of a ``pkg/srv/Name_Event`` from the ``.srv`` text that rosbag2 stores for it.
-
-    rosidl generates ``Name_Event`` as ``ServiceEventInfo info``, ``Name_Request[<=1] request``
-    and ``Name_Response[<=1] response``; bagkit's recorder stores that generated form (a
-    ``ros2msg`` definition like any other), rosbag2 the ``.srv`` text (a ``---`` line).
-    """
-    own_text = text.split(DEFINITION_SEPARATOR, 1)[0]
-    if not any(line.strip() == "---" for line in own_text.splitlines()):
-        return parse_definition(text, event)
-    base = event.removesuffix("_Event")
-    request_text, response_text = text.split("---", 1)
-    types: dict[str, TypeDef] = {}
-    for part, part_text in (("Request", request_text), ("Response", response_text)):
-        types.update(parse_definition(part_text, f"{base}_{part}"))
-    types[event] = (
-        [],
-        [
-            ("info", (Nodetype.NAME, _SERVICE_EVENT_INFO)),
-            ("request", (Nodetype.SEQUENCE, ((Nodetype.NAME, f"{base}_Request"), 1))),
-            ("response", (Nodetype.SEQUENCE, ((Nodetype.NAME, f"{base}_Response"), 1))),
-        ],
-    )
-    return types
