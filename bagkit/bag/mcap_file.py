@@ -85,6 +85,7 @@ class McapFile:
         self.max_chunk_size = max_chunk_size
         self.topics: dict[str, TopicInfo] = {}
         self.definitions: dict[str, str] = {}
+        self.topic_definitions: dict[str, str] = {}
         self.topic_counts: dict[str, int] = {}
         self.start_ns = self.end_ns = 0
         self.problems: list[str] = []
@@ -144,8 +145,11 @@ class McapFile:
                     type_description_hash=channel.metadata.get("topic_type_hash", ""),
                 ),
             )
-            if schema is not None and type_name not in self.definitions:
-                self.definitions[type_name] = schema.data.decode("utf-8", errors="replace")
+            if schema is not None:
+                text = schema.data.decode("utf-8", errors="replace")
+                # One text per type; a topic whose schema holds another text keeps its own.
+                if self.definitions.setdefault(type_name, text) != text:
+                    self.topic_definitions.setdefault(channel.topic, text)
         self.topic_counts = dict.fromkeys(self.topics, 0)
         for channel_id, count in self.index.channel_message_counts.items():
             topic = self._channel_topics.get(channel_id)

@@ -69,7 +69,7 @@ def echo(
     with BagReader(bag, allow_empty=True) as reader:
         (topic,) = require_topics([topic], reader.topics)
         info = reader.topics[topic]
-        types = MessageTypes.from_definitions(reader.definitions)
+        types = MessageTypes.for_bag(reader).for_topic(topic)
         try:
             if info.serialization_format != "cdr":
                 raise DecodeError(f"serialization format {info.serialization_format!r} is not CDR")

@@ -19,7 +19,7 @@ import dataclasses
 from collections import ChainMap
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rosbags.interfaces import Nodetype
 from rosbags.typesys import Stores, get_typestore
@@ -35,6 +35,9 @@ from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER, TypeDef
 from bagkit.decode.stored import parse_stored
 from bagkit.decode.typegraph import check_type_graph
 
+if TYPE_CHECKING:
+    from bagkit.bag.reader import BagReader
+
 
 @dataclass(slots=True)
 class MessageTypes:
@@ -43,18 +46,45 @@ class MessageTypes:
     Attributes:
         typestore: the rosbags typestore holding every type that parsed.
         problems: bag type name -> why it cannot be decoded.
+
+    Type names are looked up in one typestore; a topic whose schema holds another text for its
+    type has its own :class:`MessageTypes` (:meth:`for_topic`): decode a topic's messages with
+    ``types.for_topic(topic)``.
     """
 
     typestore: Typestore = field(default_factory=Typestore)
     problems: dict[str, str] = field(default_factory=dict)
+    # Topics whose schema holds another text for their type: (type, text), parsed on first use.
+    _topic_texts: dict[str, tuple[str, str]] = field(default_factory=dict)
+    _topic_types: dict[str, MessageTypes] = field(default_factory=dict)
 
     @classmethod
     def from_definitions(cls, definitions: Mapping[str, str]) -> MessageTypes:
-        """Parse ``definitions`` (bag type name -> ros2msg text) into a typestore."""
+        """Parse ``definitions`` (bag type name -> stored text) into a typestore."""
         types = cls()
         for name, text in definitions.items():
             types.add(name, text)
         return types
+
+    @classmethod
+    def for_bag(cls, bag: BagReader) -> MessageTypes:
+        """The types of an open bag: its ``definitions``, and for each topic of its
+        ``topic_definitions`` that topic's own text (see :meth:`for_topic`)."""
+        types = cls.from_definitions(bag.definitions)
+        for topic, text in bag.topic_definitions.items():
+            types._topic_texts[topic] = (bag.topics[topic].type, text)
+        return types
+
+    def for_topic(self, topic: str) -> MessageTypes:
+        """The types to decode ``topic`` with: its own schema's where its text differs from
+        the one stored first for its type (two schemas of one type name in a bag), else self."""
+        found = self._topic_types.get(topic)
+        if found is None:
+            if topic not in self._topic_texts:
+                return self
+            type_name, text = self._topic_texts[topic]
+            found = self._topic_types[topic] = MessageTypes.from_definitions({type_name: text})
+        return found
 
     def add(self, name: str, text: str) -> None:
         """Register one stored definition; a failure is recorded in ``problems``, not raised.
