@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import dataclasses
 
-from mcap.well_known import SchemaEncoding
-
-from bagkit.bag.definitions import canonical_type_name, message_definition, type_description_hash
+from bagkit.bag.definitions import (
+    canonical_type_name,
+    definition_encoding,
+    message_definition,
+    type_description_hash,
+)
 from bagkit.bag.errors import BagError, UnknownMessageTypeError
 from bagkit.bag.mcapio.records import Channel, Schema
 from bagkit.bag.messages import TopicInfo
@@ -19,7 +22,7 @@ class BagTopics:
 
     def __init__(self) -> None:
         self.topics: dict[str, TopicInfo] = {}
-        self.schemas: dict[str, Schema] = {}
+        self.schemas: dict[tuple[str, str | None], Schema] = {}  # by (type, text given)
         self.channels: dict[str, Channel] = {}
         self.channel_topics: dict[int, str] = {}
         self.counts: dict[int, int] = {}
@@ -40,10 +43,14 @@ class BagTopics:
             return []
         records: list[Schema | Channel] = []
         topic = _with_type_hash(topic)
-        schema = self.schemas.get(topic.type)
+        # One schema per text: two topics of one type name with different texts keep theirs.
+        schema = self.schemas.get((topic.type, definition))
+        if definition is None:  # the installed text: any schema of the type will do
+            same_type = (s for (t, _), s in self.schemas.items() if t == topic.type)
+            schema = next(same_type, None)
         if schema is None:
             schema = _schema(len(self.schemas) + 1, topic.type, definition)
-            self.schemas[topic.type] = schema
+            self.schemas[topic.type, definition] = schema
             records.append(schema)
         metadata = {"offered_qos_profiles": topic.offered_qos_profiles}
         if topic.type_description_hash:
@@ -100,5 +107,5 @@ def _schema(schema_id: int, type_name: str, definition: str | None) -> Schema:
     """The Schema record of a type; ``definition`` None reads it from the installed files."""
     text = message_definition(canonical_type_name(type_name)) if definition is None else definition
     return Schema(
-        id=schema_id, name=type_name, encoding=SchemaEncoding.ROS2, data=text.encode("utf-8")
+        id=schema_id, name=type_name, encoding=definition_encoding(text), data=text.encode("utf-8")
     )

@@ -43,7 +43,7 @@ def _msg_dependencies(text: str, package: str) -> list[str]:
 
 def _full_text(root: str, kind: str, text: str, seen: set[str]) -> str:
     """``text`` followed by its dependencies, each after its delimiter (recursively, once)."""
-    package = root.split("/")[0]
+    package = root.split("/", maxsplit=1)[0]
     dependencies = (
         sorted(set(_IDL_INCLUDE.findall(text)))
         if kind == "IDL"
@@ -123,7 +123,7 @@ ORACLE_TEXTS = {
 def serialize(type_name: str, message: dict[str, Any], text: str | None = None) -> bytes:
     """CDR of ``message`` by mcap_ros2 from an oracle ``ros2msg`` text."""
     own = text if text is not None else ORACLE_TEXTS.get(type_name) or msg_definition(type_name)
-    root = f"{type_name.split('/')[0]}/msg/Root"  # mcap_ros2 takes no '_' in type names
+    root = type_name.split("/", maxsplit=1)[0] + "/msg/Root"  # mcap_ros2: no "_" in names
     return bytes(serialize_dynamic(root, own)[root](message))
 
 
@@ -150,14 +150,21 @@ def fibonacci_messages(n: int) -> dict[str, list[tuple[int, dict[str, Any]]]]:
     for i in range(n):
         t = 1_000_000_000 + i * 100_000_000
         sequence = [0, 1, 1, 2, 3, 5][: i + 2]
-        parts["send_goal"].append((t, _event(0, i, [{"goal_id": goal_id(i), "goal": {"order": i}}], [])))
-        parts["feedback"].append((t + 1, {"goal_id": goal_id(i), "feedback": {"sequence": sequence}}))
-        status = {"goal_info": {"goal_id": goal_id(i), "stamp": {"sec": i, "nanosec": 5}}, "status": 4}
+        parts["send_goal"].append(
+            (t, _event(0, i, [{"goal_id": goal_id(i), "goal": {"order": i}}], []))
+        )
+        parts["feedback"].append(
+            (t + 1, {"goal_id": goal_id(i), "feedback": {"sequence": sequence}})
+        )
+        status = {
+            "goal_info": {"goal_id": goal_id(i), "stamp": {"sec": i, "nanosec": 5}},
+            "status": 4,
+        }
         parts["status"].append((t + 2, {"status_list": [status]}))
         result = {"status": 4, "result": {"sequence": sequence}}
-        parts["get_result"].append((t + 3, _event(1, i, [], [result])))
+        parts["get_result"].append((t + 3, _event(2, i, [], [result])))
         cancel = {"return_code": 0, "goals_canceling": []}
-        parts["cancel_goal"].append((t + 4, _event(1, i, [], [cancel])))
+        parts["cancel_goal"].append((t + 4, _event(2, i, [], [cancel])))
     return parts
 
 
