@@ -122,7 +122,7 @@ def read_summary(source: Source, header: Header) -> FileIndex | None:
     """Build the index from the summary section; None when the file has none (not closed).
 
     Statistics, chunk indexes and message indexes are optional records: without Statistics
-    (rosbags' writer before 0.10, mcap's with ``use_statistics=False``), counts come from the
+    (some rosbags versions, mcap's writer with ``use_statistics=False``), counts come from the
     Message Index records; a summary that cannot count every message (chunks without message
     indexes, no chunk indexes, messages outside chunks) is returned with ``complete`` False.
 
