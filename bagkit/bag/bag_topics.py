@@ -22,7 +22,7 @@ class BagTopics:
 
     def __init__(self) -> None:
         self.topics: dict[str, TopicInfo] = {}
-        self.schemas: dict[tuple[str, str | None], Schema] = {}  # by (type, text given)
+        self.schemas: dict[str, Schema] = {}
         self.channels: dict[str, Channel] = {}
         self.channel_topics: dict[int, str] = {}
         self.counts: dict[int, int] = {}
@@ -43,15 +43,19 @@ class BagTopics:
             return []
         records: list[Schema | Channel] = []
         topic = _with_type_hash(topic)
-        # One schema per text: two topics of one type name with different texts keep theirs.
-        schema = self.schemas.get((topic.type, definition))
-        if definition is None:  # the installed text: any schema of the type will do
-            same_type = (s for (t, _), s in self.schemas.items() if t == topic.type)
-            schema = next(same_type, None)
+        schema = self.schemas.get(topic.type)
         if schema is None:
             schema = _schema(len(self.schemas) + 1, topic.type, definition)
-            self.schemas[topic.type, definition] = schema
+            self.schemas[topic.type] = schema
             records.append(schema)
+        elif definition is not None and schema.data != definition.encode("utf-8"):
+            # Another text of the type (a topic of another version): a schema of its own, keyed
+            # by type and text (the first text of a type is keyed by its name).
+            key = f"{topic.type}\n{definition}"
+            if key not in self.schemas:
+                self.schemas[key] = _schema(len(self.schemas) + 1, topic.type, definition)
+                records.append(self.schemas[key])
+            schema = self.schemas[key]
         metadata = {"offered_qos_profiles": topic.offered_qos_profiles}
         if topic.type_description_hash:
             metadata["topic_type_hash"] = topic.type_description_hash
