@@ -292,3 +292,26 @@ def test_bad_definition_texts_are_one_error_line(tmp_path: Path, text: str, why:
     doctor = bagkit("doctor", path)
     assert doctor.returncode != 0 and why in doctor.stdout + doctor.stderr
     assert "Traceback" not in doctor.stderr
+
+
+def test_bag_writer_keeps_one_schema_per_text(tmp_path: Path) -> None:
+    from bagkit.bag import BagWriter, TopicInfo
+
+    texts = {"/v1": "float64 value\n", "/v2": "float64 value\nuint32 count\n"}
+    header = "std_msgs/msg/Header"
+    with BagWriter(tmp_path / "out") as bag:
+        for topic, text in texts.items():
+            bag.add_topic(TopicInfo(topic, "my_msgs/msg/Reading"), definition=text)
+            message = {"value": 2.5} | ({"count": 3} if "count" in text else {})
+            bag.write(topic, serialize("my_msgs/msg/Reading", message, text), log_time=5)
+        bag.add_topic(TopicInfo("/idl", header), definition=idl_definition(header))
+        stamp = {"stamp": {"sec": 1, "nanosec": 2}, "frame_id": "x"}
+        bag.write("/idl", serialize(header, stamp), log_time=6)
+    with open(tmp_path / "out" / "out_0.mcap", "rb") as f:
+        schemas = make_reader(f).get_summary().schemas.values()
+    assert sorted((s.name, s.encoding, s.data.decode()) for s in schemas) == sorted(
+        [("my_msgs/msg/Reading", "ros2msg", text) for text in texts.values()]
+        + [(header, "ros2idl", idl_definition(header))]
+    )
+    assert [r["data"] for r in echo_json(tmp_path / "out", "/v2")] == [{"value": 2.5, "count": 3}]
+    assert [r["data"] for r in echo_json(tmp_path / "out", "/idl")] == [stamp]
