@@ -79,7 +79,7 @@ def msg_definition(type_name: str) -> str:
 # The types rosidl derives from test_msgs/action/Fibonacci, as ros2msg texts (the oracle).
 _UUID = "MSG: unique_identifier_msgs/UUID\nuint8[16] uuid\n"
 _TIME = "MSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n"
-_INFO = (
+EVENT_INFO = (
     "MSG: service_msgs/ServiceEventInfo\nuint8 event_type\nbuiltin_interfaces/Time stamp\n"
     f"char[16] client_gid\nint64 sequence_number\n{SEPARATOR}{_TIME}"
 )
@@ -94,21 +94,21 @@ ORACLE_TEXTS = {
     ),
     "test_msgs/action/Fibonacci_SendGoal_Event": (
         "service_msgs/ServiceEventInfo info\ntest_msgs/Req[<=1] request\n"
-        f"test_msgs/Resp[<=1] response\n{SEPARATOR}{_INFO}{SEPARATOR}MSG: test_msgs/Req\n"
+        f"test_msgs/Resp[<=1] response\n{SEPARATOR}{EVENT_INFO}{SEPARATOR}MSG: test_msgs/Req\n"
         f"unique_identifier_msgs/UUID goal_id\ntest_msgs/Goal goal\n{SEPARATOR}{_UUID}"
         f"{SEPARATOR}MSG: test_msgs/Goal\nint32 order\n{SEPARATOR}MSG: test_msgs/Resp\n"
         "bool accepted\nbuiltin_interfaces/Time stamp\n"
     ),
     "test_msgs/action/Fibonacci_GetResult_Event": (
         "service_msgs/ServiceEventInfo info\ntest_msgs/Req[<=1] request\n"
-        f"test_msgs/Resp[<=1] response\n{SEPARATOR}{_INFO}{SEPARATOR}MSG: test_msgs/Req\n"
+        f"test_msgs/Resp[<=1] response\n{SEPARATOR}{EVENT_INFO}{SEPARATOR}MSG: test_msgs/Req\n"
         f"unique_identifier_msgs/UUID goal_id\n{SEPARATOR}{_UUID}{SEPARATOR}MSG: test_msgs/Resp\n"
         f"int8 status\ntest_msgs/Result result\n{SEPARATOR}MSG: test_msgs/Result\n"
         "int32[] sequence\n"
     ),
     "action_msgs/srv/CancelGoal_Event": (
         "service_msgs/ServiceEventInfo info\naction_msgs/Req[<=1] request\n"
-        f"action_msgs/Resp[<=1] response\n{SEPARATOR}{_INFO}{SEPARATOR}MSG: action_msgs/Req\n"
+        f"action_msgs/Resp[<=1] response\n{SEPARATOR}{EVENT_INFO}{SEPARATOR}MSG: action_msgs/Req\n"
         f"action_msgs/GoalInfo goal_info\n{SEPARATOR}{_GOAL_INFO}{SEPARATOR}"
         "MSG: action_msgs/Resp\nint8 return_code\naction_msgs/GoalInfo[] goals_canceling\n"
     ),

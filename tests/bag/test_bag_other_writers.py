@@ -20,6 +20,8 @@ from mcap.writer import CompressionType
 from mcap_ros2.decoder import DecoderFactory
 from mcap_ros2.writer import Writer as Ros2Writer
 from rolling_bags import (
+    EVENT_INFO,
+    SEPARATOR,
     RollingBag,
     action_definition,
     action_topics,
@@ -315,3 +317,29 @@ def test_bag_writer_keeps_one_schema_per_text(tmp_path: Path) -> None:
     )
     assert [r["data"] for r in echo_json(tmp_path / "out", "/v2")] == [{"value": 2.5, "count": 3}]
     assert [r["data"] for r in echo_json(tmp_path / "out", "/idl")] == [stamp]
+
+
+def test_kilted_srv_text_of_a_service_event(tmp_path: Path) -> None:
+    """Kilted's service-event schema: ``SRV: pkg/srv/Name`` before the ``.srv`` text."""
+    path = tmp_path / "srv.mcap"
+    bag = RollingBag(path)
+    text = f"{SEPARATOR}SRV: example_interfaces/srv/AddTwoInts\nint64 a\nint64 b\n---\nint64 sum\n"
+    oracle = (
+        "service_msgs/ServiceEventInfo info\nexample_interfaces/Req[<=1] request\n"
+        f"example_interfaces/Resp[<=1] response\n{SEPARATOR}{EVENT_INFO}{SEPARATOR}"
+        f"MSG: example_interfaces/Req\nint64 a\nint64 b\n{SEPARATOR}"
+        "MSG: example_interfaces/Resp\nint64 sum\n"
+    )
+    channel = bag.topic("/add/_service_event", "example_interfaces/srv/AddTwoInts_Event", text)
+    events = [(0, [{"a": 1, "b": 2}], []), (3, [], [{"sum": 3}])]  # REQUEST_SENT, RESPONSE_RECEIVED
+    for i, (kind, request, response) in enumerate(events):
+        info = {"event_type": kind, "stamp": {"sec": 1, "nanosec": i}, "client_gid": [1] * 16}
+        event = {"info": info | {"sequence_number": 1}, "request": request, "response": response}
+        bag.write(channel, 1000 + i, serialize("example_interfaces/srv/E", event, oracle))
+    bag.finish()
+    (call,) = echo_json(path, "/add")
+    assert (call["request"], call["response"], call["events"]) == (
+        {"a": 1, "b": 2},
+        {"sum": 3},
+        ["REQUEST_SENT", "RESPONSE_RECEIVED"],
+    )
