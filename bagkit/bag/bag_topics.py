@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import dataclasses
 
-from mcap.well_known import SchemaEncoding
-
-from bagkit.bag.definitions import canonical_type_name, message_definition, type_description_hash
+from bagkit.bag.definitions import (
+    canonical_type_name,
+    definition_encoding,
+    message_definition,
+    type_description_hash,
+)
 from bagkit.bag.errors import BagError, UnknownMessageTypeError
 from bagkit.bag.mcapio.records import Channel, Schema
 from bagkit.bag.messages import TopicInfo
@@ -45,6 +48,14 @@ class BagTopics:
             schema = _schema(len(self.schemas) + 1, topic.type, definition)
             self.schemas[topic.type] = schema
             records.append(schema)
+        elif definition is not None and schema.data != definition.encode("utf-8"):
+            # Another text of the type (a topic of another version): a schema of its own, keyed
+            # by type and text (the first text of a type is keyed by its name).
+            key = f"{topic.type}\n{definition}"
+            if key not in self.schemas:
+                self.schemas[key] = _schema(len(self.schemas) + 1, topic.type, definition)
+                records.append(self.schemas[key])
+            schema = self.schemas[key]
         metadata = {"offered_qos_profiles": topic.offered_qos_profiles}
         if topic.type_description_hash:
             metadata["topic_type_hash"] = topic.type_description_hash
@@ -107,5 +118,5 @@ def _schema(schema_id: int, type_name: str, definition: str | None) -> Schema:
     """The Schema record of a type; ``definition`` None reads it from the installed files."""
     text = message_definition(canonical_type_name(type_name)) if definition is None else definition
     return Schema(
-        id=schema_id, name=type_name, encoding=SchemaEncoding.ROS2, data=text.encode("utf-8")
+        id=schema_id, name=type_name, encoding=definition_encoding(text), data=text.encode("utf-8")
     )

@@ -42,6 +42,15 @@ PRIMITIVES = INTEGER_TYPES | {"float32", "float64", "string", "wstring"}
 _TYPE_TOKEN = re.compile(r"^([A-Za-z_][A-Za-z0-9_/]*)")
 
 
+def definition_encoding(text: str) -> str:
+    """The MCAP schema encoding of a stored definition text: ``ros2idl`` when its sections are
+    ``IDL:`` ones (the text opens with a separator line, then ``IDL: pkg/msg/Name``), else
+    ``ros2msg`` (rosbag2 Kilted's ``SRV:``/``ACTION:`` texts included)."""
+    lines = [line.strip() for line in text.lstrip().splitlines()[:2]]
+    is_idl = len(lines) == 2 and lines[0] == DEFINITION_SEPARATOR and lines[1].startswith("IDL:")
+    return "ros2idl" if is_idl else "ros2msg"
+
+
 def canonical_type_name(type_name: str) -> str:
     """Return ``pkg/msg/Name`` for ``pkg/Name`` (older writers) and leave other names alone."""
     parts = type_name.split("/")

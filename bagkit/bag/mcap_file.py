@@ -85,6 +85,7 @@ class McapFile:
         self.max_chunk_size = max_chunk_size
         self.topics: dict[str, TopicInfo] = {}
         self.definitions: dict[str, str] = {}
+        self.topic_definitions: dict[str, str] = {}
         self.topic_counts: dict[str, int] = {}
         self.start_ns = self.end_ns = 0
         self.problems: list[str] = []
@@ -119,8 +120,9 @@ class McapFile:
         self.start_ns = self.index.message_start_time
         self.end_ns = self.index.message_end_time
         chunks = self.index.chunk_indexes
+        with_messages = [c for c in chunks if c.message_start_time <= c.message_end_time]
         self._sorted_blocks = sorted(
-            [*chunks, *self.index.message_runs],
+            [*with_messages, *self.index.message_runs],
             key=lambda b: (b.message_start_time, extent(b)[0]),
         )
         self.compressed_size = sum(c.compressed_size for c in chunks)
@@ -143,8 +145,11 @@ class McapFile:
                     type_description_hash=channel.metadata.get("topic_type_hash", ""),
                 ),
             )
-            if schema is not None and type_name not in self.definitions:
-                self.definitions[type_name] = schema.data.decode("utf-8", errors="replace")
+            if schema is not None:
+                text = schema.data.decode("utf-8", errors="replace")
+                # One text per type; a topic whose schema holds another text keeps its own.
+                if self.definitions.setdefault(type_name, text) != text:
+                    self.topic_definitions.setdefault(channel.topic, text)
         self.topic_counts = dict.fromkeys(self.topics, 0)
         for channel_id, count in self.index.channel_message_counts.items():
             topic = self._channel_topics.get(channel_id)

@@ -111,6 +111,8 @@ class BagReader:
 
     Topics, counts and times come from the storage files (MCAP summaries when present, a salvage
     scan otherwise); ``metadata.yaml`` only fills in what the storage lacks (QoS, type hashes).
+    ``definitions`` and ``topic_definitions`` are those of :class:`~bagkit.bag.storage.StorageFile`
+    over all files (decode with ``MessageTypes.for_bag``: per topic where texts differ).
     Nothing is read before :meth:`open` (``with BagReader(path) as bag:`` opens it).
 
     Args:
@@ -140,6 +142,7 @@ class BagReader:
         self.storage = ""
         self.topics: dict[str, TopicInfo] = {}
         self.definitions: dict[str, str] = {}
+        self.topic_definitions: dict[str, str] = {}
         self.topic_counts: dict[str, int] = {}
         self.start_ns = 0
         self.end_ns = 0
@@ -207,6 +210,10 @@ class BagReader:
                 )
             for type_name, text in storage.definitions.items():
                 self.definitions.setdefault(type_name, text)
+            for name, topic in storage.topics.items():
+                own = storage.topic_definitions.get(name, storage.definitions.get(topic.type))
+                if own is not None and self.definitions.get(topic.type) != own:
+                    self.topic_definitions.setdefault(name, own)
         for name, topic in recorded.items():
             if name not in self.topics:
                 self.topics[name] = topic

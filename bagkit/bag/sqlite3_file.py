@@ -98,6 +98,7 @@ class Sqlite3File:
         self.path = path
         self.topics: dict[str, TopicInfo] = {}
         self.definitions: dict[str, str] = {}
+        self.topic_definitions: dict[str, str] = {}  # one text per type in message_definitions
         self.topic_counts: dict[str, int] = {}
         self.start_ns = self.end_ns = 0
         self.problems: list[str] = []

@@ -68,7 +68,14 @@ class StorageFile(Protocol):
     Attributes:
         path: the file.
         storage_identifier: rosbag2's name of the format (``mcap``, ``sqlite3``).
-        topics: by name; ``definitions``: ros2msg text by type name.
+        topics: by name.
+        definitions: the stored definition text (``ros2msg`` or ``ros2idl``, any form of
+            :mod:`bagkit.decode.stored`) by type name: the first schema's of each type.
+        topic_definitions: by topic, the text of a topic whose schema holds another text for
+            its type than ``definitions`` (two actions' ``action_msgs/msg/GoalStatusArray``,
+            a type changed between recordings); empty in the common case and for back-ends
+            that store one text per type (SQLite3). Decoders are looked up per topic, so each
+            schema's messages decode with its own text (``MessageTypes.for_bag``).
         topic_counts: messages per topic (every topic of ``topics``, 0 included).
         start_ns, end_ns: log times of the first and last message (0 without messages).
         problems: what could not be read, one line each, starting with the file's name.
@@ -82,6 +89,7 @@ class StorageFile(Protocol):
     storage_identifier: str
     topics: dict[str, TopicInfo]
     definitions: dict[str, str]
+    topic_definitions: dict[str, str]
     topic_counts: dict[str, int]
     start_ns: int
     end_ns: int

@@ -31,6 +31,10 @@ per call: client_gid, sequence_number, the events seen, request, response and la
 client's REQUEST_SENT to RESPONSE_RECEIVED where recorded, else the server's); -n, --start,
 --end and --where apply ('response.success == false or latency_s > 0.1').
 
+A recorded action (TOPIC = /action, its topics under /action/_action/) prints the messages of
+all its topics (feedback, status, the goal, result and cancel services' events) in log-time
+order, each under its own topic; -n, --start and --end apply.
+
 Examples:
 
   bagkit echo flight1 /imu/data -n 3
@@ -98,6 +102,7 @@ def echo(  # noqa: PLR0917 (typer maps parameters to options)
 ) -> None:
     from bagkit.bag import BagReader
     from bagkit.data.call_selection import CallSelection
+    from bagkit.data.echo import action_topics, echo_action
     from bagkit.data.echo import echo as read_messages
     from bagkit.data.services import echo_calls, names_service
     from bagkit.selection.errors import SelectionError
@@ -107,6 +112,12 @@ def echo(  # noqa: PLR0917 (typer maps parameters to options)
     try:
         with BagReader(bag, allow_empty=True) as reader:
             bag_start = reader.start_ns
+        if action_topics(bag, topic):
+            if fields or where:
+                raise SelectionError("--fields, --where: an action prints its topics' messages")
+            records = echo_action(bag, topic, start=start, end=end, limit=limit, on_failure=warn)
+            _write(itertools.islice(records, count), output, bag_start)
+            return
         if names_service(bag, topic):
             if fields:
                 raise SelectionError("--fields: a service prints whole calls (use --where)")

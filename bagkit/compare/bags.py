@@ -34,6 +34,7 @@ def iter_samples(
             decoded.
     """
     type_name = bag.topics[topic].type
+    types = types.for_topic(topic)
     try:
         decode = types.decoder(type_name)
         for msg in bag.messages(topics=[topic]):
@@ -136,8 +137,8 @@ def compare_bags(
             c_bag = stack.enter_context(BagReader(candidate, check_crc=check_crc))
         except BagkitError as exc:
             raise CompareError(str(exc)) from exc
-        golden_side = _Side(g_bag, MessageTypes.from_definitions(g_bag.definitions))
-        candidate_side = _Side(c_bag, MessageTypes.from_definitions(c_bag.definitions))
+        golden_side = _Side(g_bag, MessageTypes.for_bag(g_bag))
+        candidate_side = _Side(c_bag, MessageTypes.for_bag(c_bag))
         warnings: list[str] = []
         results: list[TopicResult] = []
         for topic in _topics(g_bag, c_bag, options, warnings):

@@ -165,6 +165,7 @@ class TopicColumns:
         bulk: bool = True,
         matcher: PayloadMatcher | None = None,
     ) -> None:
+        types = types.for_topic(topic)
         canonical = types.resolve(type_name)
         self.topic = topic
         self.matcher = matcher

@@ -7,6 +7,7 @@ line of ``mcap cat --json``; ``data`` is the message as nested dicts and lists, 
 
 from __future__ import annotations
 
+import heapq
 import json
 import warnings
 from collections.abc import Callable, Iterator, Sequence
@@ -24,11 +25,12 @@ from bagkit.data.errors import UndecodableTopicError
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
 from bagkit.decode.matcher import PayloadMatcher
 from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER
+from bagkit.selection.actions import action_part_topics
 from bagkit.selection.conditions import parse_condition
 from bagkit.selection.errors import EmptyWindowWarning
 from bagkit.selection.fields import select_fields
 from bagkit.selection.times import TimeLike
-from bagkit.selection.topics import require_topics
+from bagkit.selection.topics import absolute_topic_name, require_topics
 from bagkit.selection.windows import TimeRange, outside_warning
 
 Plain = dict[str, Any]
@@ -69,7 +71,7 @@ def echo(
     with BagReader(bag, allow_empty=True) as reader:
         (topic,) = require_topics([topic], reader.topics)
         info = reader.topics[topic]
-        types = MessageTypes.from_definitions(reader.definitions)
+        types = MessageTypes.for_bag(reader).for_topic(topic)
         try:
             if info.serialization_format != "cdr":
                 raise DecodeError(f"serialization format {info.serialization_format!r} is not CDR")
@@ -111,6 +113,40 @@ def echo(
             if on_failure is None:
                 raise DecodeError(matcher.problem)
             on_failure(matcher.problem)
+
+
+def action_topics(bag: str | Path, name: str) -> list[str]:
+    """The recorded topics of action ``name`` of ``bag`` when ``name`` is an action and not one
+    of its topics (``echo``'s choice), else ``[]``."""
+    with BagReader(bag, allow_empty=True) as reader:
+        if absolute_topic_name(name) in {absolute_topic_name(t) for t in reader.topics}:
+            return []
+        return action_part_topics(name, ((t, i.type) for t, i in reader.topics.items()))
+
+
+def echo_action(
+    bag: str | Path,
+    name: str,
+    *,
+    start: TimeLike | None = None,
+    end: TimeLike | None = None,
+    limit: int | None = None,
+    on_failure: Callable[[str], None] | None = None,
+) -> Iterator[Plain]:
+    """Yield the messages of every recorded topic of action ``name`` (feedback, status and its
+    services' events), each decoded with its own topic's definition, in log-time order.
+
+    Raises:
+        UnknownTopicError: ``name`` is no action of ``bag``; as :func:`echo` otherwise.
+    """
+    topics = action_topics(bag, name)
+    if not topics:
+        with BagReader(bag, allow_empty=True) as reader:
+            require_topics([name], reader.topics)  # raises: names the closest topics
+    streams = [
+        echo(bag, t, start=start, end=end, limit=limit, on_failure=on_failure) for t in topics
+    ]
+    yield from heapq.merge(*streams, key=lambda record: record["log_time"])
 
 
 def _converter(  # noqa: PLR0917 (private, called once)

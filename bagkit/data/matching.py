@@ -61,7 +61,7 @@ def match_topic(
     """
     (topic,) = require_topics([topic], reader.topics)
     window = window or Window()
-    types = MessageTypes.from_definitions(reader.definitions)
+    types = MessageTypes.for_bag(reader)
     try:
         matcher = PayloadMatcher(types, topic, reader.topics[topic].type, condition)
     except DecodeError as exc:
@@ -126,7 +126,7 @@ def where_filters(
     Raises:
         UnknownFieldError: no such topic (the message names the fields of the first one).
     """
-    types = MessageTypes.from_definitions(reader.definitions)
+    types = MessageTypes.for_bag(reader)
     matchers: dict[str, PayloadMatcher] = {}
     first_error: UnknownFieldError | None = None
     for name in sorted(reader.topics):

@@ -132,7 +132,7 @@ def plan_scan(
     """
     if topics is not None:
         topics = require_topics(topics, reader.topics)
-    types = MessageTypes.from_definitions(reader.definitions)
+    types = MessageTypes.for_bag(reader)
     window = span.resolve(reader.start_ns, reader.end_ns)
     outside = (
         outside_warning(label, window, reader.start_ns, reader.end_ns)
@@ -146,7 +146,8 @@ def plan_scan(
             scan.skipped[name] = f"serialization format {info.serialization_format!r} is not CDR"
             continue
         try:
-            leaves = leaf_fields(types.typestore, types.resolve(info.type))
+            own = types.for_topic(name)
+            leaves = leaf_fields(own.typestore, own.resolve(info.type))
         except DecodeError as exc:
             scan.skipped[name] = str(exc)
             continue

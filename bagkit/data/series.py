@@ -90,7 +90,7 @@ def load_series(
     per_spec: list[list[Series]] = [[] for _ in wanted]
     for label, path in zip(bag_labels(paths), paths, strict=True):
         with BagReader(path, allow_empty=True) as reader:
-            types = MessageTypes.from_definitions(reader.definitions)
+            types = MessageTypes.for_bag(reader)
             for found, (topic, field) in zip(per_spec, wanted, strict=True):
                 found.extend(
                     _topic_series(
@@ -136,13 +136,17 @@ def _topic_series(  # noqa: PLR0917 (private, called once)
         if absolute
         else (log_times[order] - reader.start_ns) / 1e9
     )
+    types = types.for_topic(topic)
     canonical = types.resolve(columns.type_name)
+    definitions = dict(reader.definitions)  # the units' comments: the topic's own text
+    if topic in reader.topic_definitions:
+        definitions[columns.type_name] = reader.topic_definitions[topic]
     return [
         Series(
             label,
             topic,
             leaf.path,
-            field_unit(types.typestore, canonical, leaf.path, reader.definitions),
+            field_unit(types.typestore, canonical, leaf.path, definitions),
             times,
             np.concatenate(
                 [b.column(leaf.path).to_numpy(zero_copy_only=False) for b in batches]

@@ -75,7 +75,7 @@ def read_events(reader: BagReader, types: MessageTypes, topic: str) -> Iterator[
         UndecodableTopicError: the event type cannot be decoded from the bag's definition.
     """
     try:
-        decode = types.decoder(reader.topics[topic].type)
+        decode = types.for_topic(topic).decoder(reader.topics[topic].type)
     except DecodeError as exc:
         raise UndecodableTopicError(f"{topic} cannot be decoded: {exc}") from None
     for message in reader.messages([topic]):
@@ -109,7 +109,7 @@ def call_latencies(bag: str | Path) -> dict[str, list[int]]:
 
 def _service_events(reader: BagReader) -> Iterator[tuple[str, str, list[ServiceEvent]]]:
     """(service, event topic, its events) of every service of an open bag that decodes."""
-    types = MessageTypes.from_definitions(reader.definitions)
+    types = MessageTypes.for_bag(reader)
     for service, topic in service_topics(reader).items():
         try:
             events = list(read_events(reader, types, topic))
@@ -136,8 +136,8 @@ def _service_calls(
         topic = find_service(reader, service)
         if topic is None:
             raise UndecodableTopicError(f"no service {absolute_topic_name(service)} in {bag}")
-        types = MessageTypes.from_definitions(reader.definitions)
-        keep = (selection or CallSelection()).resolve(reader, types, topic)
+        types = MessageTypes.for_bag(reader)
+        keep = (selection or CallSelection()).resolve(reader, types.for_topic(topic), topic)
         return topic, [c for c in pair_calls(read_events(reader, types, topic)) if keep(c)]
 
 

@@ -1,6 +1,8 @@
 """Decoding ROS 2 messages from the definitions stored in a bag, without a ROS install.
 
-- :class:`MessageTypes`: a rosbags typestore built from a bag's ros2msg definitions.
+- :class:`MessageTypes`: a rosbags typestore built from a bag's stored definitions (ros2msg,
+  ros2idl, rosbag2's SRV:/ACTION: texts: :mod:`bagkit.decode.stored`), per topic where a bag
+  holds several texts of one type.
 - :func:`flatten_message` / :func:`leaf_fields`: messages as ``{dotted path: value}``, and the
   same paths from the schema alone.
 - :mod:`bagkit.selection.fields`: the field-glob language (``[TOPIC_GLOB:]FIELD_GLOB``).

@@ -46,6 +46,7 @@ class PayloadMatcher:
         *,
         bulk: bool = True,
     ) -> None:
+        types = types.for_topic(topic)
         canonical = types.resolve(type_name)
         leaves = leaf_fields(types.typestore, canonical)
         paths = [leaf.path for leaf in leaves]

@@ -19,22 +19,24 @@ import dataclasses
 from collections import ChainMap
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rosbags.interfaces import Nodetype
 from rosbags.typesys import Stores, get_typestore
 from rosbags.typesys.base import normalize_fieldname
 from rosbags.typesys.store import Typestore
 
-from bagkit.bag.definitions import DEFINITION_SEPARATOR, canonical_type_name
+from bagkit.bag.definitions import canonical_type_name
 from bagkit.decode.cdr import has_wide_strings, payload_reader
 from bagkit.decode.direct import ValueReader, value_reader
 from bagkit.decode.errors import DecodeError, DefinitionError, SchemaError
 from bagkit.decode.flatten import FlatValue, field_getter
-from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER, TypeDef, parse_definition
+from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER, TypeDef
+from bagkit.decode.stored import parse_stored
 from bagkit.decode.typegraph import check_type_graph
 
-_SERVICE_EVENT_INFO = "service_msgs/msg/ServiceEventInfo"
+if TYPE_CHECKING:
+    from bagkit.bag.reader import BagReader
 
 
 @dataclass(slots=True)
@@ -44,18 +46,45 @@ class MessageTypes:
     Attributes:
         typestore: the rosbags typestore holding every type that parsed.
         problems: bag type name -> why it cannot be decoded.
+
+    Type names are looked up in one typestore; a topic whose schema holds another text for its
+    type has its own :class:`MessageTypes` (:meth:`for_topic`): decode a topic's messages with
+    ``types.for_topic(topic)``.
     """
 
     typestore: Typestore = field(default_factory=Typestore)
     problems: dict[str, str] = field(default_factory=dict)
+    # Topics whose schema holds another text for their type: (type, text), parsed on first use.
+    _topic_texts: dict[str, tuple[str, str]] = field(default_factory=dict)
+    _topic_types: dict[str, MessageTypes] = field(default_factory=dict)
 
     @classmethod
     def from_definitions(cls, definitions: Mapping[str, str]) -> MessageTypes:
-        """Parse ``definitions`` (bag type name -> ros2msg text) into a typestore."""
+        """Parse ``definitions`` (bag type name -> stored text) into a typestore."""
         types = cls()
         for name, text in definitions.items():
             types.add(name, text)
         return types
+
+    @classmethod
+    def for_bag(cls, bag: BagReader) -> MessageTypes:
+        """The types of an open bag: its ``definitions``, and for each topic of its
+        ``topic_definitions`` that topic's own text (see :meth:`for_topic`)."""
+        types = cls.from_definitions(bag.definitions)
+        for topic, text in bag.topic_definitions.items():
+            types._topic_texts[topic] = (bag.topics[topic].type, text)
+        return types
+
+    def for_topic(self, topic: str) -> MessageTypes:
+        """The types to decode ``topic`` with: its own schema's where its text differs from
+        the one stored first for its type (two schemas of one type name in a bag), else self."""
+        found = self._topic_types.get(topic)
+        if found is None:
+            if topic not in self._topic_texts:
+                return self
+            type_name, text = self._topic_texts[topic]
+            found = self._topic_types[topic] = MessageTypes.from_definitions({type_name: text})
+        return found
 
     def add(self, name: str, text: str) -> None:
         """Register one stored definition; a failure is recorded in ``problems``, not raised.
@@ -66,11 +95,7 @@ class MessageTypes:
         if canonical in self.typestore.fielddefs:
             return
         try:
-            if "/srv/" in canonical and canonical.endswith("_Event"):
-                parsed = _service_event_types(canonical, text)
-            else:
-                parsed = parse_definition(text, canonical)
-            self._register(parsed)
+            self._register(parse_stored(text, canonical))
         except DefinitionError as exc:
             self.problems[name] = f"definition of {name} cannot be parsed ({exc})"
         except KeyError as exc:
@@ -226,29 +251,3 @@ def _references(parsed: Mapping[str, Any]) -> list[str]:
         for _, desc in fields:
             visit(desc)
     return list(dict.fromkeys(found))
-
-
-def _service_event_types(event: str, text: str) -> dict[str, TypeDef]:
-    """Types of a ``pkg/srv/Name_Event`` from the ``.srv`` text that rosbag2 stores for it.
-
-    rosidl generates ``Name_Event`` as ``ServiceEventInfo info``, ``Name_Request[<=1] request``
-    and ``Name_Response[<=1] response``; bagkit's recorder stores that generated form (a
-    ``ros2msg`` definition like any other), rosbag2 the ``.srv`` text (a ``---`` line).
-    """
-    own_text = text.split(DEFINITION_SEPARATOR, 1)[0]
-    if not any(line.strip() == "---" for line in own_text.splitlines()):
-        return parse_definition(text, event)
-    base = event.removesuffix("_Event")
-    request_text, response_text = text.split("---", 1)
-    types: dict[str, TypeDef] = {}
-    for part, part_text in (("Request", request_text), ("Response", response_text)):
-        types.update(parse_definition(part_text, f"{base}_{part}"))
-    types[event] = (
-        [],
-        [
-            ("info", (Nodetype.NAME, _SERVICE_EVENT_INFO)),
-            ("request", (Nodetype.SEQUENCE, ((Nodetype.NAME, f"{base}_Request"), 1))),
-            ("response", (Nodetype.SEQUENCE, ((Nodetype.NAME, f"{base}_Response"), 1))),
-        ],
-    )
-    return types

@@ -1,7 +1,8 @@
 """ROS 2 ``.msg`` text parsed, as untrusted input, into rosbags' field definitions.
 
 The text rosbag2 stores for a type (its ``.msg`` followed by each dependency's after a line of
-``=`` and ``MSG: pkg/Type``) comes from the bag. It is parsed here by rosidl's rules into the
+``=`` and ``MSG: pkg/Type``, split by :mod:`bagkit.decode.stored`) comes from the bag. Each
+``.msg`` text is parsed here by rosidl's rules into the
 ``(constants, fields)`` pairs a rosbags typestore holds: every name is checked against an
 identifier pattern and every value converted to a Python number or string, so that whatever is
 later generated from a type (rosbags' serializers, bagkit's readers) is made of identifiers
@@ -35,7 +36,6 @@ _ALIASES = {
     "duration": "builtin_interfaces/msg/Duration",
 }
 _CONSTANT = re.compile(r"([^\s=]+)\s*=(.*)\Z")
-_HEADER = re.compile(r"MSG:\s*(\S+)\s*\Z")
 _INTEGER_RANGES = {
     f"{sign}int{bits}": (0, 2**bits - 1) if sign else (-(2 ** (bits - 1)), 2 ** (bits - 1) - 1)
     for sign in ("", "u")
@@ -46,36 +46,11 @@ TypeDef = tuple[list[tuple[str, str, Any]], list[tuple[str, Any]]]
 """rosbags' definition of one type: ``([(name, type, value)], [(name, field description)])``."""
 
 
-def parse_definition(text: str, name: str) -> dict[str, TypeDef]:
-    """The types that ``text`` defines: ``name`` first, then each ``MSG:`` section's.
-
-    Raises:
-        DefinitionError: a name, type or value that a ``.msg`` cannot hold.
-    """
-    typename = type_name(name)
-    sections = _sections(text)
-    types: dict[str, TypeDef] = {}
-    for index, section in enumerate(sections):
-        body = section
-        if index:
-            header = next((line for line in section if line.strip()), "")
-            match = _HEADER.match(header.strip())
-            if not match:
-                raise DefinitionError(f"a section starts with {header[:60]!r}, not 'MSG: pkg/Type'")
-            typename = type_name(match[1])
-            body = section[section.index(header) + 1 :]
-        parsed = parse_message(body, typename)
-        # Some writers repeat a dependency used twice: harmless when it is the same.
-        if types.setdefault(typename, parsed) != parsed:
-            raise DefinitionError(f"{typename} is defined twice, differently")
-    return types
-
-
 def parse_message(lines: list[str], typename: str) -> TypeDef:
     """One type's ``.msg`` lines as its definition (``typename`` as :func:`type_name` gives it).
 
     Raises:
-        DefinitionError: see :func:`parse_definition`.
+        DefinitionError: a name, type or value that a ``.msg`` cannot hold.
     """
     package = typename.split("/", maxsplit=1)[0]
     constants: list[tuple[str, str, Any]] = []
@@ -91,7 +66,7 @@ def parse_message(lines: list[str], typename: str) -> TypeDef:
             if not rest:
                 raise DefinitionError(f"{line!r} is not 'type name'")
             if constant := _CONSTANT.match(rest):
-                name, value = _identifier(constant[1], "constant"), constant[2].strip()
+                name, value = check_identifier(constant[1], "constant"), constant[2].strip()
                 base, bound = _string_bound(kind)
                 if base not in PRIMITIVES:
                     raise DefinitionError(f"a constant of type {kind!r}")
@@ -101,7 +76,7 @@ def parse_message(lines: list[str], typename: str) -> TypeDef:
                 desc = field_description(kind, package)
                 if default.strip():
                     _check_default(desc, default.strip())
-                fields.append((_identifier(name, "field"), desc))
+                fields.append((check_identifier(name, "field"), desc))
         except DefinitionError as exc:
             raise DefinitionError(f"{typename} line {number}: {exc}") from None
         # rosbags names a field ``class`` ``class_``: that must not be another member too.
@@ -127,7 +102,7 @@ def type_name(name: str, package: str | None = None) -> str:
         parts = [parts[0], "msg", parts[1]]
     if len(parts) != 3 or parts[1] not in _KINDS or not _PACKAGE.match(parts[0]):
         raise DefinitionError(f"{name[:80]!r} is not a message type name")
-    _identifier(parts[2], "type")
+    check_identifier(parts[2], "type")
     return "/".join(parts)
 
 
@@ -136,7 +111,7 @@ def field_description(kind: str, package: str) -> Any:
     ``int32[<=4]``, ``wstring[]``.
 
     Raises:
-        DefinitionError: see :func:`parse_definition`.
+        DefinitionError: see :func:`parse_message`.
     """
     element, count, bounded = kind, None, False
     if kind.endswith("]"):
@@ -181,17 +156,12 @@ def parse_value(base: str, text: str, bound: int = 0) -> bool | int | float | st
     return _string_value(text, bound)
 
 
-def _sections(text: str) -> list[list[str]]:
-    sections: list[list[str]] = [[]]
-    for line in text.splitlines():
-        if line.strip() and set(line.strip()) == {"="}:
-            sections.append([])
-        else:
-            sections[-1].append(line)
-    return sections
+def check_identifier(name: str, what: str) -> str:
+    """``name`` when it is an identifier (a message, field or constant name).
 
-
-def _identifier(name: str, what: str) -> str:
+    Raises:
+        DefinitionError: it is not.
+    """
     if not _IDENTIFIER.match(name):
         raise DefinitionError(f"{name[:80]!r} is not a {what} name")
     return name

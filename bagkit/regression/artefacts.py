@@ -73,8 +73,8 @@ def write_failure_artefacts(check: GoldenCheck, folder: Path) -> list[Path]:
     written[0].write_text(json.dumps(check.report.to_dict(), indent=2) + "\n")
     series: list[FieldSeries] = []
     with BagReader(check.spec.bag) as golden, BagReader(check.candidate) as candidate:
-        g_types = MessageTypes.from_definitions(golden.definitions)
-        c_types = MessageTypes.from_definitions(candidate.definitions)
+        g_types = MessageTypes.for_bag(golden)
+        c_types = MessageTypes.for_bag(candidate)
         t0 = golden.start_ns
         for topic in (t for t in check.report.topics if not t.passed):
             g_samples = _topic_samples(golden, g_types, topic.topic)

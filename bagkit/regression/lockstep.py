@@ -207,7 +207,8 @@ def run_lockstep(
             for t in [*copied, *output_topics]:
                 if t in reader.topics and t not in out.counts:
                     info = reader.topics[t]
-                    out.add_topic(info, reader.definitions.get(info.type))
+                    own = reader.topic_definitions.get(t, reader.definitions.get(info.type))
+                    out.add_topic(info, own)
             timers = _Timers(processors, out)
             answered = LockstepServices(reader, processors, services) if services else None
             done, start_ns, end_ns = _feed(reader, decoders, routes, copied, out, timers, answered)

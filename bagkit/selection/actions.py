@@ -45,3 +45,15 @@ def action_topic_part(name: str, types: Iterable[str] = ()) -> tuple[str, str] |
     if fits is None or not all(fits(t) for t in types):
         return None
     return action, part
+
+
+def action_part_topics(action: str, topic_types: Iterable[tuple[str, str]]) -> list[str]:
+    """The topics of ``(topic, type)`` pairs that are parts of ``action`` (``/fib``, with or
+    without its leading slash), sorted."""
+    wanted = "/" + action.strip("/")
+    found = []
+    for topic, type_name in topic_types:
+        part = action_topic_part("/" + topic.lstrip("/"), [type_name])
+        if part is not None and part[0] == wanted:
+            found.append(topic)
+    return sorted(found)

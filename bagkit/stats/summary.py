@@ -72,6 +72,7 @@ class SummaryRun:
                 bag summarized before ``bag``.
         """
         existing = self.accumulators.get(topic)
+        types = self.types.for_topic(topic)
         if existing is not None:
             if existing.type_name != type_name:
                 raise StatsError(
@@ -83,16 +84,16 @@ class SummaryRun:
                 self.problems.append(f"{bag}: messages on {topic} not read: {why}")
                 return None
             try:
-                canonical = self.types.resolve(type_name)
+                canonical = types.resolve(type_name)
             except DecodeError as exc:
                 self.problems.append(f"{bag}: messages on {topic} not read: {exc}")
                 return None
-            if tuple(leaf_fields(self.types.typestore, canonical)) != existing.signature:
+            if tuple(leaf_fields(types.typestore, canonical)) != existing.signature:
                 raise StatsError(
                     f"{type_name} of topic {topic} is defined differently in {bag} than in "
                     "the bags before it: summarize them separately"
                 )
-            existing.read_values = existing.value_reader(self.types)
+            existing.read_values = existing.value_reader(types)
             return existing
         if topic in self.skipped:
             return None
@@ -100,16 +101,16 @@ class SummaryRun:
             self.skipped[topic] = f"serialization format {encoding!r} is not CDR"
             return None
         try:
-            canonical = self.types.resolve(type_name)
+            canonical = types.resolve(type_name)
         except DecodeError as exc:
             self.skipped[topic] = str(exc)
             return None
-        signature = tuple(leaf_fields(self.types.typestore, canonical))
+        signature = tuple(leaf_fields(types.typestore, canonical))
         selected = self.fields.for_topic(topic)
         leaves = [leaf for leaf in signature if leaf.numeric and selected(leaf.path)]
-        layout = CdrLayout.of(self.types.typestore, canonical) if self.bulk else None
+        layout = CdrLayout.of(types.typestore, canonical) if self.bulk else None
         accumulator = TopicAccumulator(
-            topic, type_name, leaves, layout=layout, types=self.types, signature=signature
+            topic, type_name, leaves, layout=layout, types=types, signature=signature
         )
         self.accumulators[topic] = accumulator
         return accumulator
@@ -118,7 +119,7 @@ class SummaryRun:
         """Add the messages of ``reader`` on ``topics`` (all when None); ``label`` names the bag
         in problems as the user gave it."""
         # Each bag is decoded with its own definitions (pooled bags must agree on them).
-        self.types = MessageTypes.from_definitions(reader.definitions)
+        self.types = MessageTypes.for_bag(reader)
         # Times from the start or end count from this bag's own first or last message.
         self.window = self.span.resolve(reader.start_ns, reader.end_ns)
         if reader.message_count:

@@ -16,6 +16,7 @@ from pathlib import Path
 from bagkit.bag.definitions import canonical_type_name
 from bagkit.bag.errors import BagError, BagNotFoundError, NotABagError
 from bagkit.bag.mcapio import MAGIC, Source, read_file_index
+from bagkit.bag.mcapio.records import Schema
 from bagkit.bag.metadata import METADATA_FILENAME, BagMetadata, read_metadata
 from bagkit.decode import DecodeError, MessageTypes, SchemaError
 from bagkit.recording.loss_causes import large_message_cause
@@ -146,8 +147,9 @@ class _Decoders:
 
     def __init__(self, deep: bool) -> None:
         self.deep = deep
-        self.types = MessageTypes()
-        self.type_of: dict[str, str] = {}  # topic -> type
+        # Per schema (type name, text): two schemas of one type name each decode with their own.
+        self.types: dict[tuple[str, str], MessageTypes] = {}
+        self.type_of: dict[str, tuple[str, str]] = {}  # topic -> its schema
         self.failures: dict[str, tuple[int, int, str]] = {}  # topic -> (count, first time, why)
 
     def for_file(self, facts: FileFacts) -> Callable[[int, int, memoryview], None] | None:
@@ -180,7 +182,7 @@ class _Decoders:
         if schema is None:
             return channel.topic, None
         try:
-            return channel.topic, self.types.decoder(schema.name)
+            return channel.topic, self._types(schema).decoder(schema.name)
         except SchemaError:
             return channel.topic, None
 
@@ -189,14 +191,20 @@ class _Decoders:
             schema = facts.schemas.get(channel.schema_id)
             if schema is None:
                 continue
-            self.types.add(schema.name, schema.data.decode("utf-8", errors="replace"))
-            self.type_of[channel.topic] = schema.name
+            self._types(schema)
+            self.type_of[channel.topic] = _key(schema)
+
+    def _types(self, schema: Schema) -> MessageTypes:
+        key = _key(schema)
+        if key not in self.types:
+            self.types[key] = MessageTypes.from_definitions({key[0]: key[1]})
+        return self.types[key]
 
     def problems(self) -> list[str]:
         found = []
-        for topic, type_name in sorted(self.type_of.items()):
+        for topic, key in sorted(self.type_of.items()):
             try:
-                self.types.resolve(type_name)
+                self.types[key].resolve(key[0])
             except SchemaError as exc:
                 found.append(f"{topic}: {exc}")
         for topic, (count, first, why) in sorted(self.failures.items()):
@@ -204,6 +212,10 @@ class _Decoders:
                 f"{topic}: {count} messages do not decode (first at log time {first}: {why})"
             )
         return found
+
+
+def _key(schema: Schema) -> tuple[str, str]:
+    return schema.name, schema.data.decode("utf-8", errors="replace")
 
 
 def _check_file(file: Path, decoders: _Decoders, report: DoctorReport) -> FileFacts | None:

@@ -135,12 +135,15 @@ class FileCheck:
             self._problem(f"truncated at byte {cut_at}: a record of {cut_length} bytes is cut")
 
     def _record(self, pos: int, opcode: int, length: int) -> None:
+        if opcode == Opcode.MESSAGE:
+            self._loose_message(pos, length)
+            return
         if opcode in (Opcode.CHUNK, Opcode.MESSAGE_INDEX, Opcode.SCHEMA, Opcode.CHANNEL):
             if length > 2 * DEFAULT_MAX_CHUNK_SIZE:
                 raise CorruptBagError(f"{length} bytes, over the maximum size")
             content = memoryview(self.source.read(pos + RECORD_HEADER.size, length))
         else:
-            return  # loose messages, metadata, attachments: nothing to hold an index against
+            return  # metadata, attachments: nothing to hold an index against
         if opcode == Opcode.CHUNK:
             self._chunk(pos, length, content)
         elif opcode == Opcode.MESSAGE_INDEX:
@@ -215,6 +218,21 @@ class FileCheck:
                 ]
                 self.check_message(channel_id, log_time, payload)
 
+    def _loose_message(self, pos: int, length: int) -> None:
+        """A message outside chunks (an unchunked file): counted, its decoding checked."""
+        if length < MESSAGE_PREFIX.size or length > 2 * DEFAULT_MAX_CHUNK_SIZE:
+            raise CorruptBagError(f"a message record of {length} bytes")
+        record = memoryview(self.source.read(pos + RECORD_HEADER.size, length))
+        channel_id, _, log_time, _ = MESSAGE_PREFIX.unpack_from(record)
+        facts = self.facts
+        facts.counts[channel_id] = facts.counts.get(channel_id, 0) + 1
+        facts.start = log_time if facts.start is None else min(facts.start, log_time)
+        facts.end = max(facts.end, log_time)
+        self.out_of_order += log_time < self.last_time
+        self.last_time = log_time
+        if self.check_message is not None:
+            self.check_message(channel_id, log_time, record[MESSAGE_PREFIX.size :])
+
     def _message_index(self, pos: int, channel_id: int, entries: np.ndarray) -> None:
         if not self.chunks:
             self._problem(f"message index at byte {pos} follows no chunk")
@@ -237,9 +255,12 @@ class FileCheck:
     # -- comparisons ----------------------------------------------------------------------
 
     def _compare_summary(self, summary: FileIndex) -> None:
+        """Compare what the summary holds; Statistics and chunk indexes are optional records."""
         facts = self.facts
-        if summary.channel_message_counts != {c: n for c, n in facts.counts.items()} and (
-            {c: n for c, n in summary.channel_message_counts.items() if n} != facts.counts
+        if (
+            summary.complete
+            and summary.channel_message_counts != {c: n for c, n in facts.counts.items()}
+            and ({c: n for c, n in summary.channel_message_counts.items() if n} != facts.counts)
         ):
             self._problem(
                 f"statistics count {summary.message_count} messages "
@@ -252,9 +273,9 @@ class FileCheck:
         by_offset = {c.chunk_start_offset: c for c in summary.chunk_indexes}
         for chunk in self.chunks:
             index = by_offset.pop(chunk.offset, None)
-            if index is None:
+            if index is None and summary.chunk_indexes:
                 self._problem(f"chunk at byte {chunk.offset} has no chunk index")
-            elif not _agrees(index, chunk):
+            elif index is not None and not _agrees(index, chunk):
                 self._problem(
                     f"the chunk index of the chunk at byte {chunk.offset} disagrees with it"
                 )

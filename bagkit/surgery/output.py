@@ -12,9 +12,10 @@ import shutil
 from pathlib import Path
 
 import numpy as np
-from mcap.well_known import Profile, SchemaEncoding
+from mcap.well_known import Profile
 
 from bagkit.bag.bag_files import bag_metadata, compressor, file_information, finish_storage_file
+from bagkit.bag.definitions import definition_encoding
 from bagkit.bag.mcapio.chunk_builder import ChunkBuilder, ClosedChunk
 from bagkit.bag.mcapio.file_writer import McapFileWriter
 from bagkit.bag.mcapio.records import Channel, Header, Schema
@@ -93,7 +94,7 @@ class OutputBag:
         self._temp = path.parent / f".{path.name}.partial-{os.getpid()}"
         shutil.rmtree(self._temp, ignore_errors=True)
         self._temp.mkdir()
-        self.schemas: dict[str, Schema] = {}
+        self.schemas: dict[tuple[str, str], Schema] = {}
         self.channels: dict[str, Channel] = {}
         self.topics: dict[str, TopicInfo] = {}
         self.counts: dict[int, int] = {}
@@ -108,15 +109,16 @@ class OutputBag:
         channel = self.channels.get(topic.name)
         if channel is not None:
             return channel.id
-        schema = self.schemas.get(topic.type)
+        # One schema per text: two topics of one type name with different texts keep theirs.
+        schema = self.schemas.get((topic.type, definition))
         if schema is None:
             schema = Schema(
                 id=len(self.schemas) + 1,
                 name=topic.type,
-                encoding=SchemaEncoding.ROS2,
+                encoding=definition_encoding(definition),
                 data=definition.encode("utf-8"),
             )
-            self.schemas[topic.type] = schema
+            self.schemas[topic.type, definition] = schema
         used = {c.id for c in self.channels.values()}
         channel_id = preferred_id if 0 < preferred_id < 1 << 16 and preferred_id not in used else 0
         if not channel_id:

@@ -52,7 +52,21 @@ def definitions(rng: random.Random) -> dict[str, str]:
         "bare-separator": _with("float64 x", ("", "")),
         "many-fields": "\n".join(f"float64 f{i}" for i in range(10_000)),
         "non-ascii": "float64 caf\u00e9\nstring \u6e2c",
+        # Kilted+ forms (bagkit.decode.stored): IDL sections, SRV and ACTION texts.
+        "idl-unparsable": _idl("module fuzz_msgs { module msg { struct Node { double x;; }; }; };"),
+        "idl-other-type": _idl("module o { module msg { struct Other { double x; }; }; };"),
+        "idl-garbage": _idl(_garbage(rng)),
+        "idl-deep-modules": _idl("module m { " * 3000 + "struct Node { double x; };" + "};" * 3000),
+        "idl-huge": _idl("// padding\n" * 40_000 + "module fuzz_msgs { };"),
+        "action-missing-section": f"{SEPARATOR}\nACTION: fuzz_msgs/action/Node\nint32 a\n---\n",
+        "action-garbage": f"{SEPARATOR}\nACTION: fuzz_msgs/action/Node\n{_garbage(rng)}",
+        "srv-no-separator": f"{SEPARATOR}\nSRV: fuzz_msgs/srv/Node\nint32 a\n",
+        "unknown-header": f"{SEPARATOR}\nFOO: fuzz_msgs/msg/Node\nint32 a\n",
     }
+
+
+def _idl(body: str) -> str:
+    return f'{SEPARATOR}\nIDL: {NODE}\n#include "fuzz_msgs/msg/Other.idl"\n{body}'
 
 
 def _seq_payload(rng: random.Random) -> tuple[bytes, str]:

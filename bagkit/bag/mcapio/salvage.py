@@ -61,8 +61,15 @@ def read_file_index(
     except CorruptBagError as exc:
         index = None
         problem = f"{source.name}: summary unreadable ({exc}); the file was scanned instead"
-    if index is None:
+    if index is None or not index.complete:
+        summary = index  # one that does not index every message: scanned, and kept for topics
         index = _Scanner(source, header, check_crc, max_chunk_size).scan()
+        if summary is not None:
+            index.summary = True
+            for schema_id, schema in summary.schemas.items():
+                index.schemas.setdefault(schema_id, schema)
+            for channel_id, channel in summary.channels.items():
+                index.channels.setdefault(channel_id, channel)
         if problem:
             index.problems.insert(0, problem)
     index.chunk_indexes.sort(key=lambda c: (c.message_start_time, c.chunk_start_offset))

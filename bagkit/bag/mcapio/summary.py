@@ -14,10 +14,12 @@ from dataclasses import dataclass, field
 
 from bagkit.bag.errors import CorruptBagError, NotABagError
 from bagkit.bag.mcapio.chunks import MessageRun
+from bagkit.bag.mcapio.message_index import message_index_bytes
 from bagkit.bag.mcapio.records import (
     FOOTER_RECORD_SIZE,
     MAGIC,
     MAX_SECTION_SIZE,
+    MESSAGE_INDEX_ENTRY_SIZE,
     RECORD_HEADER,
     Channel,
     ChunkIndex,
@@ -45,7 +47,10 @@ class FileIndex:
     """What one MCAP file holds, from its summary or, when it has none, from a salvage scan.
 
     Attributes:
-        summary: True when the file's summary section was used (the file was closed cleanly).
+        summary: True when the file has a summary section (it was closed cleanly).
+        complete: True when the summary indexes every message (counts from its Statistics
+            record or from the Message Index records of its chunk indexes); a file whose summary
+            does not is scanned (:mod:`bagkit.bag.mcapio.salvage`), ``summary`` still True.
         channel_message_counts: messages per channel id.
         problems: what could not be read (empty for intact files).
     """
@@ -60,6 +65,7 @@ class FileIndex:
     message_end_time: int = 0
     metadata: list[Metadata] = field(default_factory=list)
     summary: bool = False
+    complete: bool = False
     problems: list[str] = field(default_factory=list)
 
     @property
@@ -113,7 +119,12 @@ def _summary_bounds(source: Source) -> tuple[int, int] | None:
 
 
 def read_summary(source: Source, header: Header) -> FileIndex | None:
-    """Build the index from the summary section; None when the file has no usable summary.
+    """Build the index from the summary section; None when the file has none (not closed).
+
+    Statistics, chunk indexes and message indexes are optional records: without Statistics
+    (some rosbags versions, mcap's writer with ``use_statistics=False``), counts come from the
+    Message Index records; a summary that cannot count every message (chunks without message
+    indexes, no chunk indexes, messages outside chunks) is returned with ``complete`` False.
 
     Raises:
         CorruptBagError: the summary section is damaged.
@@ -142,21 +153,55 @@ def read_summary(source: Source, header: Header) -> FileIndex | None:
             statistics = parse_statistics(content)
         elif opcode == Opcode.METADATA_INDEX:
             metadata_indexes.append(parse_metadata_index(content))
-    if statistics is None or (statistics.message_count and not index.chunk_indexes):
-        # Without statistics, or with messages outside chunks, the data section must be read.
-        return None
-    index.channel_message_counts = dict(statistics.channel_message_counts)
-    _keep_valid_chunk_indexes(index, source, summary_start)
-    # Chunk indexes before Statistics: the Go writer's statistics skip log_time 0.
-    if index.chunk_indexes:
-        index.message_start_time = min(c.message_start_time for c in index.chunk_indexes)
-        index.message_end_time = max(c.message_end_time for c in index.chunk_indexes)
-    else:
-        index.message_start_time = statistics.message_start_time
-        index.message_end_time = statistics.message_end_time
     for entry in metadata_indexes:
         _read_metadata(index, source, entry, summary_start)
+    if statistics is not None and statistics.message_count and not index.chunk_indexes:
+        return index  # messages outside chunks, or no chunk indexes: the data must be read
+    _keep_valid_chunk_indexes(index, source, summary_start)
+    if statistics is not None:
+        index.channel_message_counts = dict(statistics.channel_message_counts)
+    else:
+        counts = _indexed_counts(source, index.chunk_indexes)
+        if counts is None:
+            return index
+        index.channel_message_counts = counts
+    index.complete = True
+    # Chunk indexes before Statistics: the Go writer's statistics skip log_time 0.
+    with_messages = [c for c in index.chunk_indexes if not _empty(c)]
+    if with_messages:
+        index.message_start_time = min(c.message_start_time for c in with_messages)
+        index.message_end_time = max(c.message_end_time for c in with_messages)
+    elif statistics is not None and statistics.message_count:
+        index.message_start_time = statistics.message_start_time
+        index.message_end_time = statistics.message_end_time
     return index
+
+
+def _empty(chunk: ChunkIndex) -> bool:
+    """A chunk without messages (rosbags' writer closes an empty bag with one): its times are
+    the writer's initial values, its start after its end."""
+    return chunk.message_start_time > chunk.message_end_time and not chunk.message_index_offsets
+
+
+def _indexed_counts(source: Source, chunk_indexes: list[ChunkIndex]) -> dict[int, int] | None:
+    """Messages per channel from the Message Index records of the chunks; None when a chunk
+    with messages has none (or there are no chunk indexes: loose messages are possible).
+
+    Raises:
+        CorruptBagError: message indexes are not where a chunk index says.
+    """
+    if not chunk_indexes:
+        return None
+    counts: dict[int, int] = {}
+    for chunk in chunk_indexes:
+        if _empty(chunk):
+            continue
+        if not chunk.message_index_offsets:
+            return None
+        for channel_id, entries in message_index_bytes(source, chunk).items():
+            found = len(entries) // MESSAGE_INDEX_ENTRY_SIZE
+            counts[channel_id] = counts.get(channel_id, 0) + found
+    return counts
 
 
 def _keep_valid_chunk_indexes(index: FileIndex, source: Source, data_end: int) -> None:
@@ -169,7 +214,7 @@ def _keep_valid_chunk_indexes(index: FileIndex, source: Source, data_end: int) -
             what = "points outside the data section"
         elif start < covered:
             what = "overlaps the chunk before it"
-        elif chunk.message_start_time > chunk.message_end_time:
+        elif chunk.message_start_time > chunk.message_end_time and not _empty(chunk):
             what = "ends before it starts"
         else:
             kept.append(chunk)
