@@ -157,6 +157,12 @@ class Sqlite3File:
                 self._problem(f"message_definitions row of {type_name!r:.60} unusable")
             elif encoding == "ros2msg" and text:
                 self.definitions.setdefault(canonical_type_name(type_name), text)
+        # rosbag2 stores a service's ``.srv`` text under ``pkg/srv/Name``, not under the type
+        # of its event topic: the event type is rebuilt from it (bagkit.decode.message_types).
+        for topic in self.topics.values():
+            service = topic.type.removesuffix("_Event")
+            if "/srv/" in topic.type and service != topic.type and service in self.definitions:
+                self.definitions.setdefault(topic.type, self.definitions[service])
 
     def _read_counts(self, db: sqlite3.Connection) -> None:
         self.topic_counts = dict.fromkeys(self.topics, 0)
