@@ -4,10 +4,17 @@ from __future__ import annotations
 
 import heapq
 import re
+import shutil
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from types import TracebackType
 
+from bagkit.bag.compression import (
+    Decompression,
+    decompressed_copy,
+    is_zstd,
+    sniff_message_compression,
+)
 from bagkit.bag.errors import (
     BagError,
     BagNotFoundError,
@@ -24,7 +31,10 @@ from bagkit.bag.metadata import METADATA_FILENAME, BagMetadata, read_metadata
 from bagkit.bag.storage import SQLITE_MAGIC, BagChunk, StorageFile
 
 STORAGE_SUFFIXES = (".mcap", ".db3")
+# rosbag2's file compression names the compressed files so.
+COMPRESSED_STORAGE_SUFFIXES = (".mcap.zstd", ".db3.zstd")
 SUPPORTED_STORAGE = ("mcap", "sqlite3")
+SUPPORTED_COMPRESSION = ("zstd",)
 
 
 def _natural_key(path: Path) -> list[int | str]:
@@ -37,6 +47,10 @@ def _listed_file(bag_dir: Path, name: str) -> Path:
     if not path.exists() and (bag_dir / Path(name).name).exists():
         return bag_dir / Path(name).name
     return path
+
+
+def _is_storage_name(name: str) -> bool:
+    return name.endswith(STORAGE_SUFFIXES + COMPRESSED_STORAGE_SUFFIXES)
 
 
 def _resolve_files(path: Path) -> tuple[Path, list[Path], BagMetadata | None]:
@@ -54,7 +68,7 @@ def _resolve_files(path: Path) -> tuple[Path, list[Path], BagMetadata | None]:
                 f"{path}: storage {metadata.storage_identifier!r} is not supported "
                 f"(only {', '.join(SUPPORTED_STORAGE)})"
             )
-        if metadata.compression_format:
+        if metadata.compression_format not in ("", *SUPPORTED_COMPRESSION):
             raise UnsupportedStorageError(
                 f"{path}: rosbag2 {metadata.compression_mode or 'file'} compression "
                 f"{metadata.compression_format!r} is not supported"
@@ -65,7 +79,7 @@ def _resolve_files(path: Path) -> tuple[Path, list[Path], BagMetadata | None]:
             return path, existing, metadata
         # Listed files gone (renamed bag, converted storage): fall back to what is there.
     found = sorted(
-        (p for p in path.iterdir() if p.suffix in STORAGE_SUFFIXES and p.is_file()),
+        (p for p in path.iterdir() if _is_storage_name(p.name) and p.is_file()),
         key=_natural_key,
     )
     if not found:
@@ -79,30 +93,64 @@ def _resolve_files(path: Path) -> tuple[Path, list[Path], BagMetadata | None]:
 
 
 def open_storage_file(
-    path: Path, *, check_crc: bool = True, max_chunk_size: int = DEFAULT_MAX_CHUNK_SIZE
+    path: Path,
+    *,
+    check_crc: bool = True,
+    max_chunk_size: int = DEFAULT_MAX_CHUNK_SIZE,
+    compression_mode: str | None = None,
 ) -> StorageFile:
-    """Open one storage file, its back-end chosen by its content (MCAP or SQLite3 magic).
+    """Open one storage file, its back-end chosen by its content (MCAP or SQLite3 magic),
+    through the compression layer (:mod:`bagkit.bag.compression`) where it is compressed.
+
+    Args:
+        path: the file.
+        check_crc, max_chunk_size: see :class:`BagReader`.
+        compression_mode: ``metadata.yaml``'s (``message`` decompresses each payload); None
+            without metadata.yaml: a SQLite3 file's payloads tell.
 
     Raises:
-        NotABagError: neither MCAP nor SQLite3; and what the back-end's ``open()`` raises.
+        NotABagError: neither MCAP nor SQLite3 (once decompressed); and what the back-end's
+            ``open()`` raises.
     """
     with open(path, "rb") as f:
         head = f.read(len(SQLITE_MAGIC))
-    storage: StorageFile
-    if head.startswith(MAGIC):
-        storage = McapFile(path, check_crc=check_crc, max_chunk_size=max_chunk_size)
-    elif head == SQLITE_MAGIC:
-        from bagkit.bag.sqlite3_file import Sqlite3File
-
-        storage = Sqlite3File(path)
-    else:
-        raise NotABagError(f"{path}: neither an MCAP nor a SQLite3 file")
+    source, temporary = path, None
+    if is_zstd(head):
+        source = decompressed_copy(path)
+        temporary = source.parent
+        with open(source, "rb") as f:
+            head = f.read(len(SQLITE_MAGIC))
+    storage: StorageFile | None = None
     try:
+        if head.startswith(MAGIC):
+            storage = McapFile(source, check_crc=check_crc, max_chunk_size=max_chunk_size)
+        elif head == SQLITE_MAGIC:
+            from bagkit.bag.sqlite3_file import Sqlite3File
+
+            storage = Sqlite3File(source)
+        else:
+            raise NotABagError(f"{path}: neither an MCAP nor a SQLite3 file")
         storage.open()
-    except BaseException:
-        storage.close()
+        # Sniffing reads a message per topic: cheap in SQLite3, a chunk per topic in MCAP,
+        # whose rosbag2 writer keeps the compression mode in the file's own metadata record.
+        payloads = compression_mode == "message" or (
+            compression_mode is None
+            and storage.storage_identifier == "sqlite3"
+            and sniff_message_compression(storage)
+        )
+        if temporary is None and not payloads:
+            return storage
+        return Decompression(
+            storage, path, payloads=payloads, limit=max_chunk_size, temporary=temporary
+        )
+    except BaseException as exc:
+        if storage is not None:
+            storage.close()
+        if temporary is not None:
+            shutil.rmtree(temporary, ignore_errors=True)
+            if isinstance(exc, BagError):  # name the bag's file, not the temporary copy
+                raise type(exc)(str(exc).replace(str(source), str(path))) from None
         raise
-    return storage
 
 
 class BagReader:
@@ -183,7 +231,10 @@ class BagReader:
             try:
                 self._storage.append(
                     open_storage_file(
-                        file, check_crc=self.check_crc, max_chunk_size=self.max_chunk_size
+                        file,
+                        check_crc=self.check_crc,
+                        max_chunk_size=self.max_chunk_size,
+                        compression_mode=self.metadata.compression_mode if self.metadata else None,
                     )
                 )
             except (NotABagError, CorruptBagError) as exc:
@@ -309,10 +360,10 @@ class BagReader:
         return found
 
     def chunks(self, topics: Iterable[str] | None = None) -> Iterator[BagChunk]:
-        """Yield the decompressed MCAP chunks holding ``topics``, file by file, in file order.
+        """Yield the decompressed chunks holding ``topics``, file by file, in file order.
 
         For bulk decoding: each :class:`BagChunk` carries the message-index entries per topic.
-        SQLite3 files have no chunks and yield none.
+        SQLite3 files yield their rows laid out as chunks, in log-time order.
         """
         self._check_open()
         wanted = set(topics) if topics is not None else None

@@ -8,13 +8,14 @@ The back-ends, side by side: :mod:`bagkit.bag.mcap_file` (MCAP) and
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 from bagkit.bag.mcapio.chunks import payload_spans
 from bagkit.bag.mcapio.message_index import Span
+from bagkit.bag.mcapio.records import MESSAGE_PREFIX, MESSAGE_RECORD_HEADER, Opcode
 from bagkit.bag.messages import BagMessage, TopicInfo
 
 if TYPE_CHECKING:
@@ -116,3 +117,49 @@ class StorageFile(Protocol):
         Where no index tells (salvaged chunks without Message Index records), the bounds of
         the chunks that may hold the topic.
         """
+
+
+PayloadFilter = Callable[[str, bytes], "bytes | None"]
+"""``(topic, payload)`` -> the payload to use, or None to leave the message out."""
+
+
+@runtime_checkable
+class FiltersPayloads(Protocol):
+    """A back-end that passes each payload through ``payload_filter`` as it reads it (the
+    compression layer's decompression, before payloads are laid out in chunks)."""
+
+    payload_filter: PayloadFilter | None
+
+
+def chunk_of_rows(
+    file: Path, rows: Sequence[tuple[str, int, bytes]], payload_filter: PayloadFilter | None
+) -> BagChunk:
+    """``(topic, log_time, payload)`` rows laid out as MCAP Message records in one chunk (log
+    time as publish time, channel ids and sequences 0), for the bulk decoders of a storage
+    without chunks; a row whose payload the filter refuses is left out."""
+    import numpy as np
+
+    from bagkit.bag.mcapio.records import message_index_dtype
+
+    pack, prefix = MESSAGE_RECORD_HEADER.pack, MESSAGE_PREFIX.size
+    header = MESSAGE_RECORD_HEADER.size
+    opcode = int(Opcode.MESSAGE)
+    parts: list[bytes] = []
+    index: dict[str, list[int]] = {}
+    offset = 0
+    for topic, log_time, payload in rows:
+        data = payload if payload_filter is None else payload_filter(topic, payload)
+        if data is None:
+            continue
+        entries = index.get(topic)
+        if entries is None:
+            entries = index[topic] = []
+        entries += (log_time, offset)
+        parts += (pack(opcode, prefix + len(data), 0, 0, log_time, log_time), data)
+        offset += header + len(data)
+    dtype = message_index_dtype()
+    return BagChunk(
+        file,
+        b"".join(parts),
+        {t: np.array(e, dtype=np.uint64).view(dtype).reshape(-1) for t, e in index.items()},
+    )
