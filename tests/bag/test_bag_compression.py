@@ -182,3 +182,24 @@ def test_a_truncated_db3(tmp_path: Path) -> None:
     assert "Traceback" not in proc.stderr
     assert proc.returncode in (0, 2)
     assert proc.stderr.strip().splitlines()[0].startswith(("error:", "warning:"))
+
+
+def _garbage_bag(path: Path, good: bool) -> Path:
+    string = STORE.types["std_msgs/msg/String"]
+    with Writer(path, version=9) as writer:
+        text = writer.add_connection("/text", "std_msgs/msg/String", typestore=STORE)
+        for i in range(5):  # a string length past the payload's end
+            writer.write(text, T0 + i, b"\x00\x01\x00\x00\xff\xff\x00\x00")
+        if good:
+            data = STORE.serialize_cdr(string(data="ok"), "std_msgs/msg/String")
+            writer.write(text, T0 + 9, bytes(data))
+    return path
+
+
+def test_echo_fails_when_no_message_of_the_topic_decodes(tmp_path: Path) -> None:
+    proc = _run("echo", _garbage_bag(tmp_path / "some", good=True), "/text", "--format", "json")
+    assert proc.returncode == 0 and proc.stdout.count("\n") == 1
+    assert proc.stderr.count("\n") == 1 and "5 messages of /text do not decode" in proc.stderr
+    proc = _run("echo", _garbage_bag(tmp_path / "none", good=False), "/text")
+    _one_error_line(proc, "none of the 5 messages of /text decode")
+    assert proc.stdout == ""
