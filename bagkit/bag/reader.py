@@ -15,6 +15,7 @@ from bagkit.bag.compression import (
     is_zstd,
     sniff_message_compression,
 )
+from bagkit.bag.distro_definitions import distro_definitions
 from bagkit.bag.errors import (
     BagError,
     BagNotFoundError,
@@ -168,6 +169,8 @@ class BagReader:
             then reported lost in ``problems`` instead of being decoded.
         max_chunk_size: the largest uncompressed MCAP chunk read; a chunk declaring more is a
             problem (its messages lost), so memory stays bounded whatever a file declares.
+        distro: the ROS 2 distribution whose types define what the bag stores no definition
+            of (default: ``BAGKIT_DISTRO``, else the bag's ``ros_distro``, else Jazzy).
     """
 
     def __init__(
@@ -177,6 +180,7 @@ class BagReader:
         allow_empty: bool = False,
         check_crc: bool = True,
         max_chunk_size: int = DEFAULT_MAX_CHUNK_SIZE,
+        distro: str | None = None,
     ) -> None:
         self.path = Path(path)
         self.directory = self.path
@@ -187,7 +191,9 @@ class BagReader:
         self.metadata: BagMetadata | None = None
         self.storage = ""
         self.topics: dict[str, TopicInfo] = {}
-        self.definitions: dict[str, str] = {}
+        self.distro = distro
+        self._definitions: dict[str, str] = {}
+        self._completed = False
         self.topic_counts: dict[str, int] = {}
         self.start_ns = 0
         self.end_ns = 0
@@ -257,7 +263,7 @@ class BagReader:
                     self.topic_counts.get(name, 0) + storage.topic_counts[name]
                 )
             for type_name, text in storage.definitions.items():
-                self.definitions.setdefault(type_name, text)
+                self._definitions.setdefault(type_name, text)
         for name, topic in recorded.items():
             if name not in self.topics:
                 self.topics[name] = topic
@@ -265,6 +271,18 @@ class BagReader:
         with_messages = [s for s in self._storage if any(s.topic_counts.values())]
         self.start_ns = min((s.start_ns for s in with_messages), default=0)
         self.end_ns = max((s.end_ns for s in with_messages), default=0)
+
+    @property
+    def definitions(self) -> dict[str, str]:
+        """``ros2msg`` text by type name: as stored, then for the types the bag stores none of
+        (Foxy to Humble ``.db3``), its distribution's (see :mod:`bagkit.bag.distro_definitions`,
+        asked for on first use: it may warn)."""
+        if self._opened and not self._completed:
+            self._completed = True
+            missing = {t.type for t in self.topics.values()} - set(self._definitions)
+            distro = self.metadata.ros_distro if self.metadata else ""
+            self._definitions.update(distro_definitions(missing, distro, self.distro))
+        return self._definitions
 
     def __enter__(self) -> BagReader:
         return self.open()

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from bagkit.cli.common import EXIT_INTERRUPTED, fail, handle_errors, split_list, warn
-from bagkit.cli.selection_options import End, Start, Where
+from bagkit.cli.selection_options import Distro, End, Start, Where
 from bagkit.compat import StrEnum
 
 if TYPE_CHECKING:
@@ -95,6 +95,7 @@ def echo(  # noqa: PLR0917 (typer maps parameters to options)
     output: Format = EchoFormat.YAML,
     full_length: FullLength = False,
     where: Where = None,
+    distro: Distro = None,
 ) -> None:
     from bagkit.bag import BagReader
     from bagkit.data.call_selection import CallSelection
