@@ -50,7 +50,8 @@ def _listed_file(bag_dir: Path, name: str) -> Path:
     return path
 
 
-def _is_storage_name(name: str) -> bool:
+def is_storage_name(name: str) -> bool:
+    """True for the name of a storage file (``.mcap``, ``.db3``, and those zstd-compressed)."""
     return name.endswith(STORAGE_SUFFIXES + COMPRESSED_STORAGE_SUFFIXES)
 
 
@@ -80,7 +81,7 @@ def _resolve_files(path: Path) -> tuple[Path, list[Path], BagMetadata | None]:
             return path, existing, metadata
         # Listed files gone (renamed bag, converted storage): fall back to what is there.
     found = sorted(
-        (p for p in path.iterdir() if _is_storage_name(p.name) and p.is_file()),
+        (p for p in path.iterdir() if is_storage_name(p.name) and p.is_file()),
         key=_natural_key,
     )
     if not found:
