@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import shutil
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import BinaryIO
 
@@ -102,7 +102,7 @@ class PayloadDecompressor:
     def __call__(self, topic: str, data: bytes | memoryview) -> bytes | None:
         """The payload decompressed (a payload not framed as zstd as it is), or None when the
         frame does not decompress within the bound (counted in ``failures``)."""
-        if bytes(data[:4]) != ZSTD_MAGIC:
+        if data[:4] != ZSTD_MAGIC:
             return bytes(data)
         try:
             declared = zstandard.frame_content_size(data)
@@ -113,6 +113,17 @@ class PayloadDecompressor:
             count, first = self.failures.get(topic, (0, str(exc)))
             self.failures[topic] = (count + 1, first)
             return None
+
+    def many(self, payloads: list[bytes], topic_of: Callable[[int], str]) -> list[bytes | None]:
+        """Each of ``payloads`` as :meth:`__call__` gives it; all at once when every one is a
+        frame that declares its size within the bound (rosbag2's and rosbags' frames do)."""
+        try:
+            sizes = list(map(zstandard.frame_content_size, payloads))
+            if min(sizes, default=0) >= 0 and max(sizes, default=0) <= self.limit:
+                return list(map(self._decompress, payloads))
+        except zstandard.ZstdError:
+            pass  # not all frames, or a broken one: each on its own, to count which
+        return [self(topic_of(i), payload) for i, payload in enumerate(payloads)]
 
     def problems(self, file: Path) -> list[str]:
         """One line per topic with payloads that did not decompress."""

@@ -207,8 +207,8 @@ class Sqlite3File:
     def chunks(self, topics: set[str] | None) -> Iterator[BagChunk]:
         """The rows of ``topics`` in timestamp order (ties by row id), laid out as chunks of
         :data:`ROWS_PER_CHUNK` MCAP Message records."""
-        for rows in self._rows(topics, None, None, ROWS_PER_CHUNK):
-            yield chunk_of_rows(self.path, rows, self.payload_filter)
+        for topics_of, log_times, payloads in self._rows(topics, None, None, ROWS_PER_CHUNK):
+            yield chunk_of_rows(self.path, topics_of, log_times, payloads)
 
     def last_messages(self, topics: set[str], before_ns: int) -> dict[str, BagMessage]:
         """The last valid row with ``timestamp < before_ns`` of each of ``topics`` that has one
@@ -233,7 +233,9 @@ class Sqlite3File:
                 continue
             if row is None:
                 continue
-            data = row[1] if self.payload_filter is None else self.payload_filter(topic, row[1])
+            data = row[1]
+            if self.payload_filter is not None:
+                (data,) = self.payload_filter.many([data], [topic].__getitem__)
             if data is not None:
                 found[topic] = make_message(topic, data, row[0], row[0], 0)
         return found
@@ -242,18 +244,16 @@ class Sqlite3File:
         self, topics: set[str] | None, start_ns: int | None, end_ns: int | None
     ) -> Iterator[BagMessage]:
         """Yield the valid rows in timestamp order (ties by row id)."""
-        payload_filter = self.payload_filter
-        for rows in self._rows(topics, start_ns, end_ns, 1024):
-            for topic, timestamp, stored in rows:
-                data = stored if payload_filter is None else payload_filter(topic, stored)
+        for topics_of, log_times, payloads in self._rows(topics, start_ns, end_ns, 1024):
+            for topic, timestamp, data in zip(topics_of, log_times, payloads, strict=True):
                 if data is not None:
                     yield make_message(topic, data, timestamp, timestamp, 0)
 
     def _rows(
         self, topics: set[str] | None, start_ns: int | None, end_ns: int | None, batch: int
-    ) -> Iterator[list[tuple[str, int, bytes]]]:
-        """The valid rows ``(topic, timestamp, data)`` in timestamp order, ``batch`` at a time;
-        damage ends them with a problem."""
+    ) -> Iterator[tuple[list[str], list[int], list[bytes | None]]]:
+        """The valid rows in timestamp order, ``batch`` at a time, as (topics, timestamps,
+        payloads passed through ``payload_filter``); damage ends them with a problem."""
         wanted = [i for i, t in self._topic_ids.items() if topics is None or t in topics]
         if not wanted or self._db is None:
             return
@@ -270,7 +270,12 @@ class Sqlite3File:
             cursor = self._db.execute(query, (*wanted, lower, upper))
             while rows := cursor.fetchmany(batch):
                 read += len(rows)
-                yield [(names[topic_id], timestamp, data) for topic_id, timestamp, data in rows]
+                ids, log_times, stored = zip(*rows, strict=True)
+                topics_of = list(map(names.__getitem__, ids))
+                payloads: list[bytes | None] = list(stored)
+                if self.payload_filter is not None:
+                    payloads = self.payload_filter.many(list(stored), topics_of.__getitem__)
+                yield topics_of, list(log_times), payloads
         except sqlite3.Error as exc:
             problem = f"{self.path.name}: unreadable after {read} messages ({exc})"
             if problem not in self.problems:  # each read of a damaged file meets it again

@@ -119,47 +119,67 @@ class StorageFile(Protocol):
         """
 
 
-PayloadFilter = Callable[[str, bytes], "bytes | None"]
-"""``(topic, payload)`` -> the payload to use, or None to leave the message out."""
+class PayloadFilter(Protocol):
+    """What a back-end passes its payloads through (the compression layer's decompression)."""
+
+    def many(self, payloads: list[bytes], topic_of: Callable[[int], str]) -> list[bytes | None]:
+        """Each payload to use, or None to leave its message out (``topic_of(i)``: the topic
+        of payload ``i``, for the problems)."""
 
 
 @runtime_checkable
 class FiltersPayloads(Protocol):
-    """A back-end that passes each payload through ``payload_filter`` as it reads it (the
-    compression layer's decompression, before payloads are laid out in chunks)."""
+    """A back-end that passes its payloads through ``payload_filter`` as it reads them (before
+    they are laid out in chunks: no chunk is laid out twice)."""
 
     payload_filter: PayloadFilter | None
 
 
 def chunk_of_rows(
-    file: Path, rows: Sequence[tuple[str, int, bytes]], payload_filter: PayloadFilter | None
+    file: Path, topics: Sequence[str], log_times: Sequence[int], payloads: Sequence[bytes | None]
 ) -> BagChunk:
-    """``(topic, log_time, payload)`` rows laid out as MCAP Message records in one chunk (log
-    time as publish time, channel ids and sequences 0), for the bulk decoders of a storage
-    without chunks; a row whose payload the filter refuses is left out."""
+    """Messages laid out as MCAP Message records in one chunk (log time as publish time,
+    channel ids and sequences 0), for the bulk decoders of a storage without chunks; a
+    message whose payload is None is left out."""
     import numpy as np
 
     from bagkit.bag.mcapio.records import message_index_dtype
 
-    pack, prefix = MESSAGE_RECORD_HEADER.pack, MESSAGE_PREFIX.size
-    header = MESSAGE_RECORD_HEADER.size
-    opcode = int(Opcode.MESSAGE)
-    parts: list[bytes] = []
-    index: dict[str, list[int]] = {}
-    offset = 0
-    for topic, log_time, payload in rows:
-        data = payload if payload_filter is None else payload_filter(topic, payload)
-        if data is None:
-            continue
-        entries = index.get(topic)
-        if entries is None:
-            entries = index[topic] = []
-        entries += (log_time, offset)
-        parts += (pack(opcode, prefix + len(data), 0, 0, log_time, log_time), data)
-        offset += header + len(data)
-    dtype = message_index_dtype()
-    return BagChunk(
-        file,
-        b"".join(parts),
-        {t: np.array(e, dtype=np.uint64).view(dtype).reshape(-1) for t, e in index.items()},
-    )
+    keep = [i for i, payload in enumerate(payloads) if payload is not None]
+    if len(keep) < len(payloads):
+        topics = [topics[i] for i in keep]
+        log_times = [log_times[i] for i in keep]
+        payloads = [payloads[i] for i in keep]
+    count = len(payloads)
+    lengths = np.fromiter(map(len, payloads), np.int64, count)  # type: ignore[arg-type]
+    headers = np.zeros(count, _RECORD_HEADER_DTYPE)
+    headers["opcode"] = Opcode.MESSAGE
+    headers["length"] = lengths + MESSAGE_PREFIX.size
+    headers["log_time"] = headers["publish_time"] = log_times
+    size = MESSAGE_RECORD_HEADER.size
+    raw = memoryview(headers.tobytes())
+    parts: list[object] = [None] * (2 * count)
+    parts[0::2] = [raw[i : i + size] for i in range(0, count * size, size)]
+    parts[1::2] = payloads
+    offsets = np.zeros(count, np.uint64)
+    np.cumsum(lengths[:-1] + size, out=offsets[1:])
+    names = np.array(topics, dtype=object)
+    index = {}
+    for topic in dict.fromkeys(topics):
+        mine = names == topic
+        entries = np.empty(int(mine.sum()), message_index_dtype())
+        entries["log_time"] = np.asarray(log_times, np.int64)[mine]
+        entries["offset"] = offsets[mine]
+        index[topic] = entries
+    return BagChunk(file, b"".join(parts), index)  # type: ignore[arg-type]
+
+
+# A Message record's header (opcode, length, then the Message prefix), as numpy lays it out.
+_RECORD_HEADER_DTYPE = [
+    ("opcode", "u1"),
+    ("length", "<u8"),
+    ("channel_id", "<u2"),
+    ("sequence", "<u4"),
+    ("log_time", "<u8"),
+    ("publish_time", "<u8"),
+]
