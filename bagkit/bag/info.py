@@ -67,9 +67,10 @@ def bag_info(path: str | Path, *, check_crc: bool = True) -> BagInfo:
     ``check_crc``: check the CRC of the chunks a salvage scan opens (see ``BagReader``).
 
     Raises:
-        BagError: the path is missing, not a bag, empty, or in a foreign storage format.
+        BagError: the path is missing, not a bag, or in a foreign storage format (a bag
+            without messages is described, its topics with count 0, as ``ros2 bag info`` does).
     """
-    with BagReader(path, check_crc=check_crc) as bag:
+    with BagReader(path, check_crc=check_crc, allow_empty=True) as bag:
         duration_s = (bag.end_ns - bag.start_ns) / 1e9
         spans = bag.topic_spans()
         topics = [

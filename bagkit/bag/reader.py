@@ -4,10 +4,18 @@ from __future__ import annotations
 
 import heapq
 import re
+import shutil
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from types import TracebackType
 
+from bagkit.bag.compression import (
+    Decompression,
+    decompressed_copy,
+    is_zstd,
+    sniff_message_compression,
+)
+from bagkit.bag.distro_definitions import distro_definitions
 from bagkit.bag.errors import (
     BagError,
     BagNotFoundError,
@@ -24,7 +32,10 @@ from bagkit.bag.metadata import METADATA_FILENAME, BagMetadata, read_metadata
 from bagkit.bag.storage import SQLITE_MAGIC, BagChunk, StorageFile
 
 STORAGE_SUFFIXES = (".mcap", ".db3")
+# rosbag2's file compression names the compressed files so.
+COMPRESSED_STORAGE_SUFFIXES = (".mcap.zstd", ".db3.zstd")
 SUPPORTED_STORAGE = ("mcap", "sqlite3")
+SUPPORTED_COMPRESSION = ("zstd",)
 
 
 def _natural_key(path: Path) -> list[int | str]:
@@ -37,6 +48,11 @@ def _listed_file(bag_dir: Path, name: str) -> Path:
     if not path.exists() and (bag_dir / Path(name).name).exists():
         return bag_dir / Path(name).name
     return path
+
+
+def is_storage_name(name: str) -> bool:
+    """True for the name of a storage file (``.mcap``, ``.db3``, and those zstd-compressed)."""
+    return name.endswith(STORAGE_SUFFIXES + COMPRESSED_STORAGE_SUFFIXES)
 
 
 def _resolve_files(path: Path) -> tuple[Path, list[Path], BagMetadata | None]:
@@ -54,7 +70,7 @@ def _resolve_files(path: Path) -> tuple[Path, list[Path], BagMetadata | None]:
                 f"{path}: storage {metadata.storage_identifier!r} is not supported "
                 f"(only {', '.join(SUPPORTED_STORAGE)})"
             )
-        if metadata.compression_format:
+        if metadata.compression_format not in ("", *SUPPORTED_COMPRESSION):
             raise UnsupportedStorageError(
                 f"{path}: rosbag2 {metadata.compression_mode or 'file'} compression "
                 f"{metadata.compression_format!r} is not supported"
@@ -65,7 +81,7 @@ def _resolve_files(path: Path) -> tuple[Path, list[Path], BagMetadata | None]:
             return path, existing, metadata
         # Listed files gone (renamed bag, converted storage): fall back to what is there.
     found = sorted(
-        (p for p in path.iterdir() if p.suffix in STORAGE_SUFFIXES and p.is_file()),
+        (p for p in path.iterdir() if is_storage_name(p.name) and p.is_file()),
         key=_natural_key,
     )
     if not found:
@@ -79,30 +95,64 @@ def _resolve_files(path: Path) -> tuple[Path, list[Path], BagMetadata | None]:
 
 
 def open_storage_file(
-    path: Path, *, check_crc: bool = True, max_chunk_size: int = DEFAULT_MAX_CHUNK_SIZE
+    path: Path,
+    *,
+    check_crc: bool = True,
+    max_chunk_size: int = DEFAULT_MAX_CHUNK_SIZE,
+    compression_mode: str | None = None,
 ) -> StorageFile:
-    """Open one storage file, its back-end chosen by its content (MCAP or SQLite3 magic).
+    """Open one storage file, its back-end chosen by its content (MCAP or SQLite3 magic),
+    through the compression layer (:mod:`bagkit.bag.compression`) where it is compressed.
+
+    Args:
+        path: the file.
+        check_crc, max_chunk_size: see :class:`BagReader`.
+        compression_mode: ``metadata.yaml``'s (``message`` decompresses each payload); None
+            without metadata.yaml: a SQLite3 file's payloads tell.
 
     Raises:
-        NotABagError: neither MCAP nor SQLite3; and what the back-end's ``open()`` raises.
+        NotABagError: neither MCAP nor SQLite3 (once decompressed); and what the back-end's
+            ``open()`` raises.
     """
     with open(path, "rb") as f:
         head = f.read(len(SQLITE_MAGIC))
-    storage: StorageFile
-    if head.startswith(MAGIC):
-        storage = McapFile(path, check_crc=check_crc, max_chunk_size=max_chunk_size)
-    elif head == SQLITE_MAGIC:
-        from bagkit.bag.sqlite3_file import Sqlite3File
-
-        storage = Sqlite3File(path)
-    else:
-        raise NotABagError(f"{path}: neither an MCAP nor a SQLite3 file")
+    source, temporary = path, None
+    if is_zstd(head):
+        source = decompressed_copy(path)
+        temporary = source.parent
+        with open(source, "rb") as f:
+            head = f.read(len(SQLITE_MAGIC))
+    storage: StorageFile | None = None
     try:
+        if head.startswith(MAGIC):
+            storage = McapFile(source, check_crc=check_crc, max_chunk_size=max_chunk_size)
+        elif head == SQLITE_MAGIC:
+            from bagkit.bag.sqlite3_file import Sqlite3File
+
+            storage = Sqlite3File(source)
+        else:
+            raise NotABagError(f"{path}: neither an MCAP nor a SQLite3 file")
         storage.open()
-    except BaseException:
-        storage.close()
+        # Sniffing reads a message per topic: cheap in SQLite3, a chunk per topic in MCAP,
+        # whose rosbag2 writer keeps the compression mode in the file's own metadata record.
+        payloads = compression_mode == "message" or (
+            compression_mode is None
+            and storage.storage_identifier == "sqlite3"
+            and sniff_message_compression(storage)
+        )
+        if temporary is None and not payloads:
+            return storage
+        return Decompression(
+            storage, path, payloads=payloads, limit=max_chunk_size, temporary=temporary
+        )
+    except BaseException as exc:
+        if storage is not None:
+            storage.close()
+        if temporary is not None:
+            shutil.rmtree(temporary, ignore_errors=True)
+            if isinstance(exc, BagError):  # name the bag's file, not the temporary copy
+                raise type(exc)(str(exc).replace(str(source), str(path))) from None
         raise
-    return storage
 
 
 class BagReader:
@@ -122,6 +172,8 @@ class BagReader:
             then reported lost in ``problems`` instead of being decoded.
         max_chunk_size: the largest uncompressed MCAP chunk read; a chunk declaring more is a
             problem (its messages lost), so memory stays bounded whatever a file declares.
+        distro: the ROS 2 distribution whose types define what the bag stores no definition
+            of (default: ``BAGKIT_DISTRO``, else the bag's ``ros_distro``, else Jazzy).
     """
 
     def __init__(
@@ -131,6 +183,7 @@ class BagReader:
         allow_empty: bool = False,
         check_crc: bool = True,
         max_chunk_size: int = DEFAULT_MAX_CHUNK_SIZE,
+        distro: str | None = None,
     ) -> None:
         self.path = Path(path)
         self.directory = self.path
@@ -141,7 +194,9 @@ class BagReader:
         self.metadata: BagMetadata | None = None
         self.storage = ""
         self.topics: dict[str, TopicInfo] = {}
-        self.definitions: dict[str, str] = {}
+        self.distro = distro
+        self._definitions: dict[str, str] = {}
+        self._completed = False
         self.topic_definitions: dict[str, str] = {}
         self.topic_counts: dict[str, int] = {}
         self.start_ns = 0
@@ -186,7 +241,10 @@ class BagReader:
             try:
                 self._storage.append(
                     open_storage_file(
-                        file, check_crc=self.check_crc, max_chunk_size=self.max_chunk_size
+                        file,
+                        check_crc=self.check_crc,
+                        max_chunk_size=self.max_chunk_size,
+                        compression_mode=self.metadata.compression_mode if self.metadata else None,
                     )
                 )
             except (NotABagError, CorruptBagError) as exc:
@@ -209,10 +267,10 @@ class BagReader:
                     self.topic_counts.get(name, 0) + storage.topic_counts[name]
                 )
             for type_name, text in storage.definitions.items():
-                self.definitions.setdefault(type_name, text)
+                self._definitions.setdefault(type_name, text)
             for name, topic in storage.topics.items():
                 own = storage.topic_definitions.get(name, storage.definitions.get(topic.type))
-                if own is not None and self.definitions.get(topic.type) != own:
+                if own is not None and self._definitions.get(topic.type) != own:
                     self.topic_definitions.setdefault(name, own)
         for name, topic in recorded.items():
             if name not in self.topics:
@@ -221,6 +279,18 @@ class BagReader:
         with_messages = [s for s in self._storage if any(s.topic_counts.values())]
         self.start_ns = min((s.start_ns for s in with_messages), default=0)
         self.end_ns = max((s.end_ns for s in with_messages), default=0)
+
+    @property
+    def definitions(self) -> dict[str, str]:
+        """``ros2msg`` text by type name: as stored, then for the types the bag stores none of
+        (Foxy to Humble ``.db3``), its distribution's (see :mod:`bagkit.bag.distro_definitions`,
+        asked for on first use: it may warn)."""
+        if self._opened and not self._completed:
+            self._completed = True
+            missing = {t.type for t in self.topics.values()} - set(self._definitions)
+            distro = self.metadata.ros_distro if self.metadata else ""
+            self._definitions.update(distro_definitions(missing, distro, self.distro))
+        return self._definitions
 
     def __enter__(self) -> BagReader:
         return self.open()
@@ -316,10 +386,10 @@ class BagReader:
         return found
 
     def chunks(self, topics: Iterable[str] | None = None) -> Iterator[BagChunk]:
-        """Yield the decompressed MCAP chunks holding ``topics``, file by file, in file order.
+        """Yield the decompressed chunks holding ``topics``, file by file, in file order.
 
         For bulk decoding: each :class:`BagChunk` carries the message-index entries per topic.
-        SQLite3 files have no chunks and yield none.
+        SQLite3 files yield their rows laid out as chunks, in log-time order.
         """
         self._check_open()
         wanted = set(topics) if topics is not None else None

@@ -20,7 +20,7 @@ from bagkit.bag.definitions import canonical_type_name
 from bagkit.bag.errors import CorruptBagError, NotABagError
 from bagkit.bag.mcapio.message_index import Span, widen
 from bagkit.bag.messages import BagMessage, TopicInfo, make_message
-from bagkit.bag.storage import BagChunk
+from bagkit.bag.storage import BagChunk, PayloadFilter, chunk_of_rows
 
 # Columns read from each table; the first two tables are required, message_definitions is not.
 TOPIC_COLUMNS = ("id", "name", "type", "serialization_format")
@@ -29,6 +29,8 @@ DEFINITION_COLUMNS = ("topic_type", "encoding", "encoded_message_definition")
 _OPTIONAL_TOPIC_COLUMNS = ("offered_qos_profiles", "type_description_hash")
 # A message row is readable when its timestamp is an integer and its data a blob.
 _VALID_ROW = "typeof(timestamp) = 'integer' AND typeof(data) = 'blob'"
+# Rows laid out in one chunk for the bulk decoders (a few MB of small messages).
+ROWS_PER_CHUNK = 16_384
 INT64_MIN = -(1 << 63)
 INT64_MAX = (1 << 63) - 1
 
@@ -40,7 +42,8 @@ def connect(path: Path) -> sqlite3.Connection:
     """
     uri = f"file:{pathname2url(str(path.resolve()))}?mode=ro&immutable=1"
     try:
-        db = sqlite3.connect(uri, uri=True)
+        # Not same-thread: bulk readers read chunks ahead in a thread (one user at a time).
+        db = sqlite3.connect(uri, uri=True, check_same_thread=False)
     except sqlite3.Error as exc:
         raise NotABagError(f"{path}: not a SQLite3 database ({exc})") from exc
     db.text_factory = _text
@@ -83,12 +86,14 @@ def _missing_columns(columns: dict[str, set[str]]) -> str:
 class Sqlite3File:
     """A rosbag2 SQLite3 (``.db3``) storage file, opened read-only and immutable.
 
-    A :class:`~bagkit.bag.storage.StorageFile` without chunks: nothing is read before
-    :meth:`open`. Its tables are its index, so ``has_summary`` is True and topic spans come
-    from them; SQLite3 stores no publish time (a message's is its log time).
+    A :class:`~bagkit.bag.storage.StorageFile`: nothing is read before :meth:`open`. Its
+    tables are its index, so ``has_summary`` is True and topic spans come from them; SQLite3
+    stores no publish time (a message's is its log time). Its chunks are its rows laid out as
+    chunks; ``payload_filter`` (rosbag2's message compression) applies to every payload read.
     """
 
     storage_identifier = "sqlite3"
+    chunked = False
     has_summary = True
     compression = ""
     compressed_size = 0
@@ -102,6 +107,7 @@ class Sqlite3File:
         self.topic_counts: dict[str, int] = {}
         self.start_ns = self.end_ns = 0
         self.problems: list[str] = []
+        self.payload_filter: PayloadFilter | None = None
         self._db: sqlite3.Connection | None = None
         self._topic_ids: dict[int, str] = {}
         self._spans: dict[str, Span] = {}
@@ -158,6 +164,12 @@ class Sqlite3File:
                 self._problem(f"message_definitions row of {type_name!r:.60} unusable")
             elif encoding == "ros2msg" and text:
                 self.definitions.setdefault(canonical_type_name(type_name), text)
+        # rosbag2 stores a service's ``.srv`` text under ``pkg/srv/Name``, not under the type
+        # of its event topic: the event type is rebuilt from it (bagkit.decode.message_types).
+        for topic in self.topics.values():
+            service = topic.type.removesuffix("_Event")
+            if "/srv/" in topic.type and service != topic.type and service in self.definitions:
+                self.definitions.setdefault(topic.type, self.definitions[service])
 
     def _read_counts(self, db: sqlite3.Connection) -> None:
         self.topic_counts = dict.fromkeys(self.topics, 0)
@@ -194,8 +206,10 @@ class Sqlite3File:
         return dict(self._spans)
 
     def chunks(self, topics: set[str] | None) -> Iterator[BagChunk]:
-        """None: SQLite3 has no chunks (bulk readers fall back to :meth:`messages`)."""
-        return iter(())
+        """The rows of ``topics`` in timestamp order (ties by row id), laid out as chunks of
+        :data:`ROWS_PER_CHUNK` MCAP Message records."""
+        for topics_of, log_times, payloads in self._rows(topics, None, None, ROWS_PER_CHUNK):
+            yield chunk_of_rows(self.path, topics_of, log_times, payloads)
 
     def last_messages(self, topics: set[str], before_ns: int) -> dict[str, BagMessage]:
         """The last valid row with ``timestamp < before_ns`` of each of ``topics`` that has one
@@ -218,14 +232,29 @@ class Sqlite3File:
             except sqlite3.Error as exc:
                 self._problem(f"last message of {topic} unreadable ({exc})")
                 continue
-            if row is not None:
-                found[topic] = make_message(topic, row[1], row[0], row[0], 0)
+            if row is None:
+                continue
+            data = row[1]
+            if self.payload_filter is not None:
+                (data,) = self.payload_filter.many([data], [topic].__getitem__)
+            if data is not None:
+                found[topic] = make_message(topic, data, row[0], row[0], 0)
         return found
 
     def messages(
         self, topics: set[str] | None, start_ns: int | None, end_ns: int | None
     ) -> Iterator[BagMessage]:
         """Yield the valid rows in timestamp order (ties by row id)."""
+        for topics_of, log_times, payloads in self._rows(topics, start_ns, end_ns, 1024):
+            for topic, timestamp, data in zip(topics_of, log_times, payloads, strict=True):
+                if data is not None:
+                    yield make_message(topic, data, timestamp, timestamp, 0)
+
+    def _rows(
+        self, topics: set[str] | None, start_ns: int | None, end_ns: int | None, batch: int
+    ) -> Iterator[tuple[list[str], list[int], list[bytes | None]]]:
+        """The valid rows in timestamp order, ``batch`` at a time, as (topics, timestamps,
+        payloads passed through ``payload_filter``); damage ends them with a problem."""
         wanted = [i for i, t in self._topic_ids.items() if topics is None or t in topics]
         if not wanted or self._db is None:
             return
@@ -236,11 +265,18 @@ class Sqlite3File:
         )
         lower = max(start_ns if start_ns is not None else INT64_MIN, INT64_MIN)
         upper = min(end_ns if end_ns is not None else INT64_MAX, INT64_MAX)
+        names = self._topic_ids
         read = 0
         try:
-            for topic_id, timestamp, data in self._db.execute(query, (*wanted, lower, upper)):
-                read += 1
-                yield make_message(self._topic_ids[topic_id], data, timestamp, timestamp, 0)
+            cursor = self._db.execute(query, (*wanted, lower, upper))
+            while rows := cursor.fetchmany(batch):
+                read += len(rows)
+                ids, log_times, stored = zip(*rows, strict=True)
+                topics_of = list(map(names.__getitem__, ids))
+                payloads: list[bytes | None] = list(stored)
+                if self.payload_filter is not None:
+                    payloads = self.payload_filter.many(list(stored), topics_of.__getitem__)
+                yield topics_of, list(log_times), payloads
         except sqlite3.Error as exc:
             problem = f"{self.path.name}: unreadable after {read} messages ({exc})"
             if problem not in self.problems:  # each read of a damaged file meets it again

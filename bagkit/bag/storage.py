@@ -8,13 +8,14 @@ The back-ends, side by side: :mod:`bagkit.bag.mcap_file` (MCAP) and
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 from bagkit.bag.mcapio.chunks import payload_spans
 from bagkit.bag.mcapio.message_index import Span
+from bagkit.bag.mcapio.records import MESSAGE_PREFIX, MESSAGE_RECORD_HEADER, Opcode
 from bagkit.bag.messages import BagMessage, TopicInfo
 
 if TYPE_CHECKING:
@@ -124,3 +125,69 @@ class StorageFile(Protocol):
         Where no index tells (salvaged chunks without Message Index records), the bounds of
         the chunks that may hold the topic.
         """
+
+
+class PayloadFilter(Protocol):
+    """What a back-end passes its payloads through (the compression layer's decompression)."""
+
+    def many(self, payloads: list[bytes], topic_of: Callable[[int], str]) -> list[bytes | None]:
+        """Each payload to use, or None to leave its message out (``topic_of(i)``: the topic
+        of payload ``i``, for the problems)."""
+
+
+@runtime_checkable
+class FiltersPayloads(Protocol):
+    """A back-end that passes its payloads through ``payload_filter`` as it reads them (before
+    they are laid out in chunks: no chunk is laid out twice)."""
+
+    payload_filter: PayloadFilter | None
+
+
+def chunk_of_rows(
+    file: Path, topics: Sequence[str], log_times: Sequence[int], payloads: Sequence[bytes | None]
+) -> BagChunk:
+    """Messages laid out as MCAP Message records in one chunk (log time as publish time,
+    channel ids and sequences 0), for the bulk decoders of a storage without chunks; a
+    message whose payload is None is left out."""
+    import numpy as np
+
+    from bagkit.bag.mcapio.records import message_index_dtype
+
+    keep = [i for i, payload in enumerate(payloads) if payload is not None]
+    if len(keep) < len(payloads):
+        topics = [topics[i] for i in keep]
+        log_times = [log_times[i] for i in keep]
+        payloads = [payloads[i] for i in keep]
+    count = len(payloads)
+    lengths = np.fromiter(map(len, payloads), np.int64, count)  # type: ignore[arg-type]
+    headers = np.zeros(count, _RECORD_HEADER_DTYPE)
+    headers["opcode"] = Opcode.MESSAGE
+    headers["length"] = lengths + MESSAGE_PREFIX.size
+    headers["log_time"] = headers["publish_time"] = log_times
+    size = MESSAGE_RECORD_HEADER.size
+    raw = memoryview(headers.tobytes())
+    parts: list[object] = [None] * (2 * count)
+    parts[0::2] = [raw[i : i + size] for i in range(0, count * size, size)]
+    parts[1::2] = payloads
+    offsets = np.zeros(count, np.uint64)
+    np.cumsum(lengths[:-1] + size, out=offsets[1:])
+    names = np.array(topics, dtype=object)
+    index = {}
+    for topic in dict.fromkeys(topics):
+        mine = names == topic
+        entries = np.empty(int(mine.sum()), message_index_dtype())
+        entries["log_time"] = np.asarray(log_times, np.int64)[mine]
+        entries["offset"] = offsets[mine]
+        index[topic] = entries
+    return BagChunk(file, b"".join(parts), index)  # type: ignore[arg-type]
+
+
+# A Message record's header (opcode, length, then the Message prefix), as numpy lays it out.
+_RECORD_HEADER_DTYPE = [
+    ("opcode", "u1"),
+    ("length", "<u8"),
+    ("channel_id", "<u2"),
+    ("sequence", "<u4"),
+    ("log_time", "<u8"),
+    ("publish_time", "<u8"),
+]

@@ -12,8 +12,8 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from bagkit.cli.common import EXIT_INTERRUPTED, handle_errors, split_list, warn
-from bagkit.cli.selection_options import End, Start, Where
+from bagkit.cli.common import EXIT_INTERRUPTED, fail, handle_errors, split_list, warn
+from bagkit.cli.selection_options import Distro, End, Start, Where
 from bagkit.compat import StrEnum
 
 if TYPE_CHECKING:
@@ -99,6 +99,7 @@ def echo(  # noqa: PLR0917 (typer maps parameters to options)
     output: Format = EchoFormat.YAML,
     full_length: FullLength = False,
     where: Where = None,
+    distro: Distro = None,
 ) -> None:
     from bagkit.bag import BagReader
     from bagkit.data.call_selection import CallSelection
@@ -126,6 +127,7 @@ def echo(  # noqa: PLR0917 (typer maps parameters to options)
             if not _write(itertools.islice(calls, count), output, bag_start) and where:
                 warn(f"no call satisfies {where!r}")
             return
+        failures = _Failures()
         records = read_messages(
             bag,
             topic,
@@ -134,14 +136,33 @@ def echo(  # noqa: PLR0917 (typer maps parameters to options)
             end=end,
             count=count,
             limit=limit,
-            on_failure=warn,
+            on_failure=warn if where is not None else failures.add,
             where=where,
         )
-        if not _write(records, output, bag_start) and where is not None:
+        written = _write(records, output, bag_start)
+        if failures.count and not written:  # a topic this bag cannot give: not a success
+            raise fail(
+                f"none of the {failures.count} messages of {topic} decode ({failures.first})"
+            )
+        if failures.count:
+            warn(f"{failures.count} messages of {topic} do not decode, skipped ({failures.first})")
+        if not written and where is not None:
             warn(f"no message satisfies {where!r}")
     except KeyboardInterrupt:
         # No "interrupted" line: the reader asked for it, the output so far is complete.
         _quiet_exit(EXIT_INTERRUPTED)
+
+
+class _Failures:
+    """The messages that did not decode: said once at the end, not once each."""
+
+    def __init__(self) -> None:
+        self.count = 0
+        self.first = ""
+
+    def add(self, problem: str) -> None:
+        self.count += 1
+        self.first = self.first or problem
 
 
 def _write(records: Iterable[Plain], output: EchoFormat, bag_start: int) -> int:

@@ -10,7 +10,7 @@ import typer
 from bagkit.cli.common import console, handle_errors, split_list, warn
 from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers
 from bagkit.cli.progress import DelayedProgress
-from bagkit.cli.selection_options import End, Start, Where
+from bagkit.cli.selection_options import Distro, End, Start, Where
 from bagkit.data.formats import ExportFormat
 
 if TYPE_CHECKING:
@@ -70,6 +70,7 @@ def export(  # noqa: PLR0917 (typer maps parameters to options)
     ),
     workers: Workers = None,
     scheduler: Scheduler = None,
+    distro: Distro = None,
 ) -> None:
     from bagkit.fleet.inputs import STORAGE_SUFFIXES, expand_bags, is_bag_directory
     from bagkit.selection.conditions import parse_condition

@@ -10,7 +10,7 @@ import typer
 
 from bagkit.cli.common import console, handle_errors, print_json, warn
 from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers, fleet_run
-from bagkit.cli.selection_options import End, Start
+from bagkit.cli.selection_options import Distro, End, Start
 from bagkit.compat import StrEnum
 
 if TYPE_CHECKING:
@@ -70,6 +70,7 @@ def find(  # noqa: PLR0917 (typer maps parameters to options)
     end: End = None,
     workers: Workers = None,
     scheduler: Scheduler = None,
+    distro: Distro = None,
 ) -> None:
     from bagkit.data.errors import DataError
     from bagkit.fleet import expand_bags

@@ -23,6 +23,7 @@ from bagkit.cli.common import (
     print_json,
     warn,
 )
+from bagkit.cli.selection_options import Distro
 from bagkit.cli.tables import (
     INDENT,
     Column,
@@ -247,6 +248,7 @@ def info(  # noqa: PLR0917 (typer maps parameters to options)
     check_crc: bool = typer.Option(
         True, "--crc/--no-crc", help="Check the CRC of chunks a salvage scan opens."
     ),
+    distro: Distro = None,
 ) -> None:
     """Show what a bag holds (like ros2 bag info)."""
     if storage not in (None, "mcap", "sqlite3"):

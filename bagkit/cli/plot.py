@@ -8,7 +8,7 @@ import typer
 
 from bagkit.cli import common
 from bagkit.cli.common import console, handle_errors, split_list
-from bagkit.cli.selection_options import End, Start, Where
+from bagkit.cli.selection_options import Distro, End, Start, Where
 
 HELP = """Plot fields of BAG over time into OUT: .png (matplotlib) or .html (an interactive page
 with zoom, hover and series toggled in the legend, that opens with no network access).
@@ -47,6 +47,7 @@ def plot(  # noqa: PLR0917 (typer maps parameters to options)
     start: Start = None,
     end: End = None,
     where: Where = None,
+    distro: Distro = None,
 ) -> None:
     from bagkit.data.errors import DataError
     from bagkit.data.series import load_series

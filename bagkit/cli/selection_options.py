@@ -1,5 +1,5 @@
 """The options every bag command shares for choosing messages: ``--start``/``--end``,
-``--where``.
+``--where``; and ``--distro``, for reading bags that store no message definitions.
 
 One declaration, one help text, one grammar (bagkit.selection.times; docs/cli.md's table).
 """
@@ -33,6 +33,31 @@ Where = Annotated[
         help="Only messages satisfying this condition, e.g. 'status[*].level >= 2' "
         "(PATH OP VALUE, and/or/not; docs/cli.md).",
         metavar="CONDITION",
+    ),
+]
+
+
+def _use_distro(name: str | None) -> str | None:
+    """Check ``--distro`` and hand it to every reader of this process (and its workers)."""
+    if name is not None:
+        import os
+
+        from bagkit.bag.distro_definitions import DISTRO_ENV, DISTROS
+
+        if name.strip().lower() not in DISTROS:
+            raise typer.BadParameter(f"{name!r} is not one of {', '.join(DISTROS)}")
+        os.environ[DISTRO_ENV] = name.strip().lower()
+    return name
+
+
+Distro = Annotated[
+    str | None,
+    typer.Option(
+        "--distro",
+        help="Decode the types a bag stores no definition of (Foxy to Humble .db3) as this "
+        "ROS 2 distribution defines them (default: the bag's ros_distro, else jazzy).",
+        metavar="NAME",
+        callback=_use_distro,
     ),
 ]
 

@@ -24,7 +24,7 @@ from bagkit.cli.common import (
 )
 from bagkit.cli.fleet_options import Scheduler, Workers
 from bagkit.cli.progress import DelayedProgress
-from bagkit.cli.selection_options import End, Start, Where
+from bagkit.cli.selection_options import Distro, End, Start, Where
 from bagkit.cli.stats_options import Bulk, Fields, Format, Inputs, Topics
 from bagkit.cli.tables import Cell, Column, Styled, Table, print_line, print_table, print_wrapped
 
@@ -54,6 +54,7 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
     workers: Workers = None,
     scheduler: Scheduler = None,
     check_crc: CheckCrcOnRead = True,
+    distro: Distro = None,
 ) -> None:
     """Count and rate per topic; count, NaN count, min, max, mean and std per numeric field.
 

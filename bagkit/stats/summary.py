@@ -14,8 +14,6 @@ from contextlib import closing
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-
 from bagkit.bag import BagChunk, BagReader
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
 from bagkit.decode.layout import CdrLayout
@@ -27,7 +25,7 @@ from bagkit.selection.fields import FieldSelection
 from bagkit.selection.times import TimeLike
 from bagkit.selection.topics import absolute_topic_name, require_topics
 from bagkit.selection.windows import TimeRange, Window, outside_warning
-from bagkit.stats.accumulate import ROW_BATCH, TopicAccumulator
+from bagkit.stats.accumulate import TopicAccumulator
 from bagkit.stats.errors import NothingToSummarizeError, StatsError
 from bagkit.stats.result import Summary
 
@@ -139,26 +137,12 @@ class SummaryRun:
                 wanted[name] = accumulator
             else:  # skipped: its messages are not read
                 self.total -= reader.topic_counts.get(name, 0)
-        if wanted and reader.storage == "mcap":
+        if wanted:
             # closing(): the reading thread stops before the reader is closed, also on error.
             ahead = prefetch(reader.chunks(wanted), depth=2 if self.prefetch else 0)
             with closing(ahead) as chunks:
                 for chunk in chunks:
                     self.advance(self.add_chunk(chunk, wanted))
-        elif wanted:
-            for message in reader.messages(wanted, self.window.start_ns, self.window.end_ns):
-                accumulator = wanted[message.topic]
-                matcher = self.matchers.get(message.topic)
-                if matcher is not None:
-                    failures = matcher.undecodable
-                    matched = matcher.matches(message.data)
-                    _count_failures(matcher, accumulator, failures)
-                    if not matched:
-                        continue
-                accumulator.add_times(np.array([message.log_time]))
-                if accumulator.leaves:
-                    accumulator.add_payloads((message.data,))
-                self.advance(1, every=ROW_BATCH)
         self.problems.extend(_named(label, problem) for problem in reader.problems)
 
     def _filtered(self, accumulator: TopicAccumulator, single: bool) -> TopicAccumulator | None:

@@ -1,7 +1,9 @@
 """``bagkit doctor``: check a bag the way ``mcap doctor`` checks a file, for whole rosbag2 bags.
 
 Per MCAP file (:mod:`~bagkit.surgery.file_check`): CRCs, indexes against records, summary
-against content, time order. Per bag: metadata.yaml against the files (file list, counts,
+against content, time order; per SQLite3 or compressed file
+(:mod:`~bagkit.surgery.storage_check`): SQLite3's integrity check and what the back-end
+reports. Per bag: metadata.yaml against the files (file list, counts,
 times, topics), every schema decodable (:class:`bagkit.decode.MessageTypes`) and, with
 ``deep``, every message.
 """
@@ -18,10 +20,12 @@ from bagkit.bag.errors import BagError, BagNotFoundError, NotABagError
 from bagkit.bag.mcapio import MAGIC, Source, read_file_index
 from bagkit.bag.mcapio.records import Schema
 from bagkit.bag.metadata import METADATA_FILENAME, BagMetadata, read_metadata
+from bagkit.bag.reader import is_storage_name
 from bagkit.decode import DecodeError, MessageTypes, SchemaError
 from bagkit.recording.loss_causes import large_message_cause
 from bagkit.recording.report import LOSS_CUSTOM_DATA_KEY
-from bagkit.surgery.file_check import FileCheck, FileFacts
+from bagkit.surgery.file_check import FileCheck, FileFacts, MessageCheck
+from bagkit.surgery.storage_check import check_storage_file
 
 
 @dataclass(frozen=True)
@@ -73,20 +77,22 @@ def diagnose(path: Path, *, deep: bool = False) -> DoctorReport:
 
     Raises:
         BagNotFoundError: no such path.
-        NotABagError: no MCAP file could be opened at all.
+        NotABagError: no storage file could be opened at all.
     """
     bag_dir, files = _storage_files(path)
     report = DoctorReport(path=path, deep=deep)
     metadata = _metadata(bag_dir, path, report)
     facts: dict[str, FileFacts] = {}
     decoders = _Decoders(deep)
+    compression_mode = metadata.compression_mode if metadata is not None else None
     for file in files:
-        checked = _check_file(file, decoders, report)
+        checked = _check_file(file, decoders, report, compression_mode)
         if checked is not None:
             facts[file.name] = checked
             report.files.append(file.name)
     if not facts:
-        raise NotABagError(f"{path}: no readable MCAP file")
+        first = report.findings[-1].line if report.findings else "none found"
+        raise NotABagError(f"{path}: no readable storage file ({first})")
     report.message_count = sum(f.message_count for f in facts.values())
     if metadata is not None:
         report.findings.extend(
@@ -120,9 +126,9 @@ def _storage_files(path: Path) -> tuple[Path | None, list[Path]]:
         path = path.parent
     if path.is_file():
         return None, [path]
-    files = sorted(p for p in path.iterdir() if p.suffix == ".mcap" and p.is_file())
+    files = sorted(p for p in path.iterdir() if is_storage_name(p.name) and p.is_file())
     if not files:
-        raise NotABagError(f"{path}: no .mcap file")
+        raise NotABagError(f"{path}: no storage file (.mcap, .db3, .mcap.zstd, .db3.zstd)")
     return path, files
 
 
@@ -218,12 +224,14 @@ def _key(schema: Schema) -> tuple[str, str]:
     return schema.name, schema.data.decode("utf-8", errors="replace")
 
 
-def _check_file(file: Path, decoders: _Decoders, report: DoctorReport) -> FileFacts | None:
+def _check_file(
+    file: Path, decoders: _Decoders, report: DoctorReport, compression_mode: str | None
+) -> FileFacts | None:
     try:
         with open(file, "rb") as handle:
-            if handle.read(len(MAGIC)) != MAGIC:
-                report.findings.append(Finding(file.name, "not an MCAP file (bad magic)"))
-                return None
+            # Compressed payloads are read through the compression layer.
+            if handle.read(len(MAGIC)) != MAGIC or compression_mode == "message":
+                return _check_storage_file(file, decoders, report, compression_mode)
             source = Source(handle, file.name)
             # Schemas and channels first (from a shallow walk) so that deep checks can decode.
             check = FileCheck(source)
@@ -238,6 +246,25 @@ def _check_file(file: Path, decoders: _Decoders, report: DoctorReport) -> FileFa
     decoders.add_schemas(facts)
     report.findings.extend(Finding(file.name, p) for p in facts.problems)
     report.findings.extend(Finding(file.name, n, note=True) for n in facts.notes)
+    return facts
+
+
+def _check_storage_file(
+    file: Path, decoders: _Decoders, report: DoctorReport, compression_mode: str | None
+) -> FileFacts | None:
+    """A SQLite3 or compressed file, through the bag back-ends."""
+
+    def check_for(facts: FileFacts) -> MessageCheck | None:
+        decoders.add_schemas(facts)
+        return decoders.for_file(facts)
+
+    try:
+        facts = check_storage_file(file, compression_mode, check_for)
+    except (BagError, OSError) as exc:
+        report.findings.append(Finding(file.name, f"unreadable ({exc})"))
+        return None
+    decoders.add_schemas(facts)
+    report.findings.extend(Finding(file.name, p) for p in facts.problems)
     return facts
 
 

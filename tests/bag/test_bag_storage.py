@@ -41,7 +41,15 @@ def test_one_bag_of_mcap_and_sqlite3_files(
         # From the indexes (Message Index records, the messages table), no message read.
         assert bag.topic_spans() == {t: (min(times), max(times)) for t, times in seen.items()}
         chunks = list(bag.chunks())
-        assert len(chunks) > 1  # the MCAP file's; the SQLite3 file has none
-        assert {chunk.file.name for chunk in chunks} == {"a_0.mcap"}
-        assert sum(len(c.payloads("/imu/data")[0]) for c in chunks) == len(seen["/imu/data"])
+        assert len(chunks) > 1  # the MCAP file's, then the SQLite3 file's rows as one chunk
+        assert [chunk.file.name for chunk in chunks].count("b_0.db3") == 1
+        for topic, times in seen.items():
+            in_chunks = [t for c in chunks for t in c.payloads(topic)[0].tolist()]
+            assert sorted(in_chunks) == sorted(times)
+        db3 = {m.log_time: m.data for m in bag.messages(["/a", "/b"])}
+        (rows,) = [c for c in chunks if c.file.name == "b_0.db3"]
+        for topic in ("/a", "/b"):
+            log_times, starts, lengths = rows.payloads(topic)
+            for log_time, start, length in zip(log_times, starts, lengths, strict=True):
+                assert rows.records[start : start + length] == db3[log_time]
         assert bag.compression == "zstd" and bag.uncompressed_size > bag.compressed_size > 0

@@ -227,10 +227,18 @@ def test_foreign_storage(tmp_path: Path) -> None:
     assert "hdf5" in result.stderr and "not supported" in result.stderr
 
 
-def test_empty_bag(interop_dir: Path) -> None:
-    result = _run(str(interop_dir / "ros2bag/test/resources/empty_bag"))
-    assert result.returncode == 2
-    assert "no messages" in result.stderr
+def test_empty_bag_lists_its_topics_with_count_0(interop_dir: Path) -> None:
+    bag_dir = interop_dir / "ros2bag/test/resources/empty_bag"
+    result = _run(str(bag_dir), "--format", "json")
+    assert result.returncode == 0 and result.stderr == "", result.stderr
+    info = json.loads(result.stdout)
+    db = sqlite3.connect(f"file:{bag_dir / 'empty_bag_0.db3'}?mode=ro&immutable=1", uri=True)
+    stored = dict(db.execute("SELECT name, type FROM topics"))
+    db.close()
+    assert {t["topic"]: (t["type"], t["count"]) for t in info["topics"]} == {
+        name: (type_name, 0) for name, type_name in stored.items()
+    }
+    assert info["message_count"] == 0
 
 
 def _storage_counts(bag_dir: Path) -> dict[str, int]:

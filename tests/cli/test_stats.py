@@ -5,13 +5,15 @@ from __future__ import annotations
 import csv
 import io
 import json
+import sqlite3
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
-from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from bagkit.bag import BagWriter, TopicInfo
 from bagkit.stats import summarize
@@ -149,15 +151,50 @@ def test_undecodable_topics_are_named(interop_dir: Path) -> None:
     assert wrong.returncode == 2
     assert "wrong_format" in wrong.stderr and len(wrong.stderr.strip().splitlines()) == 1
 
-    partial = _run(
-        interop_dir / "rosbag2_tests/resources/sqlite3/bag_with_topics_and_service_events",
-        "--format",
-        "json",
+
+def _rosbags_service_events(db3: Path, topic: str) -> list[Any]:
+    """The events of ``topic`` decoded by rosbags from the ``.srv`` text the file stores, the
+    event type written out as rosidl generates it (rosbags cannot read the ``.srv`` itself)."""
+    db = sqlite3.connect(f"file:{db3}?mode=ro&immutable=1", uri=True)
+    ((srv,),) = db.execute(
+        "SELECT encoded_message_definition FROM message_definitions "
+        "WHERE topic_type = 'test_msgs/srv/BasicTypes'"
     )
-    assert partial.returncode == 0, partial.stderr
-    assert "warning: topic /test_service1/_service_event skipped" in partial.stderr
-    topics = {t["topic"]: t["count"] for t in json.loads(partial.stdout)["topics"]}
-    assert topics == {"/events/write_split": 0, "/test_topic1": 1, "/test_topic2": 1}
+    request, response = srv.split("---")
+    store = get_typestore(Stores.ROS2_JAZZY)
+    event = (
+        "service_msgs/ServiceEventInfo info\n"
+        "test_msgs/BasicTypes_Request[<=1] request\ntest_msgs/BasicTypes_Response[<=1] response\n"
+    )
+    types: dict[str, Any] = {}
+    for name, text in (("Request", request), ("Response", response), ("Event", event)):
+        types.update(get_types_from_msg(text, f"test_msgs/msg/BasicTypes_{name}"))
+    store.register(types)
+    rows = db.execute(
+        "SELECT data FROM messages JOIN topics ON topics.id = topic_id WHERE name = ? "
+        "ORDER BY timestamp",
+        (topic,),
+    )
+    events = [store.deserialize_cdr(data, "test_msgs/msg/BasicTypes_Event") for (data,) in rows]
+    db.close()
+    return events
+
+
+def test_sqlite3_service_events_decode(interop_dir: Path) -> None:
+    """rosbag2's db3 stores the .srv text under pkg/srv/Name, not under the event type."""
+    bag = interop_dir / "rosbag2_tests/resources/sqlite3/bag_with_topics_and_service_events"
+    proc = _run(bag, "--format", "json")
+    assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+    topics = {t["topic"]: t for t in json.loads(proc.stdout)["topics"]}
+    topic = "/test_service1/_service_event"
+    events = _rosbags_service_events(bag / "bag_with_topics_and_service_events.db3", topic)
+    fields = {f["field"]: f for f in topics[topic]["fields"]}
+    for field, values in (
+        ("info.stamp.nanosec", [e.info.stamp.nanosec for e in events]),
+        ("info.sequence_number", [e.info.sequence_number for e in events]),
+    ):
+        assert fields[field]["count"] == len(events) == topics[topic]["count"]
+        assert (fields[field]["min"], fields[field]["max"]) == (min(values), max(values))
 
 
 def test_json_is_strict_with_infinite_values(tmp_path: Path) -> None:

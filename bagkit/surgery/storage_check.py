@@ -1,0 +1,94 @@
+"""``doctor``'s check of a storage file that is not a plain MCAP file: a SQLite3 ``.db3``, or
+a zstd-compressed ``.db3.zstd``/``.mcap.zstd`` (rosbag2's compression).
+
+Read through the bag back-ends (:func:`bagkit.bag.reader.open_storage_file`, compression
+included), described as the MCAP walk describes a file (:class:`FileFacts`: one schema per
+type, one channel per topic), so that the bag-level checks (metadata.yaml, decodability) are
+the same. A SQLite3 database is also checked whole (``PRAGMA quick_check``).
+"""
+
+from __future__ import annotations
+
+import sqlite3
+from collections.abc import Callable
+from pathlib import Path
+
+from bagkit.bag.compression import Decompression
+from bagkit.bag.mcapio.records import Channel, Schema
+from bagkit.bag.reader import open_storage_file
+from bagkit.bag.sqlite3_file import connect
+from bagkit.bag.storage import StorageFile
+from bagkit.surgery.file_check import FileFacts, MessageCheck
+
+# At most this many lines of SQLite3's own report.
+MAX_INTEGRITY_LINES = 5
+
+
+def check_storage_file(
+    file: Path,
+    compression_mode: str | None,
+    check_for: Callable[[FileFacts], MessageCheck | None] | None = None,
+) -> FileFacts:
+    """The facts of ``file`` and what is wrong with it.
+
+    Args:
+        file: the storage file.
+        compression_mode: ``metadata.yaml``'s (None without one).
+        check_for: given the file's facts (schemas, channels), the check each message is then
+            given to (``channel_id, log_time, payload``), or None.
+
+    Raises:
+        BagError: the file cannot be opened at all (not a bag, unreadable).
+    """
+    storage = open_storage_file(file, compression_mode=compression_mode)
+    try:
+        facts = _facts(storage)
+        if storage.storage_identifier == "sqlite3":
+            inner = storage.inner if isinstance(storage, Decompression) else storage
+            facts.problems.extend(quick_check(inner.path))
+        check_message = check_for(facts) if check_for is not None else None
+        if check_message is not None:
+            ids = {c.topic: c.id for c in facts.channels.values()}
+            for message in storage.messages(None, None, None):
+                check_message(ids[message.topic], message.log_time, memoryview(message.data))
+        facts.problems.extend(p.removeprefix(f"{file.name}: ") for p in storage.problems)
+    finally:
+        storage.close()
+    return facts
+
+
+def _facts(storage: StorageFile) -> FileFacts:
+    facts = FileFacts()
+    schema_ids: dict[str, int] = {}
+    for channel_id, (name, topic) in enumerate(sorted(storage.topics.items()), start=1):
+        schema_id = schema_ids.get(topic.type)
+        text = storage.definitions.get(topic.type)
+        if schema_id is None and text is not None:
+            schema_id = schema_ids[topic.type] = len(schema_ids) + 1
+            facts.schemas[schema_id] = Schema(
+                id=schema_id, name=topic.type, encoding="ros2msg", data=text.encode("utf-8")
+            )
+        facts.channels[channel_id] = Channel(
+            id=channel_id,
+            schema_id=schema_id or 0,
+            topic=name,
+            message_encoding=topic.serialization_format,
+            metadata={},
+        )
+        facts.counts[channel_id] = storage.topic_counts.get(name, 0)
+    if any(facts.counts.values()):
+        facts.start, facts.end = storage.start_ns, storage.end_ns
+    return facts
+
+
+def quick_check(path: Path) -> list[str]:
+    """SQLite3's ``PRAGMA quick_check`` of the database at ``path``: its problems, one each."""
+    db = connect(path)
+    try:
+        rows = db.execute(f"PRAGMA quick_check({MAX_INTEGRITY_LINES})").fetchall()
+    except sqlite3.Error as exc:
+        return [f"SQLite3 integrity check failed ({exc})"]
+    finally:
+        db.close()
+    lines = [str(row[0]) for row in rows]
+    return [] if lines == ["ok"] else [f"SQLite3 integrity: {line}" for line in lines]

@@ -1,0 +1,116 @@
+"""Bags without stored definitions (Foxy to Humble .db3): their distribution's types, then
+Jazzy's with one warning; ``--distro`` overrides. Values checked against rosbags' Humble types."""
+
+from __future__ import annotations
+
+import json
+import re
+import sqlite3
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from rosbags.rosbag2 import Writer
+from rosbags.typesys import Stores, get_typestore
+
+from bagkit.bag import BagReader
+
+BAGKIT = str(Path(sys.executable).with_name("bagkit"))
+HUMBLE = get_typestore(Stores.ROS2_HUMBLE)
+RANGE = "sensor_msgs/msg/Range"
+T0 = 1_650_000_000_000_000_000
+
+
+def _ranges() -> list[object]:
+    t = HUMBLE.types
+    return [
+        t[RANGE](
+            header=t["std_msgs/msg/Header"](
+                stamp=t["builtin_interfaces/msg/Time"](sec=i, nanosec=0), frame_id="sonar"
+            ),
+            radiation_type=0,
+            field_of_view=0.5,
+            min_range=0.1,
+            max_range=4.0,
+            range=1.0 + i / 8,
+        )
+        for i in range(6)
+    ]
+
+
+def humble_bag(path: Path, ros_distro: str | None) -> Path:
+    """A Humble-era .db3: no message_definitions table; ``ros_distro`` as given (None: no key)."""
+    with Writer(path, version=8) as writer:
+        sonar = writer.add_connection("/sonar", RANGE, typestore=HUMBLE)
+        for i, msg in enumerate(_ranges()):
+            writer.write(sonar, T0 + i * 10**8, bytes(HUMBLE.serialize_cdr(msg, RANGE)))
+    (db3,) = path.glob("*.db3")
+    db = sqlite3.connect(db3)
+    db.execute("DROP TABLE message_definitions")
+    db.commit()
+    db.close()
+    metadata = path / "metadata.yaml"
+    text = re.sub(r"\n *ros_distro: .*", "", metadata.read_text())
+    if ros_distro is not None:
+        text += f"  ros_distro: {ros_distro}\n"
+    metadata.write_text(text)
+    return path
+
+
+def _echo(bag: Path, *options: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [BAGKIT, "echo", str(bag), "/sonar", "--format", "json", *options],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+
+
+def _ranges_echoed(stdout: str) -> list[float]:
+    return [json.loads(line)["data"]["range"] for line in stdout.splitlines()]
+
+
+def test_the_bag_distro_types_decode_it(tmp_path: Path) -> None:
+    bag = humble_bag(tmp_path / "humble", "humble")
+    proc = _echo(bag)
+    assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+    assert _ranges_echoed(proc.stdout) == [m.range for m in _ranges()]  # type: ignore[attr-defined]
+    assert "variance" not in json.loads(proc.stdout.splitlines()[0])["data"]
+    with BagReader(bag) as reader:
+        assert reader.definitions[RANGE] == HUMBLE.generate_msgdef(RANGE, ros_version=2)[0]
+
+
+def test_without_ros_distro_jazzy_is_used_with_one_warning(tmp_path: Path) -> None:
+    bag = humble_bag(tmp_path / "unnamed", None)
+    proc = _echo(bag)
+    # Jazzy's Range has a variance the Humble payloads lack: nothing decodes.
+    assert proc.returncode == 2 and proc.stdout == ""
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 2, proc.stderr
+    assert lines[0].startswith("warning:") and "Jazzy" in lines[0] and RANGE in lines[0]
+    assert lines[1].startswith("error:") and "none of the 6 messages" in lines[1]
+
+
+@pytest.mark.parametrize("ros_distro", [None, "jazzy"])
+def test_distro_option_overrides(tmp_path: Path, ros_distro: str | None) -> None:
+    bag = humble_bag(tmp_path / "bag", ros_distro)
+    proc = _echo(bag, "--distro", "humble")
+    assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+    assert _ranges_echoed(proc.stdout) == [m.range for m in _ranges()]  # type: ignore[attr-defined]
+    stats = subprocess.run(
+        [BAGKIT, "stats", "summary", str(bag), "--distro", "humble", "--format", "json"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert stats.returncode == 0 and stats.stderr == "", stats.stderr
+    fields = {f["field"]: f for f in json.loads(stats.stdout)["topics"][0]["fields"]}
+    assert fields["range"]["max"] == max(m.range for m in _ranges())  # type: ignore[attr-defined]
+
+
+def test_an_unknown_distro_is_a_usage_error(tmp_path: Path) -> None:
+    proc = _echo(humble_bag(tmp_path / "bag", "humble"), "--distro", "ardent")
+    assert proc.returncode == 2 and "ardent" in proc.stderr and "Traceback" not in proc.stderr
