@@ -197,6 +197,6 @@ def bag_drift(bag: str | Path) -> list[TopicDrift]:
     """
     with BagReader(bag, allow_empty=True) as reader:  # definitions need no messages
         return [
-            topic_drift(info, reader.definitions.get(info.type))
-            for _, info in sorted(reader.topics.items())
+            topic_drift(info, reader.topic_definitions.get(name, reader.definitions.get(info.type)))
+            for name, info in sorted(reader.topics.items())
         ]

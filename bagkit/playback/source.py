@@ -80,7 +80,7 @@ class PlaySource:
         for reader in self.readers:
             info = reader.topics.get(topic)
             if info is not None:
-                return reader.definitions.get(info.type)
+                return reader.topic_definitions.get(topic, reader.definitions.get(info.type))
         return None
 
     @property
