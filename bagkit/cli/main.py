@@ -39,6 +39,9 @@ class _Lazy:
 _COMMANDS = {
     "catalog": _Lazy("bagkit.cli.catalog", "app", "A Parquet catalogue of many bags."),
     "compare": _Lazy("bagkit.cli.compare", "compare", "Compare a candidate bag to a golden."),
+    "convert": _Lazy(
+        "bagkit.cli.convert", "convert", "Convert bags to a rosbag2 MCAP or SQLite3 bag."
+    ),
     "doctor": _Lazy("bagkit.cli.doctor", "doctor", "Check a bag for problems (like mcap doctor)."),
     "echo": _Lazy("bagkit.cli.echo", "echo", "Print the messages of a topic."),
     "export": _Lazy("bagkit.cli.export", "export", "Write topics to Parquet or CSV files."),

@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import shutil
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 from mcap.well_known import Profile, SchemaEncoding
@@ -47,6 +48,29 @@ def check_replaceable(path: Path) -> None:
             f"{path} is not a bag directory (it holds {', '.join(sorted(others)[:3])}): "
             "not replaced, remove it yourself or choose another name"
         )
+
+
+class MessageOutput(Protocol):
+    """What a message-by-message copy needs of the bag it writes: :class:`OutputBag` or
+    :class:`~bagkit.surgery.sqlite3_output.Sqlite3OutputBag`."""
+
+    custom_data: dict[str, str]
+    counts: dict[int, int]
+
+    def add_topic(self, topic: TopicInfo, definition: str, preferred_id: int) -> int:
+        """Add a topic (once per name); return its id in the output."""
+
+    def topic_id(self, topic: str) -> int:
+        """The id of a topic added."""
+
+    def write_message(self, channel_id: int, message: BagMessage, log_time: int) -> None:
+        """Append one message under ``channel_id`` at ``log_time``."""
+
+    def commit(self) -> list[Path]:
+        """Finish, move the bag into place; return its files."""
+
+    def abort(self) -> None:
+        """Remove what was written."""
 
 
 class OutputBag:
@@ -134,6 +158,10 @@ class OutputBag:
         self.topics[topic.name] = topic
         self.counts[channel_id] = 0
         return channel_id
+
+    def topic_id(self, topic: str) -> int:
+        """The channel id of a topic added."""
+        return self.channels[topic].id
 
     def write_records(
         self,

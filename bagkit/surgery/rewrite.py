@@ -1,4 +1,9 @@
-"""``filter``, ``merge`` and ``recover``: open the inputs, copy, commit the output bag."""
+"""``filter``, ``merge``, ``recover`` and ``convert``: open the inputs, copy, commit the output.
+
+MCAP inputs into an MCAP output are copied chunk by chunk (:mod:`~bagkit.surgery.copy`); any
+other input (SQLite3, ROS 1) or output (SQLite3) message by message
+(:mod:`~bagkit.surgery.message_copy`), with the same selection.
+"""
 
 from __future__ import annotations
 
@@ -65,13 +70,21 @@ class RewriteReport:
 
 @dataclass
 class OutputOptions:
-    """How the output is written (see :class:`~bagkit.surgery.output.OutputBag`)."""
+    """How the output is written (see :class:`~bagkit.surgery.output.OutputBag`).
+
+    Attributes:
+        storage: ``mcap`` or ``sqlite3`` (:mod:`~bagkit.surgery.sqlite3_output`).
+        compression_mode: sqlite3 only: rosbag2's ``message`` or ``file`` zstd compression
+            (``compression`` zstd); MCAP compresses chunks.
+    """
 
     compression: str = "zstd"
     max_bag_size: int = 0
     max_bag_duration_s: float = 0
     force: bool = False
     check_crc: bool = True
+    storage: str = "mcap"
+    compression_mode: str = "message"
 
 
 def filter_bag(
@@ -116,10 +129,15 @@ def _rewrite(
     stored_order: bool = False,
 ) -> RewriteReport:
     check_output(bags, output)
+    if options.storage != "mcap" or not all_mcap(bags):
+        from bagkit.surgery.message_copy import rewrite_messages
+
+        return rewrite_messages(bags, output, selection, options)
     report = RewriteReport(output=output)
     inputs = _Inputs()
     with _opened_inputs(bags, report, inputs) as files:
-        selection = _resolve(selection, bags, files, inputs.spans, report)
+        names = {name for f in files for name in f.known}
+        selection = resolve(selection, bags, names, inputs.spans, report)
         latched = latched_messages(
             bags, {n: t for f in files for n, t in f.known.items()}, selection
         )
@@ -199,19 +217,29 @@ def _opened_inputs(
             handle.close()
 
 
-def _resolve(
+def all_mcap(bags: Sequence[Path]) -> bool:
+    """Whether every storage file of ``bags`` is MCAP (chunks can then be copied as stored)."""
+    for bag in bags:
+        with BagReader(bag, allow_empty=True) as reader:
+            if reader.storage != "mcap":
+                return False
+    return True
+
+
+def resolve(
     selection: Selection,
-    bags: list[Path],
-    files: list[InputFile],
+    bags: Sequence[Path],
+    names: set[str],
     spans: list[tuple[int, int]],
     report: RewriteReport,
 ) -> Selection:
-    """The selection's named topics checked against the inputs, its times against their span.
+    """The selection's named topics checked against the inputs' topic ``names``, its times
+    against their ``spans``; a window outside them is a warning in ``report``.
 
     Raises:
         UnknownTopicError: a named topic is in no input (the message names the closest).
     """
-    require_topics(selection.topics.topics, {name for f in files for name in f.known})
+    require_topics(selection.topics.topics, names)
     if not spans or not selection.span.bounded:
         return selection
     first, last = min(s for s, _ in spans), max(e for _, e in spans)
