@@ -23,7 +23,7 @@ from bagkit.bag.messages import BagMessage, TopicInfo
 from bagkit.bag.metadata import METADATA_FILENAME, BagMetadata, read_metadata
 from bagkit.bag.storage import ROSBAG1_MAGIC, SQLITE_MAGIC, BagChunk, StorageFile
 
-STORAGE_SUFFIXES = (".mcap", ".db3", ".bag")
+STORAGE_SUFFIXES = (".mcap", ".db3")
 SUPPORTED_STORAGE = ("mcap", "sqlite3")
 
 

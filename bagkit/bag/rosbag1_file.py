@@ -60,6 +60,7 @@ _RECORD_ERRORS = (
     IndexError,
     OverflowError,
     UnicodeDecodeError,
+    OSError,  # a seek to an offset no file has
 )
 _MESSAGE = int(Opcode.MESSAGE)
 

@@ -20,13 +20,14 @@ from bagkit.bag import BagMessage, BagReader
 from bagkit.bag.messages import TopicInfo
 from bagkit.surgery.carry import latched_messages, merged_custom_data, write_latched
 from bagkit.surgery.errors import SurgeryError
+from bagkit.surgery.options import OutputOptions, RewriteReport, resolve
 from bagkit.surgery.output import MessageOutput, OutputBag
-from bagkit.surgery.rewrite import OutputOptions, RewriteReport, resolve
 from bagkit.surgery.select import Selection
 
 # Progress callback: (messages done, messages in all)
 Progress = Callable[[int, int], None]
-_PROGRESS_EVERY = 10_000
+# Messages written at once (and progress reported): 1-2 MB of Imu messages.
+_BATCH = 4096
 _ZERO = np.zeros(1, np.int64)
 
 
@@ -134,18 +135,25 @@ def _copy(
     content = selection.content
     report, total = progress
     done = 0
+    batch: list[BagMessage] = []
+    batch_ids: list[int] = []
     for message in merged:
-        done += 1
-        if report is not None and not done % _PROGRESS_EVERY:
-            report(done, total)
         matcher = content.get(message.topic)
         if matcher is not None:
             lengths = np.array([len(message.data)], np.int64)
             if not matcher.mask_records(message.data, _ZERO, lengths)[0]:
                 continue
-        out.write_message(ids[message.topic], message, message.log_time)
+        batch.append(message)
+        batch_ids.append(ids[message.topic])
+        if len(batch) == _BATCH:
+            out.write_messages(batch_ids, batch)
+            batch, batch_ids = [], []
+            done += _BATCH
+            if report is not None:
+                report(done, total)
+    out.write_messages(batch_ids, batch)
     if report is not None:
-        report(done, total)
+        report(total, total)
 
 
 def _log_time(message: BagMessage) -> int:

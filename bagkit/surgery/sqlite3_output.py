@@ -20,8 +20,8 @@ from rosbags.rosbag2.metadata import parse_qos
 
 from bagkit.bag.messages import BagMessage, TopicInfo
 from bagkit.surgery.errors import SurgeryError
+from bagkit.surgery.options import OutputOptions
 from bagkit.surgery.output import check_replaceable
-from bagkit.surgery.rewrite import OutputOptions
 
 _MODES = {"message": CompressionMode.MESSAGE, "file": CompressionMode.FILE}
 
@@ -99,6 +99,11 @@ class Sqlite3OutputBag:
         """Append one message (SQLite3 keeps one time per message: ``log_time``)."""
         self._writer.write(self._by_id[channel_id], log_time, message.data)
         self.counts[channel_id] += 1
+
+    def write_messages(self, channel_ids: list[int], messages: list[BagMessage]) -> None:
+        """Append messages at their log times, each under its id of ``channel_ids``."""
+        for channel_id, message in zip(channel_ids, messages, strict=True):
+            self.write_message(channel_id, message, message.log_time)
 
     def commit(self) -> list[Path]:
         """Close the database and metadata.yaml, move the bag into place; return its files."""
