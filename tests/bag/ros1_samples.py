@@ -31,7 +31,7 @@ def ros1_store() -> Any:
     return store
 
 
-def write_ros1_bag(  # noqa: PLR0914 (one message of each kind, spelled out)
+def write_ros1_bag(
     path: Path, n_imu: int = 300, *, compression: str = "none", chunk_threshold: int = 0
 ) -> Path:
     """A ROS 1 bag: ``/imu`` (Imu at 100 Hz, two connections: two publishers), ``/status``
