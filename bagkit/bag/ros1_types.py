@@ -7,30 +7,39 @@ ROS 2's ``std_msgs/msg/Header`` (no ``seq``) and the legacy renames
 (``tf/msg/tfMessage`` -> ``tf2_msgs/msg/TFMessage``); payloads go from ROS 1's packed
 serialization to CDR through rosbags' byte-level converter, definitions are the ROS 2
 ``ros2msg`` text rosbags generates, hashes its RIHS01. Latched connections get
-rosbags-convert's transient-local QoS. Imported only when a ROS 1 bag is opened.
+rosbags-convert's transient-local QoS (:data:`LATCHED_QOS`). Imported only when a ROS 1
+bag is opened.
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
 import sys
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
-import yaml
-from rosbags.convert.converter import (
-    LATCH,
-    STATIC_MSGTYPE_RENAMES,
-    generate_message_converter,
-)
 from rosbags.interfaces import Connection
-from rosbags.rosbag2.metadata import dump_qos_v9
 from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.base import TypesysError
 from rosbags.typesys.store import Typestore
 
 _HEADER = "std_msgs/msg/Header"
+# ROS 2's Header, which rosbags-convert takes from its Foxy store (loading a whole store costs
+# more than reading a ROS 1 bag's index): the same fields, parsed by rosbags from its text.
+_ROS2_HEADER = "builtin_interfaces/Time stamp\nstring frame_id\n"
+# rosbags.convert.converter's STATIC_MSGTYPE_RENAMES and its LATCH profile as rosbag2's YAML
+# (dump_qos_v9): importing that module (numpy, rosbags.highlevel) costs several times the
+# reading of a large bag's index, so ``info`` uses these copies and the converter is imported
+# when a message is converted. tests/bag/test_bag_rosbag1.py checks that they are rosbags'.
+RENAMES = {"tf/msg/tfMessage": "tf2_msgs/msg/TFMessage"}
+_FOREVER = "    sec: 2147483647\n    nsec: 4294967295\n"
+LATCHED_QOS = (
+    "- history: unknown\n  depth: 0\n  reliability: reliable\n  durability: transient_local\n"
+    f"  deadline:\n{_FOREVER}  lifespan:\n{_FOREVER}  liveliness: automatic\n"
+    f"  liveliness_lease_duration:\n{_FOREVER}  avoid_ros_namespace_conventions: false\n"
+)
 # What a broken definition text makes rosbags raise while it parses or generates code.
 _TYPE_ERRORS = (TypesysError, SerdeError, KeyError, ValueError, AssertionError, RecursionError)
 
@@ -51,12 +60,12 @@ class Ros2Type:
     definition: str
     type_hash: str
     latched: bool
-    to_cdr: Callable[[bytes | memoryview], memoryview]
+    converter: Callable[[], Callable[[bytes | memoryview], memoryview]] = field(repr=False)
 
-
-def latched_qos() -> str:
-    """rosbags-convert's offered QoS of a latching ROS 1 connection, as rosbag2's YAML text."""
-    return yaml.safe_dump(dump_qos_v9(LATCH), sort_keys=False)
+    @functools.cached_property
+    def to_cdr(self) -> Callable[[bytes | memoryview], memoryview]:
+        """The converter, generated on first use (``info`` converts nothing)."""
+        return self.converter()
 
 
 def ros2_types(connections: Sequence[Connection]) -> tuple[dict[int, Ros2Type], list[str]]:
@@ -79,7 +88,7 @@ def ros2_types(connections: Sequence[Connection]) -> tuple[dict[int, Ros2Type], 
     dst = get_typestore(Stores.EMPTY)
     try:
         src.register(typs)  # type: ignore[arg-type]
-        header = get_typestore(Stores.ROS2_FOXY).fielddefs[_HEADER]
+        header = get_types_from_msg(_ROS2_HEADER, _HEADER)[_HEADER]
         dst.register({**typs, _HEADER: header})  # type: ignore[dict-item]
     except _TYPE_ERRORS as exc:
         return {}, [*problems, f"the definitions contradict each other ({exc})"]
@@ -95,21 +104,26 @@ def ros2_types(connections: Sequence[Connection]) -> tuple[dict[int, Ros2Type], 
 
 def _map(src: Typestore, dst: Typestore, conn: Connection, cache: dict[str, object]) -> Ros2Type:
     """One connection's ROS 2 type, as ``create_connections_converters`` of rosbags makes it."""
-    name = STATIC_MSGTYPE_RENAMES.get(conn.msgtype, conn.msgtype)
+    name = RENAMES.get(conn.msgtype, conn.msgtype)
     if name not in dst.fielddefs:
         text = src.generate_msgdef(conn.msgtype, ros_version=2)[0]
         typs = get_types_from_msg(text, name)
         typs.pop(_HEADER, None)
         dst.register(typs)
-    # rosbags prints a note on stdout when a type is migrated: stdout is echo's output.
-    with contextlib.redirect_stdout(sys.stderr):
-        to_cdr = generate_message_converter(
-            src, dst, conn.msgtype, name, cache, src_is2=False, dst_is2=True
-        )
+
+    def converter() -> Callable[[bytes | memoryview], memoryview]:
+        from rosbags.convert.converter import generate_message_converter
+
+        # rosbags prints a note on stdout when a type is migrated: stdout is echo's output.
+        with contextlib.redirect_stdout(sys.stderr):
+            return generate_message_converter(
+                src, dst, conn.msgtype, name, cache, src_is2=False, dst_is2=True
+            )
+
     return Ros2Type(
         name=name,
         definition=dst.generate_msgdef(name, ros_version=2)[0],
         type_hash=dst.hash_rihs01(name),
         latched=bool(getattr(conn.ext, "latching", None)),
-        to_cdr=to_cdr,
+        converter=converter,
     )

@@ -46,7 +46,7 @@ from bagkit.bag.errors import CorruptBagError, NotABagError, UnsupportedStorageE
 from bagkit.bag.mcapio.message_index import Span, widen
 from bagkit.bag.mcapio.records import MESSAGE_PREFIX, MESSAGE_RECORD_HEADER, Opcode
 from bagkit.bag.messages import BagMessage, TopicInfo, make_message
-from bagkit.bag.ros1_types import Ros2Type, latched_qos, ros2_types
+from bagkit.bag.ros1_types import LATCHED_QOS, Ros2Type, ros2_types
 from bagkit.bag.storage import ROSBAG1_MAGIC, BagChunk
 
 # What rosbags' record readers raise on bytes that are not what they expect (some checks are
@@ -178,7 +178,7 @@ class Rosbag1File:
                 )
                 del self._types[conn.id]
                 continue
-            qos = latched_qos() if mapped.latched else ""
+            qos = LATCHED_QOS if mapped.latched else ""
             if known is None or (qos and not known.offered_qos_profiles):
                 self.topics[conn.topic] = TopicInfo(
                     conn.topic, mapped.name, "cdr", qos, mapped.type_hash

@@ -182,3 +182,14 @@ def test_a_damaged_chunk_loses_its_messages_not_the_bag(tmp_path: Path) -> None:
         problems = bag.problems
     assert total - lost <= count < total
     assert len(problems) >= 1 and "chunk at byte" in problems[0]
+
+
+def test_the_mapping_constants_are_rosbags_convert_s() -> None:
+    import yaml
+    from rosbags.convert.converter import LATCH, STATIC_MSGTYPE_RENAMES
+    from rosbags.rosbag2.metadata import dump_qos_v9
+
+    from bagkit.bag.ros1_types import LATCHED_QOS, RENAMES
+
+    assert RENAMES == STATIC_MSGTYPE_RENAMES
+    assert yaml.safe_dump(dump_qos_v9(LATCH), sort_keys=False) == LATCHED_QOS
