@@ -14,6 +14,7 @@ from pathlib import Path
 
 from bagkit.bag import BagReader
 from bagkit.bag.mcapio import MAGIC, Source, read_file_index
+from bagkit.bag.metadata import METADATA_FILENAME
 from bagkit.surgery.carry import latched_messages, merged_custom_data, write_latched
 from bagkit.surgery.copy import CopyOptions, InputFile, copy_files, topics_of
 from bagkit.surgery.errors import SurgeryError
@@ -154,15 +155,15 @@ def _opened_inputs(
 
 def all_mcap(bags: Sequence[Path]) -> bool:
     """Whether every storage file of ``bags`` is MCAP (chunks can then be copied as stored),
-    by the files' magic (nothing else is read: a SQLite3 bag counts its rows on opening)."""
+    by the files' magic (nothing else is read: a SQLite3 bag counts its rows on opening).
+    A path that is no file or directory is left to the reader to report."""
     for bag in bags:
-        if bag.is_dir():
-            files = [f for f in bag.iterdir() if f.is_file() and f.suffix != ".yaml"]
+        folder = bag.parent if bag.name == METADATA_FILENAME else bag
+        if folder.is_dir():
+            files = [f for f in folder.iterdir() if f.is_file() and f.suffix != ".yaml"]
         else:
-            files = [bag.parent] if bag.name == "metadata.yaml" else [bag]
+            files = [bag] if bag.is_file() else []
         for file in files:
-            if file.is_dir():
-                return all_mcap([file])
             with open(file, "rb") as f:
                 if f.read(len(MAGIC)) != MAGIC:
                     return False
