@@ -29,7 +29,7 @@ from bagkit.bag.mcapio import DEFAULT_MAX_CHUNK_SIZE, MAGIC
 from bagkit.bag.mcapio.message_index import Span, widen
 from bagkit.bag.messages import BagMessage, TopicInfo
 from bagkit.bag.metadata import METADATA_FILENAME, BagMetadata, read_metadata
-from bagkit.bag.storage import SQLITE_MAGIC, BagChunk, StorageFile
+from bagkit.bag.storage import ROSBAG1_MAGIC, SQLITE_MAGIC, BagChunk, StorageFile
 
 STORAGE_SUFFIXES = (".mcap", ".db3")
 # rosbag2's file compression names the compressed files so.
@@ -101,7 +101,7 @@ def open_storage_file(
     max_chunk_size: int = DEFAULT_MAX_CHUNK_SIZE,
     compression_mode: str | None = None,
 ) -> StorageFile:
-    """Open one storage file, its back-end chosen by its content (MCAP or SQLite3 magic),
+    """Open one storage file, its back-end chosen by its content (MCAP, SQLite3 or ROS 1 magic),
     through the compression layer (:mod:`bagkit.bag.compression`) where it is compressed.
 
     Args:
@@ -111,7 +111,7 @@ def open_storage_file(
             without metadata.yaml: a SQLite3 file's payloads tell.
 
     Raises:
-        NotABagError: neither MCAP nor SQLite3 (once decompressed); and what the back-end's
+        NotABagError: neither MCAP, SQLite3 nor ROS 1 (once decompressed); and what the back-end's
             ``open()`` raises.
     """
     with open(path, "rb") as f:
@@ -130,8 +130,12 @@ def open_storage_file(
             from bagkit.bag.sqlite3_file import Sqlite3File
 
             storage = Sqlite3File(source)
+        elif head.startswith(ROSBAG1_MAGIC):
+            from bagkit.bag.rosbag1_file import Rosbag1File  # rosbags: only for ROS 1 bags
+
+            storage = Rosbag1File(source, max_chunk_size=max_chunk_size)
         else:
-            raise NotABagError(f"{path}: neither an MCAP nor a SQLite3 file")
+            raise NotABagError(f"{path}: neither an MCAP, a SQLite3 nor a ROS 1 bag file")
         storage.open()
         # Sniffing reads a message per topic: cheap in SQLite3, a chunk per topic in MCAP,
         # whose rosbag2 writer keeps the compression mode in the file's own metadata record.
@@ -157,7 +161,8 @@ def open_storage_file(
 
 class BagReader:
     """Read a bag: a rosbag2 bag directory (split or not, with or without ``metadata.yaml``), a
-    single ``.mcap`` file, or a single ``.db3`` file.
+    single ``.mcap`` or ``.db3`` file, or a ROS 1 ``.bag`` file (read as ROS 2, see
+    :mod:`bagkit.bag.rosbag1_file`).
 
     Topics, counts and times come from the storage files (MCAP summaries when present, a salvage
     scan otherwise); ``metadata.yaml`` only fills in what the storage lacks (QoS, type hashes).

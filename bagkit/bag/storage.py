@@ -1,8 +1,9 @@
 """The storage files of a bag: what every back-end provides, and the chunks it hands out.
 
-The back-ends, side by side: :mod:`bagkit.bag.mcap_file` (MCAP) and
+The back-ends, side by side: :mod:`bagkit.bag.mcap_file` (MCAP),
 :mod:`bagkit.bag.sqlite3_file` (SQLite3, imported only when a ``.db3`` file is opened:
-``sqlite3`` is not free at start-up). The reader and ``bagkit info`` use them through
+``sqlite3`` is not free at start-up) and :mod:`bagkit.bag.rosbag1_file` (ROS 1 ``.bag``
+through rosbags, imported only when one is opened). The reader and ``bagkit info`` use them through
 :class:`StorageFile` only.
 """
 
@@ -22,6 +23,7 @@ if TYPE_CHECKING:
     import numpy as np
 
 SQLITE_MAGIC = b"SQLite format 3\x00"
+ROSBAG1_MAGIC = b"#ROSBAG V2.0\n"
 
 
 @dataclass(frozen=True, slots=True)
@@ -68,7 +70,7 @@ class StorageFile(Protocol):
 
     Attributes:
         path: the file.
-        storage_identifier: rosbag2's name of the format (``mcap``, ``sqlite3``).
+        storage_identifier: rosbag2's name of the format (``mcap``, ``sqlite3``; ``rosbag1``).
         topics: by name.
         definitions: the stored definition text (``ros2msg`` or ``ros2idl``, any form of
             :mod:`bagkit.decode.stored`) by type name: the first schema's of each type.

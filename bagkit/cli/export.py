@@ -72,7 +72,7 @@ def export(  # noqa: PLR0917 (typer maps parameters to options)
     scheduler: Scheduler = None,
     distro: Distro = None,
 ) -> None:
-    from bagkit.fleet.inputs import STORAGE_SUFFIXES, expand_bags, is_bag_directory
+    from bagkit.fleet.inputs import BAG_FILE_SUFFIXES, expand_bags, is_bag_directory
     from bagkit.selection.conditions import parse_condition
 
     if where is not None:
@@ -89,7 +89,7 @@ def export(  # noqa: PLR0917 (typer maps parameters to options)
         "where": where,
     }
     named = inputs[0] if len(inputs) == 1 else None
-    if named is not None and (named.suffix in STORAGE_SUFFIXES or is_bag_directory(named)):
+    if named is not None and (named.suffix in BAG_FILE_SUFFIXES or is_bag_directory(named)):
         _print_report(_export_one(named, out, options), where=where)
         return
     _export_many(expand_bags(inputs), out, options, workers=workers, scheduler=scheduler)

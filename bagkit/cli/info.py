@@ -240,7 +240,10 @@ def info(  # noqa: PLR0917 (typer maps parameters to options)
         False, "--verbose", "-v", help="Also serialization, offered QoS and custom data in full."
     ),
     storage: str | None = typer.Option(
-        None, "--storage", "-s", help="mcap or sqlite3: fail if the bag is stored otherwise."
+        None,
+        "--storage",
+        "-s",
+        help="mcap, sqlite3 or rosbag1: fail if the bag is stored otherwise.",
     ),
     output_format: ReportFormat = typer.Option(
         ReportFormat.TABLE, "--format", help="table (for people) or json (for scripts)."
@@ -251,8 +254,8 @@ def info(  # noqa: PLR0917 (typer maps parameters to options)
     distro: Distro = None,
 ) -> None:
     """Show what a bag holds (like ros2 bag info)."""
-    if storage not in (None, "mcap", "sqlite3"):
-        raise fail(f"--storage {storage}: bagkit reads mcap and sqlite3 bags")
+    if storage not in (None, "mcap", "sqlite3", "rosbag1"):
+        raise fail(f"--storage {storage}: bagkit reads mcap, sqlite3 and rosbag1 bags")
     with _reading(bag):
         result = bag_info(bag, check_crc=check_crc)
         services = [] if topic_name else _services(bag, result)

@@ -42,6 +42,9 @@ _COMMANDS = {
     "control": _Lazy(
         "bagkit.cli.control", "control", "Control a running recorder or player (pause, rate)."
     ),
+    "convert": _Lazy(
+        "bagkit.cli.convert", "convert", "Convert bags to a rosbag2 MCAP or SQLite3 bag."
+    ),
     "doctor": _Lazy("bagkit.cli.doctor", "doctor", "Check a bag for problems (like mcap doctor)."),
     "echo": _Lazy("bagkit.cli.echo", "echo", "Print the messages of a topic."),
     "export": _Lazy("bagkit.cli.export", "export", "Write topics to Parquet or CSV files."),

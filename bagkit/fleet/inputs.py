@@ -1,5 +1,5 @@
-"""Many-bag inputs: bag directories, bare ``.mcap``/``.db3`` files, globs, roots searched for
-bags, and text files listing one path a line.
+"""Many-bag inputs: bag directories, bare ``.mcap``/``.db3`` files, ROS 1 ``.bag`` files,
+globs, roots searched for bags, and text files listing one path a line.
 
 The result is a list of bags in a stable order (the order given; sorted within a directory or a
 glob), each bag once.
@@ -15,6 +15,8 @@ from pathlib import Path
 from bagkit.fleet.errors import NoBagsError
 
 STORAGE_SUFFIXES = (".mcap", ".db3")
+# A file that is a whole bag by itself (ROS 1 bags: several in a directory are several bags).
+BAG_FILE_SUFFIXES = (*STORAGE_SUFFIXES, ".bag")
 LISTING_SUFFIXES = (".txt", ".list", ".lst")
 # A listing longer than this is not a list of bag paths (bounded memory on a wrong file).
 MAX_LISTING_BYTES = 64 << 20
@@ -56,7 +58,7 @@ def find_bags(root: str) -> Iterator[str]:
             yield _joined(directory, name)
         subdirs[:] = [d for d in subdirs if d not in bags and not d.startswith(".")]
         for name in sorted(files):
-            if name.endswith(STORAGE_SUFFIXES):
+            if name.endswith(BAG_FILE_SUFFIXES):
                 yield _joined(directory, name)
 
 

@@ -7,6 +7,8 @@ and whose compression is the one asked for is copied as it is, without decompres
 - :mod:`~bagkit.surgery.output`: the bag being written (temp name, split, raw chunk copies)
 - :mod:`~bagkit.surgery.copy`, :mod:`~bagkit.surgery.runs`: the streaming, log-time ordered copy
 - :mod:`~bagkit.surgery.rewrite`: ``filter``, ``merge`` and ``recover`` on top of it
+- :mod:`~bagkit.surgery.message_copy`: the same message by message, for inputs or outputs
+  that are not MCAP (SQLite3, ROS 1); :mod:`~bagkit.surgery.convert`: ``convert``
 - :mod:`~bagkit.surgery.doctor`, :mod:`~bagkit.surgery.file_check`: every check, one line each
 """
 

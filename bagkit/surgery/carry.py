@@ -18,7 +18,7 @@ from pathlib import Path
 from bagkit.bag import BagMessage, BagReader
 from bagkit.bag.latched import latched_topics
 from bagkit.bag.messages import TopicInfo
-from bagkit.surgery.output import OutputBag
+from bagkit.surgery.output import MessageOutput
 from bagkit.surgery.select import Selection
 
 
@@ -52,10 +52,10 @@ def latched_messages(
     return sorted(found.values(), key=lambda m: (m.log_time, m.topic))
 
 
-def write_latched(out: OutputBag, messages: list[BagMessage], start_ns: int) -> None:
+def write_latched(out: MessageOutput, messages: list[BagMessage], start_ns: int) -> None:
     """Write ``messages`` at log time ``start_ns`` before anything else of the window."""
     for message in messages:
-        out.write_message(out.channels[message.topic].id, message, start_ns)
+        out.write_message(out.topic_id(message.topic), message, start_ns)
 
 
 def merged_custom_data(per_bag: Sequence[tuple[str, Mapping[str, str]]]) -> dict[str, str]:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import shutil
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 from mcap.well_known import Profile
@@ -18,13 +19,31 @@ from bagkit.bag.bag_files import bag_metadata, compressor, file_information, fin
 from bagkit.bag.definitions import definition_encoding
 from bagkit.bag.mcapio.chunk_builder import ChunkBuilder, ClosedChunk
 from bagkit.bag.mcapio.file_writer import McapFileWriter
-from bagkit.bag.mcapio.records import Channel, Header, Schema
+from bagkit.bag.mcapio.records import (
+    MESSAGE_PREFIX,
+    MESSAGE_RECORD_HEADER,
+    Channel,
+    Header,
+    Opcode,
+    Schema,
+)
 from bagkit.bag.messages import BagMessage, TopicInfo
 from bagkit.bag.metadata import BagMetadata, FileInformation, write_metadata
 from bagkit.bag.writer import DEFAULT_CHUNK_SIZE, LIBRARY
 from bagkit.selection.times import seconds_to_ns
 from bagkit.surgery.errors import SurgeryError
 
+# A Message record up to its payload, as MESSAGE_RECORD_HEADER packs it.
+_RECORD_HEADER = np.dtype(
+    [
+        ("opcode", "u1"),
+        ("length", "<u8"),
+        ("channel", "<u2"),
+        ("sequence", "<u4"),
+        ("log_time", "<u8"),
+        ("publish_time", "<u8"),
+    ]
+)
 # What --force may replace: a bag directory holds these files only (rosbag2 writes no folders).
 _BAG_SUFFIXES = (".mcap", ".db3", ".yaml", ".zstd", ".lz4")
 
@@ -48,6 +67,32 @@ def check_replaceable(path: Path) -> None:
             f"{path} is not a bag directory (it holds {', '.join(sorted(others)[:3])}): "
             "not replaced, remove it yourself or choose another name"
         )
+
+
+class MessageOutput(Protocol):
+    """What a message-by-message copy needs of the bag it writes: :class:`OutputBag` or
+    :class:`~bagkit.surgery.sqlite3_output.Sqlite3OutputBag`."""
+
+    custom_data: dict[str, str]
+    counts: dict[int, int]
+
+    def add_topic(self, topic: TopicInfo, definition: str, preferred_id: int) -> int:
+        """Add a topic (once per name); return its id in the output."""
+
+    def topic_id(self, topic: str) -> int:
+        """The id of a topic added."""
+
+    def write_message(self, channel_id: int, message: BagMessage, log_time: int) -> None:
+        """Append one message under ``channel_id`` at ``log_time``."""
+
+    def write_messages(self, channel_ids: list[int], messages: list[BagMessage]) -> None:
+        """Append messages at their log times, each under its id of ``channel_ids``."""
+
+    def commit(self) -> list[Path]:
+        """Finish, move the bag into place; return its files."""
+
+    def abort(self) -> None:
+        """Remove what was written."""
 
 
 class OutputBag:
@@ -137,6 +182,10 @@ class OutputBag:
         self.counts[channel_id] = 0
         return channel_id
 
+    def topic_id(self, topic: str) -> int:
+        """The channel id of a topic added."""
+        return self.channels[topic].id
+
     def write_records(
         self,
         data: bytes | bytearray,
@@ -170,6 +219,32 @@ class OutputBag:
         self._chunk.add(channel_id, message.data, log_time, message.publish_time, message.sequence)
         if self._chunk.size >= self._chunk_size:
             self._close_chunk()
+
+    def write_messages(self, channel_ids: list[int], messages: list[BagMessage]) -> None:
+        """Append messages at their log times, each under its id of ``channel_ids``, as Message
+        records packed at once (the message-by-message copy's bulk write)."""
+        if not messages:
+            return
+        count = len(messages)
+        lengths = np.fromiter((len(m.data) for m in messages), np.int64, count)
+        times = np.fromiter((m.log_time for m in messages), np.uint64, count)
+        channels = np.array(channel_ids, np.uint16)
+        headers = np.empty(count, _RECORD_HEADER)
+        headers["opcode"] = Opcode.MESSAGE
+        headers["length"] = lengths + MESSAGE_PREFIX.size
+        headers["channel"] = channels
+        headers["sequence"] = np.fromiter((m.sequence for m in messages), np.uint64, count)
+        headers["log_time"] = times
+        headers["publish_time"] = np.fromiter((m.publish_time for m in messages), np.uint64, count)
+        packed = headers.tobytes()
+        size = MESSAGE_RECORD_HEADER.size
+        pieces = [b""] * (2 * count)
+        pieces[::2] = [packed[i : i + size] for i in range(0, count * size, size)]
+        pieces[1::2] = [m.data for m in messages]
+        record_lengths = lengths + size
+        offsets = np.zeros(count, np.int64)
+        np.cumsum(record_lengths[:-1], out=offsets[1:])
+        self.write_records(b"".join(pieces), offsets, record_lengths, channels, times)
 
     def copy_chunk(self, chunk: ClosedChunk) -> None:
         """Append a chunk as it is stored (its channel ids must be this bag's)."""

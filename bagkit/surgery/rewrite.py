@@ -1,4 +1,9 @@
-"""``filter``, ``merge`` and ``recover``: open the inputs, copy, commit the output bag."""
+"""``filter``, ``merge``, ``recover`` and ``convert``: open the inputs, copy, commit the output.
+
+MCAP inputs into an MCAP output are copied chunk by chunk (:mod:`~bagkit.surgery.copy`); any
+other input (SQLite3, ROS 1) or output (SQLite3) message by message
+(:mod:`~bagkit.surgery.message_copy`), with the same selection.
+"""
 
 from __future__ import annotations
 
@@ -9,69 +14,13 @@ from pathlib import Path
 
 from bagkit.bag import BagReader
 from bagkit.bag.mcapio import MAGIC, Source, read_file_index
-from bagkit.selection.topics import require_topics
-from bagkit.selection.windows import outside_warning
+from bagkit.bag.metadata import METADATA_FILENAME
 from bagkit.surgery.carry import latched_messages, merged_custom_data, write_latched
 from bagkit.surgery.copy import CopyOptions, InputFile, copy_files, topics_of
 from bagkit.surgery.errors import SurgeryError
+from bagkit.surgery.options import OutputOptions, RewriteReport, resolve
 from bagkit.surgery.output import OutputBag
 from bagkit.surgery.select import Selection
-
-
-@dataclass
-class RewriteReport:
-    """What a rewrite wrote, and what it could not read.
-
-    Attributes:
-        output: the bag written.
-        files: its storage files.
-        input_messages: messages the inputs' indexes (or salvage) counted.
-        topic_counts: messages written per topic (the latched state's included).
-        latched_messages: messages of the latched state written before the window.
-        chunks_copied: chunks copied as they were stored.
-        problems: what was lost or could not be read, one line each.
-        warnings: what the user should know that lost nothing (a time window outside the
-            inputs).
-    """
-
-    output: Path
-    files: list[Path] = field(default_factory=list)
-    input_messages: int = 0
-    topic_counts: dict[str, int] = field(default_factory=dict)
-    chunks_copied: int = 0
-    latched_messages: int = 0
-    problems: list[str] = field(default_factory=list)
-    warnings: list[str] = field(default_factory=list)
-
-    @property
-    def message_count(self) -> int:
-        """Messages written."""
-        return sum(self.topic_counts.values())
-
-    def to_dict(self) -> dict[str, object]:
-        """JSON-ready form."""
-        return {
-            "output": str(self.output),
-            "files": [str(f) for f in self.files],
-            "input_messages": self.input_messages,
-            "message_count": self.message_count,
-            "topic_counts": self.topic_counts,
-            "chunks_copied": self.chunks_copied,
-            "latched_messages": self.latched_messages,
-            "problems": self.problems,
-            "warnings": self.warnings,
-        }
-
-
-@dataclass
-class OutputOptions:
-    """How the output is written (see :class:`~bagkit.surgery.output.OutputBag`)."""
-
-    compression: str = "zstd"
-    max_bag_size: int = 0
-    max_bag_duration_s: float = 0
-    force: bool = False
-    check_crc: bool = True
 
 
 def filter_bag(
@@ -116,10 +65,15 @@ def _rewrite(
     stored_order: bool = False,
 ) -> RewriteReport:
     check_output(bags, output)
+    if options.storage != "mcap" or not all_mcap(bags):
+        from bagkit.surgery.message_copy import rewrite_messages
+
+        return rewrite_messages(bags, output, selection, options)
     report = RewriteReport(output=output)
     inputs = _Inputs()
     with _opened_inputs(bags, report, inputs) as files:
-        selection = _resolve(selection, bags, files, inputs.spans, report)
+        names = {name for f in files for name in f.known}
+        selection = resolve(selection, bags, names, inputs.spans, report)
         latched = latched_messages(
             bags, {n: t for f in files for n, t in f.known.items()}, selection
         )
@@ -199,28 +153,21 @@ def _opened_inputs(
             handle.close()
 
 
-def _resolve(
-    selection: Selection,
-    bags: list[Path],
-    files: list[InputFile],
-    spans: list[tuple[int, int]],
-    report: RewriteReport,
-) -> Selection:
-    """The selection's named topics checked against the inputs, its times against their span.
-
-    Raises:
-        UnknownTopicError: a named topic is in no input (the message names the closest).
-    """
-    require_topics(selection.topics.topics, {name for f in files for name in f.known})
-    if not spans or not selection.span.bounded:
-        return selection
-    first, last = min(s for s, _ in spans), max(e for _, e in spans)
-    resolved = selection.resolved(first, last)
-    label = ", ".join(str(bag) for bag in bags)
-    outside = outside_warning(label, resolved.window, first, last)
-    if outside is not None:
-        report.warnings.append(outside)
-    return resolved
+def all_mcap(bags: Sequence[Path]) -> bool:
+    """Whether every storage file of ``bags`` is MCAP (chunks can then be copied as stored),
+    by the files' magic (nothing else is read: a SQLite3 bag counts its rows on opening).
+    A path that is no file or directory is left to the reader to report."""
+    for bag in bags:
+        folder = bag.parent if bag.name == METADATA_FILENAME else bag
+        if folder.is_dir():
+            files = [f for f in folder.iterdir() if f.is_file() and f.suffix != ".yaml"]
+        else:
+            files = [bag] if bag.is_file() else []
+        for file in files:
+            with open(file, "rb") as f:
+                if f.read(len(MAGIC)) != MAGIC:
+                    return False
+    return True
 
 
 def _add_topics(files: list[InputFile], out: OutputBag, selection: Selection) -> None:

@@ -1,0 +1,151 @@
+"""``bagkit convert``: bags of any storage into a rosbag2 MCAP or SQLite3 bag (like ``ros2
+bag convert``, ``rosbags-convert`` and ``mcap convert``)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import typer
+
+from bagkit.bag import BagReader
+from bagkit.cli.common import MultiValueCommand, ReportFormat, handle_errors, split_list
+from bagkit.cli.filter import (
+    EXCLUDE_REGEX_HELP,
+    EXCLUDE_TOPICS_HELP,
+    REGEX_HELP,
+    TOPICS_HELP,
+    WHERE_HELP,
+)
+from bagkit.cli.progress import DelayedProgress
+from bagkit.cli.selection_options import End, Start
+from bagkit.cli.surgery_options import (
+    CheckCrc,
+    Force,
+    Format,
+    LatchedTopics,
+    MaxBagDuration,
+    MaxBagSize,
+    NoLatched,
+    latched_options,
+    output_options,
+    print_report,
+)
+from bagkit.selection.conditions import parse_condition
+from bagkit.surgery.convert import convert_bags, read_output_options
+from bagkit.surgery.errors import SurgeryError
+from bagkit.surgery.rewrite import OutputOptions, RewriteReport
+from bagkit.surgery.select import PayloadFilter, Selection
+
+HELP = """Convert BAGs (rosbag2 directories, .mcap, .db3 or ROS 1 .bag files, several merged
+in log-time order) into a new rosbag2 bag OUT: MCAP (default) or SQLite3 (--storage sqlite3),
+with every topic's definition, QoS and type hash and each bag's custom_data. ROS 1 types
+become their ROS 2 form (as rosbags-convert maps them), payloads CDR. --compression sets
+OUT's: MCAP chunks zstd (default), lz4 or none; sqlite3 none (default) or zstd per message.
+Topics, times, --where and the latched state are selected as in bagkit filter. MCAP chunks
+already in OUT's compression are copied as stored.
+
+--output-options FILE reads ros2 bag convert's options file instead of -o (output_bags: a
+list of uri, storage_id, topics, regex, exclude_topics, compression_format, ...; one bag each).
+
+Example: bagkit convert old_drive.bag -o drive
+Example: bagkit convert field_db3_bag -o field_mcap --compression zstd
+Example: bagkit convert drive -o drive_db3 --storage sqlite3 --topics /imu/data
+"""
+STORAGE_HELP = "OUT's storage: mcap (default) or sqlite3."
+COMPRESSION_HELP = (
+    "OUT's compression: zstd, lz4 (mcap only) or none (default: zstd for mcap, none for sqlite3)."
+)
+OPTIONS_HELP = "ros2 bag convert's YAML options file (output_bags: [...]) instead of -o."
+
+
+class ConvertCommand(MultiValueCommand):
+    """``--topics a b c`` and ``--exclude-topics a b c``, as in ``bagkit filter``."""
+
+    multi_value = frozenset({"--topics", "--exclude-topics"})
+
+
+COMMAND_CLASS = ConvertCommand
+
+
+@handle_errors
+def convert(
+    bags: list[Path] = typer.Argument(..., help="The bags to convert (merged when several)."),
+    *,
+    output: Path | None = typer.Option(
+        None, "--output", "-o", help="The bag directory to write (must not exist unless --force)."
+    ),
+    output_options_file: Path | None = typer.Option(
+        None, "--output-options", help=OPTIONS_HELP, metavar="FILE"
+    ),
+    storage: str = typer.Option("mcap", "--storage", "-s", help=STORAGE_HELP),
+    compression: str | None = typer.Option(None, "--compression", help=COMPRESSION_HELP),
+    topics: list[str] | None = typer.Option(None, "--topics", help=TOPICS_HELP),
+    regex: str = typer.Option("", "--regex", "-e", help=REGEX_HELP),
+    exclude_topics: list[str] | None = typer.Option(
+        None, "--exclude-topics", help=EXCLUDE_TOPICS_HELP
+    ),
+    exclude_regex: str = typer.Option("", "--exclude-regex", help=EXCLUDE_REGEX_HELP),
+    start: Start = None,
+    end: End = None,
+    where: str | None = typer.Option(None, "--where", help=WHERE_HELP, metavar="CONDITION"),
+    latched_topics: LatchedTopics = None,
+    no_latched: NoLatched = False,
+    max_bag_size: MaxBagSize = 0,
+    max_bag_duration: MaxBagDuration = 0.0,
+    force: Force = False,
+    check_crc: CheckCrc = True,
+    output_format: Format = ReportFormat.TABLE,
+) -> None:
+    """Convert bags to a rosbag2 MCAP or SQLite3 bag."""
+    latched = latched_options(latched_topics, no_latched)
+    if output_options_file is not None:
+        if output is not None:
+            raise SurgeryError("give -o or --output-options, not both")
+        for spec in read_output_options(output_options_file, force=force):
+            selection = replace(spec.selection, latched=latched)
+            _convert(bags, spec.uri, selection, spec.options, where, output_format)
+        return
+    if output is None:
+        raise SurgeryError("no output: give -o OUT (or --output-options FILE)")
+    selection = Selection.create(
+        split_list(topics), regex, split_list(exclude_topics), exclude_regex, start, end
+    )
+    options = replace(
+        output_options(
+            compression or ("none" if storage == "sqlite3" else "zstd"),
+            max_bag_size,
+            max_bag_duration,
+            force=force,
+            check_crc=check_crc,
+        ),
+        storage=storage,
+    )
+    _convert(bags, output, replace(selection, latched=latched), options, where, output_format)
+
+
+def _convert(  # noqa: PLR0917 (the command's options, passed on)
+    bags: list[Path],
+    output: Path,
+    selection: Selection,
+    options: OutputOptions,
+    where: str | None,
+    output_format: ReportFormat,
+) -> None:
+    if where is not None:
+        from bagkit.data.matching import where_filters  # numpy, rosbags: only when asked
+
+        condition = parse_condition(where)
+        content: dict[str, PayloadFilter] = {}
+        for bag in bags:
+            with BagReader(bag) as reader:
+                found = where_filters(reader, condition, selection.topic_passes)
+            for topic, matcher in found.items():
+                content.setdefault(topic, matcher)
+        selection = replace(selection, content=content)
+    progress = DelayedProgress(f"converting to {output}")
+    try:
+        report: RewriteReport = convert_bags(bags, output, selection, options, progress)
+    finally:
+        progress.close()
+    print_report(report, output_format)

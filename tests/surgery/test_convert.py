@@ -1,0 +1,230 @@
+"""``bagkit convert``: MCAP, SQLite3 and ROS 1 inputs into MCAP or SQLite3 bags, read back by
+independent readers (the ``mcap`` package, rosbags, sqlite3)."""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+from rosbags.highlevel import AnyReader
+from rosbags.typesys import Stores, get_typestore
+from surgery_samples import key, mcap_messages, rosbags_messages, run, write_mixed_bag
+
+from tests.bag.ros1_samples import SAMPLE, ros1_messages, write_ros1_bag
+
+
+@pytest.fixture(scope="module")
+def mixed(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return write_mixed_bag(tmp_path_factory.mktemp("convert") / "mixed", 1500)
+
+
+@pytest.fixture(scope="module")
+def ros1(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("convert_ros1") / "old.bag"
+    return write_ros1_bag(path, 400, compression="lz4", chunk_threshold=8192)
+
+
+def _convert(*args: str | Path) -> dict[str, object]:
+    result = run("convert", *map(str, args), "--format", "json")
+    assert result.returncode == 0, result.stderr
+    report: dict[str, object] = json.loads(result.stdout)
+    return report
+
+
+def _mcap_files(bag: Path) -> list[Path]:
+    return sorted(bag.glob("*.mcap"))
+
+
+def _schemas(file: Path) -> dict[str, str]:
+    with open(file, "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    return {s.name: s.data.decode() for s in summary.schemas.values()}
+
+
+def _chunk_compressions(file: Path) -> set[str]:
+    with open(file, "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    return {c.compression for c in summary.chunk_indexes}
+
+
+def test_mcap_to_db3_and_back_keeps_messages_definitions_and_qos(
+    mixed: Path, tmp_path: Path
+) -> None:
+    original = sorted(mcap_messages(_mcap_files(mixed)), key=key)
+    db3 = tmp_path / "as_db3"
+    _convert(mixed, "-o", db3, "--storage", "sqlite3")
+    (database,) = db3.glob("*.db3")
+    with sqlite3.connect(database) as db:
+        counts = dict(
+            db.execute(
+                "SELECT t.name, COUNT(*) FROM messages m JOIN topics t ON t.id = m.topic_id "
+                "GROUP BY t.name"
+            )
+        )
+        definitions = dict(
+            db.execute("SELECT topic_type, encoded_message_definition FROM message_definitions")
+        )
+        qos = dict(db.execute("SELECT name, offered_qos_profiles FROM topics"))
+    expected_counts: dict[str, int] = {}
+    for topic, _, _ in original:
+        expected_counts[topic] = expected_counts.get(topic, 0) + 1
+    assert counts == expected_counts
+    schemas = _schemas(_mcap_files(mixed)[0])
+    assert definitions == schemas
+    assert all("transient_local" in text and "best_effort" in text for text in qos.values())
+    assert sorted(rosbags_messages(db3), key=key) == original
+    back = tmp_path / "back"
+    _convert(db3, "-o", back)
+    assert sorted(mcap_messages(_mcap_files(back)), key=key) == original
+    assert _schemas(_mcap_files(back)[0]) == schemas
+    with open(_mcap_files(back)[0], "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    for channel in summary.channels.values():
+        assert "transient_local" in channel.metadata["offered_qos_profiles"]
+
+
+@pytest.mark.parametrize(("compression", "stored"), [("lz4", "lz4"), ("none", "")])
+def test_recompression(mixed: Path, tmp_path: Path, compression: str, stored: str) -> None:
+    out = tmp_path / "recompressed"
+    _convert(mixed, "-o", out, "--compression", compression)
+    assert {_chunk_compressions(f) == {stored} for f in _mcap_files(out)} == {True}
+    expected = sorted(mcap_messages(_mcap_files(mixed)), key=key)
+    assert sorted(mcap_messages(_mcap_files(out)), key=key) == expected
+
+
+def test_ros1_to_mcap_decodes_as_ros2_in_the_mcap_reader(ros1: Path, tmp_path: Path) -> None:
+    out = tmp_path / "ros2"
+    report = _convert(ros1, "-o", out)
+    assert report["problems"] == []
+    (file,) = _mcap_files(out)
+    decoded: dict[str, list[tuple[int, Any]]] = {}
+    with open(file, "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        summary = reader.get_summary()
+        assert summary is not None
+        types = {c.topic: summary.schemas[c.schema_id].name for c in summary.channels.values()}
+        status_qos = next(
+            c.metadata["offered_qos_profiles"]
+            for c in summary.channels.values()
+            if c.topic == "/status"
+        )
+        for _, channel, message, value in reader.iter_decoded_messages(log_time_order=True):
+            decoded.setdefault(channel.topic, []).append((message.log_time, value))
+    assert types == {
+        "/imu": "sensor_msgs/msg/Imu",
+        "/status": "std_msgs/msg/String",
+        "/sample": SAMPLE,
+    }
+    assert "transient_local" in status_qos
+    imu = ros1_messages(ros1, "/imu")
+    assert [t for t, _ in decoded["/imu"]] == [t for t, _ in imu]
+    for (_, ros2), (_, ros1_msg) in zip(decoded["/imu"], imu, strict=True):
+        assert ros2.header.stamp.sec == ros1_msg.header.stamp.sec
+        assert ros2.linear_acceleration.z == ros1_msg.linear_acceleration.z
+    for (_, ros2), (_, ros1_msg) in zip(
+        decoded["/sample"], ros1_messages(ros1, "/sample"), strict=True
+    ):
+        assert ros2.exposure.sec == ros1_msg.exposure.sec
+        assert list(ros2.labels) == ros1_msg.labels
+        assert bytes(ros2.blob) == ros1_msg.blob.tobytes()
+    jazzy = get_typestore(Stores.ROS2_JAZZY)
+    with AnyReader([out]) as reader:
+        (imu_connection,) = [c for c in reader.connections if c.topic == "/imu"]
+        assert imu_connection.digest == jazzy.hash_rihs01("sensor_msgs/msg/Imu")
+        assert sum(1 for _ in reader.messages()) == sum(len(v) for v in decoded.values())
+
+
+def test_ros1_and_mcap_merged_into_sqlite3_with_zstd(
+    mixed: Path, ros1: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "merged"
+    report = _convert(ros1, mixed, "-o", out, "--storage", "sqlite3", "--compression", "zstd")
+    metadata = yaml.safe_load((out / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert (metadata["compression_format"], metadata["compression_mode"]) == ("zstd", "message")
+    with AnyReader([out]) as reader:
+        times = [t for _, t, _ in reader.messages()]
+        topics = {c.topic for c in reader.connections}
+    assert topics == {"/imu", "/status", "/sample", "/imu/data", "/text", "/temperature"}
+    assert times == sorted(times)
+    assert len(times) == report["message_count"] == 400 + 8 + 40 + len(rosbags_messages(mixed))
+
+
+def test_selection_is_filters(mixed: Path, tmp_path: Path) -> None:
+    selection = ["--topics", "/imu/data", "/text", "--start", "2", "--end", "9"]
+    _convert(mixed, "-o", tmp_path / "converted", "--storage", "sqlite3", *selection)
+    result = run("filter", str(mixed), "-o", str(tmp_path / "filtered"), *selection)
+    assert result.returncode == 0, result.stderr
+    converted = rosbags_messages(tmp_path / "converted")
+    assert converted and converted == rosbags_messages(tmp_path / "filtered")
+    where = ["--topics", "/imu/data", "--where", "linear_acceleration.x > 0.5"]
+    _convert(mixed, "-o", tmp_path / "where_db3", "--storage", "sqlite3", *where)
+    result = run("filter", str(mixed), "-o", str(tmp_path / "where_mcap"), *where)
+    assert result.returncode == 0, result.stderr
+    kept = rosbags_messages(tmp_path / "where_db3")
+    assert 0 < len(kept) < 1500
+    assert kept == rosbags_messages(tmp_path / "where_mcap")
+
+
+def test_ros2_bag_convert_options_file(mixed: Path, tmp_path: Path) -> None:
+    options = tmp_path / "out.yaml"
+    options.write_text(
+        yaml.safe_dump(
+            {
+                "output_bags": [
+                    {
+                        "uri": str(tmp_path / "imu_only"),
+                        "storage_id": "mcap",
+                        "topics": ["/imu/data"],
+                    },
+                    {
+                        "uri": str(tmp_path / "rest"),
+                        "storage_id": "sqlite3",
+                        "all_topics": True,
+                        "exclude_topics": ["/imu/data"],
+                        "compression_mode": "file",
+                        "compression_format": "zstd",
+                        "max_bagfile_size": 0,
+                        "include_hidden_topics": False,
+                    },
+                ]
+            }
+        )
+    )
+    result = run("convert", str(mixed), "--output-options", str(options))
+    assert result.returncode == 0, result.stderr
+    everything = rosbags_messages(mixed)
+    assert rosbags_messages(tmp_path / "imu_only") == [m for m in everything if m[0] == "/imu/data"]
+    assert list((tmp_path / "rest").glob("*.db3.zstd"))
+    assert rosbags_messages(tmp_path / "rest") == [m for m in everything if m[0] != "/imu/data"]
+
+
+@pytest.mark.parametrize(
+    ("args", "says"),
+    [
+        (["--storage", "sqlite3", "--compression", "lz4"], "zstd only"),
+        (["--storage", "rosbag1"], "mcap or sqlite3"),
+        (["--output-options", "OPTIONS"], "topic_types"),
+        (["--topics", "/nope"], "/nope"),
+    ],
+)
+def test_bad_requests_are_one_error_line(
+    mixed: Path, tmp_path: Path, args: list[str], says: str
+) -> None:
+    options = tmp_path / "options.yaml"
+    options.write_text(yaml.safe_dump({"output_bags": [{"uri": "x", "topic_types": ["a/msg/B"]}]}))
+    args = [str(options) if a == "OPTIONS" else a for a in args]
+    output = [] if "--output-options" in args else ["-o", str(tmp_path / "out")]
+    result = run("convert", str(mixed), *output, *args)
+    assert result.returncode == 2, result.stdout
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:") and says in lines[0], result.stderr
+    assert not (tmp_path / "out").exists()
