@@ -46,6 +46,7 @@ class PayloadMatcher:
         *,
         bulk: bool = True,
     ) -> None:
+        condition.require_per_message("--where")
         canonical = types.resolve(type_name)
         leaves = leaf_fields(types.typestore, canonical)
         paths = [leaf.path for leaf in leaves]
