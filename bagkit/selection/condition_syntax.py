@@ -2,10 +2,10 @@
 
 Grammar (docs/cli.md)::
 
-    condition  := or ["for" DURATION]
+    condition  := or
     or         := and ("or" and)*
     and        := not ("and" not)*
-    not        := "not" not | "(" condition ")" | term
+    not        := "not" not | ("(" or ")" | term) ["for" DURATION]
     term       := path OP value                           OP: == != < <= > >=
                 | "gap" OP DURATION
                 | "rate" OP NUMBER "Hz" "over" DURATION
@@ -18,11 +18,12 @@ Grammar (docs/cli.md)::
     value      := number | 'text' | "text" | true | false
     DURATION   := 2s, 500ms, 1m30s, 100ns (or "2 s")
 
-``gap`` and ``rate`` are terms only with their unit (``rate > 5`` compares a field named
-``rate``). Recursive descent, bounded in length and depth; an error names the column of the
-first problem. Names start with a letter: ``_private`` attributes cannot be named, so a
-condition can only read a message's fields. The tree is :mod:`~.condition_terms`, evaluation
-:mod:`bagkit.selection.conditions` (per message) and :mod:`bagkit.selection.temporal`.
+``for`` applies to the term or parenthesized group just before it. ``gap`` and ``rate`` are
+terms only with their unit (``rate > 5`` compares a field named ``rate``). Recursive descent,
+bounded in length and depth; an error names the column of the first problem. Names start with
+a letter: ``_private`` attributes cannot be named, so a condition can only read a message's
+fields. The tree is :mod:`~.condition_terms`, evaluation :mod:`bagkit.selection.conditions`
+(per message) and :mod:`bagkit.selection.temporal` (over time).
 """
 
 from __future__ import annotations
@@ -91,7 +92,7 @@ class _Parser:
     def parse(self) -> Expression:
         if not self.tokens:
             raise SelectionError("bad condition: it is empty")
-        tree = self._condition()
+        tree = self._or()
         if self.at < len(self.tokens):
             self._fail("expected 'and', 'or', 'for' or the end")
         return tree
@@ -140,13 +141,6 @@ class _Parser:
             self._fail(f"expected {value!r}")
         self.at += 1
 
-    def _condition(self) -> Expression:
-        tree = self._or()
-        if self._peek("for"):
-            self.at += 1
-            tree = For(tree, self._duration("'for'"))
-        return tree
-
     def _or(self) -> Expression:
         return self._chain("or", self._and)
 
@@ -170,10 +164,14 @@ class _Parser:
                 return Node("not", (self._not(),))
             if self._peek("("):
                 self.at += 1
-                inner = self._condition()
+                inner = self._or()
                 self._expect(")")
-                return inner
-            return self._term()
+            else:
+                inner = self._term()
+            if self._peek("for"):
+                self.at += 1
+                inner = For(inner, self._duration("'for'"))
+            return inner
         finally:
             self.depth -= 1
 
