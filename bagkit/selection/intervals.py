@@ -53,6 +53,7 @@ def complement(a: np.ndarray, start: int, end: int) -> np.ndarray:
     """Where the normal set ``a`` does not hold, within ``[start, end]``."""
     bounds = np.concatenate(([start - 1], a.reshape(-1), [end + 1])).reshape(-1, 2)
     spans = np.stack([bounds[:, 0] + 1, bounds[:, 1] - 1], axis=1)
+    spans = spans[spans[:, 0] <= spans[:, 1]]
     spans = np.clip(spans, start, end)
     return spans[spans[:, 0] <= spans[:, 1]].astype(np.int64, copy=False)
 
