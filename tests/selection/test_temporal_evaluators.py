@@ -129,13 +129,13 @@ def numpy_intervals(data: ArrayData, text: str, state: bool = False) -> list[tup
 
 def events(data: ArrayData, tick: int | None) -> Iterator[tuple[int, int, str, int]]:
     """(time, order, kind, index): source messages, ticks, then the topic's, in time order."""
-    src_times, src_stamps = data.sources.get("/src", (np.zeros(0, np.int64), None))
+    src_times = data.sources.get("/src", (np.zeros(0, np.int64), None))[0]
     streams = [
         ((int(s), 0, "source", i) for i, s in enumerate(src_times)),
         ((int(s), 2, "message", i) for i, s in enumerate(data.log_times)),
     ]
     if tick is not None:
-        streams.append(((s, 1, "tick", 0) for s in range(0, int(data.log_times[-1]), tick)))
+        streams.append((s, 1, "tick", 0) for s in range(0, int(data.log_times[-1]), tick))
     return heapq.merge(*streams)
 
 
