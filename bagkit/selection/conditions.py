@@ -53,7 +53,7 @@ _OPERATORS: dict[str, Callable[[Any, Any], Any]] = {
 }
 _TEMPORAL_HELP = (
     "terms over time (gap, rate, unchanged, delta, age, latency, for) are for "
-    "find --when and filter --around"
+    "find --when, filter --around and record --trigger"
 )
 
 
@@ -246,6 +246,27 @@ def _evaluate(node: Expression, message: Any, octets: Collection[Comparison | Ch
         return not _evaluate(node.items[0], message, octets)
     results = (_evaluate(item, message, octets) for item in node.items)
     return any(results) if node.kind == "or" else all(results)
+
+
+def message_numbers(message: Any, path: Path | None) -> list[float]:
+    """Every number at or below ``path`` of a decoded message (all when None), in field order."""
+    found = [message] if path is None else _values(message, path)
+    return [x for value in found for x in _numbers(value)]
+
+
+def _numbers(value: Any) -> list[float]:
+    if isinstance(value, bool | int | float):
+        return [float(value)]
+    if isinstance(value, str | bytes):
+        return []
+    names = _field_names(value)
+    if names:
+        return [x for name in names for x in _numbers(getattr(value, name))]
+    if hasattr(value, "dtype"):
+        return [float(x) for x in value.ravel()] if value.dtype.kind in "biuf" else []
+    if isinstance(value, list | tuple):
+        return [x for item in value for x in _numbers(item)]
+    return []
 
 
 def _floats(value: Any) -> list[float]:

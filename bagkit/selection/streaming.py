@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import collections
 import math
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -35,6 +35,7 @@ from bagkit.selection.condition_terms import (
     is_per_message,
     is_stateless,
 )
+from bagkit.selection.conditions import Condition, message_numbers
 from bagkit.selection.temporal import OPERATORS
 
 LATENCY_STAMPS = 100_000
@@ -51,6 +52,20 @@ class Message(Protocol):
 
     def values(self, path: Path | None) -> np.ndarray:
         """Its numeric leaves at or below ``path`` (float64; None: all)."""
+
+
+class DecodedMessage:
+    """A decoded message (rosbags' or rclpy's) as :class:`Message`."""
+
+    def __init__(self, condition: Condition, message: Any) -> None:
+        self.condition = condition
+        self.message = message
+
+    def holds(self, node: Expression) -> bool:
+        return Condition(self.condition.text, node).matches(self.message)
+
+    def values(self, path: Path | None) -> np.ndarray:
+        return np.array(message_numbers(self.message, path), dtype=np.float64)
 
 
 class _Node:
@@ -168,8 +183,11 @@ class _Unchanged(_Node):
 
     def push(self, time: int, message: Message) -> None:
         values = message.values(self.path)
-        same = self.previous is not None and bool(
-            ((values == self.previous) | (np.isnan(values) & np.isnan(self.previous))).all()
+        previous = self.previous
+        same = (
+            previous is not None
+            and previous.shape == values.shape  # a sequence's length changed: not frozen
+            and bool(((values == previous) | (np.isnan(values) & np.isnan(previous))).all())
         )
         if same:
             assert self.last is not None
@@ -372,7 +390,7 @@ class _MessageTest:
             values = message.values(node.path)
             previous = self.previous.get(id(node))
             self.previous[id(node)] = values
-            if previous is None:
+            if previous is None or previous.shape != values.shape:
                 return False
             with np.errstate(invalid="ignore"):
                 return bool(OPERATORS[node.op](np.abs(values - previous), node.value).any())
@@ -397,12 +415,18 @@ class StreamingCondition:
         tree: the condition's tree (:attr:`bagkit.selection.conditions.Condition.tree`).
         start_ns: where the stream is looked at from (the recording's start).
         state: a state topic (each message holds until the next).
+        keep: keep the episodes that ended (:attr:`episodes`; a recorder only counts them).
     """
 
-    def __init__(self, tree: Expression, start_ns: int, *, state: bool = False) -> None:
+    def __init__(
+        self, tree: Expression, start_ns: int, *, state: bool = False, keep: bool = True
+    ) -> None:
         self.root = _build(tree, start_ns, state)
+        self.keep = keep
         self.episodes: list[tuple[int, int]] = []
         """Every episode that has ended, in time order."""
+        self._reported: int | None = None  # the start of the last episode told of
+        self._new = 0
 
     @property
     def since(self) -> int | None:
@@ -429,10 +453,24 @@ class StreamingCondition:
         self._poll()
         return self.episodes
 
+    def take_new(self) -> int:
+        """How many episodes became known (began, or began and ended) since the last call."""
+        new, self._new = self._new, 0
+        return new
+
     def _poll(self) -> None:
-        self.root.poll()
-        self.episodes.extend(self.root.closed)
-        self.root.closed.clear()
+        root = self.root
+        root.poll()
+        for start, _ in root.closed:
+            if start != self._reported:
+                self._new += 1
+                self._reported = start
+        if root.since is not None and root.since != self._reported:
+            self._new += 1
+            self._reported = root.since
+        if self.keep:
+            self.episodes.extend(root.closed)
+        root.closed.clear()
 
 
 def _build(node: Expression, start: int, state: bool) -> _Node:
