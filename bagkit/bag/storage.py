@@ -116,3 +116,7 @@ class StorageFile(Protocol):
         Where no index tells (salvaged chunks without Message Index records), the bounds of
         the chunks that may hold the topic.
         """
+
+    def index_log_times(self, topic: str) -> np.ndarray | None:
+        """The log times (int64 ns, in no order) of ``topic``'s messages from indexes, no
+        message read; None when an index is missing or damaged (read the messages)."""

@@ -80,6 +80,10 @@ class BagStream:
         }
 
     def _read(self, topic: str, names: list[str]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        if not names:  # only log times (gap, rate): from the indexes when they tell
+            times = self.reader.index_log_times(topic, self.window.start_ns, self.window.end_ns)
+            if times is not None:
+                return times, {}
         leaves = [leaf for leaf in self._leaves(topic) if leaf.path in names]
         info = self.reader.topics[topic]
         columns = TopicColumns(self.types, topic, info.type, leaves)
