@@ -3,6 +3,7 @@ bag was built (which messages were left out, frozen, NaN), not from bagkit's out
 
 from __future__ import annotations
 
+import itertools
 import subprocess
 import sys
 from pathlib import Path
@@ -198,3 +199,30 @@ def test_echo_where_refuses_a_temporal_condition_with_one_error(bag: Path) -> No
     result = bagkit("echo", str(bag), "/imu", "--where", "gap > 1s")
     assert result.returncode == 2
     assert result.stderr.startswith("error:") and len(result.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("storage", ["mcap", "db3"])
+def test_gaps_from_indexes_and_from_messages_equal_a_loop(storage: str, tmp_path: Path) -> None:
+    """MCAP's gaps come from its Message Index records, .db3's from its rows: both equal a
+    plain loop over the log times the test wrote."""
+    sys.path.insert(0, str(Path(__file__).parent))
+    from test_episodes import Sample
+
+    sample = Sample(seed=5)
+    path = sample.write_mcap(tmp_path / "bag") if storage == "mcap" else None
+    path = path or sample.write_db3(tmp_path / "bag.db3")
+    times = sample.imu_times.tolist()
+    end = max(times[-1], int(sample.diag_times[-1]))
+    expected: list[list[int]] = []
+    for before, after in [*itertools.pairwise(times), (times[-1], end)]:
+        if after - before > 15 * MS:
+            if expected and expected[-1][1] == before:  # silences sharing a message: one
+                expected[-1][1] = after
+            else:
+                expected.append([before, after])
+    assert len(expected) > 10
+    with BagReader(path) as reader:
+        indexed = reader.index_log_times("/imu")
+        assert (indexed is None) == (storage == "db3")
+        found = find_episodes(reader, parse_topic_condition("/imu: gap > 15ms"))
+    assert [[a, b] for a, b, _ in found.spans.tolist()] == expected
