@@ -119,7 +119,7 @@ def filter_command(
         compression, max_bag_size, max_bag_duration, force=force, check_crc=check_crc
     )
     if where is not None:
-        from bagkit.data.matching import where_filters  # numpy, rosbags: only when asked
+        from bagkit.data.where import where_filters  # numpy, rosbags: only when asked
 
         with BagReader(bag) as reader:
             content = where_filters(reader, parse_condition(where), selection.topic_passes)

@@ -124,6 +124,27 @@ class BagStream:
         return times, stamps(values)
 
 
+class IntervalFilter:
+    """The messages of a topic inside the intervals where a condition over time holds (a
+    :class:`bagkit.surgery.select.PayloadFilter` for ``filter --where``)."""
+
+    problem: str | None = None
+
+    def __init__(self, spans: np.ndarray) -> None:
+        self.spans = spans
+
+    def mask_records(
+        self,
+        records: bytes,
+        starts: np.ndarray,
+        lengths: np.ndarray,
+        log_times: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Whether each message's log time is inside an interval."""
+        assert log_times is not None  # the copy passes them
+        return intervals.contains(self.spans, log_times)
+
+
 def scan_problems(columns: TopicColumns) -> list[str]:
     """What a scan of one topic could not read."""
     found = []

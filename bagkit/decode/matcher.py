@@ -96,8 +96,15 @@ class PayloadMatcher:
             self.first_failure = self.first_failure or str(exc)
             return False
 
-    def mask_records(self, records: bytes, starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:
-        """Which of the payloads ``records[starts[i] : starts[i] + lengths[i]]`` match."""
+    def mask_records(
+        self,
+        records: bytes,
+        starts: np.ndarray,
+        lengths: np.ndarray,
+        log_times: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Which of the payloads ``records[starts[i] : starts[i] + lengths[i]]`` match (their
+        log times do not matter: a per-message condition)."""
         keep = np.zeros(len(starts), dtype=bool)
         leftover = np.arange(len(starts))
         if self.layout is not None and len(starts):

@@ -53,7 +53,7 @@ _OPERATORS: dict[str, Callable[[Any, Any], Any]] = {
 }
 _TEMPORAL_HELP = (
     "terms over time (gap, rate, unchanged, delta, age, latency, for) are for "
-    "find --when, filter --around and record --trigger"
+    "find --when, filter --around and --where, echo --where and record --trigger"
 )
 
 

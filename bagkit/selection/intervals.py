@@ -73,3 +73,17 @@ def runs(log_times: np.ndarray, mask: np.ndarray, until: np.ndarray | None = Non
     lasts = np.flatnonzero(edges == -1) - 1
     ends = log_times[lasts] if until is None else until[lasts]
     return normal(np.stack([log_times[firsts], ends], axis=1))
+
+
+def contains(spans: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """Whether each of ``times`` is inside an interval of the normal set ``spans``."""
+    times = np.asarray(times, dtype=np.int64)
+    at = np.searchsorted(spans[:, 0], times, side="right") - 1
+    inside = at >= 0
+    inside[inside] = times[inside] <= spans[at[inside], 1]
+    return inside
+
+
+def holds_at(spans: np.ndarray, time: int) -> bool:
+    """Whether ``time`` is inside an interval of the normal set ``spans``."""
+    return bool(contains(spans, np.array([time]))[0])

@@ -4,6 +4,7 @@ bag was built (which messages were left out, frozen, NaN), not from bagkit's out
 from __future__ import annotations
 
 import itertools
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -151,8 +152,6 @@ def bagkit(*args: str) -> subprocess.CompletedProcess[str]:
 def test_find_cli_with_a_temporal_condition(bag: Path) -> None:
     result = bagkit("find", str(bag), "--when", "/imu: gap > 500ms", "--format", "json")
     assert result.returncode == 0, result.stderr
-    import json
-
     episodes = json.loads(result.stdout)
     assert [(e["start_ns"], e["end_ns"], e["count"]) for e in episodes] == [(t(299), t(400), 2)]
 
@@ -195,8 +194,25 @@ def test_bad_temporal_conditions_are_one_error(bag: Path, when: str, words: str)
     assert len(lines) == 1 and lines[0].startswith("error:") and words in lines[0], lines
 
 
-def test_echo_where_refuses_a_temporal_condition_with_one_error(bag: Path) -> None:
-    result = bagkit("echo", str(bag), "/imu", "--where", "gap > 1s")
+def test_echo_where_over_time_prints_the_messages_of_the_episodes(bag: Path) -> None:
+    result = bagkit("echo", str(bag), "/imu", "--where", "gap > 500ms", "--format", "json")
+    assert result.returncode == 0, result.stderr
+    lines = [json.loads(line) for line in result.stdout.splitlines()]
+    assert [line["log_time"] for line in lines] == [t(299), t(400)]  # around the silence
+
+
+def test_filter_where_over_time_keeps_the_messages_inside(bag: Path, tmp_path: Path) -> None:
+    out = tmp_path / "frozen"
+    when = "unchanged(linear_acceleration.z) for 2s or isnan(*)"
+    result = bagkit("filter", str(bag), "-o", str(out), "--topics", "/imu", "--where", when)
+    assert result.returncode == 0, result.stderr
+    with BagReader(out) as reader:
+        times = [m.log_time for m in reader.messages(["/imu"])]
+    assert times == [t(i) for i in [*FROZEN, NAN_AT]]
+
+
+def test_stats_where_refuses_a_temporal_condition_with_one_error(bag: Path) -> None:
+    result = bagkit("stats", "summary", str(bag), "--where", "gap > 1s")
     assert result.returncode == 2
     assert result.stderr.startswith("error:") and len(result.stderr.strip().splitlines()) == 1
 
