@@ -36,6 +36,16 @@ Where = Annotated[
     ),
 ]
 
+StateTopics = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--state-topics",
+        help="Topics whose messages hold until the next one, as transient-local topics do: "
+        "an episode lasts until the state changes (repeated or a,b).",
+        metavar="TOPICS",
+    ),
+]
+
 
 def duration_seconds(text: str | None, option: str) -> float | None:
     """A duration option (``90``, ``1m30s``, ``250ms``) in seconds, as the library takes it.

@@ -7,7 +7,7 @@ inside its intervals on their topic (:class:`~bagkit.data.streams.IntervalFilter
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 
 from bagkit.bag import BagReader
 from bagkit.data.errors import UndecodableTopicError, UnknownFieldError
@@ -19,12 +19,17 @@ from bagkit.selection.windows import Window
 
 
 def where_filters(
-    reader: BagReader, condition: Condition, passes: Callable[[str], bool]
+    reader: BagReader,
+    condition: Condition,
+    passes: Callable[[str], bool],
+    *,
+    state_topics: Collection[str] = (),
 ) -> dict[str, PayloadMatcher | IntervalFilter]:
     """A filter for each topic of an open bag that ``passes`` and whose type has every field
     ``condition`` reads (``filter --where``: the other topics are kept whole). A condition
     over time keeps the messages inside its intervals on their topic
-    (:class:`bagkit.data.streams.IntervalFilter`).
+    (:class:`bagkit.data.streams.IntervalFilter`); ``state_topics`` hold until their next
+    message, as transient-local ones do.
 
     Raises:
         UnknownFieldError: no such topic (the message names the fields of the first one).
@@ -37,7 +42,7 @@ def where_filters(
             continue
         try:
             if condition.temporal:
-                state = is_state_topic(reader, name)
+                state = is_state_topic(reader, name, state_topics)
                 spans = temporal_intervals(reader, name, condition, Window(), state)[0]
                 matchers[name] = IntervalFilter(spans)
             else:

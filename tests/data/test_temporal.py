@@ -242,3 +242,20 @@ def test_gaps_from_indexes_and_from_messages_equal_a_loop(storage: str, tmp_path
         assert (indexed is None) == (storage == "db3")
         found = find_episodes(reader, parse_topic_condition("/imu: gap > 15ms"))
     assert [[a, b] for a, b, _ in found.spans.tolist()] == expected
+
+
+def test_a_topic_declared_a_state_topic(bag: Path) -> None:
+    """/events holds what /alerts holds, recorded volatile: instants, unless declared."""
+    when = "/events: data == 'ERROR'"
+    plain = bagkit("find", str(bag), "--when", when, "--format", "json")
+    declared = bagkit(
+        "find", str(bag), "--when", when, "--state-topics", "events", "--format", "json"
+    )
+    assert plain.returncode == declared.returncode == 0, plain.stderr + declared.stderr
+    spans = [
+        [(e["start_ns"], e["end_ns"]) for e in json.loads(r.stdout)] for r in (plain, declared)
+    ]
+    assert spans == [
+        [(t(200), t(200)), (t(700), t(700))],
+        [(t(200), t(400)), (t(700), t(750))],  # ERROR until the next message (OK)
+    ]
