@@ -8,6 +8,9 @@ Measured in the same run:
   bag does not depend on the others; its episodes are checked equal to bagkit's on those bags;
 - the same on 2 local workers against one process pinned to one core (target at least 1.7x,
   as bench_fleet measures; the cluster started before the timings);
+- ``find_fleet`` of ``/imu/data: gap > 100ms`` over the same 40 bags, one process, against a
+  rosbags loop over every message's log time (no deserialization needed) computing the same
+  silences (target at least 10x), scaled from PEER_BAGS bags like the first;
 - ``bagkit echo BAG /imu/data --where 'linear_acceleration.z > 2.326'`` (1% of the messages)
   on the 1M-Imu bag of bench_stats: seconds from the start of the process to the first line
   on stdout (target at most 0.5 s).
@@ -27,6 +30,8 @@ from benchmarks.bench_fleet import BAGS, imu_fleet
 from benchmarks.bench_stats import LARGE, TOPIC, imu_bag
 
 WHEN = f"{TOPIC}: linear_acceleration.z > 2.0"
+GAP_WHEN = f"{TOPIC}: gap > 100ms"
+SILENCE_NS = 100_000_000
 GAP_NS = 50_000_000
 PEER_BAGS = 2
 RUNS = 3
@@ -52,6 +57,25 @@ def _rosbags_episodes(bag: Path) -> list[tuple[int, int, int]]:
                 episodes.append([log_time, log_time, 1])
             last_hit = hit
     return [(a, b, c) for a, b, c in episodes]
+
+
+def _rosbags_gaps(bag: Path) -> list[tuple[int, int]]:
+    """The peer of ``gap > 100ms``: each message's log time from rosbags' reader, silences
+    (and the one after the last message, to the bag's end) in a Python loop."""
+    from rosbags.highlevel import AnyReader
+
+    silences: list[tuple[int, int]] = []
+    last = None
+    with AnyReader([bag]) as reader:
+        connections = [c for c in reader.connections if c.topic == TOPIC]
+        for _, log_time, _ in reader.messages(connections=connections):
+            if last is not None and log_time - last > SILENCE_NS:
+                silences.append((last, log_time))
+            last = log_time
+        end = reader.end_time - 1  # rosbags' end is one past the last message
+    if last is not None and end - last > SILENCE_NS:
+        silences.append((last, end))
+    return silences
 
 
 def _best(func: object, runs: int = RUNS) -> float:
@@ -100,6 +124,19 @@ def main() -> bool:
         f"{PEER_BAGS} bags): {peer_s:.1f} s: {ratio:.1f}x (target >= {PEER_TARGET:g}x)"
     )
 
+    gaps = find_fleet(bags[:PEER_BAGS], when=GAP_WHEN)
+    peer_gaps = [gap for bag in bags[:PEER_BAGS] for gap in _rosbags_gaps(bag)]
+    assert [(e.start_ns, e.end_ns) for e in gaps.episodes] == peer_gaps, "gaps disagree"
+    gap_peer_s = _best(lambda: [_rosbags_gaps(b) for b in bags[:PEER_BAGS]], 1)
+    gap_peer_s *= BAGS / PEER_BAGS
+    gap_s = _best(lambda: find_fleet(bags, when=GAP_WHEN))
+    gap_ratio = gap_peer_s / gap_s
+    print(
+        f"find {GAP_WHEN!r}, {BAGS} bags, one process: {gap_s:.3f} s ({gaps.count} silences in "
+        f"{PEER_BAGS} bags, equal to the peer's); rosbags loop (scaled): {gap_peer_s:.1f} s: "
+        f"{gap_ratio:.1f}x (target >= {PEER_TARGET:g}x)"
+    )
+
     started = time.perf_counter()
     cluster = local_cluster(2)
     print(f"cluster of 2 workers started in {time.perf_counter() - started:.1f} s")
@@ -129,4 +166,9 @@ def main() -> bool:
         f"echo --where, 1M Imu, 1% matching: first line after {first:.3f} s "
         f"(target <= {FIRST_MATCH_CEILING_S:g} s)"
     )
-    return ratio >= PEER_TARGET and workers >= WORKERS_TARGET and first <= FIRST_MATCH_CEILING_S
+    return (
+        ratio >= PEER_TARGET
+        and gap_ratio >= PEER_TARGET
+        and workers >= WORKERS_TARGET
+        and first <= FIRST_MATCH_CEILING_S
+    )

@@ -156,11 +156,15 @@ def recordings(tmp_path_factory: pytest.TempPathFactory) -> Path:
             check=False,
         )
         assert done.returncode == 0, done.stderr
-    # "crashed": a recording killed before its summary was written (its file cut at 70 %).
+    # "crashed": a recording killed before its summary was written (its file cut where the
+    # summary starts, at the Data End record: its one chunk is whole, so recover exits 0).
     shutil.copytree(template / "fixtures" / "nominal" / "golden", template / "crashed")
     (mcap,) = (template / "crashed").glob("*.mcap")
+    data, pos = mcap.read_bytes(), 8
+    while data[pos] != 0x0F:  # the Data End record
+        pos += 9 + int.from_bytes(data[pos + 1 : pos + 9], "little")
     with mcap.open("r+b") as file:
-        file.truncate(mcap.stat().st_size * 7 // 10)
+        file.truncate(pos)
     return template
 
 

@@ -72,7 +72,7 @@ LAYERS: tuple[frozenset[str], ...] = (
     frozenset({"ros"}),
     frozenset({"stats", "compare"}),
     frozenset({"data", "surgery"}),
-    frozenset({"fleet"}),
+    frozenset({"fleet", "health"}),
     frozenset({"regression"}),
     frozenset({"cli", "pytest_plugin", "__init__"}),
 )

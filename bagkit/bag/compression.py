@@ -20,7 +20,7 @@ import shutil
 import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import BinaryIO
+from typing import TYPE_CHECKING, BinaryIO
 
 import zstandard
 
@@ -29,6 +29,9 @@ from bagkit.bag.mcapio.message_index import Span
 from bagkit.bag.mcapio.records import MESSAGE_PREFIX, MESSAGE_RECORD_HEADER
 from bagkit.bag.messages import BagMessage, make_message
 from bagkit.bag.storage import BagChunk, FiltersPayloads, StorageFile
+
+if TYPE_CHECKING:
+    import numpy as np
 
 ZSTD_MAGIC = b"\x28\xb5\x2f\xfd"
 COMPRESSED_SUFFIXES = (".zstd",)
@@ -281,6 +284,10 @@ class Decompression:
     def topic_spans(self) -> dict[str, Span]:
         """The back-end's spans (compression moves no message)."""
         return self.inner.topic_spans()
+
+    def index_log_times(self, topic: str) -> np.ndarray | None:
+        """The back-end's (compression moves no message)."""
+        return self.inner.index_log_times(topic)
 
 
 def sniff_message_compression(storage: StorageFile) -> bool:

@@ -179,6 +179,25 @@ class McapFile:
                 widen(spans, self._channel_topics[channel], first, last)
         return spans
 
+    def index_log_times(self, topic: str) -> np.ndarray | None:
+        """The log times of ``topic``'s messages from the Message Index records (no chunk
+        decompressed), in no order; None when a block has none or they are damaged."""
+        import numpy as np
+
+        wanted = self._channel_ids({topic})
+        parts: list[np.ndarray] = []
+        for block in self._sorted_blocks:
+            if not _indexed(block):
+                return None  # salvaged: only its records tell
+            if wanted.isdisjoint(block.message_index_offsets):
+                continue
+            try:
+                indexes = read_message_indexes(self._source, block)
+            except CorruptBagError:
+                return None
+            parts.extend(indexes[c]["log_time"] for c in wanted if c in indexes)
+        return np.concatenate(parts).astype(np.int64) if parts else np.zeros(0, np.int64)
+
     def _channel_ids(self, topics: set[str] | None) -> set[int]:
         return {c for c, t in self._channel_topics.items() if topics is None or t in topics}
 

@@ -8,6 +8,7 @@ import shutil
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from types import TracebackType
+from typing import TYPE_CHECKING
 
 from bagkit.bag.compression import (
     Decompression,
@@ -30,6 +31,9 @@ from bagkit.bag.mcapio.message_index import Span, widen
 from bagkit.bag.messages import BagMessage, TopicInfo
 from bagkit.bag.metadata import METADATA_FILENAME, BagMetadata, read_metadata
 from bagkit.bag.storage import ROSBAG1_MAGIC, SQLITE_MAGIC, BagChunk, StorageFile
+
+if TYPE_CHECKING:
+    import numpy as np
 
 STORAGE_SUFFIXES = (".mcap", ".db3")
 # rosbag2's file compression names the compressed files so.
@@ -412,6 +416,26 @@ class BagReader:
             for topic, (first, last) in storage.topic_spans().items():
                 widen(spans, topic, first, last)
         return spans
+
+    def index_log_times(
+        self, topic: str, start_ns: int | None = None, end_ns: int | None = None
+    ) -> np.ndarray | None:
+        """The log times of ``topic``'s messages with ``start_ns <= t < end_ns``, ascending,
+        from indexes (no message read); None when a file's indexes do not tell (see
+        :meth:`bagkit.bag.storage.StorageFile.index_log_times`)."""
+        import numpy as np
+
+        self._check_open()
+        parts = []
+        for storage in self._storage:
+            times = storage.index_log_times(topic)
+            if times is None:
+                return None
+            parts.append(times)
+        times = np.sort(np.concatenate([np.zeros(0, np.int64), *parts]), kind="stable")
+        lower = 0 if start_ns is None else np.searchsorted(times, start_ns)
+        upper = len(times) if end_ns is None else np.searchsorted(times, end_ns)
+        return times[lower:upper]
 
 
 def _complete(topic: TopicInfo, recorded: TopicInfo | None) -> TopicInfo:

@@ -27,7 +27,7 @@ import struct
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import BinaryIO
+from typing import TYPE_CHECKING, BinaryIO
 
 import lz4.frame
 from rosbags.interfaces import Connection
@@ -63,6 +63,9 @@ _RECORD_ERRORS = (
     OSError,  # a seek to an offset no file has
 )
 _MESSAGE = int(Opcode.MESSAGE)
+
+if TYPE_CHECKING:
+    import numpy as np
 
 
 @dataclass(frozen=True, slots=True)
@@ -238,6 +241,10 @@ class Rosbag1File:
 
     def _conn_ids(self, topics: set[str] | None) -> set[int]:
         return {c for c, t in self._topic_of.items() if topics is None or t in topics}
+
+    def index_log_times(self, topic: str) -> np.ndarray | None:
+        """None: the chunks' index data is read with the messages (no cheaper source)."""
+        return None
 
     def topic_spans(self) -> dict[str, Span]:
         """(first, last) log time of each topic, from the index data of the chunks at its ends."""

@@ -14,6 +14,7 @@ from __future__ import annotations
 import sqlite3
 from collections.abc import Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 from urllib.request import pathname2url
 
 from bagkit.bag.definitions import canonical_type_name
@@ -21,6 +22,9 @@ from bagkit.bag.errors import CorruptBagError, NotABagError
 from bagkit.bag.mcapio.message_index import Span, widen
 from bagkit.bag.messages import BagMessage, TopicInfo, make_message
 from bagkit.bag.storage import BagChunk, PayloadFilter, chunk_of_rows
+
+if TYPE_CHECKING:
+    import numpy as np
 
 # Columns read from each table; the first two tables are required, message_definitions is not.
 TOPIC_COLUMNS = ("id", "name", "type", "serialization_format")
@@ -204,6 +208,10 @@ class Sqlite3File:
     def topic_spans(self) -> dict[str, Span]:
         """(first, last) timestamp of each topic with messages, from the counts' query."""
         return dict(self._spans)
+
+    def index_log_times(self, topic: str) -> np.ndarray | None:
+        """None: the messages are read (a timestamp query costs what reading them does)."""
+        return None
 
     def chunks(self, topics: set[str] | None) -> Iterator[BagChunk]:
         """The rows of ``topics`` in timestamp order (ties by row id), laid out as chunks of

@@ -128,6 +128,10 @@ class StorageFile(Protocol):
         the chunks that may hold the topic.
         """
 
+    def index_log_times(self, topic: str) -> np.ndarray | None:
+        """The log times (int64 ns, in no order) of ``topic``'s messages from indexes, no
+        message read; None when an index is missing or damaged (read the messages)."""
+
 
 class PayloadFilter(Protocol):
     """What a back-end passes its payloads through (the compression layer's decompression)."""

@@ -95,6 +95,9 @@ def _print_table(report: CompareReport, limit: int) -> None:
     if report.passed:
         console.print("[bold green]PASS[/]: identical within tolerance")
     else:
+        for topic in report.topics:
+            if topic.absent:
+                console.print(f"{topic.topic}: {topic.absent}", highlight=False)
         failed = [t.topic for t in report.topics if not t.passed]
         console.print(f"[bold red]FAIL[/]: differences on {', '.join(failed)}")
 

@@ -133,7 +133,7 @@ def _convert(  # noqa: PLR0917 (the command's options, passed on)
     output_format: ReportFormat,
 ) -> None:
     if where is not None:
-        from bagkit.data.matching import where_filters  # numpy, rosbags: only when asked
+        from bagkit.data.where import where_filters  # numpy, rosbags: only when asked
 
         condition = parse_condition(where)
         content: dict[str, PayloadFilter] = {}

@@ -15,7 +15,7 @@ from bagkit.cli.common import (
     handle_errors,
     split_list,
 )
-from bagkit.cli.selection_options import End, Start
+from bagkit.cli.selection_options import End, Start, StateTopics
 from bagkit.cli.surgery_options import (
     CheckCrc,
     Compression,
@@ -33,6 +33,7 @@ from bagkit.cli.surgery_options import (
 )
 from bagkit.selection.conditions import TopicCondition, parse_condition, parse_topic_condition
 from bagkit.selection.times import parse_duration
+from bagkit.selection.topics import absolute_topic_name
 from bagkit.surgery.cut import cut_windows
 from bagkit.surgery.errors import NothingToCutError, SurgeryError
 from bagkit.surgery.rewrite import OutputOptions, filter_bag
@@ -103,6 +104,7 @@ def filter_command(
     before: str = typer.Option("0", "--before", help=BEFORE_HELP, metavar="DURATION"),
     after: str = typer.Option("0", "--after", help=AFTER_HELP, metavar="DURATION"),
     gap: str = typer.Option("0", "--gap", help=GAP_HELP, metavar="DURATION"),
+    state_topics: StateTopics = None,
     compression: Compression = "zstd",
     max_bag_size: MaxBagSize = 0,
     max_bag_duration: MaxBagDuration = 0.0,
@@ -118,11 +120,14 @@ def filter_command(
     options = output_options(
         compression, max_bag_size, max_bag_duration, force=force, check_crc=check_crc
     )
+    states = [absolute_topic_name(t) for t in split_list(state_topics)]
     if where is not None:
-        from bagkit.data.matching import where_filters  # numpy, rosbags: only when asked
+        from bagkit.data.where import where_filters  # numpy, rosbags: only when asked
 
         with BagReader(bag) as reader:
-            content = where_filters(reader, parse_condition(where), selection.topic_passes)
+            content = where_filters(
+                reader, parse_condition(where), selection.topic_passes, state_topics=states
+            )
         selection = replace(selection, content=content)
     if around is None:
         with err_console.status(f"filtering {bag}"):
@@ -142,6 +147,7 @@ def filter_command(
         selection,
         options,
         output_format,
+        state_topics=states,
     )
 
 
@@ -154,12 +160,14 @@ def _cut_around(  # noqa: PLR0917 (the command's options, passed on)
     selection: Selection,
     options: OutputOptions,
     output_format: ReportFormat,
+    *,
+    state_topics: list[str],
 ) -> None:
     """``--around``: the episodes of ``trigger``, then one bag per window around each."""
     from bagkit.data.episodes import episode_windows, find_episodes
 
     with err_console.status(f"finding episodes in {bag}"), BagReader(bag) as reader:
-        found = find_episodes(reader, trigger, gap_ns)
+        found = find_episodes(reader, trigger, gap_ns, state_topics=state_topics)
     if not found.episodes:
         raise NothingToCutError(f"{bag}: {trigger.text!r} holds for no message")
     windows = episode_windows(found.episodes, *margins)

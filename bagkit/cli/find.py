@@ -8,9 +8,9 @@ from typing import TYPE_CHECKING
 
 import typer
 
-from bagkit.cli.common import console, handle_errors, print_json, warn
+from bagkit.cli.common import console, handle_errors, print_json, split_list, warn
 from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers, fleet_run
-from bagkit.cli.selection_options import Distro, End, Start
+from bagkit.cli.selection_options import Distro, End, Start, StateTopics
 from bagkit.compat import StrEnum
 
 if TYPE_CHECKING:
@@ -68,6 +68,7 @@ def find(  # noqa: PLR0917 (typer maps parameters to options)
     ),
     start: Start = None,
     end: End = None,
+    state_topics: StateTopics = None,
     workers: Workers = None,
     scheduler: Scheduler = None,
     distro: Distro = None,
@@ -93,7 +94,14 @@ def find(  # noqa: PLR0917 (typer maps parameters to options)
         done,
     ):
         result = find_fleet(
-            bags, when=when, gap_ns=gap_ns, start=start, end=end, client=client, done=done
+            bags,
+            when=when,
+            gap_ns=gap_ns,
+            start=start,
+            end=end,
+            state_topics=tuple(split_list(state_topics)),
+            client=client,
+            done=done,
         )
     for problem in result.problems:
         warn(problem)

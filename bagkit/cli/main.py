@@ -38,6 +38,7 @@ class _Lazy:
 # Command groups register themselves here, one module each (bagkit/cli/<group>.py).
 _COMMANDS = {
     "catalog": _Lazy("bagkit.cli.catalog", "app", "A Parquet catalogue of many bags."),
+    "check": _Lazy("bagkit.cli.check", "check", "Check bags against a health contract."),
     "compare": _Lazy("bagkit.cli.compare", "compare", "Compare a candidate bag to a golden."),
     "control": _Lazy(
         "bagkit.cli.control", "control", "Control a running recorder or player (pause, rate)."

@@ -23,6 +23,9 @@ rosbag2 metadata record, so that ros2 bag, rosbags, the mcap tools and Foxglove 
 Intact chunks are copied as they are stored (not recompressed); what could not be read is
 printed.
 
+Exit status: 0 when everything was read, 3 when messages were recovered but something was lost
+(printed as 'lost: ...'), 1 when no message could be recovered, 2 for bad input.
+
 Example: bagkit recover crashed_drive -o drive_recovered
 """
 
@@ -41,3 +44,6 @@ def recover(
     with err_console.status(f"recovering {bag}"):
         report = recover_bag(bag, output, options)
     print_report(report, output_format)
+    if not report.message_count:
+        err_console.print(f"error: no message of {bag} could be recovered", highlight=False)
+    raise typer.Exit(report.recover_exit_code)

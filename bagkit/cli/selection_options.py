@@ -36,6 +36,16 @@ Where = Annotated[
     ),
 ]
 
+StateTopics = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--state-topics",
+        help="Topics whose messages hold until the next one, as transient-local topics do: "
+        "an episode lasts until the state changes (repeated or a,b).",
+        metavar="TOPICS",
+    ),
+]
+
 
 def _use_distro(name: str | None) -> str | None:
     """Check ``--distro`` and hand it to every reader of this process (and its workers)."""

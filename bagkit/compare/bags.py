@@ -119,8 +119,10 @@ def compare_bags(
     """Compare ``candidate`` with ``golden`` topic by topic.
 
     Topics: ``options.topics`` when set (a topic missing from either bag then fails with all
-    its messages missing or extra); otherwise the topics both bags have, and the topics only
-    one of them has are listed as warnings. A message that does not decode is left out and
+    its messages missing or extra); otherwise the topics of the golden (one the candidate
+    lacks fails: :attr:`TopicResult.absent`), and the topics only the candidate has are
+    listed as warnings. A golden topic with messages of which the candidate has none fails
+    whatever the pass rate. A message that does not decode is left out and
     counted (``golden_undecodable``/``candidate_undecodable``, a failed message each, and a
     warning); a topic whose type cannot be decoded, or none of whose messages decodes, is
     compared byte for byte.
@@ -158,15 +160,12 @@ def _topics(
             options.topics, g_bag.topics.keys() | c_bag.topics.keys(), "either bag"
         )
     topics = sorted(g_bag.topics.keys() & c_bag.topics.keys())
-    only_golden = sorted(g_bag.topics.keys() - c_bag.topics.keys())
     only_candidate = sorted(c_bag.topics.keys() - g_bag.topics.keys())
-    if only_golden:
-        warnings.append(f"not compared, only in the golden: {', '.join(only_golden)}")
     if only_candidate:
         warnings.append(f"not compared, only in the candidate: {', '.join(only_candidate)}")
     if not topics:
         raise CompareError("the bags have no topic in common")
-    return topics
+    return sorted(g_bag.topics)
 
 
 def _compare_topic(
@@ -208,6 +207,10 @@ def _compare_topic(
     else:
         result = compare_samples(topic, msg_type, g_samples, c_samples, options)
     result.golden_undecodable, result.candidate_undecodable = len(g_bad), len(c_bad)
+    if g_info is not None and c_info is None:
+        result.absent = "not in the candidate"
+    elif g_info is not None and result.golden_count and not result.candidate_count:
+        result.absent = "no message in the candidate"
     # A message that cannot be checked is not a message that passed.
     result.failed_messages += len(g_bad) + len(c_bad)
     return result

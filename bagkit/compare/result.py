@@ -85,13 +85,21 @@ class TopicResult:
     # as missing or extra).
     golden_undecodable: int = 0
     candidate_undecodable: int = 0
+    absent: str = ""
+    """Why a golden topic is absent from the candidate ("" when present): a broken candidate
+    fails whatever the pass rate."""
 
     @property
     def passed(self) -> bool:
-        """Whether the topic is identical within tolerance: no message of another shape, and
-        no more missing, extra or out-of-tolerance messages (or events) than the topic's pass
-        rate allows (none by default)."""
-        return self.shape_divergences == 0 and self.failed_messages <= self.allowed_failed_messages
+        """Whether the topic is identical within tolerance: present in the candidate (with
+        messages when the golden has some), no message of another shape, and no more missing,
+        extra or out-of-tolerance messages (or events) than the topic's pass rate allows (none
+        by default)."""
+        return (
+            not self.absent
+            and self.shape_divergences == 0
+            and self.failed_messages <= self.allowed_failed_messages
+        )
 
     @property
     def failed_fields(self) -> list[FieldResult]:
@@ -142,6 +150,7 @@ class CompareReport:
                     "topic": t.topic,
                     "type": t.type,
                     "passed": t.passed,
+                    "absent": t.absent,
                     "matched_by": t.matched_by,
                     "golden_count": t.golden_count,
                     "candidate_count": t.candidate_count,

@@ -60,6 +60,7 @@ class CallSelection:
         condition = None
         if self.where is not None:
             condition = parse_condition(self.where)
+            condition.require_per_message("--where")
             paths, texts = _call_paths(types, reader.topics[topic].type)
             condition.check_fields(service_name(absolute_topic_name(topic)), paths, texts)
 
@@ -89,7 +90,7 @@ def _satisfies(condition: Condition, call: ServiceCall) -> bool:
     fields = _CallFields(
         call.request, call.response, None if latency is None else latency / 1e9, call.call[1]
     )
-    read = {str(comparison.path[0]) for comparison in condition.comparisons()}
+    read = {str(node.path[0]) for node in condition.comparisons() if node.path is not None}
     if any(getattr(fields, name) is None for name in read):
         return False
     return condition.matches(fields)

@@ -25,6 +25,7 @@ from bagkit.data.errors import UndecodableTopicError
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
 from bagkit.decode.matcher import PayloadMatcher
 from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER
+from bagkit.selection import intervals
 from bagkit.selection.actions import action_part_topics
 from bagkit.selection.conditions import parse_condition
 from bagkit.selection.errors import EmptyWindowWarning
@@ -60,7 +61,8 @@ def echo(
             ``where``, messages the condition cannot decode are not matched and counted in
             one call at the end.
         where: only messages satisfying this field condition
-            (:mod:`bagkit.selection.conditions`, e.g. ``status[*].level >= 2``).
+            (:mod:`bagkit.selection.conditions`, e.g. ``status[*].level >= 2``); with terms
+            over time (``gap > 1s``), the messages inside the intervals where it holds.
 
     Raises:
         BagError, UnknownTopicError, UnknownFieldError, UndecodableTopicError, DecodeError;
@@ -79,12 +81,17 @@ def echo(
         except DecodeError as exc:
             raise UndecodableTopicError(f"{topic} cannot be decoded: {exc}") from None
         convert = _converter(types, info.type, canonical, fields, topic, limit)
-        matcher = (
-            None
-            if condition is None
-            else PayloadMatcher(types, topic, info.type, condition, bulk=False)
-        )
         window = span.resolve(reader.start_ns, reader.end_ns)
+        matcher: PayloadMatcher | None = None
+        inside = None  # a condition over time: the messages inside its intervals
+        if condition is not None and condition.temporal:
+            # The columns' scan (pyarrow) only for a condition over time: echo starts light.
+            from bagkit.data.streams import is_state_topic, temporal_intervals
+
+            state = is_state_topic(reader, topic)
+            inside = temporal_intervals(reader, topic, condition, window, state)[0]
+        elif condition is not None:
+            matcher = PayloadMatcher(types, topic, info.type, condition, bulk=False)
         if reader.message_count:
             outside = outside_warning(str(bag), window, reader.start_ns, reader.end_ns)
             if outside is not None:
@@ -94,6 +101,8 @@ def echo(
             if count is not None and done >= count:
                 return
             if matcher is not None and not matcher.matches(message.data):
+                continue
+            if inside is not None and not intervals.holds_at(inside, message.log_time):
                 continue
             try:
                 data = convert(message.data)

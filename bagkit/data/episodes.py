@@ -3,19 +3,24 @@
 An episode is a run of consecutive messages of the topic that match (log-time order); runs
 separated by less than ``gap_ns`` (from the last match of one to the first of the next) merge
 into one, whatever did not match between them. ``start_ns``/``end_ns`` are the log times of
-the first and last matching message, ``count`` the matches in it. ``bagkit find`` lists them,
-``bagkit filter --around`` cuts a bag around each.
+the first and last matching message, ``count`` the matches in it. On a state topic (latched,
+or named) a run lasts until the next message, which changes the state (or the end). A condition
+over time (``gap > 1s``) has the episodes of :mod:`bagkit.selection.temporal`, ``count`` the
+topic's messages in each. ``bagkit find`` lists them, ``bagkit filter --around`` cuts a bag
+around each.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from bagkit.bag import BagReader
 from bagkit.data.matching import match_topic
+from bagkit.data.streams import is_state_topic, temporal_intervals
+from bagkit.selection import intervals
 from bagkit.selection.conditions import TopicCondition
 from bagkit.selection.windows import Window
 
@@ -91,13 +96,38 @@ def episode_spans(log_times: np.ndarray, matched: np.ndarray, gap_ns: int = 0) -
     ).astype(np.int64, copy=False)
 
 
+def interval_spans(
+    found: np.ndarray, log_times: np.ndarray, counted: np.ndarray | None = None, gap_ns: int = 0
+) -> np.ndarray:
+    """Intervals (:mod:`~bagkit.selection.intervals`) as rows ``(start_ns, end_ns, count)``:
+    those less than ``gap_ns`` apart merged, ``count`` the messages in each (those of
+    ``counted`` only, when given)."""
+    if not len(found):
+        return NO_SPANS.copy()
+    apart = found[1:, 0] - found[:-1, 1] >= gap_ns
+    opens = np.concatenate(([0], np.flatnonzero(apart) + 1))
+    closes = np.concatenate((opens[1:] - 1, [len(found) - 1]))
+    starts, ends = found[opens, 0], found[closes, 1]
+    weights = np.ones(len(log_times), np.int64) if counted is None else counted.astype(np.int64)
+    before = np.concatenate(([0], np.cumsum(weights)))
+    counts = (
+        before[np.searchsorted(log_times, ends, side="right")]
+        - before[np.searchsorted(log_times, starts, side="left")]
+    )
+    return np.stack([starts, ends, counts], axis=1).astype(np.int64, copy=False)
+
+
 def as_episodes(spans: np.ndarray) -> list[Episode]:
     """The rows of :func:`episode_spans` as Episodes."""
     return [Episode(start, end, count) for start, end, count in spans.tolist()]
 
 
 def find_episodes(
-    reader: BagReader, trigger: TopicCondition, gap_ns: int = 0, window: Window | None = None
+    reader: BagReader,
+    trigger: TopicCondition,
+    gap_ns: int = 0,
+    window: Window | None = None,
+    state_topics: Collection[str] = (),
 ) -> Episodes:
     """The episodes of ``trigger`` (``TOPIC: CONDITION``) in an open bag.
 
@@ -109,12 +139,37 @@ def find_episodes(
         trigger: the topic and the condition on its messages.
         gap_ns: see :func:`episode_spans`.
         window: only messages in it (the whole bag when None).
+        state_topics: topics whose messages hold until the next one (besides latched ones).
 
     Raises:
         UnknownTopicError, UnknownFieldError, UndecodableTopicError; SelectionError when a
         value cannot be compared with its field.
     """
+    window = window or Window()
+    if trigger.condition.temporal:
+        found, times, problems = temporal_intervals(
+            reader,
+            trigger.topic,
+            trigger.condition,
+            window,
+            trigger.topic in reader.topics and is_state_topic(reader, trigger.topic, state_topics),
+        )
+        return Episodes(
+            trigger.topic, interval_spans(found, times, None, gap_ns), len(times), 0, problems
+        )
     matches = match_topic(reader, trigger.topic, trigger.condition, window)
+    if is_state_topic(reader, matches.topic, state_topics):
+        times = matches.log_times
+        end = reader.end_ns if window.end_ns is None else min(window.end_ns - 1, reader.end_ns)
+        until = np.concatenate((times[1:], [max(end, times[-1])])) if len(times) else times
+        found = intervals.runs(times, matches.matched, until)
+        return Episodes(
+            matches.topic,
+            interval_spans(found, times, matches.matched, gap_ns),
+            len(times),
+            matches.undecodable,
+            matches.problems,
+        )
     return Episodes(
         matches.topic,
         episode_spans(matches.log_times, matches.matched, gap_ns),

@@ -8,14 +8,13 @@ never matched.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from bagkit.bag import BagReader
 from bagkit.data.engine import payload_spans
-from bagkit.data.errors import UndecodableTopicError, UnknownFieldError
+from bagkit.data.errors import UndecodableTopicError
 from bagkit.decode import DecodeError, MessageTypes
 from bagkit.decode.matcher import PayloadMatcher, matched_payloads
 from bagkit.selection.conditions import Condition
@@ -115,33 +114,3 @@ def _match_messages(  # noqa: PLR0917 (private: the loop's state)
             flush()
     if payloads:
         flush()
-
-
-def where_filters(
-    reader: BagReader, condition: Condition, passes: Callable[[str], bool]
-) -> dict[str, PayloadMatcher]:
-    """A matcher for each topic of an open bag that ``passes`` and whose type has every field
-    ``condition`` reads (``filter --where``: the other topics are kept whole).
-
-    Raises:
-        UnknownFieldError: no such topic (the message names the fields of the first one).
-    """
-    types = MessageTypes.for_bag(reader)
-    matchers: dict[str, PayloadMatcher] = {}
-    first_error: UnknownFieldError | None = None
-    for name in sorted(reader.topics):
-        if not passes(name) or reader.topics[name].serialization_format != "cdr":
-            continue
-        try:
-            matchers[name] = PayloadMatcher(types, name, reader.topics[name].type, condition)
-        except DecodeError:  # the type cannot be decoded: the topic is kept whole
-            continue
-        except UnknownFieldError as exc:
-            first_error = first_error or exc
-    if not matchers:
-        if first_error is not None:
-            raise UnknownFieldError(
-                f"no selected topic has the fields of the condition: {first_error}"
-            )
-        raise UnknownFieldError("no selected topic can be decoded to check the condition")
-    return matchers

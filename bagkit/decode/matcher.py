@@ -46,6 +46,7 @@ class PayloadMatcher:
         *,
         bulk: bool = True,
     ) -> None:
+        condition.require_per_message("--where")
         types = types.for_topic(topic)
         canonical = types.resolve(type_name)
         leaves = leaf_fields(types.typestore, canonical)
@@ -96,8 +97,15 @@ class PayloadMatcher:
             self.first_failure = self.first_failure or str(exc)
             return False
 
-    def mask_records(self, records: bytes, starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:
-        """Which of the payloads ``records[starts[i] : starts[i] + lengths[i]]`` match."""
+    def mask_records(
+        self,
+        records: bytes,
+        starts: np.ndarray,
+        lengths: np.ndarray,
+        log_times: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Which of the payloads ``records[starts[i] : starts[i] + lengths[i]]`` match (their
+        log times do not matter: a per-message condition)."""
         keep = np.zeros(len(starts), dtype=bool)
         leftover = np.arange(len(starts))
         if self.layout is not None and len(starts):

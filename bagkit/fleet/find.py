@@ -23,6 +23,7 @@ from bagkit.fleet.execute import ItemDone, run_each
 from bagkit.selection.conditions import parse_topic_condition
 from bagkit.selection.errors import UnknownTopicError
 from bagkit.selection.times import TimeLike
+from bagkit.selection.topics import absolute_topic_name
 from bagkit.selection.windows import TimeRange
 
 if TYPE_CHECKING:
@@ -113,6 +114,7 @@ def episodes_in_bag(
     gap_ns: int = 0,
     start: TimeLike | None = None,
     end: TimeLike | None = None,
+    state_topics: tuple[str, ...] = (),
 ) -> BagEpisodes:
     """The episodes of ``when`` (``TOPIC: CONDITION``) in one bag (what a worker runs).
 
@@ -124,7 +126,7 @@ def episodes_in_bag(
         with BagReader(bag, allow_empty=True) as reader:
             window = TimeRange.parse(start, end).resolve(reader.start_ns, reader.end_ns)
             try:
-                found = find_episodes(reader, trigger, gap_ns, window)
+                found = find_episodes(reader, trigger, gap_ns, window, state_topics)
             except UnknownTopicError:
                 return BagEpisodes(bag, has_topic=False)
     except BagError as exc:
@@ -140,6 +142,7 @@ def find_fleet(
     gap_ns: int = 0,
     start: TimeLike | None = None,
     end: TimeLike | None = None,
+    state_topics: tuple[str, ...] = (),
     client: Client | None = None,
     done: ItemDone | None = None,
 ) -> FindResult:
@@ -150,6 +153,8 @@ def find_fleet(
         gap_ns: matches less than this apart merge into one episode
             (:func:`~bagkit.data.episodes.episode_spans`).
         start, end: only messages in this window of each bag (seconds from its own start ...).
+        state_topics: topics whose messages hold until the next one (besides transient-local
+            ones, :func:`~bagkit.data.episodes.find_episodes`).
         done: called with the index of each bag once it is searched.
 
     Raises:
@@ -159,7 +164,10 @@ def find_fleet(
     """
     trigger = parse_topic_condition(when)
     paths = [str(bag) for bag in bags]
-    task = functools.partial(episodes_in_bag, when=when, gap_ns=gap_ns, start=start, end=end)
+    state_topics = tuple(absolute_topic_name(t) for t in state_topics)
+    task = functools.partial(
+        episodes_in_bag, when=when, gap_ns=gap_ns, start=start, end=end, state_topics=state_topics
+    )
     parts: list[BagEpisodes] = run_each(task, paths, client, done)
     readable = [part for part in parts if part.error is None]
     if not readable:

@@ -43,6 +43,14 @@ class RewriteReport:
         """Messages written."""
         return sum(self.topic_counts.values())
 
+    @property
+    def recover_exit_code(self) -> int:
+        """``bagkit recover``'s status: 0 all read, 3 recovered with a loss (``problems``),
+        1 nothing recovered (no message written)."""
+        if not self.message_count:
+            return 1
+        return 3 if self.problems else 0
+
     def to_dict(self) -> dict[str, object]:
         """JSON-ready form."""
         return {

@@ -88,7 +88,9 @@ def open_run(  # noqa: PLR0917 (the opened chunk and how it is selected)
         rows = np.flatnonzero(keep & (inputs == channel))
         if len(rows):
             starts = offsets[rows] + MESSAGE_RECORD_HEADER.size
-            keep[rows] = payload_filter.mask_records(records, starts, ends[rows] - starts)
+            keep[rows] = payload_filter.mask_records(
+                records, starts, ends[rows] - starts, times[rows].astype(np.int64)
+            )
     order = np.flatnonzero(keep)
     order = order[np.lexsort((offsets[order], times[order]))]
     if not len(order):

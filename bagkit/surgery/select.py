@@ -29,8 +29,15 @@ class PayloadFilter(Protocol):
     """Which messages of a topic pass by their content (``--where``), payloads not decoded
     here: the caller's (``bagkit.data.matching.PayloadMatcher``, a layer above)."""
 
-    def mask_records(self, records: bytes, starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:
-        """Whether each payload at ``starts``/``lengths`` in a chunk's records passes."""
+    def mask_records(
+        self,
+        records: bytes,
+        starts: np.ndarray,
+        lengths: np.ndarray,
+        log_times: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Whether each payload at ``starts``/``lengths`` (logged at ``log_times``) in a
+        chunk's records passes."""
 
     @property
     def problem(self) -> str | None:

@@ -319,3 +319,65 @@ def test_pre_post_windows_and_extension_without_dds(tmp_path: Path) -> None:
             times = [m.log_time for m in reader.messages()]
         assert times == list(range(snapshot.start_ns, snapshot.end_ns + 1, S // 100))
         assert snapshot.messages["/snap/imu"] == len(times)
+
+
+def test_a_silence_triggers_while_it_lasts_without_dds(tmp_path: Path) -> None:
+    """``gap > 500ms`` fires from the sink's periodic flush during the dropout, and
+    ``unchanged(...) for 1s`` on the message that makes the run 1 s long."""
+    from bagkit.bag import TopicInfo
+    from bagkit.ros.record.snapshot import SnapshotSink
+    from bagkit.ros.serialization import serialize
+
+    now = [0]
+    errors: list[tuple[str, int]] = []
+    triggers = ("/snap/imu: gap > 500ms", "/snap/imu: unchanged(linear_acceleration.z) for 1s")
+    opts = options(tmp_path / "sink", snapshot_max_duration_s=10, pre_s=1.0, triggers=triggers)
+    sink = SnapshotSink(
+        opts.output, opts, lambda *error: errors.append(error), now_ns=lambda: now[0]
+    ).open()
+    sink.add_topic(TopicInfo("/snap/imu", "sensor_msgs/msg/Imu"), "")
+
+    def feed(until_s: float, z: float | None = None) -> None:
+        while now[0] < until_s * S:
+            now[0] += S // 100
+            msg = Imu()
+            msg.linear_acceleration.z = float(now[0]) if z is None else z
+            sink.write_batch(
+                "/snap/imu", [serialize(msg)], log_times=[now[0]], publish_times=[now[0]],
+                sequences=[now[0] // (S // 100)],
+            )  # fmt: skip
+
+    feed(5.0)
+    for silent_s in (5.2, 5.4, 5.6, 5.8):  # the recorder's flushes during the dropout
+        now[0] = int(silent_s * S)
+        sink.flush()
+    feed(8.0)
+    feed(9.5, z=1.0)  # frozen from 8.01 s: 1 s long at 9.01 s
+    sink.close()
+    assert not errors
+    gap, frozen = sink.snapshots
+    assert gap.trigger == triggers[0]
+    assert gap.trigger_ns == int(5.6 * S)  # the first flush more than 500 ms into the silence
+    assert gap.start_ns == int(4.6 * S)  # --pre 1: the second before it, messages included
+    assert frozen.trigger == triggers[1]
+    assert frozen.trigger_ns == int(9.01 * S)
+
+
+def test_a_dropout_writes_the_second_before_it_over_dds(node: Node, tmp_path: Path) -> None:
+    """Real DDS: the Imu stream falls silent; ``gap > 300ms`` writes a snapshot holding the
+    messages before the silence, without any message after it being needed."""
+    scene = Scene(node)
+    out = tmp_path / "blackbox"
+    opts = options(out, snapshot_max_duration_s=1.0, triggers=("/snap/imu: gap > 300ms",))
+    with Recorder(opts) as recorder:
+        wait_matched(scene.imu)
+        scene.stream(1.5)
+        before = scene.sent
+        time.sleep(2.0)  # the dropout: the recorder's flushes (every second) see it
+    report = recorder.report
+    assert report.error is None and report.snapshots is not None
+    (snapshot,) = report.snapshots
+    assert snapshot.trigger == "/snap/imu: gap > 300ms"
+    stamps = [m.header.stamp.sec for _, m in read_snapshot(snapshot.path)["/snap/imu"]]
+    assert stamps and stamps[-1] == before - 1  # the last message before the silence
+    assert stamps == list(range(stamps[0], before))

@@ -114,7 +114,7 @@ def test_fields_are_checked_against_the_topics_leaves() -> None:
         ("accel[ > 1", "expected an index"),
         ("accel.z > 1 and", "expected a field path"),
         ("accel.z = 1", "unexpected '=' at column 9"),
-        ("accel.z > 1 junk", "expected 'and', 'or' or the end, found 'junk' at column 13"),
+        ("accel.z > 1 junk", "expected 'and', 'or', 'for' or the end, found 'junk' at column 13"),
         ("", "it is empty"),
     ],
 )

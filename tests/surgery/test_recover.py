@@ -74,11 +74,16 @@ def test_truncated_copies(source: Path, tmp_path: Path, fraction: float) -> None
     expected = salvaged(cut)
     out = tmp_path / "recovered"
     result = run("recover", str(cut), "-o", str(out))
-    assert result.returncode == 0, result.stderr
     assert f"{len(expected):,} messages" in result.stdout
-    if len(cut.read_bytes()) < data_end(source):
+    if not expected:  # nothing recovered: a failure
+        assert result.returncode == 1, result.stderr
+        assert "error: no message of" in result.stderr
+        return
+    if len(cut.read_bytes()) < data_end(source):  # recovered with a loss: 3
+        assert result.returncode == 3, result.stderr
         assert "warning: lost: cut.mcap: truncated at byte" in result.stderr
     else:  # only the summary was cut: nothing is lost
+        assert result.returncode == 0, result.stderr
         assert result.stderr == ""
         assert len(expected) == len(rosbags_messages(source.parent))
     check_recovered(out, expected)
@@ -120,7 +125,7 @@ def test_killed_bag_directory(source: Path, tmp_path: Path) -> None:
     (bag / "killed_0.mcap").write_bytes(data[: len(data) * 2 // 3])
     expected = salvaged(bag)
     out = tmp_path / "out"
-    assert run("recover", str(bag), "-o", str(out)).returncode == 0
+    assert run("recover", str(bag), "-o", str(out)).returncode == 3  # the cut tail is lost
     check_recovered(out, expected)
     shutil.rmtree(out)
     # A damaged chunk: its messages are reported lost, the rest recovered.
@@ -131,7 +136,7 @@ def test_killed_bag_directory(source: Path, tmp_path: Path) -> None:
     (bag / "killed_0.mcap").write_bytes(bytes(damaged))
     expected = salvaged(bag)
     result = run("recover", str(bag), "-o", str(out))
-    assert result.returncode == 0, result.stderr
+    assert result.returncode == 3, result.stderr
     assert "unreadable" in result.stderr and "messages are lost" in result.stderr
     check_recovered(out, expected)
     first, last = int.from_bytes(middle[9:17], "little"), int.from_bytes(middle[17:25], "little")

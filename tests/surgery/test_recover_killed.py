@@ -43,7 +43,8 @@ def test_sigkilled_recording_is_recovered(node: Node, processes: object, tmp_pat
     assert len(expected) > 100
     out = tmp_path / "recovered"
     result = run("recover", str(bag), "-o", str(out))
-    assert result.returncode == 0, result.stderr
+    # 3: the record being written when the recorder was killed is lost (and said so).
+    assert result.returncode == (3 if "lost:" in result.stderr else 0), result.stderr
     check_recovered(out, expected)
     doctor = run("doctor", str(out), "--deep")
     assert doctor.returncode == 0, doctor.stdout

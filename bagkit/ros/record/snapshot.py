@@ -142,7 +142,7 @@ class SnapshotSink:
         sequences: list[int],
     ) -> None:
         """Buffer messages of one topic, act on the triggers among them, feed an open window."""
-        hits = self.triggers.matching(topic, payloads)
+        hits = self.triggers.matching(topic, payloads, log_times)
         with self._lock:
             self._buffer.add(topic, payloads, log_times, publish_times, sequences)
             self._batches += 1
@@ -165,9 +165,14 @@ class SnapshotSink:
             return record
 
     def flush(self) -> None:
-        """End a window whose time is over although no newer message came."""
+        """Trigger on a silence (a condition over time) and end a window whose time is over,
+        although no newer message came."""
+        now = self._now_ns()
+        hits = self.triggers.tick(now)
         with self._lock:
-            self._close_if_over(self._now_ns())
+            for text in hits:
+                self._trigger(now, text)
+            self._close_if_over(now)
 
     def close(self) -> None:
         """End the open window (its snapshot holds what came until now), wait for the writes."""

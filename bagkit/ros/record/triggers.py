@@ -2,8 +2,11 @@
 
 The trigger topic's serialized messages are deserialized with rclpy (its C type support, the
 fastest decoder here) and the condition of :mod:`bagkit.selection.conditions` is evaluated on
-the message objects. The condition's fields are checked against the topic's definition as soon
-as the topic is known, so that a misspelt field stops the recording at once.
+the message objects. A condition over time (``gap > 1s``, ``unchanged(x) for 2s``) is fed to
+its :class:`~bagkit.selection.streaming.StreamingCondition`, and :meth:`DataTriggers.tick`
+tells it the time between messages, so a silence triggers while it lasts. The condition's
+fields are checked against the topic's definition as soon as the topic is known, so that a
+misspelt field stops the recording at once.
 """
 
 from __future__ import annotations
@@ -11,7 +14,7 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from rclpy.node import Node
@@ -21,8 +24,10 @@ from bagkit.bag import TopicInfo
 from bagkit.errors import BagkitError
 from bagkit.ros.message_classes import import_message_type
 from bagkit.ros.serialization import deserializer
-from bagkit.selection.conditions import Condition
+from bagkit.selection.condition_terms import Latency, walk
+from bagkit.selection.conditions import Condition, message_numbers
 from bagkit.selection.errors import SelectionError
+from bagkit.selection.streaming import DecodedMessage, StreamingCondition
 
 # How often the graph is looked at while waiting for the trigger topics at the start.
 GRAPH_POLL_S = 0.05
@@ -39,10 +44,19 @@ class TriggerError(BagkitError):
 
 
 @dataclass(slots=True)
+class _Trigger:
+    text: str
+    condition: Condition
+    stream: StreamingCondition | None = None  # a condition over time, once its topic is seen
+
+
+@dataclass(slots=True)
 class _TopicTriggers:
-    conditions: list[tuple[str, Condition]]
+    conditions: list[_Trigger]
     decode: Callable[[bytes], Any] | None = None
     seen: bool = False
+    # Latency conditions whose source this topic is, with the stamp they read.
+    sources: list[tuple[_Trigger, tuple[str | int, ...]]] = field(default_factory=list)
 
 
 class DataTriggers:
@@ -56,7 +70,12 @@ class DataTriggers:
         self._by_topic: dict[str, _TopicTriggers] = {}
         for text, topic, condition in triggers:
             entry = self._by_topic.setdefault(topic, _TopicTriggers([]))
-            entry.conditions.append((text, condition))
+            trigger = _Trigger(text, condition)
+            entry.conditions.append(trigger)
+            for node in walk(condition.tree):
+                if isinstance(node, Latency):
+                    source = self._by_topic.setdefault(node.source, _TopicTriggers([]))
+                    source.sources.append((trigger, node.path))
 
     @property
     def topics(self) -> list[str]:
@@ -89,14 +108,17 @@ class DataTriggers:
             paths = leaf_paths(import_message_type(type_name))
         except BagkitError as exc:
             raise TriggerError(f"--trigger on {topic}: {exc}") from None
-        for text, condition in entry.conditions:
+        for trigger in entry.conditions:
             try:
-                condition.check_fields(topic, paths)
+                trigger.condition.check_fields(topic, paths)
             except SelectionError as exc:
-                raise TriggerError(f"--trigger {text!r}: {exc}") from None
+                raise TriggerError(f"--trigger {trigger.text!r}: {exc}") from None
 
-    def matching(self, topic: str, payloads: Sequence[bytes]) -> list[tuple[int, str]]:
-        """(index, trigger text) of each message of ``topic`` that satisfies a condition.
+    def matching(
+        self, topic: str, payloads: Sequence[bytes], log_times: Sequence[int]
+    ) -> list[tuple[int, str]]:
+        """(index, trigger text) of each message of ``topic`` that satisfies a condition, or
+        at which an episode of a condition over time became known.
 
         Raises:
             TriggerError: a value cannot be compared (text with a number).
@@ -107,15 +129,50 @@ class DataTriggers:
         found = []
         for index, data in enumerate(payloads):
             message = entry.decode(data)
-            for text, condition in entry.conditions:
+            time_ns = log_times[index]
+            for trigger, path in entry.sources:
+                self._source(trigger, topic, time_ns, message, path)
+            hit_text = None
+            for trigger in entry.conditions:
                 try:
-                    hit = condition.matches(message)
+                    hit = self._hit(trigger, time_ns, message)
                 except SelectionError as exc:
-                    raise TriggerError(f"--trigger {text!r}: {exc}") from None
-                if hit:
-                    found.append((index, text))
-                    break
+                    raise TriggerError(f"--trigger {trigger.text!r}: {exc}") from None
+                if hit and hit_text is None:
+                    hit_text = trigger.text
+            if hit_text is not None:
+                found.append((index, hit_text))
         return found
+
+    def tick(self, now_ns: int) -> list[str]:
+        """Tell the conditions over time that ``now_ns`` has come: the texts of those whose
+        episode became known (a silence long enough)."""
+        found = []
+        for entry in self._by_topic.values():
+            for trigger in entry.conditions:
+                if trigger.stream is not None:
+                    trigger.stream.advance(now_ns)
+                    if trigger.stream.take_new():
+                        found.append(trigger.text)
+        return found
+
+    @staticmethod
+    def _hit(trigger: _Trigger, time_ns: int, message: Any) -> bool:
+        if not trigger.condition.temporal:
+            return trigger.condition.matches(message)
+        if trigger.stream is None:
+            trigger.stream = StreamingCondition(trigger.condition.tree, time_ns, keep=False)
+        trigger.stream.push(time_ns, DecodedMessage(trigger.condition, message))
+        return trigger.stream.take_new() > 0
+
+    @staticmethod
+    def _source(
+        trigger: _Trigger, topic: str, time_ns: int, message: Any, path: tuple[str | int, ...]
+    ) -> None:
+        if trigger.stream is None:
+            trigger.stream = StreamingCondition(trigger.condition.tree, time_ns, keep=False)
+        sec, nanosec = message_numbers(message, path)[:2]
+        trigger.stream.source(topic, time_ns, int(sec) * 1_000_000_000 + int(nanosec))
 
 
 def start_trigger_checks(

@@ -1,0 +1,199 @@
+"""A topic of a bag read for a condition over time: log times and the columns its terms read.
+
+The columns are decoded in bulk (:class:`bagkit.data.scan.Scan`) and the condition is
+evaluated over them by :func:`bagkit.selection.temporal.evaluate`. A topic is a *state topic*
+(each message's value holds until the next one) when its publishers offered transient-local
+durability (latched), or when named in ``state_topics``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Collection
+
+import numpy as np
+
+from bagkit.bag import BagReader
+from bagkit.bag.latched import is_transient_local
+from bagkit.data.columns import TopicColumns
+from bagkit.data.errors import DataError, UndecodableTopicError
+from bagkit.data.matching import match_topic
+from bagkit.data.scan import Scan
+from bagkit.decode import DecodeError, LeafField, MessageTypes, leaf_fields
+from bagkit.selection import intervals
+from bagkit.selection.condition_terms import (
+    Expression,
+    For,
+    Node,
+    Path,
+    is_stateless,
+    path_text,
+)
+from bagkit.selection.conditions import Condition, subtree_leaves
+from bagkit.selection.errors import SelectionError, UnknownFieldError
+from bagkit.selection.temporal import Scope, evaluate
+from bagkit.selection.topics import require_topics
+from bagkit.selection.windows import Window
+
+
+class BagStream:
+    """One topic of an open bag, as :class:`bagkit.selection.temporal.StreamData`.
+
+    Raises:
+        UnknownTopicError, UnknownFieldError, UndecodableTopicError.
+    """
+
+    def __init__(self, reader: BagReader, topic: str, condition: Condition, window: Window) -> None:
+        self.reader = reader
+        self.topic = topic
+        self.window = window
+        self.types = MessageTypes.from_definitions(reader.definitions)
+        self.condition = condition
+        self._subtrees = _stateless_parts(condition.tree)
+        paths = self._leaf_paths(topic)
+        condition.check_fields(topic, paths)
+        wanted: list[str] = []
+        for subtree in self._subtrees:
+            reads = Condition(condition.text, subtree).bulk_columns(paths)
+            if reads is not None:
+                wanted.extend(name for names in reads.values() for name in names)
+        for path in condition.paths():
+            wanted.extend(_numeric(self._numeric_paths(topic), subtree_leaves(path, paths)))
+        self._paths = paths
+        self.problems: list[str] = []
+        self.log_times, self._columns = self._read(topic, sorted(set(wanted)))
+
+    def _leaf_paths(self, topic: str) -> list[str]:
+        return [leaf.path for leaf in self._leaves(topic)]
+
+    def _leaves(self, topic: str) -> list[LeafField]:
+        info = self.reader.topics[topic]
+        try:
+            return leaf_fields(self.types.typestore, self.types.resolve(info.type))
+        except DecodeError as exc:
+            raise UndecodableTopicError(f"{topic} cannot be decoded: {exc}") from None
+
+    def _numeric_paths(self, topic: str) -> set[str]:
+        return {
+            leaf.path
+            for leaf in self._leaves(topic)
+            if not leaf.pooled and leaf.base not in ("string", "wstring")
+        }
+
+    def _read(self, topic: str, names: list[str]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        if not names:  # only log times (gap, rate): from the indexes when they tell
+            times = self.reader.index_log_times(topic, self.window.start_ns, self.window.end_ns)
+            if times is not None:
+                return times, {}
+        leaves = [leaf for leaf in self._leaves(topic) if leaf.path in names]
+        info = self.reader.topics[topic]
+        columns = TopicColumns(self.types, topic, info.type, leaves)
+        scan = Scan(self.reader, self.window, {topic: columns})
+        arrays = scan.table(topic).columns()
+        self.problems = scan_problems(columns)
+        return arrays[0], {leaf.path: a for leaf, a in zip(leaves, arrays[2:], strict=True)}
+
+    def mask(self, node: Expression) -> np.ndarray:
+        """Which messages satisfy a stateless part of the condition."""
+        condition = Condition(self.condition.text, node)
+        reads = condition.bulk_columns(self._paths)
+        if reads is not None:
+            with np.errstate(over="ignore", invalid="ignore"):
+                return condition.mask(self._columns, reads)
+        matches = match_topic(self.reader, self.topic, condition, self.window)
+        if len(matches.log_times) != len(self.log_times):
+            raise DataError(f"{self.topic}: messages that do not decode: cannot follow the stream")
+        return matches.matched
+
+    def values(self, path: Path | None) -> np.ndarray:
+        """The numeric leaves at or below ``path`` as float64 (messages, leaves)."""
+        names = _numeric(self._numeric_paths(self.topic), subtree_leaves(path, self._paths))
+        if not names:
+            raise SelectionError(f"{path_text(path)} of {self.topic} holds no number")
+        return np.stack([self._columns[n].astype(np.float64) for n in names], axis=1)
+
+    def source(self, topic: str, path: Path) -> tuple[np.ndarray, np.ndarray]:
+        """Another topic's log times and stamps at ``path`` (latency)."""
+        from bagkit.selection.temporal import stamps
+
+        (topic,) = require_topics([topic], self.reader.topics)
+        names = _numeric(self._numeric_paths(topic), subtree_leaves(path, self._leaf_paths(topic)))
+        if not names:
+            raise UnknownFieldError(f"no field {path_text(path)!r} in {topic}")
+        times, columns = self._read(topic, names)
+        values = np.stack([columns[n].astype(np.float64) for n in names], axis=1)
+        return times, stamps(values)
+
+
+class IntervalFilter:
+    """The messages of a topic inside the intervals where a condition over time holds (a
+    :class:`bagkit.surgery.select.PayloadFilter` for ``filter --where``)."""
+
+    problem: str | None = None
+
+    def __init__(self, spans: np.ndarray) -> None:
+        self.spans = spans
+
+    def mask_records(
+        self,
+        records: bytes,
+        starts: np.ndarray,
+        lengths: np.ndarray,
+        log_times: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Whether each message's log time is inside an interval."""
+        assert log_times is not None  # the copy passes them
+        return intervals.contains(self.spans, log_times)
+
+
+def scan_problems(columns: TopicColumns) -> list[str]:
+    """What a scan of one topic could not read."""
+    found = []
+    if columns.failures:
+        found.append(f"{columns.topic}: {columns.failures} messages could not be decoded")
+    if columns.unindexed:
+        found.append(
+            f"{columns.topic}: {columns.unindexed} index entries point outside their chunk"
+        )
+    return found
+
+
+def is_state_topic(reader: BagReader, topic: str, state_topics: Collection[str] = ()) -> bool:
+    """Whether ``topic``'s value holds until its next message (named, or latched)."""
+    return topic in state_topics or is_transient_local(reader.topics[topic].offered_qos_profiles)
+
+
+def temporal_intervals(
+    reader: BagReader,
+    topic: str,
+    condition: Condition,
+    window: Window,
+    state: bool = False,
+) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Where ``condition`` holds over ``topic`` in ``window`` of an open bag: the intervals
+    (:mod:`bagkit.selection.intervals`), the topic's log times, and what could not be read.
+
+    Raises:
+        UnknownTopicError, UnknownFieldError, UndecodableTopicError, SelectionError.
+    """
+    (topic,) = require_topics([topic], reader.topics)
+    stream = BagStream(reader, topic, condition, window)
+    start = max(window.start_ns or reader.start_ns, reader.start_ns)
+    end = min(window.end_ns - 1 if window.end_ns is not None else reader.end_ns, reader.end_ns)
+    scope = Scope(topic, start, max(start, end), state)
+    found = evaluate(condition.tree, stream, scope) if reader.message_count else intervals.NONE
+    return found, stream.log_times, [*reader.problems, *stream.problems]
+
+
+def _stateless_parts(tree: Expression) -> list[Expression]:
+    """The largest stateless parts of ``tree`` (evaluated as masks over columns)."""
+    if is_stateless(tree):
+        return [tree]
+    if isinstance(tree, Node):
+        return [part for item in tree.items for part in _stateless_parts(item)]
+    if isinstance(tree, For):
+        return _stateless_parts(tree.item)
+    return []
+
+
+def _numeric(numeric: set[str], names: list[str]) -> list[str]:
+    return [name for name in names if name in numeric]

@@ -1,0 +1,111 @@
+"""``bagkit check --spec``: fusion's faults bag breaks the contract its nominal bag keeps."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from bagkit.health import HealthSpec, SpecError, check_bag
+
+FIXTURES = Path(__file__).parents[2] / "fixtures"
+BAGKIT = str(Path(sys.executable).with_name("bagkit"))
+CONTRACT = """\
+forbidden: [/debug]
+topics:
+  /imu/data:
+    type: sensor_msgs/msg/Imu
+    rate: {min: 8, over: 2s}
+    max_gap: 300ms
+    never:
+      - isnan(*)
+      - unchanged(linear_acceleration) for 1s
+  /gps/fix:
+    max_gap: 1500ms
+    never: [isnan(*)]
+  /temperature:
+    values:
+      temperature: {min: -40, max: 50}
+"""
+
+
+def bagkit(*args: str | Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [BAGKIT, *map(str, args)], check=False, capture_output=True, text=True, timeout=120
+    )
+
+
+@pytest.fixture
+def spec(tmp_path: Path) -> Path:
+    path = tmp_path / "health.yaml"
+    path.write_text(CONTRACT)
+    return path
+
+
+def test_the_faults_bag_breaks_what_its_faults_break(spec: Path) -> None:
+    report = check_bag(FIXTURES / "faults" / "golden", HealthSpec.load(spec))
+    broken = [(a.topic, a.what) for a in report.assertions if not a.passed]
+    # fusion/faults.py: imu_stuck, gps_loss, temperature_spike (+60 C); the pressure spike is
+    # not in this contract, and no sensor falls silent.
+    assert broken == [
+        ("/imu/data", "unchanged(linear_acceleration) for 1s"),
+        ("/gps/fix", "isnan(*)"),
+        ("/temperature", "temperature < -40 or temperature > 50"),
+    ]
+    assert len(report.assertions) == 12 and report.exit_code == 1
+
+
+def test_cli_exit_codes_and_json(spec: Path) -> None:
+    nominal = bagkit("check", FIXTURES / "nominal" / "golden", "--spec", spec)
+    assert nominal.returncode == 0, nominal.stdout + nominal.stderr
+    assert "healthy" in nominal.stdout
+    faults = bagkit("check", FIXTURES / "faults" / "golden", "--spec", spec, "--format", "json")
+    assert faults.returncode == 1, faults.stderr
+    (report,) = json.loads(faults.stdout)
+    gps = [a for a in report["assertions"] if a["assertion"] == "isnan(*)" and not a["passed"]]
+    (episode,) = gps[0]["episodes"]
+    assert episode["count"] == 3  # gps_loss@12+4 at 1 Hz (see test_fusion_fault_conditions)
+    assert gps[0]["commands"][1].startswith("bagkit filter ")
+
+
+def test_a_missing_topic_breaks_the_contract(tmp_path: Path) -> None:
+    spec = tmp_path / "health.yaml"
+    spec.write_text("topics:\n  /lidar/points: {max_gap: 1s}\n")
+    result = bagkit("check", FIXTURES / "nominal" / "golden", "--spec", spec)
+    assert result.returncode == 1
+    assert "FAIL /lidar/points: present (not in the bag)" in result.stdout
+
+
+@pytest.mark.parametrize(
+    ("text", "line", "words"),
+    [
+        ("topics:\n  /imu/data:\n    max_gapp: 1s\n", 3, "did you mean max_gap"),
+        ("topics:\n  /imu/data:\n    max_gap: 5 Hz\n", 3, "not a duration"),
+        ("topics:\n  /imu/data:\n    never: [frozen(x) for 1s]\n", 3, "unknown function"),
+        ("topics:\n  /imu/data:\n    rate: {min: fast}\n", 3, "not a number"),
+        ("topics: [a\n", 2, "not YAML"),  # where the parser saw the list unclosed
+    ],
+)
+def test_a_bad_spec_is_one_error_naming_its_line(
+    tmp_path: Path, text: str, line: int, words: str
+) -> None:
+    spec = tmp_path / "health.yaml"
+    spec.write_text(text)
+    with pytest.raises(SpecError, match=words):
+        HealthSpec.load(spec)
+    result = bagkit("check", FIXTURES / "nominal" / "golden", "--spec", spec)
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:"), lines
+    assert f"health.yaml:{line}" in lines[0] and words in lines[0]
+
+
+def test_a_field_the_type_lacks_is_a_bad_spec(tmp_path: Path) -> None:
+    spec = tmp_path / "health.yaml"
+    spec.write_text("topics:\n  /imu/data:\n    values:\n      linear_accel.z: {max: 5}\n")
+    result = bagkit("check", FIXTURES / "nominal" / "golden", "--spec", spec)
+    assert result.returncode == 2
+    assert result.stderr.startswith("error:") and "linear_acceleration" in result.stderr
