@@ -276,7 +276,7 @@ def _warn_skipped(player: Player) -> None:
         listed = ", ".join(f"{t} ({f})" for t, f in sorted(topics.skipped_formats.items()))
         warn(f"not replaying topics whose serialization format is not cdr: {listed}")
     if topics.missing:
-        warn(f"topics not in the bag: {', '.join(topics.missing)}")
+        warn(f"topics not in the bag: {topics.missing_text()}")
 
 
 def _finish(report: PlayReport, bag: str, output_format: ReportFormat) -> None:

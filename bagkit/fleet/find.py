@@ -23,6 +23,7 @@ from bagkit.fleet.execute import ItemDone, run_each
 from bagkit.selection.conditions import parse_topic_condition
 from bagkit.selection.errors import UnknownTopicError
 from bagkit.selection.times import TimeLike
+from bagkit.selection.topics import require_topics
 from bagkit.selection.windows import TimeRange
 
 if TYPE_CHECKING:
@@ -57,6 +58,8 @@ class BagEpisodes:
     bag: str
     spans: np.ndarray = field(default_factory=NO_SPANS.copy)
     has_topic: bool = True
+    topics: list[str] = field(default_factory=list)
+    """The bag's topics, kept when it lacks the trigger's (for the did-you-mean)."""
     problems: list[str] = field(default_factory=list)
     error: str | None = None
 
@@ -126,7 +129,7 @@ def episodes_in_bag(
             try:
                 found = find_episodes(reader, trigger, gap_ns, window)
             except UnknownTopicError:
-                return BagEpisodes(bag, has_topic=False)
+                return BagEpisodes(bag, has_topic=False, topics=list(reader.topics))
     except BagError as exc:
         return BagEpisodes(bag, error=str(exc))
     problems = [p if p.startswith(bag) else f"{bag}: {p}" for p in found.problems]
@@ -165,7 +168,8 @@ def find_fleet(
     if not readable:
         raise FleetError(f"no bag could be read ({parts[0].error if parts else 'no bag given'})")
     if not any(part.has_topic for part in readable):
-        raise UnknownTopicError(f"none of the bags has the topic {trigger.topic}")
+        known = {name for part in readable for name in part.topics}
+        require_topics([trigger.topic], known, "the bag" if len(parts) == 1 else "any of the bags")
     problems: list[str] = []
     for part in parts:
         if part.error is not None:

@@ -11,7 +11,7 @@ from bagkit.bag import TopicInfo
 from bagkit.ros.clock import CLOCK_TOPIC
 from bagkit.ros.errors import MessageClassNotFoundError, PlayerError
 from bagkit.ros.message_classes import import_message_type
-from bagkit.selection.topics import TopicSelection
+from bagkit.selection.topics import TopicSelection, closest_names, require_topics
 
 
 @dataclass(slots=True)
@@ -25,6 +25,12 @@ class PublishableTopics:
     """Topic -> its serialization format, not cdr."""
     missing: list[str] = field(default_factory=list)
     """Topics named by the selection that the bag does not have."""
+    known: list[str] = field(default_factory=list)
+    """The bag's topics, for the closest names to the missing ones."""
+
+    def missing_text(self) -> str:
+        """``/imu/dat (did you mean /imu/data? it has ...)``: the missing topics, for a warning."""
+        return f"{', '.join(self.missing)} ({closest_names(self.missing[0], self.known)})"
 
 
 def publishable_topics(
@@ -37,9 +43,10 @@ def publishable_topics(
     """The topics of ``topics`` to publish; a recorded ``/clock`` not when the player makes one.
 
     Raises:
+        UnknownTopicError: nothing is selected and a named topic is not in the bag.
         PlayerError: nothing is left to publish (the message says why).
     """
-    found = PublishableTopics(missing=selection.missing(topics))
+    found = PublishableTopics(missing=selection.missing(topics), known=sorted(topics))
     for name, info in sorted(topics.items()):
         if not selection.matches(name):
             continue
@@ -54,6 +61,8 @@ def publishable_topics(
             found.skipped_types[name] = info.type
             continue
         found.selected.append((info, message_class))
+    if not found.selected and found.missing:
+        require_topics(found.missing, topics)  # raises, with the closest topics of the bag
     if not found.selected:
         reason = "no topic of the bag matches the topic selection"
         if found.skipped_types or found.skipped_formats:
