@@ -24,7 +24,7 @@ from bagkit.selection.conditions import parse_topic_condition
 from bagkit.selection.errors import UnknownTopicError
 from bagkit.selection.times import TimeLike
 from bagkit.selection.topics import require_topics
-from bagkit.selection.windows import TimeRange
+from bagkit.selection.windows import TimeRange, outside_warning
 
 if TYPE_CHECKING:
     import pyarrow as pa
@@ -126,6 +126,7 @@ def episodes_in_bag(
     try:
         with BagReader(bag, allow_empty=True) as reader:
             window = TimeRange.parse(start, end).resolve(reader.start_ns, reader.end_ns)
+            outside = outside_warning(bag, window, reader.start_ns, reader.end_ns)
             try:
                 found = find_episodes(reader, trigger, gap_ns, window)
             except UnknownTopicError:
@@ -133,6 +134,8 @@ def episodes_in_bag(
     except BagError as exc:
         return BagEpisodes(bag, error=str(exc))
     problems = [p if p.startswith(bag) else f"{bag}: {p}" for p in found.problems]
+    if outside is not None and reader.message_count:
+        problems.insert(0, outside)
     return BagEpisodes(bag, found.spans, problems=problems)
 
 
