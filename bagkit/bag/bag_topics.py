@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 
 from bagkit.bag.definitions import (
     canonical_type_name,
@@ -77,9 +78,13 @@ class BagTopics:
         """``counts`` per channel id, per topic name."""
         return {self.channel_topics[c]: n for c, n in counts.items()}
 
-    def with_counts(self) -> list[tuple[TopicInfo, int]]:
-        """Each topic with its message count (for metadata.yaml)."""
-        return [(topic, self.counts[self.channels[name].id]) for name, topic in self.topics.items()]
+    def with_counts(self, counts: Mapping[int, int] | None = None) -> list[tuple[TopicInfo, int]]:
+        """Each topic with its message count (for metadata.yaml), or its count in ``counts``
+        (per channel id: one file's)."""
+        counts = self.counts if counts is None else counts
+        return [
+            (topic, counts.get(self.channels[name].id, 0)) for name, topic in self.topics.items()
+        ]
 
 
 def _with_type_hash(topic: TopicInfo, definition: str | None) -> TopicInfo:

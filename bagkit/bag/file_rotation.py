@@ -9,29 +9,10 @@ stops the writing with an error, before the disk fills. :class:`FileRotation` de
 from __future__ import annotations
 
 import os
-import re
 from dataclasses import dataclass
 from pathlib import Path
 
-from bagkit.bag.errors import BagError
-
-_UNITS = {
-    "": 1,
-    "b": 1,
-    "k": 1000,
-    "kb": 1000,
-    "m": 1000**2,
-    "mb": 1000**2,
-    "g": 1000**3,
-    "gb": 1000**3,
-    "t": 1000**4,
-    "tb": 1000**4,
-    "kib": 1 << 10,
-    "mib": 1 << 20,
-    "gib": 1 << 30,
-    "tib": 1 << 40,
-}
-_SIZE = re.compile(r"\s*(\d+(?:\.\d+)?)\s*([a-zA-Z]*|%)\s*")
+from bagkit.bag.sizes import parse_share, parse_size
 
 
 @dataclass(frozen=True, slots=True)
@@ -44,21 +25,16 @@ class FreeSpace:
 
     @classmethod
     def parse(cls, text: str) -> FreeSpace:
-        """``2GiB``, ``500MB``, ``1000000``, ``5%``.
+        """``2GiB``, ``500MB``, ``1000000``, ``5%`` (:mod:`bagkit.bag.sizes`).
 
         Raises:
             BagError: not a size or a percentage below 100.
         """
-        match = _SIZE.fullmatch(text)
-        unit = match.group(2).lower() if match else ""
-        if match is None or (unit != "%" and unit not in _UNITS):
-            raise BagError(f"--min-free-space {text!r}: expected a size (2GiB, 500MB) or 5%")
-        number = float(match.group(1))
-        if unit == "%":
-            if not 0 < number < 100:
-                raise BagError(f"--min-free-space {text!r}: a percentage between 0 and 100")
-            return cls(fraction=number / 100, text=text)
-        return cls(bytes=int(number * _UNITS[unit]), text=text)
+        what = "--min-free-space"
+        share = parse_share(text, what)
+        if share is not None:
+            return cls(fraction=share, text=text)
+        return cls(bytes=parse_size(text, what), text=text)
 
     def below(self, directory: Path) -> bool:
         """Whether the filesystem of ``directory`` has less free space than this floor."""

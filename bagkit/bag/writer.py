@@ -368,7 +368,7 @@ class BagWriter:
     def _split(self, log_time: int) -> None:
         self._split_requested = False
         self._close_chunk()
-        self._finish_file()
+        self._finish_file(last=False)
         for _ in range(self._rotation.excess(len(self._files) + 1)):
             self._delete_oldest_file()
         self._open_file()
@@ -425,15 +425,29 @@ class BagWriter:
             files.append(file_information(self._file))
         return bag_metadata(files, self._topics.with_counts(), self.custom_data)
 
-    def _finish_file(self) -> None:
-        """Write the rosbag2 metadata record, the summary and the footer, and close the file."""
+    def _finish_file(self, *, last: bool = True) -> None:
+        """Write the rosbag2 metadata record, the summary and the footer, and close the file.
+
+        The last file's record describes the bag, as ``metadata.yaml``; a file before a split
+        describes itself alone: a record listing every file before it would grow the bag by
+        the square of its file count.
+        """
         storage = self._file
         if storage is None:
             return
+        metadata = (
+            self._bag_metadata()
+            if last
+            else bag_metadata(
+                [file_information(storage)],
+                self._topics.with_counts(self._open_file_counts),
+                self.custom_data,
+            )
+        )
         try:
             finish_storage_file(
                 storage,
-                self._bag_metadata(),
+                metadata,
                 list(self._topics.schemas.values()),
                 list(self._topics.channels.values()),
             )

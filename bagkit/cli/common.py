@@ -193,6 +193,17 @@ class MultiValueCommand(TyperCommand):
         )
 
 
+def byte_size(text: str) -> int:
+    """A size option's value in bytes: ``2GiB``, ``500MB``, ``1.5G``, ``1000000``
+    (:mod:`bagkit.bag.sizes`, the grammar of every size option)."""
+    from bagkit.bag.sizes import GRAMMAR, parse_size
+
+    try:
+        return parse_size(text, "size")
+    except BagkitError:
+        raise typer.BadParameter(f"{text!r}: expected {GRAMMAR}") from None
+
+
 def format_rate(rate_hz: float | None, digits: int = 2) -> str:
     """A topic's rate for a table: ``10.00 Hz``, or ``-`` when it cannot be measured."""
     return "-" if rate_hz is None else f"{rate_hz:.{digits}f} Hz"

@@ -194,7 +194,10 @@ def run_alone() -> None:
     from bagkit.cli.plain_params import use_plain_coercion
 
     app = typer.Typer(
-        add_completion=False, pretty_exceptions_enable=False, context_settings=CONTEXT_SETTINGS
+        add_completion=False,
+        pretty_exceptions_enable=False,
+        context_settings=CONTEXT_SETTINGS,
+        rich_markup_mode=None,  # option names whole at 80 columns (see help_text)
     )
     app.command(help=reflow(HELP), no_args_is_help=True)(echo)
     # click names the program after argv[0]: usage and errors then read "bagkit echo".

@@ -1,4 +1,5 @@
-"""Command help that the terminal wraps: a paragraph is one line of text, not the source's lines.
+"""Command help that the terminal wraps: a paragraph is one line of text, not the source's lines;
+option names whole at any width.
 
 typer (0.29) keeps a docstring's line breaks inside a paragraph; lines cut at 100 columns in
 the source then wrap again on an 80-column terminal, every other line a stub. Paragraphs with
@@ -25,7 +26,14 @@ def reflow(text: str) -> str:
 
 
 def reflow_command_help(command: Command) -> None:
-    """Reflow the help of ``command`` and of its subcommands."""
+    """Reflow the help of ``command`` and of its subcommands, printed as click prints it.
+
+    typer's rich panels cut option names to fit a column at 80 characters
+    (``--max-bag-durat…``); click's list never cuts one (a long name gets its help on the
+    next line), as ``ros2 bag``'s argparse help.
+    """
+    if hasattr(command, "rich_markup_mode"):
+        command.rich_markup_mode = None
     if command.help:
         command.help = reflow(command.help)
     if isinstance(command, TyperGroup):

@@ -2,9 +2,10 @@
 
 typer (0.29, pinned) coerces every parameter through a pydantic ``TypeAdapter``: importing
 pydantic for that costs every command more than reading a small bag. Strings, paths, ints and
-floats (with the option's ``min``/``max``), lists of them and enum choices need no validation
-library; this gives those parameters a plain coercion (``_runtime_param``, typer's own lazily
-built slot) and leaves any other parameter (clamped numbers, ...) to typer.
+floats (with the option's ``min``/``max``), lists of them, enum choices and options with their
+own ``parser`` (sizes) need no validation library; this gives those parameters a plain coercion
+(``_runtime_param``, typer's own lazily built slot) and leaves any other parameter (clamped
+numbers, ...) to typer.
 """
 
 from __future__ import annotations
@@ -67,7 +68,10 @@ class _PlainParam(RuntimeParam):
                 raise BadParameter(
                     f"{value!r} is not one of {choices}.", ctx=ctx, param=param
                 ) from None
-        return self.convert(value)
+        try:
+            return self.convert(value)
+        except BadParameter as exc:  # a parser's: named after the option, as typer's
+            raise BadParameter(exc.message, ctx=ctx, param=param) from None
 
     def _number(self, value: Any, param: Any, ctx: Context) -> Any:
         """An int or float option, within the option's ``min``/``max`` (as typer's messages)."""
@@ -106,8 +110,9 @@ def use_plain_params(params: list[Any]) -> None:
         info = getattr(descriptor, "parameter_info", None)
         if descriptor is None or info is None or descriptor.file_annotation is not None:
             continue
-        convert = _plain(descriptor.annotation)
-        if convert is None or getattr(info, "parser", None) is not None:
+        # An option's own parser (a size, ...) converts it plainly too.
+        convert = getattr(info, "parser", None) or _plain(descriptor.annotation)
+        if convert is None:
             continue
         if getattr(info, "clamp", False):  # clamped numbers: typer's own coercion
             continue

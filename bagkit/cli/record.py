@@ -200,6 +200,8 @@ def record(  # noqa: PLR0917 (typer maps parameters to options; ros2 bag has the
     if storage != "mcap":
         raise fail(f"--storage {storage}: bagkit records MCAP only (it reads sqlite3 bags)")
     quiet = log_level in (LogLevel.ERROR, LogLevel.FATAL)
+    if max_cache_size is not None and max_cache_size < 1 << 20:
+        raise fail(f"--max-cache-size {max_cache_size}: at least 1 MiB (1048576 bytes)")
     options = RecordOptions(
         output=output,
         topics=tuple(split_list(topics_positional) + split_list(topics)),

@@ -11,7 +11,7 @@ from typing import Annotated
 
 import typer
 
-from bagkit.cli.common import ReportFormat
+from bagkit.cli.common import ReportFormat, byte_size
 from bagkit.compat import StrEnum
 
 
@@ -134,7 +134,12 @@ Storage = Annotated[str, typer.Option("--storage", "-s", help="Storage: mcap onl
 MaxBagSize = Annotated[
     int,
     typer.Option(
-        "--max-bag-size", "-b", help="Split into a new file at this many bytes (0: never).", min=0
+        "--max-bag-size",
+        "-b",
+        help="Split into a new file at this size (2GiB, 500MB, 1.5G, bytes; 0: never; at "
+        "least one chunk, 1 MiB).",
+        parser=byte_size,
+        metavar="SIZE",
     ),
 ]
 MaxBagDuration = Annotated[
@@ -186,9 +191,10 @@ MaxCacheSize = Annotated[
     int | None,
     typer.Option(
         "--max-cache-size",
-        help="Bytes held between taking and writing messages (default 64 MiB); with "
-        "--snapshot-mode, the snapshot buffer's bound.",
-        min=1 << 20,
+        help="Bytes held between taking and writing messages (64MiB, 1.5G; default 64 MiB, "
+        "at least 1 MiB); with --snapshot-mode, the snapshot buffer's bound.",
+        parser=byte_size,
+        metavar="SIZE",
         show_default=False,
     ),
 ]

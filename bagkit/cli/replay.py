@@ -279,7 +279,7 @@ def _warn_skipped(player: Player) -> None:
         listed = ", ".join(f"{t} ({f})" for t, f in sorted(topics.skipped_formats.items()))
         warn(f"not replaying topics whose serialization format is not cdr: {listed}")
     if topics.missing:
-        warn(f"topics not in the bag: {', '.join(topics.missing)}")
+        warn(f"topics not in the bag: {topics.missing_text()}")
     for name, changes in sorted(topics.drifted.items()):
         raw = player.options.on_drift is OnDrift.RAW
         done = "published as recorded" if raw else "not replayed (--on-drift raw: as recorded)"

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from bagkit.bag.latched import LatchedOptions
-from bagkit.cli.common import ReportFormat, console, print_json, split_list, warn
+from bagkit.cli.common import ReportFormat, byte_size, console, print_json, split_list, warn
 from bagkit.selection.times import format_ns
 from bagkit.surgery.rewrite import OutputOptions, RewriteReport
 
@@ -43,7 +43,10 @@ MaxBagSize = Annotated[
     typer.Option(
         "--max-bag-size",
         "-b",
-        help="Split OUT into files of at most this many bytes (0: never), like ros2 bag.",
+        help="Split OUT into files of at most this size (2GiB, 500MB, 1.5G, bytes; 0: never; "
+        "at least 16 KiB), like ros2 bag.",
+        parser=byte_size,
+        metavar="SIZE",
     ),
 ]
 MaxBagDuration = Annotated[

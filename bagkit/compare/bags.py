@@ -13,9 +13,11 @@ from bagkit.compare.core import Event, Sample, compare_events, compare_samples
 from bagkit.compare.errors import CompareError
 from bagkit.compare.options import CompareOptions
 from bagkit.compare.result import CompareReport, Divergence, TopicResult
-from bagkit.decode import DecodeError, MessageTypes, flatten_message
+from bagkit.decode import DecodeError, MessageTypes, flatten_message, leaf_fields
 from bagkit.errors import BagkitError
-from bagkit.selection.topics import require_topics
+from bagkit.selection.errors import UnknownFieldError
+from bagkit.selection.fields import name_matches, path_matches, split_pattern, unknown_field_message
+from bagkit.selection.topics import did_you_mean, require_topics
 
 EVENT_TYPE = "diagnostic_msgs/msg/DiagnosticArray"
 
@@ -143,12 +145,47 @@ def compare_bags(
         candidate_side = _Side(c_bag, MessageTypes.for_bag(c_bag))
         warnings: list[str] = []
         results: list[TopicResult] = []
+        _check_ignored(options, golden_side, candidate_side)
         for topic in _topics(g_bag, c_bag, options, warnings):
             if progress is not None:
                 progress(topic)
             results.append(_compare_topic(topic, golden_side, candidate_side, options, warnings))
         warnings.extend([*g_bag.problems, *c_bag.problems])  # damaged chunks: messages lost
     return CompareReport(str(golden), str(candidate), results, warnings)
+
+
+def _check_ignored(options: CompareOptions, *sides: _Side) -> None:
+    """Every ``ignore_fields`` pattern selects a field of the bags: a misspelt one would
+    silently compare what the user meant to leave out.
+
+    A topic glob with wildcards that matches no topic is left alone (a spec may be shared by
+    fixtures with other topics); a named topic must be in a bag.
+
+    Raises:
+        UnknownTopicError, UnknownFieldError: with the closest names the bags have.
+    """
+    types = {name: (side, info.type) for side in sides for name, info in side.bag.topics.items()}
+    for pattern in options.ignore_fields:
+        topic_glob, field_glob = split_pattern(pattern)
+        if not any(c in topic_glob for c in "*?"):
+            require_topics([topic_glob], types, "either bag")
+        topics = [name for name in sorted(types) if name_matches(name, topic_glob)]
+        paths = ["~log_time", "~publish_time"]
+        for name in topics:
+            side, type_name = types[name]
+            try:
+                leaves = leaf_fields(side.types.typestore, side.types.resolve(type_name))
+            except DecodeError:
+                return  # compared byte for byte: any field may be meant
+            paths.extend(leaf.path for leaf in leaves)
+        if not topics or any(path_matches(path, field_glob) for path in paths):
+            continue
+        if len(topics) == 1:
+            raise UnknownFieldError(unknown_field_message(topics[0], [field_glob], paths[2:]))
+        guess = did_you_mean(field_glob, paths).rstrip() or f"{len(topics)} topics match"
+        raise UnknownFieldError(
+            f"no topic matching {topic_glob} has the field {field_glob} ({guess})"
+        )
 
 
 def _topics(

@@ -23,8 +23,8 @@ from bagkit.fleet.execute import ItemDone, run_each
 from bagkit.selection.conditions import parse_topic_condition
 from bagkit.selection.errors import UnknownTopicError
 from bagkit.selection.times import TimeLike
-from bagkit.selection.topics import absolute_topic_name
-from bagkit.selection.windows import TimeRange
+from bagkit.selection.topics import absolute_topic_name, require_topics
+from bagkit.selection.windows import TimeRange, outside_warning
 
 if TYPE_CHECKING:
     import pyarrow as pa
@@ -58,6 +58,8 @@ class BagEpisodes:
     bag: str
     spans: np.ndarray = field(default_factory=NO_SPANS.copy)
     has_topic: bool = True
+    topics: list[str] = field(default_factory=list)
+    """The bag's topics, kept when it lacks the trigger's (for the did-you-mean)."""
     problems: list[str] = field(default_factory=list)
     error: str | None = None
 
@@ -125,13 +127,16 @@ def episodes_in_bag(
     try:
         with BagReader(bag, allow_empty=True) as reader:
             window = TimeRange.parse(start, end).resolve(reader.start_ns, reader.end_ns)
+            outside = outside_warning(bag, window, reader.start_ns, reader.end_ns)
             try:
                 found = find_episodes(reader, trigger, gap_ns, window, state_topics)
             except UnknownTopicError:
-                return BagEpisodes(bag, has_topic=False)
+                return BagEpisodes(bag, has_topic=False, topics=list(reader.topics))
     except BagError as exc:
         return BagEpisodes(bag, error=str(exc))
     problems = [p if p.startswith(bag) else f"{bag}: {p}" for p in found.problems]
+    if outside is not None and reader.message_count:
+        problems.insert(0, outside)
     return BagEpisodes(bag, found.spans, problems=problems)
 
 
@@ -173,7 +178,8 @@ def find_fleet(
     if not readable:
         raise FleetError(f"no bag could be read ({parts[0].error if parts else 'no bag given'})")
     if not any(part.has_topic for part in readable):
-        raise UnknownTopicError(f"none of the bags has the topic {trigger.topic}")
+        known = {name for part in readable for name in part.topics}
+        require_topics([trigger.topic], known, "the bag" if len(parts) == 1 else "any of the bags")
     problems: list[str] = []
     for part in parts:
         if part.error is not None:

@@ -13,6 +13,8 @@ from pathlib import Path
 
 from bagkit.bag.errors import BagError
 from bagkit.bag.file_rotation import FileRotation, FreeSpace
+from bagkit.bag.sizes import split_size_problem
+from bagkit.bag.writer import DEFAULT_CHUNK_SIZE
 from bagkit.recording.errors import RecorderOptionsError
 from bagkit.selection.conditions import TopicCondition, parse_topic_condition
 from bagkit.selection.errors import SelectionError
@@ -151,6 +153,9 @@ class RecordOptions:
             )
         if self.max_bag_size < 0 or self.max_bag_duration_s < 0:
             raise RecorderOptionsError("--max-bag-size and --max-bag-duration must be >= 0")
+        too_small = split_size_problem(self.max_bag_size, DEFAULT_CHUNK_SIZE)
+        if too_small is not None:
+            raise RecorderOptionsError(f"--max-bag-size: {too_small} (one chunk)")
         if self.duration_s is not None and self.duration_s < 0:
             raise RecorderOptionsError(f"duration must not be negative, got {self.duration_s}")
         if self.max_messages is not None and self.max_messages < 1:

@@ -22,6 +22,7 @@ from bagkit.regression.processor import make_processors
 from bagkit.regression.spec import BAG_DIR, SPEC_FILE, FixtureSpec, load_spec
 from bagkit.selection.conditions import parse_topic_condition
 from bagkit.selection.times import TimeLike
+from bagkit.selection.windows import TimeRange, outside_warning
 from bagkit.surgery.rewrite import filter_bag
 from bagkit.surgery.select import Selection
 
@@ -75,6 +76,9 @@ def add_fixture(directory: Path, options: AddOptions) -> AddedFixture:
         raise RegressionError(f"{directory} exists and is not empty: choose a new folder")
     like = None if options.like is None else load_spec(options.like)
     options, episodes = _around(options)
+    _check_window(options)
+    # On a failure, the folders made here go too (``fixtures/`` as well as ``fixtures/new``).
+    made = next((p for p in reversed([directory, *directory.parents]) if not p.exists()), None)
     directory.mkdir(parents=True, exist_ok=True)
     try:
         with tempfile.TemporaryDirectory(dir=directory, prefix=".add-") as tmp:
@@ -100,9 +104,23 @@ def add_fixture(directory: Path, options: AddOptions) -> AddedFixture:
                 copy_topics=[t for t in counts if t not in spec.outputs],
             )
     except BaseException:
-        shutil.rmtree(directory, ignore_errors=True)
+        shutil.rmtree(made or directory, ignore_errors=True)
         raise
     return AddedFixture(directory, spec, counts, result, episodes)
+
+
+def _check_window(options: AddOptions) -> None:
+    """A window outside the bag is no fixture (its latched state alone would pass any test).
+
+    Raises:
+        RegressionError: the window holds none of the bag's messages (the one warning's text).
+    """
+    span = TimeRange.parse(options.start, options.end)
+    with BagReader(options.bag, allow_empty=True) as reader:
+        first, last = reader.start_ns, reader.end_ns
+    outside = outside_warning(str(options.bag), span.resolve(first, last), first, last)
+    if outside is not None:
+        raise RegressionError(outside)
 
 
 def _around(options: AddOptions) -> tuple[AddOptions, int]:

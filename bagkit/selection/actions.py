@@ -13,13 +13,13 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
+from bagkit.selection.topics import SERVICE_EVENT_SUFFIX
+
 ACTION_INFIX = "/_action/"
 FEEDBACK_TOPIC = "feedback"
 STATUS_TOPIC = "status"
 STATUS_TYPE = "action_msgs/msg/GoalStatusArray"
 ACTION_SERVICES = ("send_goal", "get_result", "cancel_goal")
-# services.SERVICE_EVENT_SUFFIX: services.py imports this module, not the other way round.
-_SERVICE_EVENT = "/_service_event"
 
 
 def is_action_type(type_name: str) -> bool:
@@ -31,7 +31,7 @@ def is_action_type(type_name: str) -> bool:
 _PART_TYPES = {
     FEEDBACK_TOPIC: lambda t: is_action_type(t) and t.endswith("_FeedbackMessage"),
     STATUS_TOPIC: lambda t: t == STATUS_TYPE,
-    **{f"{s}{_SERVICE_EVENT}": lambda t: t.endswith("_Event") for s in ACTION_SERVICES},
+    **{f"{s}{SERVICE_EVENT_SUFFIX}": lambda t: t.endswith("_Event") for s in ACTION_SERVICES},
 }
 
 

@@ -17,13 +17,13 @@ wildcards, matched against the whole topic name); a glob without a colon applies
 
 from __future__ import annotations
 
-import difflib
 import functools
 import re
 from collections.abc import Callable, Iterable, Sequence
 from typing import Protocol, TypeVar
 
 from bagkit.selection.errors import UnknownFieldError
+from bagkit.selection.topics import did_you_mean
 
 
 def _translate(glob: str) -> str:
@@ -124,8 +124,7 @@ def select_fields(
 
 def unknown_field_message(topic: str, unmatched: Sequence[str], paths: Sequence[str]) -> str:
     """``/imu/data has no field x (did you mean y? it has a.{x,y,z}, b[0..8])``."""
-    close = difflib.get_close_matches(unmatched[0], paths, n=3, cutoff=0.6)
-    guess = f"did you mean {', '.join(close)}? " if close else ""
+    guess = did_you_mean(unmatched[0], paths)
     listing = describe_paths(paths) if paths else "none"
     return f"{topic} has no field {', '.join(unmatched)} ({guess}it has {listing})"
 

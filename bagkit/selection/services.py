@@ -15,9 +15,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, fields
 
 from bagkit.selection.actions import action_topic_part
-from bagkit.selection.topics import TopicSelection, absolute_topic_name
-
-SERVICE_EVENT_SUFFIX = "/_service_event"
+from bagkit.selection.topics import SERVICE_EVENT_SUFFIX, TopicSelection, absolute_topic_name
 
 
 def is_service_event_type(type_name: str) -> bool:

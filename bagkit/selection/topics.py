@@ -20,6 +20,9 @@ from dataclasses import dataclass
 from bagkit.errors import BagkitError
 from bagkit.selection.errors import SelectionError, UnknownTopicError
 
+SERVICE_EVENT_SUFFIX = "/_service_event"
+"""What a service's name ends in as a topic: introspection's events (see ``services``)."""
+
 
 def absolute_topic_name(name: str) -> str:
     """``imu/data`` -> ``/imu/data``: bagkit's nodes live in the root namespace."""
@@ -125,7 +128,9 @@ def require_topics(
     wanted: Iterable[str], known: Iterable[str], where: str = "the bag"
 ) -> list[str]:
     """``wanted`` as the names ``known`` holds them: ``imu/data`` and ``/imu/data`` are one
-    topic, whichever way a bag stored it (bags of other tools may hold relative names).
+    topic, whichever way a bag stored it (bags of other tools may hold relative names); a
+    recorded service's name stands for its event topic (``/reset`` for
+    ``/reset/_service_event``), as in ``echo``.
 
     Raises:
         UnknownTopicError: a name is not known; the message names the closest known topics
@@ -133,7 +138,13 @@ def require_topics(
     """
     known = sorted(set(known))
     stored = {absolute_topic_name(name): name for name in known}
-    names = [name if name in known else stored.get(absolute_topic_name(name)) for name in wanted]
+    names = [
+        name
+        if name in known
+        else stored.get(absolute_topic_name(name))
+        or stored.get(absolute_topic_name(name).rstrip("/") + SERVICE_EVENT_SUFFIX)
+        for name in wanted
+    ]
     missing = [absolute_topic_name(w) for w, n in zip(wanted, names, strict=True) if n is None]
     if missing:
         raise UnknownTopicError(
@@ -143,11 +154,22 @@ def require_topics(
 
 
 def closest_names(name: str, known: Sequence[str], limit: int = 20) -> str:
-    """``did you mean /a, /b?`` or ``it has /a, /b, ...``: the known names a reader wants to see."""
+    """``did you mean /a, /b?`` or ``it has /a, /b, ...``: the known names a reader wants to see.
+
+    A service's event topic is also known by the service's name, which is what a reader types.
+    """
     if not known:
         return "it has none"
-    close = difflib.get_close_matches(name, known, n=3, cutoff=0.6)
-    guess = f"did you mean {', '.join(close)}? " if close else ""
+    services = [
+        n.removesuffix(SERVICE_EVENT_SUFFIX) for n in known if n.endswith(SERVICE_EVENT_SUFFIX)
+    ]
+    guess = did_you_mean(name, [*known, *services])
     if len(known) > limit:
         return f"{guess}it has {len(known)} topics, {', '.join(known[:limit])}, ..."
     return f"{guess}it has {', '.join(known)}"
+
+
+def did_you_mean(name: str, known: Iterable[str]) -> str:
+    """``did you mean a, b? `` (up to three close names), or ``""``: every command's guess."""
+    close = difflib.get_close_matches(name, list(dict.fromkeys(known)), n=3, cutoff=0.6)
+    return f"did you mean {', '.join(close)}? " if close else ""

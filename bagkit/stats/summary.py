@@ -21,9 +21,9 @@ from bagkit.decode.matcher import PayloadMatcher
 from bagkit.prefetch import prefetch
 from bagkit.selection.conditions import Condition, parse_condition
 from bagkit.selection.errors import UnknownFieldError
-from bagkit.selection.fields import FieldSelection
+from bagkit.selection.fields import FieldSelection, unknown_field_message
 from bagkit.selection.times import TimeLike
-from bagkit.selection.topics import absolute_topic_name, require_topics
+from bagkit.selection.topics import absolute_topic_name, did_you_mean, require_topics
 from bagkit.selection.windows import TimeRange, Window, outside_warning
 from bagkit.stats.accumulate import TopicAccumulator
 from bagkit.stats.errors import NothingToSummarizeError, StatsError
@@ -228,6 +228,7 @@ def summarize(
     Raises:
         BagError: a bag cannot be opened (see ``bagkit.bag``).
         UnknownTopicError: a topic in ``topics`` is in none of the bags.
+        UnknownFieldError: ``fields`` select no numeric field (with the closest ones).
         NothingToSummarizeError: no message in the selection, or no topic can be decoded.
         StatsError: a topic has different types in different bags.
     """
@@ -270,6 +271,26 @@ def check_topics(known: set[str], topics: Sequence[str] | None, bags: int) -> li
     return require_topics(topics, known, "the bag" if bags == 1 else "any of the bags")
 
 
+def _no_field_message(run: SummaryRun) -> str:
+    """``/imu/data has no numeric field x (did you mean y? it has ...)``: the fields of the
+    summarized topics, named as the patterns name them."""
+    numeric = {
+        topic: [leaf.path for leaf in accumulator.signature if leaf.numeric]
+        for topic, accumulator in sorted(run.accumulators.items())
+    }
+    patterns = list(run.fields.patterns)
+    if len(numeric) == 1:
+        ((topic, paths),) = numeric.items()
+        return unknown_field_message(topic, patterns, paths).replace(
+            " field ", " numeric field ", 1
+        )
+    qualified = [f"{topic}:{path}" for topic, paths in numeric.items() for path in paths]
+    bare = [path for paths in numeric.values() for path in paths]
+    guess = did_you_mean(patterns[0], qualified if ":" in patterns[0] else bare).rstrip()
+    listing = f"{len(numeric)} topics, {len(bare)} numeric fields"
+    return f"no topic has a numeric field {', '.join(patterns)} ({guess or listing})"
+
+
 def finish_summary(run: SummaryRun, paths: list[str]) -> Summary:
     """The :class:`Summary` of a run over ``paths``: results per topic, problems reported."""
     results = []
@@ -295,7 +316,7 @@ def finish_summary(run: SummaryRun, paths: list[str]) -> Summary:
             return Summary(tuple(paths), None, None, (), dict(run.skipped), tuple(run.problems))
         raise NothingToSummarizeError(f"no messages to summarize in {bags}")
     if run.fields and not results:
-        raise NothingToSummarizeError("no numeric field matches --fields")
+        raise UnknownFieldError(_no_field_message(run))
     return Summary(
         bags=tuple(paths),
         start_ns=min(a.first_ns for a in counted if a.first_ns is not None),

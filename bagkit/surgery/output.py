@@ -29,6 +29,7 @@ from bagkit.bag.mcapio.records import (
 )
 from bagkit.bag.messages import BagMessage, TopicInfo
 from bagkit.bag.metadata import BagMetadata, FileInformation, write_metadata
+from bagkit.bag.sizes import split_size_problem
 from bagkit.bag.writer import DEFAULT_CHUNK_SIZE, LIBRARY
 from bagkit.selection.times import seconds_to_ns
 from bagkit.surgery.errors import SurgeryError
@@ -46,6 +47,8 @@ _RECORD_HEADER = np.dtype(
 )
 # What --force may replace: a bag directory holds these files only (rosbag2 writes no folders).
 _BAG_SUFFIXES = (".mcap", ".db3", ".yaml", ".zstd", ".lz4")
+# The smallest chunk a split output gets: a split size holds four at least.
+_MIN_CHUNK_SIZE = 4096
 
 
 def check_replaceable(path: Path) -> None:
@@ -128,11 +131,14 @@ class OutputBag:
             raise SurgeryError(f"{path.parent}: no such directory")
         self.path = path
         self.compression, self._compress = compressor(compression)
+        too_small = split_size_problem(max_bag_size, 4 * _MIN_CHUNK_SIZE)
+        if too_small is not None:
+            raise SurgeryError(too_small)
         self._max_size = max_bag_size
         self._max_duration = seconds_to_ns(max_bag_duration_s, max_bag_duration_s, SurgeryError)
         # Files end within one chunk of max_bag_size: small limits get smaller chunks.
         self._chunk_size = (
-            min(DEFAULT_CHUNK_SIZE, max(max_bag_size // 4, 4096))
+            min(DEFAULT_CHUNK_SIZE, max(max_bag_size // 4, _MIN_CHUNK_SIZE))
             if max_bag_size
             else DEFAULT_CHUNK_SIZE
         )
@@ -143,6 +149,7 @@ class OutputBag:
         self.channels: dict[str, Channel] = {}
         self.topics: dict[str, TopicInfo] = {}
         self.counts: dict[int, int] = {}
+        self._counts_before: dict[int, int] = {}  # self.counts when the open file began
         self.chunks_copied = 0
         self.custom_data: dict[str, str] = {}  # metadata.yaml's, as the caller merged them
         self._files: list[FileInformation] = []
@@ -304,7 +311,7 @@ class OutputBag:
             due = due or log_time - start >= self._max_duration
         if due:
             self._close_chunk()
-            self._finish_file()
+            self._finish_file(last=False)
 
     def _close_chunk(self) -> None:
         chunk = self._chunk
@@ -315,17 +322,28 @@ class OutputBag:
         for channel_id, count in chunk.message_counts().items():
             self.counts[channel_id] += count
 
-    def _finish_file(self) -> None:
+    def _finish_file(self, *, last: bool = True) -> None:
+        """Close the open file; its rosbag2 record describes the bag when it is the last, else
+        the file alone (as :class:`~bagkit.bag.BagWriter`: no record listing every file)."""
         file = self._file
         if file is None:
             return
         self._files.append(file_information(file))
+        if last:
+            metadata = self._metadata()
+        else:
+            own = {c: n - self._counts_before.get(c, 0) for c, n in self.counts.items()}
+            metadata = self._metadata([self._files[-1]], own)
+        self._counts_before = dict(self.counts)
         finish_storage_file(
-            file, self._metadata(), list(self.schemas.values()), list(self.channels.values())
+            file, metadata, list(self.schemas.values()), list(self.channels.values())
         )
         file.close()
         self._file = None
 
-    def _metadata(self) -> BagMetadata:
-        topics = [(t, self.counts[self.channels[n].id]) for n, t in self.topics.items()]
-        return bag_metadata(self._files, topics, self.custom_data)
+    def _metadata(
+        self, files: list[FileInformation] | None = None, counts: dict[int, int] | None = None
+    ) -> BagMetadata:
+        counts = self.counts if counts is None else counts
+        topics = [(t, counts[self.channels[n].id]) for n, t in self.topics.items()]
+        return bag_metadata(self._files if files is None else files, topics, self.custom_data)

@@ -73,3 +73,25 @@ def test_each_file_carries_rosbag2_metadata_matching_its_metadata_yaml(tmp_path:
     # the last file's record is written with every file known, as metadata.yaml is
     assert embedded["message_count"] == info["message_count"] == 3
     assert embedded["relative_file_paths"] == info["relative_file_paths"]
+    # a file before a split describes itself alone (linear, not quadratic, in the file count)
+    for name in info["relative_file_paths"][:-1]:
+        with open(tmp_path / "bag" / name, "rb") as f:
+            (record,) = [m for m in make_reader(f).iter_metadata() if m.name == "rosbag2"]
+        own = yaml.safe_load(record.metadata["serialized_metadata"])
+        assert own["relative_file_paths"] == [name]
+        assert own["message_count"] == 1
+        assert [t["message_count"] for t in own["topics_with_message_count"]] == [1]
+
+
+def test_split_files_grow_linearly_with_their_count(tmp_path: Path) -> None:
+    """A bag split after every message: twice the messages, twice the bytes (not four times)."""
+    sizes = []
+    for count in (200, 400):
+        with BagWriter(tmp_path / str(count), max_bag_size=1, compression="none") as bag:
+            bag.add_topic(TopicInfo("/a", STRING))
+            for i in range(count):
+                bag.write("/a", b"\x00\x01\x00\x00\x02\x00\x00\x00x\x00", log_time=1_000 + i)
+        files = list((tmp_path / str(count)).glob("*.mcap"))
+        assert len(files) == count
+        sizes.append(sum(f.stat().st_size for f in files))
+    assert sizes[1] < 2.1 * sizes[0]

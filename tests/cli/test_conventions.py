@@ -96,7 +96,7 @@ def test_every_command_answers_h_and_help(command: str, flag: str) -> None:
     # within a paragraph only the last line is short.
     lines = [line.rstrip() for line in result.stdout.splitlines()]
     start = next(i for i, line in enumerate(lines) if "Usage:" in line) + 1
-    end = next(i for i, line in enumerate(lines) if line.startswith("╭"))
+    end = next(i for i, line in enumerate(lines) if line in ("Arguments:", "Options:"))
     paragraphs = "\n".join(lines[start:end]).split("\n\n")
     stubs = [
         line

@@ -1,6 +1,15 @@
-"""Help paragraphs joined for the terminal to wrap; example commands kept as written."""
+"""Help paragraphs joined for the terminal to wrap; example commands kept as written; every
+option name whole at 80 columns (subprocesses of the CLI)."""
 
 from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
 
 from bagkit.cli.help_text import reflow
 
@@ -20,3 +29,46 @@ def test_paragraph_lines_are_joined_and_indented_paragraphs_kept() -> None:
         "First line.\n\nSecond paragraph, cut at the source's width.\n\nExamples:\n\n"
         "  bagkit echo bag /imu -n 3\n  bagkit echo bag /gps"
     )
+
+
+def _commands() -> list[tuple[list[str], list[str]]]:
+    """Every command's path (``["stats", "summary"]``) and its option names, from the CLI."""
+    import typer
+
+    from bagkit.cli.main import _COMMANDS, load_command
+
+    found: list[tuple[list[str], list[str]]] = []
+
+    def walk(path: list[str], command: typer.core.TyperCommand | typer.core.TyperGroup) -> None:
+        if isinstance(command, typer.core.TyperGroup):
+            for name, sub in command.commands.items():
+                if not sub.hidden:
+                    walk([*path, name], sub)
+            return
+        names = [o for p in command.params for o in (*p.opts, *p.secondary_opts) if "-" in o[:1]]
+        found.append((path, names))
+
+    for name in sorted(_COMMANDS):
+        command = load_command(name)
+        assert command is not None
+        walk([name], command)  # type: ignore[arg-type]
+    return found
+
+
+COMMANDS = _commands()
+
+
+@pytest.mark.parametrize(("path", "options"), COMMANDS, ids=[" ".join(p) for p, _ in COMMANDS])
+def test_help_at_80_columns_shows_every_option_name_whole(
+    path: list[str], options: list[str]
+) -> None:
+    bagkit = str(Path(sys.executable).with_name("bagkit"))
+    env = {**os.environ, "COLUMNS": "80"}
+    result = subprocess.run(
+        [bagkit, *path, "-h"], capture_output=True, text=True, timeout=60, env=env, check=False
+    )
+    assert result.returncode == 0, result.stderr
+    assert "…" not in result.stdout
+    words = set(re.split(r"[\s,/=\[\]()]+", result.stdout))
+    assert [o for o in [*options, "-h", "--help"] if o not in words] == []
+    assert max(len(line) for line in result.stdout.splitlines()) <= 80

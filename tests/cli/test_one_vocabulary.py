@@ -150,11 +150,17 @@ def test_a_missing_path_is_one_error(command: str, tmp_path: Path) -> None:
     assert result.stderr == f"error: {missing}: no such file or directory\n"
 
 
-@pytest.mark.parametrize("command", ["echo", "export", "stats", "filter", "plot"])
+WINDOW_COMMANDS = {
+    **EDGE_COMMANDS,
+    "find": lambda bag, topic, tmp: ["find", bag, "--when", f"{topic}: header.stamp.sec > 0"],
+}
+
+
+@pytest.mark.parametrize("command", ["echo", "export", "stats", "filter", "plot", "find"])
 def test_a_window_outside_the_bag_is_one_warning_and_an_empty_result(
     command: str, tmp_path: Path
 ) -> None:
-    args = [*EDGE_COMMANDS[command](BAG, "/imu/data", tmp_path), "--start", "1h"]
+    args = [*WINDOW_COMMANDS[command](BAG, "/imu/data", tmp_path), "--start", "1h"]
     result = _bagkit(*args, cwd=tmp_path)
     warnings = [line for line in result.stderr.splitlines() if line.startswith("warning:")]
     assert len(warnings) == 1, result.stderr
@@ -162,6 +168,26 @@ def test_a_window_outside_the_bag_is_one_warning_and_an_empty_result(
     assert result.returncode == 0, result.stderr
     if command == "echo":
         assert result.stdout == ""
+    if command == "find":
+        assert result.stdout.startswith("0 episodes")
+
+
+@pytest.mark.parametrize("window", [["--start", "1000", "--end", "1010"], ["--end", "-1h"]])
+def test_golden_add_of_a_window_outside_the_bag_fails_and_leaves_nothing(
+    window: list[str], tmp_path: Path
+) -> None:
+    """Its latched state alone would make a fixture that passes any test."""
+    result = _bagkit("golden", "add", tmp_path / "fixtures" / "new", "--from", BAG, *window)
+    assert result.returncode == 2
+    assert result.stderr.startswith(f"error: {BAG}: the time window [")
+    assert result.stderr.count("\n") == 1
+    assert not (tmp_path / "fixtures").exists()
+
+
+def test_golden_add_of_a_missing_bag_leaves_no_folder(tmp_path: Path) -> None:
+    result = _bagkit("golden", "add", "fixtures/new", "--from", "nope_bag", cwd=tmp_path)
+    assert (result.returncode, result.stderr) == (2, "error: nope_bag: no such file or directory\n")
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_echo_where_keeps_the_messages_the_condition_holds_for() -> None:

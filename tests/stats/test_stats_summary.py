@@ -24,6 +24,7 @@ from rosbags_oracle import (
 )
 
 from bagkit.bag import BagNotFoundError
+from bagkit.selection.errors import UnknownFieldError
 from bagkit.stats import (
     NothingToSummarizeError,
     StatsError,
@@ -139,8 +140,10 @@ def test_bad_input_raises_readable_errors(bag: Path, tmp_path: Path) -> None:
     outside = summarize([bag], start=f"{T0 + 10**15}ns")
     assert outside.topics == () and outside.start_ns is None
     assert len(outside.problems) == 1 and "holds no message" in outside.problems[0]
-    with pytest.raises(NothingToSummarizeError, match="--fields"):
+    with pytest.raises(UnknownFieldError, match="no topic has a numeric field no_such_field"):
         summarize([bag], fields=["no_such_field"])
+    with pytest.raises(UnknownFieldError, match=r"did you mean linear_acceleration.z,"):
+        summarize([bag], topics=["/imu/data"], fields=["linear_acceleration.zz"])
 
 
 def test_empty_bag_is_a_clear_error(tmp_path: Path) -> None:

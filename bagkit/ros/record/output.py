@@ -43,6 +43,11 @@ def create_output(
             invalid.
         RecordingFailedError: the bag cannot be written (a full disk); nothing is left.
     """
+    floor = options.rotation.min_free
+    if floor is not None:
+        existing = next(p for p in [path, *path.parents] if p.exists())
+        if floor.below(existing):
+            raise RecorderOptionsError(f"{existing}: less than {floor.text} free: not started")
     if options.snapshot_mode:
         return _create_snapshot_sink(path, options, on_snapshot_error)
     try:

@@ -43,7 +43,7 @@ from bagkit.ros.record.take_loop import SimClock, TakeLoop
 from bagkit.ros.record.triggers import TriggerError, start_trigger_checks
 from bagkit.ros.record.write_loop import WriteLoop
 from bagkit.ros.tuning import process_tuning
-from bagkit.selection.topics import absolute_topic_name
+from bagkit.selection.topics import absolute_topic_name, closest_names
 
 
 class Recorder:
@@ -355,6 +355,7 @@ class Recorder:
         assert self._subscriptions is not None
         if self._subscriptions.complete.is_set():
             report.discovery_s = self._subscriptions.complete_at - self._started
+        missing = self._subscriptions.never_appeared()
         report.topics = sorted(self._writer.records.values(), key=lambda r: r.topic)
         if isinstance(self._writer.bag, SnapshotSink):
             report.snapshots = self._writer.bag.snapshots
@@ -362,6 +363,14 @@ class Recorder:
         errors = self._stop.errors
         report.error = errors[0] if errors else None
         report.error_exit_code = self._stop.exit_code
+        if report.error is None and missing and self._node is not None:
+            # Bad input found while recording: a misspelt name waits for ever otherwise.
+            graph = sorted(name for name, _ in self._node.get_topic_names_and_types())
+            report.error = (
+                f"topic {', '.join(missing)} never appeared on the graph "
+                f"({closest_names(missing[0], graph)})"
+            )
+            report.error_exit_code = 2
         if report.error is not None and report.lost:
             report.error += f" ({report.lost} messages lost)"
         self._stopped.set()

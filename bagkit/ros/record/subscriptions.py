@@ -99,10 +99,16 @@ class Subscriptions:
 
     def _covers_selection(self) -> bool:
         """Whether every named topic is subscribed or skipped (any topic, if none is named)."""
+        if self.selection.topics:
+            return not self.never_appeared()
+        with self.lock:
+            return bool(self.topics)
+
+    def never_appeared(self) -> list[str]:
+        """The named topics neither subscribed nor skipped, sorted."""
         with self.lock:
             done = set(self.topics) | set(self._skipped)
-        named = self.selection.topics
-        return named <= done if named else bool(self.topics)
+        return sorted(self.selection.topics - done)
 
     def skip(self, topic: str, reason: str) -> None:
         """Leave ``topic`` out of the recording, with one warning (however often it is seen)."""

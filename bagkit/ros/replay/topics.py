@@ -13,7 +13,7 @@ from bagkit.playback.options import OnDrift
 from bagkit.ros.clock import CLOCK_TOPIC
 from bagkit.ros.errors import MessageClassNotFoundError, PlayerError
 from bagkit.ros.message_classes import import_message_type
-from bagkit.selection.topics import TopicSelection
+from bagkit.selection.topics import TopicSelection, closest_names, require_topics
 
 
 @dataclass(slots=True)
@@ -30,6 +30,12 @@ class PublishableTopics:
     drifted: dict[str, list[str]] = field(default_factory=dict)
     """Topic -> how its stored definition differs from the installed one (skipped unless
     published raw)."""
+    known: list[str] = field(default_factory=list)
+    """The bag's topics, for the closest names to the missing ones."""
+
+    def missing_text(self) -> str:
+        """``/imu/dat (did you mean /imu/data? it has ...)``: the missing topics, for a warning."""
+        return f"{', '.join(self.missing)} ({closest_names(self.missing[0], self.known)})"
 
 
 def publishable_topics(
@@ -47,9 +53,10 @@ def publishable_topics(
     the installed type's is in ``drifted``, and published only with ``on_drift`` RAW.
 
     Raises:
+        UnknownTopicError: nothing is selected and a named topic is not in the bag.
         PlayerError: nothing is left to publish (the message says why).
     """
-    found = PublishableTopics(missing=selection.missing(topics))
+    found = PublishableTopics(missing=selection.missing(topics), known=sorted(topics))
     for name, info in sorted(topics.items()):
         if not selection.matches(name):
             continue
@@ -69,6 +76,8 @@ def publishable_topics(
             if on_drift is OnDrift.SKIP:
                 continue
         found.selected.append((info, message_class))
+    if not found.selected and found.missing:
+        require_topics(found.missing, topics)  # raises, with the closest topics of the bag
     if not found.selected:
         reason = "no topic of the bag matches the topic selection"
         if found.skipped_types or found.skipped_formats or found.drifted:
