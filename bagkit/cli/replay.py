@@ -17,6 +17,7 @@ from bagkit.cli.common import (
     console,
     fail,
     handle_errors,
+    note,
     print_json,
     split_list,
     warn,
@@ -205,6 +206,7 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
         on_progress=progress.update if progress.interactive else None,
         on_live_publishers=_warn_live_publishers,
         on_warning=progress.warn,
+        on_waited=lambda waited: note(waited.line()),
     )
     report = _run(player, keyboard=not disable_keyboard_controls)
     progress.finish()
