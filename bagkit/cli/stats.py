@@ -106,7 +106,7 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
 def _service_latencies(bags: list[Path], topics: set[str]) -> list[dict[str, Any]]:
     """Per service whose event topic was summarized: its call latency (count, p50, p99, max
     in seconds), from the whole bag (calls are paired across the window's edges)."""
-    from bagkit.data.services import service_summaries
+    from bagkit.data.service_summaries import service_summaries
     from bagkit.selection.services import is_service_event_topic
 
     if not any(is_service_event_topic(t) for t in topics):
