@@ -118,7 +118,7 @@ def _custom_data_value(value: str, verbose: bool) -> str:
 
 
 def _services(bag: str, result: BagInfo) -> list[ServiceSummary]:
-    """The bag's services; their events are read (headers only, bagkit.data.service_summaries) only if it has any."""
+    """The bag's services; their events are read (headers only) only if it has any."""
     from bagkit.selection.services import is_service_event_topic
 
     if not any(is_service_event_topic(t.topic, [t.type]) for t in result.topics):

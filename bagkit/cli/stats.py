@@ -11,10 +11,10 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
+from bagkit.cli import common
 from bagkit.cli.common import (
     CheckCrcOnRead,
     OutputFormat,
-    err_console,
     format_rate,
     handle_errors,
     note,
@@ -182,7 +182,7 @@ def _summarize(
         workers=workers, scheduler=scheduler, bags=len(bags), announce=note
     ) as client:
         if client is not None:
-            with BagProgress(bags, err_console, label="summarizing") as done:
+            with BagProgress(bags, common.err_console, label="summarizing") as done:
                 return summarize_fleet(bags, client=client, done=done, **options)
         progress = DelayedProgress("summarizing")
         try:

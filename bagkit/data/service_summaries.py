@@ -10,9 +10,10 @@ one of whose events does not fit it, is read by the decoder (:mod:`bagkit.data.s
 from __future__ import annotations
 
 import struct
+from collections.abc import Iterator
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from bagkit.bag import BagReader
 from bagkit.bag.service_calls import (
@@ -20,11 +21,16 @@ from bagkit.bag.service_calls import (
     ServiceCounts,
     ServiceEvent,
     count_events,
+    event_from_message,
     latency_summary,
     pair_calls,
 )
+from bagkit.data.errors import UndecodableTopicError
 from bagkit.selection.services import is_service_event_topic, service_name, service_type
 from bagkit.selection.topics import absolute_topic_name
+
+if TYPE_CHECKING:
+    from bagkit.decode import MessageTypes
 
 # The event type's first field, as rosbag2 and bagkit write its definition.
 _INFO_FIELD = "service_msgs/ServiceEventInfo info"
@@ -106,10 +112,24 @@ def _header_events(reader: BagReader, topic: str) -> list[ServiceEvent] | None:
     return events
 
 
+def read_events(reader: BagReader, types: MessageTypes, topic: str) -> Iterator[ServiceEvent]:
+    """The events of one service-event topic, decoded, in log-time order.
+
+    Raises:
+        UndecodableTopicError: the event type cannot be decoded from the bag's definition.
+    """
+    from bagkit.decode import DecodeError
+
+    try:
+        decode = types.decoder(reader.topics[topic].type)
+    except DecodeError as exc:
+        raise UndecodableTopicError(f"{topic} cannot be decoded: {exc}") from None
+    for message in reader.messages([topic]):
+        yield event_from_message(decode(message.data), message.log_time)
+
+
 def _decoded_events(reader: BagReader, topic: str) -> list[ServiceEvent] | None:
     """The events of ``topic`` through the decoder; None when they do not decode."""
-    from bagkit.data.errors import UndecodableTopicError
-    from bagkit.data.services import read_events
     from bagkit.decode import DecodeError, MessageTypes
 
     try:

@@ -19,13 +19,12 @@ from bagkit.bag.service_calls import (
     EVENT_NAMES,
     ServiceCall,
     ServiceEvent,
-    event_from_message,
     pair_calls,
 )
 from bagkit.data.call_selection import CallSelection
 from bagkit.data.echo import Plain
 from bagkit.data.errors import UndecodableTopicError
-from bagkit.data.service_summaries import service_topics
+from bagkit.data.service_summaries import read_events, service_topics
 from bagkit.decode import DecodeError, MessageTypes
 from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER
 from bagkit.selection.services import service_name
@@ -39,20 +38,6 @@ def find_service(reader: BagReader, name: str) -> str | None:
     if wanted in topics:
         return topics[wanted]
     return next((t for t in topics.values() if absolute_topic_name(t) == wanted), None)
-
-
-def read_events(reader: BagReader, types: MessageTypes, topic: str) -> Iterator[ServiceEvent]:
-    """The events of one service-event topic, decoded, in log-time order.
-
-    Raises:
-        UndecodableTopicError: the event type cannot be decoded from the bag's definition.
-    """
-    try:
-        decode = types.decoder(reader.topics[topic].type)
-    except DecodeError as exc:
-        raise UndecodableTopicError(f"{topic} cannot be decoded: {exc}") from None
-    for message in reader.messages([topic]):
-        yield event_from_message(decode(message.data), message.log_time)
 
 
 def call_latencies(bag: str | Path) -> dict[str, list[int]]:
