@@ -23,6 +23,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from benchmarks.bench_startup import cached_bytecode_env
+
 RUNS = 7
 TOPIC = "/start"
 MARGIN_S = 0.5
@@ -75,7 +77,9 @@ def _first_message(
     command printed on stderr."""
     assert listener.stdout is not None
     start = time.time()
-    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    process = subprocess.Popen(
+        command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=cached_bytecode_env()
+    )
     ready, _, _ = select.select([listener.stdout], [], [], 30.0)
     if not ready:
         process.kill()
