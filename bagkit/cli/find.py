@@ -8,7 +8,8 @@ from typing import TYPE_CHECKING
 
 import typer
 
-from bagkit.cli.common import console, handle_errors, print_json, split_list, warn
+from bagkit.cli import common
+from bagkit.cli.common import handle_errors, print_json, split_list, warn
 from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers, fleet_run
 from bagkit.cli.selection_options import Distro, End, Start, StateTopics
 from bagkit.compat import StrEnum
@@ -121,7 +122,7 @@ def _write_parquet(result: FindResult, out: Path | None) -> None:
     assert out is not None
     out.parent.mkdir(parents=True, exist_ok=True)
     pq.write_table(result.to_arrow(), out, compression="zstd")
-    console.print(f"{result.count} episodes -> {out}", highlight=False, soft_wrap=True)
+    common.console.print(f"{result.count} episodes -> {out}", highlight=False, soft_wrap=True)
 
 
 def _utc(ns: int) -> str:
@@ -133,7 +134,7 @@ def _print_table(result: FindResult) -> None:
     from bagkit.cli.tables import Column, Table, print_table
 
     if not result.count:
-        console.print(f"0 episodes of {result.topic}", highlight=False)
+        common.console.print(f"0 episodes of {result.topic}", highlight=False)
         return
     table = Table(
         [

@@ -7,6 +7,7 @@ local cluster or connects to the scheduler, and shows one progress bar over the 
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
@@ -14,7 +15,8 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from bagkit.cli.common import err_console, note
+from bagkit.cli import common
+from bagkit.cli.common import note
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -63,15 +65,17 @@ def fleet_run(
     from bagkit.fleet.progress import BagProgress, bag_size
 
     sizes = [bag_size(bag) for bag in bags]
-    with (
-        fleet_client(
-            workers=workers,
-            scheduler=scheduler,
-            bags=len(bags),
-            size_bytes=sum(sizes),
-            rate=rate,
-            announce=note,
-        ) as client,
-        BagProgress(bags, err_console, label=label, sizes=sizes) as done,
-    ):
-        yield client, done
+    client_run = fleet_client(
+        workers=workers,
+        scheduler=scheduler,
+        bags=len(bags),
+        size_bytes=sum(sizes),
+        rate=rate,
+        announce=note,
+    )
+    with client_run as client:
+        if not sys.stderr.isatty():  # no bar to show: rich is not even imported (start-up time)
+            yield client, lambda index: None
+            return
+        with BagProgress(bags, common.err_console, label=label, sizes=sizes) as done:
+            yield client, done

@@ -36,7 +36,7 @@ from bagkit.cli.tables import (
 )
 
 if TYPE_CHECKING:
-    from bagkit.data.services import ServiceSummary
+    from bagkit.data.service_summaries import ServiceSummary
 
 HELP = """Show what a bag holds: files, size, storage, duration, start and end, message count,
 and per topic its type, count, rate, serialization format and offered QoS.
@@ -119,12 +119,12 @@ def _custom_data_value(value: str, verbose: bool) -> str:
 
 
 def _services(bag: str, result: BagInfo) -> list[ServiceSummary]:
-    """The bag's services; their events are decoded (numpy, the decoder) only if it has any."""
+    """The bag's services; their events are read (headers only) only if it has any."""
     from bagkit.selection.services import is_service_event_topic
 
     if not any(is_service_event_topic(t.topic, [t.type]) for t in result.topics):
         return []
-    from bagkit.data.services import service_summaries
+    from bagkit.data.service_summaries import service_summaries
 
     return service_summaries(bag)
 

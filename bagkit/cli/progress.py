@@ -4,10 +4,10 @@ second, so that quick commands print nothing but their result."""
 from __future__ import annotations
 
 import time
+from typing import TYPE_CHECKING
 
-from rich.progress import BarColumn, Progress, TaskID, TextColumn, TimeRemainingColumn
-
-from bagkit.cli.common import err_console
+if TYPE_CHECKING:
+    from rich.progress import Progress, TaskID
 
 PROGRESS_DELAY_S = 1.0
 
@@ -25,6 +25,11 @@ class DelayedProgress:
         if self._bar is None:
             if time.monotonic() - self._started < PROGRESS_DELAY_S:
                 return
+            # Here: a command that ends within the delay never imports rich (start-up time).
+            from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+            from bagkit.cli.common import err_console
+
             self._bar = Progress(
                 TextColumn(self._label),
                 BarColumn(),

@@ -9,12 +9,12 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
+from bagkit.cli import common
 from bagkit.cli.common import (
     CONTEXT_SETTINGS,
     EXIT_INTERRUPTED,
     MultiValueCommand,
     ReportFormat,
-    console,
     fail,
     handle_errors,
     print_json,
@@ -208,6 +208,8 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
         on_progress=progress.update if progress.interactive else None,
         on_live_publishers=_warn_live_publishers,
         on_warning=progress.warn,
+        # Plain: rich (note()) would be imported just before the first message.
+        on_waited=lambda waited: print(waited.line(), file=sys.stderr, flush=True),
     )
     report = _run(player, keyboard=not disable_keyboard_controls)
     progress.finish()
@@ -332,7 +334,7 @@ def _print_report(report: PlayReport) -> None:
         )
     print_table(table)
     lateness = report.lateness
-    console.print(
+    common.console.print(
         f"{report.messages} messages in {report.wall_duration_s:.3f} s "
         f"({report.bag_duration_s:.3f} s of bag time, rate {report.rate:g}"
         + (f", {report.loops} passes" if report.loops > 1 else "")
@@ -348,7 +350,7 @@ def _print_report(report: PlayReport) -> None:
     )
     if math.isnan(lateness.p50_ms):
         timing = "no message was published on schedule"
-    console.print(f"timing error: {timing}", highlight=False, soft_wrap=True)
+    common.console.print(f"timing error: {timing}", highlight=False, soft_wrap=True)
     if report.service_requests is not None:
         _print_service_requests(report.service_requests)
 
@@ -359,10 +361,10 @@ def _print_service_requests(summary: ServiceReplaySummary) -> None:
     line = ", ".join(f"{n} {k}" for k, n in totals.items())
     if summary.total("not_recorded"):
         line += f", {summary.total('not_recorded')} without a recorded response"
-    console.print(f"service requests: {line}", highlight=False, soft_wrap=True)
+    common.console.print(f"service requests: {line}", highlight=False, soft_wrap=True)
     for call in summary.calls:
         what = "; ".join(call.differences) if call.differences else call.outcome
-        console.print(
+        common.console.print(
             f"  {call.service} #{call.sequence_number}: {what}",
             highlight=False,
             soft_wrap=True,

@@ -11,10 +11,10 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
+from bagkit.cli import common
 from bagkit.cli.common import (
     CheckCrcOnRead,
     OutputFormat,
-    err_console,
     format_rate,
     handle_errors,
     note,
@@ -107,7 +107,7 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
 def _service_latencies(bags: list[Path], topics: set[str]) -> list[dict[str, Any]]:
     """Per service whose event topic was summarized: its call latency (count, p50, p99, max
     in seconds), from the whole bag (calls are paired across the window's edges)."""
-    from bagkit.data.services import service_summaries
+    from bagkit.data.service_summaries import service_summaries
     from bagkit.selection.services import is_service_event_topic
 
     if not any(is_service_event_topic(t) for t in topics):
@@ -190,7 +190,7 @@ def _summarize(
         announce=note,
     ) as client:
         if client is not None:
-            with BagProgress(bags, err_console, label="summarizing", sizes=sizes) as done:
+            with BagProgress(bags, common.err_console, label="summarizing", sizes=sizes) as done:
                 return summarize_fleet(bags, client=client, done=done, **options)
         progress = DelayedProgress("summarizing")
         try:

@@ -1,14 +1,14 @@
 """Services in a bag: their event topics read, calls paired, counted and timed.
 
 The reading side of :mod:`bagkit.bag.service_calls` (which is pure): ``bagkit info`` lists
-:func:`service_summaries`, ``bagkit echo BAG /service`` prints :func:`echo_calls`.
+:func:`service_summaries` (:mod:`bagkit.data.service_summaries`, which reads the events'
+headers without the decoder), ``bagkit echo BAG /service`` prints :func:`echo_calls`.
 """
 
 from __future__ import annotations
 
 import dataclasses
 from collections.abc import Iterator
-from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -17,46 +17,18 @@ import numpy as np
 from bagkit.bag import BagReader
 from bagkit.bag.service_calls import (
     EVENT_NAMES,
-    LatencySummary,
     ServiceCall,
-    ServiceCounts,
     ServiceEvent,
-    count_events,
-    event_from_message,
-    latency_summary,
     pair_calls,
 )
 from bagkit.data.call_selection import CallSelection
 from bagkit.data.echo import Plain
 from bagkit.data.errors import UndecodableTopicError
+from bagkit.data.service_summaries import read_events, service_topics
 from bagkit.decode import DecodeError, MessageTypes
 from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER
-from bagkit.selection.services import is_service_event_topic, service_name, service_type
+from bagkit.selection.services import service_name
 from bagkit.selection.topics import absolute_topic_name
-
-
-@dataclass(frozen=True, slots=True)
-class ServiceSummary:
-    """A service of a bag: its type, event topic, counts (as ``ros2 bag info -v``), latency."""
-
-    service: str
-    type: str
-    topic: str
-    counts: ServiceCounts
-    latency: LatencySummary
-
-    def to_dict(self) -> dict[str, Any]:
-        """The JSON form (``bagkit info --format json``'s ``services``)."""
-        return asdict(self)
-
-
-def service_topics(reader: BagReader) -> dict[str, str]:
-    """Service name -> its event topic, for every service-event topic of an open bag."""
-    return {
-        service_name(absolute_topic_name(name)): name
-        for name, info in sorted(reader.topics.items())
-        if is_service_event_topic(absolute_topic_name(name), [info.type])
-    }
 
 
 def find_service(reader: BagReader, name: str) -> str | None:
@@ -66,35 +38,6 @@ def find_service(reader: BagReader, name: str) -> str | None:
     if wanted in topics:
         return topics[wanted]
     return next((t for t in topics.values() if absolute_topic_name(t) == wanted), None)
-
-
-def read_events(reader: BagReader, types: MessageTypes, topic: str) -> Iterator[ServiceEvent]:
-    """The events of one service-event topic, decoded, in log-time order.
-
-    Raises:
-        UndecodableTopicError: the event type cannot be decoded from the bag's definition.
-    """
-    try:
-        decode = types.for_topic(topic).decoder(reader.topics[topic].type)
-    except DecodeError as exc:
-        raise UndecodableTopicError(f"{topic} cannot be decoded: {exc}") from None
-    for message in reader.messages([topic]):
-        yield event_from_message(decode(message.data), message.log_time)
-
-
-def service_summaries(bag: str | Path) -> list[ServiceSummary]:
-    """Every service of ``bag`` with its counts and latency; undecodable ones are left out."""
-    with BagReader(bag, allow_empty=True) as reader:
-        return [
-            ServiceSummary(
-                service=service,
-                type=service_type(reader.topics[topic].type),
-                topic=topic,
-                counts=count_events(events),
-                latency=latency_summary(pair_calls(events)),
-            )
-            for service, topic, events in _service_events(reader)
-        ]
 
 
 def call_latencies(bag: str | Path) -> dict[str, list[int]]:

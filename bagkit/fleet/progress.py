@@ -9,15 +9,10 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 from types import TracebackType
+from typing import TYPE_CHECKING
 
-from rich.console import Console
-from rich.progress import (
-    BarColumn,
-    DownloadColumn,
-    Progress,
-    TextColumn,
-    TimeRemainingColumn,
-)
+if TYPE_CHECKING:
+    from rich.console import Console
 
 
 def bag_size(path: str | Path) -> int:
@@ -46,6 +41,15 @@ class BagProgress:
         label: str = "bags",
         sizes: Sequence[int] | None = None,
     ) -> None:
+        # Here: importing this module (stats and find of one bag do) costs no rich.
+        from rich.progress import (
+            BarColumn,
+            DownloadColumn,
+            Progress,
+            TextColumn,
+            TimeRemainingColumn,
+        )
+
         self._sizes = list(sizes) if sizes is not None else [bag_size(bag) for bag in bags]
         self._count = 0
         self._bar = Progress(

@@ -42,6 +42,28 @@ class TopicPlayback:
     """Messages the bag's index lists but that could not be read (damaged chunks)."""
 
 
+@dataclass(frozen=True, slots=True)
+class SubscriberWait:
+    """What the player waited for before its first message."""
+
+    seconds: float
+    subscriptions: int
+    """Subscriptions matched on the replayed topics (and ``/clock``)."""
+    topics: int
+    """Of those topics, the ones with a subscription."""
+    all_discovered: bool
+    """The wait ended on finding every participant on this host, not at the discovery time."""
+
+    def line(self) -> str:
+        """``waited 0.4 s for 2 subscriptions on 1 topic``."""
+        subscriptions = "subscription" if self.subscriptions == 1 else "subscriptions"
+        topics = "topic" if self.topics == 1 else "topics"
+        return (
+            f"waited {self.seconds:.1f} s for {self.subscriptions} {subscriptions} on "
+            f"{self.topics} {topics}"
+        )
+
+
 @dataclass(slots=True)
 class PlayReport:
     """The outcome of a replay."""
@@ -74,6 +96,8 @@ class PlayReport:
     """Of ``messages``, those published as latched state on a late start (not timed)."""
     service_requests: ServiceReplaySummary | None = None
     """With ``publish_service_requests``: requests sent and how the live responses compared."""
+    waited: SubscriberWait | None = None
+    """The wait for subscribers before the first message (None: no wait)."""
 
     @property
     def unreadable(self) -> int:

@@ -23,7 +23,7 @@ from __future__ import annotations
 import contextlib
 import os
 import tempfile
-from collections.abc import Iterator, MutableMapping
+from collections.abc import Iterator, Mapping, MutableMapping
 from pathlib import Path
 
 PORT_QUEUE_CAPACITY = 65536
@@ -48,7 +48,7 @@ _USER_PROFILE_FILES = ("DEFAULT_FASTRTPS_PROFILES.xml", "DEFAULT_FASTDDS_PROFILE
 _RANGES_WITH_DEFAULT_TRANSPORTS = ("", "SUBNET", "SYSTEM_DEFAULT", "OFF")
 
 
-def localhost_only(environ: MutableMapping[str, str]) -> bool:
+def localhost_only(environ: Mapping[str, str]) -> bool:
     """Whether ROS limits discovery to this host, as rcl reads the environment."""
     if environ.get("ROS_LOCALHOST_ONLY") == "1":
         return True

@@ -313,3 +313,22 @@ def test_replay_gives_itself_the_large_shared_memory_pool_unless_the_user_has_a_
     # bagkit's 65536 (the same setting sizes the participant's send pool).
     large = [size for size in ports.values() if size > 1_000_000]
     assert bool(large) is not user_profile, ports
+
+
+def test_cli_waits_for_the_subscribers_on_the_graph_and_says_so(
+    test_bag: Path, listener_factory: type[Listener]
+) -> None:
+    # The default discovery time: the watch ends once every participant on this host (the
+    # listener's, this process's) has been found, and the first message is not lost.
+    expected = recorded(test_bag)
+    listener = listener_factory(STRING_TOPICS)
+    result = bagkit_cli("play", str(test_bag), "--rate", "100", "--format", "json")
+    assert result.returncode == 0, result.stderr
+    got = listener.wait_for_count(len(expected))
+    texts = [(t, deserialize_message(d, String).data) for t, d, _ in expected]
+    assert [(r.topic, r.text) for r in got] == texts  # the first messages among them
+    waited = json.loads(result.stdout)["waited"]
+    assert waited["subscriptions"] == waited["topics"] == len(SCHEDULE)
+    assert waited["all_discovered"] is True
+    line = f"waited {waited['seconds']:.1f} s for {len(SCHEDULE)} subscriptions on "
+    assert f"{line}{len(SCHEDULE)} topics" in result.stderr.splitlines()

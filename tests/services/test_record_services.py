@@ -15,7 +15,8 @@ from mcap.reader import make_reader
 from rosbags.highlevel import AnyReader
 
 from bagkit.bag import BagReader, bag_info
-from bagkit.data.services import read_calls, service_summaries
+from bagkit.data.service_summaries import service_summaries
+from bagkit.data.services import read_calls
 
 pytestmark = pytest.mark.ros
 

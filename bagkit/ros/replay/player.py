@@ -12,6 +12,7 @@ from __future__ import annotations
 import itertools
 import logging
 import math
+import os
 import time
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import ExitStack, nullcontext
@@ -28,11 +29,12 @@ from bagkit.bag.latched import latched_topics
 from bagkit.playback.controls import PlayControls
 from bagkit.playback.lateness import LatenessSamples
 from bagkit.playback.options import PlayOptions
-from bagkit.playback.report import PlayProgress, PlayReport, TopicPlayback
+from bagkit.playback.report import PlayProgress, PlayReport, SubscriberWait, TopicPlayback
 from bagkit.playback.seeking import WindowSpan
 from bagkit.playback.source import PlaySource
 from bagkit.ros.errors import PlayerError
 from bagkit.ros.fastdds import segment_size_for
+from bagkit.ros.participants import all_discovered
 from bagkit.ros.qos import load_qos_overrides, replay_publisher_qos
 from bagkit.ros.replay.publish_loop import PassPublisher, PassReader
 from bagkit.ros.replay.publishers import (
@@ -67,6 +69,7 @@ class Player:
         on_live_publishers: called once before the first message with the replayed topics
             that other nodes publish too (published name -> those nodes).
         on_warning: called with each warning (a seek clamped to the window); default: logging.
+        on_waited: called once before the first message with what the player waited for.
 
     Example:
         >>> report = Player(PlayOptions(Path("drive"), rate=2.0, clock_hz=100.0)).run()
@@ -83,6 +86,7 @@ class Player:
         on_progress: Callable[[PlayProgress], None] | None = None,
         on_live_publishers: Callable[[dict[str, list[str]]], None] | None = None,
         on_warning: Callable[[str], None] | None = None,
+        on_waited: Callable[[SubscriberWait], None] | None = None,
     ) -> None:
         """Set up a replay; nothing is opened until the player is entered."""
         self.options = options
@@ -94,6 +98,7 @@ class Player:
         self.on_progress = on_progress
         self.on_live_publishers = on_live_publishers
         self.on_warning = on_warning or _log.warning
+        self.on_waited = on_waited
         self.progress_period_ns = seconds_to_ns(
             options.progress_period_s, options.progress_period_s, PlayerError
         )
@@ -262,9 +267,12 @@ class Player:
         passes = 0
         interrupted = False
         wall_start = time.monotonic_ns()
+        waited = None
         try:
             if self.waits.before_start or self.waits.topics:
-                self.wait_until_matched()
+                waited = self.wait_until_matched()
+                if self.on_waited is not None:
+                    self.on_waited(waited)
             published = [
                 output
                 for output in self._outputs.values()
@@ -315,6 +323,7 @@ class Player:
             interrupted=interrupted,
             latched=self._latched_published,
             service_requests=service_requests,
+            waited=waited,
         )
 
     def _topic_playbacks(self, passes: int, *, complete: bool) -> list[TopicPlayback]:
@@ -434,12 +443,16 @@ class Player:
         """
         return wait_until_acknowledged(list(self._outputs.values()), self.waits.ack_timeout_s)
 
-    def wait_until_matched(self) -> None:
+    def wait_until_matched(self) -> SubscriberWait:
         """Block until the subscriptions the graph knows on replayed topics have matched.
 
         The graph is watched for ``discovery_time`` seconds after the player's node was created
-        (Fast DDS announces participants every 3 s); topics in ``wait_for`` additionally need
-        a subscription.
+        (Fast DDS announces participants every 3 s), or, with discovery on this host only,
+        until every participant on this host has been found; topics in ``wait_for``
+        additionally need a subscription.
+
+        Returns:
+            How long it waited, and for what.
 
         Raises:
             SubscriberTimeoutError: not matched within ``wait_timeout`` seconds.
@@ -447,10 +460,11 @@ class Player:
         outputs = list(self._outputs.values())
         if self._clock is not None:
             outputs.append(self._clock)
-        wait_until_matched(
+        return wait_until_matched(
             self.node,
             outputs,
             wait_for=list(self.waits.topics),
             settled_at=self._node_created + self.waits.discovery_s,
             timeout=self.waits.timeout_s,
+            all_discovered=all_discovered(self.node, os.environ),
         )

@@ -19,6 +19,7 @@ from rclpy.qos import (
 from rosgraph_msgs.msg import Clock
 
 from bagkit.bag import TopicInfo
+from bagkit.playback.report import SubscriberWait
 from bagkit.ros.clock import CLOCK_TOPIC, CLOCK_TYPE
 from bagkit.ros.errors import PlayerError, SubscriberTimeoutError
 from bagkit.ros.qos import CLOCK_QOS
@@ -76,29 +77,40 @@ def wait_until_matched(
     wait_for: Sequence[str],
     settled_at: float,
     timeout: float,
-) -> None:
+    all_discovered: Callable[[], bool] | None = None,
+) -> SubscriberWait:
     """Block until the subscriptions the graph knows on ``outputs`` have matched.
 
     A subscription in another process shows up in the graph only when its participant's
-    discovery announcement arrives, so the graph is watched until ``settled_at`` (monotonic)
-    and until it has been unchanged for ``GRAPH_SETTLE_S``; every compatible subscription seen
-    by then must match. Topics in ``wait_for`` additionally need at least one subscription.
+    discovery announcement arrives, so the graph is watched until ``settled_at`` (monotonic),
+    or until ``all_discovered`` says that every participant has been found, and until it has
+    been unchanged for ``GRAPH_SETTLE_S``; every compatible subscription seen by then must
+    match. Topics in ``wait_for`` additionally need at least one subscription.
+
+    Returns:
+        How long it waited, and for what.
 
     Raises:
         SubscriberTimeoutError: not matched within ``timeout`` seconds.
     """
     required = sorted(set(wait_for))
-    now = time.monotonic()
+    start = now = time.monotonic()
     deadline = now + timeout
-    settled_at = max(settled_at, now + GRAPH_SETTLE_S)
+    last_change = now
     last_graph: dict[str, int] = {}
+    found_all = False
     while True:
         graph = {out.name: node.count_subscribers(out.name) for out in outputs}
         graph.update({topic: node.count_subscribers(topic) for topic in required})
         now = time.monotonic()
         if graph != last_graph:
             last_graph = graph
-            settled_at = max(settled_at, now + GRAPH_SETTLE_S)
+            last_change = now
+        if not found_all and now < settled_at and all_discovered is not None:
+            found_all = all_discovered()
+            if found_all:  # the last participant's endpoints may still be arriving
+                last_change = now
+        settled = now >= last_change + GRAPH_SETTLE_S and (found_all or now >= settled_at)
         pending = [
             f"{out.name} ({matched} of {expected} subscriptions matched)"
             for out in outputs
@@ -108,7 +120,7 @@ def wait_until_matched(
             if matched < expected
         ]
         pending += [f"a subscriber on {topic}" for topic in required if not graph[topic]]
-        if not pending and now >= settled_at:
+        if not pending and settled:
             break
         if now >= deadline:
             raise SubscriberTimeoutError(
@@ -117,6 +129,13 @@ def wait_until_matched(
             )
         time.sleep(0.02)
     time.sleep(MATCH_GRACE_S)
+    matched = [out.publisher.get_subscription_count() for out in outputs]
+    return SubscriberWait(
+        seconds=time.monotonic() - start,
+        subscriptions=sum(matched),
+        topics=sum(1 for count in matched if count),
+        all_discovered=found_all,
+    )
 
 
 def wait_until_acknowledged(outputs: Sequence[TopicOutput], timeout: float) -> list[str]:

@@ -1,0 +1,62 @@
+"""What each quick command imports at start (issue 36, item 2): ``-X importtime`` of the real
+console script, a heavy module named here fails the test (start-up time itself is measured by
+``benchmarks startup``, not asserted)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+BAGKIT = str(Path(sys.executable).with_name("bagkit"))
+FIXTURES = Path(__file__).resolve().parents[2] / "fixtures"
+# A bag with services (std_srvs/srv/Trigger events) beside fixed-layout sensor topics.
+SERVICES_BAG = FIXTURES / "fast" / "golden"
+PLAIN_BAG = FIXTURES / "nominal" / "golden"
+
+# No quick command needs these: data frames, Dask, plots, ROS, .db3 bags, terminal styling for
+# piped output, option validation.
+HEAVY = frozenset(
+    {"pandas", "pyarrow", "dask", "distributed", "matplotlib", "rclpy", "sqlite3", "rich"}
+    | {"pydantic", "scipy"}
+)
+# info reads summaries and indexes, and service events by their fixed header: no decoder.
+NO_DECODER = frozenset({"rosbags", "bagkit.decode"})
+
+CASES = {
+    "info": (["info", str(PLAIN_BAG)], HEAVY | NO_DECODER | {"numpy"}),
+    "info with services": (["info", str(SERVICES_BAG)], HEAVY | NO_DECODER),
+    "echo": (["echo", str(SERVICES_BAG), "/imu/data", "-n", "1"], HEAVY),
+    "stats": (["stats", "summary", str(SERVICES_BAG)], HEAVY),
+    "find": (["find", str(SERVICES_BAG), "--when", "/imu/data: linear_acceleration.z < 5"], HEAVY),
+}
+
+
+def imported_at_start(args: list[str]) -> tuple[set[str], str]:
+    """The modules ``bagkit ARGS`` imports (by ``-X importtime``), and its stdout."""
+    done = subprocess.run(
+        [sys.executable, "-X", "importtime", BAGKIT, *args],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    modules = {
+        line.rsplit("|", 1)[1].strip()
+        for line in done.stderr.splitlines()
+        if line.startswith("import time:") and "|" in line
+    }
+    return modules, done.stdout
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_a_quick_command_imports_no_heavy_module(case: str) -> None:
+    args, forbidden = CASES[case]
+    modules, stdout = imported_at_start(args)
+    assert stdout  # the command did its work
+    assert "bagkit.bag.reader" in modules  # and the check sees what ran
+    heavy = sorted(n for n in modules if any(n == f or n.startswith(f"{f}.") for f in forbidden))
+    assert not heavy, f"bagkit {' '.join(args)} imports {heavy}"
