@@ -46,7 +46,7 @@ class BagStream:
         self.reader = reader
         self.topic = topic
         self.window = window
-        self.types = MessageTypes.from_definitions(reader.definitions)
+        self.types = MessageTypes.for_bag(reader)
         self.condition = condition
         self._subtrees = _stateless_parts(condition.tree)
         paths = self._leaf_paths(topic)
@@ -68,7 +68,8 @@ class BagStream:
     def _leaves(self, topic: str) -> list[LeafField]:
         info = self.reader.topics[topic]
         try:
-            return leaf_fields(self.types.typestore, self.types.resolve(info.type))
+            types = self.types.for_topic(topic)
+            return leaf_fields(types.typestore, types.resolve(info.type))
         except DecodeError as exc:
             raise UndecodableTopicError(f"{topic} cannot be decoded: {exc}") from None
 
@@ -86,7 +87,7 @@ class BagStream:
                 return times, {}
         leaves = [leaf for leaf in self._leaves(topic) if leaf.path in names]
         info = self.reader.topics[topic]
-        columns = TopicColumns(self.types, topic, info.type, leaves)
+        columns = TopicColumns(self.types.for_topic(topic), topic, info.type, leaves)
         scan = Scan(self.reader, self.window, {topic: columns})
         arrays = scan.table(topic).columns()
         self.problems = scan_problems(columns)
