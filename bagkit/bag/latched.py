@@ -14,7 +14,7 @@ maps, state topics) keeps. Pure of ROS: the QoS text is read with :mod:`bagkit.b
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Collection, Iterable, Mapping
 from dataclasses import dataclass
 
 import yaml
@@ -128,3 +128,8 @@ def latched_state(
         return []
     found = last_messages_before(bag, topics, before_ns)
     return sorted(found.values(), key=lambda m: (m.log_time, m.topic))
+
+
+def is_state_topic(reader: BagReader, topic: str, state_topics: Collection[str] = ()) -> bool:
+    """Whether ``topic``'s value holds until its next message (named, or latched)."""
+    return topic in state_topics or is_transient_local(reader.topics[topic].offered_qos_profiles)

@@ -86,7 +86,8 @@ def echo(
         inside = None  # a condition over time: the messages inside its intervals
         if condition is not None and condition.temporal:
             # The columns' scan (pyarrow) only for a condition over time: echo starts light.
-            from bagkit.data.streams import is_state_topic, temporal_intervals
+            from bagkit.bag.latched import is_state_topic
+            from bagkit.data.streams import temporal_intervals
 
             state = is_state_topic(reader, topic)
             inside = temporal_intervals(reader, topic, condition, window, state)[0]

@@ -18,8 +18,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bagkit.bag import BagReader
+from bagkit.bag.latched import is_state_topic
 from bagkit.data.matching import match_topic
-from bagkit.data.streams import is_state_topic, temporal_intervals
 from bagkit.selection import intervals
 from bagkit.selection.conditions import TopicCondition
 from bagkit.selection.windows import Window
@@ -147,6 +147,9 @@ def find_episodes(
     """
     window = window or Window()
     if trigger.condition.temporal:
+        # Bulk columns (pyarrow): only for a condition over time, not at every find's start.
+        from bagkit.data.streams import temporal_intervals
+
         found, times, problems = temporal_intervals(
             reader,
             trigger.topic,

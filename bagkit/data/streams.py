@@ -8,12 +8,9 @@ durability (latched), or when named in ``state_topics``.
 
 from __future__ import annotations
 
-from collections.abc import Collection
-
 import numpy as np
 
 from bagkit.bag import BagReader
-from bagkit.bag.latched import is_transient_local
 from bagkit.data.columns import TopicColumns
 from bagkit.data.errors import DataError, UndecodableTopicError
 from bagkit.data.matching import match_topic
@@ -156,11 +153,6 @@ def scan_problems(columns: TopicColumns) -> list[str]:
             f"{columns.topic}: {columns.unindexed} index entries point outside their chunk"
         )
     return found
-
-
-def is_state_topic(reader: BagReader, topic: str, state_topics: Collection[str] = ()) -> bool:
-    """Whether ``topic``'s value holds until its next message (named, or latched)."""
-    return topic in state_topics or is_transient_local(reader.topics[topic].offered_qos_profiles)
 
 
 def temporal_intervals(

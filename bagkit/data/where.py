@@ -10,8 +10,9 @@ from __future__ import annotations
 from collections.abc import Callable, Collection
 
 from bagkit.bag import BagReader
+from bagkit.bag.latched import is_state_topic
 from bagkit.data.errors import UndecodableTopicError, UnknownFieldError
-from bagkit.data.streams import IntervalFilter, is_state_topic, temporal_intervals
+from bagkit.data.streams import IntervalFilter, temporal_intervals
 from bagkit.decode import DecodeError, MessageTypes
 from bagkit.decode.matcher import PayloadMatcher
 from bagkit.selection.conditions import Condition
