@@ -169,7 +169,8 @@ def chunk_of_rows(
     headers = np.zeros(count, _RECORD_HEADER_DTYPE)
     headers["opcode"] = Opcode.MESSAGE
     headers["length"] = lengths + MESSAGE_PREFIX.size
-    headers["log_time"] = headers["publish_time"] = log_times
+    # Bit for bit: a hostile db3's negative timestamp stays the int64 that its index entry holds.
+    headers["log_time"] = headers["publish_time"] = np.asarray(log_times, np.int64).view(np.uint64)
     size = MESSAGE_RECORD_HEADER.size
     raw = memoryview(headers.tobytes())
     parts: list[object] = [None] * (2 * count)

@@ -148,7 +148,10 @@ def test_export_filter_and_compare_of_the_result(plain: PlainInstall, tmp_path: 
     assert other.returncode == 0, other.stderr
     # Another flight's IMU samples: a difference, exit 1; the same ones: none, exit 0.
     assert plain.bagkit("compare", "imu", "other", cwd=tmp_path).returncode == 1
-    assert plain.bagkit("compare", GOLDEN, "imu", cwd=tmp_path).returncode == 0
+    assert plain.bagkit("compare", "imu", GOLDEN, cwd=tmp_path).returncode == 0
+    # The golden's other topics are absent from the filtered bag: a broken candidate, exit 1.
+    assert plain.bagkit("compare", GOLDEN, "imu", cwd=tmp_path).returncode == 1
+    assert plain.bagkit("compare", GOLDEN, "imu", "-t", "/imu/data", cwd=tmp_path).returncode == 0
 
 
 def test_png_plot_needs_no_extra(plain: PlainInstall, tmp_path: Path) -> None:
