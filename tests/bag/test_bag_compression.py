@@ -83,6 +83,8 @@ def test_compressed_bags_read_as_rosbags_reads_them(
         chunks = list(bag.chunks(["/imu"]))
         assert bag.problems == []
         assert "zstd" in bag.compression
+        if mode == "file":  # the file's bytes, as stored and decompressed
+            assert bag.compressed_size == stored.stat().st_size < bag.uncompressed_size
         opened = [getattr(s, "inner", s).path for s in bag._storage]
     assert got == expected
     assert last["/imu"].data == [d for t, _, d in expected if t == "/imu"][-1]
