@@ -170,6 +170,9 @@ class Decompression:
         self.compression = ",".join(k for k in ("zstd", inner.compression) if k)
         self.compressed_size = inner.compressed_size
         self.uncompressed_size = inner.uncompressed_size
+        if temporary is not None:  # the file's own compression is the one said
+            self.compressed_size = path.stat().st_size
+            self.uncompressed_size = inner.path.stat().st_size
         self._temporary = temporary
         self._decompress = PayloadDecompressor(limit) if payloads else None
         self._filtered: PayloadDecompressor | None = None

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import heapq
+import itertools
 import re
 import shutil
 from collections.abc import Iterable, Iterator
@@ -30,7 +31,7 @@ from bagkit.bag.mcapio import DEFAULT_MAX_CHUNK_SIZE, MAGIC
 from bagkit.bag.mcapio.message_index import Span, widen
 from bagkit.bag.messages import BagMessage, TopicInfo
 from bagkit.bag.metadata import METADATA_FILENAME, BagMetadata, read_metadata
-from bagkit.bag.storage import ROSBAG1_MAGIC, SQLITE_MAGIC, BagChunk, StorageFile
+from bagkit.bag.storage import ROSBAG1_MAGIC, SQLITE_MAGIC, BagChunk, StorageFile, chunk_of_rows
 
 if TYPE_CHECKING:
     import numpy as np
@@ -40,6 +41,8 @@ STORAGE_SUFFIXES = (".mcap", ".db3")
 COMPRESSED_STORAGE_SUFFIXES = (".mcap.zstd", ".db3.zstd")
 SUPPORTED_STORAGE = ("mcap", "sqlite3")
 SUPPORTED_COMPRESSION = ("zstd",)
+# Messages laid out in one chunk for a back-end without chunks of its own.
+MESSAGES_PER_CHUNK = 4_096
 
 
 def _natural_key(path: Path) -> list[int | str]:
@@ -398,12 +401,20 @@ class BagReader:
         """Yield the decompressed chunks holding ``topics``, file by file, in file order.
 
         For bulk decoding: each :class:`BagChunk` carries the message-index entries per topic.
-        SQLite3 files yield their rows laid out as chunks, in log-time order.
+        SQLite3 files yield their rows laid out as chunks, in log-time order; a back-end that
+        yields no chunk although it holds messages of ``topics`` has its messages laid out so.
         """
         self._check_open()
         wanted = set(topics) if topics is not None else None
         for storage in self._storage:
-            yield from storage.chunks(wanted)
+            found = False
+            for chunk in storage.chunks(wanted):
+                found = True
+                yield chunk
+            if not found and any(
+                n for t, n in storage.topic_counts.items() if wanted is None or t in wanted
+            ):
+                yield from _chunks_of_messages(storage.path, storage.messages(wanted, None, None))
 
     def topic_spans(self) -> dict[str, Span]:
         """(first, last) log time of each topic with messages, from indexes (no message read).
@@ -436,6 +447,14 @@ class BagReader:
         lower = 0 if start_ns is None else np.searchsorted(times, start_ns)
         upper = len(times) if end_ns is None else np.searchsorted(times, end_ns)
         return times[lower:upper]
+
+
+def _chunks_of_messages(file: Path, messages: Iterator[BagMessage]) -> Iterator[BagChunk]:
+    """``messages`` laid out as chunks of :data:`MESSAGES_PER_CHUNK` Message records."""
+    while batch := list(itertools.islice(messages, MESSAGES_PER_CHUNK)):
+        yield chunk_of_rows(
+            file, [m.topic for m in batch], [m.log_time for m in batch], [m.data for m in batch]
+        )
 
 
 def _complete(topic: TopicInfo, recorded: TopicInfo | None) -> TopicInfo:

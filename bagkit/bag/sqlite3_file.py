@@ -33,8 +33,12 @@ DEFINITION_COLUMNS = ("topic_type", "encoding", "encoded_message_definition")
 _OPTIONAL_TOPIC_COLUMNS = ("offered_qos_profiles", "type_description_hash")
 # A message row is readable when its timestamp is an integer and its data a blob.
 _VALID_ROW = "typeof(timestamp) = 'integer' AND typeof(data) = 'blob'"
-# Rows laid out in one chunk for the bulk decoders (a few MB of small messages).
+# Rows laid out in one chunk for the bulk decoders (a few MB of small messages), read from
+# SQLite in batches; payload bytes held in one chunk at most (a batch more at worst).
 ROWS_PER_CHUNK = 16_384
+ROWS_PER_BATCH = 1_024
+BATCH_BYTES = 8 << 20
+MAX_CHUNK_BYTES = 64 << 20
 INT64_MIN = -(1 << 63)
 INT64_MAX = (1 << 63) - 1
 
@@ -215,9 +219,19 @@ class Sqlite3File:
 
     def chunks(self, topics: set[str] | None) -> Iterator[BagChunk]:
         """The rows of ``topics`` in timestamp order (ties by row id), laid out as chunks of
-        :data:`ROWS_PER_CHUNK` MCAP Message records."""
-        for topics_of, log_times, payloads in self._rows(topics, None, None, ROWS_PER_CHUNK):
-            yield chunk_of_rows(self.path, topics_of, log_times, payloads)
+        MCAP Message records: :data:`ROWS_PER_CHUNK` rows each, fewer where their payloads
+        pass :data:`MAX_CHUNK_BYTES` (large messages: memory stays bounded)."""
+        held: tuple[list[str], list[int], list[bytes | None]] = ([], [], [])
+        size = 0
+        for batch in self._rows(topics, None, None):
+            for part, more in zip(held, batch, strict=True):
+                part.extend(more)  # type: ignore[attr-defined]
+            size += sum(map(len, filter(None, batch[2])))
+            if len(held[0]) >= ROWS_PER_CHUNK or size >= MAX_CHUNK_BYTES:
+                yield chunk_of_rows(self.path, *held)
+                held, size = ([], [], []), 0
+        if held[0]:
+            yield chunk_of_rows(self.path, *held)
 
     def last_messages(self, topics: set[str], before_ns: int) -> dict[str, BagMessage]:
         """The last valid row with ``timestamp < before_ns`` of each of ``topics`` that has one
@@ -253,16 +267,18 @@ class Sqlite3File:
         self, topics: set[str] | None, start_ns: int | None, end_ns: int | None
     ) -> Iterator[BagMessage]:
         """Yield the valid rows in timestamp order (ties by row id)."""
-        for topics_of, log_times, payloads in self._rows(topics, start_ns, end_ns, 1024):
+        for topics_of, log_times, payloads in self._rows(topics, start_ns, end_ns):
             for topic, timestamp, data in zip(topics_of, log_times, payloads, strict=True):
                 if data is not None:
                     yield make_message(topic, data, timestamp, timestamp, 0)
 
     def _rows(
-        self, topics: set[str] | None, start_ns: int | None, end_ns: int | None, batch: int
+        self, topics: set[str] | None, start_ns: int | None, end_ns: int | None
     ) -> Iterator[tuple[list[str], list[int], list[bytes | None]]]:
-        """The valid rows in timestamp order, ``batch`` at a time, as (topics, timestamps,
-        payloads passed through ``payload_filter``); damage ends them with a problem."""
+        """The valid rows in timestamp order as (topics, timestamps, payloads passed through
+        ``payload_filter``), a batch at a time: as many rows as fit :data:`BATCH_BYTES` at the
+        mean size so far (one first), at most :data:`ROWS_PER_BATCH`; damage ends them with a
+        problem."""
         wanted = [i for i, t in self._topic_ids.items() if topics is None or t in topics]
         if not wanted or self._db is None:
             return
@@ -277,8 +293,11 @@ class Sqlite3File:
         read = 0
         try:
             cursor = self._db.execute(query, (*wanted, lower, upper))
+            batch, stored_bytes = 1, 0
             while rows := cursor.fetchmany(batch):
                 read += len(rows)
+                stored_bytes += sum(len(row[2]) for row in rows)
+                batch = max(1, min(ROWS_PER_BATCH, BATCH_BYTES * read // max(stored_bytes, 1)))
                 ids, log_times, stored = zip(*rows, strict=True)
                 topics_of = list(map(names.__getitem__, ids))
                 payloads: list[bytes | None] = list(stored)

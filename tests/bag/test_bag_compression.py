@@ -83,6 +83,8 @@ def test_compressed_bags_read_as_rosbags_reads_them(
         chunks = list(bag.chunks(["/imu"]))
         assert bag.problems == []
         assert "zstd" in bag.compression
+        if mode == "file":  # the file's bytes, as stored and decompressed
+            assert bag.compressed_size == stored.stat().st_size < bag.uncompressed_size
         opened = [getattr(s, "inner", s).path for s in bag._storage]
     assert got == expected
     assert last["/imu"].data == [d for t, _, d in expected if t == "/imu"][-1]
@@ -203,3 +205,26 @@ def test_echo_fails_when_no_message_of_the_topic_decodes(tmp_path: Path) -> None
     proc = _run("echo", _garbage_bag(tmp_path / "none", good=False), "/text")
     _one_error_line(proc, "none of the 5 messages of /text decode")
     assert proc.stdout == ""
+
+
+def test_db3_chunks_of_large_messages_stay_bounded(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from bagkit.bag import sqlite3_file
+
+    monkeypatch.setattr(sqlite3_file, "MAX_CHUNK_BYTES", 100_000)
+    monkeypatch.setattr(sqlite3_file, "BATCH_BYTES", 40_000)
+    path = tmp_path / "large"
+    payloads = [b"\x00\x01\x00\x00" + bytes([i]) * 20_000 for i in range(30)]
+    with Writer(path, version=9) as writer:
+        blob = writer.add_connection("/blob", "std_msgs/msg/String", typestore=STORE)
+        for i, payload in enumerate(payloads):
+            writer.write(blob, T0 + i, payload)
+    with BagReader(path) as bag:
+        chunks = list(bag.chunks())
+    assert len(chunks) >= 5
+    assert all(len(c.records) <= 100_000 + 2 * 20_100 for c in chunks)
+    got = [
+        c.records[s : s + n] for c in chunks for s, n in zip(*c.payloads("/blob")[1:], strict=True)
+    ]
+    assert got == payloads

@@ -6,6 +6,7 @@ import shutil
 from collections.abc import Callable
 from pathlib import Path
 
+import pytest
 from test_bag_sqlite_hostile import write_db3
 
 from bagkit.bag import BagReader
@@ -53,3 +54,25 @@ def test_one_bag_of_mcap_and_sqlite3_files(
             for log_time, start, length in zip(log_times, starts, lengths, strict=True):
                 assert rows.records[start : start + length] == db3[log_time]
         assert bag.compression == "zstd" and bag.uncompressed_size > bag.compressed_size > 0
+
+
+def test_a_back_end_without_chunks_has_its_messages_laid_out_as_chunks(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A back-end whose chunks() yields none (as the Protocol once allowed) still feeds the
+    bulk decoders: the reader lays its messages out as chunks."""
+
+    db3 = write_db3(tmp_path / "rows.db3", n=30)
+    with BagReader(db3) as bag:
+        expected = [(m.topic, m.log_time, m.data) for m in bag.messages()]
+    monkeypatch.setattr(Sqlite3File, "chunks", lambda self, topics: iter(()))
+    with BagReader(db3) as bag:
+        chunks = list(bag.chunks())
+    got = [
+        (topic, t, c.records[s : s + n])
+        for c in chunks
+        for topic in c.message_index
+        for t, s, n in zip(*(a.tolist() for a in c.payloads(topic)), strict=True)
+    ]
+    assert sorted(got) == sorted(expected)
+    assert len(got) == 30
