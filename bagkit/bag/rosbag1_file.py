@@ -19,17 +19,14 @@ message whose payload does not match its definition.
 
 from __future__ import annotations
 
-import bz2
 import heapq
 import io
 import itertools
 import struct
 from collections.abc import Iterator
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, BinaryIO
 
-import lz4.frame
 from rosbags.interfaces import Connection
 from rosbags.rosbag1.reader import (
     ChunkInfo,
@@ -44,9 +41,9 @@ from rosbags.rosbag1.reader import (
 
 from bagkit.bag.errors import CorruptBagError, NotABagError, UnsupportedStorageError
 from bagkit.bag.mcapio.message_index import Span, widen
-from bagkit.bag.mcapio.records import MESSAGE_PREFIX, MESSAGE_RECORD_HEADER, Opcode
 from bagkit.bag.messages import BagMessage, TopicInfo, make_message
 from bagkit.bag.ros1_types import LATCHED_QOS, Ros2Type, ros2_types
+from bagkit.bag.rosbag1_records import ChunkRecord, decompress, mcap_records, message_at
 from bagkit.bag.storage import ROSBAG1_MAGIC, BagChunk
 
 # What rosbags' record readers raise on bytes that are not what they expect (some checks are
@@ -62,22 +59,9 @@ _RECORD_ERRORS = (
     UnicodeDecodeError,
     OSError,  # a seek to an offset no file has
 )
-_MESSAGE = int(Opcode.MESSAGE)
 
 if TYPE_CHECKING:
     import numpy as np
-
-
-@dataclass(frozen=True, slots=True)
-class _Chunk:
-    """A chunk record: where its data is, how it is compressed, its declared size."""
-
-    info: ChunkInfo
-    compression: str
-    size: int
-    data_pos: int
-    data_size: int
-    index_pos: int  # the index-data records after the data
 
 
 class Rosbag1File:
@@ -105,7 +89,7 @@ class Rosbag1File:
         self._reader = Reader(path)
         self._types: dict[int, Ros2Type] = {}
         self._topic_of: dict[int, str] = {}  # connection id -> topic
-        self._chunks: list[_Chunk] = []
+        self._chunks: list[ChunkRecord] = []
         self._indexes: dict[int, dict[int, list[IndexData]]] = {}  # chunk pos -> conn -> entries
         self._lost: dict[str, int] = {}  # topic -> payloads that did not convert
 
@@ -155,12 +139,12 @@ class Rosbag1File:
             header.get_uint32("chunk_count"),
         )
 
-    def _chunk_record(self, info: ChunkInfo) -> _Chunk:
+    def _chunk_record(self, info: ChunkInfo) -> ChunkRecord:
         self._bio.seek(info.pos)
         header = Header.read(self._bio, RecordType.CHUNK)
         data_size = read_uint32(self._bio)
         data_pos = self._bio.tell()
-        return _Chunk(
+        return ChunkRecord(
             info,
             header.get_string("compression"),
             header.get_uint32("size"),
@@ -218,7 +202,7 @@ class Rosbag1File:
 
     # -- indexes ----------------------------------------------------------------------------
 
-    def _chunk_index(self, chunk: _Chunk) -> dict[int, list[IndexData]]:
+    def _chunk_index(self, chunk: ChunkRecord) -> dict[int, list[IndexData]]:
         """Where each message of ``chunk`` is, by connection (read once, then kept)."""
         found = self._indexes.get(chunk.info.pos)
         if found is None:
@@ -236,7 +220,7 @@ class Rosbag1File:
             found = self._indexes[chunk.info.pos] = entries
         return found
 
-    def _holding(self, conn_ids: set[int]) -> list[_Chunk]:
+    def _holding(self, conn_ids: set[int]) -> list[ChunkRecord]:
         return [c for c in self._chunks if not conn_ids.isdisjoint(c.info.connection_counts)]
 
     def _conn_ids(self, topics: set[str] | None) -> set[int]:
@@ -267,7 +251,7 @@ class Rosbag1File:
 
     def _entries(
         self, topics: set[str] | None, start_ns: int | None, end_ns: int | None
-    ) -> Iterator[tuple[_Chunk, list[tuple[int, int, int]]]]:
+    ) -> Iterator[tuple[ChunkRecord, list[tuple[int, int, int]]]]:
         """Each chunk holding ``topics`` in the window, with its selected ``(time, offset,
         connection)`` entries in storage order, chunks by start time."""
         ids = self._conn_ids(topics)
@@ -283,7 +267,7 @@ class Rosbag1File:
             if entries:
                 yield chunk, entries
 
-    def _data(self, chunk: _Chunk) -> bytes | None:
+    def _data(self, chunk: ChunkRecord) -> bytes | None:
         """The decompressed data of ``chunk``, or None (a problem) when it cannot be had."""
         lost = f"the chunk at byte {chunk.info.pos}"
         if chunk.size > self.max_chunk_size:
@@ -295,7 +279,7 @@ class Rosbag1File:
         try:
             self._bio.seek(chunk.data_pos)
             raw = read_bytes(self._bio, chunk.data_size)
-            data = _decompress(chunk.compression, raw, chunk.size)
+            data = decompress(chunk.compression, raw, chunk.size)
         except (ReaderError, OSError, ValueError, RuntimeError, EOFError) as exc:
             self._problem(f"{lost} is unreadable ({exc}): its messages are lost")
             return None
@@ -308,7 +292,7 @@ class Rosbag1File:
         return data
 
     def _payloads(
-        self, chunk: _Chunk, entries: list[tuple[int, int, int]]
+        self, chunk: ChunkRecord, entries: list[tuple[int, int, int]]
     ) -> Iterator[tuple[int, int, bytes]]:
         """``(time, connection, CDR payload)`` of each entry; damage is counted as lost."""
         data = self._data(chunk)
@@ -317,7 +301,7 @@ class Rosbag1File:
         stream = io.BytesIO(data)
         for time, offset, conn_id in entries:
             try:
-                raw = _message_at(stream, offset)
+                raw = message_at(stream, offset)
             except _RECORD_ERRORS as exc:
                 self._problem(
                     f"the chunk at byte {chunk.info.pos} holds no message at its offset "
@@ -395,49 +379,7 @@ class Rosbag1File:
 
     def chunks(self, topics: set[str] | None) -> Iterator[BagChunk]:
         """Each ROS 1 chunk holding ``topics`` as MCAP Message records of CDR payloads."""
-        import numpy as np
-
-        from bagkit.bag.mcapio.records import message_index_dtype
-
-        dtype = message_index_dtype()
         for chunk, entries in self._entries(topics, None, None):
-            records = bytearray()
-            index: dict[str, list[tuple[int, int]]] = {}
-            for time, conn_id, payload in self._payloads(chunk, entries):
-                index.setdefault(self._topic_of[conn_id], []).append((time, len(records)))
-                records += MESSAGE_RECORD_HEADER.pack(
-                    _MESSAGE, MESSAGE_PREFIX.size + len(payload), conn_id & 0xFFFF, 0, time, time
-                )
-                records += payload
-            if index:
-                yield BagChunk(
-                    self.path,
-                    bytes(records),
-                    {t: np.array(e, dtype=dtype) for t, e in index.items()},
-                )
-
-
-def _message_at(stream: io.BytesIO, offset: int) -> bytes:
-    """The payload of the message data record at ``offset`` (connection records skipped),
-    read with rosbags' record readers, as its ``Reader.messages`` does."""
-    stream.seek(offset)
-    while True:
-        header = Header.read(stream)
-        op = header.get_uint8("op")
-        if op != RecordType.CONNECTION:
-            break
-        stream.seek(read_uint32(stream), io.SEEK_CUR)
-    if op != RecordType.MSGDATA:
-        raise ReaderError(f"a record of type {op}, not message data")
-    return read_bytes(stream, read_uint32(stream))
-
-
-def _decompress(compression: str, raw: bytes, size: int) -> bytes:
-    """``raw`` decompressed, never to more than ``size + 1`` bytes (a bomb stops there)."""
-    if compression == "none":
-        return raw
-    if compression == "lz4":
-        return lz4.frame.LZ4FrameDecompressor().decompress(raw, max_length=size + 1)
-    if compression == "bz2":
-        return bz2.BZ2Decompressor().decompress(raw, max_length=size + 1)
-    raise ValueError(f"compression {compression!r} is not supported")
+            built = mcap_records(self._payloads(chunk, entries), self._topic_of)
+            if built is not None:
+                yield BagChunk(self.path, *built)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import heapq
+import itertools
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -22,7 +23,7 @@ from bagkit.surgery.carry import latched_messages, merged_custom_data, write_lat
 from bagkit.surgery.errors import SurgeryError
 from bagkit.surgery.options import OutputOptions, RewriteReport, resolve
 from bagkit.surgery.output import MessageOutput, OutputBag
-from bagkit.surgery.select import Selection
+from bagkit.surgery.select import PayloadFilter, Selection
 
 # Progress callback: (messages done, messages in all)
 Progress = Callable[[int, int], None]
@@ -135,25 +136,21 @@ def _copy(
     content = selection.content
     report, total = progress
     done = 0
-    batch: list[BagMessage] = []
-    batch_ids: list[int] = []
-    for message in merged:
-        matcher = content.get(message.topic)
-        if matcher is not None:
-            lengths = np.array([len(message.data)], np.int64)
-            if not matcher.mask_records(message.data, _ZERO, lengths)[0]:
-                continue
-        batch.append(message)
-        batch_ids.append(ids[message.topic])
-        if len(batch) == _BATCH:
-            out.write_messages(batch_ids, batch)
-            batch, batch_ids = [], []
-            done += _BATCH
-            if report is not None:
-                report(done, total)
-    out.write_messages(batch_ids, batch)
-    if report is not None:
-        report(total, total)
+    while batch := list(itertools.islice(merged, _BATCH)):
+        done += len(batch)
+        if content:
+            batch = [m for m in batch if _passes(content.get(m.topic), m)]
+        out.write_messages([ids[m.topic] for m in batch], batch)
+        if report is not None:
+            report(done, total)
+
+
+def _passes(matcher: PayloadFilter | None, message: BagMessage) -> bool:
+    """Whether ``message`` passes its topic's ``--where`` filter (True without one)."""
+    if matcher is None:
+        return True
+    lengths = np.array([len(message.data)], np.int64)
+    return bool(matcher.mask_records(message.data, _ZERO, lengths)[0])
 
 
 def _log_time(message: BagMessage) -> int:
