@@ -259,3 +259,27 @@ def test_a_topic_declared_a_state_topic(bag: Path) -> None:
         [(t(200), t(200)), (t(700), t(700))],
         [(t(200), t(400)), (t(700), t(750))],  # ERROR until the next message (OK)
     ]
+
+
+def test_latency_between_two_topics_of_a_bag(tmp_path: Path) -> None:
+    """/out carries /imu's stamp, logged 30 ms after it, 80 ms for messages 40..49 (10 Hz:
+    the outputs keep their order)."""
+    path = tmp_path / "bag"
+    slow = range(40, 50)
+
+    def logged(i: int) -> int:
+        return START + i * 100 * MS
+
+    with BagWriter(path) as writer:
+        writer.add_topic(TopicInfo("/imu", IMU))
+        writer.add_topic(TopicInfo("/out", IMU))
+        for i in range(100):
+            writer.write("/imu", _imu(i), log_time=logged(i))
+            delay = 80 * MS if i in slow else 30 * MS
+            writer.write("/out", _imu(i), log_time=logged(i) + delay)  # /imu's stamp
+    when = "/out: latency(/imu -> /out, header.stamp) > 50ms"
+    with BagReader(path) as reader:
+        found = find_episodes(reader, parse_topic_condition(when))
+    assert found.spans.tolist() == [[logged(40) + 80 * MS, logged(49) + 80 * MS, 10]]
+    wrong = bagkit("find", str(path), "--when", "/imu: latency(/imu -> /out, header.stamp) > 5ms")
+    assert wrong.returncode == 2 and "a condition on /out" in wrong.stderr

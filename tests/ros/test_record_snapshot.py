@@ -364,20 +364,22 @@ def test_a_silence_triggers_while_it_lasts_without_dds(tmp_path: Path) -> None:
 
 
 def test_a_dropout_writes_the_second_before_it_over_dds(node: Node, tmp_path: Path) -> None:
-    """Real DDS: the Imu stream falls silent; ``gap > 300ms`` writes a snapshot holding the
+    """Real DDS: the Imu stream falls silent; ``gap > 500ms`` writes a snapshot holding the
     messages before the silence, without any message after it being needed."""
     scene = Scene(node)
     out = tmp_path / "blackbox"
-    opts = options(out, snapshot_max_duration_s=1.0, triggers=("/snap/imu: gap > 300ms",))
+    opts = options(out, snapshot_max_duration_s=1.0, triggers=("/snap/imu: gap > 500ms",))
     with Recorder(opts) as recorder:
         wait_matched(scene.imu)
         scene.stream(1.5)
         before = scene.sent
-        time.sleep(2.0)  # the dropout: the recorder's flushes (every second) see it
+        time.sleep(2.5)  # the dropout: the recorder's flushes (every second) see it
     report = recorder.report
-    assert report.error is None and report.snapshots is not None
-    (snapshot,) = report.snapshots
-    assert snapshot.trigger == "/snap/imu: gap > 300ms"
+    assert report.error is None and report.snapshots
+    # The last snapshot is the dropout's (a loaded machine may stall the publisher long
+    # enough for an earlier one: a real silence too).
+    snapshot = report.snapshots[-1]
+    assert snapshot.trigger == "/snap/imu: gap > 500ms"
     stamps = [m.header.stamp.sec for _, m in read_snapshot(snapshot.path)["/snap/imu"]]
     assert stamps and stamps[-1] == before - 1  # the last message before the silence
     assert stamps == list(range(stamps[0], before))

@@ -27,7 +27,8 @@ from bagkit.ros.serialization import deserializer
 from bagkit.selection.condition_terms import Latency, walk
 from bagkit.selection.conditions import Condition, message_numbers
 from bagkit.selection.errors import SelectionError
-from bagkit.selection.streaming import DecodedMessage, StreamingCondition
+from bagkit.selection.message_tests import DecodedMessage
+from bagkit.selection.streaming import StreamingCondition
 
 # How often the graph is looked at while waiting for the trigger topics at the start.
 GRAPH_POLL_S = 0.05
