@@ -29,6 +29,7 @@ from replay_harness import (
 from std_msgs.msg import String
 
 from bagkit.bag import BagReader, BagWriter, TopicInfo
+from bagkit.ros.participants import discovered_participants, host_participants
 
 pytestmark = pytest.mark.ros
 
@@ -329,6 +330,12 @@ def test_cli_waits_for_the_subscribers_on_the_graph_and_says_so(
     assert [(r.topic, r.text) for r in got] == texts  # the first messages among them
     waited = json.loads(result.stdout)["waited"]
     assert waited["subscriptions"] == waited["topics"] == len(SCHEDULE)
-    assert waited["all_discovered"] is True
     line = f"waited {waited['seconds']:.1f} s for {len(SCHEDULE)} subscriptions on "
     assert f"{line}{len(SCHEDULE)} topics" in result.stderr.splitlines()
+    if not waited["all_discovered"]:
+        # The census waits for every participant on the domain: another test session that
+        # drew the same domain (conftest: pid % 130) and is not in this graph keeps the watch.
+        node = listener.node
+        on_host = host_participants(node.context.get_domain_id())
+        assert on_host is not None and on_host > discovered_participants(node), waited
+        pytest.skip(f"a participant on domain {node.context.get_domain_id()} is not in the graph")
