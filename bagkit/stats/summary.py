@@ -158,6 +158,8 @@ class SummaryRun:
                 if accumulator.leaves:
                     accumulator.add_payloads((message.data,))
                 self.advance(1, every=ROW_BATCH)
+        for accumulator in wanted.values():
+            accumulator.end_bag()
         self.problems.extend(_named(label, problem) for problem in reader.problems)
 
     def _filtered(self, accumulator: TopicAccumulator, single: bool) -> TopicAccumulator | None:
