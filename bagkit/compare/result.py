@@ -87,6 +87,11 @@ class TopicResult:
     candidate_undecodable: int = 0
 
     @property
+    def counted(self) -> str:
+        """What the counts count: ``statuses`` on an event topic, else ``messages``."""
+        return "statuses" if self.matched_by == "event" else "messages"
+
+    @property
     def passed(self) -> bool:
         """Whether the topic is identical within tolerance: no message of another shape, and
         no more missing, extra or out-of-tolerance messages (or events) than the topic's pass
@@ -143,6 +148,7 @@ class CompareReport:
                     "type": t.type,
                     "passed": t.passed,
                     "matched_by": t.matched_by,
+                    "counted": t.counted,
                     "golden_count": t.golden_count,
                     "candidate_count": t.candidate_count,
                     "matched": t.matched,
