@@ -88,6 +88,13 @@ def _roots(config: pytest.Config) -> list[Path]:
 def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line("markers", "golden: a golden-bag fixture (bagkit)")
     config.addinivalue_line("markers", "ros: starts real ROS 2 nodes over DDS")
+    # A ROS message's type support imports the rosidl generators, and with them lark-parser
+    # 0.12 (via rosidl_parser), which imports the deprecated sre_parse/sre_constants: not the
+    # user's code, nor bagkit's, and nothing they can change.
+    for module in ("sre_parse", "sre_constants"):
+        config.addinivalue_line(
+            "filterwarnings", f"ignore:module '{module}' is deprecated:DeprecationWarning:lark"
+        )
     roots = _roots(config)
     config.stash[ROOTS] = roots
     summary = config.getoption("golden_summary")

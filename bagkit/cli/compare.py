@@ -58,7 +58,7 @@ HELP = (
 def _print_table(report: CompareReport, limit: int) -> None:
     counts_columns = (Column(c, numeric=True) for c in ("golden", "cand.", "missing", "extra"))
     table = Table(
-        [Column("topic"), Column("match"), *counts_columns, Column("result")],
+        [Column("topic"), Column("counting"), *counts_columns, Column("result")],
         title="golden vs candidate",
     )
     errors: list[str] = []
@@ -81,7 +81,10 @@ def _print_table(report: CompareReport, limit: int) -> None:
         else:
             verdict = Styled("ok", "green")
         counts = (topic.golden_count, topic.candidate_count, topic.missing, topic.extra)
-        table.add_row(topic.topic, topic.matched_by or "type", *map(str, counts), verdict)
+        # What the counts count, and how: events count statuses, not messages.
+        counting = {"stamp": "msgs by stamp", "order": "msgs in order", "event": "statuses"}
+        how = counting.get(topic.matched_by, "type")
+        table.add_row(topic.topic, how, *map(str, counts), verdict)
     print_table(table)
     if errors:
         console.print("largest errors:")

@@ -166,8 +166,11 @@ def _cut_around(  # noqa: PLR0917 (the command's options, passed on)
     """``--around``: the episodes of ``trigger``, then one bag per window around each."""
     from bagkit.data.episodes import episode_windows, find_episodes
 
+    # Episodes whose windows would overlap are one: matches less than before + after apart
+    # merge, so that each message is in one output bag.
+    merge_ns = max(gap_ns, margins[0] + margins[1] + 1)
     with err_console.status(f"finding episodes in {bag}"), BagReader(bag) as reader:
-        found = find_episodes(reader, trigger, gap_ns, state_topics=state_topics)
+        found = find_episodes(reader, trigger, merge_ns, state_topics=state_topics)
     if not found.episodes:
         raise NothingToCutError(f"{bag}: {trigger.text!r} holds for no message")
     windows = episode_windows(found.episodes, *margins)

@@ -37,6 +37,7 @@ from bagkit.cli.tables import (
 
 if TYPE_CHECKING:
     from bagkit.data.service_summaries import ServiceSummary
+    from bagkit.fleet.listing import FolderInfo
 
 HELP = """Show what a bag holds: files, size, storage, duration, start and end, message count,
 and per topic its type, count, rate, serialization format and offered QoS.
@@ -44,7 +45,9 @@ and per topic its type, count, rate, serialization format and offered QoS.
 BAG is a bag directory (split or not, with or without metadata.yaml), a single .mcap file or a
 single .db3 file. Only summaries and indexes are read, so this is instant on multi-GB bags; a
 crashed recording without a summary is salvaged and what could not be read is reported.
-A topic's rate is (count - 1) / (last - first log time), "-" below two messages.
+A folder of bags (a snapshot-mode output, a fleet folder) lists its bags, one line each, and
+their totals. A topic's rate is (count - 1) / (last - first log time), "-" below three
+messages or one second.
 Services recorded from their introspection events (NAME/_service_event) are listed with their
 event, request and response counts and their latency (median, 99th percentile, maximum).
 Actions (NAME/_action/feedback and NAME/_action/status) are listed with the message counts of
@@ -220,6 +223,35 @@ def _print_table(info: BagInfo, verbose: bool) -> None:
             print_wrapped(line.split(" "), lead=INDENT)
 
 
+def _print_folder(folder: FolderInfo, output_format: ReportFormat) -> None:
+    """A folder of bags: one line per bag, then the totals; the unread as warnings."""
+    if output_format is ReportFormat.JSON:
+        print_json(folder.to_dict())
+    else:
+        # The folder's path on a line of its own: as long as the user made it, never cut.
+        print_line([Styled(folder.root, "bold"), f": {len(folder.bags)} bags"])
+        table = Table(
+            [Column("bag"), *(Column(c, numeric=True) for c in ("messages", "duration", "size"))]
+        )
+        for bag in folder.bags:
+            shown = Path(bag.path).relative_to(folder.root) if bag.path else bag.path
+            table.add_row(
+                str(shown),
+                f"{bag.message_count:,}",
+                f"{bag.duration_s:.1f} s",
+                _size(bag.size_bytes),
+            )
+        table.add_footer(
+            "total",
+            f"{folder.message_count:,}",
+            f"{folder.duration_s:.1f} s",
+            _size(folder.size_bytes),
+        )
+        print_table(table)
+    for path, why in folder.unread.items():
+        warn(f"{path}: not read: {why}")
+
+
 def _reading(bag: str) -> contextlib.AbstractContextManager[object]:
     """A spinner while a salvage scan runs, on a terminal only (rich's live display costs
     more to import than a summary costs to read)."""
@@ -256,6 +288,13 @@ def info(  # noqa: PLR0917 (typer maps parameters to options)
     """Show what a bag holds (like ros2 bag info)."""
     if storage not in (None, "mcap", "sqlite3", "rosbag1"):
         raise fail(f"--storage {storage}: bagkit reads mcap, sqlite3 and rosbag1 bags")
+    if Path(bag).is_dir() and not (Path(bag) / "metadata.yaml").is_file():
+        from bagkit.fleet.listing import folder_info
+
+        folder = folder_info(bag, check_crc=check_crc)
+        if folder is not None:
+            _print_folder(folder, output_format)
+            return
     with _reading(bag):
         result = bag_info(bag, check_crc=check_crc)
         services = [] if topic_name else _services(bag, result)

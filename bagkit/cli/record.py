@@ -261,6 +261,8 @@ def _print_outcome(
             warn("no message was recorded")
     if report.error is not None:
         raise fail(report.error, report.error_exit_code)
+    if report.never_appeared is not None:
+        raise fail(report.never_appeared, 2)
     if received:
         raise typer.Exit(EXIT_INTERRUPTED if received[0] == signal.SIGINT else 128 + received[0])
 

@@ -178,7 +178,7 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
         regex=regex,
         exclude_regex=exclude,
         exclude_topics=tuple(split_list(exclude_topics)),
-        start_offset_s=duration_seconds(start_offset, "--start-offset") or 0.0,
+        start_offset_s=start_offset,
         duration_s=duration_seconds(duration, "--playback-duration"),
         until_ns=_until_ns(until_sec, until_nsec),
         loops=0 if loop else 1,

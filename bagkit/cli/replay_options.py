@@ -55,8 +55,9 @@ StartOffset = Annotated[
     str,
     typer.Option(
         "--start-offset",
-        help="Start this long after the bag's first message (seconds, or 1m30s, 250ms).",
-        metavar="DURATION",
+        help="Start at TIME: seconds from the bag's first message (10, 1m30s), before its "
+        "last (-5), or absolute (epoch seconds, ISO 8601, NNNns), as --start elsewhere.",
+        metavar="TIME",
     ),
 ]
 Duration = Annotated[

@@ -90,6 +90,11 @@ class TopicResult:
     fails whatever the pass rate."""
 
     @property
+    def counted(self) -> str:
+        """What the counts count: ``statuses`` on an event topic, else ``messages``."""
+        return "statuses" if self.matched_by == "event" else "messages"
+
+    @property
     def passed(self) -> bool:
         """Whether the topic is identical within tolerance: present in the candidate (with
         messages when the golden has some), no message of another shape, and no more missing,
@@ -152,6 +157,7 @@ class CompareReport:
                     "passed": t.passed,
                     "absent": t.absent,
                     "matched_by": t.matched_by,
+                    "counted": t.counted,
                     "golden_count": t.golden_count,
                     "candidate_count": t.candidate_count,
                     "matched": t.matched,

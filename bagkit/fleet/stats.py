@@ -106,6 +106,9 @@ def _merge_topic(into: TopicAccumulator, other: TopicAccumulator, bag: str) -> N
             "the bags before it: summarize them separately"
         )
     into.count += other.count
+    other.end_bag()
+    into.intervals += other.intervals
+    into.span_ns += other.span_ns
     if other.first_ns is not None and other.last_ns is not None:
         into.first_ns = (
             other.first_ns if into.first_ns is None else min(into.first_ns, other.first_ns)

@@ -15,7 +15,8 @@ from bagkit.compat import StrEnum
 from bagkit.playback.errors import PlayerError
 from bagkit.playback.source import MessageOrder
 from bagkit.playback.timing import DEFAULT_DISCOVERY_TIME_S
-from bagkit.selection.times import seconds_to_ns
+from bagkit.selection.errors import SelectionError
+from bagkit.selection.times import Anchor, TimeLike, TimePoint, parse_time, seconds_to_ns
 from bagkit.selection.topics import TopicSelection
 
 
@@ -33,32 +34,43 @@ class PlayWindow:
     """The part of the bag each pass replays (``--start-offset``, ``--duration``, until).
 
     Attributes:
-        start_offset_ns: skipped from the bag's first message.
+        start: where each pass starts, in the one time grammar: from the bag's first message
+            (``10``, ``1m30s``), before its last (``-5``), or absolute (epoch, ISO 8601).
         duration_ns: bag time replayed after the offset; None = to the end.
         until_ns: last log time replayed (ns since the epoch); with ``duration_ns`` the later
             of the two ends the window (as rosbag2).
     """
 
-    start_offset_ns: int = 0
+    start: TimePoint = field(default_factory=lambda: TimePoint(Anchor.START, 0))
     duration_ns: int | None = None
     until_ns: int | None = None
 
     @classmethod
     def create(
-        cls, start_offset: float = 0.0, duration: float | None = None, until_ns: int | None = None
+        cls, start: TimeLike = 0.0, duration: float | None = None, until_ns: int | None = None
     ) -> PlayWindow:
-        """The window of the player's options, in seconds; PlayerError out of range."""
-        if start_offset < 0:
-            raise PlayerError(f"start offset must not be negative, got {start_offset}")
+        """The window of the player's options (``start`` a time, ``duration`` in seconds).
+
+        Raises:
+            PlayerError: not a time, or a duration that is not positive.
+        """
+        try:
+            point = parse_time(start, "start offset")
+        except SelectionError as exc:
+            raise PlayerError(str(exc)) from None
         if duration is not None and not duration > 0:
             raise PlayerError(f"duration must be positive, got {duration}")
         duration_ns = None if duration is None else seconds_to_ns(duration, duration, PlayerError)
-        return cls(seconds_to_ns(start_offset, start_offset, PlayerError), duration_ns, until_ns)
+        return cls(point, duration_ns, until_ns)
 
     @property
     def whole(self) -> bool:
         """Whether every message of the bag is in the window."""
-        return not self.start_offset_ns and self.duration_ns is None and self.until_ns is None
+        return (
+            self.start == TimePoint(Anchor.START, 0)
+            and self.duration_ns is None
+            and self.until_ns is None
+        )
 
     def bounds(self, start_ns: int, end_ns: int, bag: Path) -> tuple[int, int | None]:
         """Log-time bounds (start, exclusive end or None) in a bag of messages start..end.
@@ -66,12 +78,12 @@ class PlayWindow:
         Raises:
             PlayerError: the offset is past the bag's last message (nothing would be replayed).
         """
-        if self.start_offset_ns > end_ns - start_ns:
+        window_start = max(start_ns, self.start.resolve(start_ns, end_ns))
+        if window_start > end_ns:
             raise PlayerError(
-                f"--start-offset {self.start_offset_ns / 1e9:g} s is past the end of "
+                f"the start offset {(window_start - start_ns) / 1e9:g} s is past the end of "
                 f"{bag} ({(end_ns - start_ns) / 1e9:.3f} s of messages)"
             )
-        window_start = start_ns + self.start_offset_ns
         ends = []
         if self.duration_ns is not None:
             ends.append(window_start + self.duration_ns)
@@ -117,7 +129,9 @@ class PlayOptions:
         regex: replay topics whose name matches this regular expression (``re.search``).
         exclude_regex: do not replay topics whose name matches this regular expression.
         exclude_topics: do not replay these topics.
-        start_offset_s: skip this many seconds from the start of the bag.
+        start_offset_s: where to start, a time of the one grammar
+            (:mod:`bagkit.selection.times`): seconds from the bag's start (``10``, ``1m30s``),
+            before its end (``-5``), or absolute (epoch seconds, ISO 8601, ``NNNns``).
         duration_s: replay only this many seconds of bag time (after ``start_offset_s``).
         until_ns: replay only messages logged at or before this time (ns since the epoch);
             with ``duration_s``, the later of the two ends the replay (as rosbag2).
@@ -169,7 +183,7 @@ class PlayOptions:
     regex: str | None = None
     exclude_regex: str | None = None
     exclude_topics: tuple[str, ...] = ()
-    start_offset_s: float = 0.0
+    start_offset_s: TimeLike = 0.0
     duration_s: float | None = None
     until_ns: int | None = None
     loops: int = 1

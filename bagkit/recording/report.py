@@ -97,6 +97,9 @@ class RecordReport:
     duration_s: float = 0.0
     # From start until every named topic (or, none named, the first topic) was subscribed.
     discovery_s: float | None = None
+    # The named topics never seen, with the closest names the graph had (a misspelt name
+    # waits for ever): bad input for the CLI, which exits 2 with it.
+    never_appeared: str | None = None
     topics: list[TopicRecord] = field(default_factory=list)
     skipped: dict[str, str] = field(default_factory=dict)
     error: str | None = None
@@ -136,6 +139,7 @@ class RecordReport:
             "path": str(self.path),
             "duration_s": self.duration_s,
             "discovery_s": self.discovery_s,
+            "never_appeared": self.never_appeared,
             "messages": self.messages,
             "lost": self.lost,
             "bytes": self.bytes,

@@ -16,6 +16,12 @@ from bagkit.errors import BagkitError
 Action = Callable[[], tuple[bool, str]]
 
 
+def answer(done: bool, yes: str, no: str) -> tuple[bool, str]:
+    """A control's answer: whether it was done, and a message saying so either way (a
+    ``success=False`` with an empty message tells the caller nothing)."""
+    return done, yes if done else no
+
+
 def trigger_callback(
     action: Action,
 ) -> Callable[[Trigger.Request, Trigger.Response], Trigger.Response]:

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from bagkit.bag.definitions import INTEGER_TYPES
-from bagkit.bag.info import message_rate
+from bagkit.bag.info import pooled_rate
 from bagkit.decode import DecodeError, LeafField, MessageTypes
 from bagkit.decode.bulk import decode_bulk, spans_inside
 from bagkit.decode.direct import ValueReader
@@ -48,6 +48,11 @@ class TopicAccumulator:
         self.count = 0
         self.first_ns: int | None = None
         self.last_ns: int | None = None
+        # Pooled over bags: intervals between messages and the time they span, bag by bag
+        # (the time between bags is no interval); the open bag's (count, first, last).
+        self.intervals = 0
+        self.span_ns = 0
+        self._bag: tuple[int, int, int] | None = None
         self.failures = 0
         self.first_failure = ""
         # Every leaf of the type as first seen: pooled bags must define the type the same way.
@@ -73,6 +78,16 @@ class TopicAccumulator:
         first, last = int(log_times.min()), int(log_times.max())
         self.first_ns = first if self.first_ns is None else min(self.first_ns, first)
         self.last_ns = last if self.last_ns is None else max(self.last_ns, last)
+        bag = self._bag or (0, first, last)
+        self._bag = (bag[0] + len(log_times), min(bag[1], first), max(bag[2], last))
+
+    def end_bag(self) -> None:
+        """The bag being read is done: its intervals and span join the pooled ones."""
+        if self._bag is not None:
+            count, first, last = self._bag
+            self.intervals += count - 1
+            self.span_ns += last - first
+            self._bag = None
 
     def add_spans(self, records: bytes, starts: np.ndarray, lengths: np.ndarray) -> None:
         """Add the payloads ``records[starts[i] : starts[i] + lengths[i]]`` (one chunk's).
@@ -177,7 +192,8 @@ class TopicAccumulator:
                 leaf_std = std[column]
             as_int = leaf.base in INTEGER_TYPES
             fields.append(_field_stats(leaf.path, as_int, moments, column, float(leaf_std)))
-        rate = message_rate(self.count, self.first_ns, self.last_ns)
+        self.end_bag()
+        rate = pooled_rate(self.count, self.intervals, self.span_ns)
         return TopicStats(
             self.topic, self.type_name, self.count, rate, tuple(fields), self.failures
         )

@@ -143,6 +143,8 @@ class SummaryRun:
             with closing(ahead) as chunks:
                 for chunk in chunks:
                     self.advance(self.add_chunk(chunk, wanted))
+        for accumulator in wanted.values():
+            accumulator.end_bag()
         self.problems.extend(_named(label, problem) for problem in reader.problems)
 
     def _filtered(self, accumulator: TopicAccumulator, single: bool) -> TopicAccumulator | None:

@@ -11,7 +11,7 @@ import pytest
 from bagkit.cli.record import record
 from bagkit.cli.replay import replay
 from bagkit.playback.errors import PlayerError
-from bagkit.playback.options import PlayOptions
+from bagkit.playback.options import PlayOptions, PlayWindow
 from bagkit.recording.errors import RecorderOptionsError
 from bagkit.recording.options import DEFAULT_QUEUE_BYTES, RecordOptions
 
@@ -45,7 +45,8 @@ def test_play_options_default_to_the_cli() -> None:
     cli = cli_defaults(replay)
     options = PlayOptions(Path("bag"))
     assert options.rate == cli["rate"]
-    assert options.start_offset_s == float(cli["start_offset"])
+    assert options.window.bounds(10**18, 10**18 + 5, Path("bag")) == (10**18, None)
+    assert options.window.start == PlayWindow.create(cli["start_offset"]).start
     assert options.duration_s is cli["duration"] is None
     assert options.delay_s == cli["delay"]
     assert options.clock_hz is cli["clock"] is None
@@ -84,7 +85,7 @@ def test_record_options_make_names_absolute() -> None:
     [
         ({"regex": "("}, "--regex '\\(' is not a valid regular expression"),
         ({"progress_period_s": float("nan")}, "bad time nan"),
-        ({"start_offset_s": -1.0}, "start offset must not be negative"),
+        ({"start_offset_s": "5 mins"}, "bad start offset '5 mins': not a time"),
     ],
 )
 def test_play_options_out_of_range(fields: dict[str, object], message: str) -> None:

@@ -157,7 +157,7 @@ def test_services_pause_step_resume_and_set_the_rate(
     )
     clients = {
         name: node.create_client(Trigger, f"{PLAYER}/{name}")
-        for name in ("toggle_paused", "play_next", "is_paused", "get_rate", "pause")
+        for name in ("toggle_paused", "play_next", "is_paused", "get_rate", "pause", "resume")
     }
     for client in clients.values():
         assert client.wait_for_service(timeout_sec=15.0)
@@ -169,7 +169,7 @@ def test_services_pause_step_resume_and_set_the_rate(
 
     def step() -> None:
         answer = _call(node, clients["play_next"], Trigger.Request())
-        assert answer.success
+        assert (answer.success, answer.message) == (True, "published the next message")
 
     check_pause_step_resume(listener, toggle, step, period_ns=50_000_000)
     assert [(a.success, a.message) for a in answers] == [
@@ -178,7 +178,17 @@ def test_services_pause_step_resume_and_set_the_rate(
         (True, "playing"),
         (False, "playing"),
     ]
-    assert not _call(node, clients["play_next"], Trigger.Request()).success  # not paused
+    refused = _call(node, clients["play_next"], Trigger.Request())  # not paused
+    assert (refused.success, refused.message) == (False, "not paused, or no message left")
+    # Every answer says what happened, a refusal too.
+    for name, done, message in (
+        ("resume", False, "was not paused"),
+        ("pause", True, "paused"),
+        ("pause", False, "was paused already"),
+        ("resume", True, "resumed"),
+    ):
+        reply = _call(node, clients[name], Trigger.Request())
+        assert (reply.success, reply.message) == (done, message), name
 
     set_parameters = node.create_client(SetParameters, f"{PLAYER}/set_parameters")
     assert set_parameters.wait_for_service(timeout_sec=10.0)

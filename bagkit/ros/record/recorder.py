@@ -363,14 +363,12 @@ class Recorder:
         errors = self._stop.errors
         report.error = errors[0] if errors else None
         report.error_exit_code = self._stop.exit_code
-        if report.error is None and missing and self._node is not None:
-            # Bad input found while recording: a misspelt name waits for ever otherwise.
+        if missing and self._node is not None:
             graph = sorted(name for name, _ in self._node.get_topic_names_and_types())
-            report.error = (
+            report.never_appeared = (
                 f"topic {', '.join(missing)} never appeared on the graph "
                 f"({closest_names(missing[0], graph)})"
             )
-            report.error_exit_code = 2
         if report.error is not None and report.lost:
             report.error += f" ({report.lost} messages lost)"
         self._stopped.set()

@@ -27,7 +27,7 @@ from rclpy.parameter import Parameter
 from std_srvs.srv import Trigger
 
 from bagkit.errors import BagkitError
-from bagkit.ros.trigger_service import trigger_callback
+from bagkit.ros.trigger_service import answer, trigger_callback
 from bagkit.selection.times import TimeLike, format_ns
 
 SEEK_PARAMETER = "seek"
@@ -54,11 +54,11 @@ def serve_seek(node: Node, player: SeekablePlayer) -> Iterator[None]:
     node.declare_parameter(BURST_PARAMETER, 0)
     node.add_on_set_parameters_callback(lambda params: _on_parameters(player, params))
     services = {
-        "play": lambda: (player.resume(), ""),
+        "play": lambda: answer(player.resume(), "playing", "was not paused"),
         "stop": lambda: (_stopped(player), "stopping"),
     }
-    for name, answer in services.items():
-        node.create_service(Trigger, f"~/{name}", trigger_callback(answer))
+    for name, action in services.items():
+        node.create_service(Trigger, f"~/{name}", trigger_callback(action))
     yield
 
 

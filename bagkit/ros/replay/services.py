@@ -26,7 +26,7 @@ from rclpy.parameter import Parameter
 from std_srvs.srv import Trigger
 
 from bagkit.playback.controls import PlayControls
-from bagkit.ros.trigger_service import Action, trigger_callback
+from bagkit.ros.trigger_service import Action, answer, trigger_callback
 
 RATE_PARAMETER = "rate"
 
@@ -43,15 +43,17 @@ def serve_controls(node: Node, controls: PlayControls) -> Iterator[None]:
 
     controls.on_rate_change = sync_parameter
     answers: dict[str, Action] = {
-        "pause": lambda: (controls.pause(), ""),
-        "resume": lambda: (controls.resume(), ""),
+        "pause": lambda: answer(controls.pause(), "paused", "was paused already"),
+        "resume": lambda: answer(controls.resume(), "resumed", "was not paused"),
         "toggle_paused": lambda: (True, "paused" if controls.toggle_paused() else "playing"),
-        "play_next": lambda: (controls.play_next(), ""),
+        "play_next": lambda: answer(
+            controls.play_next(), "published the next message", "not paused, or no message left"
+        ),
         "is_paused": lambda: (controls.paused, "paused" if controls.paused else "playing"),
         "get_rate": lambda: (True, f"{controls.rate:g}"),
     }
-    for name, answer in answers.items():
-        node.create_service(Trigger, f"~/{name}", trigger_callback(answer))
+    for name, action in answers.items():
+        node.create_service(Trigger, f"~/{name}", trigger_callback(action))
     executor = SingleThreadedExecutor(context=node.context)
     executor.add_node(node)
     thread = threading.Thread(target=_spin, args=(executor,), name="player-services", daemon=True)

@@ -1,0 +1,63 @@
+"""``bagkit info DIR`` of a folder of bags (a snapshot-mode output, a fleet folder): each bag's
+info, read from its summary as ``info BAG`` reads it, and what could not be read."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from bagkit.bag import BagError, BagInfo, bag_info
+from bagkit.fleet.inputs import find_bags, is_bag_directory
+
+
+@dataclass(slots=True)
+class FolderInfo:
+    """The bags under a folder, in path order; ``unread``: bag path -> why it was not read."""
+
+    root: str
+    bags: list[BagInfo] = field(default_factory=list)
+    unread: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def message_count(self) -> int:
+        return sum(bag.message_count for bag in self.bags)
+
+    @property
+    def size_bytes(self) -> int:
+        return sum(bag.size_bytes for bag in self.bags)
+
+    @property
+    def duration_s(self) -> float:
+        """The bags' durations summed (the time recorded, not the span across gaps)."""
+        return sum(bag.duration_s for bag in self.bags)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON: the totals, one object per bag (as ``info BAG --format json``), the unread."""
+        return {
+            "path": self.root,
+            "bag_count": len(self.bags),
+            "message_count": self.message_count,
+            "size_bytes": self.size_bytes,
+            "duration_s": self.duration_s,
+            "bags": [bag.to_dict() for bag in self.bags],
+            "unread": dict(self.unread),
+        }
+
+
+def folder_info(root: str | Path, *, check_crc: bool = True) -> FolderInfo | None:
+    """The bags under ``root``, or None when ``root`` is no folder of bags (a bag itself, a
+    file, or a folder holding no bag)."""
+    text = str(root)
+    if not Path(text).is_dir() or is_bag_directory(text):
+        return None
+    paths = sorted(find_bags(text))
+    if not paths:
+        return None
+    found = FolderInfo(text)
+    for path in paths:
+        try:
+            found.bags.append(bag_info(path, check_crc=check_crc))
+        except BagError as exc:
+            found.unread[path] = str(exc)
+    return found
