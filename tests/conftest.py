@@ -56,13 +56,26 @@ def _starts_dds(module: types.ModuleType | None) -> bool:
     )
 
 
+# DDS tests that assert timings measured on this machine (replay pacing and its controls, the
+# span of a recorded golden): `make test` runs them after the parallel part, one at a time, so
+# that another test's load does not widen what they measure.
+SERIAL_DDS_TESTS = (
+    "tests/ros/test_replay.py::test_every_message_in_order_with_the_recorded_pacing",
+    "tests/ros/test_replay_controls.py::",
+    "tests/regression/test_stranger_package.py::test_record_a_golden_pass_then_fail",
+)
+
+
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     """Mark every test that starts DDS `ros`, from the fixtures it uses or its module's imports,
-    so that `pytest -m "not ros"` is the fast loop without a middleware."""
+    so that `pytest -m "not ros"` is the fast loop without a middleware; and the timing ones
+    `serial`."""
     for item in items:
         fixtures = set(getattr(item, "fixturenames", ()))
         if fixtures & DDS_FIXTURES or _starts_dds(getattr(item, "module", None)):
             item.add_marker(pytest.mark.ros)
+        if item.nodeid.startswith(SERIAL_DDS_TESTS):
+            item.add_marker(pytest.mark.serial)
 
 
 def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
