@@ -38,7 +38,7 @@ def long_names_bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
         bag.add_topic(TopicInfo(SHORT_TOPIC, SHORT_TYPE), definition=DEFINITION)
         for i in range(10):
             for topic in (LONG_TOPIC, SHORT_TOPIC):
-                bag.write(topic, _cdr(20.0 + i), log_time=START + i * 100_000_000)
+                bag.write(topic, _cdr(20.0 + i), log_time=START + i * 200_000_000)
     return path
 
 
@@ -83,7 +83,7 @@ def test_info_keeps_a_table_when_it_fits(long_names_bag: Path) -> None:
     """At 200 columns a row holds a topic, its type and its figures."""
     out = _run(200, "info", str(long_names_bag))
     row = next(line for line in out.splitlines() if LONG_TOPIC in line)
-    assert row.split() == [LONG_TOPIC, LONG_TYPE, "10", "10.00", "Hz"]
+    assert row.split() == [LONG_TOPIC, LONG_TYPE, "10", "5.00", "Hz"]
 
 
 @pytest.mark.parametrize("columns", [80, 40])
