@@ -281,12 +281,14 @@ def test_bad_options_exit_2_with_one_line(
 
 
 def test_default_output_name_in_the_current_directory(processes: object, tmp_path: Path) -> None:
-    # /cli/nothing never appears: --duration would not start; Ctrl-C finishes the bag.
+    # /cli/nothing never appears: --duration would not start; Ctrl-C finishes the bag, and the
+    # named topic that never appeared is the error it ends with (exit 2, as a misspelt name).
     proc = record(processes, "/cli/nothing", cwd=tmp_path)
     wait_for(lambda: any(tmp_path.iterdir()), STARTUP_TIMEOUT_S)
     proc.send_signal(signal.SIGINT)
     _, stderr = proc.communicate(timeout=30)
-    assert proc.returncode == 130, stderr.decode()
+    assert proc.returncode == 2, stderr.decode()
+    assert "error: topic /cli/nothing never appeared on the graph" in stderr.decode()
     (bag,) = tmp_path.iterdir()
     assert re.fullmatch(r"rosbag2_\d{4}_\d{2}_\d{2}-\d{2}_\d{2}_\d{2}", bag.name)
     assert (bag / "metadata.yaml").is_file()

@@ -266,7 +266,7 @@ def test_cli_start_offset_past_the_end_is_one_clear_line(test_bag: Path) -> None
     result = bagkit_cli("replay", str(test_bag), "--start-offset", "5", "--no-wait-for-subscribers")
     assert result.returncode == 2
     (line,) = result.stderr.strip().splitlines()
-    assert line.startswith("error: --start-offset 5 s is past the end of")
+    assert line.startswith(f"error: the start offset 5 s is past the end of {test_bag} (")
     assert "nan" not in result.stdout + result.stderr
 
 
