@@ -9,7 +9,7 @@ from pathlib import Path
 import typer
 
 from bagkit.bag import BagReader
-from bagkit.cli.common import MultiValueCommand, ReportFormat, handle_errors, split_list
+from bagkit.cli.common import ReportFormat, handle_errors, split_list
 from bagkit.cli.filter import (
     EXCLUDE_REGEX_HELP,
     EXCLUDE_TOPICS_HELP,
@@ -27,6 +27,7 @@ from bagkit.cli.surgery_options import (
     MaxBagDuration,
     MaxBagSize,
     NoLatched,
+    SelectionCommand,
     latched_options,
     output_options,
     print_report,
@@ -59,13 +60,7 @@ COMPRESSION_HELP = (
 OPTIONS_HELP = "ros2 bag convert's YAML options file (output_bags: [...]) instead of -o."
 
 
-class ConvertCommand(MultiValueCommand):
-    """``--topics a b c`` and ``--exclude-topics a b c``, as in ``bagkit filter``."""
-
-    multi_value = frozenset({"--topics", "--exclude-topics"})
-
-
-COMMAND_CLASS = ConvertCommand
+COMMAND_CLASS = SelectionCommand
 
 
 @handle_errors

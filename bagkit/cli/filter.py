@@ -9,7 +9,6 @@ import typer
 
 from bagkit.bag import BagReader
 from bagkit.cli.common import (
-    MultiValueCommand,
     ReportFormat,
     err_console,
     handle_errors,
@@ -26,6 +25,7 @@ from bagkit.cli.surgery_options import (
     MaxBagSize,
     NoLatched,
     Output,
+    SelectionCommand,
     latched_options,
     output_options,
     print_cuts,
@@ -75,13 +75,7 @@ EXCLUDE_TOPICS_HELP = "Topics to drop (several after one flag, repeated, or comm
 EXCLUDE_REGEX_HELP = "Drop topics matching this regular expression."
 
 
-class FilterCommand(MultiValueCommand):
-    """``--topics a b c`` and ``--exclude-topics a b c``, as ``ros2 bag convert``'s options."""
-
-    multi_value = frozenset({"--topics", "--exclude-topics"})
-
-
-COMMAND_CLASS = FilterCommand
+COMMAND_CLASS = SelectionCommand
 
 
 @handle_errors

@@ -14,7 +14,15 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from bagkit.bag.latched import LatchedOptions
-from bagkit.cli.common import ReportFormat, byte_size, console, print_json, split_list, warn
+from bagkit.cli.common import (
+    MultiValueCommand,
+    ReportFormat,
+    byte_size,
+    console,
+    print_json,
+    split_list,
+    warn,
+)
 from bagkit.selection.times import format_ns
 from bagkit.surgery.rewrite import OutputOptions, RewriteReport
 
@@ -143,3 +151,10 @@ def print_cuts(found: Episodes, reports: list[RewriteReport], output_format: Rep
             print_report(report, ReportFormat.TABLE)
     for problem in found.problems:
         warn(problem)
+
+
+class SelectionCommand(MultiValueCommand):
+    """``--topics a b c`` and ``--exclude-topics a b c`` (``filter``, ``convert``), as
+    ``ros2 bag convert``'s options."""
+
+    multi_value = frozenset({"--topics", "--exclude-topics"})

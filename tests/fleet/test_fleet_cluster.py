@@ -50,8 +50,6 @@ def test_workers_ignore_ctrl_c_and_keep_glibc_defaults(client: Client) -> None:
 def test_a_cluster_starts_only_when_it_pays(bags: int, mib: int, cores: int, pays: bool) -> None:
     rate = WorkRate(per_bag_s=0.002, per_mib_s=0.0025)
     assert cluster_pays(rate, bags, mib * 2**20, cores) is pays
-    estimate = 0.002 * bags + 0.0025 * mib
-    assert pays == (bags > 1 and cores > 1 and estimate >= CLUSTER_PAYS_FROM_S)
 
 
 def test_default_runs_in_process_unless_the_work_pays() -> None:
