@@ -96,7 +96,9 @@ def test_sigkill_during_a_snapshot_write(node: Node, processes: Any, tmp_path: P
         timeout=120,
         check=False,
     )
-    assert result.returncode == 0, result.stderr
+    # A kill inside a chunk loses its bytes: recover says so and exits 3 (docs/surgery.md).
+    lost = "warning: lost:" in result.stderr
+    assert result.returncode == (3 if lost else 0), result.stderr
     read_back = texts(recovered)
     assert len(small) < len(read_back) == len(salvaged) < len(small) + len(big)
     assert read_back == [("/faults/big", text) for text in [*small, *big][: len(read_back)]]
