@@ -10,7 +10,9 @@ from __future__ import annotations
 import errno
 import functools
 import os
+import signal
 import sys
+import threading
 import traceback
 import warnings
 from collections.abc import Callable
@@ -260,8 +262,13 @@ def handle_errors(func: Callable[P, R]) -> Callable[P, R]:
     @functools.wraps(func)
     def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
         warnings.showwarning = _warning_line
+        interrupted = _InterruptLatch()
         try:
-            return func(*args, **kwargs)
+            with interrupted:
+                result = func(*args, **kwargs)
+            if interrupted.seen:
+                raise KeyboardInterrupt
+            return result
         except BagkitError as exc:
             raise fail(str(exc), exc.exit_code) from None
         except KeyboardInterrupt:
@@ -273,6 +280,37 @@ def handle_errors(func: Callable[P, R]) -> Callable[P, R]:
             raise fail(f"{exc.strerror or exc}: {exc.filename or ''}".rstrip(": "), 2) from None
 
     return wrapper
+
+
+class _InterruptLatch:
+    """Remembers a Ctrl-C even when its KeyboardInterrupt is swallowed on the way.
+
+    Python ignores an exception raised in a gc callback or ``__del__`` (Dask's run there):
+    the command would then finish and exit 0 although the user interrupted it.
+    """
+
+    def __init__(self) -> None:
+        self.seen = False
+        self._previous: Any = None
+
+    def __enter__(self) -> None:
+        current = signal.getsignal(signal.SIGINT)
+        # Only the default handler is wrapped: an ignored SIGINT stays ignored, and signal
+        # handlers can only be set from the main thread.
+        if (
+            current is signal.default_int_handler
+            and threading.current_thread() is threading.main_thread()
+        ):
+            self._previous = current
+            signal.signal(signal.SIGINT, self._on_sigint)
+
+    def __exit__(self, *_: object) -> None:
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+
+    def _on_sigint(self, signum: int, frame: Any) -> None:
+        self.seen = True
+        signal.default_int_handler(signum, frame)
 
 
 def _warning_line(message: Warning | str, *_: object, **__: object) -> None:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import signal
 import subprocess
 import sys
 from collections.abc import Callable
@@ -82,6 +84,26 @@ def test_one_line_and_a_documented_exit_code(
     exit_code, lines = _exit(_raises(action), capsys)
     assert exit_code == code
     assert len(lines) == 1 and lines[0].startswith(line), lines
+
+
+def _swallowed_interrupt() -> None:
+    """Ctrl-C while Python runs a gc callback or ``__del__``: the exception is printed, not raised."""
+    try:
+        os.kill(os.getpid(), signal.SIGINT)
+        signal.pthread_sigmask(signal.SIG_BLOCK, [])  # a call: the handler runs before it returns
+    except KeyboardInterrupt:
+        pass
+
+
+def test_a_swallowed_ctrl_c_still_ends_with_exit_130(capsys: pytest.CaptureFixture[str]) -> None:
+    # As from a shell: a test runner's worker may ignore SIGINT.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        exit_code, lines = _exit(_raises(_swallowed_interrupt), capsys)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert (exit_code, lines) == (EXIT_INTERRUPTED, ["error: interrupted"])
+    assert signal.getsignal(signal.SIGINT) is previous
 
 
 def test_an_internal_error_names_where_it_was_raised_and_asks_for_a_report(
