@@ -29,6 +29,10 @@ GRAPH_SETTLE_S = 0.2
 # A publisher sees a subscription match before the subscription sees the publisher; the first
 # message is only safe once both sides have matched, which we cannot observe from here.
 MATCH_GRACE_S = 0.1
+# While the census counts a participant on this host that is not in the graph yet, the watch
+# goes on this long past the discovery time: on a loaded machine the participant's periodic
+# announcement, due within it, came after it, and the first message was lost.
+CENSUS_OVERTIME_S = 1.0
 
 
 @dataclass(slots=True)
@@ -82,10 +86,11 @@ def wait_until_matched(
     """Block until the subscriptions the graph knows on ``outputs`` have matched.
 
     A subscription in another process shows up in the graph only when its participant's
-    discovery announcement arrives, so the graph is watched until ``settled_at`` (monotonic),
-    or until ``all_discovered`` says that every participant has been found, and until it has
-    been unchanged for ``GRAPH_SETTLE_S``; every compatible subscription seen by then must
-    match. Topics in ``wait_for`` additionally need at least one subscription.
+    discovery announcement arrives, so the graph is watched until ``settled_at`` (monotonic;
+    ``CENSUS_OVERTIME_S`` later with a census), or until ``all_discovered`` says that every
+    participant has been found, and until it has been unchanged for ``GRAPH_SETTLE_S``; every
+    compatible subscription seen by then must match, the last match at least ``MATCH_GRACE_S``
+    old. Topics in ``wait_for`` additionally need at least one subscription.
 
     Returns:
         How long it waited, and for what.
@@ -96,28 +101,39 @@ def wait_until_matched(
     required = sorted(set(wait_for))
     start = now = time.monotonic()
     deadline = now + timeout
-    last_change = now
+    last_change = last_match = now
     last_graph: dict[str, int] = {}
+    last_matched: list[int] = []
     found_all = False
+    # A census that still misses a participant at the discovery time waits a little longer.
+    watch_end = settled_at if all_discovered is None else settled_at + CENSUS_OVERTIME_S
     while True:
         graph = {out.name: node.count_subscribers(out.name) for out in outputs}
         graph.update({topic: node.count_subscribers(topic) for topic in required})
+        matched = [out.publisher.get_subscription_count() for out in outputs]
         now = time.monotonic()
         if graph != last_graph:
             last_graph = graph
             last_change = now
-        if not found_all and now < settled_at and all_discovered is not None:
+        if matched != last_matched:
+            last_matched = matched
+            last_match = now
+        if not found_all and now < watch_end and all_discovered is not None:
             found_all = all_discovered()
             if found_all:  # the last participant's endpoints may still be arriving
                 last_change = now
-        settled = now >= last_change + GRAPH_SETTLE_S and (found_all or now >= settled_at)
+        # The grace runs alongside the settling: a match seen when the wait began counts
+        # from then, one seen later from when it was seen.
+        settled = (
+            now >= last_change + GRAPH_SETTLE_S
+            and now >= last_match + MATCH_GRACE_S
+            and (found_all or now >= watch_end)
+        )
         pending = [
-            f"{out.name} ({matched} of {expected} subscriptions matched)"
-            for out in outputs
-            for matched, expected in [
-                (out.publisher.get_subscription_count(), _compatible_subscriptions(node, out))
-            ]
-            if matched < expected
+            f"{out.name} ({count} of {expected} subscriptions matched)"
+            for out, count in zip(outputs, matched, strict=True)
+            for expected in [_compatible_subscriptions(node, out)]
+            if count < expected
         ]
         pending += [f"a subscriber on {topic}" for topic in required if not graph[topic]]
         if not pending and settled:
@@ -128,8 +144,6 @@ def wait_until_matched(
                 "use --no-wait-for-subscribers to start anyway"
             )
         time.sleep(0.02)
-    time.sleep(MATCH_GRACE_S)
-    matched = [out.publisher.get_subscription_count() for out in outputs]
     return SubscriberWait(
         seconds=time.monotonic() - start,
         subscriptions=sum(matched),

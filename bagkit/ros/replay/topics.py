@@ -8,7 +8,6 @@ from pathlib import Path
 from typing import Any
 
 from bagkit.bag import TopicInfo
-from bagkit.decode.drift import DriftStatus, topic_drift
 from bagkit.playback.options import OnDrift
 from bagkit.ros.clock import CLOCK_TOPIC
 from bagkit.ros.errors import MessageClassNotFoundError, PlayerError
@@ -56,6 +55,10 @@ def publishable_topics(
         UnknownTopicError: nothing is selected and a named topic is not in the bag.
         PlayerError: nothing is left to publish (the message says why).
     """
+    # Here, not at the top: the player's PublishableTopics() must not import the decoder
+    # (rosbags) before its node exists (see Player._open).
+    from bagkit.decode.drift import DriftStatus, topic_drift
+
     found = PublishableTopics(missing=selection.missing(topics), known=sorted(topics))
     for name, info in sorted(topics.items()):
         if not selection.matches(name):
