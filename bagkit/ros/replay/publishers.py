@@ -89,8 +89,8 @@ def wait_until_matched(
     discovery announcement arrives, so the graph is watched until ``settled_at`` (monotonic;
     ``CENSUS_OVERTIME_S`` later with a census), or until ``all_discovered`` says that every
     participant has been found, and until it has been unchanged for ``GRAPH_SETTLE_S``; every
-    compatible subscription seen by then must match, the last match at least ``MATCH_GRACE_S``
-    old. Topics in ``wait_for`` additionally need at least one subscription.
+    compatible subscription seen by then must match, then ``MATCH_GRACE_S`` more. Topics in
+    ``wait_for`` additionally need at least one subscription.
 
     Returns:
         How long it waited, and for what.
@@ -101,9 +101,8 @@ def wait_until_matched(
     required = sorted(set(wait_for))
     start = now = time.monotonic()
     deadline = now + timeout
-    last_change = last_match = now
+    last_change = now
     last_graph: dict[str, int] = {}
-    last_matched: list[int] = []
     found_all = False
     # A census that still misses a participant at the discovery time waits a little longer.
     watch_end = settled_at if all_discovered is None else settled_at + CENSUS_OVERTIME_S
@@ -115,20 +114,11 @@ def wait_until_matched(
         if graph != last_graph:
             last_graph = graph
             last_change = now
-        if matched != last_matched:
-            last_matched = matched
-            last_match = now
         if not found_all and now < watch_end and all_discovered is not None:
             found_all = all_discovered()
             if found_all:  # the last participant's endpoints may still be arriving
                 last_change = now
-        # The grace runs alongside the settling: a match seen when the wait began counts
-        # from then, one seen later from when it was seen.
-        settled = (
-            now >= last_change + GRAPH_SETTLE_S
-            and now >= last_match + MATCH_GRACE_S
-            and (found_all or now >= watch_end)
-        )
+        settled = now >= last_change + GRAPH_SETTLE_S and (found_all or now >= watch_end)
         pending = [
             f"{out.name} ({count} of {expected} subscriptions matched)"
             for out, count in zip(outputs, matched, strict=True)
@@ -144,6 +134,8 @@ def wait_until_matched(
                 "use --no-wait-for-subscribers to start anyway"
             )
         time.sleep(0.02)
+    time.sleep(MATCH_GRACE_S)
+    matched = [out.publisher.get_subscription_count() for out in outputs]
     return SubscriberWait(
         seconds=time.monotonic() - start,
         subscriptions=sum(matched),
