@@ -29,13 +29,13 @@ from pathlib import Path
 from bagkit.bag import BagWriter, TopicInfo
 from bagkit.recording.report import SnapshotRecord
 from bagkit.recording.snapshot_buffer import MessageSlice
-from bagkit.ros.record import snapshot_writer
-from bagkit.ros.record.snapshot_writer import (
+from bagkit.recording.snapshot_writer import (
     SnapshotEnd,
     SnapshotMessages,
     SnapshotStart,
     SnapshotWriter,
 )
+from bagkit.ros.record import snapshot_writer
 
 MIB = 1 << 20
 IMAGE_TYPE = "sensor_msgs/msg/Image"
