@@ -27,6 +27,7 @@ import time
 from pathlib import Path
 
 from bagkit.bag import BagWriter, TopicInfo
+from bagkit.recording import snapshot_writer
 from bagkit.recording.report import SnapshotRecord
 from bagkit.recording.snapshot_buffer import MessageSlice
 from bagkit.recording.snapshot_writer import (
@@ -35,7 +36,6 @@ from bagkit.recording.snapshot_writer import (
     SnapshotStart,
     SnapshotWriter,
 )
-from bagkit.ros.record import snapshot_writer
 
 MIB = 1 << 20
 IMAGE_TYPE = "sensor_msgs/msg/Image"
