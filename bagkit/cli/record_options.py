@@ -250,7 +250,7 @@ Health = Annotated[
     Path | None,
     typer.Option(
         "--health",
-        help="A health contract (the spec of bagkit check, docs/cli.md) checked on what is "
+        help="A health contract (bagkit check's spec, docs/health.md) checked on what is "
         "recorded: a line when a check breaks or clears; counts in the report and metadata.",
         metavar="SPEC",
     ),
