@@ -35,6 +35,10 @@ if TYPE_CHECKING:
 ROOTS = pytest.StashKey[list[Path]]()
 SPEC_FILE = "spec.yaml"
 MODE_CHOICES = ("lockstep", "live", "all")
+# Domains of automatic choice: 100-229, above the ones people set by hand. The variable marks a
+# domain the plugin chose, so that xdist workers know they may choose their own.
+_FIRST_DOMAIN, _DOMAINS = 100, 130
+_CHOSEN_DOMAIN = "BAGKIT_PYTEST_CHOSEN_DOMAIN"
 # user_properties of a golden item's reports: they cross xdist's worker boundary (and land in
 # --junitxml as properties), so the summary is written from what the controller receives.
 FIXTURE_PROPERTY = "golden_fixture"
@@ -106,11 +110,30 @@ def pytest_configure(config: pytest.Config) -> None:
         return
     # Live runs stay on this machine and off other sessions' domains unless told otherwise.
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    os.environ.setdefault("ROS_DOMAIN_ID", str(100 + os.getpid() % 130))
+    _choose_domain(config)
     if config.args_source != pytest.Config.ArgsSource.ARGS:
         # `pytest` alone walks testpaths (or the current directory): add the roots it misses.
         walked = [Path(a).resolve() for a in config.args]
         config.args += [str(r) for r in roots if not any(r.is_relative_to(w) for w in walked)]
+
+
+def _choose_domain(config: pytest.Config) -> None:
+    """A ROS_DOMAIN_ID of this session's own, and one per pytest-xdist worker.
+
+    Workers inherit the controller's environment: without a domain each, the live runs of two
+    workers would see each other's nodes. A domain the user set is kept, workers included.
+    """
+    worker = getattr(config, "workerinput", None)
+    if worker is None:
+        if "ROS_DOMAIN_ID" not in os.environ:
+            os.environ["ROS_DOMAIN_ID"] = str(_FIRST_DOMAIN + os.getpid() % _DOMAINS)
+            os.environ[_CHOSEN_DOMAIN] = os.environ["ROS_DOMAIN_ID"]
+        return
+    chosen = os.environ.get(_CHOSEN_DOMAIN)
+    if chosen is not None and chosen == os.environ.get("ROS_DOMAIN_ID"):
+        index = int(str(worker["workerid"]).removeprefix("gw") or 0)
+        offset = (int(chosen) - _FIRST_DOMAIN + 1 + index) % _DOMAINS
+        os.environ["ROS_DOMAIN_ID"] = str(_FIRST_DOMAIN + offset)
 
 
 def pytest_collect_file(file_path: Path, parent: pytest.Collector) -> pytest.Collector | None:

@@ -72,7 +72,8 @@ LAYERS: tuple[frozenset[str], ...] = (
     frozenset({"ros"}),
     frozenset({"stats", "compare"}),
     frozenset({"data", "surgery"}),
-    frozenset({"fleet", "health"}),
+    frozenset({"fleet"}),
+    frozenset({"health"}),
     frozenset({"regression"}),
     frozenset({"cli", "pytest_plugin", "__init__"}),
 )

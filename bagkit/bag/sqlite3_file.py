@@ -101,7 +101,6 @@ class Sqlite3File:
     """
 
     storage_identifier = "sqlite3"
-    chunked = False
     has_summary = True
     compression = ""
     compressed_size = 0

@@ -21,9 +21,6 @@ from bagkit.selection.fields import select_fields
 from bagkit.selection.topics import require_topics
 from bagkit.selection.windows import TimeRange, Window, outside_warning
 
-# Messages of chunkless storage (.db3) are decoded this many at a time.
-ROWS_PER_BATCH = 8192
-
 
 @dataclass(slots=True)
 class Scan:
@@ -40,7 +37,7 @@ class Scan:
     """The one warning when the time window holds none of the bag's messages."""
 
     def batches(self) -> Iterator[tuple[str, pa.RecordBatch]]:
-        """(topic, batch) per topic and chunk, in file order (``.db3``: in log-time order)."""
+        """(topic, batch) per topic and chunk, in file order."""
         for topic, rows in self._decode(lambda t, n: Rows.empty(self.topics[t].leaves, n)):
             yield topic, rows.batch(self.topics[topic].schema)
 
@@ -56,9 +53,6 @@ class Scan:
         """(topic, rows) per topic and chunk, rows from ``reserve(topic, count)``."""
         if not self.topics:
             return
-        if "sqlite3" in self.reader.storage.split(","):
-            yield from self._message_rows(reserve)
-            return
         # closing(): the reading thread stops before the reader is closed, also on error.
         with closing(prefetch(self.reader.chunks(self.topics))) as chunks:
             for chunk in chunks:
@@ -70,21 +64,6 @@ class Scan:
                         )
                         if len(rows.ok):
                             yield topic, rows
-
-    def _message_rows(self, reserve: Callable[[str, int], Rows]) -> Iterator[tuple[str, Rows]]:
-        pending: dict[str, tuple[list[bytes], list[int], list[int]]] = {}
-        messages = self.reader.messages(self.topics, self.window.start_ns, self.window.end_ns)
-        for message in messages:
-            datas, logs, publishes = pending.setdefault(message.topic, ([], [], []))
-            datas.append(message.data)
-            logs.append(message.log_time)
-            publishes.append(message.publish_time)
-            if len(datas) >= ROWS_PER_BATCH:
-                topic = message.topic
-                parts = pending.pop(topic)
-                yield topic, self.topics[topic].decode_payloads(*parts, partial(reserve, topic))
-        for topic, parts in pending.items():
-            yield topic, self.topics[topic].decode_payloads(*parts, partial(reserve, topic))
 
     @property
     def problems(self) -> list[str]:

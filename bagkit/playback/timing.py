@@ -40,6 +40,18 @@ class Timeline:
         return self.bag_start_ns + int((wall_ns - self.wall_start_ns) * self.rate)
 
 
+def effective_rate(position_ns: int, now_ns: int, timeline: Timeline, *, since: Timeline) -> float:
+    """Bag time played over wall time since the later of ``timeline``'s anchor and ``since``.
+
+    ``timeline`` is re-anchored by a resume, a seek or a rate change, so the rate shown is the
+    one in force, not an average over a pause; ``since`` is where the pass or the last seek
+    started (its rate is not used).
+    """
+    wall_ns = max(timeline.wall_start_ns, since.wall_start_ns)
+    played_ns = position_ns - max(timeline.bag_start_ns, since.bag_start_ns)
+    return max(0, played_ns) / (now_ns - wall_ns) if now_ns > wall_ns else 0.0
+
+
 def wait_until(deadline_ns: int, *, spin_window_ns: int = SPIN_WINDOW_NS) -> int:
     """Block until ``time.monotonic_ns()`` reaches ``deadline_ns``; return the time it returned.
 

@@ -43,7 +43,7 @@ from bagkit.ros.record.take_loop import SimClock, TakeLoop
 from bagkit.ros.record.triggers import TriggerError, start_trigger_checks
 from bagkit.ros.record.write_loop import WriteLoop
 from bagkit.ros.tuning import process_tuning
-from bagkit.selection.topics import absolute_topic_name, closest_names
+from bagkit.selection.topics import absolute_topic_name, missing_on_graph
 
 
 class Recorder:
@@ -364,11 +364,8 @@ class Recorder:
         report.error = errors[0] if errors else None
         report.error_exit_code = self._stop.exit_code
         if missing and self._node is not None:
-            graph = sorted(name for name, _ in self._node.get_topic_names_and_types())
-            report.never_appeared = (
-                f"topic {', '.join(missing)} never appeared on the graph "
-                f"({closest_names(missing[0], graph)})"
-            )
+            graph = (name for name, _ in self._node.get_topic_names_and_types())
+            report.never_appeared = missing_on_graph(missing, graph)
         if report.error is not None and report.lost:
             report.error += f" ({report.lost} messages lost)"
         self._stopped.set()

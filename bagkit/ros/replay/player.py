@@ -312,7 +312,7 @@ class Player:
             loops=passes,
             bag_duration_s=bag_ns / 1e9,
             wall_duration_s=wall_ns / 1e9,
-            rate=options.rate,
+            rate=self.controls.rate,
             lateness=lateness.summary(),
             skipped_types=dict(self.publishable.skipped_types),
             drifted=dict(self.publishable.drifted),

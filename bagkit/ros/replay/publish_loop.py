@@ -18,7 +18,13 @@ from bagkit.bag import BagMessage
 from bagkit.playback.controls import PlayControls
 from bagkit.playback.lateness import LatenessSamples
 from bagkit.playback.report import PlayProgress
-from bagkit.playback.timing import LATE_THRESHOLD_NS, SPIN_WINDOW_NS, wait_until
+from bagkit.playback.timing import (
+    LATE_THRESHOLD_NS,
+    SPIN_WINDOW_NS,
+    Timeline,
+    effective_rate,
+    wait_until,
+)
 from bagkit.ros.clock import clock_message
 from bagkit.ros.replay.publishers import TopicOutput
 
@@ -237,14 +243,12 @@ class PassPublisher:
         delays = self._delays
         position = self.last_log_time
         span = self.reader.end_ns - self._window_start
-        segment_wall = now - self._wall_start
+        segment = Timeline(self._segment_start, self._wall_start, self.controls.rate)
         self.on_progress(
             PlayProgress(
                 bag_time_s=(position - self._window_start) / 1e9,
                 wall_time_s=(now - self._pass_wall_start) / 1e9,
-                effective_rate=(position - self._segment_start) / segment_wall
-                if segment_wall > 0
-                else 0.0,
+                effective_rate=effective_rate(position, now, self.controls.timeline, since=segment),
                 messages=self.lateness.count - count_before + len(delays),
                 late=self.lateness.late
                 - late_before
