@@ -4,7 +4,7 @@ Every message taken is, at the end, either in the bag (``messages``) or counted 
 topic: ``gaps`` (holes in publication sequence numbers: lost inside the middleware),
 ``overflow`` (dropped on a full hand-off queue), ``write_failed`` (handed to the bag writer but
 not in the bag, from :class:`~bagkit.bag.BagWriteError`'s ``lost_by_topic``, or taken after
-writing failed); or, not lost, ``paused`` (taken while paused, :mod:`~bagkit.ros.record.pause`).
+writing failed); or, not lost, ``paused`` (taken while paused, :mod:`~bagkit.recording.pause`).
 No rclpy import.
 """
 
@@ -16,15 +16,15 @@ from typing import TYPE_CHECKING
 
 from bagkit.bag import BagWriteError, BagWriter
 from bagkit.bag.errors import BagError
+from bagkit.native import name_native_thread
+from bagkit.recording.handoff import Batch, BatchPart, HandoffQueue, StopSignal
 from bagkit.recording.report import LOSS_CUSTOM_DATA_KEY, TopicRecord, loss_summary
-from bagkit.ros.record.handoff import Batch, BatchPart, HandoffQueue, StopSignal
-from bagkit.ros.tuning import name_native_thread
 
 if TYPE_CHECKING:
-    from bagkit.ros.record.latched_topics import LatchedRepeats
-    from bagkit.ros.record.pause import PauseGate
-    from bagkit.ros.record.recorded_topic import NewTopic
-    from bagkit.ros.record.snapshot import SnapshotSink
+    from bagkit.recording.handoff import NewTopic
+    from bagkit.recording.latched import LatchedRepeats
+    from bagkit.recording.pause import PauseGate
+    from bagkit.recording.snapshot import SnapshotSink
 
 # The writer closes a chunk at least this often, so a killed recorder loses at most this much.
 FLUSH_PERIOD_S = 1.0
