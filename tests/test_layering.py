@@ -69,6 +69,7 @@ LAYERS: tuple[frozenset[str], ...] = (
     frozenset({"bag"}),
     frozenset({"recording", "playback"}),
     frozenset({"decode"}),
+    frozenset({"migrate"}),
     frozenset({"ros"}),
     frozenset({"stats", "compare"}),
     frozenset({"data"}),
