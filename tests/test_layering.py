@@ -64,7 +64,7 @@ def test_rclpy_only_behind_the_ros_shells(path: Path) -> None:
 # bagkit's packages and top-level modules from the bottom up: each imports only lower layers.
 LAYERS: tuple[frozenset[str], ...] = (
     frozenset({"errors", "version", "compat"}),
-    frozenset({"processes", "prefetch", "extras", "native"}),
+    frozenset({"processes", "prefetch", "extras", "native", "storage"}),
     frozenset({"selection"}),
     frozenset({"bag"}),
     frozenset({"recording", "playback"}),
