@@ -179,13 +179,20 @@ class Sqlite3File:
                 self.definitions.setdefault(topic.type, self.definitions[service])
 
     def _read_counts(self, db: sqlite3.Connection) -> None:
+        """Counts and spans in one scan of the rows; the rows of wrong types are the rest of
+        ``COUNT(*)`` (read from the smallest index)."""
         self.topic_counts = dict.fromkeys(self.topics, 0)
-        orphans = 0
+        orphans = valid = 0
+        starts: list[int] = []
+        ends: list[int] = []
         query = (
             "SELECT topic_id, COUNT(*), MIN(timestamp), MAX(timestamp) FROM messages "
             f"WHERE {_VALID_ROW} GROUP BY topic_id"
         )
         for topic_id, count, first, last in db.execute(query):
+            valid += count
+            starts.append(first)
+            ends.append(last)
             name = self._topic_ids.get(topic_id) if isinstance(topic_id, int) else None
             if name is None:
                 orphans += count
@@ -194,14 +201,12 @@ class Sqlite3File:
             widen(self._spans, name, first, last)
         if orphans:
             self._problem(f"{orphans} messages of no known topic skipped")
-        query = f"SELECT COUNT(*) FROM messages WHERE NOT ({_VALID_ROW})"
-        (invalid,) = db.execute(query).fetchone()
-        if invalid:
-            self._problem(f"{invalid} messages without an integer timestamp or blob data skipped")
-        start, end = db.execute(
-            f"SELECT MIN(timestamp), MAX(timestamp) FROM messages WHERE {_VALID_ROW}"
-        ).fetchone()
-        self.start_ns, self.end_ns = start or 0, end or 0
+        (rows,) = db.execute("SELECT COUNT(*) FROM messages").fetchone()
+        if rows > valid:
+            self._problem(
+                f"{rows - valid} messages without an integer timestamp or blob data skipped"
+            )
+        self.start_ns, self.end_ns = min(starts, default=0), max(ends, default=0)
 
     def close(self) -> None:
         """Close the database."""
@@ -217,12 +222,13 @@ class Sqlite3File:
         return None
 
     def chunks(self, topics: set[str] | None) -> Iterator[BagChunk]:
-        """The rows of ``topics`` in timestamp order (ties by row id), laid out as chunks of
-        MCAP Message records: :data:`ROWS_PER_CHUNK` rows each, fewer where their payloads
-        pass :data:`MAX_CHUNK_BYTES` (large messages: memory stays bounded)."""
+        """The rows of ``topics`` in storage (row id) order, as an MCAP file's chunks are in
+        file order (a table scan: no index lookup per row), laid out as chunks of MCAP Message
+        records: :data:`ROWS_PER_CHUNK` rows each, fewer where their payloads pass
+        :data:`MAX_CHUNK_BYTES` (large messages: memory stays bounded)."""
         held: tuple[list[str], list[int], list[bytes | None]] = ([], [], [])
         size = 0
-        for batch in self._rows(topics, None, None):
+        for batch in self._rows(topics, None, None, in_time_order=False):
             for part, more in zip(held, batch, strict=True):
                 part.extend(more)  # type: ignore[attr-defined]
             size += sum(map(len, filter(None, batch[2])))
@@ -272,9 +278,15 @@ class Sqlite3File:
                     yield make_message(topic, data, timestamp, timestamp, 0)
 
     def _rows(
-        self, topics: set[str] | None, start_ns: int | None, end_ns: int | None
+        self,
+        topics: set[str] | None,
+        start_ns: int | None,
+        end_ns: int | None,
+        *,
+        in_time_order: bool = True,
     ) -> Iterator[tuple[list[str], list[int], list[bytes | None]]]:
-        """The valid rows in timestamp order as (topics, timestamps, payloads passed through
+        """The valid rows in timestamp order (ties by row id; else in row id order) as
+        (topics, timestamps, payloads passed through
         ``payload_filter``), a batch at a time: as many rows as fit :data:`BATCH_BYTES` at the
         mean size so far (one first), at most :data:`ROWS_PER_BATCH`; damage ends them with a
         problem."""
@@ -282,9 +294,14 @@ class Sqlite3File:
         if not wanted or self._db is None:
             return
         marks = ",".join("?" * len(wanted))
+        # In row id order: a table scan (else SQLite walks the timestamp index for the time
+        # range, then sorts by row id).
+        table, order = (
+            ("messages", "timestamp, rowid") if in_time_order else ("messages NOT INDEXED", "rowid")
+        )
         query = (
-            f"SELECT topic_id, timestamp, data FROM messages WHERE topic_id IN ({marks}) "
-            f"AND timestamp >= ? AND timestamp < ? AND {_VALID_ROW} ORDER BY timestamp, rowid"
+            f"SELECT topic_id, timestamp, data FROM {table} WHERE topic_id IN ({marks}) "
+            f"AND timestamp >= ? AND timestamp < ? AND {_VALID_ROW} ORDER BY {order}"
         )
         lower = max(start_ns if start_ns is not None else INT64_MIN, INT64_MIN)
         upper = min(end_ns if end_ns is not None else INT64_MAX, INT64_MAX)
@@ -295,9 +312,9 @@ class Sqlite3File:
             batch, stored_bytes = 1, 0
             while rows := cursor.fetchmany(batch):
                 read += len(rows)
-                stored_bytes += sum(len(row[2]) for row in rows)
-                batch = max(1, min(ROWS_PER_BATCH, BATCH_BYTES * read // max(stored_bytes, 1)))
                 ids, log_times, stored = zip(*rows, strict=True)
+                stored_bytes += sum(map(len, stored))
+                batch = max(1, min(ROWS_PER_BATCH, BATCH_BYTES * read // max(stored_bytes, 1)))
                 topics_of = list(map(names.__getitem__, ids))
                 payloads: list[bytes | None] = list(stored)
                 if self.payload_filter is not None:
