@@ -222,13 +222,12 @@ class Sqlite3File:
         return None
 
     def chunks(self, topics: set[str] | None) -> Iterator[BagChunk]:
-        """The rows of ``topics`` in storage (row id) order, as an MCAP file's chunks are in
-        file order (a table scan: no index lookup per row), laid out as chunks of MCAP Message
-        records: :data:`ROWS_PER_CHUNK` rows each, fewer where their payloads pass
-        :data:`MAX_CHUNK_BYTES` (large messages: memory stays bounded)."""
+        """The rows of ``topics`` in timestamp order (ties by row id), laid out as chunks of
+        MCAP Message records: :data:`ROWS_PER_CHUNK` rows each, fewer where their payloads
+        pass :data:`MAX_CHUNK_BYTES` (large messages: memory stays bounded)."""
         held: tuple[list[str], list[int], list[bytes | None]] = ([], [], [])
         size = 0
-        for batch in self._rows(topics, None, None, in_time_order=False):
+        for batch in self._rows(topics, None, None):
             for part, more in zip(held, batch, strict=True):
                 part.extend(more)  # type: ignore[attr-defined]
             size += sum(map(len, filter(None, batch[2])))
@@ -278,15 +277,9 @@ class Sqlite3File:
                     yield make_message(topic, data, timestamp, timestamp, 0)
 
     def _rows(
-        self,
-        topics: set[str] | None,
-        start_ns: int | None,
-        end_ns: int | None,
-        *,
-        in_time_order: bool = True,
+        self, topics: set[str] | None, start_ns: int | None, end_ns: int | None
     ) -> Iterator[tuple[list[str], list[int], list[bytes | None]]]:
-        """The valid rows in timestamp order (ties by row id; else in row id order) as
-        (topics, timestamps, payloads passed through
+        """The valid rows in timestamp order as (topics, timestamps, payloads passed through
         ``payload_filter``), a batch at a time: as many rows as fit :data:`BATCH_BYTES` at the
         mean size so far (one first), at most :data:`ROWS_PER_BATCH`; damage ends them with a
         problem."""
@@ -294,14 +287,9 @@ class Sqlite3File:
         if not wanted or self._db is None:
             return
         marks = ",".join("?" * len(wanted))
-        # In row id order: a table scan (else SQLite walks the timestamp index for the time
-        # range, then sorts by row id).
-        table, order = (
-            ("messages", "timestamp, rowid") if in_time_order else ("messages NOT INDEXED", "rowid")
-        )
         query = (
-            f"SELECT topic_id, timestamp, data FROM {table} WHERE topic_id IN ({marks}) "
-            f"AND timestamp >= ? AND timestamp < ? AND {_VALID_ROW} ORDER BY {order}"
+            f"SELECT topic_id, timestamp, data FROM messages WHERE topic_id IN ({marks}) "
+            f"AND timestamp >= ? AND timestamp < ? AND {_VALID_ROW} ORDER BY timestamp, rowid"
         )
         lower = max(start_ns if start_ns is not None else INT64_MIN, INT64_MIN)
         upper = min(end_ns if end_ns is not None else INT64_MAX, INT64_MAX)
