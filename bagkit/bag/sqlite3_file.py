@@ -17,7 +17,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 from urllib.request import pathname2url
 
-from bagkit.bag.definitions import canonical_type_name
+from bagkit.bag.action_definitions import split_action_part
+from bagkit.bag.definitions import DEFINITION_ENCODINGS, canonical_type_name
 from bagkit.bag.errors import CorruptBagError, NotABagError
 from bagkit.bag.mcapio.message_index import Span, widen
 from bagkit.bag.messages import BagMessage, TopicInfo, make_message
@@ -56,6 +57,16 @@ def connect(path: Path) -> sqlite3.Connection:
         raise NotABagError(f"{path}: not a SQLite3 database ({exc})") from exc
     db.text_factory = _text
     return db
+
+
+def _owner_type(type_name: str) -> str:
+    """The type rosbag2 stores the definition of ``type_name`` under: ``pkg/srv/Name`` for a
+    service event, ``pkg/action/Name`` for an action's part, else ``type_name``."""
+    package, _, name = type_name.rpartition("/")
+    if package.endswith("/srv") and name.endswith("_Event"):
+        return type_name.removesuffix("_Event")
+    part = split_action_part(name) if package.endswith("/action") else None
+    return f"{package}/{part[0]}" if part is not None else type_name
 
 
 class _NotUtf8(bytes):
@@ -169,14 +180,15 @@ class Sqlite3File:
         for type_name, encoding, text in db.execute(query):
             if not all(isinstance(v, str) for v in (type_name, encoding, text)):
                 self._problem(f"message_definitions row of {type_name!r:.60} unusable")
-            elif encoding == "ros2msg" and text:
+            elif encoding in DEFINITION_ENCODINGS and text:
                 self.definitions.setdefault(canonical_type_name(type_name), text)
-        # rosbag2 stores a service's ``.srv`` text under ``pkg/srv/Name``, not under the type
-        # of its event topic: the event type is rebuilt from it (bagkit.decode.message_types).
+        # rosbag2 stores a service's ``.srv`` text under ``pkg/srv/Name`` and an action's
+        # ``ACTION:`` text under ``pkg/action/Name``, not under the types of their topics: those
+        # are rebuilt from it (bagkit.decode.stored).
         for topic in self.topics.values():
-            service = topic.type.removesuffix("_Event")
-            if "/srv/" in topic.type and service != topic.type and service in self.definitions:
-                self.definitions.setdefault(topic.type, self.definitions[service])
+            owner = _owner_type(topic.type)
+            if owner in self.definitions:
+                self.definitions.setdefault(topic.type, self.definitions[owner])
 
     def _read_counts(self, db: sqlite3.Connection) -> None:
         """Counts and spans in one scan of the rows; the rows of wrong types are the rest of
