@@ -64,15 +64,17 @@ def test_rclpy_only_behind_the_ros_shells(path: Path) -> None:
 # bagkit's packages and top-level modules from the bottom up: each imports only lower layers.
 LAYERS: tuple[frozenset[str], ...] = (
     frozenset({"errors", "version", "compat"}),
-    frozenset({"processes", "prefetch", "extras"}),
+    frozenset({"processes", "prefetch", "extras", "native"}),
     frozenset({"selection"}),
     frozenset({"bag"}),
     frozenset({"recording", "playback"}),
     frozenset({"decode"}),
+    frozenset({"migrate"}),
     frozenset({"ros"}),
     frozenset({"stats", "compare"}),
     frozenset({"data", "surgery"}),
-    frozenset({"fleet", "health"}),
+    frozenset({"fleet"}),
+    frozenset({"health"}),
     frozenset({"regression"}),
     frozenset({"cli", "pytest_plugin", "__init__"}),
 )

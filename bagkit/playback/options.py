@@ -161,7 +161,7 @@ class PlayOptions:
             still unanswered then (a service that is not there) count as unanswered.
         node_name: name of the player's node.
         progress_period_s: seconds between two calls of the player's ``on_progress``.
-        tune_process: tune the process as ``bagkit replay`` does (:mod:`bagkit.ros.tuning`:
+        tune_process: tune the process as ``bagkit replay`` does (:mod:`bagkit.native`:
             Fast DDS shared-memory buffers, malloc thresholds, precise timers on the publishing
             thread); False leaves the host process alone.
         more_bags: further bags replayed with ``bag`` as one timeline (``bagkit play A B``).

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 # to the scheduler, a CPU hog that it preempts for whole time slices on a busy machine. With
 # 0.5 ms, a 2 kHz replay (1 kHz at rate 2) never slept and its p99 lateness was worse than a
 # plain sleeping loop's; the player lowers the publishing thread's timer slack
-# (bagkit.ros.tuning.precise_timers) so that a short spin covers the wake-up (benchmarks/README.md).
+# (bagkit.native.precise_timers) so that a short spin covers the wake-up (benchmarks/README.md).
 SPIN_WINDOW_NS = 50_000
 # A message published more than this after its scheduled time counts as late.
 LATE_THRESHOLD_NS = 1_000_000

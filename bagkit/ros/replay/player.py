@@ -3,7 +3,7 @@
 ``Player(options).run()`` does it all; as a context manager, constructing it only checks the
 options; entering opens the bag and creates one publisher per replayed topic
 (:mod:`~bagkit.ros.replay.publishers`); ``play()`` waits for the subscribers the graph knows
-about, then runs the passes (:mod:`~bagkit.ros.replay.publish_loop`) and returns a
+about, then runs the passes (:mod:`~bagkit.playback.publish_loop`) and returns a
 :class:`~bagkit.playback.report.PlayReport`.
 """
 
@@ -26,9 +26,11 @@ from rclpy.signals import SignalHandlerOptions
 
 from bagkit.bag import BagMessage, TopicInfo
 from bagkit.bag.latched import latched_topics
+from bagkit.native import precise_timers
 from bagkit.playback.controls import PlayControls
 from bagkit.playback.lateness import LatenessSamples
 from bagkit.playback.options import PlayOptions
+from bagkit.playback.publish_loop import PassPublisher, PassReader
 from bagkit.playback.report import PlayProgress, PlayReport, SubscriberWait, TopicPlayback
 from bagkit.playback.seeking import WindowSpan
 from bagkit.playback.source import PlaySource
@@ -36,7 +38,6 @@ from bagkit.ros.errors import PlayerError
 from bagkit.ros.fastdds import segment_size_for
 from bagkit.ros.participants import all_discovered
 from bagkit.ros.qos import load_qos_overrides, replay_publisher_qos
-from bagkit.ros.replay.publish_loop import PassPublisher, PassReader
 from bagkit.ros.replay.publishers import (
     TopicOutput,
     create_clock_output,
@@ -49,7 +50,7 @@ from bagkit.ros.replay.seek_services import serve_seek
 from bagkit.ros.replay.service_requests import ServiceRequests
 from bagkit.ros.replay.services import serve_controls
 from bagkit.ros.replay.topics import PublishableTopics, publishable_topics
-from bagkit.ros.tuning import precise_timers, process_tuning
+from bagkit.ros.tuning import process_tuning
 from bagkit.selection.times import TimeLike, parse_time, seconds_to_ns
 
 _log = logging.getLogger(__name__)
@@ -242,7 +243,7 @@ class Player:
         """Replay the bag (``options.loops`` passes); Ctrl-C stops between two messages.
 
         The calling thread publishes: its timers are made precise for the replay
-        (:func:`~bagkit.ros.tuning.precise_timers`) unless ``options.tune_process`` is False.
+        (:func:`~bagkit.native.precise_timers`) unless ``options.tune_process`` is False.
 
         Returns:
             What was published, the timing error and what the reader could not read.

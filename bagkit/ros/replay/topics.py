@@ -8,9 +8,9 @@ from pathlib import Path
 from typing import Any
 
 from bagkit.bag import TopicInfo
+from bagkit.bag.clock import CLOCK_TOPIC
 from bagkit.decode.drift import DriftStatus, topic_drift
 from bagkit.playback.options import OnDrift
-from bagkit.ros.clock import CLOCK_TOPIC
 from bagkit.ros.errors import MessageClassNotFoundError, PlayerError
 from bagkit.ros.message_classes import import_message_type
 from bagkit.selection.topics import TopicSelection, closest_names, require_topics

@@ -11,10 +11,12 @@ from __future__ import annotations
 
 import itertools
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
+from typing import Protocol
 
 from bagkit.bag import BagMessage
+from bagkit.bag.clock import clock_message
 from bagkit.playback.controls import PlayControls
 from bagkit.playback.lateness import LatenessSamples
 from bagkit.playback.report import PlayProgress
@@ -25,8 +27,6 @@ from bagkit.playback.timing import (
     effective_rate,
     wait_until,
 )
-from bagkit.ros.clock import clock_message
-from bagkit.ros.replay.publishers import TopicOutput
 
 # Lateness samples are handed to LatenessSamples in blocks, when the next message is at least
 # LATENESS_SLACK_NS away (a block of 4096 takes about 0.1 ms), or at the latest at
@@ -38,6 +38,17 @@ LATENESS_SLACK_NS = 1_000_000
 # overdue by PROGRESS_FORCE_S), so reporting never delays a message.
 PROGRESS_SLACK_NS = 3_000_000
 PROGRESS_FORCE_S = 2.0
+
+
+class Output(Protocol):
+    """Where a topic's messages go (a publisher, :class:`bagkit.ros.replay.publishers.TopicOutput`),
+    and how many went."""
+
+    count: int
+
+    @property
+    def publish(self) -> Callable[[bytes], None]:
+        """Publish one serialized message."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -68,8 +79,8 @@ class PassPublisher:
 
     def __init__(
         self,
-        outputs: dict[str, TopicOutput],
-        clock: TopicOutput | None,
+        outputs: Mapping[str, Output],
+        clock: Output | None,
         *,
         controls: PlayControls,
         clock_hz: float | None,
