@@ -150,8 +150,15 @@ def test_play_on_drift_to_a_subscriber_of_version_2(
 
     listen = [sys.executable, "-m", "battery.listener", "--count", str(REPORTS)]
     project = USER_PROJECT
-    listener = subprocess.Popen(listen, cwd=project, env=workspace_v2.env, stdout=subprocess.PIPE,
-                                stderr=subprocess.PIPE, text=True, start_new_session=True)  # fmt: skip
+    listener = subprocess.Popen(
+        listen,
+        cwd=project,
+        env=workspace_v2.env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
     try:
         migrated = run([*play, "--on-drift", "migrate", "--wait-for", REPORT_TOPIC],
                        workspace_v2.env, project)  # fmt: skip
