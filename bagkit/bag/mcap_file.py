@@ -103,7 +103,7 @@ class McapFile:
             NotABagError, CorruptBagError: not an MCAP file, or its header is unreadable.
             UnsupportedStorageError: a profile other than ``ros2``.
         """
-        self._handle = open(self.path, "rb")  # noqa: SIM115 (closed in close())
+        self._handle = self.path.open("rb")  # closed in close(); a UrlPath's reads by range
         try:
             self._source = Source(self._handle, self.path.name)
             self.index = read_file_index(

@@ -73,6 +73,7 @@ def export(  # noqa: PLR0917 (typer maps parameters to options)
     distro: Distro = None,
 ) -> None:
     from bagkit.fleet.inputs import BAG_FILE_SUFFIXES, expand_bags, is_bag_directory
+
     query = build_query(topics, fields, start, end, where)
     if file_format is None:
         file_format = ExportFormat.CSV if out.suffix == ".csv" else ExportFormat.PARQUET

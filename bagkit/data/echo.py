@@ -146,9 +146,7 @@ def echo_action(
     if not topics:
         with BagReader(bag, allow_empty=True) as reader:
             require_topics([name], reader.topics)  # raises: names the closest topics
-    streams = [
-        echo(bag, query.with_topics(t), limit=limit, on_failure=on_failure) for t in topics
-    ]
+    streams = [echo(bag, query.with_topics(t), limit=limit, on_failure=on_failure) for t in topics]
     yield from heapq.merge(*streams, key=lambda record: record["log_time"])
 
 
