@@ -2,20 +2,69 @@
 
 from __future__ import annotations
 
+import importlib
 from typing import TYPE_CHECKING
 
 from bagkit.version import __version__
 
 if TYPE_CHECKING:
     from bagkit.data.frames import read_arrow, read_dataframe
+    from bagkit.health import (
+        Assertion,
+        CheckResult,
+        HealthReport,
+        HealthSpec,
+        SpecError,
+        TopicContract,
+        check,
+        suggest_spec,
+    )
+    from bagkit.selection.conditions import (
+        Condition,
+        TopicCondition,
+        parse_condition,
+        parse_topic_condition,
+    )
 
-__all__ = ["__version__", "read_arrow", "read_dataframe"]
+# Imported on first use: `import bagkit` stays cheap (no pandas, no pyarrow, no numpy).
+_LAZY = {
+    "read_arrow": "bagkit.data.frames",
+    "read_dataframe": "bagkit.data.frames",
+    "check": "bagkit.health",
+    "suggest_spec": "bagkit.health",
+    "HealthSpec": "bagkit.health",
+    "TopicContract": "bagkit.health",
+    "HealthReport": "bagkit.health",
+    "CheckResult": "bagkit.health",
+    "Assertion": "bagkit.health",
+    "SpecError": "bagkit.health",
+    "Condition": "bagkit.selection.conditions",
+    "TopicCondition": "bagkit.selection.conditions",
+    "parse_condition": "bagkit.selection.conditions",
+    "parse_topic_condition": "bagkit.selection.conditions",
+}
+
+__all__ = [
+    "Assertion",
+    "CheckResult",
+    "Condition",
+    "HealthReport",
+    "HealthSpec",
+    "SpecError",
+    "TopicCondition",
+    "TopicContract",
+    "__version__",
+    "check",
+    "parse_condition",
+    "parse_topic_condition",
+    "read_arrow",
+    "read_dataframe",
+    "suggest_spec",
+]
 
 
 def __getattr__(name: str) -> object:
-    # Imported on first use: `import bagkit` stays cheap (no pandas, no pyarrow).
-    if name in __all__:
-        from bagkit.data import frames
-
-        return getattr(frames, name)
-    raise AttributeError(f"module 'bagkit' has no attribute {name!r}")
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'bagkit' has no attribute {name!r}")
+    return getattr(importlib.import_module(module), name)

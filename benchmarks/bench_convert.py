@@ -13,8 +13,6 @@ import shutil
 import subprocess
 import sys
 import tempfile
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +24,7 @@ from rosbags.typesys import Stores, get_typestore
 from bagkit.bag import BagWriter, TopicInfo
 from bagkit.surgery.convert import convert_bags
 from bagkit.surgery.rewrite import OutputOptions
+from benchmarks.timing import best_of
 
 IMU = "sensor_msgs/msg/Imu"
 MESSAGES = 1_000_000
@@ -75,15 +74,6 @@ def _db3(path: Path) -> Path:
     return path
 
 
-def _best_of(runs: int, func: Callable[[], object]) -> float:
-    best = float("inf")
-    for _ in range(runs):
-        start = time.perf_counter()
-        func()
-        best = min(best, time.perf_counter() - start)
-    return best
-
-
 def _fresh(path: Path) -> Path:
     shutil.rmtree(path, ignore_errors=True)
     return path
@@ -94,8 +84,8 @@ def _convert(tmp: Path) -> bool:
     met = True
     for compression in ("none", "zstd"):
         options = OutputOptions(compression=compression)
-        t_ours = _best_of(2, lambda o=options: convert_bags([db3], _fresh(tmp / "ours"), None, o))  # type: ignore[misc]
-        t_theirs = _best_of(
+        t_ours = best_of(2, lambda o=options: convert_bags([db3], _fresh(tmp / "ours"), None, o))  # type: ignore[misc]
+        t_theirs = best_of(
             1,
             lambda: convert(
                 [db3], _fresh(tmp / "theirs"), "mcap", 9, None, "file", None, None, [], [], [], []
@@ -135,7 +125,7 @@ def _info(tmp: Path) -> bool:
     for label, path in (("ROS 1", bag), ("MCAP", mcap)):
         command = [BAGKIT, "info", str(path)]
         subprocess.run(command, check=True, capture_output=True)  # warm the page cache
-        times[label] = _best_of(
+        times[label] = best_of(
             3, lambda c=command: subprocess.run(c, check=True, capture_output=True)
         )  # type: ignore[misc]
     gap = times["ROS 1"] - times["MCAP"]

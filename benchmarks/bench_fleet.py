@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, TypeVar
 
 from benchmarks.bench_stats import RESULTS, SMALL, imu_bag
+from benchmarks.timing import best_of
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -44,15 +45,6 @@ OVERHEAD_CEILING_S = 0.050
 CATALOG_RATE_TARGET = 200.0
 SECOND_RUN_TARGET = 10.0
 T = TypeVar("T")
-
-
-def _best_of(runs: int, func: Callable[[], object]) -> float:
-    best = float("inf")
-    for _ in range(runs):
-        start = time.perf_counter()
-        func()
-        best = min(best, time.perf_counter() - start)
-    return best
 
 
 def imu_fleet() -> list[Path]:
@@ -189,7 +181,7 @@ def _print_stats(runs: dict[str, float]) -> bool:
 
 def _scheduler_cost(client: Client) -> None:
     """The scheduler's cost per task: what docs/fleet.md extrapolates from."""
-    noop = _best_of(2, lambda: client.gather(client.map(_noop, range(NOOP_TASKS), pure=False)))
+    noop = best_of(2, lambda: client.gather(client.map(_noop, range(NOOP_TASKS), pure=False)))
     print(
         f"scheduler: {NOOP_TASKS:,} no-op tasks in {noop:.2f} s, "
         f"{noop / NOOP_TASKS * 1e3:.2f} ms per task"

@@ -17,6 +17,7 @@ from mcap.writer import CompressionType, Writer
 from rosbags.highlevel import AnyReader
 
 from bagkit.bag import BagReader, BagWriter, TopicInfo, bag_info, message_definition
+from benchmarks.timing import best_of
 
 IMU = "sensor_msgs/msg/Imu"
 SMALL, LARGE = 100_000, 1_000_000
@@ -47,15 +48,6 @@ def _imu_payloads(n: int) -> list[bytes]:
         )
         out.append(bytes(store.serialize_cdr(msg, IMU)))
     return out
-
-
-def _best_of(runs: int, func: Callable[[], object]) -> float:
-    best = float("inf")
-    for _ in range(runs):
-        start = time.perf_counter()
-        func()
-        best = min(best, time.perf_counter() - start)
-    return best
 
 
 def _write_bagkit(path: Path, n: int, payloads: list[bytes]) -> None:
@@ -120,10 +112,8 @@ def _crc_cost(small: Path, large: Path) -> None:
 
 def _writers(root: Path, payloads: list[bytes]) -> bool:
     """Same messages through both writers, zstd chunks."""
-    t_bagkit = _best_of(2, lambda: _write_bagkit(root / f"w{time.monotonic_ns()}", SMALL, payloads))
-    t_mcap = _best_of(
-        2, lambda: _write_mcap(root / f"m{time.monotonic_ns()}.mcap", SMALL, payloads)
-    )
+    t_bagkit = best_of(2, lambda: _write_bagkit(root / f"w{time.monotonic_ns()}", SMALL, payloads))
+    t_mcap = best_of(2, lambda: _write_mcap(root / f"m{time.monotonic_ns()}.mcap", SMALL, payloads))
     rate = SMALL / t_bagkit
     print(f"write {SMALL:,} Imu: bagkit {rate:,.0f} msg/s, mcap Writer {SMALL / t_mcap:,.0f} msg/s")
     print(f"  ratio bagkit/mcap Writer: {t_mcap / t_bagkit:.2f}x (target >= 1.0)")
@@ -149,7 +139,7 @@ def _readers(small: Path) -> bool:
             for _ in make_reader(f).iter_messages():
                 pass
 
-    r_bagkit, r_rosbags, r_mcap = (_best_of(2, f) for f in (read_bagkit, read_rosbags, read_mcap))
+    r_bagkit, r_rosbags, r_mcap = (best_of(2, f) for f in (read_bagkit, read_rosbags, read_mcap))
     print(
         f"read {SMALL:,} messages: bagkit {SMALL / r_bagkit:,.0f} msg/s, rosbags "
         f"{SMALL / r_rosbags:,.0f} msg/s, mcap {SMALL / r_mcap:,.0f} msg/s"
@@ -162,14 +152,14 @@ def _readers(small: Path) -> bool:
 def _info(small: Path, large: Path) -> bool:
     """``bag_info`` (summary and indexes only) on bags 10x apart, against mcap's summary."""
     size_mb = sum(f.stat().st_size for f in large.glob("*.mcap")) / 1e6
-    i_small = _best_of(5, lambda: bag_info(small))
-    i_large = _best_of(5, lambda: bag_info(large))
+    i_small = best_of(5, lambda: bag_info(small))
+    i_large = best_of(5, lambda: bag_info(large))
 
     def mcap_summary() -> None:
         with open(large / "large_0.mcap", "rb") as f:
             make_reader(f).get_summary()
 
-    i_mcap = _best_of(5, mcap_summary)
+    i_mcap = best_of(5, mcap_summary)
     print(
         f"info: {SMALL:,} msgs {i_small * 1e3:.1f} ms, {LARGE:,} msgs ({size_mb:.0f} MB) "
         f"{i_large * 1e3:.1f} ms; mcap get_summary on the large bag {i_mcap * 1e3:.1f} ms"
@@ -185,7 +175,7 @@ def _crashed_info(root: Path, large: Path) -> None:
     crashed.mkdir()
     data = (large / "large_0.mcap").read_bytes()
     (crashed / "crashed_0.mcap").write_bytes(data[: len(data) * 9 // 10])
-    i_crashed = _best_of(1, lambda: bag_info(crashed))
+    i_crashed = best_of(1, lambda: bag_info(crashed))
     print(f"info on the large bag cut at 90% (salvage scan): {i_crashed:.2f} s")
 
 

@@ -27,10 +27,10 @@ import time
 from pathlib import Path
 
 from bagkit.bag import BagWriter, TopicInfo
+from bagkit.recording import snapshot_writer
 from bagkit.recording.report import SnapshotRecord
 from bagkit.recording.snapshot_buffer import MessageSlice
-from bagkit.ros.record import snapshot_writer
-from bagkit.ros.record.snapshot_writer import (
+from bagkit.recording.snapshot_writer import (
     SnapshotEnd,
     SnapshotMessages,
     SnapshotStart,

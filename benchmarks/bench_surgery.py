@@ -15,7 +15,6 @@ import os
 import shutil
 import subprocess
 import tempfile
-import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -27,6 +26,7 @@ from bagkit.bag import BagWriter, TopicInfo
 from bagkit.surgery import Selection, filter_bag, merge_bags, recover_bag
 from bagkit.surgery.rewrite import OutputOptions
 from benchmarks.surgery_peer import against_pymcap_cli
+from benchmarks.timing import best_of
 
 IMU, STRING, TEMPERATURE = (
     "sensor_msgs/msg/Imu",
@@ -100,15 +100,6 @@ def _write(
     return path
 
 
-def _best_of(runs: int, func: Callable[[], object]) -> float:
-    best = float("inf")
-    for _ in range(runs):
-        start = time.perf_counter()
-        func()
-        best = min(best, time.perf_counter() - start)
-    return best
-
-
 def _rosbags_convert(srcs: list[Path], dst: Path, include: list[str]) -> None:
     convert(srcs, dst, "mcap", 9, None, "file", None, None, [], include, [], [])
 
@@ -121,8 +112,8 @@ def _fresh(path: Path) -> Path:
 def _versus(
     label: str, tmp: Path, ours: Callable[[Path], object], theirs: Callable[[Path], object]
 ) -> bool:
-    t_ours = _best_of(2, lambda: ours(_fresh(tmp / "ours")))
-    t_theirs = _best_of(1, lambda: theirs(_fresh(tmp / "theirs")))
+    t_ours = best_of(2, lambda: ours(_fresh(tmp / "ours")))
+    t_theirs = best_of(1, lambda: theirs(_fresh(tmp / "theirs")))
     ratio = t_theirs / t_ours
     print(f"  {label}: bagkit {t_ours:.2f} s, rosbags-convert {t_theirs:.2f} s")
     print(f"  ratio rosbags-convert/bagkit: {ratio:.1f}x (target >= {RATIO_TARGET}x)", flush=True)
@@ -156,10 +147,10 @@ def _recover(tmp: Path) -> bool:
         dst.write(src.read(min(RECOVER_BYTES, whole.stat().st_size - 4096)))
     size = cut.stat().st_size
     subprocess.run(["cat", str(cut)], stdout=subprocess.DEVNULL, check=True)  # warm the cache
-    t_cat = _best_of(3, lambda: subprocess.run(f"cat {cut} > /dev/null", shell=True, check=True))
+    t_cat = best_of(3, lambda: subprocess.run(f"cat {cut} > /dev/null", shell=True, check=True))
     # cp writes the same bytes: the floor of any rewrite (for reference, no target).
     copy = tmp / "copy.mcap"
-    t_cp = _best_of(2, lambda: subprocess.run(["cp", str(cut), str(copy)], check=True))
+    t_cp = best_of(2, lambda: subprocess.run(["cp", str(cut), str(copy)], check=True))
     copy.unlink()
     print(f"  cut bag: {size / 1e6:.0f} MB")
     print(f"  cat (warm): {t_cat * 1000:.0f} ms = {size / t_cat / 1e9:.2f} GB/s")
@@ -167,7 +158,7 @@ def _recover(tmp: Path) -> bool:
     met = True
     for check_crc in (True, False):
         options = OutputOptions(check_crc=check_crc)
-        t = _best_of(2, lambda o=options: recover_bag(cut, _fresh(tmp / "rec"), o))  # type: ignore[misc]
+        t = best_of(2, lambda o=options: recover_bag(cut, _fresh(tmp / "rec"), o))  # type: ignore[misc]
         ratio = t_cat / t
         label = "with CRC check" if check_crc else "--no-crc"
         print(

@@ -114,7 +114,8 @@ def subscribe(mode: str, kind: str, out: Path, *, default_transport: bool = Fals
         stop["now"] = True
 
     signal.signal(signal.SIGINT, on_signal)
-    from bagkit.ros.tuning import keep_freed_memory, process_tuning
+    from bagkit.native import keep_freed_memory
+    from bagkit.ros.tuning import process_tuning
 
     # The recorder tunes its process itself (the library's process_tuning, as `bagkit record`);
     # the peers get the same tuning, so the ratios compare the work done per message, not the

@@ -13,7 +13,8 @@ prefixes allowed) and, by rule:
   ``crashed`` is a fixture's copy cut short, as a killed recorder leaves it);
   paths elsewhere (``/data/fleet/``, ``bags.txt``) are not there and their commands are skipped.
 
-What follows a pipe (``| jq ...``) is left out: the bagkit command runs alone. Each document's
+What follows a pipe (``| jq ...``) is left out: the bagkit command runs alone; ``> FILE``
+writes its output to FILE. Each document's
 commands run in their order in one scratch directory (a command may read what an earlier one
 wrote), never in the checkout. A command must exit 0, or N where its comment says ``exit N``,
 without an ``error:`` line.
@@ -64,6 +65,8 @@ class Example:
     line: int
     args: tuple[str, ...]
     comment: str
+    stdout: str | None = None
+    """The file ``> FILE`` sends the output to."""
 
     def __str__(self) -> str:
         return f"{self.document.name}:{self.line}"
@@ -104,7 +107,10 @@ def _parse(document: Path, line: int, text: str) -> Example | None:
         tokens.pop(0)
     if not tokens or Path(tokens[0]).name != "bagkit":
         return None
-    return Example(document, line, tuple(tokens[1:]), comment)
+    stdout = None
+    if len(tokens) > 2 and tokens[-2] == ">":
+        stdout, tokens = tokens[-1], tokens[:-2]
+    return Example(document, line, tuple(tokens[1:]), comment, stdout)
 
 
 EXAMPLES = [example for document in DOCUMENTS for example in _commands(document)]
@@ -206,3 +212,5 @@ def test_example_runs_as_written(example: Example, workdirs: dict[Path, Path]) -
     )
     assert done.returncode == (int(expected.group(1)) if expected else 0), done.stderr
     assert "error:" not in done.stderr, done.stderr
+    if example.stdout is not None:
+        (workdir / example.stdout).write_text(done.stdout)

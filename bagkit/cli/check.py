@@ -1,65 +1,124 @@
-"""``bagkit check``: whether bags keep a health contract (``--spec health.yaml``)."""
+"""``bagkit check``: whether bags keep a health contract (``--spec health.yaml``), or a
+starting contract from a good bag (``--suggest``)."""
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import typer
 
-from bagkit.cli.common import ReportFormat, console, handle_errors, print_json
+from bagkit.cli import common
+from bagkit.cli.common import ReportFormat, handle_errors, print_json, warn
+from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers, fleet_run
+
+if TYPE_CHECKING:
+    from bagkit.health import CheckResult, HealthReport
 
 HELP = """Check BAGS against a health contract (--spec health.yaml): topics required and
 forbidden, their type, rate bounds over a sliding window, the longest gap, value bounds and
-any condition over time that must never hold (docs/cli.md). For each assertion broken: where
-(seconds from the bag's start) and commands that replay or cut it.
+any condition over time that must never hold (docs/health.md). For each assertion broken:
+where (seconds from the bag's start), commands that replay or cut it, and a Foxglove link
+where bags are served (--bags-url or $BAGKIT_BAGS_URL). Several bags run on a local Dask
+cluster (--workers, or --scheduler); a bag that cannot be read is reported among the others.
+
+--suggest prints a starting contract from one good bag (observed topics, types, rates, gaps,
+value ranges with margins, no NaN where none was seen), to edit.
 
 Exit status: 0 every bag healthy, 1 a contract broken (a required topic missing included),
-2 bad input (a spec that does not parse, an unknown key or field: one error naming its line).
+2 bad input (a spec that does not parse, an unknown key or field: one error naming its line;
+a bag that cannot be read).
 
-Example: bagkit check flight1 --spec health.yaml
+Examples:
+
+  bagkit check flight1 --suggest > health.yaml
+
+  bagkit check flights/ --spec health.yaml --junit check.xml --html check.html
 """
 
 
 @handle_errors
-def check(
-    bags: list[Path] = typer.Argument(..., help="The bags to check.", metavar="BAGS..."),
-    spec: Path = typer.Option(..., "--spec", help="The contract (YAML).", metavar="FILE"),
+def check(  # noqa: PLR0917 (typer maps parameters to options)
+    inputs: list[Path] = typer.Argument(
+        ..., help=BAGS_HELP + ".", metavar="BAGS...", show_default=False
+    ),
+    spec: Path | None = typer.Option(None, "--spec", help="The contract (YAML).", metavar="FILE"),
+    suggest: bool = typer.Option(
+        False, "--suggest", help="Print a starting contract from one good bag (YAML)."
+    ),
     output_format: ReportFormat = typer.Option(
         ReportFormat.TABLE, "--format", help="table or json (one object per bag in a list)."
     ),
+    junit: Path | None = typer.Option(
+        None, "--junit", help="Also write JUnit XML (one test per assertion).", metavar="FILE"
+    ),
+    html: Path | None = typer.Option(
+        None, "--html", help="Also write an HTML report (a plot per failure).", metavar="FILE"
+    ),
+    bags_url: str | None = typer.Option(
+        None,
+        "--bags-url",
+        help="Where the bags are served over HTTP(S), for Foxglove links (default: "
+        "$BAGKIT_BAGS_URL).",
+        metavar="URL",
+    ),
+    workers: Workers = None,
+    scheduler: Scheduler = None,
 ) -> None:
-    from bagkit.health import HealthSpec, check_bag
+    from bagkit.fleet import expand_bags
+    from bagkit.fleet.cluster import CHECK_RATE
+    from bagkit.health import HealthSpec, SpecError, check_bags, suggest_spec
 
+    if suggest:
+        if spec is not None or len(inputs) != 1:
+            raise SpecError("--suggest takes one bag and no --spec")
+        common.console.print(suggest_spec(inputs[0]), end="", highlight=False, soft_wrap=True)
+        return
+    if spec is None:
+        raise SpecError("give the contract: --spec health.yaml (or --suggest to write one)")
     contract = HealthSpec.load(spec)  # a bad spec is one error before any bag is read
-    reports = [check_bag(bag, contract) for bag in bags]
+    bags = expand_bags(inputs)
+    with fleet_run(
+        bags, workers=workers, scheduler=scheduler, label="checking", rate=CHECK_RATE
+    ) as (client, done):
+        result = check_bags(bags, contract, client=client, done=done, bags_url=bags_url)
+    _write_files(result, junit, html)
+    for report in result.reports:
+        for problem in report.problems:
+            warn(problem if problem.startswith(report.bag) else f"{report.bag}: {problem}")
     if output_format == ReportFormat.JSON:
-        print_json([report.to_dict() for report in reports])
+        print_json(result.to_list())
     else:
-        for report in reports:
+        for report in result.reports:
             _print(report)
-    raise typer.Exit(max(report.exit_code for report in reports))
+    raise typer.Exit(result.exit_code)
 
 
-def _print(report: object) -> None:
-    from bagkit.health import HealthReport
+def _write_files(result: CheckResult, junit: Path | None, html: Path | None) -> None:
+    if junit is not None:
+        from bagkit.health.junit import write_junit
 
-    assert isinstance(report, HealthReport)
-    broken = [a for a in report.assertions if not a.passed]
+        write_junit(result.reports, junit)
+    if html is not None:
+        from bagkit.health.report_html import write_report
+
+        write_report(result, html)
+
+
+def _print(report: HealthReport) -> None:
+    console = common.console
+    if report.error is not None:
+        console.print(f"{report.bag}: [bold red]not read[/]: {report.error}", soft_wrap=True)
+        return
+    broken = report.broken
     verdict = "[bold green]healthy[/]" if not broken else f"[bold red]{len(broken)} broken[/]"
     console.print(f"{report.bag}: {len(report.assertions)} assertions, {verdict}")
     for assertion in broken:
-        where = ""
-        if len(assertion.spans):
-            start, end, _ = assertion.spans[0].tolist()
-            where = (
-                f" {len(assertion.spans)} times, first at "
-                f"{(start - report.start_ns) / 1e9:.3f}-{(end - report.start_ns) / 1e9:.3f} s"
-            )
-        reason = f" ({assertion.reason})" if assertion.reason else ""
         console.print(
-            f"  FAIL {assertion.topic}: {assertion.what}{reason}{where}",
-            highlight=False,
-            soft_wrap=True,
+            f"  FAIL {assertion.summary(report.start_ns)}", highlight=False, soft_wrap=True
         )
         for command in assertion.commands(report.bag, report.start_ns):
             console.print(f"    {command}", highlight=False, soft_wrap=True)
+        link = report.link(assertion)
+        if link is not None:
+            console.print(f"    {link}", highlight=False, soft_wrap=True)

@@ -24,7 +24,7 @@ from bagkit.data.engine import BulkGroup, Spans, decode_bulk, payload_spans
 from bagkit.decode import DecodeError, LeafField, MessageTypes
 from bagkit.decode.flatten import STRING_TYPES
 from bagkit.decode.layout import PRIMITIVE_FORMATS, CdrLayout
-from bagkit.decode.matcher import PayloadMatcher, matched_payloads
+from bagkit.decode.matcher import PayloadMatcher
 from bagkit.selection.windows import Window
 
 _ARROW_TYPES: dict[str, pa.DataType] = {
@@ -210,25 +210,6 @@ class TopicColumns:
             leftover.tolist(),
             (view[s : s + n] for s, n in zip(starts, lengths, strict=True)),
         )
-        return columns
-
-    def decode_payloads(
-        self,
-        payloads: Sequence[bytes],
-        log_times: Sequence[int],
-        publish_times: Sequence[int],
-        reserve: Callable[[int], Rows],
-    ) -> Rows:
-        """Messages given one by one (storage without chunks), all through the general path."""
-        if self.matcher is not None:
-            keep = matched_payloads(self.matcher, payloads).tolist()
-            payloads = [p for p, kept in zip(payloads, keep, strict=True) if kept]
-            log_times = [t for t, kept in zip(log_times, keep, strict=True) if kept]
-            publish_times = [t for t, kept in zip(publish_times, keep, strict=True) if kept]
-        columns = reserve(len(payloads))
-        columns.log_times[:] = log_times
-        columns.publish_times[:] = publish_times
-        self._fill_general(columns, list(range(len(payloads))), payloads)
         return columns
 
     def _fill_general(

@@ -16,13 +16,10 @@ from bagkit.bag import BagReader
 from bagkit.data.engine import payload_spans
 from bagkit.data.errors import UndecodableTopicError
 from bagkit.decode import DecodeError, MessageTypes
-from bagkit.decode.matcher import PayloadMatcher, matched_payloads
+from bagkit.decode.matcher import PayloadMatcher
 from bagkit.selection.conditions import Condition
 from bagkit.selection.topics import require_topics
 from bagkit.selection.windows import Window
-
-# Messages of chunkless storage (.db3) are matched this many at a time.
-MESSAGES_PER_BATCH = 8192
 
 
 @dataclass
@@ -68,16 +65,13 @@ def match_topic(
     times: list[np.ndarray] = []
     masks: list[np.ndarray] = []
     unindexed = 0  # index entries pointing outside their chunk
-    if "sqlite3" in reader.storage.split(","):
-        _match_messages(reader, topic, window, matcher, times, masks)
-    else:
-        for chunk in reader.chunks([topic]):
-            spans = payload_spans(
-                chunk.records, chunk.message_index[topic], window.start_ns, window.end_ns
-            )
-            times.append(spans.log_times)
-            masks.append(matcher.mask_records(chunk.records, spans.starts, spans.lengths))
-            unindexed += spans.dropped
+    for chunk in reader.chunks([topic]):
+        spans = payload_spans(
+            chunk.records, chunk.message_index[topic], window.start_ns, window.end_ns
+        )
+        times.append(spans.log_times)
+        masks.append(matcher.mask_records(chunk.records, spans.starts, spans.lengths))
+        unindexed += spans.dropped
     log_times = np.concatenate(times) if times else np.zeros(0, np.int64)
     matched = np.concatenate(masks) if masks else np.zeros(0, bool)
     order = np.argsort(log_times, kind="stable")  # chunks may overlap in time
@@ -87,30 +81,3 @@ def match_topic(
     if matcher.problem:
         problems.append(matcher.problem)
     return TopicMatches(topic, log_times[order], matched[order], matcher.undecodable, problems)
-
-
-def _match_messages(  # noqa: PLR0917 (private: the loop's state)
-    reader: BagReader,
-    topic: str,
-    window: Window,
-    matcher: PayloadMatcher,
-    times: list[np.ndarray],
-    masks: list[np.ndarray],
-) -> None:
-    """Storage without chunks (also a bag mixing .db3 and .mcap files): message by message."""
-    payloads: list[bytes] = []
-    log_times: list[int] = []
-
-    def flush() -> None:
-        times.append(np.array(log_times, dtype=np.int64))
-        masks.append(matched_payloads(matcher, payloads))
-        payloads.clear()
-        log_times.clear()
-
-    for message in reader.messages([topic], window.start_ns, window.end_ns):
-        payloads.append(message.data)
-        log_times.append(message.log_time)
-        if len(payloads) >= MESSAGES_PER_BATCH:
-            flush()
-    if payloads:
-        flush()

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator
 from contextlib import closing
 from dataclasses import dataclass, field
 from functools import partial
@@ -16,13 +16,9 @@ from bagkit.data.table import ColumnTable
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
 from bagkit.decode.matcher import PayloadMatcher
 from bagkit.prefetch import prefetch
-from bagkit.selection.conditions import Condition
 from bagkit.selection.fields import select_fields
-from bagkit.selection.topics import require_topics
-from bagkit.selection.windows import TimeRange, Window, outside_warning
-
-# Messages of chunkless storage (.db3) are decoded this many at a time.
-ROWS_PER_BATCH = 8192
+from bagkit.selection.query import Query
+from bagkit.selection.windows import Window
 
 
 @dataclass(slots=True)
@@ -40,7 +36,7 @@ class Scan:
     """The one warning when the time window holds none of the bag's messages."""
 
     def batches(self) -> Iterator[tuple[str, pa.RecordBatch]]:
-        """(topic, batch) per topic and chunk, in file order (``.db3``: in log-time order)."""
+        """(topic, batch) per topic and chunk, in file order."""
         for topic, rows in self._decode(lambda t, n: Rows.empty(self.topics[t].leaves, n)):
             yield topic, rows.batch(self.topics[topic].schema)
 
@@ -56,9 +52,6 @@ class Scan:
         """(topic, rows) per topic and chunk, rows from ``reserve(topic, count)``."""
         if not self.topics:
             return
-        if "sqlite3" in self.reader.storage.split(","):
-            yield from self._message_rows(reserve)
-            return
         # closing(): the reading thread stops before the reader is closed, also on error.
         with closing(prefetch(self.reader.chunks(self.topics))) as chunks:
             for chunk in chunks:
@@ -70,21 +63,6 @@ class Scan:
                         )
                         if len(rows.ok):
                             yield topic, rows
-
-    def _message_rows(self, reserve: Callable[[str, int], Rows]) -> Iterator[tuple[str, Rows]]:
-        pending: dict[str, tuple[list[bytes], list[int], list[int]]] = {}
-        messages = self.reader.messages(self.topics, self.window.start_ns, self.window.end_ns)
-        for message in messages:
-            datas, logs, publishes = pending.setdefault(message.topic, ([], [], []))
-            datas.append(message.data)
-            logs.append(message.log_time)
-            publishes.append(message.publish_time)
-            if len(datas) >= ROWS_PER_BATCH:
-                topic = message.topic
-                parts = pending.pop(topic)
-                yield topic, self.topics[topic].decode_payloads(*parts, partial(reserve, topic))
-        for topic, parts in pending.items():
-            yield topic, self.topics[topic].decode_payloads(*parts, partial(reserve, topic))
 
     @property
     def problems(self) -> list[str]:
@@ -103,42 +81,25 @@ class Scan:
         return found
 
 
-def plan_scan(
-    reader: BagReader,
-    topics: Sequence[str] | None,
-    fields: Sequence[str] | None,
-    span: TimeRange,
-    *,
-    label: str,
-    bulk: bool = True,
-    where: Condition | None = None,
-) -> Scan:
+def plan_scan(reader: BagReader, query: Query, *, label: str, bulk: bool = True) -> Scan:
     """Which topics of ``reader`` can be decoded, with which fields, in which time window.
 
-    Args:
-        topics: these topics (all when None); each must be in the bag (``imu/data`` is
-            ``/imu/data``).
-        fields: path globs (see :func:`~bagkit.selection.fields.select_fields`); with several
-            topics a topic none of whose fields match is left out, with one topic that is an
-            error.
-        span: ``--start``/``--end``, resolved against this bag.
-        label: the bag as the user named it, for the window's warning.
-        where: only the messages satisfying this condition; as with ``fields``, with several
-            topics those without its fields are left out, with one topic that is an error.
+    ``query`` is resolved against this bag (``label``: the bag as the user named it, for the
+    window's warning). Its topics (all when it names none) must be in the bag. Its fields are
+    path globs (see :func:`~bagkit.selection.fields.select_fields`): with several topics a topic
+    none of whose fields match is left out, with one topic that is an error. Its condition keeps
+    the messages satisfying it; as with fields, with several topics those without its fields
+    are left out, with one topic that is an error.
 
     Raises:
         UnknownTopicError, UnknownFieldError; SelectionError for a condition comparing text
         with a number.
     """
-    if topics is not None:
-        topics = require_topics(topics, reader.topics)
+    resolved = query.resolve(reader, label=label)
+    topics = resolved.topics or None
+    fields, where = query.fields, query.where
     types = MessageTypes.for_bag(reader)
-    window = span.resolve(reader.start_ns, reader.end_ns)
-    outside = (
-        outside_warning(label, window, reader.start_ns, reader.end_ns)
-        if reader.message_count
-        else None
-    )
+    window, outside = resolved.window, resolved.outside
     scan = Scan(reader, window, {}, outside=outside)
     for name in topics if topics is not None else sorted(reader.topics):
         info = reader.topics[name]

@@ -9,8 +9,6 @@ counted in :attr:`PayloadMatcher.undecodable` and never matches.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import numpy as np
 
 from bagkit.decode.bulk import BulkGroup, decode_bulk
@@ -149,10 +147,3 @@ def _texts(raw: np.ndarray | None, count: int) -> np.ndarray | None:
         return np.char.decode(raw, "utf-8")
     except UnicodeDecodeError:
         return None
-
-
-def matched_payloads(matcher: PayloadMatcher, payloads: Sequence[bytes | memoryview]) -> np.ndarray:
-    """Which of ``payloads`` (messages of storage without chunks) match."""
-    return np.fromiter(
-        (matcher.matches(data) for data in payloads), dtype=bool, count=len(payloads)
-    )

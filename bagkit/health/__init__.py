@@ -2,10 +2,30 @@
 
 :class:`HealthSpec` reads a contract (topics required and forbidden, their type, rate bounds
 over a window, the longest gap, value bounds, conditions that must never hold);
-:func:`check_bag` evaluates it on a bag with the condition language's evaluator over time.
+:func:`check_bags` evaluates it on bags (on Dask when given a client) with the condition
+language's evaluator over time; :func:`suggest_spec` writes a starting contract from a good bag.
 """
 
-from bagkit.health.check import Assertion, HealthReport, check_bag
+from bagkit.health.check import (
+    Assertion,
+    CheckResult,
+    HealthReport,
+    check,
+    check_bag,
+    check_bags,
+)
 from bagkit.health.spec import HealthSpec, SpecError, TopicContract
+from bagkit.health.suggest import suggest_spec
 
-__all__ = ["Assertion", "HealthReport", "HealthSpec", "SpecError", "TopicContract", "check_bag"]
+__all__ = [
+    "Assertion",
+    "CheckResult",
+    "HealthReport",
+    "HealthSpec",
+    "SpecError",
+    "TopicContract",
+    "check",
+    "check_bag",
+    "check_bags",
+    "suggest_spec",
+]

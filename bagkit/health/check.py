@@ -1,27 +1,38 @@
-"""A health contract evaluated on one bag: one :class:`Assertion` per line of the contract.
+"""A health contract evaluated on bags: one :class:`Assertion` per line of the contract.
 
 Every assertion over time is a condition that must never hold
 (:class:`~bagkit.health.spec.TopicContract`), found with
 :func:`bagkit.data.episodes.find_episodes` (numpy over the bag's columns; ``gap`` and ``rate``
 from the MCAP indexes alone). A topic the bag lacks, or has no message of, breaks its contract;
-a field the topic's type lacks is a bad spec (:class:`SpecError`).
+a field the topic's type lacks is a bad spec (:class:`SpecError`). Many bags run on Dask
+through :func:`bagkit.fleet.execute.run_each`; a bag that cannot be read is reported among the
+others.
 """
 
 from __future__ import annotations
 
-import shlex
+import functools
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from bagkit.bag import BagReader
+from bagkit.bag import BagError, BagReader
 from bagkit.bag.definitions import canonical_type_name
 from bagkit.data.episodes import NO_SPANS, find_episodes
+from bagkit.fleet.execute import ItemDone, run_each
+from bagkit.health import links
+from bagkit.health.links import filter_command, foxglove_link, play_command
 from bagkit.health.spec import HealthSpec, SpecError
 from bagkit.selection.conditions import TopicCondition
 from bagkit.selection.errors import SelectionError
+
+if TYPE_CHECKING:
+    from distributed import Client
+
+EXIT_HEALTHY, EXIT_BROKEN, EXIT_BAD_INPUT = 0, 1, 2
 
 
 @dataclass
@@ -29,10 +40,10 @@ class Assertion:
     """One line of the contract on one bag: whether it held, and where it broke.
 
     Attributes:
-        topic, what: the topic and what is asserted (``present``, ``type ...``, or the
-            condition that must never hold).
+        topic, what: the topic and what is asserted (``present``, ``type ...``,
+            ``forbidden``, or the condition that must never hold).
         spans: where it broke, rows ``(start_ns, end_ns, count)`` (log time).
-        reason: why, for a topic missing or of another type.
+        reason: why, for a topic missing, present though forbidden, or of another type.
     """
 
     topic: str
@@ -41,43 +52,76 @@ class Assertion:
     spans: np.ndarray = field(default_factory=NO_SPANS.copy)
     reason: str = ""
 
+    @property
+    def is_condition(self) -> bool:
+        """Whether ``what`` is a condition over the topic's messages (it has spans)."""
+        return self.what not in ("present", "forbidden") and not self.what.startswith("type ")
+
+    def summary(self, bag_start_ns: int) -> str:
+        """One line: what broke, why, how often and first where (seconds from the start)."""
+        text = f"{self.topic}: {self.what}"
+        if self.reason:
+            text += f" ({self.reason})"
+        if len(self.spans):
+            start, end, _ = self.spans[0].tolist()
+            times = "1 time" if len(self.spans) == 1 else f"{len(self.spans)} times"
+            text += (
+                f": {times}, first at {(start - bag_start_ns) / 1e9:.3f}"
+                f"-{(end - bag_start_ns) / 1e9:.3f} s"
+            )
+        return text
+
     def commands(self, bag: str, bag_start_ns: int) -> list[str]:
-        """Commands that replay and cut the first place it broke."""
+        """Commands that replay the first place it broke and cut every one."""
         if not len(self.spans):
             return []
-        start_ns = int(self.spans[0][0])
-        offset = max(start_ns - bag_start_ns - 5_000_000_000, 0) / 1e9
-        around = shlex.quote(f"{self.topic}: {self.what}")
         return [
-            f"bagkit play {shlex.quote(bag)} --start-offset {offset:.3f}",
-            f"bagkit filter {shlex.quote(bag)} -o cut --around {around} --before 5 --after 5",
+            play_command(bag, int(self.spans[0][0]), bag_start_ns),
+            filter_command(bag, self.topic, self.what),
         ]
 
 
 @dataclass
 class HealthReport:
-    """The contract on one bag."""
+    """The contract on one bag (``error``: why it could not be read; then no assertion)."""
 
     bag: str
     start_ns: int
     assertions: list[Assertion]
     problems: list[str] = field(default_factory=list)
+    error: str | None = None
+    bags_url: str | None = None
+    """Where bags are served (:mod:`bagkit.health.links`): each failure gets a Foxglove link."""
 
     @property
     def passed(self) -> bool:
-        """Whether every assertion held."""
-        return all(a.passed for a in self.assertions)
+        """Whether the bag was read and every assertion held."""
+        return self.error is None and all(a.passed for a in self.assertions)
+
+    @property
+    def broken(self) -> list[Assertion]:
+        """The assertions that did not hold."""
+        return [a for a in self.assertions if not a.passed]
 
     @property
     def exit_code(self) -> int:
-        """0 healthy, 1 a contract broken."""
-        return 0 if self.passed else 1
+        """0 healthy, 1 a contract broken, 2 the bag could not be read."""
+        if self.error is not None:
+            return EXIT_BAD_INPUT
+        return EXIT_HEALTHY if self.passed else EXIT_BROKEN
+
+    def link(self, assertion: Assertion) -> str | None:
+        """Foxglove at the first place ``assertion`` broke, where bags are served."""
+        if self.bags_url is None or not len(assertion.spans):
+            return None
+        return foxglove_link(self.bags_url, self.bag, int(assertion.spans[0][0]))
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready: per assertion its verdict, where it broke (bag seconds) and commands."""
         return {
             "bag": self.bag,
             "passed": self.passed,
+            "error": self.error,
             "problems": self.problems,
             "assertions": [
                 {
@@ -96,10 +140,32 @@ class HealthReport:
                         for s, e, n in a.spans.tolist()
                     ],
                     "commands": a.commands(self.bag, self.start_ns),
+                    "foxglove": self.link(a),
                 }
                 for a in self.assertions
             ],
         }
+
+
+@dataclass
+class CheckResult:
+    """The contract on every bag, in the order given."""
+
+    reports: list[HealthReport]
+
+    @property
+    def passed(self) -> bool:
+        """Whether every bag was read and kept the contract."""
+        return all(report.passed for report in self.reports)
+
+    @property
+    def exit_code(self) -> int:
+        """0 every bag healthy, 1 a contract broken, 2 a bag could not be read."""
+        return max((report.exit_code for report in self.reports), default=EXIT_HEALTHY)
+
+    def to_list(self) -> list[dict[str, Any]]:
+        """One :meth:`HealthReport.to_dict` per bag."""
+        return [report.to_dict() for report in self.reports]
 
 
 def check_bag(bag: str | Path, spec: HealthSpec) -> HealthReport:
@@ -136,3 +202,81 @@ def check_bag(bag: str | Path, spec: HealthSpec) -> HealthReport:
                     raise SpecError(f"{spec.source}: {topic}: {exc}") from None
                 found.append(Assertion(topic, text, not len(episodes.spans), episodes.spans))
         return HealthReport(str(bag), reader.start_ns, found, list(reader.problems))
+
+
+def _check_one(bag: str, *, spec: HealthSpec, url: str | None) -> HealthReport:
+    """What a worker runs: the report of one bag, or why it could not be read."""
+    try:
+        report = check_bag(bag, spec)
+    except BagError as exc:
+        return HealthReport(bag, 0, [], error=str(exc))
+    report.bags_url = url
+    return report
+
+
+def check_bags(
+    bags: Iterable[str | Path] | str | Path,
+    spec: HealthSpec | str | Path,
+    *,
+    client: Client | None = None,
+    done: ItemDone | None = None,
+    bags_url: str | None = None,
+) -> CheckResult:
+    """Evaluate a health contract on bags, on ``client``'s Dask workers (here when None).
+
+    Args:
+        bags: a bag, or bags (directories or ``.mcap`` files).
+        spec: the contract, or the path of its YAML file.
+        done: called with the index of each bag once it is checked.
+        bags_url: where the bags are served over HTTP(S) (default ``$BAGKIT_BAGS_URL``): each
+            failure then gets a Foxglove link to its moment.
+
+    Raises:
+        SpecError: the spec cannot be used (before any bag is read), or a condition names a
+            field the topic's type lacks.
+    """
+    if not isinstance(spec, HealthSpec):
+        spec = HealthSpec.load(spec)
+    paths = _paths(bags)
+    task = functools.partial(_check_one, spec=spec, url=links.bags_url(bags_url))
+    return CheckResult(run_each(task, paths, client, done))
+
+
+def check(
+    bags: Iterable[str | Path] | str | Path,
+    spec: HealthSpec | str | Path,
+    *,
+    workers: int | None = 0,
+    scheduler: str | None = None,
+    bags_url: str | None = None,
+) -> CheckResult:
+    """``bagkit.check``: evaluate a health contract on bags, here or on Dask.
+
+    Args:
+        bags, spec, bags_url: as :func:`check_bags`.
+        workers: local Dask worker processes (0: in this process; None: a local cluster
+            where the bags are enough work to pay for its start).
+        scheduler: the address of a ``dask.distributed`` scheduler to run on.
+
+    Raises:
+        SpecError: as :func:`check_bags`; SchedulerError, FleetError: as
+            :func:`bagkit.fleet.fleet_client`.
+    """
+    from bagkit.fleet.cluster import CHECK_RATE, fleet_client
+    from bagkit.fleet.progress import bag_size
+
+    if not isinstance(spec, HealthSpec):
+        spec = HealthSpec.load(spec)  # before any cluster starts
+    paths = _paths(bags)
+    with fleet_client(
+        workers=workers,
+        scheduler=scheduler,
+        bags=len(paths),
+        size_bytes=sum(bag_size(path) for path in paths),
+        rate=CHECK_RATE,
+    ) as client:
+        return check_bags(paths, spec, client=client, bags_url=bags_url)
+
+
+def _paths(bags: Iterable[str | Path] | str | Path) -> list[str]:
+    return [str(bags)] if isinstance(bags, str | Path) else [str(bag) for bag in bags]

@@ -18,6 +18,8 @@ class PlayProgress:
     wall_time_s: float
     """Wall time since the first message of the current pass was scheduled."""
     effective_rate: float
+    """Bag time over wall time since the timeline was last re-anchored (start, seek, resume or
+    rate change): the rate in force, not an average over pauses."""
     messages: int
     late: int
     loop: int
@@ -26,7 +28,7 @@ class PlayProgress:
     fraction: float = 0.0
     """Share of the replayed window reached (0 to 1)."""
     rate: float = 1.0
-    """The rate asked for (the controls'), next to the effective one."""
+    """The rate in force (the controls'), next to the effective one."""
     paused: bool = False
 
 
@@ -77,6 +79,7 @@ class PlayReport:
     wall_duration_s: float
     """Wall time from the start of the first pass (its delay included) to the last message."""
     rate: float
+    """The rate in force at the end (the controls may have changed the one asked for)."""
     lateness: LatenessSummary
     skipped_types: dict[str, str] = field(default_factory=dict)
     """Topic -> message type that is not installed (not replayed)."""

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 # to the scheduler, a CPU hog that it preempts for whole time slices on a busy machine. With
 # 0.5 ms, a 2 kHz replay (1 kHz at rate 2) never slept and its p99 lateness was worse than a
 # plain sleeping loop's; the player lowers the publishing thread's timer slack
-# (bagkit.ros.tuning.precise_timers) so that a short spin covers the wake-up (benchmarks/README.md).
+# (bagkit.native.precise_timers) so that a short spin covers the wake-up (benchmarks/README.md).
 SPIN_WINDOW_NS = 50_000
 # A message published more than this after its scheduled time counts as late.
 LATE_THRESHOLD_NS = 1_000_000
@@ -38,6 +38,18 @@ class Timeline:
     def bag_time(self, wall_ns: int) -> int:
         """Bag time (ns) that corresponds to the monotonic time ``wall_ns``."""
         return self.bag_start_ns + int((wall_ns - self.wall_start_ns) * self.rate)
+
+
+def effective_rate(position_ns: int, now_ns: int, timeline: Timeline, *, since: Timeline) -> float:
+    """Bag time played over wall time since the later of ``timeline``'s anchor and ``since``.
+
+    ``timeline`` is re-anchored by a resume, a seek or a rate change, so the rate shown is the
+    one in force, not an average over a pause; ``since`` is where the pass or the last seek
+    started (its rate is not used).
+    """
+    wall_ns = max(timeline.wall_start_ns, since.wall_start_ns)
+    played_ns = position_ns - max(timeline.bag_start_ns, since.bag_start_ns)
+    return max(0, played_ns) / (now_ns - wall_ns) if now_ns > wall_ns else 0.0
 
 
 def wait_until(deadline_ns: int, *, spin_window_ns: int = SPIN_WINDOW_NS) -> int:

@@ -7,3 +7,15 @@ from bagkit.errors import BagkitError
 
 class RecorderOptionsError(BagkitError):
     """A recording that cannot start: nothing selected, a bad option, an existing output."""
+
+
+class RecordingFailedError(BagkitError):
+    """A recording that stopped on an error (disk full); the bag keeps what was written."""
+
+    exit_code = 1
+
+
+class TriggerError(BagkitError):
+    """A trigger that cannot be evaluated: a field its topic's type lacks, an undecodable type."""
+
+    exit_code = 2

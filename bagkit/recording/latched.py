@@ -4,6 +4,9 @@ A bag file (a split file, a snapshot) that starts in the middle of a recording l
 messages that were published once and latched (``/tf_static``, a map, ``/alerts``); a replay of
 that file alone misses them. :class:`LatchedState` keeps the last ``N`` messages of each such
 topic, so that they can be written again at the start of the file. No rclpy import.
+
+Which topics are latched is :func:`bagkit.bag.latched.is_transient_local`'s rule (the one
+replay, seek and filter use too), plus the topics ``--repeat-transient-local`` names.
 """
 
 from __future__ import annotations
@@ -11,8 +14,10 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Mapping, Sequence
 
-from bagkit.bag.messages import BagMessage
+from bagkit.bag.latched import is_transient_local
+from bagkit.bag.messages import BagMessage, TopicInfo
 from bagkit.recording.errors import RecorderOptionsError
+from bagkit.recording.options import RecordOptions
 from bagkit.selection.topics import absolute_topic_name
 
 # How many messages of a latched topic are repeated when nothing else is said (rosbag2's too).
@@ -101,3 +106,36 @@ class LatchedState:
             for message in self._held[topic]
             if before_ns is None or message.log_time < before_ns
         ]
+
+
+def latched_depth(topic: TopicInfo, options: RecordOptions) -> int:
+    """How many of ``topic``'s last messages start every file (0: none)."""
+    named = options.repeat_transient_local.get(topic.name)
+    if named is not None:
+        return named
+    if options.repeats_all_transient_local and is_transient_local(topic.offered_qos_profiles):
+        return DEFAULT_DEPTH
+    return 0
+
+
+class LatchedRepeats:
+    """The latched state a recording repeats at the start of each split file.
+
+    Args:
+        options: the recording's options (which topics, how many messages).
+    """
+
+    def __init__(self, options: RecordOptions) -> None:
+        self.state = LatchedState()
+        self._options = options
+
+    @staticmethod
+    def wanted(options: RecordOptions) -> bool:
+        """Whether the options ask for repeats at all."""
+        return bool(options.repeat_transient_local) or options.repeats_all_transient_local
+
+    def add_topic(self, topic: TopicInfo) -> None:
+        """Track ``topic`` if it is latched."""
+        depth = latched_depth(topic, self._options)
+        if depth:
+            self.state.track(topic.name, depth)

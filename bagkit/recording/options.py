@@ -77,7 +77,7 @@ class RecordOptions:
         node_name: the recorder node's name.
         queue_bytes: bound of the queue between taking and writing (``--max-cache-size``).
         discovery_period_s: how often the graph is polled for new topics and publishers.
-        tune_process: tune the process as ``bagkit record`` does (:mod:`bagkit.ros.tuning`:
+        tune_process: tune the process as ``bagkit record`` does (:mod:`bagkit.native`:
             Fast DDS shared-memory queue, malloc thresholds); False leaves the host process
             alone.
         snapshot_mode: keep the newest messages in memory and write a bag of them under

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from bagkit.errors import BagkitError
 from bagkit.playback.errors import PlayerError
-from bagkit.recording.errors import RecorderOptionsError
+from bagkit.recording.errors import RecorderOptionsError, RecordingFailedError
 
 __all__ = [
     "ControlError",
@@ -39,9 +39,3 @@ class SubscriberTimeoutError(PlayerError):
 
 class QosProfileError(RosError):
     """A QoS profile that cannot be read: bad offered_qos_profiles YAML or overrides file."""
-
-
-class RecordingFailedError(RosError):
-    """A recording that stopped on an error (disk full); the bag keeps what was written."""
-
-    exit_code = 1

@@ -149,7 +149,7 @@ def large_receive_queue(
     Writes :func:`shared_memory_profile` to a temporary file and points
     ``FASTRTPS_DEFAULT_PROFILES_FILE`` at it until the block ends. Process-wide, and only for
     participants created in the block if none was created in the process before (Fast DDS reads
-    its profile once): :func:`bagkit.ros.tuning.process_tuning` opens it around the creation
+    its profile once): :func:`bagkit.native.process_tuning` opens it around the creation
     of the recorder's and the player's node. Nothing changes where the user has a setting of their
     own (:func:`user_middleware_setting`).
 

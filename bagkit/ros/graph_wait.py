@@ -9,7 +9,7 @@ import rclpy
 from rclpy.context import Context
 from rosgraph_msgs.msg import Clock
 
-from bagkit.ros.clock import CLOCK_TOPIC
+from bagkit.bag.clock import CLOCK_TOPIC
 from bagkit.ros.errors import SubscriberTimeoutError
 from bagkit.ros.qos import CLOCK_QOS
 

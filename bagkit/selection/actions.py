@@ -13,9 +13,8 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-from bagkit.selection.topics import SERVICE_EVENT_SUFFIX
+from bagkit.selection.topics import ACTION_INFIX, SERVICE_EVENT_SUFFIX
 
-ACTION_INFIX = "/_action/"
 FEEDBACK_TOPIC = "feedback"
 STATUS_TOPIC = "status"
 STATUS_TYPE = "action_msgs/msg/GoalStatusArray"

@@ -22,6 +22,8 @@ from bagkit.selection.errors import SelectionError, UnknownTopicError
 
 SERVICE_EVENT_SUFFIX = "/_service_event"
 """What a service's name ends in as a topic: introspection's events (see ``services``)."""
+ACTION_INFIX = "/_action/"
+"""What separates an action's name from its parts' names (see ``actions``)."""
 
 
 def absolute_topic_name(name: str) -> str:
@@ -153,17 +155,31 @@ def require_topics(
     return [name for name in names if name is not None]
 
 
+def missing_on_graph(missing: Sequence[str], graph: Iterable[str]) -> str:
+    """``record --topics``: the named topics that never appeared, and the closest ones that did.
+
+    ``graph`` is every topic the recorder saw on the ROS graph.
+    """
+    names = sorted(set(graph))
+    return (
+        f"topic {', '.join(missing)} never appeared on the graph "
+        f"({closest_names(missing[0], names)})"
+    )
+
+
 def closest_names(name: str, known: Sequence[str], limit: int = 20) -> str:
     """``did you mean /a, /b?`` or ``it has /a, /b, ...``: the known names a reader wants to see.
 
-    A service's event topic is also known by the service's name, which is what a reader types.
+    A service's event topic is also known by the service's name, an action's topics by the
+    action's name: what a reader types.
     """
     if not known:
         return "it has none"
     services = [
         n.removesuffix(SERVICE_EVENT_SUFFIX) for n in known if n.endswith(SERVICE_EVENT_SUFFIX)
     ]
-    guess = did_you_mean(name, [*known, *services])
+    actions = [n.partition(ACTION_INFIX)[0] for n in known if ACTION_INFIX in n]
+    guess = did_you_mean(name, [*known, *services, *actions])
     if len(known) > limit:
         return f"{guess}it has {len(known)} topics, {', '.join(known[:limit])}, ..."
     return f"{guess}it has {', '.join(known)}"

@@ -120,3 +120,36 @@ def test_a_users_run_shows_no_warning_from_the_ros_wheels(tmp_path: Path) -> Non
     assert "lockstep" in result.stdout or "passed" in result.stdout
     assert "warnings summary" not in result.stdout, result.stdout
     assert "DeprecationWarning" not in result.stdout
+
+
+_WRITE_DOMAIN = """
+import os, pathlib
+
+def test_domain_{n}(worker_id):
+    pathlib.Path("domain_{n}").write_text(worker_id + " " + os.environ["ROS_DOMAIN_ID"])
+"""
+
+
+@pytest.mark.parametrize("users_domain", [None, "42"], ids=["chosen", "users"])
+def test_each_xdist_worker_gets_a_domain_of_its_own_unless_the_user_set_one(
+    project: Path,
+    pytester: pytest.Pytester,
+    monkeypatch: pytest.MonkeyPatch,
+    users_domain: str | None,
+) -> None:
+    """Workers inherit the controller's environment: two workers' live runs must not share a
+    domain the plugin chose; a domain the user set holds everywhere."""
+    monkeypatch.delenv("ROS_DOMAIN_ID", raising=False)
+    if users_domain is not None:
+        monkeypatch.setenv("ROS_DOMAIN_ID", users_domain)
+    for n in range(4):
+        pytester.makepyfile(**{f"test_domain_{n}": _WRITE_DOMAIN.format(n=n)})
+    result = pytester.runpytest_subprocess("-n", "2", "-p", "xdist", "--dist", "loadfile")
+    result.assert_outcomes(passed=5)  # the fixture's lockstep item too
+    seen = dict(p.read_text().split() for p in project.glob("domain_*"))
+    assert set(seen) == {"gw0", "gw1"}, seen
+    if users_domain is None:
+        assert len(set(seen.values())) == 2, seen
+        assert all(100 <= int(d) < 230 for d in seen.values()), seen
+    else:
+        assert set(seen.values()) == {users_domain}

@@ -6,7 +6,7 @@ import pytest
 from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 
-from bagkit.ros.clock import clock_message, clock_ns
+from bagkit.bag.clock import clock_message, clock_ns
 
 
 @pytest.mark.parametrize("stamp_ns", [0, 1, 1_700_000_000_123_456_789, 2**31 * 10**9 - 1])

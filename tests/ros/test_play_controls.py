@@ -13,6 +13,7 @@ from bagkit.playback.errors import PlayerError
 from bagkit.playback.keyboard import DOWN, RIGHT, SPACE, UP, key_actions, split_keys
 from bagkit.playback.options import PlayOptions
 from bagkit.playback.source import MessageOrder
+from bagkit.playback.timing import Timeline, effective_rate
 
 MS = 1_000_000
 
@@ -257,3 +258,21 @@ def test_debug_option_errors_are_one_line(args: list[str], message: str) -> None
     result = CliRunner().invoke(app, ["play", *args])
     assert result.exit_code == 2
     assert message in result.output
+
+
+def test_the_effective_rate_after_a_resume_is_the_rate_in_force() -> None:
+    """Paused 5 s after 1 s at rate 2: the progress shows 2x again, not 2 s of bag over 6 s."""
+    controls = PlayControls(2.0)
+    controls.start(bag_start_ns=0, wall_ns=0)
+    pass_start = Timeline(0, 0, controls.rate)
+    assert effective_rate(2000 * MS, 1000 * MS, controls.timeline, since=pass_start) == 2.0
+    controls.pause(now_ns=1000 * MS)
+    controls.resume(now_ns=6000 * MS)
+    # The last message published before the pause is the position until the next one.
+    assert effective_rate(2000 * MS, 6000 * MS, controls.timeline, since=pass_start) == 0.0
+    assert effective_rate(3000 * MS, 6500 * MS, controls.timeline, since=pass_start) == 2.0
+    controls.set_rate(4.0, now_ns=6500 * MS)
+    assert effective_rate(5000 * MS, 7000 * MS, controls.timeline, since=pass_start) == 4.0
+    # A seek starts a new segment: bag time before it does not count.
+    seek = Timeline(10_000 * MS, 7000 * MS, controls.rate)
+    assert effective_rate(12_000 * MS, 7500 * MS, controls.timeline, since=seek) == 4.0

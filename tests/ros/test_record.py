@@ -19,11 +19,12 @@ from std_msgs.msg import Int32, String
 from waiting import wait_for, wait_matched
 
 from bagkit.bag import BagReader
+from bagkit.recording import handoff, write_loop
 from bagkit.recording.options import RecordOptions
 from bagkit.recording.report import RecordReport
 from bagkit.ros.errors import MessageClassNotFoundError
 from bagkit.ros.qos import parse_offered_qos_profiles
-from bagkit.ros.record import handoff, subscriptions, write_loop
+from bagkit.ros.record import subscriptions
 from bagkit.ros.record.recorder import Recorder
 
 pytestmark = pytest.mark.ros

@@ -21,7 +21,7 @@ from std_msgs.msg import String
 from waiting import wait_for
 
 from bagkit.bag import BagReader
-from bagkit.ros.record.write_loop import FLUSH_PERIOD_S
+from bagkit.recording.write_loop import FLUSH_PERIOD_S
 
 pytestmark = pytest.mark.ros
 

@@ -282,14 +282,19 @@ def test_the_s_key_in_a_terminal_triggers_a_snapshot(
 def test_pre_post_windows_and_extension_without_dds(tmp_path: Path) -> None:
     """The sink on its own (the writer thread's calls, a fake clock): --pre, --post, extension."""
     from bagkit.bag import TopicInfo
-    from bagkit.ros.record.snapshot import SnapshotSink
+    from bagkit.recording.snapshot import SnapshotSink
+    from bagkit.ros.record.triggers import DataTriggers
     from bagkit.ros.serialization import serialize
 
     now = [0]
     errors: list[tuple[str, int]] = []
     opts = options(tmp_path / "sink", snapshot_max_duration_s=10, pre_s=1.0, post_s=0.5)
     sink = SnapshotSink(
-        opts.output, opts, lambda *error: errors.append(error), now_ns=lambda: now[0]
+        opts.output,
+        opts,
+        DataTriggers.of(opts),
+        lambda *error: errors.append(error),
+        now_ns=lambda: now[0],
     ).open()
     sink.add_topic(TopicInfo("/snap/imu", "sensor_msgs/msg/Imu"), "")
     payload = serialize(Imu())
@@ -325,7 +330,8 @@ def test_a_silence_triggers_while_it_lasts_without_dds(tmp_path: Path) -> None:
     """``gap > 500ms`` fires from the sink's periodic flush during the dropout, and
     ``unchanged(...) for 1s`` on the message that makes the run 1 s long."""
     from bagkit.bag import TopicInfo
-    from bagkit.ros.record.snapshot import SnapshotSink
+    from bagkit.recording.snapshot import SnapshotSink
+    from bagkit.ros.record.triggers import DataTriggers
     from bagkit.ros.serialization import serialize
 
     now = [0]
@@ -333,7 +339,11 @@ def test_a_silence_triggers_while_it_lasts_without_dds(tmp_path: Path) -> None:
     triggers = ("/snap/imu: gap > 500ms", "/snap/imu: unchanged(linear_acceleration.z) for 1s")
     opts = options(tmp_path / "sink", snapshot_max_duration_s=10, pre_s=1.0, triggers=triggers)
     sink = SnapshotSink(
-        opts.output, opts, lambda *error: errors.append(error), now_ns=lambda: now[0]
+        opts.output,
+        opts,
+        DataTriggers.of(opts),
+        lambda *error: errors.append(error),
+        now_ns=lambda: now[0],
     ).open()
     sink.add_topic(TopicInfo("/snap/imu", "sensor_msgs/msg/Imu"), "")
 

@@ -28,8 +28,8 @@ from std_msgs.msg import String
 from waiting import wait_for
 
 from bagkit.bag import BagWriter, TopicInfo
+from bagkit.bag.clock import clock_message
 from bagkit.playback.options import PlayOptions
-from bagkit.ros.clock import clock_message
 from bagkit.ros.qos import dump_offered_qos_profiles
 from bagkit.ros.replay.player import Player
 

@@ -7,6 +7,7 @@ Every test runs the real ``bagkit play`` in a subprocess and receives with a rea
 from __future__ import annotations
 
 import itertools
+import json
 import os
 import signal
 import statistics
@@ -151,7 +152,7 @@ def test_services_pause_step_resume_and_set_the_rate(
     bag = write_bag(tmp_path / "bag", hz=20, seconds=10)
     listener = listener_factory({TOPIC: String})
     proc = processes.start(
-        play_args(bag, "--disable-keyboard-controls"),
+        play_args(bag, "--disable-keyboard-controls", "--format", "json"),
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
     )
@@ -208,9 +209,10 @@ def test_services_pause_step_resume_and_set_the_rate(
     assert _call(node, clients["get_rate"], Trigger.Request()).message == "2"
     time.sleep(0.3)
     assert 30 <= received_rate_hz(listener) <= 50  # 40 messages/s at rate 2
-    _, stderr = proc.communicate(timeout=30)
+    stdout, stderr = proc.communicate(timeout=30)
     assert proc.returncode == 0, stderr
     assert indices(listener.messages()) == list(range(200))
+    assert json.loads(stdout)["rate"] == 2.0  # the rate in force, not the one started with
 
 
 def _stopped(pid: int) -> bool:

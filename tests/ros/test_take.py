@@ -17,7 +17,8 @@ from rclpy.subscription import Subscription
 from sensor_msgs.msg import Image, Imu
 from waiting import wait_matched
 
-from bagkit.ros.record.take import TakenMessages, take_serialized
+from bagkit.recording.handoff import TakenMessages
+from bagkit.ros.record.take import take_serialized
 
 KEEP_ALL = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
 

@@ -7,8 +7,9 @@ from pathlib import Path
 
 import pytest
 
+from bagkit.native import precise_timers
 from bagkit.ros.fastdds import PROFILES_FILE_VARIABLE
-from bagkit.ros.tuning import precise_timers, process_tuning
+from bagkit.ros.tuning import process_tuning
 
 _PR_GET_TIMERSLACK = 30
 

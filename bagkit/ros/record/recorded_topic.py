@@ -8,7 +8,6 @@ from typing import Any
 from rclpy.qos import QoSProfile
 from rclpy.subscription import Subscription
 
-from bagkit.bag import TopicInfo
 from bagkit.recording.loss import SequenceTracker
 from bagkit.recording.report import TopicRecord
 
@@ -30,12 +29,3 @@ class RecordedTopic:
             sequences, self.subscription.handle.get_publisher_count
         )
         record.publishers = self.tracker.publishers
-
-
-@dataclass(frozen=True, slots=True)
-class NewTopic:
-    """What the writer needs to add a topic to the bag before its first message."""
-
-    topic: RecordedTopic
-    info: TopicInfo
-    definition: str

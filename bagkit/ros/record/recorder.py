@@ -2,11 +2,11 @@
 
 Two threads do the work: the take thread (:mod:`~bagkit.ros.record.take_loop`) owns the node,
 subscribes (:mod:`~bagkit.ros.record.subscriptions`) and takes messages in bursts; the writer
-thread (:mod:`~bagkit.ros.record.write_loop`) writes them and accounts for loss. They meet in a
-queue bounded in bytes (:mod:`~bagkit.ros.record.handoff`). This module holds the life cycle:
-the output (created by :mod:`~bagkit.ros.record.output`), the node, the threads, the trigger
+thread (:mod:`~bagkit.recording.write_loop`) writes them and accounts for loss. They meet in a
+queue bounded in bytes (:mod:`~bagkit.recording.handoff`). This module holds the life cycle:
+the output (created by :mod:`~bagkit.recording.output`), the node, the threads, the trigger
 checks of snapshot mode (:mod:`~bagkit.ros.record.triggers`) and the run (stopped as
-:mod:`~bagkit.ros.record.run_until` says).
+:mod:`~bagkit.recording.run_until` says).
 """
 
 from __future__ import annotations
@@ -27,23 +27,25 @@ from rclpy.qos import QoSProfile
 from rclpy.signals import SignalHandlerOptions
 
 from bagkit.bag import BagWriter
+from bagkit.recording.errors import TriggerError
+from bagkit.recording.handoff import HandoffQueue, StopSignal
+from bagkit.recording.health_watch import HealthWatch
+from bagkit.recording.latched import LatchedRepeats
 from bagkit.recording.options import RecordOptions, default_output_name
+from bagkit.recording.output import create_output
+from bagkit.recording.pause import PauseGate
 from bagkit.recording.report import RecordProgress, RecordReport, SnapshotRecord
+from bagkit.recording.run_until import POLL_S, StopWhen, wait_until_done
+from bagkit.recording.snapshot import SnapshotSink
+from bagkit.recording.write_loop import WriteLoop
 from bagkit.ros.errors import RecorderOptionsError, RecordingFailedError
 from bagkit.ros.qos import load_qos_overrides
 from bagkit.ros.record.control_services import ControlServices, recorder_actions
-from bagkit.ros.record.handoff import HandoffQueue, StopSignal
-from bagkit.ros.record.latched_topics import LatchedRepeats
-from bagkit.ros.record.output import create_output
-from bagkit.ros.record.pause import PauseGate
-from bagkit.ros.record.run_until import POLL_S, StopWhen, wait_until_done
-from bagkit.ros.record.snapshot import SnapshotSink
 from bagkit.ros.record.subscriptions import Subscriptions
 from bagkit.ros.record.take_loop import SimClock, TakeLoop
-from bagkit.ros.record.triggers import TriggerError, start_trigger_checks
-from bagkit.ros.record.write_loop import WriteLoop
+from bagkit.ros.record.triggers import DataTriggers, start_trigger_checks
 from bagkit.ros.tuning import process_tuning
-from bagkit.selection.topics import absolute_topic_name, closest_names
+from bagkit.selection.topics import absolute_topic_name, missing_on_graph
 
 
 class Recorder:
@@ -64,9 +66,12 @@ class Recorder:
         context: an initialized rclpy context to use; default: a private one.
         on_warning: called (from the recording threads) with each warning, such as a topic
             skipped because its message package is not installed; default: logging.
+        health: a contract checked on what is written (``--health``):
+            :class:`bagkit.health.live.LiveHealth`; its counts go to ``report.health``.
 
     Raises:
-        RecorderOptionsError: the output exists.
+        RecorderOptionsError: the output exists, or the health check triggers snapshots
+            without snapshot mode.
     """
 
     def __init__(
@@ -75,8 +80,12 @@ class Recorder:
         *,
         context: Context | None = None,
         on_warning: Callable[[str], None] | None = None,
+        health: HealthWatch | None = None,
     ) -> None:
         self.options = options
+        if health is not None and health.trigger and not options.snapshot_mode:
+            raise RecorderOptionsError("--trigger-on-health needs --snapshot-mode")
+        self.health = health
         self.path = options.output or Path(default_output_name())
         if self.path.exists():
             raise RecorderOptionsError(
@@ -97,6 +106,7 @@ class Recorder:
         self._started = 0.0
         self._services: ControlServices | None = None
         self._absent_triggers: threading.Timer | None = None
+        self._triggers = DataTriggers.of(options) if options.snapshot_mode else None
         self._gate = PauseGate(paused=options.start_paused)
         # Latched state repeated at the start of each split file (snapshots keep their own).
         self._latched = (
@@ -190,6 +200,7 @@ class Recorder:
             self.path,
             self.options,
             file_preamble=self._latched.state.messages if self._latched else None,
+            triggers=self._triggers,
             on_snapshot_error=self._stop.fail,
         )
         try:
@@ -201,6 +212,7 @@ class Recorder:
             self._shutdown_node()
             raise
         assert self._subscriptions is not None
+        health = self.health
         self._writer = WriteLoop(
             bag,
             self._queue,
@@ -208,6 +220,10 @@ class Recorder:
             self._subscriptions.skip,
             latched=self._latched,
             gate=self._gate,
+            health=health,
+            on_health_break=(
+                bag.request if isinstance(bag, SnapshotSink) and health and health.trigger else None
+            ),
         )
         self._started = time.monotonic()
         discovered = threading.Event()
@@ -234,12 +250,10 @@ class Recorder:
             RecorderOptionsError: a trigger names a field its topic's type lacks (the
                 recording is stopped and nothing is left).
         """
-        assert self._writer is not None and self._node is not None
-        sink = self._writer.bag
-        assert isinstance(sink, SnapshotSink)
+        assert self._node is not None and self._triggers is not None
         try:
             self._absent_triggers = start_trigger_checks(
-                self._node, sink.triggers, stopping=self._stop.is_set, warn=self._warn
+                self._node, self._triggers, stopping=self._stop.is_set, warn=self._warn
             )
         except TriggerError as exc:
             self.stop()
@@ -357,6 +371,8 @@ class Recorder:
             report.discovery_s = self._subscriptions.complete_at - self._started
         missing = self._subscriptions.never_appeared()
         report.topics = sorted(self._writer.records.values(), key=lambda r: r.topic)
+        if self.health is not None:
+            report.health = self.health.counts
         if isinstance(self._writer.bag, SnapshotSink):
             report.snapshots = self._writer.bag.snapshots
             report.evicted = self._writer.bag.evicted
@@ -364,11 +380,8 @@ class Recorder:
         report.error = errors[0] if errors else None
         report.error_exit_code = self._stop.exit_code
         if missing and self._node is not None:
-            graph = sorted(name for name, _ in self._node.get_topic_names_and_types())
-            report.never_appeared = (
-                f"topic {', '.join(missing)} never appeared on the graph "
-                f"({closest_names(missing[0], graph)})"
-            )
+            graph = (name for name, _ in self._node.get_topic_names_and_types())
+            report.never_appeared = missing_on_graph(missing, graph)
         if report.error is not None and report.lost:
             report.error += f" ({report.lost} messages lost)"
         self._stopped.set()

@@ -16,13 +16,13 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from bagkit.bag import TopicInfo, message_definition
 from bagkit.bag.errors import UnknownMessageTypeError as UnknownDefinitionError
+from bagkit.recording.handoff import HandoffQueue, NewTopic
 from bagkit.recording.report import TopicRecord
 from bagkit.ros.errors import MessageClassNotFoundError
 from bagkit.ros.graph import DiscoveredTopic, discover_topics
 from bagkit.ros.message_classes import import_message_type
 from bagkit.ros.qos import adapt_subscription_qos, dump_offered_qos_profiles
-from bagkit.ros.record.handoff import HandoffQueue
-from bagkit.ros.record.recorded_topic import NewTopic, RecordedTopic
+from bagkit.ros.record.recorded_topic import RecordedTopic
 from bagkit.selection.topics import TopicSelection
 
 _log = logging.getLogger(__name__)

@@ -9,30 +9,12 @@ call for about 1.8 us per message, through the ``_take`` extension, and returns 
 from __future__ import annotations
 
 import ctypes
-from dataclasses import dataclass
 from functools import cache
 
 from rclpy.subscription import Subscription
 
+from bagkit.recording.handoff import TakenMessages
 from bagkit.ros.record import _take
-
-
-@dataclass(slots=True)
-class TakenMessages:
-    """Messages taken from one subscription, oldest first, one list per field."""
-
-    payloads: list[bytes]
-    received: list[int]
-    """Receive times (ns), stamped by the middleware."""
-    sources: list[int]
-    """Source timestamps (ns), stamped by the publisher's middleware."""
-    sequences: list[int]
-    """Publication sequence numbers (0 where the middleware has none)."""
-    nbytes: int
-    """Sum of the payload sizes."""
-
-    def __len__(self) -> int:
-        return len(self.payloads)
 
 
 @cache

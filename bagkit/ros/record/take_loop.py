@@ -3,7 +3,7 @@
 The thread owns the node: it waits on a wait set and drains every ready subscription with
 :func:`bagkit.ros.record.take.take_serialized` (an executor callback per message would cost about
 200 us, far too slow for a recorder), polls the graph every ``discovery_period_s`` and hands
-the messages to the writer thread through the :class:`~bagkit.ros.record.handoff.HandoffQueue`.
+the messages to the writer thread through the :class:`~bagkit.recording.handoff.HandoffQueue`.
 """
 
 from __future__ import annotations
@@ -18,12 +18,12 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.subscription import Subscription
 
-from bagkit.ros.clock import CLOCK_TOPIC, clock_ns
-from bagkit.ros.record.handoff import Batch, BatchPart, HandoffQueue, StopSignal
+from bagkit.bag.clock import CLOCK_TOPIC, clock_ns
+from bagkit.native import name_native_thread
+from bagkit.recording.handoff import Batch, BatchPart, HandoffQueue, StopSignal, TakenMessages
 from bagkit.ros.record.recorded_topic import RecordedTopic
 from bagkit.ros.record.subscriptions import Subscriptions, never_called
-from bagkit.ros.record.take import TakenMessages, take_serialized
-from bagkit.ros.tuning import name_native_thread
+from bagkit.ros.record.take import take_serialized
 
 # Messages taken from one subscription before looking at the others, so that a flood on one
 # topic does not starve the rest, and before handing a batch to the writer; a topic's burst

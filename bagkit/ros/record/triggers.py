@@ -22,6 +22,8 @@ from rosidl_parser.definition import AbstractNestedType, NamespacedType
 
 from bagkit.bag import TopicInfo
 from bagkit.errors import BagkitError
+from bagkit.recording.errors import TriggerError
+from bagkit.recording.options import RecordOptions
 from bagkit.ros.message_classes import import_message_type
 from bagkit.ros.serialization import deserializer
 from bagkit.selection.condition_terms import Latency, walk
@@ -36,12 +38,6 @@ GRAPH_POLL_S = 0.05
 # long after the start a trigger topic may be absent before a warning says so.
 TRIGGER_CHECK_WAIT_S = 1.0
 TRIGGER_TOPIC_WAIT_S = 10.0
-
-
-class TriggerError(BagkitError):
-    """A trigger that cannot be evaluated: a field its topic's type lacks, an undecodable type."""
-
-    exit_code = 2
 
 
 @dataclass(slots=True)
@@ -77,6 +73,16 @@ class DataTriggers:
                 if isinstance(node, Latency):
                     source = self._by_topic.setdefault(node.source, _TopicTriggers([]))
                     source.sources.append((trigger, node.path))
+
+    @classmethod
+    def of(cls, options: RecordOptions) -> DataTriggers:
+        """The triggers ``options`` asks for."""
+        return cls(
+            [
+                (text, trigger.topic, trigger.condition)
+                for text, trigger in zip(options.triggers, options.trigger_conditions, strict=True)
+            ]
+        )
 
     @property
     def topics(self) -> list[str]:

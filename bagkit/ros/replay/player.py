@@ -3,12 +3,13 @@
 ``Player(options).run()`` does it all; as a context manager, constructing it only checks the
 options; entering opens the bag and creates one publisher per replayed topic
 (:mod:`~bagkit.ros.replay.publishers`); ``play()`` waits for the subscribers the graph knows
-about, then runs the passes (:mod:`~bagkit.ros.replay.publish_loop`) and returns a
+about, then runs the passes (:mod:`~bagkit.playback.publish_loop`) and returns a
 :class:`~bagkit.playback.report.PlayReport`.
 """
 
 from __future__ import annotations
 
+import functools
 import itertools
 import logging
 import math
@@ -26,6 +27,8 @@ from rclpy.signals import SignalHandlerOptions
 
 from bagkit.bag import BagMessage, TopicInfo
 from bagkit.bag.latched import latched_topics
+from bagkit.bag.messages import make_message
+from bagkit.native import precise_timers
 from bagkit.playback.controls import PlayControls
 from bagkit.playback.options import PlayOptions
 from bagkit.playback.report import PlayProgress, PlayReport, SubscriberWait, TopicPlayback
@@ -46,16 +49,17 @@ from bagkit.ros.replay.publishers import (
 from bagkit.ros.replay.seek_services import serve_seek
 from bagkit.ros.replay.services import serve_controls
 from bagkit.ros.replay.topics import PublishableTopics, publishable_topics
-from bagkit.ros.tuning import precise_timers, process_tuning
+from bagkit.ros.tuning import process_tuning
 from bagkit.selection.services import is_service_event_topic
 from bagkit.selection.times import TimeLike, parse_time, seconds_to_ns
 
 if TYPE_CHECKING:
-    # Imported once the node exists (numpy, the decoder, rosbags; topics.py imports the
-    # decoder when called): their import overlaps discovery instead of delaying the
-    # participant that discovery waits for.
+    # Imported once the node exists (numpy, the decoder, rosbags, the migrator; topics.py
+    # imports the decoder when called): their import overlaps discovery instead of delaying
+    # the participant that discovery waits for.
+    from bagkit.migrate import TopicMigration
     from bagkit.playback.lateness import LatenessSamples
-    from bagkit.ros.replay.publish_loop import PassPublisher, PassReader
+    from bagkit.playback.publish_loop import PassPublisher, PassReader
     from bagkit.ros.replay.service_requests import ServiceRequests
 
 _log = logging.getLogger(__name__)
@@ -241,6 +245,8 @@ class Player:
         return count / bag_duration_s * self.options.rate
 
     def _select_topics(self, topics: Mapping[str, TopicInfo]) -> list[tuple[TopicInfo, Any]]:
+        from bagkit.migrate import load_rules
+
         self.publishable = publishable_topics(
             topics,
             self.selection,
@@ -248,6 +254,7 @@ class Player:
             bag_path=Path(self._reader.name) if self._reader else self.bag_path,
             definition=self._reader.definition if self._reader else lambda _: None,
             on_drift=self.options.on_drift,
+            rules=load_rules(self.options.drift_rules) if self.options.drift_rules else None,
         )
         return self.publishable.selected
 
@@ -255,7 +262,7 @@ class Player:
         """Replay the bag (``options.loops`` passes); Ctrl-C stops between two messages.
 
         The calling thread publishes: its timers are made precise for the replay
-        (:func:`~bagkit.ros.tuning.precise_timers`) unless ``options.tune_process`` is False.
+        (:func:`~bagkit.native.precise_timers`) unless ``options.tune_process`` is False.
 
         Returns:
             What was published, the timing error and what the reader could not read.
@@ -327,7 +334,7 @@ class Player:
             loops=passes,
             bag_duration_s=bag_ns / 1e9,
             wall_duration_s=wall_ns / 1e9,
-            rate=options.rate,
+            rate=self.controls.rate,
             lateness=lateness.summary(),
             skipped_types=dict(self.publishable.skipped_types),
             drifted=dict(self.publishable.drifted),
@@ -356,7 +363,7 @@ class Player:
 
     def _play_pass(self, loop: int, lateness: LatenessSamples) -> int:
         """Publish one pass over the window; return the bag time it covered (ns)."""
-        from bagkit.ros.replay.publish_loop import PassPublisher
+        from bagkit.playback.publish_loop import PassPublisher
 
         reader = self._pass_reader()
         window_start = self._span().start_ns
@@ -385,18 +392,22 @@ class Player:
             self._latched_published += publisher.latched
 
     def _pass_reader(self) -> PassReader:
-        from bagkit.ros.replay.publish_loop import PassReader
+        from bagkit.playback.publish_loop import PassReader
 
         assert self._reader is not None
         source = self._reader
         topics = list(self._outputs)
         span = self._span()
 
+        migrations = self.publishable.migrations
+
         def messages_from(bag_ns: int) -> Iterator[BagMessage]:
-            return iter(source.messages(topics, bag_ns, span.end_ns))
+            found = iter(source.messages(topics, bag_ns, span.end_ns))
+            return map(functools.partial(_migrated, migrations), found) if migrations else found
 
         def latched_before(bag_ns: int) -> list[BagMessage]:
-            return source.latched_before(bag_ns, self._latched) if self._latched else []
+            found = source.latched_before(bag_ns, self._latched) if self._latched else []
+            return [_migrated(migrations, m) for m in found]
 
         return PassReader(messages_from, latched_before, span.last_ns)
 
@@ -493,3 +504,14 @@ def _sends_requests(info: TopicInfo) -> bool:
     """Whether ``info`` is a service-event topic (``publish_service_requests`` sends its
     requests instead of publishing it)."""
     return is_service_event_topic(info.name, [info.type])
+
+
+def _migrated(migrations: Mapping[str, TopicMigration], message: BagMessage) -> BagMessage:
+    """``message`` with its payload migrated when its topic is one of ``migrations``."""
+    migration = migrations.get(message.topic)
+    if migration is None:
+        return message
+    data = migration.payload(message.data)
+    return make_message(
+        message.topic, data, message.log_time, message.publish_time, message.sequence
+    )

@@ -19,8 +19,8 @@ from rclpy.qos import (
 from rosgraph_msgs.msg import Clock
 
 from bagkit.bag import TopicInfo
+from bagkit.bag.clock import CLOCK_TOPIC, CLOCK_TYPE
 from bagkit.playback.report import SubscriberWait
-from bagkit.ros.clock import CLOCK_TOPIC, CLOCK_TYPE
 from bagkit.ros.errors import PlayerError, SubscriberTimeoutError
 from bagkit.ros.qos import CLOCK_QOS
 

@@ -12,9 +12,8 @@ from __future__ import annotations
 import threading
 
 from bagkit.bag import TopicInfo
-from bagkit.ros.record.handoff import BatchPart
-from bagkit.ros.record.latched_topics import offered_transient_local
-from bagkit.ros.record.take import TakenMessages
+from bagkit.bag.latched import is_transient_local
+from bagkit.recording.handoff import BatchPart, TakenMessages
 
 
 class PauseGate:
@@ -44,7 +43,7 @@ class PauseGate:
 
     def add_topic(self, topic: TopicInfo) -> None:
         """If ``topic`` is latched, keep its last message taken while paused, for the resume."""
-        if offered_transient_local(topic):
+        if is_transient_local(topic.offered_qos_profiles):
             with self._lock:
                 self._latched.add(topic.name)
 

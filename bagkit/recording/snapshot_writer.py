@@ -19,9 +19,9 @@ from pathlib import Path
 from bagkit.bag import BagWriteError, BagWriter, TopicInfo
 from bagkit.bag.errors import BagError
 from bagkit.bag.messages import BagMessage
+from bagkit.native import name_native_thread
 from bagkit.recording.report import SnapshotRecord
 from bagkit.recording.snapshot_buffer import MessageSlice
-from bagkit.ros.tuning import name_native_thread
 
 
 @dataclass(frozen=True, slots=True)

@@ -14,10 +14,10 @@ from pathlib import Path
 from bagkit.bag import BagWriteError, BagWriter
 from bagkit.bag.errors import BagError
 from bagkit.bag.messages import BagMessage
+from bagkit.recording.errors import RecorderOptionsError, RecordingFailedError
 from bagkit.recording.options import RecordOptions
-from bagkit.ros.errors import RecorderOptionsError, RecordingFailedError
-from bagkit.ros.record.snapshot import SnapshotSink
-from bagkit.ros.record.write_loop import FLUSH_PERIOD_S
+from bagkit.recording.snapshot import SnapshotSink, SnapshotTriggers
+from bagkit.recording.write_loop import FLUSH_PERIOD_S
 
 # A recording that cannot be written for these reasons is a failed run (exit 1), not a bad option.
 _DISK_FULL = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG}
@@ -28,6 +28,7 @@ def create_output(
     options: RecordOptions,
     *,
     file_preamble: Callable[[], Sequence[BagMessage]] | None,
+    triggers: SnapshotTriggers | None = None,
     on_snapshot_error: Callable[[str, int], None],
 ) -> BagWriter | SnapshotSink:
     """The recording's bag, opened (in snapshot mode: its snapshot sink, opened).
@@ -36,6 +37,7 @@ def create_output(
         path: the output directory.
         options: the recording's options.
         file_preamble: the latched state that starts each split file (see ``BagWriter``).
+        triggers: the sink's triggers in snapshot mode.
         on_snapshot_error: the sink's ``on_error`` in snapshot mode.
 
     Raises:
@@ -49,7 +51,8 @@ def create_output(
         if floor.below(existing):
             raise RecorderOptionsError(f"{existing}: less than {floor.text} free: not started")
     if options.snapshot_mode:
-        return _create_snapshot_sink(path, options, on_snapshot_error)
+        assert triggers is not None, "snapshot mode needs its triggers"
+        return _create_snapshot_sink(path, options, triggers, on_snapshot_error)
     try:
         bag = BagWriter(
             path,
@@ -73,10 +76,13 @@ def create_output(
 
 
 def _create_snapshot_sink(
-    path: Path, options: RecordOptions, on_error: Callable[[str, int], None]
+    path: Path,
+    options: RecordOptions,
+    triggers: SnapshotTriggers,
+    on_error: Callable[[str, int], None],
 ) -> SnapshotSink:
     try:
-        return SnapshotSink(path, options, on_error).open()
+        return SnapshotSink(path, options, triggers, on_error).open()
     except FileExistsError:
         raise RecorderOptionsError(
             f"{path} already exists (bagkit never overwrites a bag)"

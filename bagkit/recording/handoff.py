@@ -9,17 +9,54 @@ import threading
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Literal
+from typing import Any, Literal, Protocol
 
-if TYPE_CHECKING:
-    from bagkit.ros.record.recorded_topic import RecordedTopic
-    from bagkit.ros.record.take import TakenMessages
+from bagkit.bag import TopicInfo
+from bagkit.recording.report import TopicRecord
 
 # How long the take thread waits for room in a full write queue before dropping a batch.
 QUEUE_WAIT_S = 1.0
 
+
+class TakenTopic(Protocol):
+    """A subscribed topic as the writer sees it
+    (:class:`bagkit.ros.record.recorded_topic.RecordedTopic`)."""
+
+    record: TopicRecord
+
+    def count_gaps(self, sequences: list[int]) -> None:
+        """Count the sequence gaps up to the messages just taken (``sequences``)."""
+
+
+@dataclass(slots=True)
+class TakenMessages:
+    """Messages taken from one subscription, oldest first, one list per field."""
+
+    payloads: list[bytes]
+    received: list[int]
+    """Receive times (ns), stamped by the middleware."""
+    sources: list[int]
+    """Source timestamps (ns), stamped by the publisher's middleware."""
+    sequences: list[int]
+    """Publication sequence numbers (0 where the middleware has none)."""
+    nbytes: int
+    """Sum of the payload sizes."""
+
+    def __len__(self) -> int:
+        return len(self.payloads)
+
+
+@dataclass(frozen=True, slots=True)
+class NewTopic:
+    """What the writer needs to add a topic to the bag before its first message."""
+
+    topic: TakenTopic
+    info: TopicInfo
+    definition: str
+
+
 # One topic's messages of a batch.
-BatchPart = tuple["RecordedTopic", "TakenMessages"]
+BatchPart = tuple[TakenTopic, TakenMessages]
 # What the writer receives: a batch to write ("batch"), a batch dropped on a full queue
 # ("dropped"), a new topic to add to the bag ("topic"), the end of the recording ("end"), a
 # nudge to look at its state now ("wake": a resume).

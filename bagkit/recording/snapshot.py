@@ -6,7 +6,7 @@
 conditions, and on each trigger opens a *window*: ``pre_s`` before the trigger (default: all
 that is buffered) to ``post_s`` after it. A trigger inside an open window extends it. The
 window's buffered part, the latched state before it and the messages taken until its end go to
-the :class:`~bagkit.ros.record.snapshot_writer.SnapshotWriter` thread, which writes them as a
+the :class:`~bagkit.recording.snapshot_writer.SnapshotWriter` thread, which writes them as a
 complete bag ``OUTPUT/snapshot_N``. Requests (the ``~/snapshot`` service, a key) come from
 other threads: everything here is under one lock.
 """
@@ -15,30 +15,45 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Protocol
 
 from bagkit.bag import TopicInfo
-from bagkit.recording.errors import RecorderOptionsError
-from bagkit.recording.latched import LatchedState
+from bagkit.recording.errors import RecorderOptionsError, TriggerError
+from bagkit.recording.latched import LatchedState, latched_depth
 from bagkit.recording.options import RecordOptions
 from bagkit.recording.report import SnapshotRecord
 from bagkit.recording.snapshot_buffer import MessageSlice, SnapshotBuffer
-from bagkit.ros.record.latched_topics import latched_depth
-from bagkit.ros.record.snapshot_writer import (
+from bagkit.recording.snapshot_writer import (
     SnapshotEnd,
     SnapshotMessages,
     SnapshotStart,
     SnapshotTopic,
     SnapshotWriter,
 )
-from bagkit.ros.record.triggers import DataTriggers, TriggerError
 from bagkit.selection.times import seconds_to_ns
 
 # A window ends once messages this much newer than its end arrive (or the clock passes it):
 # batches of slower topics are up to a few milliseconds old when they reach the writer.
 CLOSE_GRACE_NS = 250_000_000
+
+
+class SnapshotTriggers(Protocol):
+    """The ``--trigger`` conditions, checked on the messages
+    (:class:`bagkit.ros.record.triggers.DataTriggers`, which decodes them with rclpy)."""
+
+    def add_topic(self, info: TopicInfo) -> None:
+        """Check the conditions on ``info``'s topic against its type (TriggerError if not)."""
+
+    def matching(
+        self, topic: str, payloads: Sequence[bytes], log_times: Sequence[int]
+    ) -> list[tuple[int, str]]:
+        """(index, trigger text) of each message of ``topic`` that triggers."""
+
+    def tick(self, now_ns: int) -> list[str]:
+        """The texts of the conditions over time that ``now_ns`` makes trigger."""
 
 
 @dataclass(slots=True)
@@ -53,7 +68,8 @@ class SnapshotSink:
 
     Args:
         path: the output directory (created here); snapshot N goes to ``path/snapshot_N``.
-        options: the recording's options (bounds, triggers, pre/post, latched repeats).
+        options: the recording's options (bounds, pre/post, latched repeats).
+        triggers: the options' ``--trigger`` conditions, ready to check.
         on_error: called with the error line and the exit status it calls for: 1 when a
             snapshot cannot be written, 2 for a trigger's field that a late topic lacks.
         now_ns: the current log time (the system clock; with sim time, the newest message's).
@@ -63,6 +79,7 @@ class SnapshotSink:
         self,
         path: Path,
         options: RecordOptions,
+        triggers: SnapshotTriggers,
         on_error: Callable[[str, int], None],
         now_ns: Callable[[], int] = time.time_ns,
     ) -> None:
@@ -77,12 +94,7 @@ class SnapshotSink:
         )
         self._pre_ns = None if options.pre_s is None else _ns(options.pre_s)
         self._post_ns = _ns(options.post_s)
-        self.triggers = DataTriggers(
-            [
-                (text, trigger.topic, trigger.condition)
-                for text, trigger in zip(options.triggers, options.trigger_conditions, strict=True)
-            ]
-        )
+        self.triggers = triggers
         self._topics: dict[str, tuple[TopicInfo, str]] = {}
         self._window: _Window | None = None
         self._batches = 0
@@ -155,12 +167,12 @@ class SnapshotSink:
                 )
             self._close_if_over(self._buffer.newest_ns)
 
-    def request(self, reason: str) -> SnapshotRecord:
-        """Trigger a snapshot now (a service call, a key); return the snapshot it opened or
-        extended."""
+    def request(self, reason: str, at_ns: int | None = None) -> SnapshotRecord:
+        """Trigger a snapshot now (a service call, a key), or at log time ``at_ns`` (a health
+        check that broke then); return the snapshot it opened or extended."""
         with self._lock:
             now = self._now_ns()
-            record = self._trigger(now, reason)
+            record = self._trigger(now if at_ns is None else at_ns, reason)
             self._close_if_over(now)
             return record
 

@@ -11,16 +11,22 @@ from __future__ import annotations
 
 import itertools
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
+from typing import Protocol
 
 from bagkit.bag import BagMessage
+from bagkit.bag.clock import clock_message
 from bagkit.playback.controls import PlayControls
 from bagkit.playback.lateness import LatenessSamples
 from bagkit.playback.report import PlayProgress
-from bagkit.playback.timing import LATE_THRESHOLD_NS, SPIN_WINDOW_NS, wait_until
-from bagkit.ros.clock import clock_message
-from bagkit.ros.replay.publishers import TopicOutput
+from bagkit.playback.timing import (
+    LATE_THRESHOLD_NS,
+    SPIN_WINDOW_NS,
+    Timeline,
+    effective_rate,
+    wait_until,
+)
 
 # Lateness samples are handed to LatenessSamples in blocks, when the next message is at least
 # LATENESS_SLACK_NS away (a block of 4096 takes about 0.1 ms), or at the latest at
@@ -32,6 +38,17 @@ LATENESS_SLACK_NS = 1_000_000
 # overdue by PROGRESS_FORCE_S), so reporting never delays a message.
 PROGRESS_SLACK_NS = 3_000_000
 PROGRESS_FORCE_S = 2.0
+
+
+class Output(Protocol):
+    """Where a topic's messages go (a publisher, :class:`bagkit.ros.replay.publishers.TopicOutput`),
+    and how many went."""
+
+    count: int
+
+    @property
+    def publish(self) -> Callable[[bytes], None]:
+        """Publish one serialized message."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -62,8 +79,8 @@ class PassPublisher:
 
     def __init__(
         self,
-        outputs: dict[str, TopicOutput],
-        clock: TopicOutput | None,
+        outputs: Mapping[str, Output],
+        clock: Output | None,
         *,
         controls: PlayControls,
         clock_hz: float | None,
@@ -237,14 +254,12 @@ class PassPublisher:
         delays = self._delays
         position = self.last_log_time
         span = self.reader.end_ns - self._window_start
-        segment_wall = now - self._wall_start
+        segment = Timeline(self._segment_start, self._wall_start, self.controls.rate)
         self.on_progress(
             PlayProgress(
                 bag_time_s=(position - self._window_start) / 1e9,
                 wall_time_s=(now - self._pass_wall_start) / 1e9,
-                effective_rate=(position - self._segment_start) / segment_wall
-                if segment_wall > 0
-                else 0.0,
+                effective_rate=effective_rate(position, now, self.controls.timeline, since=segment),
                 messages=self.lateness.count - count_before + len(delays),
                 late=self.lateness.late
                 - late_before

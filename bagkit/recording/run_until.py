@@ -7,13 +7,12 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 from bagkit.recording.report import RecordProgress
 
 if TYPE_CHECKING:
     from bagkit.recording.options import RecordOptions
-    from bagkit.ros.record.subscriptions import Subscriptions
 
 # How often run() looks at its stop conditions before the topics are subscribed (the duration
 # counts from there), and at most between two looks afterwards.
@@ -23,9 +22,18 @@ POLL_S = 0.5
 StopWhen = threading.Event | Callable[[], bool]
 
 
+class Subscribed(Protocol):
+    """When the recording's topics were all subscribed (``bagkit.ros.record.subscriptions``)."""
+
+    complete: threading.Event
+    """Set once every selected topic is subscribed."""
+    complete_at: float
+    """The monotonic time it was set."""
+
+
 def wait_until_done(
     options: RecordOptions,
-    subscriptions: Subscriptions,
+    subscriptions: Subscribed,
     stopped: threading.Event,
     progress: Callable[[], RecordProgress],
     *,

@@ -1,0 +1,54 @@
+"""Where a broken assertion can be looked at: commands that replay or cut it, a Foxglove link.
+
+The commands are those ``bagkit play`` and ``bagkit filter`` accept as printed (tests run
+them). The Foxglove link needs to know where the bags are served over HTTP(S): the base URL
+under which a bag's path, as given to ``check``, is found (``--bags-url`` or the
+``BAGKIT_BAGS_URL`` environment variable); without one there is no link.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import os
+import shlex
+from pathlib import Path
+from urllib.parse import quote, urlencode
+
+BAGS_URL_ENV = "BAGKIT_BAGS_URL"
+CONTEXT_S = 5
+"""Seconds of context before and after a broken span in the commands."""
+FOXGLOVE_APP = "https://app.foxglove.dev/~/view"
+
+
+def play_command(bag: str, start_ns: int, bag_start_ns: int) -> str:
+    """``bagkit play`` from CONTEXT_S before ``start_ns``."""
+    offset = max(start_ns - bag_start_ns - CONTEXT_S * 1_000_000_000, 0) / 1e9
+    return f"bagkit play {shlex.quote(bag)} --start-offset {offset:.3f}"
+
+
+def filter_command(bag: str, topic: str, condition: str) -> str:
+    """``bagkit filter --around`` the episodes of ``TOPIC: CONDITION``, with context."""
+    around = shlex.quote(f"{topic}: {condition}")
+    out = shlex.quote(f"{Path(bag).name}_cuts")
+    return (
+        f"bagkit filter {shlex.quote(bag)} -o {out} --around {around} "
+        f"--before {CONTEXT_S} --after {CONTEXT_S}"
+    )
+
+
+def bags_url(given: str | None = None) -> str | None:
+    """Where bags are served: ``given``, else ``$BAGKIT_BAGS_URL``, else None."""
+    return given or os.environ.get(BAGS_URL_ENV) or None
+
+
+def foxglove_link(base_url: str, bag: str, time_ns: int) -> str:
+    """Foxglove opening ``bag``'s first MCAP file (served under ``base_url``) at ``time_ns``."""
+    path = Path(bag)
+    if path.is_dir():
+        files = sorted(path.glob("*.mcap"))
+        path = files[0] if files else path
+    relative = path.as_posix().lstrip("/")
+    url = f"{base_url.rstrip('/')}/{quote(relative)}"
+    stamp = dt.datetime.fromtimestamp(time_ns // 1_000_000_000, tz=dt.timezone.utc)
+    when = stamp.strftime("%Y-%m-%dT%H:%M:%S") + f".{time_ns % 1_000_000_000:09d}Z"
+    return f"{FOXGLOVE_APP}?{urlencode({'ds': 'remote-file', 'ds.url': url, 'time': when})}"
