@@ -7,6 +7,7 @@ interrupted, 141 the reader of our output went away (broken pipe; quiet, as ``ye
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import functools
 import os
@@ -15,7 +16,7 @@ import sys
 import threading
 import traceback
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, ClassVar, NoReturn, ParamSpec, TypeVar, cast
 
@@ -27,10 +28,12 @@ from typer._click.exceptions import NoArgsIsHelpError, UsageError
 from typer.core import TyperCommand
 
 from bagkit.compat import StrEnum
-from bagkit.errors import BagkitError
+from bagkit.errors import BagkitError, OptionError
 
 if TYPE_CHECKING:
     from rich.console import Console
+
+    from bagkit.bag.file_rotation import FreeSpace
 
 P = ParamSpec("P")
 R = TypeVar("R")
@@ -204,6 +207,47 @@ def byte_size(text: str) -> int:
         return parse_size(text, "size")
     except BagkitError:
         raise typer.BadParameter(f"{text!r}: expected {GRAMMAR}") from None
+
+
+def free_space(text: str) -> FreeSpace:
+    """A free-space option's value: a size (:func:`byte_size`) or a share of the filesystem
+    (``5%``)."""
+    from bagkit.bag.file_rotation import FreeSpace
+    from bagkit.bag.sizes import GRAMMAR
+
+    try:
+        return FreeSpace.parse(text)
+    except BagkitError as exc:
+        if text.strip().endswith("%"):
+            raise typer.BadParameter(str(exc).removeprefix("min_free_space ")) from None
+        raise typer.BadParameter(f"{text!r}: expected {GRAMMAR} or a share (5%)") from None
+
+
+def duration_ns(text: str) -> int:
+    """A duration option's value in ns: ``90`` (seconds), ``1.5``, ``1m30s``, ``250ms``
+    (:func:`bagkit.selection.times.parse_duration`, the grammar of every duration option)."""
+    from bagkit.selection.times import parse_duration
+
+    try:
+        return parse_duration(text, "duration")
+    except BagkitError as exc:
+        raise typer.BadParameter(str(exc).removeprefix("bad duration ")) from None
+
+
+@contextlib.contextmanager
+def option_flags(flags: Mapping[str, str]) -> Iterator[None]:
+    """In the block, an options error that names a field (:class:`bagkit.errors.OptionError`)
+    is one ``error:`` line naming its flag instead (``flags``: field -> flag, or a template
+    with ``{}`` for the problem); the library names its own fields, the CLI its flags, in this
+    one place."""
+    try:
+        yield
+    except OptionError as exc:
+        if exc.field is None:
+            raise
+        names = ", ".join(flags.get(name.strip(), name.strip()) for name in exc.field.split(","))
+        message = names.format(exc.problem) if "{}" in names else f"{names}: {exc.problem}"
+        raise fail(message, exc.exit_code) from None
 
 
 def format_rate(rate_hz: float | None, digits: int = 2) -> str:
