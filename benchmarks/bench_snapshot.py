@@ -104,7 +104,7 @@ def bench_trigger_latency() -> bool:
     from rclpy.node import Node
     from sensor_msgs.msg import Imu
 
-    from bagkit.recording.options import RecordOptions, SnapshotOptions, Trigger
+    from bagkit.recording.options import RecordOptions, SnapshotOptions, SnapshotTrigger
     from bagkit.ros.record.recorder import Recorder
 
     opened: dict[Path, int] = {}
@@ -136,7 +136,7 @@ def bench_trigger_latency() -> bool:
                 regex="^/bench/",
                 snapshot=SnapshotOptions(
                     max_duration_ns=1_000_000_000,
-                    triggers=(Trigger.parse("/bench/alerts: status[*].level >= 2"),),
+                    triggers=(SnapshotTrigger.parse("/bench/alerts: status[*].level >= 2"),),
                 ),
             )
             with Recorder(options) as recorder:

@@ -83,7 +83,7 @@ from bagkit.recording.options import (
     FileOptions,
     RecordOptions,
     SnapshotOptions,
-    Trigger,
+    SnapshotTrigger,
 )
 from bagkit.recording.report import RecordProgress, RecordReport
 
@@ -224,7 +224,7 @@ def record(  # noqa: PLR0917 (typer maps parameters to options; ros2 bag has the
             SnapshotOptions(
                 max_bytes=max_cache_size or 0,
                 max_duration_ns=max_cache_duration or 0,
-                triggers=tuple(Trigger.parse(text) for text in trigger or ()),
+                triggers=tuple(SnapshotTrigger.parse(text) for text in trigger or ()),
                 pre_ns=pre,
                 post_ns=post or 0,
             )

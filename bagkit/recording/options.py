@@ -78,7 +78,7 @@ class FileOptions:
 
 
 @dataclass(frozen=True, slots=True)
-class Trigger:
+class SnapshotTrigger:
     """A snapshot trigger: a message on ``condition.topic`` that satisfies ``condition``.
 
     Attributes:
@@ -90,7 +90,7 @@ class Trigger:
     condition: TopicCondition
 
     @classmethod
-    def parse(cls, text: str) -> Trigger:
+    def parse(cls, text: str) -> SnapshotTrigger:
         """``'TOPIC: CONDITION'`` parsed.
 
         Raises:
@@ -116,7 +116,7 @@ class SnapshotOptions:
 
     max_bytes: int = 0
     max_duration_ns: int = 0
-    triggers: tuple[Trigger, ...] = ()
+    triggers: tuple[SnapshotTrigger, ...] = ()
     pre_ns: int | None = None
     post_ns: int = 0
 

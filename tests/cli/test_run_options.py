@@ -20,7 +20,7 @@ from bagkit.recording.options import (
     FileOptions,
     RecordOptions,
     SnapshotOptions,
-    Trigger,
+    SnapshotTrigger,
 )
 
 
@@ -90,7 +90,9 @@ def test_play_options_default_to_the_cli() -> None:
         (
             {
                 "topics": ("/a",),
-                "snapshot": SnapshotOptions(1 << 20, triggers=(Trigger.parse("/b: x > 1"),)),
+                "snapshot": SnapshotOptions(
+                    1 << 20, triggers=(SnapshotTrigger.parse("/b: x > 1"),)
+                ),
             },
             "^snapshot.triggers: '/b: x > 1': /b is not among the recorded topics",
         ),
@@ -114,7 +116,7 @@ def test_record_options_out_of_range(fields: dict[str, object], message: str) ->
         (SnapshotOptions, "^snapshot.max_bytes, snapshot.max_duration_ns: one is needed"),
         (lambda: SnapshotOptions(1 << 20, post_ns=-1), "^snapshot.post_ns: must be >= 0"),
         (
-            lambda: Trigger.parse("no colon"),
+            lambda: SnapshotTrigger.parse("no colon"),
             "^snapshot.triggers: 'no colon': expected 'TOPIC: CONDITION'",
         ),
     ],

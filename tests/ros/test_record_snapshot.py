@@ -24,7 +24,7 @@ from test_record_cli import report_json
 from waiting import wait_for, wait_matched
 
 from bagkit.bag import BagReader
-from bagkit.recording.options import FileOptions, RecordOptions, SnapshotOptions, Trigger
+from bagkit.recording.options import FileOptions, RecordOptions, SnapshotOptions, SnapshotTrigger
 from bagkit.ros.errors import RecorderOptionsError
 from bagkit.ros.record.recorder import Recorder
 
@@ -61,7 +61,7 @@ def options(
     bag: Path, *, triggers: tuple[str, ...] = (), node_name: str = "bagkit_recorder", **bounds: Any
 ) -> RecordOptions:
     """Snapshot mode on /snap/*: ``bounds`` are :class:`SnapshotOptions`' fields."""
-    snapshot = SnapshotOptions(triggers=tuple(Trigger.parse(t) for t in triggers), **bounds)
+    snapshot = SnapshotOptions(triggers=tuple(SnapshotTrigger.parse(t) for t in triggers), **bounds)
     return RecordOptions(bag, regex="^/snap/", node_name=node_name, snapshot=snapshot)
 
 
