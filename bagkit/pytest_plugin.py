@@ -232,6 +232,10 @@ class GoldenItem(pytest.Item):
 def verdict(check: GoldenCheck, most: int = 3) -> str:
     """One line: what matched, or the failing topics with their fields and counts."""
     topics = check.report.topics
+    if check.drift:
+        drifted = [f"{d.topic}: drifted ({'; '.join(d.changes)})" for d in check.drift]
+        more = f"; and {len(drifted) - most} more topic(s)" if len(drifted) > most else ""
+        return "; ".join(drifted[:most]) + more
     if check.passed:
         matched = sum(t.matched for t in topics)
         return f"{len(topics)} topic(s), {matched} messages match the golden"

@@ -60,7 +60,7 @@ def decompressed_copy(path: Path, limit: int | None = None) -> Path:
     directory = tempfile.gettempdir()
     if limit is None:
         limit = max(shutil.disk_usage(directory).free - DISK_RESERVE, 0)
-    with open(path, "rb") as source:
+    with path.open("rb") as source:  # a UrlPath's is read by ranges, with read-ahead
         declared = zstandard.frame_content_size(source.read(18))
         if declared > limit:
             raise CorruptBagError(

@@ -12,6 +12,7 @@ import json
 import os
 import re
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 from bagkit.bag.action_definitions import action_part_texts, split_action_part
@@ -49,6 +50,12 @@ def definition_encoding(text: str) -> str:
     lines = [line.strip() for line in text.lstrip().splitlines()[:2]]
     is_idl = len(lines) == 2 and lines[0] == DEFINITION_SEPARATOR and lines[1].startswith("IDL:")
     return "ros2idl" if is_idl else "ros2msg"
+
+
+DEFINITION_ENCODINGS = ("ros2msg", "ros2idl")
+"""The definition encodings bagkit reads; rosbag2 writes ``unknown`` (and no text) for a type
+whose definition it did not find when recording (an action's status or cancel topic recorded
+before its other topics, Kilted to 2026)."""
 
 
 def canonical_type_name(type_name: str) -> str:
@@ -96,6 +103,25 @@ def _interface_source(type_name: str) -> tuple[str, str, str, str]:
     if action_part is not None:
         return package, kind, action_part[0], ".action"
     return package, kind, name, ".msg"
+
+
+def interface_source(type_name: str) -> tuple[str, str, str, str]:
+    """(package, kind, file stem, suffix) of the interface file that defines ``type_name``
+    (``my_msgs/srv/Set_Event``: ``("my_msgs", "srv", "Set", ".srv")``).
+
+    Raises:
+        UnknownMessageTypeError: not a type name.
+    """
+    return _interface_source(type_name)
+
+
+def interface_text(type_name: str) -> str:
+    """The installed text of the interface file that defines ``type_name`` (no dependencies).
+
+    Raises:
+        UnknownMessageTypeError: it is not installed.
+    """
+    return _msg_text(type_name)
 
 
 @functools.cache
@@ -157,9 +183,20 @@ def message_definition(type_name: str) -> str:
     Raises:
         UnknownMessageTypeError: the type or one of its dependencies is not installed.
     """
+    return compose_definition(type_name, _msg_text)
+
+
+def compose_definition(type_name: str, text_of: Callable[[str], str]) -> str:
+    """:func:`message_definition` with the interface files' texts from ``text_of`` (type name
+    -> the text of the ``.msg``, ``.srv`` or ``.action`` file that defines it), for a package
+    that is not installed (``bagkit migrate --to-package``).
+
+    Raises:
+        UnknownMessageTypeError: what ``text_of`` raises for a type it does not have.
+    """
     root = canonical_type_name(type_name)
-    inline = _service_event_parts(root) or _action_parts(root)
-    root_text = inline.pop(root) if inline else _msg_text(root)
+    inline = _service_event_parts(root, text_of) or _action_parts(root, text_of)
+    root_text = inline.pop(root) if inline else text_of(root)
     parts = [root_text]
     seen = {root}
     queue = _dependencies(_split_type_name(root)[0], root_text)
@@ -168,14 +205,14 @@ def message_definition(type_name: str) -> str:
         if dependency in seen:
             continue
         seen.add(dependency)
-        text = inline[dependency] if dependency in inline else _msg_text(dependency)
+        text = inline[dependency] if dependency in inline else text_of(dependency)
         package, _, name = _split_type_name(dependency)
         parts.append(f"{DEFINITION_SEPARATOR}\nMSG: {package}/{name}\n{text}")
         queue.extend(d for d in _dependencies(package, text) if d not in seen)
     return "\n".join(parts)
 
 
-def _service_event_parts(type_name: str) -> dict[str, str]:
+def _service_event_parts(type_name: str, text_of: Callable[[str], str]) -> dict[str, str]:
     """The texts of a ``pkg/srv/Name_Event`` and of its request and response; ``{}`` for others.
 
     Raises:
@@ -185,7 +222,7 @@ def _service_event_parts(type_name: str) -> dict[str, str]:
     if kind != "srv" or not name.endswith(_SERVICE_EVENT_SUFFIX):
         return {}
     base = name.removesuffix(_SERVICE_EVENT_SUFFIX)
-    lines = _msg_text(type_name).splitlines(keepends=True)
+    lines = text_of(type_name).splitlines(keepends=True)
     cut = next((i for i, line in enumerate(lines) if line.strip() == "---"), len(lines))
     request, response = f"{package}/msg/{base}_Request", f"{package}/msg/{base}_Response"
     return {
@@ -199,7 +236,7 @@ def _service_event_parts(type_name: str) -> dict[str, str]:
     }
 
 
-def _action_parts(type_name: str) -> dict[str, str]:
+def _action_parts(type_name: str, text_of: Callable[[str], str]) -> dict[str, str]:
     """The texts of a ``pkg/action/Name_Part`` and of its sibling parts; ``{}`` for others.
 
     The root is keyed by its own name, the siblings as the ``pkg/msg/Name_Part`` its fields
@@ -213,7 +250,7 @@ def _action_parts(type_name: str) -> dict[str, str]:
     if action_part is None:
         return {}
     stem, suffix = action_part
-    texts = action_part_texts(package, stem, _msg_text(type_name))
+    texts = action_part_texts(package, stem, text_of(type_name))
     parts = {f"{package}/msg/{stem}_{part}": text for part, text in texts.items()}
     parts[type_name] = texts[suffix]
     return parts

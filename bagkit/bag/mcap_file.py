@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, BinaryIO, TypeGuard
 
 from mcap.well_known import Profile
 
-from bagkit.bag.definitions import canonical_type_name
+from bagkit.bag.definitions import DEFINITION_ENCODINGS, canonical_type_name
 from bagkit.bag.errors import ChunkError, CorruptBagError, NotABagError, UnsupportedStorageError
 from bagkit.bag.mcapio import (
     DEFAULT_MAX_CHUNK_SIZE,
@@ -103,7 +103,7 @@ class McapFile:
             NotABagError, CorruptBagError: not an MCAP file, or its header is unreadable.
             UnsupportedStorageError: a profile other than ``ros2``.
         """
-        self._handle = open(self.path, "rb")  # noqa: SIM115 (closed in close())
+        self._handle = self.path.open("rb")  # closed in close(); a UrlPath's reads by range
         try:
             self._source = Source(self._handle, self.path.name)
             self.index = read_file_index(
@@ -145,7 +145,7 @@ class McapFile:
                     type_description_hash=channel.metadata.get("topic_type_hash", ""),
                 ),
             )
-            if schema is not None:
+            if schema is not None and schema.encoding in DEFINITION_ENCODINGS:
                 text = schema.data.decode("utf-8", errors="replace")
                 # One text per type; a topic whose schema holds another text keeps its own.
                 if self.definitions.setdefault(type_name, text) != text:

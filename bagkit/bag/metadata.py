@@ -284,8 +284,14 @@ def _check_inside(bag_dir: Path, names: list[str], source: str) -> None:
     """Refuse listed files that resolve outside the bag directory (through symlinks).
 
     Both places the reader looks are checked: the path as listed, and its base name (early
-    rosbag2 versions prefixed the bag's own name).
+    rosbag2 versions prefixed the bag's own name). A bag in storage (a UrlPath: no symlinks
+    there) refuses absolute names and ``..``.
     """
+    if not isinstance(bag_dir, Path):
+        for name in names:
+            if name.startswith("/") or ".." in PurePosixPath(name).parts:
+                raise NotABagError(f"{source}: {name!r} leaves the bag's prefix")
+        return
     try:
         root = bag_dir.resolve()
         for name in names:
@@ -316,7 +322,7 @@ def read_metadata(bag_dir: Path) -> BagMetadata | None:
     if not path.is_file():
         return None
     try:
-        with open(path, "rb") as f:
+        with path.open("rb") as f:
             raw = f.read(MAX_METADATA_BYTES + 1)
     except OSError as exc:
         raise NotABagError(f"{path}: cannot read ({exc.strerror or exc})") from exc

@@ -9,7 +9,7 @@ import shutil
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from types import TracebackType
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 from bagkit.bag.compression import (
     Decompression,
@@ -26,12 +26,16 @@ from bagkit.bag.errors import (
     NotABagError,
     UnsupportedStorageError,
 )
+from bagkit.bag.local_copy import LocalCopy
 from bagkit.bag.mcap_file import McapFile
 from bagkit.bag.mcapio import DEFAULT_MAX_CHUNK_SIZE, MAGIC
 from bagkit.bag.mcapio.message_index import Span, widen
 from bagkit.bag.messages import BagMessage, TopicInfo
 from bagkit.bag.metadata import METADATA_FILENAME, BagMetadata, read_metadata
 from bagkit.bag.storage import ROSBAG1_MAGIC, SQLITE_MAGIC, BagChunk, StorageFile, chunk_of_rows
+from bagkit.storage.paths import UrlPath
+from bagkit.storage.transfer import local_copy, temporary_directory
+from bagkit.storage.urls import is_url
 
 if TYPE_CHECKING:
     import numpy as np
@@ -60,6 +64,14 @@ def _listed_file(bag_dir: Path, name: str) -> Path:
 def is_storage_name(name: str) -> bool:
     """True for the name of a storage file (``.mcap``, ``.db3``, and those zstd-compressed)."""
     return name.endswith(STORAGE_SUFFIXES + COMPRESSED_STORAGE_SUFFIXES)
+
+
+def bag_path(path: str | Path) -> Path:
+    """A bag's path: a ``Path``, or for a URL a :class:`~bagkit.storage.paths.UrlPath`, which has
+    the part of Path's API the readers use (the back-ends open it by range requests)."""
+    if isinstance(path, UrlPath) or is_url(path):
+        return cast(Path, UrlPath(cast(str, path)))
+    return Path(path)
 
 
 def _resolve_files(path: Path) -> tuple[Path, list[Path], BagMetadata | None]:
@@ -121,10 +133,14 @@ def open_storage_file(
         NotABagError: neither MCAP, SQLite3 nor ROS 1 (once decompressed); and what the back-end's
             ``open()`` raises.
     """
-    with open(path, "rb") as f:
+    with path.open("rb") as f:
         head = f.read(len(SQLITE_MAGIC))
     source, temporary = path, None
-    if is_zstd(head):
+    copied = isinstance(path, UrlPath) and not head.startswith(MAGIC) and not is_zstd(head)
+    if copied:  # SQLite3 and ROS 1 back-ends read files on disk only
+        temporary = temporary_directory()
+        source = local_copy(cast(UrlPath, path), temporary)
+    elif is_zstd(head):
         source = decompressed_copy(path)
         temporary = source.parent
         with open(source, "rb") as f:
@@ -151,10 +167,16 @@ def open_storage_file(
             and storage.storage_identifier == "sqlite3"
             and sniff_message_compression(storage)
         )
-        if temporary is None and not payloads:
+        if copied and temporary is not None:
+            storage = cast(StorageFile, LocalCopy(storage, path, temporary))
+        if (temporary is None or copied) and not payloads:
             return storage
         return Decompression(
-            storage, path, payloads=payloads, limit=max_chunk_size, temporary=temporary
+            storage,
+            path,
+            payloads=payloads,
+            limit=max_chunk_size,
+            temporary=None if copied else temporary,
         )
     except BaseException as exc:
         if storage is not None:
@@ -197,7 +219,7 @@ class BagReader:
         max_chunk_size: int = DEFAULT_MAX_CHUNK_SIZE,
         distro: str | None = None,
     ) -> None:
-        self.path = Path(path)
+        self.path = bag_path(path)
         self.directory = self.path
         self.allow_empty = allow_empty
         self.check_crc = check_crc

@@ -428,3 +428,16 @@ def run_app(app: typer.Typer | Command, args: list[str] | None = None) -> NoRetu
     except BrokenPipeError:
         raise SystemExit(_broken_pipe().exit_code) from None
     sys.exit(result if isinstance(result, int) else 0)
+
+
+def bag_location(text: str) -> Path:
+    """A bag argument (``parser=`` of a ``Path`` argument): a local path, or for a URL
+    (``s3://``, ``https://`` ...) a :class:`~bagkit.storage.paths.UrlPath`, which the readers open
+    by range requests (``Path`` would fold its ``//``)."""
+    from bagkit.storage.urls import is_url
+
+    if not is_url(text):
+        return Path(text)
+    from bagkit.storage.paths import UrlPath
+
+    return cast(Path, UrlPath(text))

@@ -12,8 +12,8 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from bagkit.cli.common import EXIT_INTERRUPTED, fail, handle_errors, split_list, warn
-from bagkit.cli.selection_options import Distro, End, Start, Where
+from bagkit.cli.common import EXIT_INTERRUPTED, bag_location, fail, handle_errors, warn
+from bagkit.cli.selection_options import Distro, End, Start, Where, build_query
 from bagkit.compat import StrEnum
 
 if TYPE_CHECKING:
@@ -58,7 +58,10 @@ class EchoFormat(StrEnum):
 Bag = Annotated[
     Path,
     typer.Argument(
-        help="Bag directory or single .mcap/.db3 file.", show_default=False, metavar="BAG"
+        help="Bag directory, single .mcap/.db3 file, or its URL (s3://, https:// ...).",
+        show_default=False,
+        metavar="BAG",
+        parser=bag_location,
     ),
 ]
 Topic = Annotated[
@@ -102,13 +105,13 @@ def echo(  # noqa: PLR0917 (typer maps parameters to options)
     distro: Distro = None,
 ) -> None:
     from bagkit.bag import BagReader
-    from bagkit.data.call_selection import CallSelection
     from bagkit.data.echo import action_topics, echo_action
     from bagkit.data.echo import echo as read_messages
     from bagkit.data.services import echo_calls, names_service
     from bagkit.selection.errors import SelectionError
 
     # Output is a stream: Ctrl-C ends it quietly, as a closed pipe (| head) does every command.
+    query = build_query(topic, fields, start, end, where)
     limit = None if full_length or output is EchoFormat.JSON else DEFAULT_TRUNCATE_LENGTH
     try:
         with BagReader(bag, allow_empty=True) as reader:
@@ -116,28 +119,23 @@ def echo(  # noqa: PLR0917 (typer maps parameters to options)
         if action_topics(bag, topic):
             if fields or where:
                 raise SelectionError("--fields, --where: an action prints its topics' messages")
-            records = echo_action(bag, topic, start=start, end=end, limit=limit, on_failure=warn)
+            records = echo_action(bag, query, limit=limit, on_failure=warn)
             _write(itertools.islice(records, count), output, bag_start)
             return
         if names_service(bag, topic):
             if fields:
                 raise SelectionError("--fields: a service prints whole calls (use --where)")
-            selection = CallSelection(start, end, where)
-            calls = echo_calls(bag, topic, limit=limit, selection=selection)
+            calls = echo_calls(bag, topic, limit=limit, query=query)
             if not _write(itertools.islice(calls, count), output, bag_start) and where:
                 warn(f"no call satisfies {where!r}")
             return
         failures = _Failures()
         records = read_messages(
             bag,
-            topic,
-            fields=split_list(fields) or None,
-            start=start,
-            end=end,
+            query,
             count=count,
             limit=limit,
             on_failure=warn if where is not None else failures.add,
-            where=where,
         )
         written = _write(records, output, bag_start)
         if failures.count and not written:  # a topic this bag cannot give: not a success

@@ -7,10 +7,10 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from bagkit.cli.common import console, handle_errors, split_list, warn
+from bagkit.cli.common import console, handle_errors, warn
 from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers
 from bagkit.cli.progress import DelayedProgress
-from bagkit.cli.selection_options import Distro, End, Start, Where
+from bagkit.cli.selection_options import Distro, End, Start, Where, build_query
 from bagkit.data.formats import ExportFormat
 
 if TYPE_CHECKING:
@@ -73,26 +73,22 @@ def export(  # noqa: PLR0917 (typer maps parameters to options)
     distro: Distro = None,
 ) -> None:
     from bagkit.fleet.inputs import BAG_FILE_SUFFIXES, expand_bags, is_bag_directory
-    from bagkit.selection.conditions import parse_condition
 
-    if where is not None:
-        parse_condition(where)  # a bad condition is one error, not one per bag
+    query = build_query(topics, fields, start, end, where)
     if file_format is None:
         file_format = ExportFormat.CSV if out.suffix == ".csv" else ExportFormat.PARQUET
     options = {
         "file_format": file_format,
-        "topics": split_list(topics) or None,
-        "fields": split_list(fields) or None,
-        "start": start,
-        "end": end,
+        "query": query,
         "dataset": dataset,
-        "where": where,
     }
     named = inputs[0] if len(inputs) == 1 else None
     if named is not None and (named.suffix in BAG_FILE_SUFFIXES or is_bag_directory(named)):
         _print_report(_export_one(named, out, options), where=where)
         return
-    _export_many(expand_bags(inputs), out, options, workers=workers, scheduler=scheduler)
+    _export_many(
+        expand_bags(inputs), out, options, where=where, workers=workers, scheduler=scheduler
+    )
 
 
 def _export_one(bag: Path, out: Path, options: dict[str, Any]) -> ExportReport:
@@ -110,6 +106,7 @@ def _export_many(
     out: Path,
     options: dict[str, Any],
     *,
+    where: str | None,
     workers: int | None,
     scheduler: str | None,
 ) -> None:
@@ -128,7 +125,7 @@ def _export_many(
             failed += 1
             continue
         console.print(f"{result.bag} -> {result.out}", highlight=False, soft_wrap=True)
-        _print_report(result.report, indent="  ", where=options["where"])
+        _print_report(result.report, indent="  ", where=where)
     if failed:
         raise typer.Exit(1)
 

@@ -23,7 +23,10 @@ if TYPE_CHECKING:
 
     from bagkit.fleet.cluster import WorkRate
 
-BAGS_HELP = "Bags, directories searched for bags, globs, or .txt files listing bag paths"
+BAGS_HELP = (
+    "Bags, directories searched for bags, globs, .txt files listing bag paths, or URLs "
+    "(s3://, gs://, az://, https://: bags, or prefixes searched for bags)"
+)
 
 Workers = Annotated[
     int | None,

@@ -90,7 +90,7 @@ def check(
             before_live=lambda job: note(f"{job[0].name}: live ..."),
         )
     for outcome in outcomes:
-        console.print(outcome.summary, highlight=False, markup=False)
+        console.print(outcome.summary, highlight=False, markup=False, soft_wrap=True)
         if outcome.speedup is not None:
             console.print(f"  lockstep ({outcome.speedup:.0f}x real time)", highlight=False)
         if outcome.report is not None:
@@ -116,6 +116,62 @@ def update(fixtures: list[Path] | None = FIXTURES_ARG) -> None:
         counts = ", ".join(f"{t} {n}" for t, n in sorted(update.lockstep.output_counts.items()))
         verdict = "outputs rewritten" if update.rewritten else "unchanged, nothing rewritten"
         console.print(f"{spec.name}: {verdict} ({counts})", highlight=False)
+
+
+@app.command("migrate")
+@handle_errors
+def migrate(
+    fixtures: list[Path] | None = FIXTURES_ARG,
+    *,
+    rules: Path | None = typer.Option(
+        None, "--rules", help="A rules file, as bagkit migrate takes.", metavar="FILE"
+    ),
+    allow_drop: bool = typer.Option(
+        False, "--allow-drop", help="Drop the values of fields that no rule carries over."
+    ),
+    failures: Path = typer.Option(
+        Path("golden_failures"), help="Where a failing check's report.json/.html goes."
+    ),
+) -> None:
+    """Rewrite each fixture's golden to the installed message definitions, then check it.
+
+    The golden is migrated as bagkit migrate does (same-named fields copied, new ones at
+    their defaults, --rules for the rest) and replaced only when that succeeded; then its
+    lockstep check runs. Exit status 0 when every check passes, 1 when one fails, 2 when a
+    golden cannot be migrated (it is left as it was).
+
+    Example: bagkit golden migrate fixtures/pack --rules battery_v2.yaml
+    """
+    from bagkit.migrate import Rules, load_rules
+    from bagkit.regression.artefacts import write_failure_artefacts
+    from bagkit.regression.migrate_golden import migrate_golden
+    from bagkit.surgery.migrate import MigrateOptions
+
+    options = MigrateOptions(
+        rules=load_rules(rules) if rules is not None else Rules(),
+        rules_file=str(rules or ""),
+        allow_drop=allow_drop,
+    )
+    passed = True
+    for spec in _specs(fixtures):
+        with tempfile.TemporaryDirectory(prefix="bagkit-golden-") as tmp:
+            done = migrate_golden(spec, options, Path(tmp))
+            if done.check is not None and not done.check.passed:
+                write_failure_artefacts(done.check, failures / f"{spec.name}-lockstep")
+        for topic in done.migration.migrated:
+            changes = "; ".join(topic.changes)
+            console.print(
+                f"{spec.name}: {topic.topic.name} migrated ({topic.migrated} messages: {changes})",
+                highlight=False,
+                soft_wrap=True,
+            )
+        if not done.migration.migrated:
+            console.print(f"{spec.name}: golden already matches the installed definitions")
+        if done.check is not None:
+            console.print(done.check.summary(), highlight=False, markup=False, soft_wrap=True)
+            passed = passed and done.check.passed
+    if not passed:
+        raise typer.Exit(1)
 
 
 @app.command()

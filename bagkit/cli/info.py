@@ -34,6 +34,7 @@ from bagkit.cli.tables import (
     print_table,
     print_wrapped,
 )
+from bagkit.storage.urls import is_url
 
 if TYPE_CHECKING:
     from bagkit.data.service_summaries import ServiceSummary
@@ -288,7 +289,7 @@ def info(  # noqa: PLR0917 (typer maps parameters to options)
     """Show what a bag holds (like ros2 bag info)."""
     if storage not in (None, "mcap", "sqlite3", "rosbag1"):
         raise fail(f"--storage {storage}: bagkit reads mcap, sqlite3 and rosbag1 bags")
-    if Path(bag).is_dir() and not (Path(bag) / "metadata.yaml").is_file():
+    if is_url(bag) or (Path(bag).is_dir() and not (Path(bag) / "metadata.yaml").is_file()):
         from bagkit.fleet.listing import folder_info
 
         folder = folder_info(bag, check_crc=check_crc)

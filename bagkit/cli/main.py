@@ -54,6 +54,9 @@ _COMMANDS = {
     "golden": _Lazy("bagkit.cli.golden", "app", "Golden-bag regression checks."),
     "info": _Lazy("bagkit.cli.info", "info", "Show what a bag holds (like ros2 bag info)."),
     "merge": _Lazy("bagkit.cli.merge", "merge", "Merge bags into one, in log-time order."),
+    "migrate": _Lazy(
+        "bagkit.cli.migrate", "migrate", "Rewrite a bag to other message definitions."
+    ),
     "play": _Lazy("bagkit.cli.replay", "app", "The same command as replay (ros2 bag's name)."),
     "plot": _Lazy("bagkit.cli.plot", "plot", "Plot fields of a bag over time."),
     "record": _Lazy("bagkit.cli.record", "record", "Record topics into an MCAP bag."),

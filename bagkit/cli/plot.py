@@ -8,7 +8,7 @@ import typer
 
 from bagkit.cli import common
 from bagkit.cli.common import console, handle_errors, split_list
-from bagkit.cli.selection_options import Distro, End, Start, Where
+from bagkit.cli.selection_options import Distro, End, Start, Where, build_query
 
 HELP = """Plot fields of BAG over time into OUT: .png (matplotlib) or .html (an interactive page
 with zoom, hover and series toggled in the legend, that opens with no network access).
@@ -52,12 +52,13 @@ def plot(  # noqa: PLR0917 (typer maps parameters to options)
     from bagkit.data.errors import DataError
     from bagkit.data.series import load_series
 
+    query = build_query(start=start, end=end, where=where)
     suffix = out.suffix.lower()
     if suffix not in (".png", ".html"):
         raise DataError(f"{out}: the output must end in .png or .html")
     bags = [bag, *(Path(b) for b in split_list(more_bags))]
     with common.err_console.status("reading ..."):
-        found = load_series(bags, series, absolute=absolute, start=start, end=end, where=where)
+        found = load_series(bags, series, absolute=absolute, query=query)
     if not found and (start is not None or end is not None):
         console.print(f"0 series: nothing in the time window, {out} not written", highlight=False)
         return  # the window's warning said why: an empty result, as every command gives

@@ -44,6 +44,7 @@ from bagkit.cli.record_options import (
     ExcludeTopics,
     ExcludeTopicTypes,
     Format,
+    Health,
     IncludeHidden,
     IncludeUnpublished,
     LogLevel,
@@ -66,14 +67,17 @@ from bagkit.cli.record_options import (
     Services,
     SnapshotMode,
     StartPaused,
+    StopOnHealth,
     Storage,
     Topics,
     TopicsPositional,
     TopicTypes,
+    TriggerOnHealth,
     TriggerOption,
     UseSimTime,
 )
 from bagkit.cli.record_table import print_record_table, progress_line
+from bagkit.cli.selection_options import duration_seconds
 from bagkit.extras import ROS, require
 from bagkit.playback.keyboard import key_presses
 from bagkit.recording.latched import parse_repeat
@@ -88,7 +92,12 @@ from bagkit.recording.options import (
 from bagkit.recording.report import RecordProgress, RecordReport
 
 if TYPE_CHECKING:
+    from pathlib import Path
+
     from rich.status import Status
+
+    from bagkit.health.live import LiveHealth
+    from bagkit.recording.health_watch import HealthEvent
 
     # The recorder imports rclpy: only `bagkit record` itself pays for that import.
     from bagkit.ros.record.recorder import Recorder
@@ -105,6 +114,9 @@ HELP = (
     "Black box: --snapshot-mode keeps the newest messages in memory and writes a bag per "
     "trigger (--trigger 'TOPIC: CONDITION', ~/snapshot, the s key); --max-bag-files, "
     "--min-free-space, --start-paused and the space key as in docs/record.md.\n\n"
+    "Health: --health SPEC checks bagkit check's contract on what is recorded and prints a "
+    "line when a check breaks or clears; --trigger-on-health makes a broken check a snapshot "
+    "trigger, --stop-on-health DURATION a guardrail.\n\n"
     "Example: bagkit record --topics /imu/data /gps/fix -o run1 --duration 60\n\n"
     "Exit status: 0 after --duration, 130 after Ctrl-C, 143 after SIGTERM (the bag is complete "
     "in all three), 1 when recording failed (disk full: the bag keeps what was written), "
@@ -201,6 +213,9 @@ def record(  # noqa: PLR0917 (typer maps parameters to options; ros2 bag has the
     start_paused: StartPaused = False,
     max_bag_files: MaxBagFiles = 0,
     min_free_space: MinFreeSpace = None,
+    health: Health = None,
+    trigger_on_health: TriggerOnHealth = False,
+    stop_on_health: StopOnHealth = None,
 ) -> None:
     require(ROS, "bagkit record")
     from bagkit.ros.record.recorder import Recorder
@@ -269,9 +284,34 @@ def record(  # noqa: PLR0917 (typer maps parameters to options; ros2 bag has the
             repeat_all_transient_local=repeat_all_transient_local,
             start_paused=start_paused,
         )
-    recorder = Recorder(options, on_warning=(lambda _message: None) if quiet else warn)
+    watch = _health_watch(health, trigger_on_health, stop_on_health, quiet=quiet)
+    recorder = Recorder(
+        options, on_warning=(lambda _message: None) if quiet else warn, health=watch
+    )
     report, received = _record_until_stopped(recorder)
     _print_outcome(report, received, output_format, quiet=quiet)
+
+
+def _health_watch(
+    spec: Path | None, trigger: bool, stop_after: str | None, *, quiet: bool
+) -> LiveHealth | None:
+    """The live health check of ``--health`` (None without it); its lines go to stderr."""
+    if spec is None:
+        if trigger or stop_after is not None:
+            raise fail("--trigger-on-health and --stop-on-health need --health SPEC")
+        return None
+    from bagkit.health.live import LiveHealth
+    from bagkit.health.spec import HealthSpec
+
+    def tell(event: HealthEvent) -> None:
+        err_console.print(event.line(), style="red" if event.broken else None, highlight=False)
+
+    return LiveHealth(
+        HealthSpec.load(spec),
+        trigger=trigger,
+        stop_after_s=duration_seconds(stop_after, "--stop-on-health"),
+        on_event=None if quiet else tell,
+    )
 
 
 def _print_outcome(

@@ -253,6 +253,30 @@ Post = Annotated[
         metavar="DURATION",
     ),
 ]
+Health = Annotated[
+    Path | None,
+    typer.Option(
+        "--health",
+        help="A health contract (bagkit check's spec, docs/health.md) checked on what is "
+        "recorded: a line when a check breaks or clears; counts in the report and metadata.",
+        metavar="SPEC",
+    ),
+]
+TriggerOnHealth = Annotated[
+    bool,
+    typer.Option(
+        "--trigger-on-health",
+        help="With --snapshot-mode and --health: a check that breaks triggers a snapshot.",
+    ),
+]
+StopOnHealth = Annotated[
+    str | None,
+    typer.Option(
+        "--stop-on-health",
+        help="With --health: stop (exit 1) once a check has been broken this long (0: at once).",
+        metavar="DURATION",
+    ),
+]
 RepeatTransientLocal = Annotated[
     list[str] | None,
     typer.Option(

@@ -53,6 +53,8 @@ def print_record_table(report: RecordReport) -> None:
     _print_notes(report)
     if report.snapshots is not None:
         _print_snapshots(report)
+    if report.health is not None:
+        _print_health(report)
 
 
 def _print_notes(report: RecordReport) -> None:
@@ -93,6 +95,19 @@ def _print_snapshots(report: RecordReport) -> None:
             + f", {sum(snapshot.messages.values())} messages ({held or 'none'})"
             + f", {snapshot.latched} latched at its start"
             + (f", FAILED: {snapshot.error}" if snapshot.error else "")
+        )
+        print_wrapped(line.split(" "), lead=INDENT)
+
+
+def _print_health(report: RecordReport) -> None:
+    """--health: per assertion that broke, how often it broke and cleared."""
+    assert report.health is not None
+    broke = [count for count in report.health if count.breaks]
+    print_wrapped(f"health: {len(report.health)} checks, {len(broke)} broke".split(" "))
+    for count in broke:
+        still = ", broken at the end" if count.broken_since_ns is not None else ""
+        line = (
+            f"{count.topic}: {count.assertion}: broke {count.breaks}, cleared {count.clears}{still}"
         )
         print_wrapped(line.split(" "), lead=INDENT)
 

@@ -6,9 +6,12 @@ One declaration, one help text, one grammar (bagkit.selection.times; docs/cli.md
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
+
+if TYPE_CHECKING:
+    from bagkit.selection.query import Query
 
 TIME_HELP = (
     "seconds from the bag start (10, 1m30s), before its end (-5), or absolute "
@@ -81,3 +84,23 @@ def duration_seconds(text: str | None, option: str) -> float | None:
     from bagkit.selection.times import NS_PER_S, parse_duration
 
     return None if text is None else parse_duration(text, option) / NS_PER_S
+
+
+def build_query(
+    topics: list[str] | str | None = None,
+    fields: list[str] | None = None,
+    start: str | None = None,
+    end: str | None = None,
+    where: str | None = None,
+) -> Query:
+    """The one place the CLI turns its selection options into a query (parsed once: a bad time
+    or condition is one error, before any bag is read).
+
+    Raises:
+        SelectionError: a time or the condition does not parse.
+    """
+    from bagkit.cli.common import split_list
+    from bagkit.selection.query import Query
+
+    names = [topics] if isinstance(topics, str) else split_list(topics)
+    return Query.create(names, split_list(fields), start, end, where)

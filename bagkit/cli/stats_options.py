@@ -8,13 +8,16 @@ from typing import Annotated
 
 import typer
 
-from bagkit.cli.common import OutputFormat
+from bagkit.cli.common import OutputFormat, bag_location
 from bagkit.cli.fleet_options import BAGS_HELP
 
 Inputs = Annotated[
     list[Path],
     typer.Argument(
-        help=BAGS_HELP + "; several bags are pooled.", metavar="BAG", show_default=False
+        help=BAGS_HELP + "; several bags are pooled.",
+        metavar="BAG",
+        show_default=False,
+        parser=bag_location,
     ),
 ]
 Topics = Annotated[

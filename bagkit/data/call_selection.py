@@ -1,4 +1,4 @@
-"""Which calls of a recorded service to show: a time window and a condition on the call.
+"""Which calls of a recorded service a query keeps: its time window and its condition.
 
 ``echo BAG /service --start/--end/--where`` applies to calls what the same options apply to a
 topic's messages. A call sits at its first event's log time. A condition reads the call as
@@ -18,11 +18,10 @@ from bagkit.bag import BagReader
 from bagkit.bag.service_calls import ServiceCall
 from bagkit.decode import MessageTypes, leaf_fields
 from bagkit.decode.flatten import STRING_TYPES
-from bagkit.selection.conditions import Condition, parse_condition
+from bagkit.selection.conditions import Condition
+from bagkit.selection.query import Query
 from bagkit.selection.services import service_name
-from bagkit.selection.times import TimeLike
 from bagkit.selection.topics import absolute_topic_name
-from bagkit.selection.windows import TimeRange
 
 # The event type's sequences of at most one element, read as the part itself.
 _PARTS = ("request", "response")
@@ -39,37 +38,29 @@ class _CallFields:
     sequence_number: int
 
 
-@dataclass(frozen=True, slots=True)
-class CallSelection:
-    """``--start``/``--end`` (resolved against the bag) and ``--where`` for service calls."""
+def call_filter(
+    reader: BagReader, types: MessageTypes, topic: str, query: Query
+) -> Callable[[ServiceCall], bool]:
+    """Whether ``query`` (its window resolved against the bag, its condition) keeps a call of
+    the service whose events are on ``topic``.
 
-    start: TimeLike | None = None
-    end: TimeLike | None = None
-    where: str | None = None
+    Raises:
+        SelectionError: the condition reads more than one call (over time), or compares text
+            with a number; UnknownFieldError: it names no field of the calls.
+    """
+    window = query.span.resolve(reader.start_ns, reader.end_ns)
+    condition = query.where
+    if condition is not None:
+        condition.require_per_message("--where")
+        paths, texts = _call_paths(types, reader.topics[topic].type)
+        condition.check_fields(service_name(absolute_topic_name(topic)), paths, texts)
 
-    def resolve(
-        self, reader: BagReader, types: MessageTypes, topic: str
-    ) -> Callable[[ServiceCall], bool]:
-        """Whether to keep a call of the service whose events are on ``topic``.
+    def keep(call: ServiceCall) -> bool:
+        if not window.contains(call.log_time_ns):
+            return False
+        return condition is None or _satisfies(condition, call)
 
-        Raises:
-            SelectionError: a time or the condition does not parse, or the condition compares
-                text with a number; UnknownFieldError: it names no field of the calls.
-        """
-        window = TimeRange.parse(self.start, self.end).resolve(reader.start_ns, reader.end_ns)
-        condition = None
-        if self.where is not None:
-            condition = parse_condition(self.where)
-            condition.require_per_message("--where")
-            paths, texts = _call_paths(types, reader.topics[topic].type)
-            condition.check_fields(service_name(absolute_topic_name(topic)), paths, texts)
-
-        def keep(call: ServiceCall) -> bool:
-            if not window.contains(call.log_time_ns):
-                return False
-            return condition is None or _satisfies(condition, call)
-
-        return keep
+    return keep
 
 
 def _call_paths(types: MessageTypes, event_type: str) -> tuple[list[str], set[str]]:

@@ -27,51 +27,44 @@ from bagkit.decode.matcher import PayloadMatcher
 from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER
 from bagkit.selection import intervals
 from bagkit.selection.actions import action_part_topics
-from bagkit.selection.conditions import parse_condition
 from bagkit.selection.errors import EmptyWindowWarning
 from bagkit.selection.fields import select_fields
-from bagkit.selection.times import TimeLike
+from bagkit.selection.query import Query
 from bagkit.selection.topics import absolute_topic_name, require_topics
-from bagkit.selection.windows import TimeRange, outside_warning
+from bagkit.selection.windows import outside_warning
 
 Plain = dict[str, Any]
 
 
 def echo(
     bag: str | Path,
-    topic: str,
+    query: Query,
     *,
-    fields: Sequence[str] | None = None,
-    start: TimeLike | None = None,
-    end: TimeLike | None = None,
     count: int | None = None,
     limit: int | None = None,
     on_failure: Callable[[str], None] | None = None,
-    where: str | None = None,
 ) -> Iterator[Plain]:
-    """Yield the messages of ``topic`` one at a time, decoded as they are read.
+    """Yield the messages of the topic ``query`` names one at a time, decoded as read.
 
     Args:
-        fields: paths or globs; the data is then flat ``{path: value}`` of those leaves.
-        start, end: as in :func:`bagkit.read_dataframe`.
+        query: one topic; its fields (paths or globs: the data is then flat
+            ``{path: value}`` of those leaves), its times, its condition (only messages
+            satisfying it, e.g. ``status[*].level >= 2``; with terms over time, ``gap > 1s``,
+            the messages inside the intervals where it holds).
         count: stop after this many messages.
         limit: sequences longer than this are cut to their first ``limit`` elements followed
             by ``"... (N more)"`` (None: whole).
         on_failure: called with a message that does not decode (skipped); None raises. With
-            ``where``, messages the condition cannot decode are not matched and counted in
-            one call at the end.
-        where: only messages satisfying this field condition
-            (:mod:`bagkit.selection.conditions`, e.g. ``status[*].level >= 2``); with terms
-            over time (``gap > 1s``), the messages inside the intervals where it holds.
+            a condition, messages it cannot decode are not matched and counted in one call at
+            the end.
 
     Raises:
         BagError, UnknownTopicError, UnknownFieldError, UndecodableTopicError, DecodeError;
         SelectionError for a condition that does not parse or compares text with a number.
     """
-    span = TimeRange.parse(start, end)
-    condition = None if where is None else parse_condition(where)
+    condition, fields = query.where, query.fields
     with BagReader(bag, allow_empty=True) as reader:
-        (topic,) = require_topics([topic], reader.topics)
+        (topic,) = require_topics(query.topics, reader.topics)
         info = reader.topics[topic]
         types = MessageTypes.for_bag(reader).for_topic(topic)
         try:
@@ -81,7 +74,7 @@ def echo(
         except DecodeError as exc:
             raise UndecodableTopicError(f"{topic} cannot be decoded: {exc}") from None
         convert = _converter(types, info.type, canonical, fields, topic, limit)
-        window = span.resolve(reader.start_ns, reader.end_ns)
+        window = query.span.resolve(reader.start_ns, reader.end_ns)
         matcher: PayloadMatcher | None = None
         inside = None  # a condition over time: the messages inside its intervals
         if condition is not None and condition.temporal:
@@ -136,26 +129,24 @@ def action_topics(bag: str | Path, name: str) -> list[str]:
 
 def echo_action(
     bag: str | Path,
-    name: str,
+    query: Query,
     *,
-    start: TimeLike | None = None,
-    end: TimeLike | None = None,
     limit: int | None = None,
     on_failure: Callable[[str], None] | None = None,
 ) -> Iterator[Plain]:
-    """Yield the messages of every recorded topic of action ``name`` (feedback, status and its
-    services' events), each decoded with its own topic's definition, in log-time order.
+    """Yield the messages of every recorded topic of the action ``query`` names (feedback,
+    status and its services' events) in its window, each decoded with its own topic's
+    definition, in log-time order.
 
     Raises:
-        UnknownTopicError: ``name`` is no action of ``bag``; as :func:`echo` otherwise.
+        UnknownTopicError: the name is no action of ``bag``; as :func:`echo` otherwise.
     """
+    (name,) = query.topics
     topics = action_topics(bag, name)
     if not topics:
         with BagReader(bag, allow_empty=True) as reader:
             require_topics([name], reader.topics)  # raises: names the closest topics
-    streams = [
-        echo(bag, t, start=start, end=end, limit=limit, on_failure=on_failure) for t in topics
-    ]
+    streams = [echo(bag, query.with_topics(t), limit=limit, on_failure=on_failure) for t in topics]
     yield from heapq.merge(*streams, key=lambda record: record["log_time"])
 
 

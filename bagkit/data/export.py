@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import json
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -24,10 +24,8 @@ from bagkit.bag import BagReader
 from bagkit.data.errors import DataError
 from bagkit.data.formats import ExportFormat
 from bagkit.data.scan import Scan, plan_scan
-from bagkit.selection.conditions import parse_condition
 from bagkit.selection.errors import EmptyWindowWarning
-from bagkit.selection.times import TimeLike
-from bagkit.selection.windows import TimeRange
+from bagkit.selection.query import Query
 
 # A row group is written once this many rows or bytes of a topic are buffered.
 ROW_GROUP_ROWS = 128 * 1024
@@ -67,18 +65,14 @@ def export(
     out: str | Path,
     *,
     file_format: ExportFormat = ExportFormat.PARQUET,
-    topics: Sequence[str] | None = None,
-    fields: Sequence[str] | None = None,
-    start: TimeLike | None = None,
-    end: TimeLike | None = None,
+    query: Query | None = None,
     dataset: bool = False,
     progress: ProgressCallback | None = None,
-    where: str | None = None,
 ) -> ExportReport:
-    """Write the decodable ``topics`` (all when None) of ``bag`` under ``out``.
+    """Write the decodable topics ``query`` names (all when none) of ``bag`` under ``out``.
 
-    ``where``: only messages satisfying this condition (:mod:`bagkit.selection.conditions`);
-    with several topics, those whose type lacks its fields are left out.
+    ``query``'s fields, times and condition as :func:`~bagkit.data.scan.plan_scan` applies
+    them: with several topics, those lacking the fields or the condition's fields are left out.
 
     Raises:
         BagError, UnknownTopicError, UnknownFieldError; DataError when no topic can be
@@ -86,10 +80,8 @@ def export(
         condition that does not parse or compares text with a number.
     """
     out, file_format = Path(out), ExportFormat(file_format)
-    span = TimeRange.parse(start, end)
-    condition = None if where is None else parse_condition(where)
     with BagReader(bag, allow_empty=True) as reader:
-        scan = plan_scan(reader, topics, fields, span, label=str(bag), where=condition)
+        scan = plan_scan(reader, query or Query(), label=str(bag))
         report = ExportReport(skipped=dict(scan.skipped))
         if scan.outside is not None:
             warnings.warn(scan.outside, EmptyWindowWarning, stacklevel=2)

@@ -10,13 +10,12 @@ from typing import TYPE_CHECKING
 import pyarrow as pa
 
 from bagkit.bag import BagReader
-from bagkit.data.errors import UndecodableTopicError
+from bagkit.data.errors import DataError, UndecodableTopicError
 from bagkit.data.scan import plan_scan
 from bagkit.data.table import ColumnTable
 from bagkit.selection.errors import EmptyWindowWarning
+from bagkit.selection.query import Query, resolve_names
 from bagkit.selection.times import TimeLike
-from bagkit.selection.topics import require_topics
-from bagkit.selection.windows import TimeRange
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -34,6 +33,7 @@ def read_arrow(
     end: TimeLike | None = None,
     *,
     bulk: bool = True,
+    query: Query | None = None,
 ) -> pa.Table:
     """The messages of ``topic`` as a ``pyarrow.Table``, in log-time order.
 
@@ -45,6 +45,8 @@ def read_arrow(
         start, end: the window ``start <= log_time < end``: seconds from the bag's first
             message, or absolute (epoch seconds >= 1e9, datetime, ISO 8601 string).
         bulk: decode fixed-layout messages in bulk (False: one by one, to cross-check).
+        query: fields, times and a condition (:class:`~bagkit.selection.query.Query`), in
+            place of ``fields``, ``start`` and ``end``; ``topic`` is the topic read.
 
     Columns: ``log_time`` and ``publish_time`` (int64 ns), then one per leaf field by its path
     (fixed arrays one column per element, variable-length sequences as lists).
@@ -54,23 +56,32 @@ def read_arrow(
         BagError: the bag cannot be opened. UnknownTopicError, UnknownFieldError,
         UndecodableTopicError.
     """
-    table, schema = _read(bag, topic, fields, start, end, bulk=bulk)
+    table, schema = _read(bag, _query(topic, fields, start, end, query), bulk=bulk)
     return table.to_arrow(schema)
 
 
-def _read(
-    bag: str | Path,
+def _query(
     topic: str,
     fields: Sequence[str] | None,
     start: TimeLike | None,
     end: TimeLike | None,
-    *,
-    bulk: bool,
-) -> tuple[ColumnTable, pa.Schema]:
-    span = TimeRange.parse(start, end)
+    query: Query | None,
+) -> Query:
+    """The query of a call: its keywords, or ``query`` for ``topic``."""
+    if query is None:
+        return Query.create(topic, fields, start, end)
+    if fields is not None or start is not None or end is not None:
+        raise TypeError("give fields, start and end in the query or as keywords, not both")
+    return query.with_topics(topic)
+
+
+def _read(bag: str | Path, query: Query, *, bulk: bool) -> tuple[ColumnTable, pa.Schema]:
     with BagReader(bag, allow_empty=True) as reader:
-        (topic,) = require_topics([topic], reader.topics)
-        scan = plan_scan(reader, [topic], fields, span, label=str(bag), bulk=bulk)
+        topics = resolve_names(query.topics, {n: i.type for n, i in reader.topics.items()})
+        if len(topics) != 1:
+            raise DataError(f"{', '.join(query.topics)} is several topics: {', '.join(topics)}")
+        (topic,) = topics
+        scan = plan_scan(reader, query, label=str(bag), bulk=bulk)
         if scan.outside is not None:
             warnings.warn(scan.outside, EmptyWindowWarning, stacklevel=3)
         if topic in scan.skipped:
@@ -89,6 +100,7 @@ def read_dataframe(
     end: TimeLike | None = None,
     *,
     bulk: bool = True,
+    query: Query | None = None,
 ) -> pd.DataFrame:
     """The messages of ``topic`` as a ``pandas.DataFrame`` indexed by log time.
 
@@ -99,5 +111,5 @@ def read_dataframe(
         >>> imu = bagkit.read_dataframe("flight1", "/imu/data", ["linear_acceleration.*"])
         >>> imu["linear_acceleration.z"].resample("1s").mean()
     """
-    table, schema = _read(bag, topic, fields, start, end, bulk=bulk)
+    table, schema = _read(bag, _query(topic, fields, start, end, query), bulk=bulk)
     return table.to_pandas(schema)

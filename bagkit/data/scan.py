@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator
 from contextlib import closing
 from dataclasses import dataclass, field
 from functools import partial
@@ -16,10 +16,9 @@ from bagkit.data.table import ColumnTable
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
 from bagkit.decode.matcher import PayloadMatcher
 from bagkit.prefetch import prefetch
-from bagkit.selection.conditions import Condition
 from bagkit.selection.fields import select_fields
-from bagkit.selection.topics import require_topics
-from bagkit.selection.windows import TimeRange, Window, outside_warning
+from bagkit.selection.query import Query
+from bagkit.selection.windows import Window
 
 
 @dataclass(slots=True)
@@ -82,42 +81,25 @@ class Scan:
         return found
 
 
-def plan_scan(
-    reader: BagReader,
-    topics: Sequence[str] | None,
-    fields: Sequence[str] | None,
-    span: TimeRange,
-    *,
-    label: str,
-    bulk: bool = True,
-    where: Condition | None = None,
-) -> Scan:
+def plan_scan(reader: BagReader, query: Query, *, label: str, bulk: bool = True) -> Scan:
     """Which topics of ``reader`` can be decoded, with which fields, in which time window.
 
-    Args:
-        topics: these topics (all when None); each must be in the bag (``imu/data`` is
-            ``/imu/data``).
-        fields: path globs (see :func:`~bagkit.selection.fields.select_fields`); with several
-            topics a topic none of whose fields match is left out, with one topic that is an
-            error.
-        span: ``--start``/``--end``, resolved against this bag.
-        label: the bag as the user named it, for the window's warning.
-        where: only the messages satisfying this condition; as with ``fields``, with several
-            topics those without its fields are left out, with one topic that is an error.
+    ``query`` is resolved against this bag (``label``: the bag as the user named it, for the
+    window's warning). Its topics (all when it names none) must be in the bag. Its fields are
+    path globs (see :func:`~bagkit.selection.fields.select_fields`): with several topics a topic
+    none of whose fields match is left out, with one topic that is an error. Its condition keeps
+    the messages satisfying it; as with fields, with several topics those without its fields
+    are left out, with one topic that is an error.
 
     Raises:
         UnknownTopicError, UnknownFieldError; SelectionError for a condition comparing text
         with a number.
     """
-    if topics is not None:
-        topics = require_topics(topics, reader.topics)
+    resolved = query.resolve(reader, label=label)
+    topics = resolved.topics or None
+    fields, where = query.fields, query.where
     types = MessageTypes.for_bag(reader)
-    window = span.resolve(reader.start_ns, reader.end_ns)
-    outside = (
-        outside_warning(label, window, reader.start_ns, reader.end_ns)
-        if reader.message_count
-        else None
-    )
+    window, outside = resolved.window, resolved.outside
     scan = Scan(reader, window, {}, outside=outside)
     for name in topics if topics is not None else sorted(reader.topics):
         info = reader.topics[name]

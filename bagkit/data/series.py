@@ -5,7 +5,7 @@ from __future__ import annotations
 import itertools
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -16,11 +16,9 @@ from bagkit.data.scan import plan_scan
 from bagkit.data.units import field_unit
 from bagkit.decode import MessageTypes
 from bagkit.decode.flatten import STRING_TYPES
-from bagkit.selection.conditions import Condition, parse_condition
 from bagkit.selection.errors import EmptyWindowWarning
-from bagkit.selection.times import TimeLike
+from bagkit.selection.query import Query
 from bagkit.selection.topics import require_topics
-from bagkit.selection.windows import TimeRange
 
 
 @dataclass(frozen=True, slots=True)
@@ -70,13 +68,11 @@ def load_series(
     specs: Sequence[str],
     *,
     absolute: bool = False,
-    start: TimeLike | None = None,
-    end: TimeLike | None = None,
-    where: str | None = None,
+    query: Query | None = None,
 ) -> list[Series]:
     """Every numeric field that ``specs`` name, from every bag, in spec order, bag order;
-    ``start``/``end`` resolved against each bag (:mod:`bagkit.selection.times`); ``where``
-    keeps the messages satisfying a condition (each spec's topic must have its fields).
+    ``query``'s times resolved against each bag and its condition keeping the messages that
+    satisfy it (each spec's topic must have its fields); the specs name topics and fields.
 
     Raises:
         BagError, UnknownTopicError, UnknownFieldError, UndecodableTopicError; DataError for
@@ -84,8 +80,7 @@ def load_series(
         for a bad condition.
     """
     wanted = [parse_spec(spec) for spec in specs]
-    span = TimeRange.parse(start, end)
-    condition = None if where is None else parse_condition(where)
+    query = query or Query()
     paths = [Path(bag) for bag in bags]
     per_spec: list[list[Series]] = [[] for _ in wanted]
     for label, path in zip(bag_labels(paths), paths, strict=True):
@@ -98,7 +93,7 @@ def load_series(
                         types,
                         (label, str(path)),
                         (topic, field),
-                        (span, condition),
+                        query,
                         absolute,
                     )
                 )
@@ -110,13 +105,12 @@ def _topic_series(  # noqa: PLR0917 (private, called once)
     types: MessageTypes,
     labels: tuple[str, str],
     spec: tuple[str, str],
-    selection: tuple[TimeRange, Condition | None],
+    query: Query,
     absolute: bool,
 ) -> list[Series]:
     (topic,), field = require_topics([spec[0]], reader.topics), spec[1]
     label, given = labels  # the legend's short name; the path as given, for warnings
-    span, where = selection
-    scan = plan_scan(reader, [topic], [field], span, label=given, where=where)
+    scan = plan_scan(reader, replace(query, topics=(topic,), fields=(field,)), label=given)
     if scan.outside is not None:
         warnings.warn(scan.outside, EmptyWindowWarning, stacklevel=3)
     if topic in scan.skipped:

@@ -21,12 +21,13 @@ from bagkit.bag.service_calls import (
     ServiceEvent,
     pair_calls,
 )
-from bagkit.data.call_selection import CallSelection
+from bagkit.data.call_selection import call_filter
 from bagkit.data.echo import Plain
 from bagkit.data.errors import UndecodableTopicError
 from bagkit.data.service_summaries import read_events, service_topics
 from bagkit.decode import DecodeError, MessageTypes
 from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER
+from bagkit.selection.query import Query
 from bagkit.selection.services import service_name
 from bagkit.selection.topics import absolute_topic_name
 
@@ -71,16 +72,16 @@ def read_calls(bag: str | Path, service: str) -> list[ServiceCall]:
 
 
 def _service_calls(
-    bag: str | Path, service: str, selection: CallSelection | None = None
+    bag: str | Path, service: str, query: Query | None = None
 ) -> tuple[str, list[ServiceCall]]:
-    """The event topic of ``service`` in ``bag`` and its calls, paired (those ``selection``
+    """The event topic of ``service`` in ``bag`` and its calls, paired (those ``query``
     keeps)."""
     with BagReader(bag, allow_empty=True) as reader:
         topic = find_service(reader, service)
         if topic is None:
             raise UndecodableTopicError(f"no service {absolute_topic_name(service)} in {bag}")
         types = MessageTypes.for_bag(reader)
-        keep = (selection or CallSelection()).resolve(reader, types.for_topic(topic), topic)
+        keep = call_filter(reader, types.for_topic(topic), topic, query or Query())
         return topic, [c for c in pair_calls(read_events(reader, types, topic)) if keep(c)]
 
 
@@ -89,17 +90,17 @@ def echo_calls(
     service: str,
     *,
     limit: int | None = None,
-    selection: CallSelection | None = None,
+    query: Query | None = None,
 ) -> Iterator[Plain]:
     """Each call of ``service`` as plain data: ids, events seen, request, response, latency.
 
-    ``selection``: only the calls in its window that satisfy its condition.
+    ``query``: only the calls in its window that satisfy its condition.
 
     Raises:
         UndecodableTopicError: the bag has no such service, or its events do not decode.
         UnknownFieldError, SelectionError: the condition does not fit the service's calls.
     """
-    topic, calls = _service_calls(bag, service, selection)
+    topic, calls = _service_calls(bag, service, query)
     for call in calls:
         latency = call.latency_ns
         yield {

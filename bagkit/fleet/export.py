@@ -22,7 +22,7 @@ from bagkit.data.formats import ExportFormat
 from bagkit.errors import BagkitError
 from bagkit.fleet.errors import FleetError
 from bagkit.fleet.execute import ItemDone, run_each
-from bagkit.selection.times import TimeLike
+from bagkit.selection.query import Query
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -72,19 +72,14 @@ def export_fleet(
     *,
     client: Client | None = None,
     file_format: ExportFormat = ExportFormat.PARQUET,
-    topics: Sequence[str] | None = None,
-    fields: Sequence[str] | None = None,
-    start: TimeLike | None = None,
-    end: TimeLike | None = None,
+    query: Query | None = None,
     dataset: bool = False,
     done: ItemDone | None = None,
-    where: str | None = None,
 ) -> list[BagExport]:
     """Export every bag of ``bags`` into its folder under ``out``, on ``client``'s workers.
 
-    Times ``start``/``end`` are read per bag, as by a single-bag export (seconds after that
-    bag's start, or absolute); ``where`` keeps the messages satisfying a condition, as a
-    single-bag export. Results are in the order of ``bags``.
+    ``query`` is resolved against each bag, as by a single-bag export (``--start 10`` is ten
+    seconds after that bag's start). Results are in the order of ``bags``.
 
     Raises:
         FleetError: ``out`` is a file name, or two bags would share a folder.
@@ -96,12 +91,8 @@ def export_fleet(
     task = functools.partial(
         export_bag,
         file_format=ExportFormat(file_format),
-        topics=list(topics) if topics else None,
-        fields=list(fields) if fields else None,
-        start=start,
-        end=end,
+        query=query,
         dataset=dataset,
-        where=where,
     )
     jobs = [(str(bag), folder) for bag, folder in zip(bags, folders, strict=True)]
     return run_each(task, jobs, client, done)

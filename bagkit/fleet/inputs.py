@@ -1,5 +1,6 @@
 """Many-bag inputs: bag directories, bare ``.mcap``/``.db3`` files, ROS 1 ``.bag`` files,
-globs, roots searched for bags, and text files listing one path a line.
+globs, roots searched for bags, text files listing one path a line, and URLs of bags or of
+prefixes searched for bags (:mod:`bagkit.fleet.url_inputs`).
 
 The result is a list of bags in a stable order (the order given; sorted within a directory or a
 glob), each bag once.
@@ -12,7 +13,11 @@ import os
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
+from bagkit.bag.reader import bag_path
 from bagkit.fleet.errors import NoBagsError
+from bagkit.fleet.url_inputs import url_bags
+from bagkit.storage.paths import UrlPath
+from bagkit.storage.urls import is_url
 
 STORAGE_SUFFIXES = (".mcap", ".db3")
 # A file that is a whole bag by itself (ROS 1 bags: several in a directory are several bags).
@@ -102,6 +107,12 @@ def bag_paths(items: Iterable[str | Path]) -> list[str]:
     items = list(items)
     seen: dict[str, str] = {}
     for item in items:
+        if isinstance(item, UrlPath) or is_url(item):
+            for bag in url_bags(
+                str(getattr(item, "url", item)), STORAGE_SUFFIXES, BAG_FILE_SUFFIXES
+            ):
+                seen.setdefault(bag, bag)
+            continue
         path = Path(item)
         if not glob.has_magic(str(item)) and not os.path.lexists(path):
             raise NoBagsError(f"{item}: no such file or directory")
@@ -119,4 +130,4 @@ def expand_bags(items: Iterable[str | Path]) -> list[Path]:
         NoBagsError: nothing names a bag, or a path given (not a glob) does not exist: the
             same error every command gives for a missing path.
     """
-    return [Path(bag) for bag in bag_paths(items)]
+    return [bag_path(bag) for bag in bag_paths(items)]

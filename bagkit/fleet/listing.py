@@ -8,7 +8,9 @@ from pathlib import Path
 from typing import Any
 
 from bagkit.bag import BagError, BagInfo, bag_info
-from bagkit.fleet.inputs import find_bags, is_bag_directory
+from bagkit.fleet.inputs import BAG_FILE_SUFFIXES, STORAGE_SUFFIXES, find_bags, is_bag_directory
+from bagkit.fleet.url_inputs import url_bags
+from bagkit.storage.urls import is_url
 
 
 @dataclass(slots=True)
@@ -46,12 +48,17 @@ class FolderInfo:
 
 
 def folder_info(root: str | Path, *, check_crc: bool = True) -> FolderInfo | None:
-    """The bags under ``root``, or None when ``root`` is no folder of bags (a bag itself, a
-    file, or a folder holding no bag)."""
-    text = str(root)
-    if not Path(text).is_dir() or is_bag_directory(text):
+    """The bags under ``root`` (a directory or a URL prefix), or None when ``root`` is no
+    folder of bags (a bag itself, a file, or a folder holding no bag)."""
+    text = str(getattr(root, "url", root))
+    if is_url(text):
+        paths = url_bags(text, STORAGE_SUFFIXES, BAG_FILE_SUFFIXES)
+        if paths == [text]:  # the URL is a bag
+            return None
+    elif not Path(text).is_dir() or is_bag_directory(text):
         return None
-    paths = sorted(find_bags(text))
+    else:
+        paths = sorted(find_bags(text))
     if not paths:
         return None
     found = FolderInfo(text)

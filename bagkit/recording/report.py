@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from bagkit.bag.info import message_rate
+from bagkit.recording.health_watch import HealthCount
 
 
 @dataclass(slots=True)
@@ -110,6 +111,8 @@ class RecordReport:
     # evicted from the buffer by its bound (by design: not lost, not in a snapshot).
     snapshots: list[SnapshotRecord] | None = None
     evicted: dict[str, int] = field(default_factory=dict)
+    # With a live health check only (None otherwise): per assertion, its breaks and clears.
+    health: list[HealthCount] | None = None
 
     @property
     def messages(self) -> int:
@@ -150,6 +153,8 @@ class RecordReport:
         if self.snapshots is not None:
             view["snapshots"] = [s.to_dict() for s in self.snapshots]
             view["evicted"] = dict(sorted(self.evicted.items()))
+        if self.health is not None:
+            view["health"] = [count.to_dict() for count in self.health]
         return view
 
 

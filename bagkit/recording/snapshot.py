@@ -166,12 +166,12 @@ class SnapshotSink:
                 )
             self._close_if_over(self._buffer.newest_ns)
 
-    def request(self, reason: str) -> SnapshotRecord:
-        """Trigger a snapshot now (a service call, a key); return the snapshot it opened or
-        extended."""
+    def request(self, reason: str, at_ns: int | None = None) -> SnapshotRecord:
+        """Trigger a snapshot now (a service call, a key), or at log time ``at_ns`` (a health
+        check that broke then); return the snapshot it opened or extended."""
         with self._lock:
             now = self._now_ns()
-            record = self._trigger(now, reason)
+            record = self._trigger(now if at_ns is None else at_ns, reason)
             self._close_if_over(now)
             return record
 

@@ -5,7 +5,8 @@ topic: ``gaps`` (holes in publication sequence numbers: lost inside the middlewa
 ``overflow`` (dropped on a full hand-off queue), ``write_failed`` (handed to the bag writer but
 not in the bag, from :class:`~bagkit.bag.BagWriteError`'s ``lost_by_topic``, or taken after
 writing failed); or, not lost, ``paused`` (taken while paused, :mod:`~bagkit.recording.pause`).
-No rclpy import.
+A live health check (``--health``) sees what is written here, after it is written, so that the
+take thread never waits for it. No rclpy import.
 """
 
 from __future__ import annotations
@@ -16,8 +17,15 @@ from typing import TYPE_CHECKING
 
 from bagkit.bag import BagWriteError, BagWriter
 from bagkit.bag.errors import BagError
+from bagkit.errors import BagkitError
 from bagkit.native import name_native_thread
 from bagkit.recording.handoff import Batch, BatchPart, HandoffQueue, StopSignal
+from bagkit.recording.health_watch import (
+    HEALTH_CUSTOM_DATA_KEY,
+    HealthEvent,
+    HealthWatch,
+    health_summary,
+)
 from bagkit.recording.report import LOSS_CUSTOM_DATA_KEY, TopicRecord, loss_summary
 
 if TYPE_CHECKING:
@@ -41,6 +49,9 @@ class WriteLoop:
         skip: ``skip(topic, reason)`` leaves a topic that cannot be added out, with a warning.
         latched: keeps the last messages of latched topics for the start of each split file.
         gate: says whether the recording is paused.
+        health: the live health check fed with what is written (``--health``).
+        on_health_break: called with a reason and the log time of each check that breaks
+            (snapshot mode with ``--trigger-on-health``: the snapshot sink's ``request``).
     """
 
     def __init__(
@@ -52,8 +63,14 @@ class WriteLoop:
         *,
         latched: LatchedRepeats | None = None,
         gate: PauseGate | None = None,
+        health: HealthWatch | None = None,
+        on_health_break: Callable[[str, int], object] | None = None,
     ) -> None:
         self.bag = bag
+        self.health = health
+        self._on_health_break = on_health_break
+        self._newest = 0  # the newest log time written (the clock of a sim-time recording)
+        self._sim_time = False
         self.latched = latched
         self.gate = gate
         self.queue = queue
@@ -113,6 +130,9 @@ class WriteLoop:
             self._left_out.add(name)
             del self.records[name]
             self._skip(name, str(exc))
+            return
+        if self.health is not None:
+            self._health(lambda health: health.add_topic(new.info, new.definition))
 
     def _count_dropped(self, batch: Batch) -> None:
         for topic, taken in batch.parts:
@@ -145,6 +165,7 @@ class WriteLoop:
         topic, taken = part
         record = topic.record
         log_times = taken.received if sim_time is None else [sim_time] * len(taken)
+        self._sim_time = sim_time is not None
         if not record.first_ns:
             record.first_ns = log_times[0]
         record.last_ns = log_times[-1]
@@ -162,6 +183,9 @@ class WriteLoop:
                 self.latched.state.observe_batch(
                     record.topic, taken.payloads, log_times, taken.sources, taken.sequences
                 )
+            self._newest = max(self._newest, log_times[-1])
+            if self.health is not None:
+                self._health(lambda health: health.observe(record.topic, taken.payloads, log_times))
         except BagWriteError as exc:
             self._write_failed(exc)
         except BagError as exc:
@@ -171,11 +195,39 @@ class WriteLoop:
 
     def _flush(self) -> None:
         self._write_released()
+        if self.health is not None:
+            now = self._now_ns()
+            self._health(lambda health: health.advance(now))
+            overdue = self.health.overdue(now)
+            if overdue is not None:
+                self.stop.fail(
+                    f"stopped by --stop-on-health: {overdue.topic}: {overdue.assertion} broken "
+                    f"for {(now - (overdue.broken_since_ns or now)) / 1e9:.1f} s"
+                )
         if not self.failed:
             try:
                 self.bag.flush()
             except BagWriteError as exc:
                 self._write_failed(exc)
+
+    def _now_ns(self) -> int:
+        """The log time now: the clock's, or with sim time the newest message's."""
+        return self._newest if self._sim_time else max(time.time_ns(), self._newest)
+
+    def _health(self, feed: Callable[[HealthWatch], list[HealthEvent]]) -> None:
+        """Feed the health check; a check that broke triggers a snapshot if asked to."""
+        assert self.health is not None
+        try:
+            events = feed(self.health)
+        except BagkitError as exc:  # a field the topic's type lacks: bad input found late
+            self.stop.fail(str(exc), 2)
+            self.health = None
+            return
+        if self._on_health_break is None:
+            return
+        for event in events:
+            if event.broken:
+                self._on_health_break(f"health: {event.topic}: {event.assertion}", event.at_ns)
 
     def _write_failed(self, exc: BagWriteError) -> None:
         """Move the messages the bag writer lost from ``messages`` to ``write_failed``; stop."""
@@ -189,9 +241,15 @@ class WriteLoop:
         self.stop.fail(exc.reason)
 
     def _finish(self) -> None:
-        """Flush, store the loss counts in metadata.yaml's custom data, close the bag."""
+        """Flush, store the loss (and health) counts in metadata.yaml's custom data, close the
+        bag."""
         self._flush()
         bag = self.bag
+        if self.health is not None:
+            end = self._now_ns()
+            self._health(lambda health: health.finish(end))
+        if self.health is not None:
+            bag.custom_data[HEALTH_CUSTOM_DATA_KEY] = health_summary(self.health.counts)
         records = list(self.records.values())
         bag.custom_data[CUSTOM_DATA_PREFIX + "lost"] = str(sum(r.lost for r in records))
         bag.custom_data[LOSS_CUSTOM_DATA_KEY] = loss_summary(records)

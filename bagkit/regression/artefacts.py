@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import html
 import json
 import shutil
 from pathlib import Path
@@ -70,6 +71,8 @@ def write_failure_artefacts(check: GoldenCheck, folder: Path) -> list[Path]:
     shutil.rmtree(folder, ignore_errors=True)
     folder.mkdir(parents=True)
     written = [folder / "report.json", folder / "report.html"]
+    if check.drift:
+        return _drift_artefacts(check, written)
     written[0].write_text(json.dumps(check.report.to_dict(), indent=2) + "\n")
     series: list[FieldSeries] = []
     with BagReader(check.spec.bag) as golden, BagReader(check.candidate) as candidate:
@@ -85,6 +88,28 @@ def write_failure_artefacts(check: GoldenCheck, folder: Path) -> list[Path]:
             _plot_png(topic, topic_series, g_samples=g_samples, c_samples=c_samples, t0=t0, png=png)
             written.append(png)
     written[1].write_text(render(check, series))
+    return written
+
+
+def _drift_artefacts(check: GoldenCheck, written: list[Path]) -> list[Path]:
+    """A drifted golden's report: the drift per topic (nothing was run or compared)."""
+    drifts = [d.to_dict() for d in check.drift]
+    written[0].write_text(json.dumps({"passed": False, "drift": drifts}, indent=2) + "\n")
+    items = "".join(
+        f"<li><b>{html.escape(d.topic)}</b> ({html.escape(d.type)})<ul>"
+        + "".join(f"<li>{html.escape(c)}</li>" for c in d.changes)
+        + "</ul></li>"
+        for d in check.drift
+    )
+    name = html.escape(check.spec.name)
+    written[1].write_text(
+        f"<!doctype html><html><head><meta charset='utf-8'><title>{name}: drift</title></head>"
+        f"<body><h1>{name} ({html.escape(check.mode)}): FAIL</h1><p>The golden's message "
+        f"definitions differ from the installed ones; nothing was compared.</p>"
+        f"<ul id='drift'>{items}</ul><p><code>bagkit golden migrate "
+        f"{html.escape(str(check.spec.directory))}</code> rewrites the golden to today's.</p>"
+        "</body></html>\n"
+    )
     return written
 
 

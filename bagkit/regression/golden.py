@@ -8,6 +8,8 @@ from pathlib import Path
 
 from bagkit.bag import BagReader
 from bagkit.compare import CompareReport, compare_bags
+from bagkit.decode.drift import TopicDrift
+from bagkit.regression.drift import drift_lines, golden_drift, refuse_drift
 from bagkit.regression.errors import SpecError
 from bagkit.regression.lockstep import LockstepResult, run_lockstep
 from bagkit.regression.processor import Processor, make_processors
@@ -16,22 +18,38 @@ from bagkit.regression.spec import BAG_DIR, SPEC_FILE, FixtureSpec
 
 @dataclass(frozen=True, slots=True)
 class GoldenCheck:
-    """The outcome of one fixture in one mode."""
+    """The outcome of one fixture in one mode.
+
+    ``drift``: golden topics whose stored definition differs from the installed one; the
+    system was not run (nothing compared, no candidate) and the check fails with them.
+    """
 
     spec: FixtureSpec
     mode: str
     candidate: Path
     report: CompareReport
     lockstep: LockstepResult | None = None
+    drift: tuple[TopicDrift, ...] = ()
+
+    @classmethod
+    def drifted(cls, spec: FixtureSpec, mode: str, candidate: Path) -> GoldenCheck | None:
+        """The failed check of a golden whose topics drifted; None when none did."""
+        drifts = golden_drift(spec)
+        if not drifts:
+            return None
+        report = CompareReport(str(spec.bag), str(candidate), [])
+        return cls(spec, mode, candidate, report, drift=tuple(drifts))
 
     @property
     def passed(self) -> bool:
         """Whether the candidate's outputs match the golden's."""
-        return self.report.passed
+        return not self.drift and self.report.passed
 
     def summary(self, limit: int = 8) -> str:
         """A few lines naming the failing topics and fields and the first divergences."""
         lines = [f"{self.spec.name} ({self.mode}): {'pass' if self.passed else 'FAIL'}"]
+        if self.drift:
+            return "\n".join([*lines, *drift_lines(self.spec, list(self.drift))])
         for topic in self.report.topics:
             if topic.passed:
                 continue
@@ -59,6 +77,9 @@ def check_lockstep(spec: FixtureSpec, workdir: Path) -> GoldenCheck:
         RegressionError: the golden lacks an input topic.
     """
     candidate = workdir / "candidate"
+    drifted = GoldenCheck.drifted(spec, "lockstep", candidate)
+    if drifted is not None:
+        return drifted
     result = run_lockstep(
         spec.bag,
         candidate,
@@ -86,7 +107,11 @@ def update_golden(spec: FixtureSpec) -> GoldenUpdate:
 
     Outputs that match the golden's within the spec's lockstep tolerance are kept as they are
     (no file is touched), so that accepting unchanged behaviour, on any CPU, rewrites nothing.
+
+    Raises:
+        GoldenDriftError: the golden's definitions drifted (``golden migrate`` first).
     """
+    refuse_drift(spec)
     with BagReader(spec.bag) as reader:
         kept = [t for t in reader.topics if t not in spec.outputs]
     with tempfile.TemporaryDirectory(dir=spec.directory, prefix=".update-") as tmp:

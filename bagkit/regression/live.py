@@ -196,6 +196,9 @@ def check_live(spec: FixtureSpec, workdir: Path, *, startup_timeout: float = 30.
     require(ROS, "live golden replay")
     workdir.mkdir(parents=True, exist_ok=True)
     candidate = workdir / "candidate"
+    drifted = GoldenCheck.drifted(spec, "live", candidate)
+    if drifted is not None:
+        return drifted
     start_ns, _ = _bag_span(spec.bag)
     with BagReader(spec.bag) as golden:
         expected = sum(golden.topic_counts.get(topic, 0) for topic in spec.outputs)

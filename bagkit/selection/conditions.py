@@ -285,6 +285,16 @@ def _floats(value: Any) -> list[float]:
     return []
 
 
+def message_values(message: Any, path: Path) -> list[Any]:
+    """The values ``path`` reaches in a decoded message (several through ``[*]``).
+
+    Raises:
+        UnknownFieldError: the message has no such field. SelectionError: an index into
+            what is not an array.
+    """
+    return _values(message, path)
+
+
 def _values(message: Any, comparison: Comparison | Path) -> list[Any]:
     """The values a path reaches in ``message`` (several through ``[*]``)."""
     path = comparison.path if isinstance(comparison, Comparison) else comparison

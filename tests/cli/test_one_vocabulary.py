@@ -19,6 +19,7 @@ import pytest
 
 from bagkit.bag import BagReader
 from bagkit.data.series import load_series
+from bagkit.selection.query import Query
 
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 BAG = Path(__file__).resolve().parents[2] / "fixtures" / "faults" / "golden"
@@ -119,7 +120,9 @@ def test_plot_series_select_the_same_window(name: str, span: tuple[int, int]) ->
     topic, times = SELECTIONS[name]
     start, end, start_ns, end_ns = times(*span)
     field = "header.stamp.sec"
-    (series,) = load_series([BAG], [f"{topic}:{field}"], start=start, end=end, absolute=True)
+    (series,) = load_series(
+        [BAG], [f"{topic}:{field}"], query=Query.create(start=start, end=end), absolute=True
+    )
     assert len(series.values) == len(_expected("/" + topic.lstrip("/"), start_ns, end_ns))
 
 

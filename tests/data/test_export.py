@@ -20,6 +20,7 @@ import bagkit
 from bagkit.bag import BagWriter, TopicInfo
 from bagkit.data import export as export_module
 from bagkit.data.export import export, topic_path
+from bagkit.selection.query import Query
 
 RNG = np.random.default_rng(3)
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
@@ -106,7 +107,9 @@ def test_one_topic_to_one_file_and_datasets_in_parts(
     # In process, with small row groups and parts: streaming writes many of each.
     monkeypatch.setattr(export_module, "ROW_GROUP_ROWS", 64)
     monkeypatch.setattr(export_module, "ROWS_PER_PART", 100)
-    report = export(sample_bag, tmp_path / "ds", topics=["/imu", "/scan"], dataset=True)
+    report = export(
+        sample_bag, tmp_path / "ds", query=Query.create(["/imu", "/scan"]), dataset=True
+    )
     assert len(report.files["/imu"]) == 3
     for topic in ("/imu", "/scan"):
         folder = tmp_path / "ds" / topic.strip("/")

@@ -23,6 +23,7 @@ from bagkit.bag import BagWriter, TopicInfo
 from bagkit.data.export import export
 from bagkit.data.series import load_series
 from bagkit.selection.errors import SelectionError, UnknownFieldError
+from bagkit.selection.query import Query
 from bagkit.stats import summarize
 
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
@@ -85,7 +86,7 @@ def test_export_stats_and_plot_keep_what_the_oracle_keeps(
     assert 0 < len(expected) < 300, "the condition must select some messages, not all"
 
     out = tmp_path / "out.parquet"
-    report = export(sample_bag, out, topics=[topic], where=condition)
+    report = export(sample_bag, out, query=Query.create(topic, where=condition))
     assert report.rows[topic] == len(expected)
     assert pd.read_parquet(out)["log_time"].tolist() == expected
 
@@ -96,7 +97,9 @@ def test_export_stats_and_plot_keep_what_the_oracle_keeps(
 
     numeric = "header.stamp.sec" if topic not in ("/text", "/flag") else None
     if numeric is not None and topic != "/roi":
-        (series,) = load_series([sample_bag], [f"{topic}:{numeric}"], where=condition)
+        (series,) = load_series(
+            [sample_bag], [f"{topic}:{numeric}"], query=Query.create(where=condition)
+        )
         start_ns = min(log_time for _, log_time, _, _ in raw_messages(sample_bag))
         assert (np.rint(series.times * 1e9).astype(np.int64) + start_ns).tolist() == expected
 
@@ -128,7 +131,9 @@ def test_stats_values_under_where_equal_pandas_over_the_kept_rows(sample_bag: Pa
 
 
 def test_several_topics_keep_those_with_the_fields(sample_bag: Path, tmp_path: Path) -> None:
-    report = export(sample_bag, tmp_path / "all", where="header.frame_id == 'imu'")
+    report = export(
+        sample_bag, tmp_path / "all", query=Query.create(where="header.frame_id == 'imu'")
+    )
     with_header = {
         t for t, typename in SAMPLE_TYPES.items() if "header" in dict(JAZZY.fielddefs[typename][1])
     }
@@ -142,11 +147,19 @@ def test_one_topic_without_the_field_or_of_another_kind_is_an_error(
     sample_bag: Path, tmp_path: Path
 ) -> None:
     with pytest.raises(UnknownFieldError, match="no field"):
-        export(sample_bag, tmp_path / "x.parquet", topics=["/imu"], where="status[*].level > 1")
+        export(
+            sample_bag,
+            tmp_path / "x.parquet",
+            query=Query.create("/imu", where="status[*].level > 1"),
+        )
     with pytest.raises(SelectionError, match="cannot compare str with int"):
         summarize([sample_bag], topics=["/imu"], where="header.frame_id > 2")
     with pytest.raises(SelectionError, match="cannot compare a number with str"):
-        load_series([sample_bag], ["/imu:header.stamp.sec"], where="header.stamp.sec == 'x'")
+        load_series(
+            [sample_bag],
+            ["/imu:header.stamp.sec"],
+            query=Query.create(where="header.stamp.sec == 'x'"),
+        )
 
 
 def _damaged_bag(path: Path) -> tuple[Path, list[int], int]:
@@ -170,7 +183,9 @@ def _damaged_bag(path: Path) -> tuple[Path, list[int], int]:
 
 def test_undecodable_messages_are_counted_not_matched(tmp_path: Path) -> None:
     bag, kept, cut = _damaged_bag(tmp_path / "damaged")
-    report = export(bag, tmp_path / "x.parquet", topics=["/imu"], where="linear_acceleration.z < 0")
+    report = export(
+        bag, tmp_path / "x.parquet", query=Query.create("/imu", where="linear_acceleration.z < 0")
+    )
     assert pd.read_parquet(tmp_path / "x.parquet")["log_time"].tolist() == kept
     assert any(f"{cut} messages could not be decoded" in p for p in report.problems)
     for bulk in (True, False):

@@ -14,6 +14,9 @@ from distributed import Client
 from bagkit import read_dataframe
 from bagkit.fleet.errors import FleetError
 from bagkit.fleet.export import bag_folders, export_fleet
+from bagkit.selection.query import Query
+
+IMU = Query.create("/imu/data")
 
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 
@@ -28,8 +31,8 @@ def _tables(root: Path) -> dict[str, pd.DataFrame]:
 def test_cluster_writes_what_one_process_writes(
     client: Client, fleet_bags: list[Path], tmp_path: Path
 ) -> None:
-    here = export_fleet(fleet_bags, tmp_path / "here", topics=["/imu/data"])
-    there = export_fleet(fleet_bags, tmp_path / "there", topics=["/imu/data"], client=client)
+    here = export_fleet(fleet_bags, tmp_path / "here", query=IMU)
+    there = export_fleet(fleet_bags, tmp_path / "there", query=IMU, client=client)
     assert [r.error for r in here + there] == [None] * (2 * len(fleet_bags))
     mine, theirs = _tables(tmp_path / "here"), _tables(tmp_path / "there")
     assert sorted(mine) == sorted(theirs) and len(mine) == len(fleet_bags)
@@ -38,7 +41,9 @@ def test_cluster_writes_what_one_process_writes(
 
 
 def test_each_bag_exports_as_it_would_alone(fleet_bags: list[Path], tmp_path: Path) -> None:
-    results = export_fleet(fleet_bags[:2], tmp_path, topics=["/imu/data"], fields=["linear_*"])
+    results = export_fleet(
+        fleet_bags[:2], tmp_path, query=Query.create("/imu/data", ["linear_*"])
+    )
     for result in results:
         written = pd.read_parquet(result.out / "imu" / "data.parquet")
         alone = read_dataframe(result.bag, "/imu/data", fields=["linear_*"])

@@ -29,6 +29,7 @@ from rclpy.signals import SignalHandlerOptions
 from bagkit.bag import BagWriter
 from bagkit.recording.errors import TriggerError
 from bagkit.recording.handoff import HandoffQueue, StopSignal
+from bagkit.recording.health_watch import HealthWatch
 from bagkit.recording.latched import LatchedRepeats
 from bagkit.recording.options import RecordOptions, default_output_name
 from bagkit.recording.output import create_output
@@ -67,9 +68,12 @@ class Recorder:
         context: an initialized rclpy context to use; default: a private one.
         on_warning: called (from the recording threads) with each warning, such as a topic
             skipped because its message package is not installed; default: logging.
+        health: a contract checked on what is written (``--health``):
+            :class:`bagkit.health.live.LiveHealth`; its counts go to ``report.health``.
 
     Raises:
-        RecorderOptionsError: the output exists.
+        RecorderOptionsError: the output exists, or the health check triggers snapshots
+            without snapshot mode.
     """
 
     def __init__(
@@ -78,8 +82,12 @@ class Recorder:
         *,
         context: Context | None = None,
         on_warning: Callable[[str], None] | None = None,
+        health: HealthWatch | None = None,
     ) -> None:
         self.options = options
+        if health is not None and health.trigger and not options.snapshot_mode:
+            raise RecorderOptionsError("--trigger-on-health needs --snapshot-mode")
+        self.health = health
         self.path = options.output or Path(default_output_name())
         if self.path.exists():
             raise RecorderOptionsError(
@@ -206,6 +214,7 @@ class Recorder:
             self._shutdown_node()
             raise
         assert self._subscriptions is not None
+        health = self.health
         self._writer = WriteLoop(
             bag,
             self._queue,
@@ -213,6 +222,10 @@ class Recorder:
             self._subscriptions.skip,
             latched=self._latched,
             gate=self._gate,
+            health=health,
+            on_health_break=(
+                bag.request if isinstance(bag, SnapshotSink) and health and health.trigger else None
+            ),
         )
         self._started = time.monotonic()
         discovered = threading.Event()
@@ -360,6 +373,8 @@ class Recorder:
             report.discovery_s = self._subscriptions.complete_at - self._started
         missing = self._subscriptions.never_appeared()
         report.topics = sorted(self._writer.records.values(), key=lambda r: r.topic)
+        if self.health is not None:
+            report.health = self.health.counts
         if isinstance(self._writer.bag, SnapshotSink):
             report.snapshots = self._writer.bag.snapshots
             report.evicted = self._writer.bag.evicted

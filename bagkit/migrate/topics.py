@@ -1,0 +1,129 @@
+"""A topic's messages rewritten to the target definition: decode, convert, encode, decode again.
+
+:func:`migrate_topic` compares the topic's stored definition with the target's
+(:func:`bagkit.decode.drift.definition_changes`) and, when they differ, plans the conversion
+(:class:`~bagkit.migrate.plan.Planner`); :meth:`TopicMigration.payload` then rewrites one
+payload. Every payload written is decoded with the new definition first, so a migrated bag
+never holds a message its own definition cannot read.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+from bagkit.bag.definitions import canonical_type_name
+from bagkit.bag.messages import TopicInfo
+from bagkit.decode.cdr import has_wide_strings
+from bagkit.decode.drift import definition_changes
+from bagkit.decode.errors import DecodeError, SchemaError
+from bagkit.decode.message_types import MessageTypes
+from bagkit.migrate.errors import MigrateError
+from bagkit.migrate.plan import Planner
+from bagkit.migrate.rules import Rules
+from bagkit.migrate.targets import Target
+
+
+@dataclass
+class TopicMigration:
+    """How one topic is migrated.
+
+    Attributes:
+        topic: the topic as the output lists it (the new type hash, QoS kept).
+        definition: the new definition's full text.
+        changes: what differs from the stored definition (drift lines).
+        rules_run: the rules its conversion applies.
+        dropped: old fields whose values are not carried over (``--allow-drop``).
+        migrated: payloads rewritten so far.
+    """
+
+    topic: TopicInfo
+    definition: str
+    changes: list[str]
+    rules_run: list[str]
+    dropped: list[str]
+    decode: Callable[[bytes | memoryview], object] = field(repr=False)
+    convert: Callable[[Any], Any] = field(repr=False)
+    encode: Callable[[Any], bytes] = field(repr=False)
+    check: Callable[[bytes | memoryview], object] = field(repr=False)
+    migrated: int = 0
+
+    def payload(self, data: bytes | memoryview) -> bytes:
+        """One payload of the stored definition as a payload of the new one.
+
+        Raises:
+            MigrateError: it does not decode with its stored definition, or the result does
+                not encode or decode with the new one. RuleError: a rule failed on it.
+        """
+        where = f"{self.topic.name} message {self.migrated + 1}"
+        try:
+            old = self.decode(data)
+        except DecodeError as exc:
+            raise MigrateError(f"{where}: {exc}") from None
+        try:
+            new = self.convert(old)
+        except MigrateError as exc:
+            raise type(exc)(f"{exc} ({where})") from None
+        try:
+            encoded = self.encode(new)
+            self.check(encoded)
+        except DecodeError as exc:
+            raise MigrateError(f"{where}: the migrated message does not decode: {exc}") from None
+        except Exception as exc:  # rosbags' serializer raises struct, type and index errors
+            raise MigrateError(
+                f"{where}: cannot be encoded ({type(exc).__name__}: {exc})"
+            ) from None
+        self.migrated += 1
+        return encoded
+
+
+def migrate_topic(
+    info: TopicInfo,
+    stored: str | None,
+    target: Target,
+    rules: Rules | None = None,
+    *,
+    allow_drop: bool = False,
+) -> TopicMigration | None:
+    """The migration of topic ``info`` (stored definition ``stored``) to ``target``; None when
+    there is nothing to do (the target lacks the type, or defines it the same way).
+
+    Raises:
+        MigrateError: a definition cannot be parsed, a field cannot be converted, data would
+            be lost (DataLossError), a rule is bad (RuleError).
+    """
+    name = canonical_type_name(info.type)
+    text = target.definition(name)
+    if text is None:
+        return None
+    old_types = MessageTypes.from_definitions({name: stored} if stored else {})
+    new_types = MessageTypes.from_definitions({name: text})
+    try:
+        old_name, new_name = old_types.resolve(name), new_types.resolve(name)
+        decode, check = old_types.decoder(name), new_types.decoder(name)
+    except SchemaError as exc:
+        raise MigrateError(f"{info.name}: {exc}") from None
+    old_store, new_store = old_types.typestore, new_types.typestore
+    changes = definition_changes(name, old_store.fielddefs, new_store.fielddefs)
+    if not changes and (rules is None or not _has_rules(rules, old_store.fielddefs)):
+        return None
+    if has_wide_strings(new_store, new_name):
+        raise MigrateError(f"{info.name}: {name} has wide strings, which bagkit cannot encode")
+    planner = Planner(old_store, new_store, rules or Rules(), allow_drop)
+    try:
+        convert = planner.converter(old_name, new_name)
+    except MigrateError as exc:
+        raise type(exc)(f"{info.name} ({name}): {exc}") from None
+
+    def encode(message: Any) -> bytes:
+        return bytes(new_store.serialize_cdr(message, new_name))
+
+    topic = replace(info, type_description_hash=target.type_hash(name, text))
+    return TopicMigration(
+        topic, text, changes, planner.rules_run, planner.dropped, decode, convert, encode, check
+    )
+
+
+def _has_rules(rules: Rules, types: dict[str, Any]) -> bool:
+    return any(rules.of(name) is not None for name in types)

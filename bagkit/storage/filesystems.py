@@ -1,0 +1,169 @@
+"""The fsspec filesystem behind a URL, and every call to it: retried, its errors translated.
+
+Credentials and endpoints come from where each client library looks by itself (the
+environment, profiles, instance roles; an S3-compatible endpoint from ``AWS_ENDPOINT_URL``),
+never from bagkit's command line. Filesystems are made once per process and scheme (fsspec
+caches them too), so a Dask worker that reads many bags opens its connections once.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, TypeVar
+
+from bagkit.storage.errors import (
+    AccessDeniedError,
+    ObjectChangedError,
+    ObjectNotFoundError,
+    StorageError,
+    UnreachableError,
+    UnsupportedUrlError,
+)
+from bagkit.storage.urls import scheme, shown_url
+
+if TYPE_CHECKING:
+    from fsspec import AbstractFileSystem
+
+T = TypeVar("T")
+
+# Seconds: a request that hears nothing this long is a timeout (then retried).
+TIMEOUT_S = float(os.environ.get("BAGKIT_STORAGE_TIMEOUT", "30"))
+# Attempts per request on a timeout, a lost connection or a 5xx, waiting BACKOFF_S * 2**i
+# between them.
+ATTEMPTS = int(os.environ.get("BAGKIT_STORAGE_ATTEMPTS", "4"))
+BACKOFF_S = float(os.environ.get("BAGKIT_STORAGE_BACKOFF", "0.25"))
+# Which package serves a scheme, for the error that says what to install.
+_PACKAGES = {"s3": "s3fs", "s3a": "s3fs", "gs": "gcsfs", "gcs": "gcsfs", "az": "adlfs"}
+_PACKAGES |= {"abfs": "adlfs", "abfss": "adlfs", "http": "aiohttp", "https": "aiohttp"}
+
+_filesystems: dict[str, AbstractFileSystem] = {}
+
+
+def filesystem(url: str) -> tuple[AbstractFileSystem, str]:
+    """The filesystem serving ``url`` and the path it names there.
+
+    Raises:
+        UnsupportedUrlError: no filesystem for the scheme, or its package is not installed.
+    """
+    protocol = scheme(url)
+    try:
+        import fsspec
+    except ImportError:
+        raise UnsupportedUrlError(
+            f"{shown_url(url)}: reading URLs needs fsspec (pip install 'bagkit[storage]')"
+        ) from None
+    fs = _filesystems.get(protocol)
+    if fs is None:
+        try:
+            cls = fsspec.get_filesystem_class(protocol)
+        except ValueError:
+            raise UnsupportedUrlError(
+                f"{shown_url(url)}: unknown URL scheme {protocol!r} "
+                "(s3://, gs://, az://, http(s):// or another fsspec protocol)"
+            ) from None
+        except ImportError:
+            package = _PACKAGES.get(protocol, "the fsspec implementation of " + protocol)
+            raise UnsupportedUrlError(
+                f"{shown_url(url)}: reading {protocol}:// URLs needs {package} "
+                "(pip install 'bagkit[storage]'" + (")" if protocol in _PACKAGES else " and it)")
+            ) from None
+        fs = cls(**_options(protocol))
+        _filesystems[protocol] = fs
+    return fs, fs._strip_protocol(url)
+
+
+def _options(protocol: str) -> dict[str, Any]:
+    """Timeouts and retries per client; nothing about credentials (each library finds them)."""
+    if protocol in ("s3", "s3a"):
+        return {
+            "config_kwargs": {
+                "connect_timeout": TIMEOUT_S,
+                "read_timeout": TIMEOUT_S,
+                "retries": {"max_attempts": ATTEMPTS, "mode": "standard"},
+            },
+        }
+    if protocol in ("http", "https"):
+        import aiohttp
+
+        return {"client_kwargs": {"timeout": aiohttp.ClientTimeout(sock_read=TIMEOUT_S)}}
+    return {}
+
+
+def call(url: str, what: Callable[[], T], *, retries: bool = True) -> T:
+    """``what()``, retried with backoff on timeouts, lost connections and 5xx answers; any
+    failure raised as one :class:`StorageError` naming ``url`` (shown without secrets)."""
+    attempts = ATTEMPTS if retries else 1
+    for attempt in range(attempts):
+        try:
+            return what()
+        except StorageError:
+            raise
+        except Exception as exc:
+            error = translated(url, exc)
+            if not isinstance(error, UnreachableError) or attempt == attempts - 1:
+                raise error from None
+        time.sleep(BACKOFF_S * 2**attempt)
+    raise AssertionError("unreachable")
+
+
+def _status(exc: BaseException) -> int | None:
+    """The HTTP status behind an exception of aiohttp, botocore or s3fs, if any."""
+    for error in (exc, exc.__cause__, exc.__context__):
+        if error is None:
+            continue
+        status = getattr(error, "status", None)
+        if isinstance(status, int):
+            return status
+        response = getattr(error, "response", None)
+        if isinstance(response, dict):
+            code = response.get("ResponseMetadata", {}).get("HTTPStatusCode")
+            if isinstance(code, int):
+                return code
+    return None
+
+
+def _kind(exc: BaseException) -> str:
+    names = {type(e).__name__ for e in (exc, exc.__cause__, exc.__context__) if e is not None}
+    return " ".join(sorted(names))
+
+
+def translated(url: str, exc: BaseException) -> StorageError:
+    """One :class:`StorageError` for what a client library raised, naming ``url`` safely."""
+    shown = shown_url(url)
+    status = _status(exc)
+    kind = _kind(exc)
+    if status == 412 or "PreconditionFailed" in str(exc):
+        return ObjectChangedError(f"{shown}: the object changed while read (its ETag moved)")
+    if status == 416:
+        return ObjectChangedError(f"{shown}: the object is shorter than when it was opened")
+    if "NoCredentials" in kind or "Unable to locate credentials" in str(exc):
+        return AccessDeniedError(
+            f"{shown}: no credentials found (environment, profile or instance role)"
+        )
+    if status in (401, 403) or isinstance(exc, PermissionError):
+        return AccessDeniedError(f"{shown}: access denied ({status or 403})")
+    if status == 404 or isinstance(exc, FileNotFoundError):
+        return ObjectNotFoundError(f"{shown}: no such object, prefix or bucket")
+    if (status is not None and (status >= 500 or status == 429)) or _transient(exc, kind):
+        return UnreachableError(
+            f"{shown}: the store did not answer after {ATTEMPTS} attempts ({_reason(exc, status)})"
+        )
+    return StorageError(f"{shown}: {_reason(exc, status)}")
+
+
+def _transient(exc: BaseException, kind: str) -> bool:
+    if isinstance(exc, (TimeoutError, ConnectionError)):
+        return True
+    if any(word in kind for word in ("Timeout", "Connection", "Disconnected", "Payload")):
+        return True
+    return isinstance(exc, OSError) and exc.errno in (errno.ETIMEDOUT, errno.ECONNRESET)
+
+
+def _reason(exc: BaseException, status: int | None) -> str:
+    if status is not None:
+        return f"HTTP {status}"
+    text = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+    return text if "://" not in text else type(exc).__name__  # never echo a URL back

@@ -1,0 +1,144 @@
+""":class:`UrlPath`: an object or prefix in storage with the part of ``pathlib.Path``'s API that
+the bag readers use, so a bag in a bucket is opened by the same code as one on disk.
+
+Shown (``str``) without secrets; the full URL is ``.url``. Sizes and ETags that a listing
+already gave are remembered (:func:`remember`), so a bag found by listing its prefix is opened
+without a HEAD request per file.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+from typing import Any
+
+from bagkit.storage.errors import ObjectNotFoundError, StorageError
+from bagkit.storage.filesystems import call, filesystem
+from bagkit.storage.range_file import RangeFile
+from bagkit.storage.urls import joined, name, parent, scheme, shown_url
+
+_infos: dict[str, dict[str, Any]] = {}
+# Listings remembered at most (a prefix of a million objects must not fill the memory).
+MAX_REMEMBERED = 200_000
+
+
+def remember(url: str, info: dict[str, Any]) -> None:
+    """Keep what a listing said of the object at ``url`` (its size, ETag, type)."""
+    if len(_infos) < MAX_REMEMBERED:
+        _infos[url.rstrip("/")] = info
+
+
+def remembered_size(url: str) -> int:
+    """Bytes of the object at ``url``, or of the objects under it, as listings said (0 when
+    none did)."""
+    url = url.rstrip("/")
+    known = _infos.get(url)
+    if known is not None and known.get("type") != "directory":
+        return int(known.get("size") or 0)
+    below = url + "/"
+    return sum(int(i.get("size") or 0) for u, i in _infos.items() if u.startswith(below))
+
+
+class UrlPath:
+    """An object or a prefix at ``url`` (see the module's docstring)."""
+
+    __slots__ = ("url",)
+
+    def __init__(self, url: str | UrlPath) -> None:
+        self.url: str = url.url if isinstance(url, UrlPath) else url.rstrip("/")
+
+    def __str__(self) -> str:
+        return shown_url(self.url)
+
+    def __repr__(self) -> str:
+        return f"UrlPath({shown_url(self.url)!r})"
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, UrlPath) and other.url == self.url
+
+    def __hash__(self) -> int:
+        return hash(self.url)
+
+    def __lt__(self, other: UrlPath) -> bool:
+        return self.url < other.url
+
+    def __truediv__(self, child: str) -> UrlPath:
+        return UrlPath(joined(self.url, str(child)))
+
+    @property
+    def name(self) -> str:
+        return name(self.url)
+
+    @property
+    def suffix(self) -> str:
+        stem = self.name
+        return stem[stem.rfind(".") :] if "." in stem.lstrip(".") else ""
+
+    @property
+    def parent(self) -> UrlPath:
+        return UrlPath(parent(self.url))
+
+    def relative_to(self, other: UrlPath | str) -> str:
+        base = other.url if isinstance(other, UrlPath) else str(other)
+        if not self.url.startswith(base.rstrip("/") + "/"):
+            raise ValueError(f"{self} is not under {shown_url(base)}")
+        return self.url[len(base.rstrip("/")) + 1 :]
+
+    def info(self) -> dict[str, Any] | None:
+        """What the store says of the object or prefix; None when there is neither."""
+        known = _infos.get(self.url)
+        if known is not None:
+            return known
+        fs, path = filesystem(self.url)
+        try:
+            found: dict[str, Any] = call(self.url, lambda: fs.info(path))
+        except ObjectNotFoundError:
+            # An HTTP server lists no directories: a bag's prefix is known by its metadata.yaml.
+            http = scheme(self.url) in ("http", "https") and not self.url.endswith(".yaml")
+            if http and (self / "metadata.yaml").is_file():
+                return {"type": "directory", "size": 0}
+            return None
+        remember(self.url, found)
+        return found
+
+    def exists(self) -> bool:
+        return self.info() is not None
+
+    def is_file(self) -> bool:
+        info = self.info()
+        return info is not None and info.get("type") != "directory"
+
+    def is_dir(self) -> bool:
+        info = self.info()
+        return info is not None and info.get("type") == "directory"
+
+    def stat(self) -> os.stat_result:
+        info = self.info()
+        if info is None:
+            raise ObjectNotFoundError(f"{self}: no such object, prefix or bucket")
+        return os.stat_result((0, 0, 0, 0, 0, 0, int(info.get("size") or 0), 0, 0, 0))
+
+    def iterdir(self) -> Iterator[UrlPath]:
+        """The objects and prefixes directly under this prefix."""
+        fs, path = filesystem(self.url)
+        entries = call(self.url, lambda: fs.ls(path, detail=True))
+        for entry in entries:
+            child = UrlPath(joined(self.url, entry["name"].rstrip("/").rsplit("/", 1)[-1]))
+            if child != self:
+                remember(child.url, entry)
+                yield child
+
+    def open(self, mode: str = "rb") -> RangeFile:
+        if mode != "rb":
+            raise StorageError(f"{self}: storage URLs are opened for reading only here")
+        info = self.info()
+        if info is None:
+            raise ObjectNotFoundError(f"{self}: no such object, prefix or bucket")
+        return RangeFile(self.url, info)
+
+    def read_bytes(self) -> bytes:
+        with self.open() as f:
+            return f.read()
+
+    def read_text(self, encoding: str = "utf-8", errors: str = "strict") -> str:
+        return self.read_bytes().decode(encoding, errors)

@@ -1,0 +1,179 @@
+"""A read-only, seekable file over an object in storage, read by range requests.
+
+What the bag readers need from a file: ``seek``, ``tell``, ``read``. A read is served from a
+bounded cache of the ranges fetched; a miss fetches exactly what was asked (an MCAP reader
+seeks by its indexes: the footer, the summary, the chunks it needs), and reading on where the
+last reads ended (a file without a summary, read through) fetches ahead an eighth of what was
+read on so far, up to :data:`MAX_READ_AHEAD`. Every range is asked for with the ETag seen at
+open (``If-Match``) where the store takes one, and its length is checked: an object that
+changes while it is read is an error, never a mix of two versions.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections import OrderedDict
+from typing import Any
+
+from bagkit.storage.errors import ObjectChangedError, StorageError
+from bagkit.storage.filesystems import call, filesystem
+from bagkit.storage.urls import scheme, shown_url
+
+# Read-ahead: a share of the bytes read on end to end so far (at most 1/8 fetched in vain when
+# the reading stops, however it reads), up to MAX_READ_AHEAD.
+READ_AHEAD_SHARE = 8
+MAX_READ_AHEAD = 8 << 20
+# The ranges kept per open file; the oldest are dropped beyond.
+CACHE_BYTES = 64 << 20
+
+
+class _Counter:
+    """Bytes and requests fetched by this process (benchmarks and tests read them)."""
+
+    def __init__(self) -> None:
+        self.lock = threading.Lock()
+        self.bytes = self.requests = 0
+
+    def add(self, size: int) -> None:
+        with self.lock:
+            self.bytes += size
+            self.requests += 1
+
+
+FETCHED = _Counter()
+
+
+def fetched() -> tuple[int, int]:
+    """``(bytes, requests)`` fetched by range reads in this process so far."""
+    return FETCHED.bytes, FETCHED.requests
+
+
+class RangeFile:
+    """An object opened for reading by ranges (see the module's docstring).
+
+    Args:
+        url: the object.
+        info: its size and ETag where a listing already gave them (else one HEAD request).
+    """
+
+    def __init__(self, url: str, info: dict[str, Any] | None = None) -> None:
+        self.url = url
+        self.name = shown_url(url)
+        self._fs, self._path = filesystem(url)
+        info = info or call(url, lambda: self._fs.info(self._path))
+        if info.get("type") == "directory":
+            raise StorageError(f"{self.name}: a prefix, not an object")
+        self.size = int(info.get("size") or 0)
+        self.etag = info.get("ETag") or info.get("etag")
+        self.fetched_bytes = 0
+        self._position = 0
+        self._last_end = -1
+        self._streak = 0
+        self._cache: OrderedDict[int, bytes] = OrderedDict()
+        self._cached = 0
+        self.closed = False
+
+    # The file API the readers use.
+    def seekable(self) -> bool:
+        return True
+
+    def readable(self) -> bool:
+        return True
+
+    def tell(self) -> int:
+        return self._position
+
+    def seek(self, offset: int, whence: int = 0) -> int:
+        base = {0: 0, 1: self._position, 2: self.size}[whence]
+        self._position = max(0, base + offset)
+        return self._position
+
+    def read(self, size: int = -1) -> bytes:
+        start = self._position
+        end = self.size if size is None or size < 0 else min(self.size, start + size)
+        if end <= start:
+            return b""
+        self._streak = self._streak + end - start if start == self._last_end else end - start
+        data = self._cached_span(start, end)
+        if data is None:
+            data = self._fetch_span(start, end)
+        self._position = end
+        self._last_end = end
+        return data
+
+    def readinto(self, buffer: Any) -> int:
+        data = self.read(len(buffer))
+        buffer[: len(data)] = data
+        return len(data)
+
+    def close(self) -> None:
+        self.closed = True
+        self._cache.clear()
+
+    def __enter__(self) -> RangeFile:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # The cache and the fetches.
+    def _cached_span(self, start: int, end: int) -> bytes | None:
+        for offset, block in reversed(self._cache.items()):
+            if offset <= start and end <= offset + len(block):
+                self._cache.move_to_end(offset)
+                return block[start - offset : end - offset]
+        return None
+
+    def _fetch_span(self, start: int, end: int) -> bytes:
+        ahead = min(MAX_READ_AHEAD, self._streak // READ_AHEAD_SHARE)
+        fetch_end = min(self.size, max(end, start + ahead))
+        block = self._fetch(start, fetch_end)
+        if fetch_end > end or len(block) <= CACHE_BYTES // 4:
+            self._keep(start, block)
+        return block[: end - start]
+
+    def _keep(self, offset: int, block: bytes) -> None:
+        self._cache[offset] = block
+        self._cached += len(block)
+        while self._cached > CACHE_BYTES and len(self._cache) > 1:
+            _, dropped = self._cache.popitem(last=False)
+            self._cached -= len(dropped)
+
+    def _fetch(self, start: int, end: int) -> bytes:
+        data = call(self.url, lambda: self._get(start, end))
+        FETCHED.add(len(data))
+        self.fetched_bytes += len(data)
+        if len(data) != end - start:
+            if len(data) == self.size and start > 0:
+                raise StorageError(f"{self.name}: the server does not answer range requests")
+            raise ObjectChangedError(
+                f"{self.name}: the object changed while read ({len(data)} bytes at byte "
+                f"{start} where {end - start} were expected)"
+            )
+        return data
+
+    def _get(self, start: int, end: int) -> bytes:
+        protocol = scheme(self.url)
+        if self.etag and protocol in ("s3", "s3a"):
+            return _s3_range(self._fs, self._path, start, end, self.etag)
+        if self.etag and protocol in ("http", "https"):
+            return bytes(self._fs.cat_file(self._path, start, end, headers={"If-Match": self.etag}))
+        return bytes(self._fs.cat_file(self._path, start=start, end=end))
+
+
+def _s3_range(fs: Any, path: str, start: int, end: int, etag: str) -> bytes:
+    """A GetObject of bytes ``[start, end)`` that the store refuses (412) if the ETag moved."""
+    from fsspec.asyn import sync
+
+    bucket, key, _ = fs.split_path(path)
+
+    async def get() -> bytes:
+        response = await fs._call_s3(
+            "get_object", Bucket=bucket, Key=key, Range=f"bytes={start}-{end - 1}", IfMatch=etag
+        )
+        try:
+            return bytes(await response["Body"].read())
+        finally:
+            response["Body"].close()
+
+    return sync(fs.loop, get)

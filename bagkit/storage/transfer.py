@@ -1,0 +1,72 @@
+"""Whole objects: a local copy of one that a back-end can only read from disk (SQLite3, ROS 1,
+zstd-compressed files), uploads of outputs written locally, and listings of prefixes."""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+from bagkit.storage.errors import StorageError
+from bagkit.storage.filesystems import call, filesystem
+from bagkit.storage.paths import UrlPath, remember
+from bagkit.storage.urls import joined
+
+# A copy is fetched in pieces of this size (memory stays bounded whatever the object's size).
+COPY_PIECE = 8 << 20
+
+
+def local_copy(path: UrlPath, directory: Path) -> Path:
+    """Copy the object at ``path`` into ``directory`` (kept under its name); the caller
+    removes the directory.
+
+    Raises:
+        StorageError: unreadable, or not enough room for it in ``directory``.
+    """
+    with path.open() as source:
+        free = shutil.disk_usage(directory).free
+        if source.size > free:
+            raise StorageError(
+                f"{path}: {source.size} bytes to copy locally, {free} free in {directory}"
+            )
+        target = directory / path.name
+        with open(target, "wb") as out:
+            while piece := source.read(COPY_PIECE):
+                out.write(piece)
+    return target
+
+
+def temporary_directory() -> Path:
+    """A new private directory for local copies (the caller removes it)."""
+    return Path(tempfile.mkdtemp(prefix="bagkit-storage-"))
+
+
+def upload(local: Path, url: str) -> None:
+    """Put the file or directory ``local`` at ``url`` (a directory's files under the prefix)."""
+    fs, path = filesystem(url)
+    if local.is_dir():
+        for file in sorted(p for p in local.rglob("*") if p.is_file()):
+            target = joined(path, file.relative_to(local).as_posix())
+            _put(fs, url, file, target)
+    else:
+        _put(fs, url, local, path)
+
+
+def _put(fs: Any, url: str, local: Path, target: str) -> None:
+    call(url, lambda: fs.put_file(str(local), target))
+
+
+def objects_under(prefix: UrlPath) -> Iterator[UrlPath]:
+    """Every object under ``prefix`` (one listing request per page), remembered for opening."""
+    fs, path = filesystem(prefix.url)
+    found = call(prefix.url, lambda: fs.find(path, detail=True))
+    base = path.rstrip("/")
+    for name in sorted(found):
+        relative = name[len(base) + 1 :] if name.startswith(base + "/") else None
+        if relative is None:
+            continue
+        url = joined(prefix.url, relative)
+        remember(url, found[name])
+        yield UrlPath(url)

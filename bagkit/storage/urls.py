@@ -1,0 +1,59 @@
+"""Which inputs are URLs, and how a URL is shown (never with its secrets)."""
+
+from __future__ import annotations
+
+import re
+from urllib.parse import urlsplit, urlunsplit
+
+# ``scheme://``: two letters at least, so that a Windows drive (``C:\``) is never one; ``file``
+# URLs are local paths and stay so.
+_URL = re.compile(r"^([a-zA-Z][a-zA-Z0-9+.-]+)://")
+LOCAL_SCHEMES = ("file",)
+# What fsspec names the schemes that bagkit documents (others are passed to fsspec as given).
+CLOUD_SCHEMES = ("s3", "s3a", "gs", "gcs", "az", "abfs", "abfss", "http", "https")
+
+
+def is_url(text: object) -> bool:
+    """True for ``scheme://...`` other than ``file://`` (a string, or a UrlPath): a bag in
+    storage, not on this disk."""
+    text = getattr(text, "url", text)
+    if not isinstance(text, str):
+        return False
+    match = _URL.match(text)
+    return match is not None and match.group(1).lower() not in LOCAL_SCHEMES
+
+
+def scheme(url: str) -> str:
+    """The URL's scheme, lower case (``s3``, ``https``)."""
+    return url.split("://", 1)[0].lower()
+
+
+def shown_url(url: str) -> str:
+    """``url`` without what may be a secret: the user and password, and the query (presigned
+    URLs carry their signature there), replaced by ``?...``."""
+    try:
+        parts = urlsplit(url)
+    except ValueError:
+        return url.split("://", 1)[0] + "://..."
+    netloc = parts.netloc.rsplit("@", 1)[-1]
+    query = "..." if parts.query else ""
+    return urlunsplit((parts.scheme, netloc, parts.path, query, ""))
+
+
+def joined(url: str, name: str) -> str:
+    """``url/name`` (one slash between)."""
+    return url.rstrip("/") + "/" + name.lstrip("/")
+
+
+def parent(url: str) -> str:
+    """The prefix holding ``url`` (never above ``scheme://host``)."""
+    head, _, path = url.rstrip("/").partition("://")
+    if "/" not in path:
+        return url
+    return f"{head}://{path.rsplit('/', 1)[0]}"
+
+
+def name(url: str) -> str:
+    """The last segment of the URL's path, without query."""
+    path = urlsplit(url).path if "?" in url or "#" in url else url.split("://", 1)[-1]
+    return path.rstrip("/").rsplit("/", 1)[-1]

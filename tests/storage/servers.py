@@ -1,0 +1,160 @@
+"""The stores the storage tests read from, all on 127.0.0.1: moto's S3-compatible server (a
+subprocess, killed by its pid) and a small HTTP server with byte ranges and injected faults."""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import socket
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from pathlib import Path
+
+import pytest
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@dataclass
+class MotoServer:
+    """moto's standalone S3 server; ``env``: what a client needs to reach it."""
+
+    process: subprocess.Popen[bytes]
+    endpoint: str
+    env: dict[str, str]
+
+    def stop(self) -> None:
+        self.process.terminate()
+        try:
+            self.process.wait(10)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait()
+
+
+def start_moto() -> MotoServer:
+    port = free_port()
+    process = subprocess.Popen(
+        [str(Path(sys.executable).with_name("moto_server")), "-H", "127.0.0.1", "-p", str(port)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline:
+        try:
+            socket.create_connection(("127.0.0.1", port), timeout=0.2).close()
+            break
+        except OSError:
+            time.sleep(0.1)
+    else:
+        process.kill()
+        pytest.fail("moto_server did not start")
+    endpoint = f"http://127.0.0.1:{port}"
+    env = {
+        "AWS_ENDPOINT_URL": endpoint,
+        "AWS_ACCESS_KEY_ID": "testing",
+        "AWS_SECRET_ACCESS_KEY": "testing-secret",
+        "AWS_DEFAULT_REGION": "us-east-1",
+    }
+    return MotoServer(process, endpoint, env)
+
+
+@dataclass
+class Faults:
+    """What the HTTP server does to the next requests of a path."""
+
+    fail: int = 0  # answer this many requests with ``status``
+    status: int = 503
+    stall_s: float = 0.0  # wait this long before answering (timeouts)
+    truncate: bool = False  # send fewer bytes than announced
+    change_after: int = -1  # after this many GETs, the object's ETag changes
+
+
+@dataclass
+class HttpStore:
+    """Objects by path, served with HEAD, GET, Range and If-Match; faults per path."""
+
+    objects: dict[str, bytes] = field(default_factory=dict)
+    faults: dict[str, Faults] = field(default_factory=dict)
+    gets: dict[str, int] = field(default_factory=dict)
+    url: str = ""
+
+    def etag(self, path: str) -> str:
+        faults = self.faults.get(path)
+        changed = faults is not None and 0 <= faults.change_after < self.gets.get(path, 0)
+        digest = hashlib.md5(self.objects[path]).hexdigest()
+        return f'"{digest}{"-2" if changed else ""}"'
+
+
+def start_http(store: HttpStore) -> ThreadingHTTPServer:
+    class Handler(BaseHTTPRequestHandler):
+        def log_message(self, *args: object) -> None:
+            pass
+
+        def _answer(self, body: bool) -> None:
+            path = self.path.split("?", 1)[0]
+            faults = store.faults.get(path, Faults())
+            if body:
+                store.gets[path] = store.gets.get(path, 0) + 1
+            if faults.stall_s:
+                time.sleep(faults.stall_s)
+            if faults.fail > 0:
+                faults.fail -= 1
+                self.send_response(faults.status)
+                self.send_header("Content-Length", "0")
+                self.end_headers()
+                return
+            data = store.objects.get(path)
+            if data is None:
+                self.send_response(404)
+                self.send_header("Content-Length", "0")
+                self.end_headers()
+                return
+            etag = store.etag(path)
+            wanted = self.headers.get("If-Match")
+            if wanted is not None and wanted != etag:
+                self.send_response(412)
+                self.send_header("Content-Length", "0")
+                self.end_headers()
+                return
+            start, end, status = 0, len(data), 200
+            ranged = self.headers.get("Range")
+            if ranged:
+                first, _, last = ranged.removeprefix("bytes=").partition("-")
+                start, end, status = int(first), min(len(data), int(last) + 1), 206
+            part = data[start:end]
+            self.send_response(status)
+            self.send_header("Content-Length", str(len(part)))
+            self.send_header("ETag", etag)
+            self.send_header("Accept-Ranges", "bytes")
+            if status == 206:
+                self.send_header("Content-Range", f"bytes {start}-{end - 1}/{len(data)}")
+            self.end_headers()
+            if body:
+                self.wfile.write(part[: len(part) // 2] if faults.truncate else part)
+
+        def do_HEAD(self) -> None:
+            self._answer(body=False)
+
+        def do_GET(self) -> None:
+            self._answer(body=True)
+
+    server = ThreadingHTTPServer(("127.0.0.1", free_port()), Handler)
+    server.daemon_threads = True
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    store.url = f"http://127.0.0.1:{server.server_address[1]}"
+    return server
+
+
+def real_bucket() -> str | None:
+    """``BAGKIT_TEST_BUCKET`` (``s3://bucket/prefix``, ``gs://...``): the same tests against a
+    real store with the credentials of the environment."""
+    return os.environ.get("BAGKIT_TEST_BUCKET") or None

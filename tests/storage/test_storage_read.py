@@ -1,0 +1,117 @@
+"""Bags read from storage by range requests: the same values as on disk, from the bytes the
+indexes point at (info: the summary; a topic: its chunks), on moto's S3 server, an HTTP server
+and a real bucket when one is configured."""
+
+from __future__ import annotations
+
+import json
+import os
+import struct
+import subprocess
+import sys
+from pathlib import Path
+
+from bagkit.bag import BagReader, bag_info
+from bagkit.bag.mcap_file import McapFile
+from bagkit.storage.range_file import fetched
+from tests.storage.conftest import Store
+
+
+def cli(args: list[str], env: dict[str, str]) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [str(Path(sys.executable).with_name("bagkit")), *args],
+        env={**os.environ, **env},
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+
+
+def summary_bytes(file: Path) -> int:
+    """The summary section's size, from the footer (``summary_start`` after the opcode and
+    length), as the MCAP specification lays it out."""
+    data = file.read_bytes()
+    footer = data[-8 - 29 :]
+    (summary_start,) = struct.unpack_from("<Q", footer, 9)
+    return len(data) - summary_start
+
+
+def chunk_bytes_holding(file: Path, topic: str) -> int:
+    mcap = McapFile(file)
+    mcap.open()
+    try:
+        channels = {c.id for c in mcap.index.channels.values() if c.topic == topic}
+        return sum(
+            c.chunk_length + c.message_index_length
+            for c in mcap.index.chunk_indexes
+            if channels & set(c.message_index_offsets)
+        )
+    finally:
+        mcap.close()
+
+
+def without_paths(info: dict[str, object]) -> dict[str, object]:
+    return {k: v for k, v in info.items() if k not in ("path", "files")}
+
+
+def test_info_reads_the_summary_only(store: Store, local_bags: Path) -> None:
+    local = local_bags / "fleet" / "a" / "a_0.mcap"
+    before = fetched()[0]
+    remote = bag_info(f"{store.base}/a.mcap")
+    spent = fetched()[0] - before
+    assert without_paths(remote.to_dict()) == without_paths(bag_info(local).to_dict())
+    assert remote.path == f"{store.base}/a.mcap"
+    assert 0 < spent <= 2 * summary_bytes(local)
+    assert spent < local.stat().st_size / 4
+
+
+def test_a_topic_fetches_the_chunks_that_hold_it(store: Store, local_bags: Path) -> None:
+    local = local_bags / "fleet" / "a"
+    with BagReader(local) as bag:
+        expected = [(m.log_time, m.data) for m in bag.messages(topics={"/gps/fix"})]
+    before = fetched()[0]
+    with BagReader(f"{store.base}/fleet/a") as bag:
+        got = [(m.log_time, m.data) for m in bag.messages(topics={"/gps/fix"})]
+    spent = fetched()[0] - before
+    assert got == expected and len(got) == 3
+    file = local / "a_0.mcap"
+    needed = chunk_bytes_holding(file, "/gps/fix") + summary_bytes(file)
+    metadata = (local / "metadata.yaml").stat().st_size
+    assert spent <= 1.2 * needed + metadata
+    assert spent < file.stat().st_size / 3
+
+
+def test_stats_of_a_prefix_equal_the_local_stats(store: Store, local_bags: Path) -> None:
+    args = ["stats", "summary", "-t", "/gps/fix", "--format", "json", "--workers", "0"]
+    # An HTTP server lists no prefixes: its bags are named one by one.
+    named = (
+        [f"{store.base}/fleet/{b}" for b in "ab"]
+        if store.name == "http"
+        else [f"{store.base}/fleet"]
+    )
+    remote = cli([*args, *named], store.env)
+    local = cli([*args, str(local_bags / "fleet")], {})
+    assert remote.returncode == 0, remote.stderr
+    assert json.loads(remote.stdout)["topics"] == json.loads(local.stdout)["topics"]
+
+
+def test_info_of_a_prefix_lists_its_bags(store: Store) -> None:
+    if store.name == "http":  # an HTTP server lists no prefixes
+        return
+    result = cli(["info", store.base, "--format", "json"], store.env)
+    assert result.returncode == 0, result.stderr
+    bags = json.loads(result.stdout)["bags"]
+    assert sorted(b["path"] for b in bags) == [
+        f"{store.base}/a.mcap",
+        f"{store.base}/fleet/a",
+        f"{store.base}/fleet/b",
+    ]
+
+
+def test_echo_of_a_url(store: Store, local_bags: Path) -> None:
+    args = ["echo", "/gps/fix", "--format", "json", "-n", "2"]
+    remote = cli(["echo", f"{store.base}/fleet/b", *args[1:]], store.env)
+    local = cli(["echo", str(local_bags / "fleet" / "b"), *args[1:]], {})
+    assert remote.returncode == 0, remote.stderr
+    assert remote.stdout == local.stdout and remote.stdout.strip()
