@@ -10,10 +10,16 @@ from pathlib import Path
 import pytest
 
 from bagkit.bag.file_rotation import FreeSpace
+from bagkit.bag.latched import LatchedOptions
 from bagkit.cli.record import record
 from bagkit.cli.replay import replay
 from bagkit.playback.errors import PlayerError
-from bagkit.playback.options import PlayOptions, PlayWindow
+from bagkit.playback.options import (
+    PlayOptions,
+    PlayWindow,
+    ServiceRequestReplay,
+    SubscriberWaits,
+)
 from bagkit.recording.errors import RecorderOptionsError
 from bagkit.recording.options import (
     DEFAULT_QUEUE_BYTES,
@@ -63,10 +69,13 @@ def test_play_options_default_to_the_cli() -> None:
     assert options.clock_hz is cli["clock"] is None
     assert options.loops == 1 and cli["loop"] is False
     assert options.start_paused is cli["start_paused"] is False
-    assert options.wait_for_subscribers is cli["wait_for_subscribers"] is True
-    assert options.wait_timeout_s == cli["wait_timeout"]
-    assert options.discovery_time_s == cli["discovery_time"]
-    assert options.ack_timeout_s == cli["wait_for_all_acked"] / 1000  # type: ignore[operator]
+    assert options.waits.before_start is cli["wait_for_subscribers"] is True
+    assert options.waits.timeout_s == cli["wait_timeout"]
+    assert options.waits.discovery_s == cli["discovery_time"]
+    assert options.waits.ack_timeout_s == cli["wait_for_all_acked"] / 1000  # type: ignore[operator]
+    assert options.seek_step_ns == cli["seek_step"]
+    assert options.latched == LatchedOptions() and cli["no_latched"] is False
+    assert options.service_requests is None and cli["publish_service_requests"] is False
     assert options.qos_overrides is cli["qos_overrides"] is None
     assert options.services and options.tune_process  # the CLI always offers the services
 
@@ -126,6 +135,19 @@ def test_record_option_parts_name_their_fields(make: Callable[[], object], messa
         make()
 
 
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        (lambda: SubscriberWaits(timeout_s=-1), "^waits.timeout_s: must be >= 0"),
+        (lambda: SubscriberWaits(ack_timeout_s=float("nan")), "^waits.ack_timeout_s: must be"),
+        (lambda: ServiceRequestReplay(timeout_s=-1), "^service_requests.timeout_s: must be"),
+    ],
+)
+def test_play_option_parts_name_their_fields(make: Callable[[], object], message: str) -> None:
+    with pytest.raises(PlayerError, match=message):
+        make()
+
+
 def test_record_options_make_names_absolute() -> None:
     selection = RecordOptions(topics=("imu/data",)).selection
     assert selection.topics == frozenset({"/imu/data"})
@@ -135,7 +157,12 @@ def test_record_options_make_names_absolute() -> None:
     ("fields", "message"),
     [
         ({"regex": "("}, "--regex '\\(' is not a valid regular expression"),
-        ({"progress_period_s": float("nan")}, "bad time nan"),
+        ({"progress_period_ns": 0}, "^progress_period_ns: must be positive"),
+        ({"seek_step_ns": -1}, "^seek_step_ns: must be positive"),
+        (
+            {"latched": LatchedOptions(enabled=False, extra_topics=("/a",))},
+            "^latched: extra topics without latched state",
+        ),
         ({"start_offset_s": "5 mins"}, "bad start offset '5 mins': not a time"),
     ],
 )
