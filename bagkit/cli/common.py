@@ -23,8 +23,6 @@ from typing import TYPE_CHECKING, Annotated, Any, ClassVar, NoReturn, ParamSpec,
 import typer
 
 # typer 0.29 vendors click; its exception classes are only importable from there (typer is pinned).
-from typer._click import Command
-from typer._click.exceptions import NoArgsIsHelpError, UsageError
 from typer.core import TyperCommand
 
 from bagkit.compat import StrEnum
@@ -395,7 +393,15 @@ def internal_error_message(exc: BaseException) -> str:
     )
 
 
-def run_app(app: typer.Typer | Command, args: list[str] | None = None) -> NoReturn:
+# typer builds its commands on a click of its own that it keeps private (typer._click), and
+# bagkit imports no private module: a command or a context of that click is typed Any.
+ClickCommand = Any
+"""A click command (``TyperCommand``, ``TyperGroup``, or click's base class)."""
+ClickContext = Any
+"""A click context (``typer.Context`` is a subclass)."""
+
+
+def run_app(app: typer.Typer | ClickCommand, args: list[str] | None = None) -> NoReturn:
     """Run a typer app or command as a console script (``args``: sys.argv[1:] when None), exit.
 
     Usage errors are one ``error:`` line (exit 2): click would print a usage block and a boxed
@@ -405,17 +411,16 @@ def run_app(app: typer.Typer | Command, args: list[str] | None = None) -> NoRetu
     """
     try:
         result = app(args=args, standalone_mode=False)
-    except NoArgsIsHelpError as exc:
-        # Help asked for by omission: print it, exit 2 as click does.
-        _made("err_console").print(
-            exc.ctx.get_help() if exc.ctx is not None else "", highlight=False
-        )
-        sys.exit(2)
-    except UsageError as exc:
-        hint = f" (see '{exc.ctx.command_path} --help')" if exc.ctx is not None else ""
-        raise SystemExit(fail(exc.format_message() + hint, exc.exit_code).exit_code) from None
     except typer.TyperException as exc:
-        raise SystemExit(fail(exc.format_message(), exc.exit_code).exit_code) from None
+        # click's usage errors carry the command's context; the one that is the help itself
+        # (no arguments to a command that has no_args_is_help) prints it, exit 2 as click does.
+        ctx = getattr(exc, "ctx", None)
+        message = exc.format_message()
+        if ctx is not None and message == ctx.get_help():
+            _made("err_console").print(message, highlight=False)
+            sys.exit(2)
+        hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
+        raise SystemExit(fail(message + hint, exc.exit_code).exit_code) from None
     except typer.Abort:
         raise SystemExit(fail("interrupted", EXIT_INTERRUPTED).exit_code) from None
     except Exception as exc:
