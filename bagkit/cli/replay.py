@@ -104,7 +104,8 @@ class ReplayCommand(MultiValueCommand):
 def _bare_clock(args: list[str]) -> list[str]:
     """``--clock`` not followed by a number -> ``--clock=40`` (rosbag2's default rate)."""
     out: list[str] = []
-    for arg, after in zip(args, [*args[1:], ""], strict=True):
+    for index, arg in enumerate(args):
+        after = args[index + 1] if index + 1 < len(args) else ""
         bare = arg == "--clock" and not _NUMBER.fullmatch(after)
         out.append(f"--clock={DEFAULT_CLOCK_HZ:g}" if bare else arg)
     return out
