@@ -94,6 +94,19 @@ class HealthSpec:
             raise SpecError(f"{source}{where}: not YAML ({exc})") from None
         return _Reader(source, lines).spec(data or {})
 
+    @classmethod
+    def parse_section(cls, text: str, key: str, source: str) -> HealthSpec | None:
+        """The contract under ``key`` of a larger YAML document (a golden spec's ``health:``),
+        None without one; errors name the document's lines."""
+        data = safe_yaml.load(text)
+        if not isinstance(data, Mapping) or data.get(key) is None:
+            return None
+        found = _key_lines(text)
+        prefix = f"{key}."
+        lines = {k.removeprefix(prefix): v for k, v in found.items() if k.startswith(prefix)}
+        lines[""] = found.get(key, 0)  # "the spec must be a mapping" names the section's line
+        return _Reader(source, lines).spec(data[key])
+
 
 class _Reader:
     def __init__(self, source: str, lines: dict[str, int]) -> None:
