@@ -197,9 +197,10 @@ def check_bag(bag: str | Path, spec: HealthSpec) -> HealthReport:
         for contract in spec.topics:
             topic = contract.topic
             if not counts.get(topic, 0):
-                guess = did_you_mean(topic, reader.topics).strip()
-                reason = f"not in the bag{f'; {guess}' if guess else ''}"
-                reason = reason if topic not in reader.topics else "no message"
+                reason = "no message"
+                if topic not in reader.topics:  # a misspelling reads as a broken contract
+                    guess = did_you_mean(topic, reader.topics).rstrip()
+                    reason = f"not in the bag{'; ' + guess if guess else ''}"
                 found.append(Assertion(topic, "present", False, reason=reason))
                 continue
             found.append(Assertion(topic, "present", True))
