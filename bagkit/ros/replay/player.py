@@ -51,7 +51,7 @@ from bagkit.ros.replay.services import serve_controls
 from bagkit.ros.replay.topics import PublishableTopics, publishable_topics
 from bagkit.ros.tuning import process_tuning
 from bagkit.selection.services import is_service_event_topic
-from bagkit.selection.times import TimeLike, parse_time, seconds_to_ns
+from bagkit.selection.times import TimeLike, parse_time
 
 if TYPE_CHECKING:
     # Imported once the node exists (numpy, the decoder, rosbags, the migrator; topics.py
@@ -75,7 +75,7 @@ class Player:
     Args:
         options: what to replay and how.
         context: rclpy context to use; None = a private one, shut down on exit.
-        on_progress: called with a ``PlayProgress`` about every ``options.progress_period_s``.
+        on_progress: called with a ``PlayProgress`` about every ``options.progress_period_ns``.
         on_live_publishers: called once before the first message with the replayed topics
             that other nodes publish too (published name -> those nodes).
         on_warning: called with each warning (a seek clamped to the window); default: logging.
@@ -109,9 +109,7 @@ class Player:
         self.on_live_publishers = on_live_publishers
         self.on_warning = on_warning or _log.warning
         self.on_waited = on_waited
-        self.progress_period_ns = seconds_to_ns(
-            options.progress_period_s, options.progress_period_s, PlayerError
-        )
+        self.progress_period_ns = options.progress_period_ns
         self._context = context
         self._stack = ExitStack()
         self._reader: PlaySource | None = None
@@ -174,7 +172,7 @@ class Player:
             node = self._create_node()
         selected = self._select_topics(reader.topics)
         self._latched = latched_topics(
-            reader.topics, options.latched_options, [info.name for info, _ in selected]
+            reader.topics, options.latched, [info.name for info, _ in selected]
         )
         mean_size = reader.uncompressed_size // max(reader.message_count, 1) or 1024
         bag_duration_s = (reader.end_ns - reader.start_ns) / 1e9
@@ -190,7 +188,7 @@ class Player:
                     messages_per_s=self._replay_rate_hz(count, bag_duration_s),
                 )
             self._outputs[info.name] = create_output(node, info, message_class, name, qos)
-            if options.publish_service_requests and _sends_requests(info):
+            if options.service_requests is not None and _sends_requests(info):
                 self._outputs[info.name] = self._requests(node).output(
                     info, self._outputs[info.name]
                 )
@@ -201,17 +199,18 @@ class Player:
             self._stack.enter_context(serve_controls(node, self.controls))
 
     def _requests(self, node: Node) -> ServiceRequests:
-        """The sender of recorded service requests (``publish_service_requests``)."""
+        """The sender of recorded service requests (``options.service_requests``)."""
         from bagkit.ros.replay.service_requests import ServiceRequests
 
+        replay = self.options.service_requests
         if self._service_requests is None:
-            assert self._reader is not None
+            assert self._reader is not None and replay is not None
             self._service_requests = self._stack.enter_context(
                 ServiceRequests(
                     node,
                     self._reader,
-                    source=self.options.service_requests_source,
-                    timeout_s=self.options.service_timeout_s,
+                    source=replay.source,
+                    timeout_s=replay.timeout_s,
                     on_warning=self.on_warning,
                 )
             )
@@ -299,7 +298,7 @@ class Player:
                 output
                 for output in self._outputs.values()
                 # Their events are not published: the requests are sent instead.
-                if not (options.publish_service_requests and _sends_requests(output.info))
+                if not (options.service_requests and _sends_requests(output.info))
             ]
             self.live_publishers = other_publishers(self.node, published)
             if self.live_publishers and self.on_live_publishers is not None:
@@ -501,7 +500,7 @@ class Player:
 
 
 def _sends_requests(info: TopicInfo) -> bool:
-    """Whether ``info`` is a service-event topic (``publish_service_requests`` sends its
+    """Whether ``info`` is a service-event topic (``service_requests`` sends its
     requests instead of publishing it)."""
     return is_service_event_topic(info.name, [info.type])
 
