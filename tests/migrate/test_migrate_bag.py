@@ -15,11 +15,13 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Range, Temperature
 
 from bagkit.bag import BagReader, BagWriter, TopicInfo, message_definition
+from bagkit.bag.distro_definitions import distro_definitions
 from bagkit.decode import MessageTypes
 
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
@@ -233,3 +235,23 @@ def test_to_a_package_directory(tmp_path: Path) -> None:
         types = MessageTypes.for_bag(reader)
         decoded = [types.deserialize(m.data, "sensor_msgs/msg/Range") for m in reader.messages()]
     assert [(m.range, m.quality) for m in decoded] == [(float(i), 0) for i in range(3)]
+
+
+def test_a_humble_range_becomes_jazzy_s(tmp_path: Path) -> None:
+    """The definition rosbags ships for Humble's Range (no ``variance``), as a Humble bag
+    stores it: migrated to the installed (Jazzy) Range, every recorded value kept."""
+    humble = distro_definitions(["sensor_msgs/msg/Range"], "humble")["sensor_msgs/msg/Range"]
+    assert "variance" not in humble
+    bag = tmp_path / "humble"
+    with BagWriter(bag) as writer:
+        writer.add_topic(TopicInfo("/range", "sensor_msgs/msg/Range"), humble)
+        for i in range(COUNT):
+            jazzy = bytes(serialize_message(Range(range=0.5 * i, min_range=0.1, max_range=9.0)))
+            writer.write("/range", jazzy[:-4], log_time=START_NS + i)  # without variance
+    done = _migrate(str(bag), "-o", str(tmp_path / "jazzy"))
+    assert done.returncode == 0, done.stderr
+    assert "added: variance (float32)" in done.stdout
+    ranges = _messages(tmp_path / "jazzy", "/range", Range)
+    assert [(m.range, m.max_range, m.variance) for m in ranges] == [
+        (0.5 * i, float(np.float32(9.0)), 0.0) for i in range(COUNT)
+    ]
