@@ -31,7 +31,8 @@ from bagkit.surgery import Selection, filter_bag
 from bagkit.surgery.migrate import MigrateOptions, migrate_bag
 start = time.perf_counter()
 if sys.argv[1] == "migrate":
-    migrate_bag(Path(sys.argv[2]), Path(sys.argv[3]), MigrateOptions())
+    report = migrate_bag(Path(sys.argv[2]), Path(sys.argv[3]), MigrateOptions())
+    assert report.migrated and report.migrated[0].migrated, "nothing was migrated"
 else:
     filter_bag(Path(sys.argv[2]), Path(sys.argv[3]), Selection())
 print(time.perf_counter() - start, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
@@ -41,8 +42,11 @@ print(time.perf_counter() - start, resource.getrusage(resource.RUSAGE_SELF).ru_m
 def _old_imu_bag(path: Path, count: int) -> Path:
     """``count`` Imu messages stored with the Imu definition less its last field."""
     text = "\n".join(
-        line for line in message_definition(IMU).splitlines() if line.strip() != REMOVED
+        line
+        for line in message_definition(IMU).splitlines()
+        if line.split("#")[0].strip() != REMOVED
     )
+    assert text != message_definition(IMU), "the field to remove is not in today's Imu"
     payloads = [p[:-REMOVED_BYTES] for p in _payloads(10_000)["/imu/data"]]
     start = 1_700_000_000_000_000_000
     with BagWriter(path) as bag:

@@ -193,15 +193,14 @@ def _run_recorder(
     ``health``: check HEALTH_CONTRACT live."""
     from bagkit.health import HealthSpec
     from bagkit.health.live import LiveHealth
-    from bagkit.recording.options import RecordOptions
+    from bagkit.recording.options import RecordOptions, SnapshotOptions
     from bagkit.ros.record.recorder import Recorder
 
     options = RecordOptions(
         bag,
         topics=(TOPIC,),
         tune_process=tune,
-        snapshot_mode=bool(snapshot_bytes),
-        snapshot_max_bytes=snapshot_bytes,
+        snapshot=SnapshotOptions(max_bytes=snapshot_bytes) if snapshot_bytes else None,
     )
     watch = LiveHealth(HealthSpec.parse(HEALTH_CONTRACT)) if health else None
     recorder = Recorder(options, health=watch)

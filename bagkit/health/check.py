@@ -1,12 +1,12 @@
 """A health contract evaluated on bags: one :class:`Assertion` per line of the contract.
 
 Every assertion over time is a condition that must never hold
-(:class:`~bagkit.health.spec.TopicContract`), found with
-:func:`bagkit.data.episodes.find_episodes` (numpy over the bag's columns; ``gap`` and ``rate``
-from the MCAP indexes alone). A topic the bag lacks, or has no message of, breaks its contract;
-a field the topic's type lacks is a bad spec (:class:`SpecError`). Many bags run on Dask
-through :func:`bagkit.fleet.execute.run_each`; a bag that cannot be read is reported among the
-others.
+(:class:`~bagkit.health.spec.TopicContract`); a topic's conditions are evaluated together by
+:func:`bagkit.data.streams.intervals_of_each`, the columns they read decoded in one bulk pass
+(``gap`` and ``rate`` alone: from the MCAP indexes, nothing decoded). A topic the bag lacks,
+or has no message of, breaks its contract; a field the topic's type lacks is a bad spec
+(:class:`SpecError`). Many bags run on Dask through :func:`bagkit.fleet.execute.run_each`; a
+bag that cannot be read is reported among the others.
 """
 
 from __future__ import annotations
@@ -21,13 +21,15 @@ import numpy as np
 
 from bagkit.bag import BagError, BagReader
 from bagkit.bag.definitions import canonical_type_name
-from bagkit.data.episodes import NO_SPANS, find_episodes
+from bagkit.bag.latched import is_state_topic
+from bagkit.data.episodes import NO_SPANS, interval_spans
+from bagkit.data.streams import intervals_of_each
 from bagkit.fleet.execute import ItemDone, run_each
 from bagkit.health import links
 from bagkit.health.links import filter_command, foxglove_link, play_command
 from bagkit.health.spec import HealthSpec, SpecError
-from bagkit.selection.conditions import TopicCondition
 from bagkit.selection.errors import SelectionError
+from bagkit.selection.windows import Window
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -177,6 +179,7 @@ def check_bag(bag: str | Path, spec: HealthSpec) -> HealthReport:
     """
     found: list[Assertion] = []
     with BagReader(bag, allow_empty=True) as reader:
+        problems = list(reader.problems)
         counts = reader.topic_counts
         for topic in spec.forbidden:
             present = counts.get(topic, 0) > 0
@@ -195,13 +198,23 @@ def check_bag(bag: str | Path, spec: HealthSpec) -> HealthReport:
                 found.append(
                     Assertion(topic, f"type {contract.type}", same, reason="" if same else actual)
                 )
-            for text, condition in contract.never:
-                try:
-                    episodes = find_episodes(reader, TopicCondition(topic, condition))
-                except SelectionError as exc:
-                    raise SpecError(f"{spec.source}: {topic}: {exc}") from None
-                found.append(Assertion(topic, text, not len(episodes.spans), episodes.spans))
-        return HealthReport(str(bag), reader.start_ns, found, list(reader.problems))
+            if not contract.never:
+                continue
+            try:
+                broken, times, read_problems = intervals_of_each(
+                    reader,
+                    topic,
+                    [condition for _, condition in contract.never],
+                    Window(),
+                    is_state_topic(reader, topic),
+                )
+            except SelectionError as exc:
+                raise SpecError(f"{spec.source}: {topic}: {exc}") from None
+            problems.extend(p for p in read_problems if p not in problems)
+            for (text, _), where in zip(contract.never, broken, strict=True):
+                spans = interval_spans(where, times)
+                found.append(Assertion(topic, text, not len(spans), spans))
+        return HealthReport(str(bag), reader.start_ns, found, problems)
 
 
 def _check_one(bag: str, *, spec: HealthSpec, url: str | None) -> HealthReport:

@@ -255,3 +255,40 @@ def test_a_humble_range_becomes_jazzy_s(tmp_path: Path) -> None:
     assert [(m.range, m.max_range, m.variance) for m in ranges] == [
         (0.5 * i, float(np.float32(9.0)), 0.0) for i in range(COUNT)
     ]
+
+
+def test_to_another_bag_s_definitions(tmp_path: Path) -> None:
+    """--to-bag: the definitions stored in another bag (here one written with today's)."""
+    today = tmp_path / "today"
+    with BagWriter(today) as writer:
+        writer.add_topic(TopicInfo("/temperature", "sensor_msgs/msg/Temperature"))
+    rules = _rules(tmp_path / "r.yaml", RULES)
+    out = tmp_path / "new"
+    done = _migrate(str(_old_bag(tmp_path / "old")), "-o", str(out), "--to-bag", str(today),
+                    "--rules", str(rules))  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    temperatures = _messages(out, "/temperature", Temperature)
+    assert [m.temperature for m in temperatures] == [
+        old_values(i)["temp_milli_c"] / 1000 for i in range(COUNT)
+    ]
+    with BagReader(out) as reader:
+        assert reader.metadata is not None
+        (entry,) = json.loads(reader.metadata.custom_data["bagkit.migrate"])
+    assert entry["target"] == f"the definitions of bag {today}"
+
+
+def test_a_function_rule_that_fails_is_one_error_line(tmp_path: Path) -> None:
+    (tmp_path / "broken_rules.py").write_text("def fix(old, new):\n    return 1 / 0\n")
+    rules = _rules(
+        tmp_path / "r.yaml", "sensor_msgs/msg/Temperature:\n  function: broken_rules:fix\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
+    done = _migrate(str(_old_bag(tmp_path / "old")), "-o", str(tmp_path / "new"), "--rules",
+                    str(rules), env=env)  # fmt: skip
+    assert done.returncode == 2
+    (line,) = done.stderr.strip().splitlines()
+    assert line == (
+        "error: r.yaml: sensor_msgs/msg/Temperature function broken_rules:fix: "
+        "ZeroDivisionError: division by zero (/temperature message 1)"
+    )
+    assert not (tmp_path / "new").exists()

@@ -63,11 +63,12 @@ def test_window_out_of_range(options: dict[str, float], message: str) -> None:
 @pytest.mark.parametrize(
     ("rate", "delay", "clock_hz", "loops", "message"),
     [
-        (0.0, 0.0, None, 1, "rate must be positive"),
-        (float("nan"), 0.0, None, 1, "rate must be positive"),
-        (1.0, -0.5, None, 1, "delay must not be negative"),
-        (1.0, 0.0, 0.0, 1, "clock rate must be positive"),
-        (1.0, 0.0, None, -1, "loops must be 0"),
+        (0.0, 0.0, None, 1, "^rate: must be positive"),
+        (float("nan"), 0.0, None, 1, "^rate: must be positive"),
+        (float("inf"), 0.0, None, 1, "^rate: must be positive"),
+        (1.0, -0.5, None, 1, "^delay_s: must not be negative"),
+        (1.0, 0.0, 0.0, 1, "^clock_hz: must be positive"),
+        (1.0, 0.0, None, -1, "^loops: must be 0"),
     ],
 )
 def test_options_out_of_range(
