@@ -95,7 +95,22 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 def _roots(config: pytest.Config) -> list[Path]:
     configured = [Path(p) for p in config.getini("golden_roots")]
     given = [Path(p) for p in config.getoption("golden_root")]
-    return [p.resolve() for p in [*configured, *given]]
+    return [p.resolve() for p in [*configured, *given, *_named_fixtures(config)]]
+
+
+def _named_fixtures(config: pytest.Config) -> list[Path]:
+    """Fixtures named on the command line (``pytest fixtures/incident``, or a folder of them):
+    collected without ``golden_roots``, as a test file named there is."""
+    if config.args_source != pytest.Config.ArgsSource.ARGS:
+        return []
+    found = []
+    for arg in config.args:
+        path = Path(arg.split("::")[0])
+        if path.name == SPEC_FILE and path.is_file():
+            found.append(path.parent)
+        elif (path / SPEC_FILE).is_file() or (path.is_dir() and any(path.glob(f"*/{SPEC_FILE}"))):
+            found.append(path)
+    return found
 
 
 def pytest_configure(config: pytest.Config) -> None:

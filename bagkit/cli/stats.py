@@ -159,14 +159,22 @@ def _latency_rows(bags: list[Path], topics: set[str]) -> dict[str, FieldStats]:
 
 
 def _print_services(services: list[dict[str, Any]]) -> None:
+    """One line per service and bag; the bag named where there are several."""
+    several = len({service["bag"] for service in services}) > 1
     for service in services:
         print_line([])
+        where = [f"{service['bag']}:"] if several else []
         figures = [
             f"{name} {_number(service[key] * 1e3 if service[key] is not None else None)} ms"
             for name, key in (("p50", "p50_s"), ("p99", "p99_s"), ("max", "max_s"))
         ]
         print_wrapped(
-            [Styled(service["service"], "bold"), f"latency: {service['count']} calls,", *figures],
+            [
+                *where,
+                Styled(service["service"], "bold"),
+                f"latency: {service['count']} calls,",
+                *figures,
+            ],
             sep="  ",
         )
 

@@ -29,6 +29,7 @@ from bagkit.health import links
 from bagkit.health.links import filter_command, foxglove_link, play_command
 from bagkit.health.spec import HealthSpec, SpecError
 from bagkit.selection.errors import SelectionError
+from bagkit.selection.topics import did_you_mean
 from bagkit.selection.windows import Window
 
 if TYPE_CHECKING:
@@ -188,7 +189,10 @@ def check_bag(bag: str | Path, spec: HealthSpec) -> HealthReport:
         for contract in spec.topics:
             topic = contract.topic
             if not counts.get(topic, 0):
-                reason = "not in the bag" if topic not in reader.topics else "no message"
+                reason = "no message"
+                if topic not in reader.topics:  # a misspelling reads as a broken contract
+                    guess = did_you_mean(topic, reader.topics).rstrip()
+                    reason = f"not in the bag{'; ' + guess if guess else ''}"
                 found.append(Assertion(topic, "present", False, reason=reason))
                 continue
             found.append(Assertion(topic, "present", True))

@@ -25,6 +25,7 @@ from bagkit.selection.times import (
     seconds_to_ns,
 )
 from bagkit.selection.topics import TopicSelection
+from bagkit.selection.windows import Window, outside_warning
 
 
 class OnDrift(StrEnum):
@@ -85,14 +86,13 @@ class PlayWindow:
         """Log-time bounds (start, exclusive end or None) in a bag of messages start..end.
 
         Raises:
-            PlayerError: the offset is past the bag's last message (nothing would be replayed).
+            PlayerError: the offset is past the bag's last message (nothing would be replayed):
+                the one message of a window outside a bag.
         """
         window_start = max(start_ns, self.start.resolve(start_ns, end_ns))
-        if window_start > end_ns:
-            raise PlayerError(
-                f"the start offset {(window_start - start_ns) / 1e9:g} s is past the end of "
-                f"{bag} ({(end_ns - start_ns) / 1e9:.3f} s of messages)"
-            )
+        outside = outside_warning(str(bag), Window(window_start), start_ns, end_ns)
+        if outside is not None:
+            raise PlayerError(outside)
         ends = []
         if self.duration_ns is not None:
             ends.append(window_start + self.duration_ns)

@@ -31,7 +31,12 @@ def _oracle(bags: list[Path], gap_ns: int) -> list[FoundEpisode]:
     found = []
     for bag in bags:
         rows = []
+        starts = []  # each file's first log time, from its statistics: the bag's start
         for file in sorted(bag.glob("*.mcap")):
+            with open(file, "rb") as f:
+                summary = make_reader(f).get_summary()
+                assert summary is not None and summary.statistics is not None
+                starts.append(summary.statistics.message_start_time)
             with open(file, "rb") as f:
                 for _, _channel, message in make_reader(f).iter_messages(topics=["/imu/data"]):
                     msg = STORE.deserialize_cdr(message.data, IMU)
@@ -48,10 +53,10 @@ def _oracle(bags: list[Path], gap_ns: int) -> list[FoundEpisode]:
                 current[1], current[2] = t, current[2] + 1
                 continue
             if current is not None:
-                found.append(FoundEpisode(str(bag), "/imu/data", *current))
+                found.append(FoundEpisode(str(bag), "/imu/data", *current, min(starts)))
             current = [t, t, 1]
         if current is not None:
-            found.append(FoundEpisode(str(bag), "/imu/data", *current))
+            found.append(FoundEpisode(str(bag), "/imu/data", *current, min(starts)))
     return found
 
 
