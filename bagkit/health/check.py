@@ -27,7 +27,7 @@ from bagkit.data.streams import intervals_of_each
 from bagkit.fleet.execute import ItemDone, run_each
 from bagkit.health import links
 from bagkit.health.links import filter_command, foxglove_link, play_command
-from bagkit.health.spec import HealthSpec, SpecError
+from bagkit.health.spec import HealthSpec, SpecError, TopicContract
 from bagkit.selection.errors import SelectionError
 from bagkit.selection.topics import did_you_mean
 from bagkit.selection.windows import Window
@@ -62,17 +62,25 @@ class Assertion:
 
     def summary(self, bag_start_ns: int) -> str:
         """One line: what broke, why, how often and first where (seconds from the start)."""
+        where = self.where(bag_start_ns)
+        return f"{self.headline}: {where}" if where else self.headline
+
+    @property
+    def headline(self) -> str:
+        """What is asserted, and why it broke where that is not a place in time."""
         text = f"{self.topic}: {self.what}"
-        if self.reason:
-            text += f" ({self.reason})"
-        if len(self.spans):
-            start, end, _ = self.spans[0].tolist()
-            times = "1 time" if len(self.spans) == 1 else f"{len(self.spans)} times"
-            text += (
-                f": {times}, first at {(start - bag_start_ns) / 1e9:.3f}"
-                f"-{(end - bag_start_ns) / 1e9:.3f} s"
-            )
-        return text
+        return f"{text} ({self.reason})" if self.reason else text
+
+    def where(self, bag_start_ns: int) -> str:
+        """How often it broke and first where (seconds from the start); "" without spans."""
+        if not len(self.spans):
+            return ""
+        start, end, _ = self.spans[0].tolist()
+        times = "1 time" if len(self.spans) == 1 else f"{len(self.spans)} times"
+        return (
+            f"{times}, first at {(start - bag_start_ns) / 1e9:.3f}"
+            f"-{(end - bag_start_ns) / 1e9:.3f} s"
+        )
 
     def commands(self, bag: str, bag_start_ns: int) -> list[str]:
         """Commands that replay the first place it broke and cut every one."""
@@ -213,12 +221,28 @@ def check_bag(bag: str | Path, spec: HealthSpec) -> HealthReport:
                     is_state_topic(reader, topic),
                 )
             except SelectionError as exc:
-                raise SpecError(f"{spec.source}: {topic}: {exc}") from None
+                raise _field_error(reader, spec, contract, exc) from None
             problems.extend(p for p in read_problems if p not in problems)
             for (text, _), where in zip(contract.never, broken, strict=True):
                 spans = interval_spans(where, times)
                 found.append(Assertion(topic, text, not len(spans), spans))
         return HealthReport(str(bag), reader.start_ns, found, problems)
+
+
+def _field_error(
+    reader: BagReader, spec: HealthSpec, contract: TopicContract, error: SelectionError
+) -> SpecError:
+    """The error of a condition that does not fit the topic's type, naming its spec line
+    (each condition read alone to find which)."""
+    for index, (text, condition) in enumerate(contract.never):
+        try:
+            intervals_of_each(reader, contract.topic, [condition], Window())
+        except SelectionError as exc:
+            lines = contract.lines
+            line = lines[index] if index < len(lines) and lines[index] else None
+            where = f"{spec.source}:{line}" if line else spec.source
+            return SpecError(f"{where}: {contract.topic}: {text}: {exc}")
+    return SpecError(f"{spec.source}: {contract.topic}: {error}")
 
 
 def _check_one(bag: str, *, spec: HealthSpec, url: str | None) -> HealthReport:

@@ -57,6 +57,8 @@ class TopicContract:
     type: str | None = None
     never: tuple[tuple[str, Condition], ...] = ()
     """(what is asserted, the condition that breaks it) in the order written."""
+    lines: tuple[int, ...] = ()
+    """The spec's line of each of ``never`` (0: not known), for errors found on reading a bag."""
 
 
 @dataclass(frozen=True)
@@ -112,6 +114,8 @@ class _Reader:
     def __init__(self, source: str, lines: dict[str, int]) -> None:
         self.source = source
         self.lines = lines
+        self.written: dict[str, str] = {}
+        """Each condition's text -> where in the spec it was written."""
 
     def fail(self, where: str, message: str) -> SpecError:
         line = self.lines.get(where)
@@ -179,10 +183,14 @@ class _Reader:
         never.extend(self.condition(f"{where}.never", str(text)) for text in conditions)
         kind = body.get("type")
         return TopicContract(
-            absolute_topic_name(name), None if kind is None else str(kind), tuple(never)
+            absolute_topic_name(name),
+            None if kind is None else str(kind),
+            tuple(never),
+            tuple(self.lines.get(self.written[text], 0) for text, _ in never),
         )
 
     def condition(self, where: str, text: str) -> tuple[str, Condition]:
+        self.written[text] = where
         try:
             return text, parse_condition(text)
         except SelectionError as exc:
