@@ -3,8 +3,9 @@
 Each topic is planned first (:func:`bagkit.migrate.migrate_topic`): a topic whose type the
 target defines differently has its payloads rewritten (in bulk per chunk where the layouts
 allow it, :mod:`bagkit.migrate.bulk`); chunks without one are copied as they are stored
-(:func:`~bagkit.surgery.rewrite.rewrite_topics`; non-MCAP inputs message by message). Nothing is written before every plan is made, and an error on any message removes what
-was written (:class:`~bagkit.surgery.output.OutputBag`): a failed migration leaves no output.
+(:func:`~bagkit.surgery.rewrite.rewrite_topics`; non-MCAP inputs message by message).
+Nothing is written before every plan is made, and an error on any message removes what was
+written (:class:`~bagkit.surgery.output.OutputBag`): a failed migration leaves no output.
 The output keeps the inputs' QoS and ``custom_data`` and gains ``bagkit.migrate``, a JSON list
 with one entry per migration (the target, the rules file, per topic the changes, the rules
 that ran and the fields dropped).
