@@ -253,21 +253,6 @@ def format_rate(rate_hz: float | None, digits: int = 2) -> str:
     return "-" if rate_hz is None else f"{rate_hz:.{digits}f} Hz"
 
 
-# Narrowest a folding type column may get before a table is given up for stacked lines.
-MIN_TYPE_WIDTH = 16
-
-
-def topic_table_fits(topics: list[str], other_columns: int) -> bool:
-    """Whether a table of whole topic names, ``other_columns`` characters of numbers and
-    padding, and a type column folded to :data:`MIN_TYPE_WIDTH` fits the terminal.
-
-    Topic names are never cut (they are what users copy into ``--topics``); when a table
-    cannot hold them whole, commands print one topic per line instead.
-    """
-    longest = max((len(t) for t in topics), default=0)
-    return longest + other_columns + MIN_TYPE_WIDTH <= _made("console").width
-
-
 def fail(message: str, exit_code: int = 2) -> typer.Exit:
     """Print ``error: message`` on stderr (one line) and return the Exit to raise."""
     _made("err_console").print(

@@ -22,6 +22,7 @@ from mcap.reader import make_reader
 from bagkit.fleet.errors import FleetError
 from bagkit.fleet.find import FoundEpisode, find_fleet
 from bagkit.selection.errors import SelectionError, UnknownFieldError, UnknownTopicError
+from bagkit.selection.query import Query
 
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 WHEN = "/imu/data: linear_acceleration.z > 9.85 or angular_velocity.x < -0.03"
@@ -190,8 +191,9 @@ def test_stats_where_on_dask_equals_one_process(fleet_bags: list[Path], client: 
     from bagkit.stats import summarize
 
     where = "linear_acceleration.z > 9.85 or angular_velocity.x < -0.03"
-    here = summarize(fleet_bags, topics=["/imu/data"], where=where)
-    there = summarize_fleet(fleet_bags, client=client, topics=["/imu/data"], where=where)
+    query = Query.create("/imu/data", where=where)
+    here = summarize(fleet_bags, query)
+    there = summarize_fleet(fleet_bags, client=client, query=query)
     matched = sum(e.count for e in find_fleet(fleet_bags, when=WHEN).episodes)
     assert here.topics[0].count == there.topics[0].count == matched
     for mine, theirs in zip(here.topics[0].fields, there.topics[0].fields, strict=True):
