@@ -18,10 +18,9 @@ from typing import Any
 
 from bagkit.bag import BagReader
 from bagkit.migrate import Rules, Target, TopicMigration, migrate_topic
-from bagkit.surgery.message_copy import PayloadRewrites, Progress, rewrite_messages
-from bagkit.surgery.options import OutputOptions, RewriteReport
-from bagkit.surgery.rewrite import check_output
-from bagkit.surgery.select import Selection
+from bagkit.surgery.message_copy import Progress
+from bagkit.surgery.options import OutputOptions, PayloadRewrites, RewriteReport
+from bagkit.surgery.rewrite import check_output, rewrite_topics
 
 CUSTOM_DATA_KEY = "bagkit.migrate"
 
@@ -110,9 +109,7 @@ def migrate_bag(
         {m.topic.name: m for m in migrated},
         {CUSTOM_DATA_KEY: json.dumps([*_entries(previous), entry])},
     )
-    report = rewrite_messages(
-        [bag], output, Selection(), options.output, progress, rewrites=rewrites
-    )
+    report = rewrite_topics(bag, output, rewrites, options.output)
     return MigrateReport(migrated, unchanged, report)
 
 
