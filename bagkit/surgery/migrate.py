@@ -1,9 +1,11 @@
-"""``bagkit migrate``: a bag rewritten to other definitions, through the message copy.
+"""``bagkit migrate``: a bag rewritten to other definitions, through the rewrite of ``filter``.
 
 Each topic is planned first (:func:`bagkit.migrate.migrate_topic`): a topic whose type the
-target defines differently is rewritten payload by payload; the others are copied as they
-are. Nothing is written before every plan is made, and an error on any message removes what
-was written (:class:`~bagkit.surgery.output.OutputBag`): a failed migration leaves no output.
+target defines differently has its payloads rewritten (in bulk per chunk where the layouts
+allow it, :mod:`bagkit.migrate.bulk`); chunks without one are copied as they are stored
+(:func:`~bagkit.surgery.rewrite.rewrite_topics`; non-MCAP inputs message by message).
+Nothing is written before every plan is made, and an error on any message removes what was
+written (:class:`~bagkit.surgery.output.OutputBag`): a failed migration leaves no output.
 The output keeps the inputs' QoS and ``custom_data`` and gains ``bagkit.migrate``, a JSON list
 with one entry per migration (the target, the rules file, per topic the changes, the rules
 that ran and the fields dropped).
