@@ -17,10 +17,12 @@ from bagkit.storage.range_file import fetched
 from tests.storage.conftest import Store
 
 
-def cli(args: list[str], env: dict[str, str]) -> subprocess.CompletedProcess[str]:
+def cli(args: list[str], env: dict[str, str | None]) -> subprocess.CompletedProcess[str]:
+    """``bagkit ARGS`` with ``env`` over this process's (None: unset)."""
+    merged = {k: v for k, v in {**os.environ, **env}.items() if v is not None}
     return subprocess.run(
         [str(Path(sys.executable).with_name("bagkit")), *args],
-        env={**os.environ, **env},
+        env=merged,
         capture_output=True,
         text=True,
         timeout=120,
