@@ -10,6 +10,7 @@ import typer
 
 from bagkit.cli.common import (
     OutputFormat,
+    bag_location,
     err_console,
     handle_errors,
     print_json,
@@ -49,6 +50,7 @@ app = typer.Typer(
 def build(
     roots: list[Path] = typer.Argument(
         ...,
+        parser=bag_location,
         help=BAGS_HELP + ".",
         metavar="ROOT",
         show_default=False,

@@ -9,7 +9,7 @@ from pathlib import Path
 import typer
 
 from bagkit.bag import BagReader
-from bagkit.cli.common import ReportFormat, handle_errors, split_list
+from bagkit.cli.common import ReportFormat, bag_location, handle_errors, split_list
 from bagkit.cli.filter import (
     EXCLUDE_REGEX_HELP,
     EXCLUDE_TOPICS_HELP,
@@ -65,7 +65,9 @@ COMMAND_CLASS = SelectionCommand
 
 @handle_errors
 def convert(
-    bags: list[Path] = typer.Argument(..., help="The bags to convert (merged when several)."),
+    bags: list[Path] = typer.Argument(
+        ..., help="The bags to convert (merged when several).", parser=bag_location
+    ),
     *,
     output: Path | None = typer.Option(
         None, "--output", "-o", help="The bag directory to write (must not exist unless --force)."

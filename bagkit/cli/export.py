@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from bagkit.cli.common import console, handle_errors, warn
+from bagkit.cli.common import bag_location, console, handle_errors, warn
 from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers
 from bagkit.cli.progress import DelayedProgress
 from bagkit.cli.selection_options import Distro, End, Start, Where, build_query
@@ -48,7 +48,7 @@ Examples:
 @handle_errors
 def export(  # noqa: PLR0917 (typer maps parameters to options)
     inputs: list[Path] = typer.Argument(
-        ..., help=BAGS_HELP + ".", metavar="BAG", show_default=False
+        ..., help=BAGS_HELP + ".", metavar="BAG", show_default=False, parser=bag_location
     ),
     out: Path = typer.Option(
         ..., "--output", "-o", help="Output directory, or a .parquet/.csv file for one topic."

@@ -10,6 +10,7 @@ import typer
 from bagkit.bag import BagReader
 from bagkit.cli.common import (
     ReportFormat,
+    bag_location,
     err_console,
     handle_errors,
     split_list,
@@ -80,7 +81,9 @@ COMMAND_CLASS = SelectionCommand
 
 @handle_errors
 def filter_command(
-    bag: Path = typer.Argument(..., help="The bag to read (directory or .mcap file)."),
+    bag: Path = typer.Argument(
+        ..., help="The bag to read (directory, .mcap file or URL).", parser=bag_location
+    ),
     *,
     output: Output,
     topics: list[str] | None = typer.Option(None, "--topics", help=TOPICS_HELP),

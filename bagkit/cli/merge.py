@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from bagkit.cli.common import ReportFormat, err_console, handle_errors
+from bagkit.cli.common import ReportFormat, bag_location, err_console, handle_errors
 from bagkit.cli.selection_options import End, Start
 from bagkit.cli.surgery_options import (
     CheckCrc,
@@ -39,7 +39,9 @@ Example: bagkit merge drive_part1 drive_part2 -o drive
 
 @handle_errors
 def merge(
-    bags: list[Path] = typer.Argument(..., help="The bags to merge (directories or .mcap files)."),
+    bags: list[Path] = typer.Argument(
+        ..., help="The bags to merge (directories, .mcap files, URLs).", parser=bag_location
+    ),
     *,
     output: Output,
     start: Start = None,

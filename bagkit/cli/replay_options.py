@@ -10,7 +10,7 @@ from typing import Annotated
 
 import typer
 
-from bagkit.cli.common import ReportFormat
+from bagkit.cli.common import ReportFormat, bag_location
 from bagkit.compat import StrEnum
 from bagkit.playback.options import OnDrift
 from bagkit.playback.source import MessageOrder
@@ -19,9 +19,10 @@ from bagkit.playback.timing import DEFAULT_CLOCK_HZ
 Bags = Annotated[
     list[Path] | None,
     typer.Argument(
-        help="Bag directories or .mcap files; several are replayed as one timeline.",
+        help="Bag directories, .mcap files or URLs; several are replayed as one timeline.",
         show_default=False,
         metavar="BAG...",
+        parser=bag_location,
     ),
 ]
 Rate = Annotated[
@@ -177,6 +178,7 @@ Inputs = Annotated[
         "-i",
         help="A bag to replay (rosbag2 Kilted's form); repeated for several, with BAG... too.",
         show_default=False,
+        parser=bag_location,
     ),
 ]
 OnDriftOption = Annotated[

@@ -25,6 +25,7 @@ from bagkit.selection.errors import UnknownTopicError
 from bagkit.selection.times import TimeLike
 from bagkit.selection.topics import absolute_topic_name, require_topics
 from bagkit.selection.windows import TimeRange, outside_warning
+from bagkit.storage.errors import StorageError
 
 if TYPE_CHECKING:
     import pyarrow as pa
@@ -132,7 +133,7 @@ def episodes_in_bag(
                 found = find_episodes(reader, trigger, gap_ns, window, state_topics)
             except UnknownTopicError:
                 return BagEpisodes(bag, has_topic=False, topics=list(reader.topics))
-    except BagError as exc:
+    except (BagError, StorageError) as exc:
         return BagEpisodes(bag, error=str(exc))
     problems = [p if p.startswith(bag) else f"{bag}: {p}" for p in found.problems]
     if outside is not None and reader.message_count:

@@ -10,6 +10,7 @@ from typing import Any
 from bagkit.bag import BagError, BagInfo, bag_info
 from bagkit.fleet.inputs import BAG_FILE_SUFFIXES, STORAGE_SUFFIXES, find_bags, is_bag_directory
 from bagkit.fleet.url_inputs import url_bags
+from bagkit.storage.errors import StorageError
 from bagkit.storage.urls import is_url
 
 
@@ -65,6 +66,6 @@ def folder_info(root: str | Path, *, check_crc: bool = True) -> FolderInfo | Non
     for path in paths:
         try:
             found.bags.append(bag_info(path, check_crc=check_crc))
-        except BagError as exc:
+        except (BagError, StorageError) as exc:
             found.unread[path] = str(exc)
     return found

@@ -28,6 +28,7 @@ from bagkit.health.links import filter_command, foxglove_link, play_command
 from bagkit.health.spec import HealthSpec, SpecError
 from bagkit.selection.conditions import TopicCondition
 from bagkit.selection.errors import SelectionError
+from bagkit.storage.errors import StorageError
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -208,7 +209,7 @@ def _check_one(bag: str, *, spec: HealthSpec, url: str | None) -> HealthReport:
     """What a worker runs: the report of one bag, or why it could not be read."""
     try:
         report = check_bag(bag, spec)
-    except BagError as exc:
+    except (BagError, StorageError) as exc:
         return HealthReport(bag, 0, [], error=str(exc))
     report.bags_url = url
     return report
