@@ -33,6 +33,7 @@ from bagkit.cli.surgery_options import (
     print_report,
 )
 from bagkit.selection.conditions import parse_condition
+from bagkit.storage.transfer import written_to
 from bagkit.surgery.convert import convert_bags, read_output_options
 from bagkit.surgery.errors import SurgeryError
 from bagkit.surgery.rewrite import OutputOptions, RewriteReport
@@ -70,7 +71,11 @@ def convert(
     ),
     *,
     output: Path | None = typer.Option(
-        None, "--output", "-o", help="The bag directory to write (must not exist unless --force)."
+        None,
+        "--output",
+        "-o",
+        help="The bag directory to write (must not exist unless --force); a URL uploads it.",
+        parser=bag_location,
     ),
     output_options_file: Path | None = typer.Option(
         None, "--output-options", help=OPTIONS_HELP, metavar="FILE"
@@ -142,7 +147,9 @@ def _convert(  # noqa: PLR0917 (the command's options, passed on)
         selection = replace(selection, content=content)
     progress = DelayedProgress(f"converting to {output}")
     try:
-        report: RewriteReport = convert_bags(bags, output, selection, options, progress)
+        with written_to(output, replace=options.force) as local:
+            report: RewriteReport = convert_bags(bags, local, selection, options, progress)
+        report.output = output
     finally:
         progress.close()
     print_report(report, output_format)

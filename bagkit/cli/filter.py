@@ -35,6 +35,7 @@ from bagkit.cli.surgery_options import (
 from bagkit.selection.conditions import TopicCondition, parse_condition, parse_topic_condition
 from bagkit.selection.times import parse_duration
 from bagkit.selection.topics import absolute_topic_name
+from bagkit.storage.transfer import written_to
 from bagkit.surgery.cut import cut_windows
 from bagkit.surgery.errors import NothingToCutError, SurgeryError
 from bagkit.surgery.rewrite import OutputOptions, filter_bag
@@ -127,8 +128,9 @@ def filter_command(
             )
         selection = replace(selection, content=content)
     if around is None:
-        with err_console.status(f"filtering {bag}"):
-            report = filter_bag(bag, output, selection, options)
+        with err_console.status(f"filtering {bag}"), written_to(output, replace=force) as local:
+            report = filter_bag(bag, local, selection, options)
+        report.output = output
         print_report(report, output_format)
         return
     if start is not None or end is not None:

@@ -23,6 +23,7 @@ from bagkit.cli.surgery_options import (
     output_options,
     print_report,
 )
+from bagkit.storage.transfer import written_to
 from bagkit.surgery.rewrite import merge_bags
 from bagkit.surgery.select import Selection
 
@@ -61,6 +62,10 @@ def merge(
     )
     selection = Selection.create(start=start, end=end)
     selection = replace(selection, latched=latched_options(latched_topics, no_latched))
-    with err_console.status(f"merging {len(bags)} bags"):
-        report = merge_bags(bags, output, selection, options)
+    with (
+        err_console.status(f"merging {len(bags)} bags"),
+        written_to(output, replace=force) as local,
+    ):
+        report = merge_bags(bags, local, selection, options)
+    report.output = output
     print_report(report, output_format)

@@ -117,3 +117,27 @@ def test_echo_of_a_url(store: Store, local_bags: Path) -> None:
     local = cli(["echo", str(local_bags / "fleet" / "b"), *args[1:]], {})
     assert remote.returncode == 0, remote.stderr
     assert remote.stdout == local.stdout and remote.stdout.strip()
+
+
+def test_outputs_to_urls_are_uploaded(moto_store: Store, local_bags: Path) -> None:
+    base = moto_store.base
+    for bag in ("a", "b"):
+        moto_store.put(local_bags / "fleet" / bag, f"fleet/{bag}")
+    cut = cli(
+        ["filter", f"{base}/fleet/a", "-o", f"{base}/out/cut", "--topics", "/gps/fix"], moto_store.env
+    )
+    assert cut.returncode == 0, cut.stderr
+    again = cli(["filter", f"{base}/fleet/a", "-o", f"{base}/out/cut"], moto_store.env)
+    assert again.returncode == 2 and "exists (--force replaces it)" in again.stderr
+    info = cli(["info", f"{base}/out/cut", "--format", "json"], moto_store.env)
+    assert json.loads(info.stdout)["message_count"] == 3
+    catalog = cli(
+        ["catalog", "build", f"{base}/fleet", "-o", f"{base}/out/c.parquet", "--workers", "0"],
+        moto_store.env,
+    )
+    assert catalog.returncode == 0, catalog.stderr
+    update = cli(
+        ["catalog", "build", f"{base}/fleet", "-o", f"{base}/out/c.parquet", "--workers", "0"],
+        moto_store.env,
+    )
+    assert "0 read, 2 unchanged" in update.stderr.replace("\n", " ")
