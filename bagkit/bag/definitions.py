@@ -52,6 +52,12 @@ def definition_encoding(text: str) -> str:
     return "ros2idl" if is_idl else "ros2msg"
 
 
+DEFINITION_ENCODINGS = ("ros2msg", "ros2idl")
+"""The definition encodings bagkit reads; rosbag2 writes ``unknown`` (and no text) for a type
+whose definition it did not find when recording (an action's status or cancel topic recorded
+before its other topics, Kilted to 2026)."""
+
+
 def canonical_type_name(type_name: str) -> str:
     """Return ``pkg/msg/Name`` for ``pkg/Name`` (older writers) and leave other names alone."""
     parts = type_name.split("/")

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, BinaryIO, TypeGuard
 
 from mcap.well_known import Profile
 
-from bagkit.bag.definitions import canonical_type_name
+from bagkit.bag.definitions import DEFINITION_ENCODINGS, canonical_type_name
 from bagkit.bag.errors import ChunkError, CorruptBagError, NotABagError, UnsupportedStorageError
 from bagkit.bag.mcapio import (
     DEFAULT_MAX_CHUNK_SIZE,
@@ -145,7 +145,7 @@ class McapFile:
                     type_description_hash=channel.metadata.get("topic_type_hash", ""),
                 ),
             )
-            if schema is not None:
+            if schema is not None and schema.encoding in DEFINITION_ENCODINGS:
                 text = schema.data.decode("utf-8", errors="replace")
                 # One text per type; a topic whose schema holds another text keeps its own.
                 if self.definitions.setdefault(type_name, text) != text:

@@ -17,7 +17,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 from urllib.request import pathname2url
 
-from bagkit.bag.definitions import canonical_type_name
+from bagkit.bag.action_definitions import split_action_part
+from bagkit.bag.definitions import DEFINITION_ENCODINGS, canonical_type_name
 from bagkit.bag.errors import CorruptBagError, NotABagError
 from bagkit.bag.mcapio.message_index import Span, widen
 from bagkit.bag.messages import BagMessage, TopicInfo, make_message
@@ -56,6 +57,16 @@ def connect(path: Path) -> sqlite3.Connection:
         raise NotABagError(f"{path}: not a SQLite3 database ({exc})") from exc
     db.text_factory = _text
     return db
+
+
+def _owner_type(type_name: str) -> str:
+    """The type rosbag2 stores the definition of ``type_name`` under: ``pkg/srv/Name`` for a
+    service event, ``pkg/action/Name`` for an action's part, else ``type_name``."""
+    package, _, name = type_name.rpartition("/")
+    if package.endswith("/srv") and name.endswith("_Event"):
+        return type_name.removesuffix("_Event")
+    part = split_action_part(name) if package.endswith("/action") else None
+    return f"{package}/{part[0]}" if part is not None else type_name
 
 
 class _NotUtf8(bytes):
@@ -169,23 +180,31 @@ class Sqlite3File:
         for type_name, encoding, text in db.execute(query):
             if not all(isinstance(v, str) for v in (type_name, encoding, text)):
                 self._problem(f"message_definitions row of {type_name!r:.60} unusable")
-            elif encoding == "ros2msg" and text:
+            elif encoding in DEFINITION_ENCODINGS and text:
                 self.definitions.setdefault(canonical_type_name(type_name), text)
-        # rosbag2 stores a service's ``.srv`` text under ``pkg/srv/Name``, not under the type
-        # of its event topic: the event type is rebuilt from it (bagkit.decode.message_types).
+        # rosbag2 stores a service's ``.srv`` text under ``pkg/srv/Name`` and an action's
+        # ``ACTION:`` text under ``pkg/action/Name``, not under the types of their topics: those
+        # are rebuilt from it (bagkit.decode.stored).
         for topic in self.topics.values():
-            service = topic.type.removesuffix("_Event")
-            if "/srv/" in topic.type and service != topic.type and service in self.definitions:
-                self.definitions.setdefault(topic.type, self.definitions[service])
+            owner = _owner_type(topic.type)
+            if owner in self.definitions:
+                self.definitions.setdefault(topic.type, self.definitions[owner])
 
     def _read_counts(self, db: sqlite3.Connection) -> None:
+        """Counts and spans in one scan of the rows; the rows of wrong types are the rest of
+        ``COUNT(*)`` (read from the smallest index)."""
         self.topic_counts = dict.fromkeys(self.topics, 0)
-        orphans = 0
+        orphans = valid = 0
+        starts: list[int] = []
+        ends: list[int] = []
         query = (
             "SELECT topic_id, COUNT(*), MIN(timestamp), MAX(timestamp) FROM messages "
             f"WHERE {_VALID_ROW} GROUP BY topic_id"
         )
         for topic_id, count, first, last in db.execute(query):
+            valid += count
+            starts.append(first)
+            ends.append(last)
             name = self._topic_ids.get(topic_id) if isinstance(topic_id, int) else None
             if name is None:
                 orphans += count
@@ -194,14 +213,12 @@ class Sqlite3File:
             widen(self._spans, name, first, last)
         if orphans:
             self._problem(f"{orphans} messages of no known topic skipped")
-        query = f"SELECT COUNT(*) FROM messages WHERE NOT ({_VALID_ROW})"
-        (invalid,) = db.execute(query).fetchone()
-        if invalid:
-            self._problem(f"{invalid} messages without an integer timestamp or blob data skipped")
-        start, end = db.execute(
-            f"SELECT MIN(timestamp), MAX(timestamp) FROM messages WHERE {_VALID_ROW}"
-        ).fetchone()
-        self.start_ns, self.end_ns = start or 0, end or 0
+        (rows,) = db.execute("SELECT COUNT(*) FROM messages").fetchone()
+        if rows > valid:
+            self._problem(
+                f"{rows - valid} messages without an integer timestamp or blob data skipped"
+            )
+        self.start_ns, self.end_ns = min(starts, default=0), max(ends, default=0)
 
     def close(self) -> None:
         """Close the database."""
@@ -295,9 +312,9 @@ class Sqlite3File:
             batch, stored_bytes = 1, 0
             while rows := cursor.fetchmany(batch):
                 read += len(rows)
-                stored_bytes += sum(len(row[2]) for row in rows)
-                batch = max(1, min(ROWS_PER_BATCH, BATCH_BYTES * read // max(stored_bytes, 1)))
                 ids, log_times, stored = zip(*rows, strict=True)
+                stored_bytes += sum(map(len, stored))
+                batch = max(1, min(ROWS_PER_BATCH, BATCH_BYTES * read // max(stored_bytes, 1)))
                 topics_of = list(map(names.__getitem__, ids))
                 payloads: list[bytes | None] = list(stored)
                 if self.payload_filter is not None:

@@ -8,7 +8,6 @@ from pathlib import Path
 
 import typer
 
-from bagkit.bag import BagReader
 from bagkit.cli.common import ReportFormat, bag_location, handle_errors, split_list
 from bagkit.cli.filter import (
     EXCLUDE_REGEX_HELP,
@@ -37,7 +36,7 @@ from bagkit.storage.transfer import written_to
 from bagkit.surgery.convert import convert_bags, read_output_options
 from bagkit.surgery.errors import SurgeryError
 from bagkit.surgery.rewrite import OutputOptions, RewriteReport
-from bagkit.surgery.select import PayloadFilter, Selection
+from bagkit.surgery.select import Selection
 
 HELP = """Convert BAGs (rosbag2 directories, .mcap, .db3 or ROS 1 .bag files, several merged
 in log-time order) into a new rosbag2 bag OUT: MCAP (default) or SQLite3 (--storage sqlite3),
@@ -100,13 +99,14 @@ def convert(
     output_format: Format = ReportFormat.TABLE,
 ) -> None:
     """Convert bags to a rosbag2 MCAP or SQLite3 bag."""
+    condition = None if where is None else parse_condition(where)
     latched = latched_options(latched_topics, no_latched)
     if output_options_file is not None:
         if output is not None:
             raise SurgeryError("give -o or --output-options, not both")
         for spec in read_output_options(output_options_file, force=force):
-            selection = replace(spec.selection, latched=latched)
-            _convert(bags, spec.uri, selection, spec.options, where, output_format)
+            selection = replace(spec.selection, latched=latched, where=condition)
+            _convert(bags, spec.uri, selection, spec.options, output_format)
         return
     if output is None:
         raise SurgeryError("no output: give -o OUT (or --output-options FILE)")
@@ -123,28 +123,17 @@ def convert(
         ),
         storage=storage,
     )
-    _convert(bags, output, replace(selection, latched=latched), options, where, output_format)
+    selection = replace(selection, latched=latched, where=condition)
+    _convert(bags, output, selection, options, output_format)
 
 
-def _convert(  # noqa: PLR0917 (the command's options, passed on)
+def _convert(
     bags: list[Path],
     output: Path,
     selection: Selection,
     options: OutputOptions,
-    where: str | None,
     output_format: ReportFormat,
 ) -> None:
-    if where is not None:
-        from bagkit.data.where import where_filters  # numpy, rosbags: only when asked
-
-        condition = parse_condition(where)
-        content: dict[str, PayloadFilter] = {}
-        for bag in bags:
-            with BagReader(bag) as reader:
-                found = where_filters(reader, condition, selection.topic_passes)
-            for topic, matcher in found.items():
-                content.setdefault(topic, matcher)
-        selection = replace(selection, content=content)
     progress = DelayedProgress(f"converting to {output}")
     try:
         with written_to(output, replace=options.force) as local:

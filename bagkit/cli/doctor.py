@@ -8,7 +8,7 @@ import typer
 
 from bagkit.cli.common import ReportFormat, console, err_console, handle_errors, print_json
 from bagkit.cli.surgery_options import Format
-from bagkit.surgery.doctor import diagnose
+from bagkit.surgery.doctor import DoctorReport, diagnose
 
 HELP = """Check a bag like mcap doctor, for whole rosbag2 bags: chunk CRCs, message and chunk
 indexes against the records, the summary against the content, metadata.yaml against the files
@@ -48,12 +48,19 @@ def doctor(
         if report.healthy:
             console.print(
                 f"{bag}: healthy ({report.message_count:,} messages in "
-                f"{len(report.files)} files{', all decoded' if deep else ''})",
+                f"{len(report.files)} files{_decoded(report) if deep else ''})",
                 highlight=False,
                 soft_wrap=True,
                 markup=False,
             )
     raise typer.Exit(0 if report.healthy else 1)
+
+
+def _decoded(report: DoctorReport) -> str:
+    """What of the messages was decoded (``--deep``)."""
+    if report.undecoded:
+        return f", {len(report.undecoded)} topics not decoded: no definition"
+    return ", all decoded"
 
 
 def _drift(bag: Path, output_format: ReportFormat) -> None:

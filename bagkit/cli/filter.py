@@ -7,7 +7,6 @@ from pathlib import Path
 
 import typer
 
-from bagkit.bag import BagReader
 from bagkit.cli.common import (
     ReportFormat,
     bag_location,
@@ -32,13 +31,12 @@ from bagkit.cli.surgery_options import (
     print_cuts,
     print_report,
 )
-from bagkit.selection.conditions import TopicCondition, parse_condition, parse_topic_condition
+from bagkit.selection.conditions import parse_condition
 from bagkit.selection.times import parse_duration
 from bagkit.selection.topics import absolute_topic_name
 from bagkit.storage.transfer import written_to
-from bagkit.surgery.cut import cut_windows
-from bagkit.surgery.errors import NothingToCutError, SurgeryError
-from bagkit.surgery.rewrite import OutputOptions, filter_bag
+from bagkit.surgery.around import Around, cut_around
+from bagkit.surgery.rewrite import filter_bag
 from bagkit.surgery.select import Selection
 
 HELP = """Write the messages of BAG that pass the selection to a new bag OUT, in log-time
@@ -114,65 +112,28 @@ def filter_command(
     selection = Selection.create(
         split_list(topics), regex, split_list(exclude_topics), exclude_regex, start, end
     )
-    selection = replace(selection, latched=latched_options(latched_topics, no_latched))
+    selection = replace(
+        selection,
+        latched=latched_options(latched_topics, no_latched),
+        where=None if where is None else parse_condition(where),
+        state_topics=frozenset(absolute_topic_name(t) for t in split_list(state_topics)),
+    )
     options = output_options(
         compression, max_bag_size, max_bag_duration, force=force, check_crc=check_crc
     )
-    states = [absolute_topic_name(t) for t in split_list(state_topics)]
-    if where is not None:
-        from bagkit.data.where import where_filters  # numpy, rosbags: only when asked
-
-        with BagReader(bag) as reader:
-            content = where_filters(
-                reader, parse_condition(where), selection.topic_passes, state_topics=states
-            )
-        selection = replace(selection, content=content)
     if around is None:
         with err_console.status(f"filtering {bag}"), written_to(output, replace=force) as local:
             report = filter_bag(bag, local, selection, options)
         report.output = output
         print_report(report, output_format)
         return
-    if start is not None or end is not None:
-        raise SurgeryError("--around sets the windows: it takes no --start or --end")
-    margins = (parse_duration(before, "--before"), parse_duration(after, "--after"))
-    trigger = parse_topic_condition(around)
-    _cut_around(
-        bag,
-        output,
-        trigger,
-        margins,
+    trigger = Around.create(
+        around,
+        parse_duration(before, "--before"),
+        parse_duration(after, "--after"),
         parse_duration(gap, "--gap"),
-        selection,
-        options,
-        output_format,
-        state_topics=states,
+        selection.state_topics,
     )
-
-
-def _cut_around(  # noqa: PLR0917 (the command's options, passed on)
-    bag: Path,
-    output: Path,
-    trigger: TopicCondition,
-    margins: tuple[int, int],
-    gap_ns: int,
-    selection: Selection,
-    options: OutputOptions,
-    output_format: ReportFormat,
-    *,
-    state_topics: list[str],
-) -> None:
-    """``--around``: the episodes of ``trigger``, then one bag per window around each."""
-    from bagkit.data.episodes import episode_windows, find_episodes
-
-    # Episodes whose windows would overlap are one: matches less than before + after apart
-    # merge, so that each message is in one output bag.
-    merge_ns = max(gap_ns, margins[0] + margins[1] + 1)
-    with err_console.status(f"finding episodes in {bag}"), BagReader(bag) as reader:
-        found = find_episodes(reader, trigger, merge_ns, state_topics=state_topics)
-    if not found.episodes:
-        raise NothingToCutError(f"{bag}: {trigger.text!r} holds for no message")
-    windows = episode_windows(found.episodes, *margins)
-    with err_console.status(f"cutting {len(windows)} windows of {bag}"):
-        reports = cut_windows(bag, output, windows, selection, options)
+    with err_console.status(f"cutting around the episodes in {bag}"):
+        found, reports = cut_around(bag, output, trigger, selection, options)
     print_cuts(found, reports, output_format)

@@ -27,6 +27,7 @@ from bagkit.cli.replay_options import (
     Delay,
     DisableKeyboardControls,
     DiscoveryTime,
+    DriftRules,
     Duration,
     Exclude,
     ExcludeTopics,
@@ -160,6 +161,7 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
     no_latched: NoLatched = False,
     seek_step: SeekStep = 5.0,
     on_drift: OnDriftOption = OnDrift.SKIP,
+    drift_rules: DriftRules = None,
 ) -> None:
     require(ROS, "bagkit replay")
     from bagkit.ros.replay.player import Player
@@ -199,6 +201,7 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
         latched_topics=tuple(split_list(latched_topics)),
         seek_step_s=seek_step,
         on_drift=on_drift,
+        drift_rules=drift_rules,
         publish_service_requests=publish_service_requests,
         service_requests_source=service_requests_source.value,
         service_timeout_s=service_timeout,
@@ -283,8 +286,13 @@ def _warn_skipped(player: Player) -> None:
     if topics.missing:
         warn(f"topics not in the bag: {topics.missing_text()}")
     for name, changes in sorted(topics.drifted.items()):
-        raw = player.options.on_drift is OnDrift.RAW
-        done = "published as recorded" if raw else "not replayed (--on-drift raw: as recorded)"
+        done = {
+            OnDrift.RAW: "published as recorded",
+            OnDrift.MIGRATE: "each message migrated to the installed definition",
+        }.get(
+            player.options.on_drift,
+            "not replayed (--on-drift raw: as recorded, migrate: migrated)",
+        )
         warn(
             f"{name}: its definition differs from the installed one ({'; '.join(changes)}): {done}"
         )

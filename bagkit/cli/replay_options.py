@@ -186,7 +186,15 @@ OnDriftOption = Annotated[
     typer.Option(
         "--on-drift",
         help="A topic whose stored definition differs from the installed type's: skip it, "
-        "or publish it raw (as recorded).",
+        "publish it raw (as recorded), or migrate each message to the installed definition.",
+    ),
+]
+DriftRules = Annotated[
+    Path | None,
+    typer.Option(
+        "--drift-rules",
+        help="With --on-drift migrate: a rules file, as bagkit migrate --rules takes.",
+        metavar="FILE",
     ),
 ]
 MessageOrderOption = Annotated[

@@ -32,7 +32,7 @@ from bagkit.decode.direct import ValueReader, value_reader
 from bagkit.decode.errors import DecodeError, DefinitionError, SchemaError
 from bagkit.decode.flatten import FlatValue, field_getter
 from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER, TypeDef
-from bagkit.decode.stored import parse_stored
+from bagkit.decode.stored import COMMON_SERVICES, parse_stored
 from bagkit.decode.typegraph import check_type_graph
 
 if TYPE_CHECKING:
@@ -147,6 +147,11 @@ class MessageTypes:
             if canonical in builtin:
                 self._register({canonical: builtin[canonical]})
                 return canonical
+            service = canonical.removesuffix("_Event")
+            if service in COMMON_SERVICES:  # an action's cancel events, stored without text
+                self.add(canonical, COMMON_SERVICES[service])
+                if canonical in self.typestore.fielddefs:
+                    return canonical
         raise SchemaError(self.problems.get(name, f"no message definition stored for {name}"))
 
     def deserialize(self, data: bytes | memoryview, name: str) -> object:

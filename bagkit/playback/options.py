@@ -28,6 +28,8 @@ class OnDrift(StrEnum):
     """Publish nothing on it (its subscribers would get messages of another layout)."""
     RAW = "raw"
     """Publish its bytes as recorded."""
+    MIGRATE = "migrate"
+    """Publish each message migrated to the installed definition (:mod:`bagkit.migrate`)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -172,7 +174,8 @@ class PlayOptions:
         latched_topics: topics recorded volatile whose state is carried over too.
         seek_step_s: bag time one seek key moves back or forward.
         on_drift: a topic whose stored definition differs from the installed type's
-            (:mod:`bagkit.decode.drift`): skipped, or published as recorded.
+            (:mod:`bagkit.decode.drift`): skipped, published as recorded, or migrated.
+        drift_rules: the rules file of ``on_drift`` migrate (as ``bagkit migrate --rules``).
 
     Raises:
         PlayerError: an option out of its range, or a regular expression that does not compile.
@@ -211,6 +214,7 @@ class PlayOptions:
     latched_topics: tuple[str, ...] = ()
     seek_step_s: float = 5.0
     on_drift: OnDrift = OnDrift.SKIP
+    drift_rules: Path | None = None
 
     def __post_init__(self) -> None:
         if not self.rate > 0:

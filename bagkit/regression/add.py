@@ -15,14 +15,13 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from bagkit.bag import BagReader
-from bagkit.data.episodes import episode_windows, find_episodes
 from bagkit.regression.errors import RegressionError
 from bagkit.regression.lockstep import LockstepResult, run_lockstep
 from bagkit.regression.processor import make_processors
 from bagkit.regression.spec import BAG_DIR, SPEC_FILE, FixtureSpec, load_spec
-from bagkit.selection.conditions import parse_topic_condition
 from bagkit.selection.times import TimeLike
 from bagkit.selection.windows import TimeRange, outside_warning
+from bagkit.surgery.around import Around, episode_window
 from bagkit.surgery.rewrite import filter_bag
 from bagkit.surgery.select import Selection
 
@@ -130,21 +129,9 @@ def _around(options: AddOptions) -> tuple[AddOptions, int]:
         return options, 0
     if options.start is not None or options.end is not None:
         raise RegressionError("--around sets the window: it takes no --start or --end")
-    trigger = parse_topic_condition(options.around)
-    with BagReader(options.bag) as reader:
-        found = find_episodes(reader, trigger, options.gap_ns)
-    if not found.episodes:
-        raise RegressionError(f"{options.bag}: {trigger.text!r} holds for no message")
-    if not 1 <= options.episode <= len(found.episodes):
-        raise RegressionError(
-            f"{options.bag}: episode {options.episode} of {trigger.text!r} asked for, "
-            f"there are {len(found.episodes)} (bagkit find lists them)"
-        )
-    chosen = found.episodes[options.episode - 1]
-    (window,) = episode_windows([chosen], options.before_ns, options.after_ns)
-    return replace(options, start=f"{window.start_ns}ns", end=f"{window.end_ns}ns"), len(
-        found.episodes
-    )
+    around = Around.create(options.around, options.before_ns, options.after_ns, options.gap_ns)
+    window, episodes = episode_window(options.bag, around, options.episode)
+    return replace(options, start=f"{window.start_ns}ns", end=f"{window.end_ns}ns"), episodes
 
 
 def _origin(options: AddOptions) -> str:

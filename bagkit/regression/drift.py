@@ -53,6 +53,6 @@ def refuse_drift(spec: FixtureSpec) -> None:
     drifts = golden_drift(spec)
     if drifts:
         raise GoldenDriftError(
-            f"{spec.name}: the golden's definitions drifted from the installed ones:\n"
-            + "\n".join(drift_lines(spec, drifts))
+            f"{spec.name}: the golden's definitions drifted from the installed ones: "
+            + "; ".join(line.strip() for line in drift_lines(spec, drifts))
         )

@@ -21,6 +21,7 @@ from typing import Any
 import yaml
 
 from bagkit.bag import safe_yaml
+from bagkit.surgery.content import with_content
 from bagkit.surgery.errors import SurgeryError
 from bagkit.surgery.message_copy import Progress, rewrite_messages
 from bagkit.surgery.rewrite import (
@@ -101,6 +102,7 @@ def convert_bags(
     selection = selection or Selection()
     options = options or OutputOptions()
     check_output(bags, output)
+    selection = with_content(bags, selection)
     if options.storage == "mcap" and all_mcap(bags):
         if len(bags) == 1:
             return filter_bag(bags[0], output, selection, options)

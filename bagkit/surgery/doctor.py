@@ -15,7 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from bagkit.bag.definitions import canonical_type_name
+from bagkit.bag.definitions import DEFINITION_ENCODINGS, canonical_type_name
 from bagkit.bag.errors import BagError, BagNotFoundError, NotABagError
 from bagkit.bag.mcapio import MAGIC, Source, read_file_index
 from bagkit.bag.mcapio.records import Schema
@@ -51,6 +51,8 @@ class DoctorReport:
     message_count: int = 0
     deep: bool = False
     findings: list[Finding] = field(default_factory=list)
+    undecoded: dict[str, str] = field(default_factory=dict)
+    """Topics whose type has no stored definition and none in the type stores: why."""
 
     @property
     def healthy(self) -> bool:
@@ -99,6 +101,11 @@ def diagnose(path: Path, *, deep: bool = False) -> DoctorReport:
             Finding(METADATA_FILENAME, p) for p in _metadata_problems(metadata, facts, bag_dir)
         )
     report.findings.extend(Finding("bag", p) for p in decoders.problems())
+    report.undecoded = decoders.undecoded()
+    report.findings.extend(
+        Finding("bag", f"{topic}: not decoded ({why})", note=True)
+        for topic, why in report.undecoded.items()
+    )
     if metadata is not None:
         report.findings.extend(Finding("bag", n, note=True) for n in _loss_causes(metadata))
     return report
@@ -157,6 +164,7 @@ class _Decoders:
         self.types: dict[tuple[str, str], MessageTypes] = {}
         self.type_of: dict[str, tuple[str, str]] = {}  # topic -> its schema
         self.failures: dict[str, tuple[int, int, str]] = {}  # topic -> (count, first time, why)
+        self._textless: set[tuple[str, str]] = set()  # schemas without a usable text
 
     def for_file(self, facts: FileFacts) -> Callable[[int, int, memoryview], None] | None:
         """The per-message check of one file (None unless deep)."""
@@ -203,20 +211,38 @@ class _Decoders:
     def _types(self, schema: Schema) -> MessageTypes:
         key = _key(schema)
         if key not in self.types:
-            self.types[key] = MessageTypes.from_definitions({key[0]: key[1]})
+            # A schema without a usable text (rosbag2's ``unknown``, a .db3 without the type's
+            # definition): the type as the read commands take it (rosbags' types).
+            stored = schema.encoding in DEFINITION_ENCODINGS
+            self.types[key] = MessageTypes.from_definitions({key[0]: key[1]} if stored else {})
+            if not stored:
+                self._textless.add(key)
         return self.types[key]
 
     def problems(self) -> list[str]:
         found = []
         for topic, key in sorted(self.type_of.items()):
-            try:
-                self.types[key].resolve(key[0])
-            except SchemaError as exc:
-                found.append(f"{topic}: {exc}")
+            if key not in self._textless:
+                try:
+                    self.types[key].resolve(key[0])
+                except SchemaError as exc:
+                    found.append(f"{topic}: {exc}")
         for topic, (count, first, why) in sorted(self.failures.items()):
             found.append(
                 f"{topic}: {count} messages do not decode (first at log time {first}: {why})"
             )
+        return found
+
+    def undecoded(self) -> dict[str, str]:
+        """Topics without a stored text whose type no type store has either: not a damage
+        (Foxy to Humble bags store no definitions), but nothing of them could be checked."""
+        found = {}
+        for topic, key in sorted(self.type_of.items()):
+            if key in self._textless:
+                try:
+                    self.types[key].resolve(key[0])
+                except SchemaError as exc:
+                    found[topic] = str(exc)
         return found
 
 

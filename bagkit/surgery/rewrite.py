@@ -16,6 +16,7 @@ from bagkit.bag import BagReader
 from bagkit.bag.mcapio import MAGIC, Source, read_file_index
 from bagkit.bag.metadata import METADATA_FILENAME
 from bagkit.surgery.carry import latched_messages, merged_custom_data, write_latched
+from bagkit.surgery.content import with_content
 from bagkit.surgery.copy import CopyOptions, InputFile, copy_files, topics_of
 from bagkit.surgery.errors import SurgeryError
 from bagkit.surgery.options import OutputOptions, RewriteReport, resolve
@@ -65,6 +66,7 @@ def _rewrite(
     stored_order: bool = False,
 ) -> RewriteReport:
     check_output(bags, output)
+    selection = with_content(bags, selection)
     if options.storage != "mcap" or not all_mcap(bags):
         from bagkit.surgery.message_copy import rewrite_messages
 

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Protocol
 
 from bagkit.bag.latched import LatchedOptions
+from bagkit.selection.conditions import Condition
 from bagkit.selection.times import TimeLike
 from bagkit.selection.topics import TopicSelection
 from bagkit.selection.windows import TimeRange, Window
@@ -27,7 +28,7 @@ _EVERY_TOPIC = TopicSelection(all_topics=True, include_hidden=True)
 
 class PayloadFilter(Protocol):
     """Which messages of a topic pass by their content (``--where``), payloads not decoded
-    here: the caller's (``bagkit.data.matching.PayloadMatcher``, a layer above)."""
+    here: :mod:`bagkit.surgery.content` compiles them)."""
 
     def mask_records(
         self,
@@ -51,13 +52,20 @@ class Selection:
     Attributes:
         latched: the latched state written before a window's start (see
             :mod:`bagkit.bag.latched`): on by default.
-        content: topics whose messages pass only when their filter says so (``--where``).
+        where: the condition the messages of the topics that have its fields must satisfy
+            (``--where``), compiled against the inputs into ``content`` by
+            :func:`bagkit.surgery.content.with_content`.
+        state_topics: topics whose messages hold until the next one, for a condition over
+            time (as transient-local topics do).
+        content: topics whose messages pass only when their filter says so.
     """
 
     topics: TopicSelection = _EVERY_TOPIC
     span: TimeRange = field(default_factory=TimeRange)
     window: Window = field(default_factory=Window)
     latched: LatchedOptions = field(default_factory=LatchedOptions)
+    where: Condition | None = None
+    state_topics: frozenset[str] = frozenset()
     content: Mapping[str, PayloadFilter] = field(default_factory=dict)
 
     @classmethod

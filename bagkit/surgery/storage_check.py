@@ -14,6 +14,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from bagkit.bag.compression import Decompression
+from bagkit.bag.definitions import definition_encoding
 from bagkit.bag.mcapio.records import Channel, Schema
 from bagkit.bag.reader import open_storage_file
 from bagkit.bag.sqlite3_file import connect
@@ -62,15 +63,20 @@ def _facts(storage: StorageFile) -> FileFacts:
     schema_ids: dict[str, int] = {}
     for channel_id, (name, topic) in enumerate(sorted(storage.topics.items()), start=1):
         schema_id = schema_ids.get(topic.type)
-        text = storage.definitions.get(topic.type)
-        if schema_id is None and text is not None:
+        if schema_id is None:
+            # A type without a stored text gets a schema naming it only (encoding ""): the
+            # decodability check then takes it where the read commands do.
+            text = storage.definitions.get(topic.type)
             schema_id = schema_ids[topic.type] = len(schema_ids) + 1
             facts.schemas[schema_id] = Schema(
-                id=schema_id, name=topic.type, encoding="ros2msg", data=text.encode("utf-8")
+                id=schema_id,
+                name=topic.type,
+                encoding="" if text is None else definition_encoding(text),
+                data=b"" if text is None else text.encode("utf-8"),
             )
         facts.channels[channel_id] = Channel(
             id=channel_id,
-            schema_id=schema_id or 0,
+            schema_id=schema_id,
             topic=name,
             message_encoding=topic.serialization_format,
             metadata={},

@@ -2,9 +2,7 @@
 (spike: a value bound; gps_loss: NaN; imu_stuck: unchanged), start and end within one sample
 period of the schedule.
 
-The schedule counts from the sensor publisher's first tick, which the recording does not
-hold. It is found from the ground truth: /sim/truth's altitude during the climb is inverted
-with fusion's own flight model (read with rosbags, not bagkit), giving the time since that tick.
+The schedule's zero is found from the ground truth (tests/fusion/fault_clock.py).
 """
 
 from __future__ import annotations
@@ -15,12 +13,11 @@ import sys
 from pathlib import Path
 
 import pytest
-import yaml
-from rosbags.highlevel import AnyReader
 
 from fusion.faults import FaultKind, FaultSchedule
 from fusion.processors.sensor_publisher import SensorPublisher
-from fusion.sim import trajectory_state
+from tests.fusion.fault_clock import scenario as fault_scenario
+from tests.fusion.fault_clock import schedule_zero_ns
 
 FIXTURE = Path(__file__).parents[2] / "fixtures" / "faults"
 BAG = FIXTURE / "golden"
@@ -29,10 +26,7 @@ NS = 1_000_000_000
 
 
 def scenario() -> dict[str, object]:
-    params = yaml.safe_load((FIXTURE / "scenario.yaml").read_text())
-    flat = dict(params["sensor_publisher"]["ros__parameters"])
-    flat.update({f"flight.{k}": v for k, v in flat.pop("flight").items()})
-    return flat
+    return fault_scenario(FIXTURE / "scenario.yaml")
 
 
 @pytest.fixture(scope="module")
@@ -43,32 +37,7 @@ def publisher() -> SensorPublisher:
 @pytest.fixture(scope="module")
 def first_tick_ns(publisher: SensorPublisher) -> int:
     """Log-time scale of the schedule's zero, from the truth's altitude during the climb."""
-    profile = publisher.profile
-    estimates = []
-    with AnyReader([BAG]) as reader:
-        truth = [c for c in reader.connections if c.topic == "/sim/truth"]
-        for connection, _, raw in reader.messages(connections=truth):
-            msg = reader.deserialize(raw, connection.msgtype)
-            stamp = msg.header.stamp.sec * NS + msg.header.stamp.nanosec
-            altitude = msg.pose.pose.position.z
-            low = profile.takeoff_delay + 0.5  # well inside the climb: altitude rises
-            high = profile.takeoff_delay + profile.climb_duration - 0.5
-            if (
-                not trajectory_state(profile, low).altitude
-                < altitude
-                < trajectory_state(profile, high).altitude
-            ):
-                continue
-            for _ in range(80):  # bisection: the altitude rises monotonically in the climb
-                middle = (low + high) / 2
-                if trajectory_state(profile, middle).altitude < altitude:
-                    low = middle
-                else:
-                    high = middle
-            estimates.append(stamp - round(low * NS))
-    assert len(estimates) > 50
-    assert max(estimates) - min(estimates) < 1_000_000  # one zero for every sample, to 1 ms
-    return sorted(estimates)[len(estimates) // 2]
+    return schedule_zero_ns(BAG, publisher)
 
 
 def find(when: str) -> list[tuple[int, int]]:

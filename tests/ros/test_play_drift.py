@@ -9,7 +9,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from rclpy.serialization import serialize_message
+import numpy as np
+from rclpy.serialization import deserialize_message, serialize_message
 from replay_harness import Listener
 from sensor_msgs.msg import Range, Temperature
 from waiting import wait_for
@@ -75,3 +76,28 @@ def test_a_drifted_topic_is_skipped_unless_raw(
     assert [len(m.data) for m in listener.messages("/range")] == [
         len(bytes(serialize_message(Range()))) - 4
     ] * COUNT
+
+
+def test_a_drifted_topic_is_migrated_on_the_fly(
+    tmp_path: Path, listener_factory: type[Listener]
+) -> None:
+    """--on-drift migrate: today's Range, its ``variance`` at the default, every recorded
+    value kept; the rules file of --drift-rules applies (here: variance from the range)."""
+    bag = _humble_range_bag(tmp_path / "bag")
+    listener = listener_factory({"/range": Range, "/temperature": Temperature})
+    migrated = _play(bag, "--on-drift", "migrate")
+    assert migrated.returncode == 0, migrated.stderr
+    assert "/range: its definition differs" in migrated.stderr
+    assert "each message migrated to the installed definition" in migrated.stderr
+    wait_for(lambda: len(listener.messages("/range")) == COUNT, 15.0)
+    received = [deserialize_message(m.data, Range) for m in listener.messages("/range")]
+    assert [(m.range, m.variance) for m in received] == [(float(i), 0.0) for i in range(COUNT)]
+
+    rules = tmp_path / "rules.yaml"
+    rules.write_text("sensor_msgs/msg/Range:\n  compute: {variance: range / 100}\n")
+    with_rules = _play(bag, "--on-drift", "migrate", "--drift-rules", str(rules))
+    assert with_rules.returncode == 0, with_rules.stderr
+    wait_for(lambda: len(listener.messages("/range")) == 2 * COUNT, 15.0)
+    second = listener.messages("/range")[COUNT:]
+    variances = [deserialize_message(m.data, Range).variance for m in second]
+    assert variances == [float(np.float32(i / 100)) for i in range(COUNT)]

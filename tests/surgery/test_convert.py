@@ -174,6 +174,23 @@ def test_selection_is_filters(mixed: Path, tmp_path: Path) -> None:
     assert kept == rosbags_messages(tmp_path / "where_mcap")
 
 
+def test_db3_into_mcap_selection_is_filters(mixed: Path, tmp_path: Path) -> None:
+    """A db3 into MCAP goes by the rows' chunks: the same messages as ``filter`` of the MCAP
+    bag that the db3 was converted from, with topic, window and ``--where``."""
+    db3 = tmp_path / "db3"
+    _convert(mixed, "-o", db3, "--storage", "sqlite3")
+    selection = ["--topics", "/imu/data", "/text", "--start", "2", "--end", "9"]
+    selection += ["--where", "linear_acceleration.x > 0.5"]
+    _convert(db3, "-o", tmp_path / "converted", *selection)
+    result = run("filter", str(mixed), "-o", str(tmp_path / "filtered"), *selection)
+    assert result.returncode == 0, result.stderr
+    converted = mcap_messages(_mcap_files(tmp_path / "converted"))
+    expected = mcap_messages(_mcap_files(tmp_path / "filtered"))
+    assert {m[0] for m in converted} == {"/imu/data", "/text"}
+    assert sorted(converted, key=key) == sorted(expected, key=key)
+    assert [m[1] for m in converted] == sorted(m[1] for m in converted)
+
+
 def test_ros2_bag_convert_options_file(mixed: Path, tmp_path: Path) -> None:
     options = tmp_path / "out.yaml"
     options.write_text(

@@ -9,6 +9,7 @@ about, then runs the passes (:mod:`~bagkit.playback.publish_loop`) and returns a
 
 from __future__ import annotations
 
+import functools
 import itertools
 import logging
 import math
@@ -26,6 +27,8 @@ from rclpy.signals import SignalHandlerOptions
 
 from bagkit.bag import BagMessage, TopicInfo
 from bagkit.bag.latched import latched_topics
+from bagkit.bag.messages import make_message
+from bagkit.migrate import TopicMigration, load_rules
 from bagkit.native import precise_timers
 from bagkit.playback.controls import PlayControls
 from bagkit.playback.lateness import LatenessSamples
@@ -236,6 +239,7 @@ class Player:
             bag_path=Path(self._reader.name) if self._reader else self.bag_path,
             definition=self._reader.definition if self._reader else lambda _: None,
             on_drift=self.options.on_drift,
+            rules=load_rules(self.options.drift_rules) if self.options.drift_rules else None,
         )
         return self.publishable.selected
 
@@ -374,11 +378,15 @@ class Player:
         topics = list(self._outputs)
         span = self._span()
 
+        migrations = self.publishable.migrations
+
         def messages_from(bag_ns: int) -> Iterator[BagMessage]:
-            return iter(source.messages(topics, bag_ns, span.end_ns))
+            found = iter(source.messages(topics, bag_ns, span.end_ns))
+            return map(functools.partial(_migrated, migrations), found) if migrations else found
 
         def latched_before(bag_ns: int) -> list[BagMessage]:
-            return source.latched_before(bag_ns, self._latched) if self._latched else []
+            found = source.latched_before(bag_ns, self._latched) if self._latched else []
+            return [_migrated(migrations, m) for m in found]
 
         return PassReader(messages_from, latched_before, span.last_ns)
 
@@ -469,3 +477,14 @@ class Player:
             timeout=self.waits.timeout_s,
             all_discovered=all_discovered(self.node, os.environ),
         )
+
+
+def _migrated(migrations: Mapping[str, TopicMigration], message: BagMessage) -> BagMessage:
+    """``message`` with its payload migrated when its topic is one of ``migrations``."""
+    migration = migrations.get(message.topic)
+    if migration is None:
+        return message
+    data = migration.payload(message.data)
+    return make_message(
+        message.topic, data, message.log_time, message.publish_time, message.sequence
+    )

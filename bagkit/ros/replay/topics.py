@@ -10,6 +10,7 @@ from typing import Any
 from bagkit.bag import TopicInfo
 from bagkit.bag.clock import CLOCK_TOPIC
 from bagkit.decode.drift import DriftStatus, topic_drift
+from bagkit.migrate import Rules, Target, TopicMigration, migrate_topic
 from bagkit.playback.options import OnDrift
 from bagkit.ros.errors import MessageClassNotFoundError, PlayerError
 from bagkit.ros.message_classes import import_message_type
@@ -29,7 +30,9 @@ class PublishableTopics:
     """Topics named by the selection that the bag does not have."""
     drifted: dict[str, list[str]] = field(default_factory=dict)
     """Topic -> how its stored definition differs from the installed one (skipped unless
-    published raw)."""
+    published raw or migrated)."""
+    migrations: dict[str, TopicMigration] = field(default_factory=dict)
+    """Topic -> its migration to the installed definition (``on_drift`` migrate)."""
     known: list[str] = field(default_factory=list)
     """The bag's topics, for the closest names to the missing ones."""
 
@@ -46,13 +49,16 @@ def publishable_topics(
     bag_path: Path,
     definition: Callable[[str], str | None] = lambda _: None,
     on_drift: OnDrift = OnDrift.SKIP,
+    rules: Rules | None = None,
 ) -> PublishableTopics:
     """The topics of ``topics`` to publish; a recorded ``/clock`` not when the player makes one.
 
     ``definition`` gives a topic's stored definition: a topic whose definition drifted from
-    the installed type's is in ``drifted``, and published only with ``on_drift`` RAW.
+    the installed type's is in ``drifted``, and published only with ``on_drift`` RAW (as
+    recorded) or MIGRATE (each message migrated, with ``rules``: ``migrations``).
 
     Raises:
+        MigrateError: with MIGRATE, a drifted topic cannot be migrated.
         UnknownTopicError: nothing is selected and a named topic is not in the bag.
         PlayerError: nothing is left to publish (the message says why).
     """
@@ -75,6 +81,10 @@ def publishable_topics(
             found.drifted[name] = drift.changes
             if on_drift is OnDrift.SKIP:
                 continue
+            if on_drift is OnDrift.MIGRATE:
+                migration = migrate_topic(info, definition(name), Target(), rules)
+                if migration is not None:
+                    found.migrations[name] = migration
         found.selected.append((info, message_class))
     if not found.selected and found.missing:
         require_topics(found.missing, topics)  # raises, with the closest topics of the bag
@@ -92,7 +102,8 @@ def publishable_topics(
                 ]
                 + [
                     f"{name}: its definition drifted from the installed one "
-                    f"({'; '.join(changes)}; --on-drift raw publishes it as recorded)"
+                    f"({'; '.join(changes)}; --on-drift raw publishes it as recorded, migrate "
+                    "migrated)"
                     for name, changes in sorted(found.drifted.items())
                 ]
             )
