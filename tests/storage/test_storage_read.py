@@ -124,7 +124,8 @@ def test_outputs_to_urls_are_uploaded(moto_store: Store, local_bags: Path) -> No
     for bag in ("a", "b"):
         moto_store.put(local_bags / "fleet" / bag, f"fleet/{bag}")
     cut = cli(
-        ["filter", f"{base}/fleet/a", "-o", f"{base}/out/cut", "--topics", "/gps/fix"], moto_store.env
+        ["filter", f"{base}/fleet/a", "-o", f"{base}/out/cut", "--topics", "/gps/fix"],
+        moto_store.env,
     )
     assert cut.returncode == 0, cut.stderr
     again = cli(["filter", f"{base}/fleet/a", "-o", f"{base}/out/cut"], moto_store.env)
