@@ -134,18 +134,24 @@ class RangeFile:
         return None
 
     def _fetch_span(self, start: int, end: int) -> bytes:
+        # What a cached block (the read-ahead) holds from ``start`` on is not fetched again.
+        held = next(
+            (b[start - o :] for o, b in reversed(self._cache.items()) if o <= start < o + len(b)),
+            b"",
+        )
+        first = start + len(held)
         ahead = min(MAX_READ_AHEAD, self._streak // READ_AHEAD_SHARE)
-        if start == 0:  # the magic and the header: one request for every reader of the file
+        if first == 0:  # the magic and the header: one request for every reader of the file
             ahead = max(ahead, HEAD_BYTES)
-        fetch_end = min(self.size, max(end, start + ahead))
-        block = self._fetch(start, fetch_end)
-        if start == 0:
+        fetch_end = min(self.size, max(end, first + ahead))
+        block = self._fetch(first, fetch_end)
+        if first == 0:
             if len(_HEADS) >= MAX_HEADS:
                 _HEADS.pop(next(iter(_HEADS)))
             _HEADS[(self.url, self.etag)] = block[:HEAD_BYTES]
         if fetch_end > end or len(block) <= CACHE_BYTES // 4:
-            self._keep(start, block)
-        return block[: end - start]
+            self._keep(first, block)
+        return (held + block)[: end - start] if held else block[: end - start]
 
     def _keep(self, offset: int, block: bytes) -> None:
         self._cache[offset] = block
