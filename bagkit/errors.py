@@ -7,3 +7,18 @@ class BagkitError(Exception):
     """An error the user can act on; ``exit_code`` is what the CLI exits with."""
 
     exit_code: int = 2
+
+
+class OptionError(BagkitError):
+    """A value of an options dataclass that cannot be: ``field`` names it as the library does
+    (``snapshot.max_duration_ns``), so that the CLI can name its flag instead.
+
+    Args:
+        problem: what is wrong with it.
+        field: the field's path in the options (None: not one field's fault).
+    """
+
+    def __init__(self, problem: str, field: str | None = None) -> None:
+        super().__init__(f"{field}: {problem}" if field else problem)
+        self.problem = problem
+        self.field = field

@@ -46,9 +46,8 @@ def keep_freed_memory() -> None:
     """Let glibc keep freed large buffers for reuse instead of returning them to the kernel.
 
     Each large message taken is a fresh allocation; glibc serves those with ``mmap`` and unmaps
-    them on free, so every 1 MB image costs 256 page faults per copy (measured here: copying
-    1 MB 0.8 ms -> 0.08 ms, writing it 2.7 ms -> 0.8 ms). Process-wide and for good. No-op
-    without glibc.
+    them on free, so every 1 MB image costs 256 page faults per copy (benchmarks/README.md,
+    "Measurements behind the code"). Process-wide and for good. No-op without glibc.
     """
     mallopt = _libc_function("mallopt")
     if mallopt is None:

@@ -7,6 +7,9 @@ Configure where fixtures live, in ``pytest.ini``/``pyproject.toml``::
 
 or per run with ``--golden-root DIR``. Each directory under a root holding a ``spec.yaml``
 becomes one item per mode (``fixtures/takeoff/spec.yaml::lockstep``, ``::live``).
+A spec with a ``health:`` contract adds one item per assertion: on the golden
+(``::golden-health[/imu/data: gap > 300ms]``) and on each mode's outputs
+(``::lockstep-health[...]``), so that a failure names the assertion.
 ``--golden-mode lockstep|live|all`` chooses the modes (default: all the spec lists);
 ``--update-golden`` accepts today's behaviour instead of comparing (lockstep outputs; a
 fixture whose outputs are unchanged is not rewritten). A failure prints the verdict and the
@@ -29,10 +32,16 @@ import pytest
 
 if TYPE_CHECKING:
     from bagkit.compare.result import TopicResult
+    from bagkit.health import HealthReport
     from bagkit.regression.golden import GoldenCheck
     from bagkit.regression.spec import FixtureSpec
 
 ROOTS = pytest.StashKey[list[Path]]()
+# Each fixture's run per mode (or why it failed), and its golden's health, for the health
+# items that follow the run's item.
+RUNS = pytest.StashKey[dict[tuple[Path, str], "GoldenCheck | BaseException"]]()
+GOLDEN_HEALTH = pytest.StashKey[dict[Path, "HealthReport"]]()
+GOLDEN = "golden"
 SPEC_FILE = "spec.yaml"
 MODE_CHOICES = ("lockstep", "live", "all")
 # Domains of automatic choice: 100-229, above the ones people set by hand. The variable marks a
@@ -86,7 +95,22 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 def _roots(config: pytest.Config) -> list[Path]:
     configured = [Path(p) for p in config.getini("golden_roots")]
     given = [Path(p) for p in config.getoption("golden_root")]
-    return [p.resolve() for p in [*configured, *given]]
+    return [p.resolve() for p in [*configured, *given, *_named_fixtures(config)]]
+
+
+def _named_fixtures(config: pytest.Config) -> list[Path]:
+    """Fixtures named on the command line (``pytest fixtures/incident``, or a folder of them):
+    collected without ``golden_roots``, as a test file named there is."""
+    if config.args_source != pytest.Config.ArgsSource.ARGS:
+        return []
+    found = []
+    for arg in config.args:
+        path = Path(arg.split("::")[0])
+        if path.name == SPEC_FILE and path.is_file():
+            found.append(path.parent)
+        elif (path / SPEC_FILE).is_file() or (path.is_dir() and any(path.glob(f"*/{SPEC_FILE}"))):
+            found.append(path)
+    return found
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -156,12 +180,22 @@ class GoldenFile(pytest.File):
             raise pytest.UsageError(f"golden_mode must be one of {', '.join(MODE_CHOICES)}")
         modes = [m for m in spec.modes if chosen in {"all", m}]
         items: list[pytest.Item] = []
+        if spec.health is not None:
+            from bagkit.regression.health import assertion_names
+
+            for name in assertion_names(spec.health):
+                items.append(HealthItem.from_parent(self, spec=spec, mode=GOLDEN, assertion=name))
         for mode in modes:
-            item = GoldenItem.from_parent(self, name=mode, spec=spec, mode=mode)
+            items.append(GoldenItem.from_parent(self, name=mode, spec=spec, mode=mode))
+            if spec.health is not None:
+                from bagkit.regression.health import assertion_names, outputs_contract
+
+                for name in assertion_names(outputs_contract(spec.health, spec.outputs)):
+                    items.append(HealthItem.from_parent(self, spec=spec, mode=mode, assertion=name))
+        for item in items:
             item.add_marker("golden")
-            if mode == "live":
+            if getattr(item, "mode", None) == "live":
                 item.add_marker("ros")
-            items.append(item)
         return items
 
     def repr_failure(self, excinfo: pytest.ExceptionInfo[BaseException]) -> str | Any:  # type: ignore[override]
@@ -189,8 +223,6 @@ class GoldenItem(pytest.Item):
         self.user_properties += [(FIXTURE_PROPERTY, spec.name), (MODE_PROPERTY, mode)]
 
     def runtest(self) -> None:
-        from bagkit.regression.artefacts import write_failure_artefacts
-        from bagkit.regression.check import run_check
         from bagkit.regression.golden import update_golden
 
         if self.config.getoption("update_golden"):
@@ -201,18 +233,12 @@ class GoldenItem(pytest.Item):
             self.user_properties.append((VERDICT_PROPERTY, f"outputs {outcome}"))
             print(f"{self.spec.name}: {outcome}")
             return
-        with tempfile.TemporaryDirectory(prefix=f"golden-{self.spec.name}-") as tmp:
-            check = run_check(self.spec, self.mode, Path(tmp))
-            self.user_properties.append((VERDICT_PROPERTY, verdict(check)))
-            if not check.passed:
-                folder = self._failures() / f"{self.spec.name}-{self.mode}"
-                write_failure_artefacts(check, folder)
-                self.user_properties.append((REPORT_PROPERTY, str(folder / "report.html")))
-                raise GoldenMismatchError(check, folder / "report.html")
-
-    def _failures(self) -> Path:
-        given = self.config.getoption("golden_failures")
-        return Path(given).resolve() if given else self.config.rootpath / "golden_failures"
+        check = run_once(self.config, self.spec, self.mode)
+        self.user_properties.append((VERDICT_PROPERTY, verdict(check)))
+        if not check.matched:  # the health items say whether the contract held
+            report = _failures(self.config) / f"{self.spec.name}-{self.mode}" / "report.html"
+            self.user_properties.append((REPORT_PROPERTY, str(report)))
+            raise GoldenMismatchError(check, report)
 
     def repr_failure(
         self,
@@ -227,6 +253,94 @@ class GoldenItem(pytest.Item):
 
     def reportinfo(self) -> tuple[Path, int | None, str]:
         return self.path, None, f"golden fixture {self.spec.name} [{self.mode}]"
+
+
+def _failures(config: pytest.Config) -> Path:
+    given = config.getoption("golden_failures")
+    return Path(given).resolve() if given else config.rootpath / "golden_failures"
+
+
+def run_once(config: pytest.Config, spec: FixtureSpec, mode: str) -> GoldenCheck:
+    """``spec``'s run in ``mode``, once per session (its item and its health items share it);
+    a run whose outputs differ leaves its report under the failures folder."""
+    from bagkit.regression.artefacts import write_failure_artefacts
+    from bagkit.regression.check import run_check
+
+    runs = config.stash.setdefault(RUNS, {})
+    key = (spec.directory, mode)
+    if key not in runs:
+        try:
+            with tempfile.TemporaryDirectory(prefix=f"golden-{spec.name}-") as tmp:
+                check = run_check(spec, mode, Path(tmp))
+                if not check.matched:
+                    write_failure_artefacts(check, _failures(config) / f"{spec.name}-{mode}")
+            runs[key] = check
+        except BaseException as exc:
+            runs[key] = exc
+            raise
+    found = runs[key]
+    if isinstance(found, BaseException):
+        raise found
+    return found
+
+
+class HealthItem(pytest.Item):
+    """One assertion of a spec's ``health:`` contract, on the golden or on a mode's outputs."""
+
+    def __init__(self, *, spec: FixtureSpec, mode: str, assertion: str, **kwargs: Any) -> None:
+        super().__init__(name=f"{mode}-health[{assertion}]", **kwargs)
+        self.spec = spec
+        self.mode = mode
+        self.assertion = assertion
+
+    def runtest(self) -> None:
+        from bagkit.regression.health import by_name, describe, outputs_contract
+
+        if self.config.getoption("update_golden"):
+            pytest.skip("--update-golden rewrites outputs; the contract is checked without it")
+        assert self.spec.health is not None
+        contract = self.spec.health
+        if self.mode == GOLDEN:
+            report = self._golden_health()
+        else:
+            try:
+                check = run_once(self.config, self.spec, self.mode)
+            except Exception as exc:
+                pytest.skip(f"the {self.mode} run failed: {exc}")
+            assert check.health is not None
+            report = check.health
+            contract = outputs_contract(contract, self.spec.outputs)
+        assertion = by_name(report, contract)[self.assertion]
+        if not assertion.passed:
+            where = "the golden" if self.mode == GOLDEN else f"the {self.mode} outputs"
+            raise HealthBrokenError(f"{describe(assertion, report.start_ns)} ({where})")
+
+    def _golden_health(self) -> HealthReport:
+        from bagkit.health import check_bag
+
+        reports = self.config.stash.setdefault(GOLDEN_HEALTH, {})
+        if self.spec.directory not in reports:
+            assert self.spec.health is not None
+            reports[self.spec.directory] = check_bag(self.spec.bag, self.spec.health)
+        return reports[self.spec.directory]
+
+    def repr_failure(
+        self,
+        excinfo: pytest.ExceptionInfo[BaseException],
+        style: Any = None,
+    ) -> str | Any:
+        from bagkit.errors import BagkitError
+
+        if isinstance(excinfo.value, HealthBrokenError | BagkitError):
+            return str(excinfo.value)
+        return super().repr_failure(excinfo, style=style)
+
+    def reportinfo(self) -> tuple[Path, int | None, str]:
+        return self.path, None, f"golden fixture {self.spec.name} [{self.name}]"
+
+
+class HealthBrokenError(Exception):
+    """An assertion of a spec's ``health:`` contract that does not hold."""
 
 
 def verdict(check: GoldenCheck, most: int = 3) -> str:

@@ -25,7 +25,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from bagkit.playback.options import PlayOptions
+from bagkit.playback.options import PlayOptions, SubscriberWaits
 
 T0 = 1_700_000_000_000_000_000
 SEEK_MESSAGES = 1_000_000
@@ -67,7 +67,8 @@ def _write(path: Path, topic_rows: list[tuple[str, int]], latched: str | None = 
 
 
 def _options(bag: Path, **extra: Any) -> PlayOptions:
-    return PlayOptions(bag, wait_for_subscribers=False, services=False, ack_timeout_s=0.0, **extra)
+    waits = SubscriberWaits(before_start=False, ack_timeout_s=0.0)
+    return PlayOptions(bag, waits=waits, services=False, **extra)
 
 
 def _seek_latency(directory: Path) -> bool:
@@ -170,7 +171,7 @@ def _memory_over_loops(directory: Path) -> bool:
         if loop in (10, LOOPS - 1) and loop not in resident:
             resident[loop] = _resident_kib()
 
-    options = _options(bag, rate=1e9, loops=LOOPS, progress_period_s=0.001)
+    options = _options(bag, rate=1e9, loops=LOOPS, progress_period_ns=1_000_000)
     report = Player(options, on_progress=at_progress).run()
     after_10, after_all = resident.get(10, 0), resident.get(LOOPS - 1, 0)
     growth = (after_all - after_10) / after_10 if after_10 else float("inf")

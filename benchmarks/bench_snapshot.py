@@ -104,7 +104,7 @@ def bench_trigger_latency() -> bool:
     from rclpy.node import Node
     from sensor_msgs.msg import Imu
 
-    from bagkit.recording.options import RecordOptions
+    from bagkit.recording.options import RecordOptions, SnapshotOptions, SnapshotTrigger
     from bagkit.ros.record.recorder import Recorder
 
     opened: dict[Path, int] = {}
@@ -134,9 +134,10 @@ def bench_trigger_latency() -> bool:
             options = RecordOptions(
                 Path(scratch) / "latency",
                 regex="^/bench/",
-                snapshot_mode=True,
-                snapshot_max_duration_s=1.0,
-                triggers=("/bench/alerts: status[*].level >= 2",),
+                snapshot=SnapshotOptions(
+                    max_duration_ns=1_000_000_000,
+                    triggers=(SnapshotTrigger.parse("/bench/alerts: status[*].level >= 2"),),
+                ),
             )
             with Recorder(options) as recorder:
                 deadline = time.monotonic() + 30
@@ -178,7 +179,7 @@ def bench_recording_meanwhile() -> bool:
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import Image, Imu
 
-    from bagkit.recording.options import RecordOptions
+    from bagkit.recording.options import RecordOptions, SnapshotOptions
     from bagkit.ros.record.recorder import Recorder
     from bagkit.ros.serialization import serialize
 
@@ -216,8 +217,7 @@ def bench_recording_meanwhile() -> bool:
             options = RecordOptions(
                 Path(scratch) / "meanwhile",
                 regex="^/bench/(camera|imu)$",
-                snapshot_mode=True,
-                snapshot_max_bytes=SNAPSHOT_BUFFER,
+                snapshot=SnapshotOptions(max_bytes=SNAPSHOT_BUFFER),
             )
             with Recorder(options) as recorder:
                 deadline = time.monotonic() + 30

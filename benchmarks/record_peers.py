@@ -170,15 +170,14 @@ def _run_recorder(
     bag: Path, ready: Path, stop: dict[str, bool], *, tune: bool, snapshot_bytes: int = 0
 ) -> dict[str, Any]:
     """``snapshot_bytes``: snapshot mode with this cache bound (0: a plain recording)."""
-    from bagkit.recording.options import RecordOptions
+    from bagkit.recording.options import RecordOptions, SnapshotOptions
     from bagkit.ros.record.recorder import Recorder
 
     options = RecordOptions(
         bag,
         topics=(TOPIC,),
         tune_process=tune,
-        snapshot_mode=bool(snapshot_bytes),
-        snapshot_max_bytes=snapshot_bytes,
+        snapshot=SnapshotOptions(max_bytes=snapshot_bytes) if snapshot_bytes else None,
     )
     recorder = Recorder(options)
     recorder.start()

@@ -61,6 +61,28 @@ def test_rclpy_only_behind_the_ros_shells(path: Path) -> None:
     )
 
 
+def private_imports(modules: set[str]) -> list[str]:
+    """The modules of other packages among ``modules`` that are private (``typer._click``)."""
+    return sorted(
+        m
+        for m in modules
+        if m.split(".")[0] != "bagkit"
+        and any(part.startswith("_") and not part.startswith("__") for part in m.split("."))
+    )
+
+
+def test_the_private_import_check() -> None:
+    assert private_imports(
+        {"typer._click.exceptions", "typer.core", "bagkit.ros.record._take"}
+    ) == ["typer._click.exceptions"]
+
+
+@pytest.mark.parametrize("path", modules_under("bagkit"), ids=lambda p: str(p.relative_to(REPO)))
+def test_no_private_module_of_another_package(path: Path) -> None:
+    """A dependency's private module (typer's vendored click, ...) changes without notice."""
+    assert private_imports(imported_modules(path.read_text())) == []
+
+
 # bagkit's packages and top-level modules from the bottom up: each imports only lower layers.
 LAYERS: tuple[frozenset[str], ...] = (
     frozenset({"errors", "version", "compat"}),

@@ -34,7 +34,6 @@ if TYPE_CHECKING:
     import numpy as np
 
 ZSTD_MAGIC = b"\x28\xb5\x2f\xfd"
-COMPRESSED_SUFFIXES = (".zstd",)
 # Room left free in the temporary directory when a file is decompressed into it.
 DISK_RESERVE = 256 << 20
 _COPY_BLOCK = 1 << 20

@@ -30,7 +30,7 @@ class FreeSpace:
         Raises:
             BagError: not a size or a percentage below 100.
         """
-        what = "--min-free-space"
+        what = "min_free_space"
         share = parse_share(text, what)
         if share is not None:
             return cls(fraction=share, text=text)

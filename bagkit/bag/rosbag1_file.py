@@ -43,7 +43,13 @@ from bagkit.bag.errors import CorruptBagError, NotABagError, UnsupportedStorageE
 from bagkit.bag.mcapio.message_index import Span, widen
 from bagkit.bag.messages import BagMessage, TopicInfo, make_message
 from bagkit.bag.ros1_types import LATCHED_QOS, Ros2Type, ros2_types
-from bagkit.bag.rosbag1_records import ChunkRecord, decompress, mcap_records, message_at
+from bagkit.bag.rosbag1_records import (
+    ChunkRecord,
+    chunk_contents,
+    decompress,
+    mcap_records,
+    message_at,
+)
 from bagkit.bag.storage import ROSBAG1_MAGIC, BagChunk
 
 # What rosbags' record readers raise on bytes that are not what they expect (some checks are
@@ -92,6 +98,7 @@ class Rosbag1File:
         self._chunks: list[ChunkRecord] = []
         self._indexes: dict[int, dict[int, list[IndexData]]] = {}  # chunk pos -> conn -> entries
         self._lost: dict[str, int] = {}  # topic -> payloads that did not convert
+        self._connection_ids: set[int] = set()  # of the index's connection records
 
     @property
     def _bio(self) -> BinaryIO:
@@ -121,6 +128,7 @@ class Rosbag1File:
             self._chunks = [self._chunk_record(info) for info in infos]
         except _RECORD_ERRORS as exc:
             raise CorruptBagError(f"{self.path}: the ROS 1 bag's index is damaged ({exc})") from exc
+        self._connection_ids = {c.id for c in connections}
         self._types, problems = ros2_types(connections)
         for problem in problems:
             self._problem(f"{problem}: its messages are left out")
@@ -201,6 +209,42 @@ class Rosbag1File:
             self._reader.bio = None
 
     # -- indexes ----------------------------------------------------------------------------
+
+    def check_index(self) -> list[str]:
+        """``doctor``'s walk: each chunk's records against its chunk info and index data
+        (messages, times, connections), one line per disagreement (the problems of reading
+        it, in ``problems``)."""
+        found: list[str] = []
+        for chunk in self._chunks:
+            where = f"chunk at byte {chunk.info.pos}"
+            data = self._data(chunk)
+            if data is None:
+                continue  # a problem already
+            try:
+                held, connections = chunk_contents(data)
+            except _RECORD_ERRORS as exc:
+                found.append(f"{where}: its records do not parse ({exc})")
+                continue
+            index = self._chunk_index(chunk)
+            for conn in sorted(set(held) | set(index) | set(chunk.info.connection_counts)):
+                name = self._topic_of.get(conn, f"connection {conn}")
+                stored = sorted(held.get(conn, ()))
+                indexed = sorted((e.time, e.offset) for e in index.get(conn, ()))
+                counted = chunk.info.connection_counts.get(conn, 0)
+                if stored != indexed or len(stored) != counted:
+                    found.append(
+                        f"{where}: holds {len(stored)} messages of {name}, its index data "
+                        f"lists {len(indexed)} ({len(set(indexed) - set(stored))} at no "
+                        f"message), its chunk info counts {counted}"
+                    )
+                times = [t for t, _ in stored]
+                info = chunk.info  # its end time is one past the last message's (rosbags)
+                if times and (min(times) < info.start_time or max(times) >= info.end_time):
+                    found.append(f"{where}: {name} has messages outside the chunk info's times")
+            unknown = sorted((connections | set(held)) - self._connection_ids)
+            if unknown:
+                found.append(f"{where}: connections {unknown} are not in the bag's index")
+        return found
 
     def _chunk_index(self, chunk: ChunkRecord) -> dict[int, list[IndexData]]:
         """Where each message of ``chunk`` is, by connection (read once, then kept)."""

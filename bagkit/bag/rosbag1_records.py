@@ -90,3 +90,29 @@ def mcap_records(
         return None
     dtype = message_index_dtype()
     return bytes(records), {t: np.array(e, dtype=dtype) for t, e in index.items()}
+
+
+def chunk_contents(data: bytes) -> tuple[dict[int, list[tuple[int, int]]], set[int]]:
+    """What a chunk's data holds, walked record by record with rosbags' header reader: the
+    ``(time, offset)`` of each message data record by connection, and the connections of its
+    connection records.
+
+    Raises:
+        ReaderError (or what rosbags' readers raise on bad bytes): a record does not parse.
+    """
+    stream = io.BytesIO(data)
+    messages: dict[int, list[tuple[int, int]]] = {}
+    connections: set[int] = set()
+    while (offset := stream.tell()) < len(data):
+        header = Header.read(stream)
+        op = header.get_uint8("op")
+        size = read_uint32(stream)
+        if op == RecordType.MSGDATA:
+            messages.setdefault(header.get_uint32("conn"), []).append(
+                (header.get_time("time"), offset)
+            )
+        elif op == RecordType.CONNECTION:
+            connections.add(header.get_uint32("conn"))
+        if stream.seek(size, io.SEEK_CUR) > len(data):
+            raise ReaderError(f"a record at offset {offset} ends after the chunk's data")
+    return messages, connections

@@ -129,6 +129,7 @@ class Sqlite3File:
         self._db: sqlite3.Connection | None = None
         self._topic_ids: dict[int, str] = {}
         self._spans: dict[str, Span] = {}
+        self._clean = False  # every row valid and of a known topic (found by open)
 
     def open(self) -> None:
         """Check the rosbag2 schema and read topics, definitions, counts and the time range.
@@ -214,6 +215,7 @@ class Sqlite3File:
         if orphans:
             self._problem(f"{orphans} messages of no known topic skipped")
         (rows,) = db.execute("SELECT COUNT(*) FROM messages").fetchone()
+        self._clean = rows == valid and not orphans
         if rows > valid:
             self._problem(
                 f"{rows - valid} messages without an integer timestamp or blob data skipped"
@@ -298,17 +300,27 @@ class Sqlite3File:
         wanted = [i for i, t in self._topic_ids.items() if topics is None or t in topics]
         if not wanted or self._db is None:
             return
-        marks = ",".join("?" * len(wanted))
-        query = (
-            f"SELECT topic_id, timestamp, data FROM messages WHERE topic_id IN ({marks}) "
-            f"AND timestamp >= ? AND timestamp < ? AND {_VALID_ROW} ORDER BY timestamp, rowid"
-        )
-        lower = max(start_ns if start_ns is not None else INT64_MIN, INT64_MIN)
-        upper = min(end_ns if end_ns is not None else INT64_MAX, INT64_MAX)
+        # Each condition only where it can leave a row out (the file is immutable): SQLite
+        # then walks the timestamp index alone.
+        conditions: list[str] = []
+        values: list[int] = []
+        if not self._clean or len(wanted) < len(self._topic_ids):
+            conditions.append(f"topic_id IN ({','.join('?' * len(wanted))})")
+            values += wanted
+        if not self._clean:
+            conditions.append(_VALID_ROW)
+        if start_ns is not None or end_ns is not None:
+            conditions.append("timestamp >= ? AND timestamp < ?")
+            values += [
+                max(start_ns if start_ns is not None else INT64_MIN, INT64_MIN),
+                min(end_ns if end_ns is not None else INT64_MAX, INT64_MAX),
+            ]
+        where = f"WHERE {' AND '.join(conditions)} " if conditions else ""
+        query = f"SELECT topic_id, timestamp, data FROM messages {where}ORDER BY timestamp, rowid"
         names = self._topic_ids
         read = 0
         try:
-            cursor = self._db.execute(query, (*wanted, lower, upper))
+            cursor = self._db.execute(query, values)
             batch, stored_bytes = 1, 0
             while rows := cursor.fetchmany(batch):
                 read += len(rows)

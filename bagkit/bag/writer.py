@@ -24,7 +24,6 @@ from bagkit.bag.mcapio.file_writer import McapFileWriter
 from bagkit.bag.mcapio.records import Header, encode
 from bagkit.bag.messages import BagMessage, TopicInfo
 from bagkit.bag.metadata import BagMetadata, FileInformation, write_metadata
-from bagkit.selection.times import seconds_to_ns
 from bagkit.version import __version__
 
 LIBRARY = f"bagkit {__version__}"
@@ -44,7 +43,7 @@ class BagWriter:
         path: the bag directory to create; it must not exist.
         compression: chunk compression, ``zstd`` (default), ``lz4`` or ``none``.
         max_bag_size: split to a new file when the current one reaches this many bytes (0: never).
-        max_bag_duration_s: split when a file spans this much log time (0: never).
+        max_bag_duration_ns: split when a file spans this much log time (0: never).
         chunk_size: uncompressed bytes after which a chunk is closed.
         chunk_interval_s: wall time after which a chunk is closed at the next write.
         file_preamble: returns messages to write at the start of every split file after the
@@ -62,7 +61,7 @@ class BagWriter:
         *,
         compression: str = "zstd",
         max_bag_size: int = 0,
-        max_bag_duration_s: float = 0,
+        max_bag_duration_ns: int = 0,
         chunk_size: int = DEFAULT_CHUNK_SIZE,
         chunk_interval_s: float = 1.0,
         file_preamble: Callable[[], Sequence[BagMessage]] | None = None,
@@ -79,7 +78,7 @@ class BagWriter:
         self.custom_data: dict[str, str] = {}
         self._compression, self._compress = compressor(compression)
         self._max_bag_size = max_bag_size
-        self._max_bag_duration_ns = seconds_to_ns(max_bag_duration_s, max_bag_duration_s, BagError)
+        self._max_bag_duration_ns = max_bag_duration_ns
         self._chunk_size = chunk_size
         self._chunk_interval_s = chunk_interval_s
         self._lock = threading.Lock()

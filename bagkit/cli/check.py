@@ -112,13 +112,13 @@ def _print(report: HealthReport) -> None:
         return
     broken = report.broken
     verdict = "[bold green]healthy[/]" if not broken else f"[bold red]{len(broken)} broken[/]"
-    console.print(f"{report.bag}: {len(report.assertions)} assertions, {verdict}")
+    count = len(report.assertions)
+    console.print(f"{report.bag}: {count} assertion{'' if count == 1 else 's'}, {verdict}")
     for assertion in broken:
-        console.print(
-            f"  FAIL {assertion.summary(report.start_ns)}", highlight=False, soft_wrap=True
-        )
-        for command in assertion.commands(report.bag, report.start_ns):
-            console.print(f"    {command}", highlight=False, soft_wrap=True)
-        link = report.link(assertion)
-        if link is not None:
-            console.print(f"    {link}", highlight=False, soft_wrap=True)
+        # The assertion and where it broke fit 80 columns; commands and links stay whole.
+        lines = [assertion.where(report.start_ns)]
+        lines += assertion.commands(report.bag, report.start_ns)
+        lines.append(report.link(assertion) or "")
+        console.print(f"  FAIL {assertion.headline}", highlight=False, soft_wrap=True)
+        for line in filter(None, lines):
+            console.print(f"       {line}", highlight=False, soft_wrap=True)

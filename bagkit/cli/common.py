@@ -7,6 +7,7 @@ interrupted, 141 the reader of our output went away (broken pipe; quiet, as ``ye
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import functools
 import os
@@ -15,22 +16,22 @@ import sys
 import threading
 import traceback
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, ClassVar, NoReturn, ParamSpec, TypeVar, cast
 
 import typer
 
 # typer 0.29 vendors click; its exception classes are only importable from there (typer is pinned).
-from typer._click import Command
-from typer._click.exceptions import NoArgsIsHelpError, UsageError
 from typer.core import TyperCommand
 
 from bagkit.compat import StrEnum
-from bagkit.errors import BagkitError
+from bagkit.errors import BagkitError, OptionError
 
 if TYPE_CHECKING:
     from rich.console import Console
+
+    from bagkit.bag.file_rotation import FreeSpace
 
 P = ParamSpec("P")
 R = TypeVar("R")
@@ -206,24 +207,50 @@ def byte_size(text: str) -> int:
         raise typer.BadParameter(f"{text!r}: expected {GRAMMAR}") from None
 
 
+def free_space(text: str) -> FreeSpace:
+    """A free-space option's value: a size (:func:`byte_size`) or a share of the filesystem
+    (``5%``)."""
+    from bagkit.bag.file_rotation import FreeSpace
+    from bagkit.bag.sizes import GRAMMAR
+
+    try:
+        return FreeSpace.parse(text)
+    except BagkitError as exc:
+        if text.strip().endswith("%"):
+            raise typer.BadParameter(str(exc).removeprefix("min_free_space ")) from None
+        raise typer.BadParameter(f"{text!r}: expected {GRAMMAR} or a share (5%)") from None
+
+
+def duration_ns(text: str) -> int:
+    """A duration option's value in ns: ``90`` (seconds), ``1.5``, ``1m30s``, ``250ms``
+    (:func:`bagkit.selection.times.parse_duration`, the grammar of every duration option)."""
+    from bagkit.selection.times import parse_duration
+
+    try:
+        return parse_duration(text, "duration")
+    except BagkitError as exc:
+        raise typer.BadParameter(str(exc).removeprefix("bad duration ")) from None
+
+
+@contextlib.contextmanager
+def option_flags(flags: Mapping[str, str]) -> Iterator[None]:
+    """In the block, an options error that names a field (:class:`bagkit.errors.OptionError`)
+    is one ``error:`` line naming its flag instead (``flags``: field -> flag, or a template
+    with ``{}`` for the problem); the library names its own fields, the CLI its flags, in this
+    one place."""
+    try:
+        yield
+    except OptionError as exc:
+        if exc.field is None:
+            raise
+        names = ", ".join(flags.get(name.strip(), name.strip()) for name in exc.field.split(","))
+        message = names.format(exc.problem) if "{}" in names else f"{names}: {exc.problem}"
+        raise fail(message, exc.exit_code) from None
+
+
 def format_rate(rate_hz: float | None, digits: int = 2) -> str:
     """A topic's rate for a table: ``10.00 Hz``, or ``-`` when it cannot be measured."""
     return "-" if rate_hz is None else f"{rate_hz:.{digits}f} Hz"
-
-
-# Narrowest a folding type column may get before a table is given up for stacked lines.
-MIN_TYPE_WIDTH = 16
-
-
-def topic_table_fits(topics: list[str], other_columns: int) -> bool:
-    """Whether a table of whole topic names, ``other_columns`` characters of numbers and
-    padding, and a type column folded to :data:`MIN_TYPE_WIDTH` fits the terminal.
-
-    Topic names are never cut (they are what users copy into ``--topics``); when a table
-    cannot hold them whole, commands print one topic per line instead.
-    """
-    longest = max((len(t) for t in topics), default=0)
-    return longest + other_columns + MIN_TYPE_WIDTH <= _made("console").width
 
 
 def fail(message: str, exit_code: int = 2) -> typer.Exit:
@@ -351,7 +378,15 @@ def internal_error_message(exc: BaseException) -> str:
     )
 
 
-def run_app(app: typer.Typer | Command, args: list[str] | None = None) -> NoReturn:
+# typer builds its commands on a click of its own that it keeps private (typer._click), and
+# bagkit imports no private module: a command or a context of that click is typed Any.
+ClickCommand = Any
+"""A click command (``TyperCommand``, ``TyperGroup``, or click's base class)."""
+ClickContext = Any
+"""A click context (``typer.Context`` is a subclass)."""
+
+
+def run_app(app: typer.Typer | ClickCommand, args: list[str] | None = None) -> NoReturn:
     """Run a typer app or command as a console script (``args``: sys.argv[1:] when None), exit.
 
     Usage errors are one ``error:`` line (exit 2): click would print a usage block and a boxed
@@ -361,17 +396,16 @@ def run_app(app: typer.Typer | Command, args: list[str] | None = None) -> NoRetu
     """
     try:
         result = app(args=args, standalone_mode=False)
-    except NoArgsIsHelpError as exc:
-        # Help asked for by omission: print it, exit 2 as click does.
-        _made("err_console").print(
-            exc.ctx.get_help() if exc.ctx is not None else "", highlight=False
-        )
-        sys.exit(2)
-    except UsageError as exc:
-        hint = f" (see '{exc.ctx.command_path} --help')" if exc.ctx is not None else ""
-        raise SystemExit(fail(exc.format_message() + hint, exc.exit_code).exit_code) from None
     except typer.TyperException as exc:
-        raise SystemExit(fail(exc.format_message(), exc.exit_code).exit_code) from None
+        # click's usage errors carry the command's context; the one that is the help itself
+        # (no arguments to a command that has no_args_is_help) prints it, exit 2 as click does.
+        ctx = getattr(exc, "ctx", None)
+        message = exc.format_message()
+        if ctx is not None and message == ctx.get_help():
+            _made("err_console").print(message, highlight=False)
+            sys.exit(2)
+        hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
+        raise SystemExit(fail(message + hint, exc.exit_code).exit_code) from None
     except typer.Abort:
         raise SystemExit(fail("interrupted", EXIT_INTERRUPTED).exit_code) from None
     except Exception as exc:

@@ -21,8 +21,10 @@ HELP = """List the episodes of BAGS where WHEN ('TOPIC: CONDITION') holds: runs 
 messages, merged when the next match comes less than --gap after the last one.
 
 Each episode has its bag, topic, first and last matching log time (ns) and how many messages
-matched. The condition is the --where language (docs/cli.md): fixed-layout topics are matched
-in bulk with numpy. Several bags run on a local Dask cluster (--workers, or --scheduler),
+matched, and "from"/"to": seconds from the bag's start (ms, widened to hold the episode) that
+--start/--end of filter and golden add and play's --start-offset take as printed. The
+condition is the --where language (docs/cli.md): fixed-layout topics are matched in bulk with
+numpy. Several bags run on a local Dask cluster (--workers, or --scheduler),
 each bag on one worker, with the same result as in one process. A bag without the topic has no
 episode; one that cannot be read is reported and the exit status is 1.
 
@@ -139,6 +141,8 @@ def _print_table(result: FindResult) -> None:
     table = Table(
         [
             Column("bag"),
+            Column("from (s)", numeric=True),
+            Column("to (s)", numeric=True),
             Column("start (UTC)"),
             Column("end (UTC)"),
             Column("seconds", numeric=True),
@@ -148,5 +152,14 @@ def _print_table(result: FindResult) -> None:
     )
     for e in result.episodes:
         seconds = f"{(e.end_ns - e.start_ns) / 1e9:.3f}"
-        table.add_row(e.bag, _utc(e.start_ns), _utc(e.end_ns), seconds, str(e.count))
+        first, last = e.offsets
+        table.add_row(
+            e.bag,
+            f"{first:.3f}",
+            f"{last:.3f}",
+            _utc(e.start_ns),
+            _utc(e.end_ns),
+            seconds,
+            str(e.count),
+        )
     print_table(table)

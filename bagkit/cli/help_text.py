@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import inspect
 
-from typer._click import Command
 from typer.core import TyperGroup
+
+from bagkit.cli.common import ClickCommand
 
 
 def reflow(text: str) -> str:
@@ -25,7 +26,7 @@ def reflow(text: str) -> str:
     )
 
 
-def reflow_command_help(command: Command) -> None:
+def reflow_command_help(command: ClickCommand) -> None:
     """Reflow the help of ``command`` and of its subcommands, printed as click prints it.
 
     typer's rich panels cut option names to fit a column at 80 characters

@@ -13,10 +13,9 @@ from dataclasses import dataclass
 from typing import Any
 
 import typer
-from typer._click import Command, Context
 from typer.core import TyperCommand, TyperGroup
 
-from bagkit.cli.common import CONTEXT_SETTINGS, run_app
+from bagkit.cli.common import CONTEXT_SETTINGS, ClickCommand, ClickContext, run_app
 from bagkit.cli.help_text import reflow_command_help
 from bagkit.cli.plain_params import use_plain_coercion, use_plain_params
 from bagkit.version import __version__
@@ -67,7 +66,7 @@ _COMMANDS = {
 }
 
 
-def load_command(name: str) -> Command | None:
+def load_command(name: str) -> ClickCommand | None:
     """Import command ``name``'s module and build its click command (None if unknown)."""
     lazy = _COMMANDS.get(name)
     if lazy is None:
@@ -98,15 +97,15 @@ def load_command(name: str) -> Command | None:
 class _LazyGroup(TyperGroup):
     """The top-level group: commands from :data:`_COMMANDS`, imported when they run."""
 
-    def parse_args(self, ctx: Context, args: list[str]) -> list[str]:
+    def parse_args(self, ctx: ClickContext, args: list[str]) -> list[str]:
         # Loaded commands get plain coercion in load_command; this is the top level's.
         use_plain_params(self.get_params(ctx))
         return super().parse_args(ctx, args)
 
-    def list_commands(self, ctx: Context) -> list[str]:
+    def list_commands(self, ctx: ClickContext) -> list[str]:
         return sorted({*self.commands, *_COMMANDS})
 
-    def get_command(self, ctx: Context, cmd_name: str) -> Command | None:
+    def get_command(self, ctx: ClickContext, cmd_name: str) -> ClickCommand | None:
         if cmd_name in self.commands:
             return self.commands[cmd_name]
         if getattr(ctx, "_listing_help", False):
@@ -117,13 +116,13 @@ class _LazyGroup(TyperGroup):
             self.commands[cmd_name] = command
         return command
 
-    def format_help(self, ctx: Context, formatter: Any) -> None:
+    def format_help(self, ctx: ClickContext, formatter: Any) -> None:
         # Listing the commands needs only their one-line help, not their modules.
-        ctx._listing_help = True  # type: ignore[attr-defined]
+        ctx._listing_help = True
         try:
             super().format_help(ctx, formatter)
         finally:
-            ctx._listing_help = False  # type: ignore[attr-defined]
+            ctx._listing_help = False
 
 
 app = typer.Typer(

@@ -15,10 +15,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from typer._click import Command, Context
-from typer._click.exceptions import BadParameter
-from typer._coercion import RuntimeParam
-from typer.core import TyperGroup
+from typer import BadParameter
+from typer.core import RuntimeParam, TyperGroup
+
+from bagkit.cli.common import ClickCommand, ClickContext
 
 
 def _flag(value: Any) -> Any:
@@ -52,12 +52,12 @@ class _PlainParam(RuntimeParam):
 
     convert: Any
 
-    def _coerce_value(self, value: Any, param: Any, ctx: Context) -> Any:
+    def _coerce_value(self, value: Any, param: Any, ctx: ClickContext) -> Any:
         if isinstance(value, (list, tuple)):
             return [self._one(v, param, ctx) for v in value]
         return self._one(value, param, ctx)
 
-    def _one(self, value: Any, param: Any, ctx: Context) -> Any:
+    def _one(self, value: Any, param: Any, ctx: ClickContext) -> Any:
         if self.convert in _NUMBER_NAMES:
             return self._number(value, param, ctx)
         if isinstance(self.convert, type) and issubclass(self.convert, enum.Enum):
@@ -73,7 +73,7 @@ class _PlainParam(RuntimeParam):
         except BadParameter as exc:  # a parser's: named after the option, as typer's
             raise BadParameter(exc.message, ctx=ctx, param=param) from None
 
-    def _number(self, value: Any, param: Any, ctx: Context) -> Any:
+    def _number(self, value: Any, param: Any, ctx: ClickContext) -> Any:
         """An int or float option, within the option's ``min``/``max`` (as typer's messages)."""
         try:
             number = self.convert(value)
@@ -122,18 +122,18 @@ def use_plain_params(params: list[Any]) -> None:
             )
 
 
-def use_plain_coercion(command: Command) -> None:
+def use_plain_coercion(command: ClickCommand) -> None:
     """Give the plain parameters of ``command`` and its subcommands the plain coercion.
 
     Applied when a command parses its arguments: click creates the help option per context.
     """
     parse_args = command.parse_args
 
-    def parse_plainly(ctx: Context, args: list[str]) -> list[str]:
+    def parse_plainly(ctx: ClickContext, args: list[str]) -> list[str]:
         use_plain_params(command.get_params(ctx))
         return parse_args(ctx, args)
 
-    command.parse_args = parse_plainly  # type: ignore[method-assign]
+    command.parse_args = parse_plainly
     if isinstance(command, TyperGroup):
         for sub in command.commands.values():
             use_plain_coercion(sub)

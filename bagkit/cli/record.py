@@ -20,11 +20,13 @@ from bagkit.cli.common import (
     err_console,
     fail,
     handle_errors,
+    option_flags,
     print_json,
     split_list,
     warn,
 )
 from bagkit.cli.record_options import (
+    RECORD_FLAGS,
     Actions,
     AllActions,
     AllServices,
@@ -79,7 +81,14 @@ from bagkit.cli.selection_options import duration_seconds
 from bagkit.extras import ROS, require
 from bagkit.playback.keyboard import key_presses
 from bagkit.recording.latched import parse_repeat
-from bagkit.recording.options import DEFAULT_QUEUE_BYTES, RecordOptions
+from bagkit.recording.options import (
+    DEFAULT_QUEUE_BYTES,
+    MIN_CACHE_BYTES,
+    FileOptions,
+    RecordOptions,
+    SnapshotOptions,
+    SnapshotTrigger,
+)
 from bagkit.recording.report import RecordProgress, RecordReport
 
 if TYPE_CHECKING:
@@ -214,47 +223,67 @@ def record(  # noqa: PLR0917 (typer maps parameters to options; ros2 bag has the
     if storage != "mcap":
         raise fail(f"--storage {storage}: bagkit records MCAP only (it reads sqlite3 bags)")
     quiet = log_level in (LogLevel.ERROR, LogLevel.FATAL)
-    if max_cache_size is not None and max_cache_size < 1 << 20:
-        raise fail(f"--max-cache-size {max_cache_size}: at least 1 MiB (1048576 bytes)")
-    options = RecordOptions(
-        output=output,
-        topics=tuple(split_list(topics_positional) + split_list(topics)),
-        all_topics=all_topics or all_topics_and_services,
-        services=tuple(split_list(services)),
-        all_services=all_services or all_topics_and_services,
-        exclude_services=tuple(split_list(exclude_services)),
-        actions=tuple(split_list(actions)),
-        all_actions=all_actions or all_topics_and_services,
-        exclude_actions=tuple(split_list(exclude_actions)),
-        regex=regex,
-        exclude_regex=exclude_regex,
-        include_hidden=include_hidden,
-        topic_types=tuple(split_list(topic_types)),
-        exclude_topics=tuple(split_list(exclude_topics)),
-        exclude_topic_types=tuple(split_list(exclude_topic_types)),
-        include_unpublished=include_unpublished,
-        custom_data=parse_custom_data(custom_data or []),
-        compression=chunk_compression(compression_mode, compression_format),
-        max_bag_size=max_bag_size,
-        max_bag_duration_s=max_bag_duration,
-        duration_s=duration_seconds(duration, "--duration"),
-        qos_overrides=qos_overrides,
-        use_sim_time=use_sim_time,
-        node_name=node_name,
-        queue_bytes=(not snapshot_mode and max_cache_size) or DEFAULT_QUEUE_BYTES,
-        discovery_period_s=polling_interval / 1000,
-        snapshot_mode=snapshot_mode,
-        snapshot_max_bytes=(snapshot_mode and max_cache_size) or 0,
-        snapshot_max_duration_s=duration_seconds(max_cache_duration, "--max-cache-duration") or 0,
-        triggers=tuple(trigger or ()),
-        pre_s=duration_seconds(pre, "--pre"),
-        post_s=duration_seconds(post, "--post") or 0,
-        repeat_transient_local=parse_repeat(repeat_transient_local or []),
-        repeat_all_transient_local=repeat_all_transient_local,
-        start_paused=start_paused,
-        max_bag_files=max_bag_files,
-        min_free_space=min_free_space,
-    )
+    if max_cache_size is not None and max_cache_size < MIN_CACHE_BYTES:
+        raise fail(f"--max-cache-size {max_cache_size}: at least 1 MiB ({MIN_CACHE_BYTES} bytes)")
+    if not snapshot_mode:
+        snapshot_only = {
+            "--trigger": trigger,
+            "--max-cache-duration": max_cache_duration,
+            "--pre": pre,
+            "--post": post,
+        }
+        if given := [flag for flag, value in snapshot_only.items() if value is not None]:
+            raise fail(f"{', '.join(given)}: need --snapshot-mode")
+    with option_flags(RECORD_FLAGS):
+        snapshot = (
+            SnapshotOptions(
+                max_bytes=max_cache_size or 0,
+                max_duration_ns=max_cache_duration or 0,
+                triggers=tuple(SnapshotTrigger.parse(text) for text in trigger or ()),
+                pre_ns=pre,
+                post_ns=post or 0,
+            )
+            if snapshot_mode
+            else None
+        )
+        options = RecordOptions(
+            output=output,
+            topics=tuple(split_list(topics_positional) + split_list(topics)),
+            all_topics=all_topics or all_topics_and_services,
+            services=tuple(split_list(services)),
+            all_services=all_services or all_topics_and_services,
+            exclude_services=tuple(split_list(exclude_services)),
+            actions=tuple(split_list(actions)),
+            all_actions=all_actions or all_topics_and_services,
+            exclude_actions=tuple(split_list(exclude_actions)),
+            regex=regex,
+            exclude_regex=exclude_regex,
+            include_hidden=include_hidden,
+            topic_types=tuple(split_list(topic_types)),
+            exclude_topics=tuple(split_list(exclude_topics)),
+            exclude_topic_types=tuple(split_list(exclude_topic_types)),
+            include_unpublished=include_unpublished,
+            custom_data=parse_custom_data(custom_data or []),
+            files=FileOptions(
+                compression=chunk_compression(compression_mode, compression_format),
+                max_bag_size=max_bag_size,
+                max_bag_duration_ns=max_bag_duration,
+                max_bag_files=max_bag_files,
+                min_free_space=min_free_space,
+            ),
+            duration_ns=duration,
+            qos_overrides=qos_overrides,
+            use_sim_time=use_sim_time,
+            node_name=node_name,
+            queue_bytes=DEFAULT_QUEUE_BYTES
+            if snapshot_mode or max_cache_size is None
+            else max_cache_size,
+            discovery_period_ns=polling_interval * 1_000_000,
+            snapshot=snapshot,
+            repeat_transient_local=parse_repeat(repeat_transient_local or []),
+            repeat_all_transient_local=repeat_all_transient_local,
+            start_paused=start_paused,
+        )
     watch = _health_watch(health, trigger_on_health, stop_on_health, quiet=quiet)
     recorder = Recorder(
         options, on_warning=(lambda _message: None) if quiet else warn, health=watch

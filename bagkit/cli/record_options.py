@@ -11,7 +11,8 @@ from typing import Annotated
 
 import typer
 
-from bagkit.cli.common import ReportFormat, byte_size
+from bagkit.bag.file_rotation import FreeSpace
+from bagkit.cli.common import ReportFormat, byte_size, duration_ns, free_space
 from bagkit.compat import StrEnum
 
 
@@ -143,20 +144,23 @@ MaxBagSize = Annotated[
     ),
 ]
 MaxBagDuration = Annotated[
-    float,
+    int,
     typer.Option(
         "--max-bag-duration",
         "-d",
-        help="Split into a new file every this many seconds (0: never); keeps recording.",
-        min=0,
+        help="Split into a new file every this long (seconds, or 1m30s; 0: never); keeps "
+        "recording.",
+        parser=duration_ns,
+        metavar="DURATION",
     ),
 ]
 Duration = Annotated[
-    str | None,
+    int | None,
     typer.Option(
         "--duration",
         help="Stop after this long (seconds, or 1m30s), counted from when the topics are "
         "subscribed.",
+        parser=duration_ns,
         metavar="DURATION",
     ),
 ]
@@ -214,10 +218,11 @@ SnapshotMode = Annotated[
     ),
 ]
 MaxCacheDuration = Annotated[
-    str | None,
+    int | None,
     typer.Option(
         "--max-cache-duration",
         help="With --snapshot-mode: keep this many seconds of messages (or 1m30s).",
+        parser=duration_ns,
         metavar="DURATION",
     ),
 ]
@@ -231,18 +236,20 @@ TriggerOption = Annotated[
     ),
 ]
 Pre = Annotated[
-    str | None,
+    int | None,
     typer.Option(
         "--pre",
         help="A snapshot starts this long before its trigger (default: all that is buffered).",
+        parser=duration_ns,
         metavar="DURATION",
     ),
 ]
 Post = Annotated[
-    str | None,
+    int | None,
     typer.Option(
         "--post",
         help="A snapshot goes on this long after its trigger; a trigger meanwhile extends it.",
+        parser=duration_ns,
         metavar="DURATION",
     ),
 ]
@@ -305,11 +312,32 @@ MaxBagFiles = Annotated[
     ),
 ]
 MinFreeSpace = Annotated[
-    str | None,
+    FreeSpace | None,
     typer.Option(
         "--min-free-space",
         help="Keep this much disk free (2GiB, 500MB, 5%): delete the oldest file with "
         "--max-bag-files, else stop with an error before the disk fills.",
+        parser=free_space,
         metavar="SIZE",
     ),
 ]
+
+# The fields of RecordOptions as the flags that set them: an options error names the flag.
+RECORD_FLAGS = {
+    "selection": "{} (name TOPICs, or use --all, --regex, --topic-types, --services ...)",
+    "topics": "--topics",
+    "files.max_bag_size": "--max-bag-size",
+    "files.max_bag_duration_ns": "--max-bag-duration",
+    "files.max_bag_files": "--max-bag-files",
+    "files.min_free_space": "--min-free-space",
+    "duration_ns": "--duration",
+    "queue_bytes": "--max-cache-size",
+    "discovery_period_ns": "--polling-interval",
+    "node_name": "--node-name",
+    "snapshot.max_bytes": "--max-cache-size",
+    "snapshot.max_duration_ns": "--max-cache-duration",
+    "snapshot.triggers": "--trigger",
+    "snapshot.pre_ns": "--pre",
+    "snapshot.post_ns": "--post",
+    "repeat_transient_local": "--repeat-transient-local",
+}

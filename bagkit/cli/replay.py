@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
+from bagkit.bag.latched import LatchedOptions
 from bagkit.cli import common
 from bagkit.cli.common import (
     CONTEXT_SETTINGS,
@@ -17,11 +18,13 @@ from bagkit.cli.common import (
     ReportFormat,
     fail,
     handle_errors,
+    option_flags,
     print_json,
     split_list,
     warn,
 )
 from bagkit.cli.replay_options import (
+    PLAY_FLAGS,
     Bags,
     Clock,
     Delay,
@@ -45,7 +48,6 @@ from bagkit.cli.replay_options import (
     Regex,
     Remap,
     SeekStep,
-    ServiceRequestsSource,
     ServiceRequestsSourceOption,
     ServiceTimeout,
     StartOffset,
@@ -63,11 +65,17 @@ from bagkit.cli.selection_options import duration_seconds
 from bagkit.cli.tables import Column, Table, print_table
 from bagkit.errors import BagkitError
 from bagkit.extras import ROS, require
-from bagkit.playback.options import OnDrift, PlayOptions
+from bagkit.playback.options import (
+    OnDrift,
+    PlayOptions,
+    ServiceRequestReplay,
+    ServiceRequestSource,
+    SubscriberWaits,
+)
 from bagkit.playback.progress import ProgressLine
 from bagkit.playback.source import MessageOrder
 from bagkit.playback.timing import DEFAULT_CLOCK_HZ, DEFAULT_DISCOVERY_TIME_S, LATE_THRESHOLD_NS
-from bagkit.selection.times import seconds_to_ns
+from bagkit.selection.times import NS_PER_S, seconds_to_ns
 
 if TYPE_CHECKING:
     # The player imports rclpy: only `bagkit replay` itself pays for that import.
@@ -96,7 +104,8 @@ class ReplayCommand(MultiValueCommand):
 def _bare_clock(args: list[str]) -> list[str]:
     """``--clock`` not followed by a number -> ``--clock=40`` (rosbag2's default rate)."""
     out: list[str] = []
-    for arg, after in zip(args, [*args[1:], ""], strict=True):
+    for index, arg in enumerate(args):
+        after = args[index + 1] if index + 1 < len(args) else ""
         bare = arg == "--clock" and not _NUMBER.fullmatch(after)
         out.append(f"--clock={DEFAULT_CLOCK_HZ:g}" if bare else arg)
     return out
@@ -152,14 +161,14 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
     read_ahead_queue_size: ReadAheadQueueSize = 1000,
     storage: Storage = None,
     publish_service_requests: PublishServiceRequests = False,
-    service_requests_source: ServiceRequestsSourceOption = ServiceRequestsSource.SERVICE,
+    service_requests_source: ServiceRequestsSourceOption = ServiceRequestSource.SERVICE,
     service_timeout: ServiceTimeout = 5.0,
     output_format: Format = ReportFormat.TABLE,
     inputs: Inputs = None,
     message_order: MessageOrderOption = MessageOrder.RECEIVED,
     latched_topics: LatchedTopics = None,
     no_latched: NoLatched = False,
-    seek_step: SeekStep = 5.0,
+    seek_step: SeekStep = 5 * NS_PER_S,
     on_drift: OnDriftOption = OnDrift.SKIP,
     drift_rules: DriftRules = None,
 ) -> None:
@@ -173,39 +182,43 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
     bag = all_bags[0]
     _check_ros2_options(until_sec, until_nsec, storage, read_ahead_queue_size, wait_for_all_acked)
     progress = ProgressLine(sys.stderr, warn)
-    options = PlayOptions(
-        bag,
-        rate=rate,
-        topics=tuple(split_list(topics)) or None,
-        regex=regex,
-        exclude_regex=exclude,
-        exclude_topics=tuple(split_list(exclude_topics)),
-        start_offset_s=start_offset,
-        duration_s=duration_seconds(duration, "--playback-duration"),
-        until_ns=_until_ns(until_sec, until_nsec),
-        loops=0 if loop else 1,
-        delay_s=delay,
-        clock_hz=clock,
-        start_paused=start_paused,
-        remap=parse_remaps(rule for value in remap or () for rule in value.split(",") if rule),
-        wait_for_subscribers=wait_for_subscribers,
-        wait_for=tuple(wait_for or ()),
-        wait_timeout_s=wait_timeout,
-        discovery_time_s=discovery_time,
-        ack_timeout_s=wait_for_all_acked / 1e3 if wait_for_all_acked else _FOREVER_S,
-        qos_overrides=qos_overrides,
-        progress_period_s=0.25,
-        more_bags=tuple(all_bags[1:]),
-        message_order=message_order,
-        latched=not no_latched,
-        latched_topics=tuple(split_list(latched_topics)),
-        seek_step_s=seek_step,
-        on_drift=on_drift,
-        drift_rules=drift_rules,
-        publish_service_requests=publish_service_requests,
-        service_requests_source=service_requests_source.value,
-        service_timeout_s=service_timeout,
-    )
+    with option_flags(PLAY_FLAGS):
+        options = PlayOptions(
+            bag,
+            rate=rate,
+            topics=tuple(split_list(topics)) or None,
+            regex=regex,
+            exclude_regex=exclude,
+            exclude_topics=tuple(split_list(exclude_topics)),
+            start_offset_s=start_offset,
+            duration_s=duration_seconds(duration, "--playback-duration"),
+            until_ns=_until_ns(until_sec, until_nsec),
+            loops=0 if loop else 1,
+            delay_s=delay,
+            clock_hz=clock,
+            start_paused=start_paused,
+            remap=parse_remaps(rule for value in remap or () for rule in value.split(",") if rule),
+            waits=SubscriberWaits(
+                before_start=wait_for_subscribers,
+                topics=tuple(wait_for or ()),
+                timeout_s=wait_timeout,
+                discovery_s=discovery_time,
+                ack_timeout_s=wait_for_all_acked / 1e3 if wait_for_all_acked else _FOREVER_S,
+            ),
+            qos_overrides=qos_overrides,
+            progress_period_ns=PROGRESS_PERIOD_NS,
+            more_bags=tuple(all_bags[1:]),
+            message_order=message_order,
+            latched=LatchedOptions(
+                enabled=not no_latched, extra_topics=tuple(split_list(latched_topics))
+            ),
+            seek_step_ns=seek_step,
+            on_drift=on_drift,
+            drift_rules=drift_rules,
+            service_requests=ServiceRequestReplay(service_requests_source, service_timeout)
+            if publish_service_requests
+            else None,
+        )
     player = Player(
         options,
         on_progress=progress.update if progress.interactive else None,
@@ -259,6 +272,8 @@ def _run(player: Player, *, keyboard: bool) -> PlayReport:
 
 # --wait-for-all-acked 0: wait "forever" (a year).
 _FOREVER_S = 365 * 24 * 3600.0
+# The progress line is redrawn four times a second.
+PROGRESS_PERIOD_NS = NS_PER_S // 4
 
 
 # `ros2 bag play`'s name for the same command.

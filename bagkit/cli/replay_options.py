@@ -10,9 +10,8 @@ from typing import Annotated
 
 import typer
 
-from bagkit.cli.common import ReportFormat, bag_location
-from bagkit.compat import StrEnum
-from bagkit.playback.options import OnDrift
+from bagkit.cli.common import ReportFormat, bag_location, duration_ns
+from bagkit.playback.options import OnDrift, ServiceRequestSource
 from bagkit.playback.source import MessageOrder
 from bagkit.playback.timing import DEFAULT_CLOCK_HZ
 
@@ -220,8 +219,13 @@ NoLatched = Annotated[
     ),
 ]
 SeekStep = Annotated[
-    float,
-    typer.Option("--seek-step", help="Bag seconds that the seek keys (left arrow, ',' '.') move."),
+    int,
+    typer.Option(
+        "--seek-step",
+        help="Bag time that the seek keys (left arrow, ',' '.') move (seconds, or 250ms).",
+        parser=duration_ns,
+        metavar="DURATION",
+    ),
 ]
 PublishServiceRequests = Annotated[
     bool,
@@ -234,15 +238,8 @@ PublishServiceRequests = Annotated[
 ]
 
 
-class ServiceRequestsSource(StrEnum):
-    """``--service-requests-source``: whose recorded events hold the requests to send."""
-
-    SERVICE = "service_introspection"
-    CLIENT = "client_introspection"
-
-
 ServiceRequestsSourceOption = Annotated[
-    ServiceRequestsSource,
+    ServiceRequestSource,
     typer.Option(
         "--service-requests-source",
         help="Requests from the server's events (service_introspection) or the client's.",
@@ -256,3 +253,16 @@ ServiceTimeout = Annotated[
         min=0.0,
     ),
 ]
+
+# The fields of PlayOptions as the flags that set them: an options error names the flag.
+PLAY_FLAGS = {
+    "rate": "--rate",
+    "delay_s": "--delay",
+    "clock_hz": "--clock",
+    "seek_step_ns": "--seek-step",
+    "latched": "--latched-topics and --no-latched exclude each other ({})",
+    "waits.timeout_s": "--wait-timeout",
+    "waits.discovery_s": "--discovery-time",
+    "waits.ack_timeout_s": "--wait-for-all-acked",
+    "service_requests.timeout_s": "--service-timeout",
+}

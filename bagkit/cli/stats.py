@@ -19,12 +19,11 @@ from bagkit.cli.common import (
     handle_errors,
     note,
     print_json,
-    split_list,
     warn,
 )
 from bagkit.cli.fleet_options import Scheduler, Workers
 from bagkit.cli.progress import DelayedProgress
-from bagkit.cli.selection_options import Distro, End, Start, Where
+from bagkit.cli.selection_options import Distro, End, Start, Where, build_query
 from bagkit.cli.stats_options import Bulk, Fields, Format, Inputs, Topics
 from bagkit.cli.tables import Cell, Column, Styled, Table, print_line, print_table, print_wrapped
 
@@ -72,20 +71,10 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
     Example: bagkit stats summary 'flights/2026-11-*' -t /imu/data --workers 4
     """
     from bagkit.fleet import expand_bags
-    from bagkit.selection.conditions import parse_condition
 
-    if where is not None:
-        parse_condition(where)  # a bad condition is one error, before any bag is read
+    query = build_query(topics, fields, start, end, where)  # one error before any bag is read
     bags = expand_bags(inputs)
-    options = {
-        "topics": split_list(topics) or None,
-        "fields": split_list(fields) or None,
-        "start": start,
-        "end": end,
-        "bulk": bulk,
-        "check_crc": check_crc,
-        "where": where,
-    }
+    options = {"query": query, "bulk": bulk, "check_crc": check_crc}
     result = _summarize(bags, options, workers=workers, scheduler=scheduler)
     for topic, reason in result.skipped.items():
         warn(f"topic {topic} skipped: {reason}")
@@ -159,14 +148,22 @@ def _latency_rows(bags: list[Path], topics: set[str]) -> dict[str, FieldStats]:
 
 
 def _print_services(services: list[dict[str, Any]]) -> None:
+    """One line per service and bag; the bag named where there are several."""
+    several = len({service["bag"] for service in services}) > 1
     for service in services:
         print_line([])
+        where = [f"{service['bag']}:"] if several else []
         figures = [
             f"{name} {_number(service[key] * 1e3 if service[key] is not None else None)} ms"
             for name, key in (("p50", "p50_s"), ("p99", "p99_s"), ("max", "max_s"))
         ]
         print_wrapped(
-            [Styled(service["service"], "bold"), f"latency: {service['count']} calls,", *figures],
+            [
+                *where,
+                Styled(service["service"], "bold"),
+                f"latency: {service['count']} calls,",
+                *figures,
+            ],
             sep="  ",
         )
 

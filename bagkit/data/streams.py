@@ -8,6 +8,8 @@ durability (latched), or when named in ``state_topics``.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from bagkit.bag import BagReader
@@ -168,12 +170,36 @@ def temporal_intervals(
     Raises:
         UnknownTopicError, UnknownFieldError, UndecodableTopicError, SelectionError.
     """
+    (found,), times, problems = intervals_of_each(reader, topic, [condition], window, state)
+    return found, times, problems
+
+
+def intervals_of_each(
+    reader: BagReader,
+    topic: str,
+    conditions: Sequence[Condition],
+    window: Window,
+    state: bool = False,
+) -> tuple[list[np.ndarray], np.ndarray, list[str]]:
+    """:func:`temporal_intervals` of several conditions over one topic, its columns read once
+    (what ``bagkit check`` evaluates for each topic of a contract).
+
+    Raises:
+        UnknownTopicError, UnknownFieldError, UndecodableTopicError, SelectionError.
+    """
     (topic,) = require_topics([topic], reader.topics)
-    stream = BagStream(reader, topic, condition, window)
+    every = Condition(
+        " or ".join(f"({c.text})" for c in conditions),
+        Node("or", tuple(c.tree for c in conditions)),
+    )
+    stream = BagStream(reader, topic, every, window)
     start = max(window.start_ns or reader.start_ns, reader.start_ns)
     end = min(window.end_ns - 1 if window.end_ns is not None else reader.end_ns, reader.end_ns)
     scope = Scope(topic, start, max(start, end), state)
-    found = evaluate(condition.tree, stream, scope) if reader.message_count else intervals.NONE
+    found = [
+        evaluate(c.tree, stream, scope) if reader.message_count else intervals.NONE
+        for c in conditions
+    ]
     return found, stream.log_times, [*reader.problems, *stream.problems]
 
 

@@ -111,7 +111,7 @@ class MessageTypes:
             for dep in _references(parsed)
             if dep not in self.typestore.fielddefs and dep not in parsed
         ]
-        if missing:  # rosbags' own Jazzy types load only then (they take 0.1-0.2 s to import)
+        if missing:  # rosbags' own Jazzy types load only then (a slow import: startup bench)
             builtin: Mapping[str, Any] = get_typestore(Stores.ROS2_JAZZY).fielddefs
             for dep in missing:
                 if dep not in parsed:

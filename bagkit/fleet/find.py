@@ -31,21 +31,41 @@ if TYPE_CHECKING:
     import pyarrow as pa
     from distributed import Client
 
-COLUMNS = ("bag", "topic", "start_ns", "end_ns", "count")
+COLUMNS = ("bag", "topic", "start_ns", "end_ns", "count", "start_offset_s", "end_offset_s")
+_NS_PER_MS = 1_000_000
+
+
+def episode_offsets(start_ns: int, end_ns: int, bag_start_ns: int) -> tuple[float, float]:
+    """An episode as seconds from its bag's start, in ms, widened to hold it: the start
+    rounded down, the end (exclusive, after the last match) up. ``--start``/``--end`` of
+    filter and golden add, and play's ``--start-offset``, take them as printed."""
+    first = (start_ns - bag_start_ns) // _NS_PER_MS
+    last = -(-(end_ns + 1 - bag_start_ns) // _NS_PER_MS)
+    return first / 1000, last / 1000
 
 
 @dataclass(frozen=True, slots=True)
 class FoundEpisode:
-    """One episode of one bag: first and last matching log time (ns), matches in it."""
+    """One episode of one bag: first and last matching log time (ns), matches in it, and
+    the log time of the bag's first message (for the offsets)."""
 
     bag: str
     topic: str
     start_ns: int
     end_ns: int
     count: int
+    bag_start_ns: int = 0
+
+    @property
+    def offsets(self) -> tuple[float, float]:
+        """Seconds from the bag's start, ms precision: :func:`episode_offsets`."""
+        return episode_offsets(self.start_ns, self.end_ns, self.bag_start_ns)
 
     def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        found = asdict(self)
+        del found["bag_start_ns"]
+        found["start_offset_s"], found["end_offset_s"] = self.offsets
+        return found
 
 
 @dataclass(slots=True)
@@ -63,6 +83,8 @@ class BagEpisodes:
     """The bag's topics, kept when it lacks the trigger's (for the did-you-mean)."""
     problems: list[str] = field(default_factory=list)
     error: str | None = None
+    start_ns: int = 0
+    """The log time of the bag's first message."""
 
 
 @dataclass(slots=True)
@@ -90,20 +112,31 @@ class FindResult:
     def episodes(self) -> list[FoundEpisode]:
         """Every episode as an object (made on each call)."""
         return [
-            FoundEpisode(part.bag, self.topic, start, end, count)
+            FoundEpisode(part.bag, self.topic, start, end, count, part.start_ns)
             for part in self.parts
             for start, end, count in part.spans.tolist()
         ]
 
     def to_arrow(self) -> pa.Table:
-        """One row per episode: ``bag``, ``topic``, ``start_ns``, ``end_ns``, ``count``."""
+        """One row per episode: ``bag``, ``topic``, ``start_ns``, ``end_ns``, ``count``,
+        ``start_offset_s``, ``end_offset_s``."""
         import pyarrow as pa
 
         spans = np.concatenate([NO_SPANS, *(part.spans for part in self.parts)])
         repeats = [len(part.spans) for part in self.parts]
         bags = np.repeat(np.array([part.bag for part in self.parts], dtype=object), repeats)
-        columns = [bags, np.full(len(spans), self.topic, dtype=object), *spans.T]
+        starts = np.repeat(np.array([p.start_ns for p in self.parts], dtype=np.int64), repeats)
+        first = (spans[:, 0] - starts) // _NS_PER_MS
+        last = -(-(spans[:, 1] + 1 - starts) // _NS_PER_MS)
+        columns = [
+            bags,
+            np.full(len(spans), self.topic, dtype=object),
+            *spans.T,
+            first / 1000,
+            last / 1000,
+        ]
         types = [pa.string(), pa.string(), pa.int64(), pa.int64(), pa.int64()]
+        types += [pa.float64(), pa.float64()]
         return pa.table(
             [pa.array(values, type=kind) for values, kind in zip(columns, types, strict=True)],
             names=list(COLUMNS),
@@ -138,7 +171,7 @@ def episodes_in_bag(
     problems = [p if p.startswith(bag) else f"{bag}: {p}" for p in found.problems]
     if outside is not None and reader.message_count:
         problems.insert(0, outside)
-    return BagEpisodes(bag, found.spans, problems=problems)
+    return BagEpisodes(bag, found.spans, problems=problems, start_ns=reader.start_ns)
 
 
 def find_fleet(

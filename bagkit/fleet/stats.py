@@ -17,14 +17,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from bagkit.bag import BagError, BagReader
-from bagkit.decode import MessageTypes
 from bagkit.fleet.errors import FleetError
 from bagkit.fleet.execute import ItemDone, run_each
-from bagkit.selection.conditions import parse_condition
-from bagkit.selection.fields import FieldSelection
-from bagkit.selection.times import TimeLike
+from bagkit.selection.query import Query
 from bagkit.selection.topics import absolute_topic_name
-from bagkit.selection.windows import TimeRange
 from bagkit.stats import StatsError, Summary
 from bagkit.stats.accumulate import TopicAccumulator
 from bagkit.stats.summary import SummaryRun, check_topics, finish_summary
@@ -55,37 +51,17 @@ class BagPartial:
     error: str | None = None
 
 
-def _new_run(
-    fields: Sequence[str] | None,
-    start: TimeLike | None,
-    end: TimeLike | None,
-    bulk: bool,
-    where: str | None = None,
-) -> SummaryRun:
-    return SummaryRun(
-        MessageTypes(),
-        FieldSelection(fields),
-        TimeRange.parse(start, end),
-        bulk,
-        progress=None,
-        prefetch=False,
-        where=None if where is None else parse_condition(where),
-    )
-
-
 def summarize_bag(
     bag: str,
+    query: Query | None = None,
     *,
-    topics: Sequence[str] | None = None,
-    fields: Sequence[str] | None = None,
-    start: TimeLike | None = None,
-    end: TimeLike | None = None,
     bulk: bool = True,
     check_crc: bool = True,
-    where: str | None = None,
 ) -> BagPartial:
     """The partial summary of one bag (what a worker computes); arguments as ``summarize``."""
-    run = _new_run(fields, start, end, bulk, where)
+    query = query or Query()
+    topics = list(query.topics) or None
+    run = SummaryRun.of(query, bulk=bulk, prefetch=False)
     try:
         with BagReader(bag, allow_empty=True, check_crc=check_crc) as reader:
             run.read(reader, topics, bag)
@@ -138,15 +114,7 @@ def _merge(run: SummaryRun, part: BagPartial) -> None:
     run.problems.extend(part.problems)
 
 
-def merge_partials(
-    parts: Sequence[BagPartial],
-    *,
-    topics: Sequence[str] | None = None,
-    fields: Sequence[str] | None = None,
-    start: TimeLike | None = None,
-    end: TimeLike | None = None,
-    where: str | None = None,
-) -> Summary:
+def merge_partials(parts: Sequence[BagPartial], query: Query | None = None) -> Summary:
     """The summary of the bags of ``parts`` (in their order), as ``summarize`` would give it.
 
     Raises:
@@ -156,8 +124,10 @@ def merge_partials(
     readable = [part for part in parts if part.error is None]
     if not readable:
         raise FleetError(f"no bag could be read ({parts[0].error if parts else 'no bag given'})")
-    topics = check_topics(set().union(*(part.topics for part in readable)), topics, len(parts))
-    run = _new_run(fields, start, end, bulk=True, where=where)
+    query = query or Query()
+    known = set().union(*(part.topics for part in readable))
+    check_topics(known, list(query.topics) or None, len(parts))
+    run = SummaryRun.of(query, prefetch=False)
     for part in parts:
         if part.error is not None:
             run.problems.append(f"{part.bag}: not read: {part.error}")
@@ -170,14 +140,10 @@ def summarize_fleet(
     bags: Iterable[str | Path],
     *,
     client: Client | None,
-    topics: Sequence[str] | None = None,
-    fields: Sequence[str] | None = None,
-    start: TimeLike | None = None,
-    end: TimeLike | None = None,
+    query: Query | None = None,
     bulk: bool = True,
     check_crc: bool = True,
     done: ItemDone | None = None,
-    where: str | None = None,
 ) -> Summary:
     """``bagkit.stats.summarize`` of ``bags``, on ``client``'s workers (here when None).
 
@@ -188,17 +154,8 @@ def summarize_fleet(
         As :func:`merge_partials`.
     """
     paths = [str(bag) for bag in bags]
-    if topics is not None:
-        topics = [absolute_topic_name(topic) for topic in topics]
-    task = functools.partial(
-        summarize_bag,
-        topics=topics,
-        fields=fields,
-        start=start,
-        end=end,
-        bulk=bulk,
-        check_crc=check_crc,
-        where=where,
-    )
+    query = query or Query()
+    query = query.with_topics(absolute_topic_name(topic) for topic in query.topics)
+    task = functools.partial(summarize_bag, query=query, bulk=bulk, check_crc=check_crc)
     parts = run_each(task, paths, client, done)
-    return merge_partials(parts, topics=topics, fields=fields, start=start, end=end, where=where)
+    return merge_partials(parts, query)

@@ -1,12 +1,12 @@
 """A health contract evaluated on bags: one :class:`Assertion` per line of the contract.
 
 Every assertion over time is a condition that must never hold
-(:class:`~bagkit.health.spec.TopicContract`), found with
-:func:`bagkit.data.episodes.find_episodes` (numpy over the bag's columns; ``gap`` and ``rate``
-from the MCAP indexes alone). A topic the bag lacks, or has no message of, breaks its contract;
-a field the topic's type lacks is a bad spec (:class:`SpecError`). Many bags run on Dask
-through :func:`bagkit.fleet.execute.run_each`; a bag that cannot be read is reported among the
-others.
+(:class:`~bagkit.health.spec.TopicContract`); a topic's conditions are evaluated together by
+:func:`bagkit.data.streams.intervals_of_each`, the columns they read decoded in one bulk pass
+(``gap`` and ``rate`` alone: from the MCAP indexes, nothing decoded). A topic the bag lacks,
+or has no message of, breaks its contract; a field the topic's type lacks is a bad spec
+(:class:`SpecError`). Many bags run on Dask through :func:`bagkit.fleet.execute.run_each`; a
+bag that cannot be read is reported among the others.
 """
 
 from __future__ import annotations
@@ -21,13 +21,16 @@ import numpy as np
 
 from bagkit.bag import BagError, BagReader
 from bagkit.bag.definitions import canonical_type_name
-from bagkit.data.episodes import NO_SPANS, find_episodes
+from bagkit.bag.latched import is_state_topic
+from bagkit.data.episodes import NO_SPANS, interval_spans
+from bagkit.data.streams import intervals_of_each
 from bagkit.fleet.execute import ItemDone, run_each
 from bagkit.health import links
 from bagkit.health.links import filter_command, foxglove_link, play_command
-from bagkit.health.spec import HealthSpec, SpecError
-from bagkit.selection.conditions import TopicCondition
+from bagkit.health.spec import HealthSpec, SpecError, TopicContract
 from bagkit.selection.errors import SelectionError
+from bagkit.selection.topics import did_you_mean
+from bagkit.selection.windows import Window
 from bagkit.storage.errors import StorageError
 
 if TYPE_CHECKING:
@@ -60,17 +63,25 @@ class Assertion:
 
     def summary(self, bag_start_ns: int) -> str:
         """One line: what broke, why, how often and first where (seconds from the start)."""
+        where = self.where(bag_start_ns)
+        return f"{self.headline}: {where}" if where else self.headline
+
+    @property
+    def headline(self) -> str:
+        """What is asserted, and why it broke where that is not a place in time."""
         text = f"{self.topic}: {self.what}"
-        if self.reason:
-            text += f" ({self.reason})"
-        if len(self.spans):
-            start, end, _ = self.spans[0].tolist()
-            times = "1 time" if len(self.spans) == 1 else f"{len(self.spans)} times"
-            text += (
-                f": {times}, first at {(start - bag_start_ns) / 1e9:.3f}"
-                f"-{(end - bag_start_ns) / 1e9:.3f} s"
-            )
-        return text
+        return f"{text} ({self.reason})" if self.reason else text
+
+    def where(self, bag_start_ns: int) -> str:
+        """How often it broke and first where (seconds from the start); "" without spans."""
+        if not len(self.spans):
+            return ""
+        start, end, _ = self.spans[0].tolist()
+        times = "1 time" if len(self.spans) == 1 else f"{len(self.spans)} times"
+        return (
+            f"{times}, first at {(start - bag_start_ns) / 1e9:.3f}"
+            f"-{(end - bag_start_ns) / 1e9:.3f} s"
+        )
 
     def commands(self, bag: str, bag_start_ns: int) -> list[str]:
         """Commands that replay the first place it broke and cut every one."""
@@ -178,6 +189,7 @@ def check_bag(bag: str | Path, spec: HealthSpec) -> HealthReport:
     """
     found: list[Assertion] = []
     with BagReader(bag, allow_empty=True) as reader:
+        problems = list(reader.problems)
         counts = reader.topic_counts
         for topic in spec.forbidden:
             present = counts.get(topic, 0) > 0
@@ -186,7 +198,10 @@ def check_bag(bag: str | Path, spec: HealthSpec) -> HealthReport:
         for contract in spec.topics:
             topic = contract.topic
             if not counts.get(topic, 0):
-                reason = "not in the bag" if topic not in reader.topics else "no message"
+                reason = "no message"
+                if topic not in reader.topics:  # a misspelling reads as a broken contract
+                    guess = did_you_mean(topic, reader.topics).rstrip()
+                    reason = f"not in the bag{'; ' + guess if guess else ''}"
                 found.append(Assertion(topic, "present", False, reason=reason))
                 continue
             found.append(Assertion(topic, "present", True))
@@ -196,13 +211,39 @@ def check_bag(bag: str | Path, spec: HealthSpec) -> HealthReport:
                 found.append(
                     Assertion(topic, f"type {contract.type}", same, reason="" if same else actual)
                 )
-            for text, condition in contract.never:
-                try:
-                    episodes = find_episodes(reader, TopicCondition(topic, condition))
-                except SelectionError as exc:
-                    raise SpecError(f"{spec.source}: {topic}: {exc}") from None
-                found.append(Assertion(topic, text, not len(episodes.spans), episodes.spans))
-        return HealthReport(str(bag), reader.start_ns, found, list(reader.problems))
+            if not contract.never:
+                continue
+            try:
+                broken, times, read_problems = intervals_of_each(
+                    reader,
+                    topic,
+                    [condition for _, condition in contract.never],
+                    Window(),
+                    is_state_topic(reader, topic),
+                )
+            except SelectionError as exc:
+                raise _field_error(reader, spec, contract, exc) from None
+            problems.extend(p for p in read_problems if p not in problems)
+            for (text, _), where in zip(contract.never, broken, strict=True):
+                spans = interval_spans(where, times)
+                found.append(Assertion(topic, text, not len(spans), spans))
+        return HealthReport(str(bag), reader.start_ns, found, problems)
+
+
+def _field_error(
+    reader: BagReader, spec: HealthSpec, contract: TopicContract, error: SelectionError
+) -> SpecError:
+    """The error of a condition that does not fit the topic's type, naming its spec line
+    (each condition read alone to find which)."""
+    for index, (text, condition) in enumerate(contract.never):
+        try:
+            intervals_of_each(reader, contract.topic, [condition], Window())
+        except SelectionError as exc:
+            lines = contract.lines
+            line = lines[index] if index < len(lines) and lines[index] else None
+            where = f"{spec.source}:{line}" if line else spec.source
+            return SpecError(f"{where}: {contract.topic}: {text}: {exc}")
+    return SpecError(f"{spec.source}: {contract.topic}: {error}")
 
 
 def _check_one(bag: str, *, spec: HealthSpec, url: str | None) -> HealthReport:

@@ -57,6 +57,8 @@ class TopicContract:
     type: str | None = None
     never: tuple[tuple[str, Condition], ...] = ()
     """(what is asserted, the condition that breaks it) in the order written."""
+    lines: tuple[int, ...] = ()
+    """The spec's line of each of ``never`` (0: not known), for errors found on reading a bag."""
 
 
 @dataclass(frozen=True)
@@ -94,11 +96,26 @@ class HealthSpec:
             raise SpecError(f"{source}{where}: not YAML ({exc})") from None
         return _Reader(source, lines).spec(data or {})
 
+    @classmethod
+    def parse_section(cls, text: str, key: str, source: str) -> HealthSpec | None:
+        """The contract under ``key`` of a larger YAML document (a golden spec's ``health:``),
+        None without one; errors name the document's lines."""
+        data = safe_yaml.load(text)
+        if not isinstance(data, Mapping) or data.get(key) is None:
+            return None
+        found = _key_lines(text)
+        prefix = f"{key}."
+        lines = {k.removeprefix(prefix): v for k, v in found.items() if k.startswith(prefix)}
+        lines[""] = found.get(key, 0)  # "the spec must be a mapping" names the section's line
+        return _Reader(source, lines).spec(data[key])
+
 
 class _Reader:
     def __init__(self, source: str, lines: dict[str, int]) -> None:
         self.source = source
         self.lines = lines
+        self.written: dict[str, str] = {}
+        """Each condition's text -> where in the spec it was written."""
 
     def fail(self, where: str, message: str) -> SpecError:
         line = self.lines.get(where)
@@ -166,10 +183,14 @@ class _Reader:
         never.extend(self.condition(f"{where}.never", str(text)) for text in conditions)
         kind = body.get("type")
         return TopicContract(
-            absolute_topic_name(name), None if kind is None else str(kind), tuple(never)
+            absolute_topic_name(name),
+            None if kind is None else str(kind),
+            tuple(never),
+            tuple(self.lines.get(self.written[text], 0) for text, _ in never),
         )
 
     def condition(self, where: str, text: str) -> tuple[str, Condition]:
+        self.written[text] = where
         try:
             return text, parse_condition(text)
         except SelectionError as exc:

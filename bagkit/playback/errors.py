@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from bagkit.errors import BagkitError
+from bagkit.errors import OptionError
 
 
-class PlayerError(BagkitError):
+class PlayerError(OptionError):
     """A replay that cannot start: bad options, nothing to replay."""

@@ -2,9 +2,9 @@
 
 A replay that loops for days must not keep one number per published message: the percentiles
 come from every sample up to ``LATENESS_SAMPLES``, then from a uniform random sample of that
-many (reservoir sampling, vectorized over the blocks the player hands over: about 0.1 ms per
-4096 samples, so that a hand-over between two messages does not delay the next). The count,
-the maximum and the number of late messages stay exact.
+many (reservoir sampling, vectorized over the blocks the player hands over, so that a hand-over
+between two messages does not delay the next). The count, the maximum and the number of late
+messages stay exact.
 """
 
 from __future__ import annotations

@@ -17,8 +17,16 @@ from bagkit.playback.errors import PlayerError
 from bagkit.playback.source import MessageOrder
 from bagkit.playback.timing import DEFAULT_DISCOVERY_TIME_S
 from bagkit.selection.errors import SelectionError
-from bagkit.selection.times import Anchor, TimeLike, TimePoint, parse_time, seconds_to_ns
+from bagkit.selection.times import (
+    NS_PER_S,
+    Anchor,
+    TimeLike,
+    TimePoint,
+    parse_time,
+    seconds_to_ns,
+)
 from bagkit.selection.topics import TopicSelection
+from bagkit.selection.windows import Window, outside_warning
 
 
 class OnDrift(StrEnum):
@@ -79,14 +87,13 @@ class PlayWindow:
         """Log-time bounds (start, exclusive end or None) in a bag of messages start..end.
 
         Raises:
-            PlayerError: the offset is past the bag's last message (nothing would be replayed).
+            PlayerError: the offset is past the bag's last message (nothing would be replayed):
+                the one message of a window outside a bag.
         """
         window_start = max(start_ns, self.start.resolve(start_ns, end_ns))
-        if window_start > end_ns:
-            raise PlayerError(
-                f"the start offset {(window_start - start_ns) / 1e9:g} s is past the end of "
-                f"{bag} ({(end_ns - start_ns) / 1e9:.3f} s of messages)"
-            )
+        outside = outside_warning(str(bag), Window(window_start), start_ns, end_ns)
+        if outside is not None:
+            raise PlayerError(outside)
         ends = []
         if self.duration_ns is not None:
             ends.append(window_start + self.duration_ns)
@@ -115,6 +122,43 @@ class SubscriberWaits:
     timeout_s: float = 10.0
     discovery_s: float = DEFAULT_DISCOVERY_TIME_S
     ack_timeout_s: float = 10.0
+
+    def __post_init__(self) -> None:
+        for name in ("timeout_s", "discovery_s", "ack_timeout_s"):
+            seconds = getattr(self, name)
+            if not 0 <= seconds < float("inf"):
+                raise PlayerError(f"must be >= 0 and finite, got {seconds}", f"waits.{name}")
+
+
+class ServiceRequestSource(StrEnum):
+    """Which recorded service events hold the requests a replay sends."""
+
+    SERVICE = "service_introspection"
+    """The server's events."""
+    CLIENT = "client_introspection"
+    """The client's events."""
+
+
+@dataclass(frozen=True, slots=True)
+class ServiceRequestReplay:
+    """Recorded service requests sent to the live services instead of their events republished
+    (``--publish-service-requests``), the live responses compared with the recorded ones
+    (:mod:`bagkit.ros.replay.service_requests`).
+
+    Attributes:
+        source: which recorded events hold the requests.
+        timeout_s: after the last request, how long answers are waited for; requests still
+            unanswered then (a service that is not there) count as unanswered.
+    """
+
+    source: ServiceRequestSource = ServiceRequestSource.SERVICE
+    timeout_s: float = 5.0
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.timeout_s < float("inf"):
+            raise PlayerError(
+                f"must be >= 0 and finite, got {self.timeout_s}", "service_requests.timeout_s"
+            )
 
 
 @dataclass(frozen=True)
@@ -145,37 +189,27 @@ class PlayOptions:
         services: offer rosbag2's control services and a ``rate`` parameter on the node
             (:mod:`bagkit.ros.replay.services`).
         remap: topic renames, recorded name -> published name.
-        wait_for_subscribers: before the first message, wait until every subscription that
-            the graph shows on a replayed topic has matched.
-        wait_for: topics that must have at least one subscriber before playback starts
-            (for consumers that are still starting up).
-        wait_timeout_s: seconds to wait for subscribers before giving up.
-        discovery_time_s: seconds after the node's creation during which the graph is watched
-            for subscriptions that already exist.
-        ack_timeout_s: at the end, seconds to wait for subscribers of reliable topics to
-            acknowledge every message.
+        waits: how the player waits for its subscribers, before the first message (every
+            subscription the graph shows, named topics) and after the last (acknowledgements).
         qos_overrides: rosbag2 QoS overrides file (``topic: {reliability: ..., ...}``).
-        publish_service_requests: instead of republishing service events, call each service
-            with its recorded requests at their times and compare the live responses with the
-            recorded ones (:mod:`bagkit.ros.replay.service_requests`).
-        service_requests_source: which recorded events hold the requests to send:
-            ``service_introspection`` (the server's) or ``client_introspection`` (the client's).
-        service_timeout_s: after the last request, how long answers are waited for; requests
-            still unanswered then (a service that is not there) count as unanswered.
+        service_requests: call each service with its recorded requests at their times instead
+            of republishing its events (None: republish the events).
         node_name: name of the player's node.
-        progress_period_s: seconds between two calls of the player's ``on_progress``.
-        tune_process: tune the process as ``bagkit replay`` does (:mod:`bagkit.native`:
+        progress_period_ns: wall time between two calls of the player's ``on_progress``.
+        tune_process: tune the process as ``bagkit replay`` does (:mod:`bagkit.ros.tuning`:
             Fast DDS shared-memory buffers, malloc thresholds, precise timers on the publishing
             thread); False leaves the host process alone.
         more_bags: further bags replayed with ``bag`` as one timeline (``bagkit play A B``).
         message_order: merge and schedule by log time (received) or send time (sent).
         latched: on a late start (``start_offset_s``, a seek, each loop), first publish the
-            last message before it of each latched topic (``--no-latched``: False).
-        latched_topics: topics recorded volatile whose state is carried over too.
-        seek_step_s: bag time one seek key moves back or forward.
+            last message before it of each latched topic (and of ``extra_topics``);
+            ``LatchedOptions(enabled=False)``: none (``--no-latched``).
+        seek_step_ns: bag time one seek key moves back or forward.
         on_drift: a topic whose stored definition differs from the installed type's
             (:mod:`bagkit.decode.drift`): skipped, published as recorded, or migrated.
         drift_rules: the rules file of ``on_drift`` migrate (as ``bagkit migrate --rules``).
+
+    Errors name the field (``waits.timeout_s: must be >= 0``); the CLI names its flag.
 
     Raises:
         PlayerError: an option out of its range, or a regular expression that does not compile.
@@ -196,47 +230,36 @@ class PlayOptions:
     start_paused: bool = False
     services: bool = True
     remap: Mapping[str, str] = field(default_factory=dict)
-    wait_for_subscribers: bool = True
-    wait_for: tuple[str, ...] = ()
-    wait_timeout_s: float = 10.0
-    discovery_time_s: float = DEFAULT_DISCOVERY_TIME_S
-    ack_timeout_s: float = 10.0
+    waits: SubscriberWaits = field(default_factory=SubscriberWaits)
     qos_overrides: Path | None = None
-    publish_service_requests: bool = False
-    service_requests_source: str = "service_introspection"
-    service_timeout_s: float = 5.0
+    service_requests: ServiceRequestReplay | None = None
     node_name: str = "bagkit_player"
-    progress_period_s: float = 0.5
+    progress_period_ns: int = NS_PER_S // 2
     tune_process: bool = True
     more_bags: tuple[Path, ...] = ()
     message_order: MessageOrder = MessageOrder.RECEIVED
-    latched: bool = True
-    latched_topics: tuple[str, ...] = ()
-    seek_step_s: float = 5.0
+    latched: LatchedOptions = field(default_factory=LatchedOptions)
+    seek_step_ns: int = 5 * NS_PER_S
     on_drift: OnDrift = OnDrift.SKIP
     drift_rules: Path | None = None
 
     def __post_init__(self) -> None:
-        if not self.rate > 0:
-            raise PlayerError(f"rate must be positive, got {self.rate}")
-        if self.delay_s < 0:
-            raise PlayerError(f"delay must not be negative, got {self.delay_s}")
-        if self.clock_hz is not None and not self.clock_hz > 0:
-            raise PlayerError(f"clock rate must be positive, got {self.clock_hz}")
+        if not 0 < self.rate < float("inf"):
+            raise PlayerError(f"must be positive, got {self.rate}", "rate")
+        if not 0 <= self.delay_s < float("inf"):
+            raise PlayerError(f"must not be negative, got {self.delay_s}", "delay_s")
+        if self.clock_hz is not None and not 0 < self.clock_hz < float("inf"):
+            raise PlayerError(f"must be positive, got {self.clock_hz}", "clock_hz")
         if self.loops < 0:
-            raise PlayerError(f"loops must be 0 (forever) or positive, got {self.loops}")
-        seconds_to_ns(self.progress_period_s, self.progress_period_s, PlayerError)
-        if not self.seek_step_s > 0:
-            raise PlayerError(f"seek step must be positive, got {self.seek_step_s}")
-        if self.latched_topics and not self.latched:
-            raise PlayerError("--latched-topics and --no-latched exclude each other")
-        if self.service_requests_source not in ("service_introspection", "client_introspection"):
+            raise PlayerError(f"must be 0 (forever) or positive, got {self.loops}", "loops")
+        if self.progress_period_ns <= 0:
             raise PlayerError(
-                f"service requests source {self.service_requests_source!r}: use "
-                "service_introspection or client_introspection"
+                f"must be positive, got {self.progress_period_ns}", "progress_period_ns"
             )
-        if self.service_timeout_s < 0:
-            raise PlayerError(f"service timeout must not be negative, got {self.service_timeout_s}")
+        if self.seek_step_ns <= 0:
+            raise PlayerError(f"must be positive, got {self.seek_step_ns}", "seek_step_ns")
+        if self.latched.extra_topics and not self.latched.enabled:
+            raise PlayerError("extra topics without latched state", "latched")
         _ = self.window, self.selection  # their own checks
 
     @property
@@ -248,27 +271,6 @@ class PlayOptions:
     def bags(self) -> tuple[Path, ...]:
         """Every bag of the replay, ``bag`` first."""
         return (bag_path(self.bag), *self.more_bags)
-
-    @property
-    def latched_options(self) -> LatchedOptions:
-        """Which topics carry their state over to a late start."""
-        return LatchedOptions(enabled=self.latched, extra_topics=self.latched_topics)
-
-    @property
-    def seek_step_ns(self) -> int:
-        """:attr:`seek_step_s` in nanoseconds."""
-        return seconds_to_ns(self.seek_step_s, self.seek_step_s, PlayerError)
-
-    @property
-    def waits(self) -> SubscriberWaits:
-        """How the player waits for its subscribers."""
-        return SubscriberWaits(
-            self.wait_for_subscribers,
-            self.wait_for,
-            self.wait_timeout_s,
-            self.discovery_time_s,
-            self.ack_timeout_s,
-        )
 
     @property
     def selection(self) -> TopicSelection:

@@ -29,7 +29,7 @@ from bagkit.playback.timing import (
 )
 
 # Lateness samples are handed to LatenessSamples in blocks, when the next message is at least
-# LATENESS_SLACK_NS away (a block of 4096 takes about 0.1 ms), or at the latest at
+# LATENESS_SLACK_NS away (well above what a block costs), or at the latest at
 # LATENESS_BLOCK_MAX: a list append per message is all the publishing loop pays otherwise.
 LATENESS_BLOCK = 4096
 LATENESS_BLOCK_MAX = 8 * LATENESS_BLOCK

@@ -6,12 +6,12 @@ import math
 import time
 from dataclasses import dataclass
 
-# A sleeping thread wakes up late (50 us of default timer slack, more on a busy machine); the
+# A sleeping thread wakes up late (Linux's default timer slack, more on a busy machine); the
 # last stretch before a deadline is spun instead. Short: a thread that spins most of the time is,
-# to the scheduler, a CPU hog that it preempts for whole time slices on a busy machine. With
-# 0.5 ms, a 2 kHz replay (1 kHz at rate 2) never slept and its p99 lateness was worse than a
-# plain sleeping loop's; the player lowers the publishing thread's timer slack
-# (bagkit.native.precise_timers) so that a short spin covers the wake-up (benchmarks/README.md).
+# to the scheduler, a CPU hog that it preempts for whole time slices on a busy machine (a long
+# spin window made a fast replay's p99 lateness worse than a plain sleeping loop's); the player
+# lowers the publishing thread's timer slack (bagkit.native.precise_timers) so that a short
+# spin covers the wake-up (benchmarks/README.md).
 SPIN_WINDOW_NS = 50_000
 # A message published more than this after its scheduled time counts as late.
 LATE_THRESHOLD_NS = 1_000_000

@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from bagkit.errors import BagkitError
+from bagkit.errors import BagkitError, OptionError
 
 
-class RecorderOptionsError(BagkitError):
+class RecorderOptionsError(OptionError):
     """A recording that cannot start: nothing selected, a bad option, an existing output."""
 
 

@@ -25,21 +25,22 @@ DEFAULT_DEPTH = 1
 
 
 def parse_repeat(values: Sequence[str]) -> dict[str, int]:
-    """``--repeat-transient-local TOPIC[=N]`` values -> {absolute topic: N}.
+    """``TOPIC[=N]`` values (``--repeat-transient-local``) -> {absolute topic: N}.
 
     Raises:
-        RecorderOptionsError: an empty topic, or N that is not a positive integer.
+        RecorderOptionsError: an empty topic, or N that is not a positive integer (field
+            ``repeat_transient_local``).
     """
     depths: dict[str, int] = {}
     for value in values:
         topic, sep, count = value.partition("=")
         if not topic.strip():
-            raise RecorderOptionsError(f"--repeat-transient-local {value!r}: no topic")
+            raise RecorderOptionsError(f"{value!r}: no topic", "repeat_transient_local")
         depth = DEFAULT_DEPTH
         if sep:
             if not count.isdigit() or int(count) < 1:
                 raise RecorderOptionsError(
-                    f"--repeat-transient-local {value!r}: N must be a positive integer"
+                    f"{value!r}: N must be a positive integer", "repeat_transient_local"
                 )
             depth = int(count)
         depths[absolute_topic_name(topic.strip())] = depth

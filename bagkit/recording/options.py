@@ -9,9 +9,9 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from datetime import datetime
+from functools import cached_property
 from pathlib import Path
 
-from bagkit.bag.errors import BagError
 from bagkit.bag.file_rotation import FileRotation, FreeSpace
 from bagkit.bag.sizes import split_size_problem
 from bagkit.bag.writer import DEFAULT_CHUNK_SIZE
@@ -19,12 +19,117 @@ from bagkit.recording.errors import RecorderOptionsError
 from bagkit.selection.conditions import TopicCondition, parse_topic_condition
 from bagkit.selection.errors import SelectionError
 from bagkit.selection.services import RecordSelection
+from bagkit.selection.times import NS_PER_S
 from bagkit.selection.topics import TopicSelection
 
 # Bounds the memory held between taking and writing: absorbs writer hiccups (a slow disk
 # write, a chunk to compress); beyond that the middleware holds the messages (see handoff).
 DEFAULT_QUEUE_BYTES = 64 << 20
-DISCOVERY_PERIOD_S = 0.1
+# The least --max-cache-size: below it the queue or buffer holds less than one large message
+# (an image) and drops it.
+MIN_CACHE_BYTES = 1 << 20
+DISCOVERY_PERIOD_NS = NS_PER_S // 10
+
+
+@dataclass(frozen=True, slots=True)
+class FileOptions:
+    """The bag's files: compression, splitting, circular recording, the free-space guard.
+
+    Attributes:
+        compression: MCAP chunk compression: ``zstd``, ``lz4`` or ``none``.
+        max_bag_size: split into a new file at this many bytes (0: never; at least one chunk).
+        max_bag_duration_ns: split when a file spans this much log time (0: never).
+        max_bag_files: circular recording: keep the newest N files of a split bag (0: all).
+        min_free_space: a free-space floor (:meth:`FreeSpace.parse`: ``2GiB``, ``5%``): below
+            it the oldest file of a circular bag is deleted, else the recording stops with an
+            error (None: no guard).
+    """
+
+    compression: str = "zstd"
+    max_bag_size: int = 0
+    max_bag_duration_ns: int = 0
+    max_bag_files: int = 0
+    min_free_space: FreeSpace | None = None
+
+    def __post_init__(self) -> None:
+        if self.max_bag_size < 0:
+            raise RecorderOptionsError("must be >= 0", "files.max_bag_size")
+        too_small = split_size_problem(self.max_bag_size, DEFAULT_CHUNK_SIZE)
+        if too_small is not None:
+            raise RecorderOptionsError(f"{too_small} (one chunk)", "files.max_bag_size")
+        if self.max_bag_duration_ns < 0:
+            raise RecorderOptionsError("must be >= 0", "files.max_bag_duration_ns")
+        if self.max_bag_files < 0:
+            raise RecorderOptionsError("must be >= 0", "files.max_bag_files")
+        if self.max_bag_files and not self.splits:
+            raise RecorderOptionsError(
+                "needs the bag split (by size or by duration)", "files.max_bag_files"
+            )
+
+    @property
+    def splits(self) -> bool:
+        """Whether the bag is split into several files."""
+        return bool(self.max_bag_size or self.max_bag_duration_ns)
+
+    @property
+    def rotation(self) -> FileRotation:
+        """The circular-recording and free-space settings, as the bag writer takes them."""
+        return FileRotation(self.max_bag_files, self.min_free_space)
+
+
+@dataclass(frozen=True, slots=True)
+class SnapshotTrigger:
+    """A snapshot trigger: a message on ``condition.topic`` that satisfies ``condition``.
+
+    Attributes:
+        text: as given (``'/alerts: status[*].level >= 2'``), for the report.
+        condition: the parsed condition.
+    """
+
+    text: str
+    condition: TopicCondition
+
+    @classmethod
+    def parse(cls, text: str) -> SnapshotTrigger:
+        """``'TOPIC: CONDITION'`` parsed.
+
+        Raises:
+            RecorderOptionsError: not a topic and a condition (field ``snapshot.triggers``).
+        """
+        try:
+            return cls(text, parse_topic_condition(text))
+        except SelectionError as exc:
+            raise RecorderOptionsError(str(exc), "snapshot.triggers") from None
+
+
+@dataclass(frozen=True, slots=True)
+class SnapshotOptions:
+    """Snapshot mode (the black box): the newest messages kept in memory, a bag per trigger.
+
+    Attributes:
+        max_bytes: the buffer's bound in bytes (0: none).
+        max_duration_ns: the buffer's bound in log time (0: none); one of the two is needed.
+        triggers: conditions on the data that trigger a snapshot.
+        pre_ns: a snapshot starts this long before its trigger (None: all that is buffered).
+        post_ns: a snapshot goes on this long after its (last) trigger.
+    """
+
+    max_bytes: int = 0
+    max_duration_ns: int = 0
+    triggers: tuple[SnapshotTrigger, ...] = ()
+    pre_ns: int | None = None
+    post_ns: int = 0
+
+    def __post_init__(self) -> None:
+        for name in ("max_bytes", "max_duration_ns", "pre_ns", "post_ns"):
+            value = getattr(self, name)
+            if value is not None and value < 0:
+                raise RecorderOptionsError("must be >= 0", f"snapshot.{name}")
+        if not (self.max_bytes or self.max_duration_ns):
+            raise RecorderOptionsError(
+                "one is needed: the snapshot buffer's bound",
+                "snapshot.max_bytes, snapshot.max_duration_ns",
+            )
 
 
 def default_output_name(now: datetime | None = None) -> str:
@@ -38,7 +143,7 @@ class RecordOptions:
 
     Example::
 
-        options = RecordOptions(Path("run1"), topics=("/imu/data",), duration_s=60)
+        options = RecordOptions(Path("run1"), topics=("/imu/data",), duration_ns=60 * NS_PER_S)
         report = Recorder(options).run()
 
     Attributes:
@@ -63,11 +168,9 @@ class RecordOptions:
             sets it too).
         exclude_actions: leave out these actions, named ones included.
         custom_data: key -> value pairs for metadata.yaml's ``custom_data``.
-        compression: MCAP chunk compression: ``zstd``, ``lz4`` or ``none``.
-        max_bag_size: split into a new file at this many bytes (0: never).
-        max_bag_duration_s: split when a file spans this many seconds (0: never).
-        duration_s: ``run()`` stops this many seconds after the topics are subscribed (None:
-            only when told to stop).
+        files: compression, splitting, circular recording, the free-space guard.
+        duration_ns: ``run()`` stops this long after the topics are subscribed (None: only
+            when told to stop).
         max_messages: ``run()`` stops once this many messages are written (None: no limit).
         qos_overrides: a rosbag2 QoS overrides file (``topic: {reliability: ..., ...}``):
             subscribe with these profiles instead of the adapted ones.
@@ -75,33 +178,25 @@ class RecordOptions:
             messages taken before the first ``/clock`` are not written (counted in
             ``TopicRecord.before_clock``).
         node_name: the recorder node's name.
-        queue_bytes: bound of the queue between taking and writing (``--max-cache-size``).
-        discovery_period_s: how often the graph is polled for new topics and publishers.
-        tune_process: tune the process as ``bagkit record`` does (:mod:`bagkit.native`:
+        queue_bytes: bound of the queue between taking and writing.
+        discovery_period_ns: how often the graph is polled for new topics and publishers.
+        tune_process: tune the process as ``bagkit record`` does (:mod:`bagkit.ros.tuning`:
             Fast DDS shared-memory queue, malloc thresholds); False leaves the host process
             alone.
-        snapshot_mode: keep the newest messages in memory and write a bag of them under
-            ``output`` at each trigger only (``--snapshot-mode``).
-        snapshot_max_bytes: the snapshot buffer's bound in bytes (``--max-cache-size`` in
-            snapshot mode; 0: none).
-        snapshot_max_duration_s: the snapshot buffer's bound in seconds of log time
-            (``--max-cache-duration``; 0: none).
-        triggers: ``'TOPIC: CONDITION'`` texts: a message on TOPIC that satisfies the field
-            condition triggers a snapshot (``--trigger``).
-        pre_s: a snapshot starts this long before its trigger (None: all that is buffered).
-        post_s: a snapshot goes on this long after its (last) trigger.
+        snapshot: snapshot mode: keep the newest messages in memory and write a bag of them
+            under ``output`` at each trigger only (None: record everything to one bag).
         repeat_transient_local: topic -> how many of its last messages are written at the
-            start of every snapshot and split file (``--repeat-transient-local TOPIC[=N]``).
-        repeat_all_transient_local: repeat the last message of every transient-local topic
-            (``--repeat-all-transient-local``); None: on in snapshot mode, off otherwise.
-        max_bag_files: circular recording: keep the newest N files of a split bag (0: all).
-        min_free_space: a free-space floor (``2GiB``, ``5%``): below it the oldest file of a
-            circular bag is deleted, else the recording stops with an error (None: no guard).
-        start_paused: start paused (``--start-paused``): messages are counted as ``paused``
-            until ``Recorder.resume()``, the ``~/resume`` service or the space key.
+            start of every snapshot and split file.
+        repeat_all_transient_local: repeat the last message of every transient-local topic;
+            None: on in snapshot mode, off otherwise.
+        start_paused: start paused: messages are counted as ``paused`` until
+            ``Recorder.resume()``, the ``~/resume`` service or the space key.
+
+    Errors name the field (``files.max_bag_size: must be >= 0``); the CLI names its flag.
 
     Raises:
-        RecorderOptionsError: nothing selected, a negative limit.
+        RecorderOptionsError: nothing selected, a value out of its range, a trigger on a topic
+            that is not recorded.
         SelectionError: a regular expression does not compile.
     """
 
@@ -122,54 +217,51 @@ class RecordOptions:
     all_actions: bool = False
     exclude_actions: tuple[str, ...] = ()
     custom_data: Mapping[str, str] = field(default_factory=dict)
-    compression: str = "zstd"
-    max_bag_size: int = 0
-    max_bag_duration_s: float = 0
-    duration_s: float | None = None
+    files: FileOptions = field(default_factory=FileOptions)
+    duration_ns: int | None = None
     max_messages: int | None = None
     qos_overrides: Path | None = None
     use_sim_time: bool = False
     node_name: str = "bagkit_recorder"
     queue_bytes: int = DEFAULT_QUEUE_BYTES
-    discovery_period_s: float = DISCOVERY_PERIOD_S
+    discovery_period_ns: int = DISCOVERY_PERIOD_NS
     tune_process: bool = True
-    snapshot_mode: bool = False
-    snapshot_max_bytes: int = 0
-    snapshot_max_duration_s: float = 0
-    triggers: tuple[str, ...] = ()
-    pre_s: float | None = None
-    post_s: float = 0
+    snapshot: SnapshotOptions | None = None
     repeat_transient_local: Mapping[str, int] = field(default_factory=dict)
     repeat_all_transient_local: bool | None = None
     start_paused: bool = False
-    max_bag_files: int = 0
-    min_free_space: str | None = None
 
     def __post_init__(self) -> None:
         if self.selection.empty:
             raise RecorderOptionsError(
-                "nothing to record: name topics, services or actions, or use --all, "
-                "--all-services, --all-actions, --regex or --topic-types"
+                "nothing to record: no topic, service or action is selected", "selection"
             )
-        if self.max_bag_size < 0 or self.max_bag_duration_s < 0:
-            raise RecorderOptionsError("--max-bag-size and --max-bag-duration must be >= 0")
-        too_small = split_size_problem(self.max_bag_size, DEFAULT_CHUNK_SIZE)
-        if too_small is not None:
-            raise RecorderOptionsError(f"--max-bag-size: {too_small} (one chunk)")
-        if self.duration_s is not None and self.duration_s < 0:
-            raise RecorderOptionsError(f"duration must not be negative, got {self.duration_s}")
+        if self.duration_ns is not None and self.duration_ns < 0:
+            raise RecorderOptionsError("must not be negative", "duration_ns")
         if self.max_messages is not None and self.max_messages < 1:
-            raise RecorderOptionsError(f"max_messages must be positive, got {self.max_messages}")
-        if self.queue_bytes < 1 or self.discovery_period_s <= 0:
-            raise RecorderOptionsError("queue_bytes and discovery_period_s must be positive")
-        check_snapshot_options(self)
-        check_rotation_options(self)
+            raise RecorderOptionsError("must be positive", "max_messages")
+        if self.queue_bytes < 1:
+            raise RecorderOptionsError("must be positive", "queue_bytes")
+        if self.discovery_period_ns <= 0:
+            raise RecorderOptionsError("must be positive", "discovery_period_ns")
+        if any(depth < 1 for depth in self.repeat_transient_local.values()):
+            raise RecorderOptionsError("N must be positive", "repeat_transient_local")
+        if self.snapshot is not None:
+            for name in ("max_bag_files", "min_free_space"):
+                if getattr(self.files, name):
+                    raise RecorderOptionsError("does not apply to snapshot mode", f"files.{name}")
+            for trigger in self.snapshot.triggers:
+                topic = trigger.condition.topic
+                if not self.selection.matches(topic) and topic not in self.topics:
+                    raise RecorderOptionsError(
+                        f"{trigger.text!r}: {topic} is not among the recorded topics",
+                        "snapshot.triggers",
+                    )
 
     @property
-    def rotation(self) -> FileRotation:
-        """The circular-recording and free-space settings, parsed."""
-        floor = None if self.min_free_space is None else FreeSpace.parse(self.min_free_space)
-        return FileRotation(self.max_bag_files, floor)
+    def snapshot_mode(self) -> bool:
+        """Whether snapshots are written (:attr:`snapshot`) rather than one bag."""
+        return self.snapshot is not None
 
     @property
     def repeats_all_transient_local(self) -> bool:
@@ -178,14 +270,9 @@ class RecordOptions:
             return self.snapshot_mode
         return self.repeat_all_transient_local
 
-    @property
-    def trigger_conditions(self) -> list[TopicCondition]:
-        """The parsed ``triggers``."""
-        return [parse_topic_condition(text) for text in self.triggers]
-
-    @property
+    @cached_property
     def selection(self) -> RecordSelection:
-        """The topic, service and action options, a :class:`RecordSelection`."""
+        """The topic, service and action options, a :class:`RecordSelection` (built once)."""
         topics = TopicSelection.create(
             self.topics,
             all_topics=self.all_topics,
@@ -205,47 +292,3 @@ class RecordOptions:
             all_actions=self.all_actions,
             exclude_actions=self.exclude_actions,
         )
-
-
-def check_snapshot_options(options: RecordOptions) -> None:
-    """Raise RecorderOptionsError for snapshot settings that do not go together or parse."""
-    if options.snapshot_mode:
-        if options.snapshot_max_bytes < 0 or options.snapshot_max_duration_s < 0:
-            raise RecorderOptionsError("--max-cache-size and --max-cache-duration must be >= 0")
-        if not (options.snapshot_max_bytes or options.snapshot_max_duration_s):
-            raise RecorderOptionsError(
-                "--snapshot-mode needs a bound: --max-cache-size or --max-cache-duration"
-            )
-    elif options.triggers or options.snapshot_max_duration_s or options.post_s:
-        raise RecorderOptionsError(
-            "--trigger, --max-cache-duration and --post need --snapshot-mode"
-        )
-    if (options.pre_s is not None and options.pre_s < 0) or options.post_s < 0:
-        raise RecorderOptionsError("--pre and --post must be >= 0")
-    if any(depth < 1 for depth in options.repeat_transient_local.values()):
-        raise RecorderOptionsError("--repeat-transient-local: N must be positive")
-    for text in options.triggers:
-        try:
-            topic = parse_topic_condition(text).topic
-        except SelectionError as exc:
-            raise RecorderOptionsError(f"--trigger {exc}") from None
-        if not options.selection.matches(topic) and topic not in options.topics:
-            raise RecorderOptionsError(
-                f"--trigger {text!r}: {topic} is not among the recorded topics"
-            )
-
-
-def check_rotation_options(options: RecordOptions) -> None:
-    """Raise RecorderOptionsError for --max-bag-files / --min-free-space that cannot work."""
-    if options.max_bag_files < 0:
-        raise RecorderOptionsError("--max-bag-files must be >= 0")
-    if options.max_bag_files and not (options.max_bag_size or options.max_bag_duration_s):
-        raise RecorderOptionsError("--max-bag-files needs splitting: -b or -d")
-    if options.snapshot_mode and (options.max_bag_files or options.min_free_space):
-        raise RecorderOptionsError(
-            "--max-bag-files and --min-free-space do not apply to --snapshot-mode"
-        )
-    try:
-        _ = options.rotation
-    except BagError as exc:
-        raise RecorderOptionsError(str(exc)) from None

@@ -45,7 +45,7 @@ def create_output(
             invalid.
         RecordingFailedError: the bag cannot be written (a full disk); nothing is left.
     """
-    floor = options.rotation.min_free
+    floor = options.files.min_free_space
     if floor is not None:
         existing = next(p for p in [path, *path.parents] if p.exists())
         if floor.below(existing):
@@ -56,12 +56,12 @@ def create_output(
     try:
         bag = BagWriter(
             path,
-            compression=options.compression,
-            max_bag_size=options.max_bag_size,
-            max_bag_duration_s=options.max_bag_duration_s,
+            compression=options.files.compression,
+            max_bag_size=options.files.max_bag_size,
+            max_bag_duration_ns=options.files.max_bag_duration_ns,
             chunk_interval_s=FLUSH_PERIOD_S,
             file_preamble=file_preamble,
-            rotation=options.rotation,
+            rotation=options.files.rotation,
         ).open()
         bag.custom_data.update(options.custom_data)
         return bag

@@ -10,6 +10,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Protocol
 
 from bagkit.recording.report import RecordProgress
+from bagkit.selection.times import NS_PER_S
 
 if TYPE_CHECKING:
     from bagkit.recording.options import RecordOptions
@@ -59,8 +60,8 @@ def wait_until_done(
             next_progress = now + progress_period_s
         subscribed = subscriptions.complete.is_set()
         wait = min(POLL_S, progress_period_s) if subscribed else POLL_STARTING_S
-        if options.duration_s is not None and subscribed:
-            remaining = subscriptions.complete_at + options.duration_s - now
+        if options.duration_ns is not None and subscribed:
+            remaining = subscriptions.complete_at + options.duration_ns / NS_PER_S - now
             if remaining <= 0:
                 return
             wait = min(wait, remaining)

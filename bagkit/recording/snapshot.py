@@ -3,8 +3,8 @@
 :class:`SnapshotSink` stands where the recorder's bag stands (the writer thread calls the same
 ``add_topic``, ``write_batch``, ``flush``, ``close``): it puts every message into one
 :class:`~bagkit.recording.snapshot_buffer.SnapshotBuffer`, checks the ``--trigger``
-conditions, and on each trigger opens a *window*: ``pre_s`` before the trigger (default: all
-that is buffered) to ``post_s`` after it. A trigger inside an open window extends it. The
+conditions, and on each trigger opens a *window*: ``pre_ns`` before the trigger (default: all
+that is buffered) to ``post_ns`` after it. A trigger inside an open window extends it. The
 window's buffered part, the latched state before it and the messages taken until its end go to
 the :class:`~bagkit.recording.snapshot_writer.SnapshotWriter` thread, which writes them as a
 complete bag ``OUTPUT/snapshot_N``. Requests (the ``~/snapshot`` service, a key) come from
@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Protocol
 
 from bagkit.bag import TopicInfo
-from bagkit.recording.errors import RecorderOptionsError, TriggerError
+from bagkit.recording.errors import TriggerError
 from bagkit.recording.latched import LatchedState, latched_depth
 from bagkit.recording.options import RecordOptions
 from bagkit.recording.report import SnapshotRecord
@@ -33,7 +33,6 @@ from bagkit.recording.snapshot_writer import (
     SnapshotTopic,
     SnapshotWriter,
 )
-from bagkit.selection.times import seconds_to_ns
 
 # A window ends once messages this much newer than its end arrive (or the clock passes it):
 # batches of slower topics are up to a few milliseconds old when they reach the writer.
@@ -89,11 +88,11 @@ class SnapshotSink:
         self._options = options
         self._repeat: Mapping[str, int] = options.repeat_transient_local
         self._latched = LatchedState(self._repeat)
-        self._buffer = SnapshotBuffer(
-            options.snapshot_max_bytes, _ns(options.snapshot_max_duration_s), self._latched
-        )
-        self._pre_ns = None if options.pre_s is None else _ns(options.pre_s)
-        self._post_ns = _ns(options.post_s)
+        snapshot = options.snapshot
+        assert snapshot is not None, "a snapshot sink needs snapshot options"
+        self._buffer = SnapshotBuffer(snapshot.max_bytes, snapshot.max_duration_ns, self._latched)
+        self._pre_ns = snapshot.pre_ns
+        self._post_ns = snapshot.post_ns
         self.triggers = triggers
         self._topics: dict[str, tuple[TopicInfo, str]] = {}
         self._window: _Window | None = None
@@ -111,7 +110,7 @@ class SnapshotSink:
         """
         self.path.mkdir(parents=True)
         self._writer = SnapshotWriter(
-            self._options.compression, dict(self.custom_data), self._write_failed
+            self._options.files.compression, dict(self.custom_data), self._write_failed
         )
         return self
 
@@ -264,7 +263,3 @@ class SnapshotSink:
     def _put(self, item: SnapshotStart | SnapshotTopic | SnapshotMessages | SnapshotEnd) -> None:
         assert self._writer is not None, "open() first"
         self._writer.put(item)
-
-
-def _ns(seconds: float) -> int:
-    return seconds_to_ns(seconds, seconds, RecorderOptionsError, "seconds")

@@ -19,8 +19,8 @@ from bagkit.regression.errors import RegressionError
 from bagkit.regression.lockstep import LockstepResult, run_lockstep
 from bagkit.regression.processor import make_processors
 from bagkit.regression.spec import BAG_DIR, SPEC_FILE, FixtureSpec, load_spec
+from bagkit.selection.query import Query
 from bagkit.selection.times import TimeLike
-from bagkit.selection.windows import TimeRange, outside_warning
 from bagkit.surgery.around import Around, episode_window
 from bagkit.surgery.rewrite import filter_bag
 from bagkit.surgery.select import Selection
@@ -75,7 +75,7 @@ def add_fixture(directory: Path, options: AddOptions) -> AddedFixture:
         raise RegressionError(f"{directory} exists and is not empty: choose a new folder")
     like = None if options.like is None else load_spec(options.like)
     options, episodes = _around(options)
-    _check_window(options)
+    duration_s = _window_seconds(options)
     # On a failure, the folders made here go too (``fixtures/`` as well as ``fixtures/new``).
     made = next((p for p in reversed([directory, *directory.parents]) if not p.exists()), None)
     directory.mkdir(parents=True, exist_ok=True)
@@ -92,7 +92,7 @@ def add_fixture(directory: Path, options: AddOptions) -> AddedFixture:
                 window.rename(directory / BAG_DIR)
                 (directory / SPEC_FILE).write_text(_template(options, counts, types))
                 return AddedFixture(directory, None, counts, episodes=episodes)
-            (directory / SPEC_FILE).write_text(_copied(options, like))
+            (directory / SPEC_FILE).write_text(_copied(options, like, duration_s))
             spec = load_spec(directory)
             result = run_lockstep(
                 window,
@@ -108,18 +108,25 @@ def add_fixture(directory: Path, options: AddOptions) -> AddedFixture:
     return AddedFixture(directory, spec, counts, result, episodes)
 
 
-def _check_window(options: AddOptions) -> None:
-    """A window outside the bag is no fixture (its latched state alone would pass any test).
+def _window_seconds(options: AddOptions) -> float:
+    """How long the window lasts within the bag, in seconds.
 
     Raises:
-        RegressionError: the window holds none of the bag's messages (the one warning's text).
+        RegressionError: the window holds none of the bag's messages (the one warning's text):
+            a window outside the bag is no fixture (its latched state alone would pass any
+            test).
     """
-    span = TimeRange.parse(options.start, options.end)
     with BagReader(options.bag, allow_empty=True) as reader:
+        resolved = Query.create(start=options.start, end=options.end).resolve(
+            reader, label=str(options.bag)
+        )
         first, last = reader.start_ns, reader.end_ns
-    outside = outside_warning(str(options.bag), span.resolve(first, last), first, last)
-    if outside is not None:
-        raise RegressionError(outside)
+    if resolved.outside is not None:
+        raise RegressionError(resolved.outside)
+    window = resolved.window
+    start = first if window.start_ns is None else max(window.start_ns, first)
+    end = last if window.end_ns is None else min(window.end_ns, last)
+    return round(max(end - start, 0) / 1e9, 3)
 
 
 def _around(options: AddOptions) -> tuple[AddOptions, int]:
@@ -145,15 +152,45 @@ def _origin(options: AddOptions) -> str:
     return f"# Cut by `bagkit golden add` from {options.bag}, from {start} to {end}{why}.\n"
 
 
-def _copied(options: AddOptions, like: FixtureSpec) -> str:
-    """``like``'s spec.yaml, under a line saying where the window comes from."""
+def _copied(options: AddOptions, like: FixtureSpec, duration_s: float) -> str:
+    """``like``'s spec.yaml made to fit the new fixture, under a line saying where the window
+    comes from: no description (the old one tells of another recording), the window's
+    duration, and no ``record_launch`` that reads files of the old fixture's folder (the new
+    one lacks them); the rest (system under test, topics, tolerances) as written there."""
     if like.processor is None:
         raise RegressionError(
             f"{like.directory / SPEC_FILE}: --like needs a spec with a processor (lockstep "
             "makes the expected outputs of the window)"
         )
-    text = (like.directory / SPEC_FILE).read_text()
-    return _origin(options) + f"# Spec copied from {like.directory}.\n" + text
+    lines = (like.directory / SPEC_FILE).read_text().splitlines()
+    kept: list[str] = []
+    skipping = False  # inside the block of a key left out
+    for n, line in enumerate(lines):
+        if skipping and not _top_level(line):
+            continue
+        skipping = False
+        key = line.split(":", 1)[0] if _top_level(line) else None
+        if key == "description":
+            kept.append("description: ''   # say what this window shows")
+        elif key == "duration":
+            kept.append(f"duration: {duration_s:g}   # seconds: the window's")
+        elif key == "record_launch" and "{fixture}" in "\n".join(_block(lines, n)):
+            kept.append(f"# record_launch of {like.directory} left out: it reads its files")
+            skipping = True
+        else:
+            kept.append(line)
+    return _origin(options) + f"# Spec adapted from {like.directory}.\n" + "\n".join(kept) + "\n"
+
+
+def _top_level(line: str) -> bool:
+    """Whether a spec line starts a top-level key (not a comment, an item or indented)."""
+    return line[:1].isalpha()
+
+
+def _block(lines: list[str], n: int) -> list[str]:
+    """Top-level key line ``n`` and the lines under it (indented, list items, blank)."""
+    end = next((i for i in range(n + 1, len(lines)) if _top_level(lines[i])), len(lines))
+    return lines[n:end]
 
 
 def _template(options: AddOptions, counts: dict[str, int], types: dict[str, str]) -> str:

@@ -9,8 +9,10 @@ from pathlib import Path
 from bagkit.bag import BagReader
 from bagkit.compare import CompareReport, compare_bags
 from bagkit.decode.drift import TopicDrift
+from bagkit.health import HealthReport
 from bagkit.regression.drift import drift_lines, golden_drift, refuse_drift
 from bagkit.regression.errors import SpecError
+from bagkit.regression.health import broken_lines
 from bagkit.regression.lockstep import LockstepResult, run_lockstep
 from bagkit.regression.processor import Processor, make_processors
 from bagkit.regression.spec import BAG_DIR, SPEC_FILE, FixtureSpec
@@ -30,6 +32,10 @@ class GoldenCheck:
     report: CompareReport
     lockstep: LockstepResult | None = None
     drift: tuple[TopicDrift, ...] = ()
+    health: HealthReport | None = None
+    """The spec's ``health:`` contract on the candidate (its topics among the outputs)."""
+    golden_health: HealthReport | None = None
+    """The whole contract on the golden."""
 
     @classmethod
     def drifted(cls, spec: FixtureSpec, mode: str, candidate: Path) -> GoldenCheck | None:
@@ -41,9 +47,15 @@ class GoldenCheck:
         return cls(spec, mode, candidate, report, drift=tuple(drifts))
 
     @property
-    def passed(self) -> bool:
+    def matched(self) -> bool:
         """Whether the candidate's outputs match the golden's."""
         return not self.drift and self.report.passed
+
+    @property
+    def passed(self) -> bool:
+        """Whether the outputs match and the golden and the candidate keep the contract."""
+        healthy = all(h is None or h.passed for h in (self.health, self.golden_health))
+        return self.matched and healthy
 
     def summary(self, limit: int = 8) -> str:
         """A few lines naming the failing topics and fields and the first divergences."""
@@ -60,6 +72,9 @@ class GoldenCheck:
             counts = f"missing {topic.missing}, extra {topic.extra}"
             lines.append(f"  {topic.topic}: {counts}; fields: {fields or '-'}")
         lines += [f"  {d.describe()}" for d in self.report.first_divergences(limit)]
+        for where, health in (("golden", self.golden_health), ("candidate", self.health)):
+            if health is not None:
+                lines += broken_lines(health, where)
         return "\n".join(lines)
 
 

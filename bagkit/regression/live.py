@@ -23,7 +23,7 @@ from bagkit.bag import BagReader
 from bagkit.compare import compare_bags
 from bagkit.errors import BagkitError
 from bagkit.extras import ROS, require
-from bagkit.playback.options import PlayOptions
+from bagkit.playback.options import PlayOptions, ServiceRequestReplay
 from bagkit.processes import Command, ProcessError, StopPolicy, Supervisor
 from bagkit.recording.options import RecordOptions
 from bagkit.regression.errors import LiveRunError, SpecError
@@ -158,7 +158,7 @@ def _replay_inputs(spec: FixtureSpec) -> None:
         clock_hz=CLOCK_HZ,
         services=False,
         # The golden's requests go to the live services; their events are outputs.
-        publish_service_requests=bool(spec.services),
+        service_requests=ServiceRequestReplay() if spec.services else None,
     )
     try:
         Player(options).run()

@@ -19,6 +19,8 @@ import yaml
 
 from bagkit.compare import CompareOptions, options_from_mapping
 from bagkit.compare.errors import CompareError
+from bagkit.health.spec import HealthSpec
+from bagkit.health.spec import SpecError as HealthSpecError
 from bagkit.regression.errors import SpecError
 from bagkit.regression.services import service_ignore_fields
 from bagkit.selection.services import event_topic
@@ -58,6 +60,8 @@ class FixtureSpec:
         services: services whose recorded requests are sent to the system under test (live)
             or handed to the processors' ``on_request`` (lockstep); their event topics
             (``NAME/_service_event``) are among ``outputs``.
+        health: the ``health:`` section, a contract (``bagkit check``'s) that the golden and
+            every run's outputs must keep (on a run: the contract's topics among ``outputs``).
     """
 
     name: str
@@ -77,6 +81,7 @@ class FixtureSpec:
     lockstep: Mapping[str, Any] = field(default_factory=dict)
     live: Mapping[str, Any] = field(default_factory=dict)
     services: tuple[str, ...] = ()
+    health: HealthSpec | None = None
 
     @property
     def bag(self) -> Path:
@@ -164,18 +169,26 @@ def _modes(data: Mapping[str, Any], where: Path, has: dict[str, bool]) -> tuple[
     return tuple(value)
 
 
-def _read(file: Path) -> Mapping[str, Any]:
+def _read(file: Path) -> tuple[Mapping[str, Any], str]:
     try:
         if file.stat().st_size > MAX_SPEC_BYTES:
             raise SpecError(f"{file} is larger than {MAX_SPEC_BYTES} bytes")
-        data = yaml.safe_load(file.read_text())
+        text = file.read_text()
+        data = yaml.safe_load(text)
     except OSError as exc:
         raise SpecError(f"cannot read fixture spec {file}: {exc.strerror}") from exc
     except (yaml.YAMLError, UnicodeDecodeError) as exc:
         raise SpecError(f"{file} is not valid YAML: {exc}") from exc
     if not isinstance(data, Mapping):
         raise SpecError(f"{file}: expected a mapping")
-    return data
+    return data, text
+
+
+def _health(text: str, file: Path) -> HealthSpec | None:
+    try:
+        return HealthSpec.parse_section(text, "health", str(file))
+    except HealthSpecError as exc:
+        raise SpecError(str(exc)) from None
 
 
 def load_spec(path: Path) -> FixtureSpec:
@@ -185,7 +198,7 @@ def load_spec(path: Path) -> FixtureSpec:
         SpecError: the file is missing or invalid.
     """
     file = path / SPEC_FILE if path.is_dir() else path
-    data = _read(file)
+    data, text = _read(file)
     processor = data.get("processor")
     if processor is not None and (not isinstance(processor, str) or ":" not in processor):
         raise SpecError(f"{file}: processor must read module.path:function, not {processor!r}")
@@ -223,6 +236,7 @@ def load_spec(path: Path) -> FixtureSpec:
         lockstep=_mapping(data, "compare", file),
         live=_mapping(data, "live_compare", file),
         services=services,
+        health=_health(text, file),
     )
     spec.compare_options("lockstep")  # fail now, not in the middle of a run
     spec.compare_options("live")

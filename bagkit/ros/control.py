@@ -25,7 +25,6 @@ from std_srvs.srv import Trigger
 from bagkit.ros.errors import ControlError
 
 TRIGGER_TYPE = "std_srvs/srv/Trigger"
-SET_PARAMETERS_TYPE = "rcl_interfaces/srv/SetParameters"
 # The player's services (bagkit.ros.replay.services, seek_services) and the recorder's
 # (bagkit.ros.record.control_services): every one a Trigger.
 PLAYER_SERVICES = (

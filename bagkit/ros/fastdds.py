@@ -8,9 +8,8 @@ matters (figures below). In a flood either runs out whenever the subscriber fall
 milliseconds behind; the samples that do not make it are repaired by the reliability
 protocol, and meanwhile (as we read Fast DDS 2.14 and its perf profile) the receive thread walks
 its set of out-of-order sequence numbers for every sample received
-(``WriterProxy::unknown_missing_changes_up_to``). Measured with the Imu flood of
-``benchmarks record``, a counting subscriber: 25 - 30k msg/s with both sides at 512, 27 - 36k
-with only one side at 65536, 62 - 72k with both (receive thread 22 - 27 -> 5 - 6 us per message).
+(``WriterProxy::unknown_missing_changes_up_to``). Both sides large is what lifts the Imu flood of
+``benchmarks record`` (benchmarks/README.md, "Measurements behind the code").
 
 The receive queue belongs to the recorder, which sizes its own with :func:`large_receive_queue`;
 the send buffers belong to the publishing processes, which need a profile of their own

@@ -38,8 +38,7 @@ RECORD_DEPTH = 1000
 # REPLAY_DEPTH, at most the whole topic within HISTORY_BUDGET_BYTES (an as-fast-as-possible
 # replay gets the whole topic). Not deeper: Fast DDS acknowledges a reliable writer's samples in
 # batches that grow with its history, and each batch holds up publish() for a time that grows
-# with it (measured here: a 5000-deep history stalled every ~1200th publish for 3-6 ms, a
-# 100-deep one for none over 0.5 ms).
+# with it (benchmarks/README.md, "Measurements behind the code").
 REPLAY_DEPTH = 100
 HISTORY_WINDOW_S = 0.1
 HISTORY_BUDGET_BYTES = 256 << 20

@@ -19,10 +19,10 @@ from bagkit.decode import DecodeError, MessageTypes, leaf_fields
 from bagkit.decode.layout import CdrLayout
 from bagkit.decode.matcher import PayloadMatcher
 from bagkit.prefetch import prefetch
-from bagkit.selection.conditions import Condition, parse_condition
+from bagkit.selection.conditions import Condition
 from bagkit.selection.errors import UnknownFieldError
 from bagkit.selection.fields import FieldSelection, unknown_field_message
-from bagkit.selection.times import TimeLike
+from bagkit.selection.query import Query
 from bagkit.selection.topics import absolute_topic_name, did_you_mean, require_topics
 from bagkit.selection.windows import TimeRange, Window, outside_warning
 from bagkit.stats.accumulate import TopicAccumulator
@@ -52,6 +52,27 @@ class SummaryRun:
     where: Condition | None = None
     """Only messages satisfying it; topics whose type lacks its fields are left out (an
     error when the one topic asked for lacks them)."""
+
+    @classmethod
+    def of(
+        cls,
+        query: Query,
+        *,
+        bulk: bool = True,
+        progress: ProgressCallback | None = None,
+        prefetch: bool = True,
+    ) -> SummaryRun:
+        """A run of ``query``'s fields, times and condition (its topics are the caller's)."""
+        return cls(
+            MessageTypes(),
+            query.field_selection,
+            query.span,
+            bulk,
+            progress,
+            prefetch=prefetch,
+            where=query.where,
+        )
+
     matchers: dict[str, PayloadMatcher] = field(default_factory=dict)
     window: Window = field(default_factory=Window)
     done: int = 0
@@ -199,37 +220,30 @@ class SummaryRun:
 
 def summarize(
     bags: Iterable[str | Path],
+    query: Query | None = None,
     *,
-    topics: Sequence[str] | None = None,
-    fields: Sequence[str] | None = None,
-    start: TimeLike | None = None,
-    end: TimeLike | None = None,
     progress: ProgressCallback | None = None,
     bulk: bool = True,
     check_crc: bool = True,
-    where: str | None = None,
 ) -> Summary:
     """Count, rate and exact statistics of every numeric field, pooled over ``bags``.
 
     Args:
         bags: bag directories or single ``.mcap``/``.db3`` files.
-        topics: only these topics (all when None).
-        fields: only the fields these patterns select (:mod:`bagkit.selection.fields`: globs
-            with ``*`` and ``?``, brackets literal, ``TOPIC_GLOB:FIELD_GLOB``).
-        start, end: only messages with ``start <= log_time < end``, each a time of
-            :mod:`bagkit.selection.times` (``10`` and ``-5`` count from each bag's own first
-            and last message; epoch seconds, ISO 8601, datetimes are absolute).
+        query: only its topics (all when it names none; a service by its name), the fields
+            its patterns select (:mod:`bagkit.selection.fields`: globs with ``*`` and ``?``,
+            brackets literal, ``TOPIC_GLOB:FIELD_GLOB``), the messages of its window
+            (``10`` and ``-5`` count from each bag's own first and last message) satisfying
+            its condition (topics whose type lacks the condition's fields are left out, unless
+            one topic is asked for: then UnknownFieldError).
         progress: called with (messages done, messages in total).
         bulk: decode fixed-layout messages in bulk with numpy; False decodes every message
             with the general decoder (slower; to cross-check the bulk path).
         check_crc: check each chunk's CRC as it is read (a damaged chunk is a problem).
-        where: only messages satisfying this condition (:mod:`bagkit.selection.conditions`);
-            topics whose type lacks its fields are left out, unless one topic is asked for
-            (then UnknownFieldError).
 
     Raises:
         BagError: a bag cannot be opened (see ``bagkit.bag``).
-        UnknownTopicError: a topic in ``topics`` is in none of the bags.
+        UnknownTopicError: a topic of ``query`` is in none of the bags.
         UnknownFieldError: ``fields`` select no numeric field (with the closest ones).
         NothingToSummarizeError: no message in the selection, or no topic can be decoded.
         StatsError: a topic has different types in different bags.
@@ -237,15 +251,14 @@ def summarize(
     paths = [str(bag) for bag in bags]
     if not paths:
         raise StatsError("no bag given")
-    span = TimeRange.parse(start, end)
-    condition = None if where is None else parse_condition(where)
-    run = SummaryRun(MessageTypes(), FieldSelection(fields), span, bulk, progress, where=condition)
+    query = query or Query()
+    run = SummaryRun.of(query, bulk=bulk, progress=progress)
     readers: list[BagReader] = []
     try:
         for path in paths:
             readers.append(BagReader(path, allow_empty=True, check_crc=check_crc).open())
         known = {name for reader in readers for name in reader.topics}
-        topics = check_topics(known, topics, len(paths))
+        topics = check_topics(known, list(query.topics) or None, len(paths))
         run.total = sum(
             count
             for reader in readers

@@ -12,7 +12,7 @@ from __future__ import annotations
 import contextlib
 import heapq
 import itertools
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Protocol
@@ -20,16 +20,14 @@ from typing import Protocol
 import numpy as np
 
 from bagkit.bag import BagMessage, BagReader
-from bagkit.bag.mcapio.records import MESSAGE_RECORD_HEADER
 from bagkit.bag.messages import TopicInfo, make_message
 from bagkit.surgery.carry import latched_messages, merged_custom_data, write_latched
+from bagkit.surgery.chunk_records import Progress, copy_chunk_records
 from bagkit.surgery.errors import SurgeryError
 from bagkit.surgery.options import OutputOptions, RewriteReport, resolve
 from bagkit.surgery.output import MessageOutput, OutputBag
 from bagkit.surgery.select import PayloadFilter, Selection
 
-# Progress callback: (messages done, messages in all)
-Progress = Callable[[int, int], None]
 # Messages written at once (and progress reported): 1-2 MB of Imu messages.
 _BATCH = 4096
 _ZERO = np.zeros(1, np.int64)
@@ -125,7 +123,7 @@ def rewrite_messages(
                 write_latched(out, latched, selection.window.start_ns)
             total = sum(r.topic_counts.get(n, 0) for r in readers for n in selected)
             if len(readers) == 1 and isinstance(out, OutputBag) and not rewritten:
-                report.problems += _copy_chunks(
+                report.problems += copy_chunk_records(
                     readers[0], set(selected), selection, out, (progress, total)
                 )
             else:
@@ -185,82 +183,6 @@ def _copy(  # noqa: PLR0917 (the copy's parts, passed as they are)
         out.write_messages([ids[m.topic] for m in batch], batch)
         if report is not None:
             report(done, total)
-
-
-def _copy_chunks(
-    reader: BagReader,
-    selected: set[str],
-    selection: Selection,
-    out: OutputBag,
-    progress: tuple[Progress | None, int],
-) -> list[str]:
-    """One input into MCAP: the Message records of its chunks (SQLite3 rows and ROS 1
-    messages are handed out laid out as such) written as they are, their channel ids made the
-    output's, in chunk order (a SQLite3 file's: log-time order), no message object made; the
-    messages outside the window or failing ``--where`` left out. Returns the problems found."""
-    from bagkit.bag.mcapio.chunks import payload_spans
-
-    window = selection.window
-    ids = {name: out.topic_id(name) for name in selected}
-    report, total = progress
-    done = unindexed = 0
-    header = MESSAGE_RECORD_HEADER.size
-    for chunk in reader.chunks(selected):
-        found: list[tuple[np.ndarray, ...]] = []
-        for topic, entries in chunk.message_index.items():
-            if topic not in ids:
-                continue
-            log_times, starts, lengths, dropped = payload_spans(chunk.records, entries)
-            unindexed += dropped
-            keep = np.ones(len(starts), bool)
-            if window.start_ns is not None:
-                keep &= log_times >= window.start_ns
-            if window.end_ns is not None:
-                keep &= log_times < window.end_ns
-            matcher = selection.content.get(topic)
-            if matcher is not None:
-                keep[keep] = matcher.mask_records(
-                    chunk.records, starts[keep], lengths[keep], log_times[keep]
-                )
-            count = int(keep.sum())
-            channel = np.full(count, ids[topic], np.uint16)
-            found.append((starts[keep] - header, lengths[keep] + header, log_times[keep], channel))
-        if not found:
-            continue
-        offsets, sizes, times, channels = (np.concatenate(c) for c in zip(*found, strict=True))
-        if not len(offsets):
-            continue
-        order = np.argsort(offsets, kind="stable")
-        offsets, sizes, times, channels = (
-            offsets[order],
-            sizes[order],
-            times[order],
-            channels[order],
-        )
-        data = _records(chunk.records, offsets, sizes)
-        offsets = np.zeros(len(sizes), np.int64)
-        np.cumsum(sizes[:-1], out=offsets[1:])
-        # The channel id is the Message record's u16 after its opcode and length.
-        fields = np.frombuffer(data, np.uint8)
-        fields[offsets + 9] = channels & 0xFF
-        fields[offsets + 10] = channels >> 8
-        out.write_records(data, offsets, sizes, channels, times.view(np.uint64))
-        done += len(offsets)
-        if report is not None:
-            report(done, total)
-    if unindexed:
-        return [f"{reader.path.name}: {unindexed} index entries point outside their chunk: lost"]
-    return []
-
-
-def _records(records: bytes, offsets: np.ndarray, sizes: np.ndarray) -> bytearray:
-    """The records at ``offsets`` (ascending) back to back, in a buffer of their own."""
-    if len(offsets) and offsets[0] == 0 and (offsets[1:] == (offsets + sizes)[:-1]).all():
-        return bytearray(memoryview(records)[: int(offsets[-1] + sizes[-1])])
-    view = memoryview(records)
-    return bytearray(
-        b"".join(view[o : o + n] for o, n in zip(offsets.tolist(), sizes.tolist(), strict=True))
-    )
 
 
 def _passes(matcher: PayloadFilter | None, message: BagMessage) -> bool:

@@ -96,9 +96,10 @@ def resolve(
     against their ``spans``; a window outside them is a warning in ``report``.
 
     Raises:
-        UnknownTopicError: a named topic is in no input (the message names the closest).
+        UnknownTopicError: a named topic (``--latched-topics`` too, used or not) is in no
+            input (the message names the closest).
     """
-    require_topics(selection.topics.topics, names)
+    require_topics([*selection.topics.topics, *selection.latched.extra_topics], names)
     if not spans or not selection.span.bounded:
         return selection
     first, last = min(s for s, _ in spans), max(e for _, e in spans)

@@ -1,10 +1,11 @@
-"""``doctor``'s check of a storage file that is not a plain MCAP file: a SQLite3 ``.db3``, or
-a zstd-compressed ``.db3.zstd``/``.mcap.zstd`` (rosbag2's compression).
+"""``doctor``'s check of a storage file that is not a plain MCAP file: a SQLite3 ``.db3``, a
+ROS 1 ``.bag``, or a zstd-compressed ``.db3.zstd``/``.mcap.zstd`` (rosbag2's compression).
 
 Read through the bag back-ends (:func:`bagkit.bag.reader.open_storage_file`, compression
 included), described as the MCAP walk describes a file (:class:`FileFacts`: one schema per
 type, one channel per topic), so that the bag-level checks (metadata.yaml, decodability) are
-the same. A SQLite3 database is also checked whole (``PRAGMA quick_check``).
+the same. A SQLite3 database is also checked whole (``PRAGMA quick_check``), a ROS 1 bag's
+chunks walked record by record against its index (chunk infos, index data, connections).
 """
 
 from __future__ import annotations
@@ -47,6 +48,11 @@ def check_storage_file(
         if storage.storage_identifier == "sqlite3":
             inner = storage.inner if isinstance(storage, Decompression) else storage
             facts.problems.extend(quick_check(inner.path))
+        elif storage.storage_identifier == "rosbag1":
+            from bagkit.bag.rosbag1_file import Rosbag1File  # rosbags: only for .bag files
+
+            if isinstance(storage, Rosbag1File):
+                facts.problems.extend(storage.check_index())
         check_message = check_for(facts) if check_for is not None else None
         if check_message is not None:
             ids = {c.topic: c.id for c in facts.channels.values()}

@@ -54,7 +54,7 @@ def test_split_by_size_lists_every_file_and_reads_as_one_bag(
 
 def test_split_by_duration(write_sample_bag: Callable[..., Path]) -> None:
     # 100 Hz for 3 s with 1 s files: 3 files of 100 Imu messages each.
-    bag_path = write_sample_bag(n_imu=300, max_bag_duration_s=1.0)
+    bag_path = write_sample_bag(n_imu=300, max_bag_duration_ns=1_000_000_000)
     info = _metadata(bag_path)
     assert [f["path"] for f in info["files"]] == ["sample_0.mcap", "sample_1.mcap", "sample_2.mcap"]
     assert [f["message_count"] for f in info["files"]] == [110, 110, 110]

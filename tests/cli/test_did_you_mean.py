@@ -2,7 +2,10 @@
 
 One ``error:`` line naming what was typed and the closest names the bag has, exit 2, nothing on
 stdout. The guesses expected are the bag's own names, read with the bag reader and the
-decoder's leaf paths, not written out here.
+decoder's leaf paths, not written out here. A window outside the bag is the one warning and an
+empty result where a result can be empty, the same line as an error where it cannot (golden
+add, play). ``record`` needs a ROS graph: its missing topic is tests/ros' (the wording,
+selection's ``missing_on_graph``, is tested in tests/selection/test_query.py).
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ import pytest
 
 from bagkit.bag import BagReader
 from bagkit.decode import MessageTypes, leaf_fields
+from bagkit.selection.times import format_ns
 
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 BAG = Path(__file__).resolve().parents[2] / "fixtures" / "faults" / "golden"
@@ -45,6 +49,16 @@ TOPIC_CASES: dict[str, Args] = {
         "--around",
         "/imu/dat: x > 1",
     ],
+    "merge --latched-topics": lambda b, t: [
+        "merge",
+        b,
+        b,
+        "-o",
+        t / "m",
+        "--latched-topics",
+        "/imu/dat",
+    ],
+    "play --topics": lambda b, t: ["play", b, "--topics", "/imu/dat", "--no-wait-for-subscribers"],
 }
 FIELD_CASES: dict[str, Args] = {
     "echo --fields": lambda b, t: ["echo", b, "/imu/data", "-f", "linear_accel.z"],
@@ -62,6 +76,13 @@ FIELD_CASES: dict[str, Args] = {
     "filter --where": lambda b, t: [
         *("filter", b, "-o", t / "f", "--topics", "/imu/data", "--where", "linear_accel.z > 1")
     ],
+    "filter --around": lambda b, t: [
+        *("filter", b, "-o", t / "f", "--around", "/imu/data: linear_accel.z > 1")
+    ],
+    "golden add --around": lambda b, t: [
+        *("golden", "add", t / "fx", "--from", b, "--around", "/imu/data: linear_accel.z > 1")
+    ],
+    "check": lambda b, t: ["check", b, "--spec", _spec(t, "/imu/data", "linear_accel.z")],
 }
 TIME_CASES: dict[str, Args] = {
     "echo": lambda b, t: ["echo", b, "/imu/data", "--start", "1O"],
@@ -71,6 +92,59 @@ TIME_CASES: dict[str, Args] = {
     "export": lambda b, t: ["export", b, "-o", t / "x.csv", "-t", "/imu/data", "--start", "1O"],
     "golden add": lambda b, t: ["golden", "add", t / "fx", "--from", b, "--start", "1O"],
 }
+
+
+# A window after the bag's end: the one warning and an empty result, or the same line as an
+# error where an empty result would mislead (a fixture of latched messages, a replay of none).
+OUTSIDE = ("--start", "1000", "--end", "1010")
+WINDOW_WARNS: dict[str, Args] = {
+    "echo": lambda b, t: ["echo", b, "/imu/data", *OUTSIDE],
+    "export": lambda b, t: ["export", b, "-t", "/imu/data", "-o", t / "x.csv", *OUTSIDE],
+    "plot": lambda b, t: [
+        "plot",
+        b,
+        "/imu/data:linear_acceleration.z",
+        "-o",
+        t / "p.png",
+        *OUTSIDE,
+    ],
+    "stats": lambda b, t: ["stats", "summary", b, *OUTSIDE],
+    "filter": lambda b, t: ["filter", b, "-o", t / "f", *OUTSIDE],
+    "merge": lambda b, t: ["merge", b, b, "-o", t / "m", *OUTSIDE],
+    "find": lambda b, t: ["find", b, "--when", "/imu/data: linear_acceleration.z > 0", *OUTSIDE],
+}
+WINDOW_FAILS: dict[str, Args] = {
+    "golden add": lambda b, t: ["golden", "add", t / "fx", "--from", b, *OUTSIDE],
+    "play": lambda b, t: ["play", b, "--start-offset", "1000", "--no-wait-for-subscribers"],
+}
+# A service by its name, misspelt (the interop bag of rosbag2's tests, recorded services).
+SERVICE_CASES: dict[str, Args] = {
+    "echo": lambda b, t: ["echo", b, "/test_servce1"],
+    "export": lambda b, t: ["export", b, "-t", "/test_servce1", "-o", t / "x.csv"],
+    "stats": lambda b, t: ["stats", "summary", b, "-t", "/test_servce1"],
+    "plot": lambda b, t: ["plot", b, "/test_servce1:request", "-o", t / "p.png"],
+    "filter": lambda b, t: ["filter", b, "-o", t / "f", "--topics", "/test_servce1"],
+    "merge": lambda b, t: ["merge", b, b, "-o", t / "m", "--latched-topics", "/test_servce1"],
+    "find": lambda b, t: ["find", b, "--when", "/test_servce1: x > 1"],
+    "compare": lambda b, t: ["compare", b, b, "-t", "/test_servce1"],
+    "golden add": lambda b, t: [
+        "golden",
+        "add",
+        t / "fx",
+        "--from",
+        b,
+        "--around",
+        "/test_servce1: x > 1",
+    ],
+    "play": lambda b, t: ["play", b, "--topics", "/test_servce1", "--no-wait-for-subscribers"],
+}
+
+
+def _spec(directory: Path, topic: str, field: str) -> Path:
+    """A health contract bounding ``field`` of ``topic`` (bagkit check's spec)."""
+    spec = directory / "health.yaml"
+    spec.write_text(f"topics:\n  {topic}:\n    values:\n      {field}: {{min: 0, max: 20}}\n")
+    return spec
 
 
 def _error_line(args: list[str | Path], cwd: Path) -> str:
@@ -97,6 +171,7 @@ def test_a_misspelt_topic_names_the_closest_topic(command: str, tmp_path: Path) 
     line = _error_line(TOPIC_CASES[command](BAG, tmp_path), tmp_path)
     assert "/imu/dat " in line and f"did you mean {expected}?" in line
     assert not (tmp_path / "fx").exists()  # golden add leaves nothing behind
+    assert not (tmp_path / "m").exists()  # nor merge
 
 
 @pytest.mark.parametrize("command", FIELD_CASES)
@@ -117,7 +192,7 @@ def test_a_misspelt_time_names_the_grammar(command: str, tmp_path: Path) -> None
     assert not (tmp_path / "fx").exists()
 
 
-@pytest.mark.parametrize("command", ["echo", "stats"])
+@pytest.mark.parametrize("command", SERVICE_CASES)
 def test_a_misspelt_service_names_the_service(
     command: str, interop_dir: Path, tmp_path: Path
 ) -> None:
@@ -125,13 +200,41 @@ def test_a_misspelt_service_names_the_service(
     with BagReader(bag) as reader:
         services = [t.removesuffix("/_service_event") for t in reader.topics if "_service" in t]
     expected = _close_to("/test_servce1", services)
-    args: list[str | Path] = (
-        ["echo", bag, "/test_servce1"]
-        if command == "echo"
-        else ["stats", "summary", bag, "-t", "/test_servce1"]
-    )
-    line = _error_line(args, tmp_path)
-    assert f"did you mean {expected}," in line
+    line = _error_line(SERVICE_CASES[command](bag, tmp_path), tmp_path)
+    assert "/test_servce1 " in line and f"did you mean {expected}," in line
+    assert not (tmp_path / "fx").exists() and not (tmp_path / "m").exists()
+
+
+def _outside_line(line: str, span: tuple[int, int]) -> None:
+    """The one line of a window outside the bag: the bag, the window, the bag's span."""
+    start, end = (format_ns(ns) for ns in span)
+    assert f"{BAG}: the time window [" in line, line
+    assert line.endswith(f"holds no message (the bag spans {start} to {end})"), line
+
+
+@pytest.mark.parametrize("command", WINDOW_WARNS)
+def test_a_window_outside_the_bag_is_the_one_warning(command: str, tmp_path: Path) -> None:
+    with BagReader(BAG) as reader:
+        span = reader.start_ns, reader.end_ns
+    result = subprocess.run(
+        [BAGKIT, *map(str, WINDOW_WARNS[command](BAG, tmp_path))],
+        capture_output=True, text=True, timeout=120, cwd=tmp_path, check=False,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    (line,) = [x for x in result.stderr.splitlines() if "the time window" in x]
+    assert line.startswith("warning: ") and "error" not in result.stderr
+    _outside_line(line, span)
+
+
+@pytest.mark.parametrize("command", WINDOW_FAILS)
+def test_a_window_outside_the_bag_fails_where_nothing_is_no_result(
+    command: str, tmp_path: Path
+) -> None:
+    with BagReader(BAG) as reader:
+        span = reader.start_ns, reader.end_ns
+    line = _error_line(WINDOW_FAILS[command](BAG, tmp_path), tmp_path)
+    _outside_line(line, span)
+    assert not (tmp_path / "fx").exists()  # golden add writes nothing
 
 
 def test_stats_takes_a_service_name_as_echo_does(interop_dir: Path) -> None:
@@ -149,3 +252,19 @@ def test_stats_takes_a_service_name_as_echo_does(interop_dir: Path) -> None:
     assert result.returncode == 0, result.stderr
     (topic,) = json.loads(result.stdout)["topics"]
     assert (topic["topic"], topic["count"]) == ("/test_service1/_service_event", count)
+
+
+def test_check_names_the_closest_topic_of_a_contract_broken_by_a_misspelling(
+    tmp_path: Path,
+) -> None:
+    """A topic the contract requires and the bag lacks breaks it (exit 1, check's rule); the
+    line says which topic the bag has that the contract may have meant."""
+    with BagReader(BAG) as reader:
+        expected = _close_to("/imu/dat", list(reader.topics))
+    spec = _spec(tmp_path, "/imu/dat", "linear_acceleration.z")
+    result = subprocess.run(
+        [BAGKIT, "check", str(BAG), "--spec", str(spec)],
+        capture_output=True, text=True, timeout=120, check=False,
+    )  # fmt: skip
+    assert result.returncode == 1, result.stderr
+    assert f"/imu/dat: present (not in the bag; did you mean {expected}?)" in result.stdout

@@ -32,20 +32,23 @@ def test_paragraph_lines_are_joined_and_indented_paragraphs_kept() -> None:
 
 
 def _commands() -> list[tuple[list[str], list[str]]]:
-    """Every command's path (``["stats", "summary"]``) and its option names, from the CLI."""
+    """Every command's and group's path (``["stats", "summary"]``, ``["stats"]``, ``[]`` for
+    ``bagkit`` itself) and the names its help must show whole: its options, a group's commands,
+    from the CLI (so a command added later is checked too)."""
     import typer
 
     from bagkit.cli.main import _COMMANDS, load_command
 
-    found: list[tuple[list[str], list[str]]] = []
+    found: list[tuple[list[str], list[str]]] = [([], sorted(_COMMANDS))]
 
     def walk(path: list[str], command: typer.core.TyperCommand | typer.core.TyperGroup) -> None:
-        if isinstance(command, typer.core.TyperGroup):
-            for name, sub in command.commands.items():
-                if not sub.hidden:
-                    walk([*path, name], sub)
-            return
         names = [o for p in command.params for o in (*p.opts, *p.secondary_opts) if "-" in o[:1]]
+        if isinstance(command, typer.core.TyperGroup):
+            visible = {name: sub for name, sub in command.commands.items() if not sub.hidden}
+            found.append((path, [*names, *visible]))
+            for name, sub in visible.items():
+                walk([*path, name], sub)
+            return
         found.append((path, names))
 
     for name in sorted(_COMMANDS):
@@ -58,7 +61,9 @@ def _commands() -> list[tuple[list[str], list[str]]]:
 COMMANDS = _commands()
 
 
-@pytest.mark.parametrize(("path", "options"), COMMANDS, ids=[" ".join(p) for p, _ in COMMANDS])
+@pytest.mark.parametrize(
+    ("path", "options"), COMMANDS, ids=[" ".join(["bagkit", *p]) for p, _ in COMMANDS]
+)
 def test_help_at_80_columns_shows_every_option_name_whole(
     path: list[str], options: list[str]
 ) -> None:
@@ -72,3 +77,14 @@ def test_help_at_80_columns_shows_every_option_name_whole(
     words = set(re.split(r"[\s,/=\[\]()]+", result.stdout))
     assert [o for o in [*options, "-h", "--help"] if o not in words] == []
     assert max(len(line) for line in result.stdout.splitlines()) <= 80
+
+
+@pytest.mark.parametrize("command", ["replay", "play", "stats", "info"])
+def test_a_command_without_arguments_prints_its_help(command: str) -> None:
+    """No arguments: the help on stderr, exit 2 (as click does), never an internal error."""
+    bagkit = str(Path(sys.executable).with_name("bagkit"))
+    result = subprocess.run(
+        [bagkit, command], capture_output=True, text=True, timeout=60, check=False
+    )
+    assert result.returncode == 2, result.stderr
+    assert result.stderr.startswith(f"Usage: bagkit {command} ")

@@ -31,7 +31,7 @@ def _run(*args: str) -> subprocess.CompletedProcess[str]:
 def two_topic_bag(tmp_path: Path) -> Path:
     """/fast: 201 messages at 20 Hz over 10 s; /slow: 11 at 1 Hz; two files."""
     path = tmp_path / "drive"
-    with BagWriter(path, max_bag_duration_s=6.0) as bag:
+    with BagWriter(path, max_bag_duration_ns=6_000_000_000) as bag:
         bag.add_topic(TopicInfo("/fast", STRING, offered_qos_profiles=QOS))
         bag.add_topic(TopicInfo("/slow", STRING))
         for i in range(201):

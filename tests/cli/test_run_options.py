@@ -4,16 +4,30 @@ values are refused before anything starts (no rclpy)."""
 from __future__ import annotations
 
 import inspect
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 
+from bagkit.bag.file_rotation import FreeSpace
+from bagkit.bag.latched import LatchedOptions
 from bagkit.cli.record import record
 from bagkit.cli.replay import replay
 from bagkit.playback.errors import PlayerError
-from bagkit.playback.options import PlayOptions, PlayWindow
+from bagkit.playback.options import (
+    PlayOptions,
+    PlayWindow,
+    ServiceRequestReplay,
+    SubscriberWaits,
+)
 from bagkit.recording.errors import RecorderOptionsError
-from bagkit.recording.options import DEFAULT_QUEUE_BYTES, RecordOptions
+from bagkit.recording.options import (
+    DEFAULT_QUEUE_BYTES,
+    FileOptions,
+    RecordOptions,
+    SnapshotOptions,
+    SnapshotTrigger,
+)
 
 
 def cli_defaults(command: object) -> dict[str, object]:
@@ -28,16 +42,19 @@ def test_record_options_default_to_the_cli() -> None:
     options = RecordOptions(all_topics=True)
     assert options.output is cli["output"] is None
     assert options.node_name == cli["node_name"]
-    assert options.discovery_period_s == cli["polling_interval"] / 1000  # type: ignore[operator]
-    assert options.max_bag_size == cli["max_bag_size"]
-    assert options.max_bag_duration_s == cli["max_bag_duration"]
-    assert options.duration_s is cli["duration"] is None
+    assert options.discovery_period_ns == cli["polling_interval"] * 1_000_000  # type: ignore[operator]
+    assert options.files.max_bag_size == cli["max_bag_size"]
+    assert options.files.max_bag_duration_ns == cli["max_bag_duration"]
+    assert options.files.max_bag_files == cli["max_bag_files"]
+    assert options.files.min_free_space is cli["min_free_space"] is None
+    assert options.duration_ns is cli["duration"] is None
+    assert options.snapshot is None and cli["snapshot_mode"] is False
     assert options.use_sim_time is cli["use_sim_time"] is False
     assert options.include_hidden is cli["include_hidden"] is False
     assert options.include_unpublished is cli["include_unpublished"] is False
     assert options.qos_overrides is cli["qos_overrides"] is None
     assert cli["max_cache_size"] is None and options.queue_bytes == DEFAULT_QUEUE_BYTES
-    assert options.compression == "zstd"  # no --compression-* option: bagkit's zstd chunks
+    assert options.files.compression == "zstd"  # no --compression-* option: bagkit's zstd chunks
     assert options.tune_process
 
 
@@ -52,10 +69,13 @@ def test_play_options_default_to_the_cli() -> None:
     assert options.clock_hz is cli["clock"] is None
     assert options.loops == 1 and cli["loop"] is False
     assert options.start_paused is cli["start_paused"] is False
-    assert options.wait_for_subscribers is cli["wait_for_subscribers"] is True
-    assert options.wait_timeout_s == cli["wait_timeout"]
-    assert options.discovery_time_s == cli["discovery_time"]
-    assert options.ack_timeout_s == cli["wait_for_all_acked"] / 1000  # type: ignore[operator]
+    assert options.waits.before_start is cli["wait_for_subscribers"] is True
+    assert options.waits.timeout_s == cli["wait_timeout"]
+    assert options.waits.discovery_s == cli["discovery_time"]
+    assert options.waits.ack_timeout_s == cli["wait_for_all_acked"] / 1000  # type: ignore[operator]
+    assert options.seek_step_ns == cli["seek_step"]
+    assert options.latched == LatchedOptions() and cli["no_latched"] is False
+    assert options.service_requests is None and cli["publish_service_requests"] is False
     assert options.qos_overrides is cli["qos_overrides"] is None
     assert options.services and options.tune_process  # the CLI always offers the services
 
@@ -63,16 +83,69 @@ def test_play_options_default_to_the_cli() -> None:
 @pytest.mark.parametrize(
     ("fields", "message"),
     [
-        ({}, "nothing to record"),
-        ({"all_topics": True, "max_bag_size": -1}, "must be >= 0"),
-        ({"all_topics": True, "duration_s": -1.0}, "duration must not be negative"),
-        ({"all_topics": True, "max_messages": 0}, "max_messages must be positive"),
-        ({"all_topics": True, "queue_bytes": 0}, "must be positive"),
+        ({}, "^selection: nothing to record"),
+        ({"all_topics": True, "duration_ns": -1}, "^duration_ns: must not be negative"),
+        ({"all_topics": True, "max_messages": 0}, "^max_messages: must be positive"),
+        ({"all_topics": True, "queue_bytes": 0}, "^queue_bytes: must be positive"),
+        ({"all_topics": True, "discovery_period_ns": 0}, "^discovery_period_ns: must be positive"),
+        (
+            {
+                "topics": ("/a",),
+                "snapshot": SnapshotOptions(1 << 20),
+                "files": FileOptions(max_bag_files=0, min_free_space=FreeSpace(1)),
+            },
+            "^files.min_free_space: does not apply to snapshot mode",
+        ),
+        (
+            {
+                "topics": ("/a",),
+                "snapshot": SnapshotOptions(
+                    1 << 20, triggers=(SnapshotTrigger.parse("/b: x > 1"),)
+                ),
+            },
+            "^snapshot.triggers: '/b: x > 1': /b is not among the recorded topics",
+        ),
     ],
 )
 def test_record_options_out_of_range(fields: dict[str, object], message: str) -> None:
     with pytest.raises(RecorderOptionsError, match=message):
         RecordOptions(Path("never"), **fields)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        (lambda: FileOptions(max_bag_size=-1), "^files.max_bag_size: must be >= 0"),
+        (
+            lambda: FileOptions(max_bag_size=1),
+            "^files.max_bag_size: a split size of 1 bytes is below",
+        ),
+        (lambda: FileOptions(max_bag_duration_ns=-1), "^files.max_bag_duration_ns: must be >= 0"),
+        (lambda: FileOptions(max_bag_files=2), "^files.max_bag_files: needs the bag split"),
+        (SnapshotOptions, "^snapshot.max_bytes, snapshot.max_duration_ns: one is needed"),
+        (lambda: SnapshotOptions(1 << 20, post_ns=-1), "^snapshot.post_ns: must be >= 0"),
+        (
+            lambda: SnapshotTrigger.parse("no colon"),
+            "^snapshot.triggers: 'no colon': expected 'TOPIC: CONDITION'",
+        ),
+    ],
+)
+def test_record_option_parts_name_their_fields(make: Callable[[], object], message: str) -> None:
+    with pytest.raises(RecorderOptionsError, match=message):
+        make()
+
+
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        (lambda: SubscriberWaits(timeout_s=-1), "^waits.timeout_s: must be >= 0"),
+        (lambda: SubscriberWaits(ack_timeout_s=float("nan")), "^waits.ack_timeout_s: must be"),
+        (lambda: ServiceRequestReplay(timeout_s=-1), "^service_requests.timeout_s: must be"),
+    ],
+)
+def test_play_option_parts_name_their_fields(make: Callable[[], object], message: str) -> None:
+    with pytest.raises(PlayerError, match=message):
+        make()
 
 
 def test_record_options_make_names_absolute() -> None:
@@ -84,7 +157,12 @@ def test_record_options_make_names_absolute() -> None:
     ("fields", "message"),
     [
         ({"regex": "("}, "--regex '\\(' is not a valid regular expression"),
-        ({"progress_period_s": float("nan")}, "bad time nan"),
+        ({"progress_period_ns": 0}, "^progress_period_ns: must be positive"),
+        ({"seek_step_ns": -1}, "^seek_step_ns: must be positive"),
+        (
+            {"latched": LatchedOptions(enabled=False, extra_topics=("/a",))},
+            "^latched: extra topics without latched state",
+        ),
         ({"start_offset_s": "5 mins"}, "bad start offset '5 mins': not a time"),
     ],
 )

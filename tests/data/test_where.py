@@ -91,7 +91,7 @@ def test_export_stats_and_plot_keep_what_the_oracle_keeps(
     assert pd.read_parquet(out)["log_time"].tolist() == expected
 
     for bulk in (True, False):
-        result = summarize([sample_bag], topics=[topic], where=condition, bulk=bulk)
+        result = summarize([sample_bag], Query.create(topic, where=condition), bulk=bulk)
         (stats,) = result.topics
         assert stats.count == len(expected), f"bulk={bulk}"
 
@@ -118,10 +118,12 @@ def test_stats_values_under_where_equal_pandas_over_the_kept_rows(sample_bag: Pa
     kept = frame[(frame["z"] < 0) & np.isfinite(frame["x"])]
     result = summarize(
         [sample_bag],
-        topics=["/imu"],
-        fields=["linear_acceleration.x"],
-        where="linear_acceleration.z < 0 and linear_acceleration.x > -1e308 and "
-        "linear_acceleration.x < 1e308",
+        Query.create(
+            "/imu",
+            ["linear_acceleration.x"],
+            where="linear_acceleration.z < 0 and linear_acceleration.x > -1e308 and "
+            "linear_acceleration.x < 1e308",
+        ),
     )
     (field,) = result.topics[0].fields
     assert field.count == len(kept)
@@ -153,7 +155,7 @@ def test_one_topic_without_the_field_or_of_another_kind_is_an_error(
             query=Query.create("/imu", where="status[*].level > 1"),
         )
     with pytest.raises(SelectionError, match="cannot compare str with int"):
-        summarize([sample_bag], topics=["/imu"], where="header.frame_id > 2")
+        summarize([sample_bag], Query.create("/imu", where="header.frame_id > 2"))
     with pytest.raises(SelectionError, match="cannot compare a number with str"):
         load_series(
             [sample_bag],
@@ -189,7 +191,7 @@ def test_undecodable_messages_are_counted_not_matched(tmp_path: Path) -> None:
     assert pd.read_parquet(tmp_path / "x.parquet")["log_time"].tolist() == kept
     assert any(f"{cut} messages could not be decoded" in p for p in report.problems)
     for bulk in (True, False):
-        result = summarize([bag], where="linear_acceleration.z < 0", bulk=bulk)
+        result = summarize([bag], Query.create(where="linear_acceleration.z < 0"), bulk=bulk)
         assert result.topics[0].count == len(kept)
         assert any(f"{cut} messages could not be decoded" in p for p in result.problems)
 

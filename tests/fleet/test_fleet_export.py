@@ -41,9 +41,7 @@ def test_cluster_writes_what_one_process_writes(
 
 
 def test_each_bag_exports_as_it_would_alone(fleet_bags: list[Path], tmp_path: Path) -> None:
-    results = export_fleet(
-        fleet_bags[:2], tmp_path, query=Query.create("/imu/data", ["linear_*"])
-    )
+    results = export_fleet(fleet_bags[:2], tmp_path, query=Query.create("/imu/data", ["linear_*"]))
     for result in results:
         written = pd.read_parquet(result.out / "imu" / "data.parquet")
         alone = read_dataframe(result.bag, "/imu/data", fields=["linear_*"])

@@ -22,6 +22,7 @@ from mcap.reader import make_reader
 from bagkit.fleet.errors import FleetError
 from bagkit.fleet.find import FoundEpisode, find_fleet
 from bagkit.selection.errors import SelectionError, UnknownFieldError, UnknownTopicError
+from bagkit.selection.query import Query
 
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 WHEN = "/imu/data: linear_acceleration.z > 9.85 or angular_velocity.x < -0.03"
@@ -31,7 +32,12 @@ def _oracle(bags: list[Path], gap_ns: int) -> list[FoundEpisode]:
     found = []
     for bag in bags:
         rows = []
+        starts = []  # each file's first log time, from its statistics: the bag's start
         for file in sorted(bag.glob("*.mcap")):
+            with open(file, "rb") as f:
+                summary = make_reader(f).get_summary()
+                assert summary is not None and summary.statistics is not None
+                starts.append(summary.statistics.message_start_time)
             with open(file, "rb") as f:
                 for _, _channel, message in make_reader(f).iter_messages(topics=["/imu/data"]):
                     msg = STORE.deserialize_cdr(message.data, IMU)
@@ -48,10 +54,10 @@ def _oracle(bags: list[Path], gap_ns: int) -> list[FoundEpisode]:
                 current[1], current[2] = t, current[2] + 1
                 continue
             if current is not None:
-                found.append(FoundEpisode(str(bag), "/imu/data", *current))
+                found.append(FoundEpisode(str(bag), "/imu/data", *current, min(starts)))
             current = [t, t, 1]
         if current is not None:
-            found.append(FoundEpisode(str(bag), "/imu/data", *current))
+            found.append(FoundEpisode(str(bag), "/imu/data", *current, min(starts)))
     return found
 
 
@@ -185,8 +191,9 @@ def test_stats_where_on_dask_equals_one_process(fleet_bags: list[Path], client: 
     from bagkit.stats import summarize
 
     where = "linear_acceleration.z > 9.85 or angular_velocity.x < -0.03"
-    here = summarize(fleet_bags, topics=["/imu/data"], where=where)
-    there = summarize_fleet(fleet_bags, client=client, topics=["/imu/data"], where=where)
+    query = Query.create("/imu/data", where=where)
+    here = summarize(fleet_bags, query)
+    there = summarize_fleet(fleet_bags, client=client, query=query)
     matched = sum(e.count for e in find_fleet(fleet_bags, when=WHEN).episodes)
     assert here.topics[0].count == there.topics[0].count == matched
     for mine, theirs in zip(here.topics[0].fields, there.topics[0].fields, strict=True):

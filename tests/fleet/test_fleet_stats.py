@@ -15,6 +15,7 @@ from distributed import Client
 from fleet_bags import worker_pids
 
 from bagkit.fleet import expand_bags, summarize_fleet
+from bagkit.selection.query import Query
 from bagkit.stats import StatsError, Summary, UnknownTopicError, summarize
 
 REPO = Path(__file__).resolve().parents[2]
@@ -69,14 +70,14 @@ def test_generated_bags_match_in_process(client: Client, fleet_bags: list[Path])
 
 
 def test_selection_and_window_match_in_process(client: Client, fleet_bags: list[Path]) -> None:
-    options = {
-        "topics": ["/imu/data"],
-        "fields": ["linear_acceleration.*", "orientation_covariance[]"],
-        "start": "1",  # seconds into each bag
-        "end": "-0.5",  # before each one's end
-    }
+    query = Query.create(
+        "/imu/data",
+        ["linear_acceleration.*", "orientation_covariance[]"],
+        start="1",  # seconds into each bag
+        end="-0.5",  # before each one's end
+    )
     assert_same(
-        summarize(fleet_bags, **options), summarize_fleet(fleet_bags, client=client, **options)
+        summarize(fleet_bags, query), summarize_fleet(fleet_bags, client=client, query=query)
     )
 
 
@@ -111,9 +112,9 @@ def test_interop_bags_match_in_process(client: Client, interop_dir: Path) -> Non
 
 def test_unknown_topic_is_the_same_error(client: Client, fleet_bags: list[Path]) -> None:
     with pytest.raises(UnknownTopicError) as in_process:
-        summarize(fleet_bags, topics=["/nope"])
+        summarize(fleet_bags, Query.create("/nope"))
     with pytest.raises(UnknownTopicError) as fleet:
-        summarize_fleet(fleet_bags, client=client, topics=["/nope"])
+        summarize_fleet(fleet_bags, client=client, query=Query.create("/nope"))
     assert str(fleet.value) == str(in_process.value)
 
 

@@ -53,9 +53,16 @@ def test_a_window_made_a_fixture_passes_then_catches_a_mutation(tmp_path: Path) 
                 if whole.start_ns + 5 * 10**9 <= m.log_time < whole.start_ns + 15 * 10**9
             ]
             assert [m.log_time for m in window.messages([topic])] == inside
-    assert yaml.safe_load((fixture / "spec.yaml").read_text()) == yaml.safe_load(
-        (copy / "fixtures" / "faults" / "spec.yaml").read_text()
-    )
+    # The spec fits the new fixture: no copied description, the window's duration, no
+    # record_launch reading the old folder's scenario; the rest as the old spec has it.
+    new = yaml.safe_load((fixture / "spec.yaml").read_text())
+    old = yaml.safe_load((copy / "fixtures" / "faults" / "spec.yaml").read_text())
+    assert "{fixture}" in str(old["record_launch"]) and "record_launch" not in new
+    assert (new["description"], new["duration"]) == ("", 10)
+    assert old["description"] and old["duration"] != 10
+    for key in ("description", "duration", "record_launch"):
+        old.pop(key), new.pop(key, None)
+    assert new == old
 
     passed, _ = run_golden(copy, "incident")
     assert passed.returncode == 0, passed.stdout + passed.stderr

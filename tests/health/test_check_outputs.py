@@ -186,3 +186,31 @@ def test_the_library_is_the_top_level() -> None:
     assert isinstance(result, bagkit.CheckResult)
     assert [r.passed for r in result.reports] == [True, False] and result.exit_code == 1
     assert bagkit.parse_condition("gap > 1s").temporal
+
+
+def test_bad_names_are_named_with_their_line_or_a_guess(tmp_path: Path) -> None:
+    spec = tmp_path / "health.yaml"
+    spec.write_text(
+        "topics:\n  /imu/data:\n    max_gap: 1s\n    values:\n      linear_accel.z: {max: 5}\n"
+    )
+    result = bagkit_cli("check", FIXTURES / "nominal" / "golden", "--spec", spec)
+    (line,) = result.stderr.splitlines()
+    assert result.returncode == 2 and line.startswith(f"error: {spec}:5: /imu/data: ")
+    assert "did you mean linear_acceleration.z" in line
+    spec.write_text("topics:\n  /imu/dat: {}\n")
+    result = bagkit_cli("check", FIXTURES / "nominal" / "golden", "--spec", spec)
+    assert result.returncode == 1
+    assert "present (not in the bag; did you mean /imu/data?)" in result.stdout
+
+
+def test_the_table_fits_80_columns_but_for_commands_and_links(tmp_path: Path) -> None:
+    spec = tmp_path / "health.yaml"
+    spec.write_text(SPEC)
+    result = bagkit_cli(
+        "check", FIXTURES / "faults" / "golden", "--spec", spec, "--bags-url", "https://b.example/"
+    )
+    assert result.returncode == 1
+    lines = result.stdout.splitlines()
+    whole = [ln for ln in lines if ln.strip().startswith(("bagkit ", "https://"))]
+    assert len(whole) == 2 * 3  # play, filter and a Foxglove link per failure
+    assert all(len(ln) <= 80 for ln in lines if ln not in whole), lines

@@ -15,11 +15,13 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Range, Temperature
 
 from bagkit.bag import BagReader, BagWriter, TopicInfo, message_definition
+from bagkit.bag.distro_definitions import distro_definitions
 from bagkit.decode import MessageTypes
 
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
@@ -233,3 +235,60 @@ def test_to_a_package_directory(tmp_path: Path) -> None:
         types = MessageTypes.for_bag(reader)
         decoded = [types.deserialize(m.data, "sensor_msgs/msg/Range") for m in reader.messages()]
     assert [(m.range, m.quality) for m in decoded] == [(float(i), 0) for i in range(3)]
+
+
+def test_a_humble_range_becomes_jazzy_s(tmp_path: Path) -> None:
+    """The definition rosbags ships for Humble's Range (no ``variance``), as a Humble bag
+    stores it: migrated to the installed (Jazzy) Range, every recorded value kept."""
+    humble = distro_definitions(["sensor_msgs/msg/Range"], "humble")["sensor_msgs/msg/Range"]
+    assert "variance" not in humble
+    bag = tmp_path / "humble"
+    with BagWriter(bag) as writer:
+        writer.add_topic(TopicInfo("/range", "sensor_msgs/msg/Range"), humble)
+        for i in range(COUNT):
+            jazzy = bytes(serialize_message(Range(range=0.5 * i, min_range=0.1, max_range=9.0)))
+            writer.write("/range", jazzy[:-4], log_time=START_NS + i)  # without variance
+    done = _migrate(str(bag), "-o", str(tmp_path / "jazzy"))
+    assert done.returncode == 0, done.stderr
+    assert "added: variance (float32)" in done.stdout
+    ranges = _messages(tmp_path / "jazzy", "/range", Range)
+    assert [(m.range, m.max_range, m.variance) for m in ranges] == [
+        (0.5 * i, float(np.float32(9.0)), 0.0) for i in range(COUNT)
+    ]
+
+
+def test_to_another_bag_s_definitions(tmp_path: Path) -> None:
+    """--to-bag: the definitions stored in another bag (here one written with today's)."""
+    today = tmp_path / "today"
+    with BagWriter(today) as writer:
+        writer.add_topic(TopicInfo("/temperature", "sensor_msgs/msg/Temperature"))
+    rules = _rules(tmp_path / "r.yaml", RULES)
+    out = tmp_path / "new"
+    done = _migrate(str(_old_bag(tmp_path / "old")), "-o", str(out), "--to-bag", str(today),
+                    "--rules", str(rules))  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    temperatures = _messages(out, "/temperature", Temperature)
+    assert [m.temperature for m in temperatures] == [
+        old_values(i)["temp_milli_c"] / 1000 for i in range(COUNT)
+    ]
+    with BagReader(out) as reader:
+        assert reader.metadata is not None
+        (entry,) = json.loads(reader.metadata.custom_data["bagkit.migrate"])
+    assert entry["target"] == f"the definitions of bag {today}"
+
+
+def test_a_function_rule_that_fails_is_one_error_line(tmp_path: Path) -> None:
+    (tmp_path / "broken_rules.py").write_text("def fix(old, new):\n    return 1 / 0\n")
+    rules = _rules(
+        tmp_path / "r.yaml", "sensor_msgs/msg/Temperature:\n  function: broken_rules:fix\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
+    done = _migrate(str(_old_bag(tmp_path / "old")), "-o", str(tmp_path / "new"), "--rules",
+                    str(rules), env=env)  # fmt: skip
+    assert done.returncode == 2
+    (line,) = done.stderr.strip().splitlines()
+    assert line == (
+        "error: r.yaml: sensor_msgs/msg/Temperature function broken_rules:fix: "
+        "ZeroDivisionError: division by zero (/temperature message 1)"
+    )
+    assert not (tmp_path / "new").exists()

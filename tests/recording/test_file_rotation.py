@@ -33,7 +33,7 @@ def test_free_space_sizes() -> None:
     assert FreeSpace.parse("1000").bytes == 1000
     assert FreeSpace.parse("5%").fraction == pytest.approx(0.05)
     for bad in ("", "2 parsecs", "100%", "-1G", "0%"):
-        with pytest.raises(BagError, match="min-free-space"):
+        with pytest.raises(BagError, match=r"^min_free_space "):
             FreeSpace.parse(bad)
 
 

@@ -102,7 +102,7 @@ def test_latched_state_keeps_the_last_n() -> None:
 def test_parse_repeat() -> None:
     assert parse_repeat(["/tf_static", "map=3"]) == {"/tf_static": 1, "/map": 3}
     for bad in ("=2", "/map=0", "/map=x"):
-        with pytest.raises(RecorderOptionsError, match="repeat-transient-local"):
+        with pytest.raises(RecorderOptionsError, match=r"^repeat_transient_local: "):
             parse_repeat([bad])
 
 

@@ -85,6 +85,17 @@ def test_golden_root_option_and_mode_filter(project: Path, pytester: pytest.Pyte
     assert only_live.ret == pytest.ExitCode.NO_TESTS_COLLECTED
 
 
+def test_a_fixture_named_on_the_command_line_is_collected_without_roots(
+    project: Path, pytester: pytest.Pytester
+) -> None:
+    """``pytest fixtures/ramp --golden-mode lockstep`` (docs/regression.md) in a project that
+    configures no golden_roots: the fixture named, or a folder of fixtures, is collected."""
+    (project / "pytest.ini").write_text("[pytest]\npythonpath = .\n")
+    for named in ("fixtures/ramp", "fixtures", "fixtures/ramp/spec.yaml"):
+        result = pytester.runpytest_subprocess(named, "--golden-mode", "lockstep")
+        result.assert_outcomes(passed=1)
+
+
 def test_ordinary_tests_beside_the_fixtures_still_run(
     project: Path, pytester: pytest.Pytester
 ) -> None:

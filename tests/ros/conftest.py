@@ -1,7 +1,13 @@
-"""Fixtures of the ROS tests: a known-stamp bag, listeners closed after each test."""
+"""Fixtures of the ROS tests: a known-stamp bag, listeners closed after each test, a user's
+interface package built and sourced (once per session) and a bag recorded from its nodes."""
 
 from __future__ import annotations
 
+import os
+import shutil
+import signal
+import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -9,6 +15,18 @@ import pytest
 from replay_harness import (
     Listener,
     write_test_bag,
+)
+from user_workspace import (
+    BAGKIT,
+    EVENTS_TOPIC,
+    REPORT_TOPIC,
+    REPORTS,
+    USER_PROJECT,
+    Recording,
+    Workspace,
+    build_workspace,
+    json_lines,
+    run,
 )
 
 
@@ -29,3 +47,42 @@ def listener_factory() -> Iterator[type[Listener]]:
 @pytest.fixture(scope="module")
 def test_bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return write_test_bag(tmp_path_factory.mktemp("replay") / "known")
+
+
+@pytest.fixture(scope="session")
+def workspace(tmp_path_factory: pytest.TempPathFactory) -> Workspace:
+    """my_robot_msgs built by colcon into a temporary workspace, and sourced."""
+    root = tmp_path_factory.mktemp("colcon_ws")
+    return build_workspace(root, USER_PROJECT / "my_robot_msgs")
+
+
+@pytest.fixture(scope="session")
+def project(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The user's nodes (package ``battery``), without the interface sources."""
+    path = tmp_path_factory.mktemp("user_project") / "battery_project"
+    shutil.copytree(USER_PROJECT, path, ignore=shutil.ignore_patterns("my_robot_msgs", "*.cmake"))
+    return path
+
+
+@pytest.fixture(scope="session")
+def recording(workspace: Workspace, project: Path) -> Recording:
+    """``bagkit record`` while the monitor publishes REPORTS reports and calls its service."""
+    bag = project.parent / "battery_bag"
+    recorder = subprocess.Popen(
+        [BAGKIT, "record", REPORT_TOPIC, EVENTS_TOPIC, "-o", str(bag)],
+        cwd=project,
+        env=workspace.env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    try:
+        # The monitor waits for the recorder's subscriptions and for its reports' acks.
+        monitor = [sys.executable, "-m", "battery.monitor", "--count", str(REPORTS)]
+        published = json_lines(run(monitor, workspace.env, project).stdout)
+    finally:
+        os.killpg(recorder.pid, signal.SIGINT)
+        stdout, stderr = recorder.communicate(timeout=60)
+    assert recorder.returncode == 130, stderr
+    return Recording(bag, published, stdout)

@@ -19,7 +19,7 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
 from bagkit.bag import BagReader, BagWriter, TopicInfo
-from bagkit.playback.options import PlayOptions
+from bagkit.playback.options import PlayOptions, SubscriberWaits
 from bagkit.playback.report import PlayReport
 from bagkit.ros.replay.player import Player
 
@@ -148,7 +148,12 @@ STRING_TOPICS = dict.fromkeys(SCHEDULE, String)
 
 # The listeners are known: wait for them instead of watching the graph for 3 s (a subscription
 # in this process is discovered at once; one in another process takes up to 3 s).
-KNOWN = {"discovery_time_s": 0.0}
+def known(*topics: str) -> SubscriberWaits:
+    """Wait for a subscriber on each of ``topics``, without watching the graph first."""
+    return SubscriberWaits(topics=topics, discovery_s=0.0)
+
+
+NO_WAITS = SubscriberWaits(before_start=False)
 
 
 CLI_KNOWN = ["--discovery-time", "0"]

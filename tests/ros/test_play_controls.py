@@ -7,6 +7,7 @@ import threading
 import pytest
 from typer.testing import CliRunner
 
+from bagkit.bag.latched import LatchedOptions
 from bagkit.cli.main import app
 from bagkit.playback.controls import RATE_STEP, PlayControls
 from bagkit.playback.errors import PlayerError
@@ -184,7 +185,7 @@ def test_ros2_bag_play_options_reach_the_player(monkeypatch: pytest.MonkeyPatch)
     assert seen["duration_s"] == 3.0
     assert seen["until_ns"] == 17
     assert seen["remap"] == {"/a": "/x", "/b": "/y"}
-    assert seen["ack_timeout_s"] > 3600  # type: ignore[operator]
+    assert seen["waits"].ack_timeout_s > 3600  # type: ignore[attr-defined]
     assert str(seen["qos_overrides"]) == "q.yaml"
 
 
@@ -232,9 +233,9 @@ def test_debug_options_reach_the_player(monkeypatch: pytest.MonkeyPatch) -> None
     assert seen["bag"] == "A"
     assert [str(path) for path in seen["more_bags"]] == ["B", "C"]  # type: ignore[attr-defined]
     assert seen["message_order"] is MessageOrder.SENT
-    assert seen["latched_topics"] == ("/x", "/y")
-    assert (seen["latched"], seen["seek_step_s"]) == (True, 2.0)
-    assert _options(["-i", "A", "--no-latched"], monkeypatch)["latched"] is False
+    assert seen["latched"] == LatchedOptions(enabled=True, extra_topics=("/x", "/y"))
+    assert seen["seek_step_ns"] == 2_000_000_000
+    assert _options(["-i", "A", "--no-latched"], monkeypatch)["latched"] == LatchedOptions(False)
 
 
 def test_seek_keys_call_the_seek_step_both_ways() -> None:
@@ -251,7 +252,7 @@ def test_seek_keys_call_the_seek_step_both_ways() -> None:
     [
         (["--topics", "/a"], "give a bag"),
         (["A", "--no-latched", "--latched-topics", "/x"], "exclude each other"),
-        (["A", "--seek-step", "0"], "seek step must be positive"),
+        (["A", "--seek-step", "0"], "error: --seek-step: must be positive"),
     ],
 )
 def test_debug_option_errors_are_one_line(args: list[str], message: str) -> None:

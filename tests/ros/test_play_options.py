@@ -40,7 +40,7 @@ def test_a_start_from_the_end_as_elsewhere() -> None:
 
 def test_offset_past_the_last_message_names_the_bag() -> None:
     window = PlayWindow.create(start=10.5)
-    with pytest.raises(PlayerError, match=r"the start offset 10.5 s is past the end of drive"):
+    with pytest.raises(PlayerError, match=r"^drive: the time window \[.*\) holds no message"):
         window.bounds(START, END, BAG)
     assert PlayWindow.create(start=10.0).bounds(START, END, BAG) == (END, None)
 
@@ -63,11 +63,12 @@ def test_window_out_of_range(options: dict[str, float], message: str) -> None:
 @pytest.mark.parametrize(
     ("rate", "delay", "clock_hz", "loops", "message"),
     [
-        (0.0, 0.0, None, 1, "rate must be positive"),
-        (float("nan"), 0.0, None, 1, "rate must be positive"),
-        (1.0, -0.5, None, 1, "delay must not be negative"),
-        (1.0, 0.0, 0.0, 1, "clock rate must be positive"),
-        (1.0, 0.0, None, -1, "loops must be 0"),
+        (0.0, 0.0, None, 1, "^rate: must be positive"),
+        (float("nan"), 0.0, None, 1, "^rate: must be positive"),
+        (float("inf"), 0.0, None, 1, "^rate: must be positive"),
+        (1.0, -0.5, None, 1, "^delay_s: must not be negative"),
+        (1.0, 0.0, 0.0, 1, "^clock_hz: must be positive"),
+        (1.0, 0.0, None, -1, "^loops: must be 0"),
     ],
 )
 def test_options_out_of_range(

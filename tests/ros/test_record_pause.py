@@ -17,7 +17,7 @@ from std_srvs.srv import Trigger
 from waiting import wait_for, wait_matched
 
 from bagkit.bag import BagReader
-from bagkit.recording.options import RecordOptions
+from bagkit.recording.options import FileOptions, RecordOptions
 from bagkit.ros.record.recorder import Recorder
 from bagkit.ros.serialization import deserializer
 
@@ -107,7 +107,8 @@ def test_pause_resume_split_through_the_services(node: Node, tmp_path: Path) -> 
 def test_circular_recording_keeps_the_newest_files(node: Node, tmp_path: Path) -> None:
     imu = node.create_publisher(Imu, "/pz/circle", 1000)
     bag = tmp_path / "circle"
-    opts = RecordOptions(bag, topics=("/pz/circle",), max_bag_duration_s=0.3, max_bag_files=2)
+    files = FileOptions(max_bag_duration_ns=300_000_000, max_bag_files=2)
+    opts = RecordOptions(bag, topics=("/pz/circle",), files=files)
     with Recorder(opts) as recorder:
         wait_matched(imu)
         for i in range(400):

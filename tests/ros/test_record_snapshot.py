@@ -24,7 +24,7 @@ from test_record_cli import report_json
 from waiting import wait_for, wait_matched
 
 from bagkit.bag import BagReader
-from bagkit.recording.options import RecordOptions
+from bagkit.recording.options import FileOptions, RecordOptions, SnapshotOptions, SnapshotTrigger
 from bagkit.ros.errors import RecorderOptionsError
 from bagkit.ros.record.recorder import Recorder
 
@@ -57,8 +57,12 @@ class Scene:
             time.sleep(1 / rate_hz)
 
 
-def options(bag: Path, **fields: Any) -> RecordOptions:
-    return RecordOptions(bag, regex="^/snap/", snapshot_mode=True, **fields)
+def options(
+    bag: Path, *, triggers: tuple[str, ...] = (), node_name: str = "bagkit_recorder", **bounds: Any
+) -> RecordOptions:
+    """Snapshot mode on /snap/*: ``bounds`` are :class:`SnapshotOptions`' fields."""
+    snapshot = SnapshotOptions(triggers=tuple(SnapshotTrigger.parse(t) for t in triggers), **bounds)
+    return RecordOptions(bag, regex="^/snap/", node_name=node_name, snapshot=snapshot)
 
 
 def read_snapshot(path: Path) -> dict[str, list[tuple[int, Any]]]:
@@ -84,9 +88,9 @@ def test_data_trigger_writes_the_window_with_the_latched_state_first(
     out = tmp_path / "blackbox"
     opts = options(
         out,
-        snapshot_max_duration_s=1.0,
+        max_duration_ns=S,
         triggers=("/snap/alerts: status[*].level >= 2",),
-        post_s=0.5,
+        post_ns=S // 2,
     )
     with Recorder(opts) as recorder:
         wait_matched(scene.imu, scene.alerts, scene.state)
@@ -134,7 +138,7 @@ def test_service_and_overlapping_triggers(node: Node, tmp_path: Path) -> None:
     out = tmp_path / "service"
     client = node.create_client(Trigger, "/snap_recorder/snapshot")
     with Recorder(
-        options(out, node_name="snap_recorder", snapshot_max_bytes=1 << 20, post_s=0.6)
+        options(out, node_name="snap_recorder", max_bytes=1 << 20, post_ns=6 * S // 10)
     ) as recorder:
         wait_matched(scene.imu)
         assert client.wait_for_service(timeout_sec=10)
@@ -176,7 +180,7 @@ def test_trigger_on_a_missing_field_is_refused_before_recording(node: Node, tmp_
     scene = Scene(node)  # /snap/alerts has a publisher: its type is known at the start
     out = tmp_path / "bad"
     recorder = Recorder(
-        options(out, snapshot_max_duration_s=1, triggers=("/snap/alerts: status[*].levle >= 2",))
+        options(out, max_duration_ns=S, triggers=("/snap/alerts: status[*].levle >= 2",))
     )
     try:
         recorder.start()
@@ -202,7 +206,7 @@ def test_every_split_file_starts_with_the_latched_state(node: Node, tmp_path: Pa
     opts = RecordOptions(
         bag,
         regex="^/snap/",
-        max_bag_duration_s=0.5,
+        files=FileOptions(max_bag_duration_ns=S // 2),
         repeat_all_transient_local=True,
     )
     with Recorder(opts) as recorder:
@@ -288,7 +292,7 @@ def test_pre_post_windows_and_extension_without_dds(tmp_path: Path) -> None:
 
     now = [0]
     errors: list[tuple[str, int]] = []
-    opts = options(tmp_path / "sink", snapshot_max_duration_s=10, pre_s=1.0, post_s=0.5)
+    opts = options(tmp_path / "sink", max_duration_ns=10 * S, pre_ns=S, post_ns=S // 2)
     sink = SnapshotSink(
         opts.output,
         opts,
@@ -337,7 +341,7 @@ def test_a_silence_triggers_while_it_lasts_without_dds(tmp_path: Path) -> None:
     now = [0]
     errors: list[tuple[str, int]] = []
     triggers = ("/snap/imu: gap > 500ms", "/snap/imu: unchanged(linear_acceleration.z) for 1s")
-    opts = options(tmp_path / "sink", snapshot_max_duration_s=10, pre_s=1.0, triggers=triggers)
+    opts = options(tmp_path / "sink", max_duration_ns=10 * S, pre_ns=S, triggers=triggers)
     sink = SnapshotSink(
         opts.output,
         opts,
@@ -378,7 +382,7 @@ def test_a_dropout_writes_the_second_before_it_over_dds(node: Node, tmp_path: Pa
     messages before the silence, without any message after it being needed."""
     scene = Scene(node)
     out = tmp_path / "blackbox"
-    opts = options(out, snapshot_max_duration_s=1.0, triggers=("/snap/imu: gap > 500ms",))
+    opts = options(out, max_duration_ns=S, triggers=("/snap/imu: gap > 500ms",))
     with Recorder(opts) as recorder:
         wait_matched(scene.imu)
         scene.stream(1.5)

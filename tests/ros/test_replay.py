@@ -14,11 +14,12 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from replay_harness import (
     BAG_SPAN_NS,
     BAG_START_NS,
-    KNOWN,
+    NO_WAITS,
     SCHEDULE,
     STRING_TOPICS,
     Listener,
     clock_ns,
+    known,
     payload,
     play,
     recorded,
@@ -42,7 +43,7 @@ def test_every_message_in_order_with_the_recorded_pacing(
 ) -> None:
     expected = recorded(test_bag)
     listener = listener_factory(STRING_TOPICS)
-    report = play(test_bag, rate=rate, wait_for=tuple(SCHEDULE), **KNOWN)
+    report = play(test_bag, rate=rate, waits=known(*SCHEDULE))
     got = listener.wait_for_count(len(expected))
 
     # Every message, first one included, in log-time order (one process, one writer: DDS keeps
@@ -79,9 +80,7 @@ def test_start_offset_and_duration_select_a_window_of_bag_time(
     window = (BAG_START_NS + 300_000_000, BAG_START_NS + 700_000_000)
     expected = [(t, d) for t, d, log in recorded(test_bag) if window[0] <= log < window[1]]
     listener = listener_factory(STRING_TOPICS)
-    report = play(
-        test_bag, rate=4.0, start_offset_s=0.3, duration_s=0.4, wait_for=tuple(SCHEDULE), **KNOWN
-    )
+    report = play(test_bag, rate=4.0, start_offset_s=0.3, duration_s=0.4, waits=known(*SCHEDULE))
     got = listener.wait_for_count(len(expected))
     assert [(r.topic, r.data) for r in got] == expected
     assert report.bag_duration_s == pytest.approx(0.35)  # last message at +650 ms
@@ -101,7 +100,7 @@ def test_topic_selection_regex_and_exclude(
         ),
     ]:
         listener = listener_factory(STRING_TOPICS)
-        report = play(test_bag, rate=10.0, wait_for=tuple(SCHEDULE), **KNOWN, **options)
+        report = play(test_bag, rate=10.0, waits=known(*SCHEDULE), **options)
         got = listener.wait_for_count(len(expected))
         assert [(r.topic, r.data) for r in got] == expected, options
         assert report.messages == len(expected)
@@ -123,8 +122,7 @@ def test_remap_publishes_under_the_new_name(
         rate=10.0,
         topics=("/replay/fast",),
         remap={"/replay/fast": "/renamed"},
-        wait_for=("/renamed", "/replay/fast"),
-        **KNOWN,
+        waits=known("/renamed", "/replay/fast"),
     )
     got = listener.wait_for_count(len(fast))
     assert [r.data for r in got if r.topic == "/renamed"] == fast
@@ -135,9 +133,7 @@ def test_remap_publishes_under_the_new_name(
 def test_loops_and_delay(test_bag: Path, listener_factory: type[Listener]) -> None:
     expected = [(t, d) for t, d, _ in recorded(test_bag)]
     listener = listener_factory(STRING_TOPICS)
-    options = PlayOptions(
-        test_bag, rate=5.0, loops=2, delay_s=0.5, wait_for=tuple(SCHEDULE), **KNOWN
-    )
+    options = PlayOptions(test_bag, rate=5.0, loops=2, delay_s=0.5, waits=known(*SCHEDULE))
     with Player(options) as player:
         player.wait_until_matched()
         player.waits = dataclasses.replace(player.waits, before_start=False, topics=())
@@ -158,7 +154,7 @@ def test_clock_runs_in_bag_time_before_each_message(
 ) -> None:
     rate = 2.0
     listener = listener_factory({**STRING_TOPICS, "/clock": Clock})
-    report = play(test_bag, rate=rate, clock_hz=50.0, wait_for=(*SCHEDULE, "/clock"), **KNOWN)
+    report = play(test_bag, rate=rate, clock_hz=50.0, waits=known(*SCHEDULE, "/clock"))
     expected = recorded(test_bag)
     listener.wait_for_count(len(expected))
     clock = [(r, clock_ns(r.data)) for r in listener.messages("/clock")]
@@ -193,7 +189,7 @@ def test_publishers_take_the_recorded_qos_or_the_overrides(node: Node, tmp_path:
         infos = node.get_publishers_info_by_topic(topic)
         return [i.qos_profile for i in infos if i.node_name == "bagkit_player"]
 
-    with Player(PlayOptions(bag, qos_overrides=overrides, wait_for_subscribers=False)):
+    with Player(PlayOptions(bag, qos_overrides=overrides, waits=NO_WAITS)):
         # What DDS discovery tells of a publisher: reliability and durability, not the depth
         # (test_qos.py checks the depths replay_publisher_qos and the overrides give).
         wait_for(lambda: all(offered_by_the_player(t) for t in ("/latched", "/lossy", "/plain")))
@@ -214,7 +210,7 @@ def test_a_recorded_clock_is_not_replayed_with_clock_on(tmp_path: Path) -> None:
         writer.write("/clock", clock_message(BAG_START_NS), log_time=BAG_START_NS)
         writer.write("/replay/fast", payload("/replay/fast", 0), log_time=BAG_START_NS)
     for clock_hz, replayed in ((100.0, ["/replay/fast"]), (None, ["/clock", "/replay/fast"])):
-        options = PlayOptions(bag, clock_hz=clock_hz, wait_for_subscribers=False)
+        options = PlayOptions(bag, clock_hz=clock_hz, waits=NO_WAITS)
         report = Player(options).run()
         assert sorted(t.topic for t in report.topics) == replayed
         assert report.messages == len(replayed)
@@ -236,7 +232,7 @@ def test_looping_keeps_the_lateness_samples_bounded(
     monkeypatch.setattr(lateness, "LATENESS_SAMPLES", 50)
     monkeypatch.setattr(player_module, "LatenessSamples", Spied)
     per_pass = len(recorded(test_bag))
-    report = play(test_bag, rate=100.0, loops=20, wait_for_subscribers=False)
+    report = play(test_bag, rate=100.0, loops=20, waits=NO_WAITS)
     assert report.loops == 20
     assert report.messages == 20 * per_pass > 50
     (samples,) = kept

@@ -25,13 +25,14 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message, serialize_message
-from replay_harness import CLI_KNOWN, KNOWN, Listener, bagkit_cli, clock_ns
+from replay_harness import CLI_KNOWN, Listener, bagkit_cli, clock_ns, known
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 from waiting import wait_for
 
 from bagkit.bag import BagWriter, TopicInfo
+from bagkit.bag.latched import LatchedOptions
 from bagkit.playback.options import PlayOptions
 from bagkit.playback.report import PlayReport
 from bagkit.ros.qos import dump_offered_qos_profiles
@@ -108,9 +109,7 @@ def test_start_offset_first_publishes_the_latched_state(
 ) -> None:
     bag = write_debug_bag(tmp_path / "bag")
     listener = listener_factory({DATA: String, STATE: String})
-    options = PlayOptions(
-        bag, start_offset_s=1.0, start_paused=True, wait_for=(DATA, STATE), **KNOWN
-    )
+    options = PlayOptions(bag, start_offset_s=1.0, start_paused=True, waits=known(DATA, STATE))
     with playing(options) as (_player, reports):
         wait_for(lambda: listener.messages(STATE), 10.0, what="the latched state")
         late = late_state_subscriber(node)
@@ -128,9 +127,7 @@ def test_seek_publishes_clock_and_latched_state_then_burst_and_stop(
 ) -> None:
     bag = write_debug_bag(tmp_path / "bag")
     listener = listener_factory({DATA: String, STATE: String, "/clock": Clock})
-    options = PlayOptions(
-        bag, start_paused=True, clock_hz=40.0, wait_for=(DATA, STATE, "/clock"), **KNOWN
-    )
+    options = PlayOptions(bag, start_paused=True, clock_hz=40.0, waits=known(DATA, STATE, "/clock"))
     with playing(options) as (player, reports):
         time.sleep(0.5)
         target = player.seek(1.2)  # seconds from the bag's start
@@ -164,7 +161,7 @@ def test_a_seek_back_while_playing_is_no_lateness_and_past_the_end_is_clamped(
     bag = write_debug_bag(tmp_path / "bag")
     listener = listener_factory({DATA: String})
     warnings: list[str] = []
-    options = PlayOptions(bag, wait_for=(DATA,), **KNOWN)
+    options = PlayOptions(bag, waits=known(DATA))
     reports: list[PlayReport] = []
     with Player(options, on_warning=warnings.append) as player:
         thread = threading.Thread(target=lambda: reports.append(player.play()), daemon=True)
@@ -281,7 +278,7 @@ def test_each_loop_pass_starts_with_the_latched_state(
     bag = write_debug_bag(tmp_path / "bag")
     listener = listener_factory({DATA: String, STATE: String})
     report = Player(
-        PlayOptions(bag, start_offset_s=2.5, loops=2, rate=2.0, wait_for=(DATA, STATE), **KNOWN)
+        PlayOptions(bag, start_offset_s=2.5, loops=2, rate=2.0, waits=known(DATA, STATE))
     ).run()
     wait_for(lambda: len(listener.messages()) == report.messages, 10.0)
     assert [text(r.data) for r in listener.messages(STATE)] == ["state#1", "state#1"]
@@ -308,10 +305,8 @@ def test_no_latched_and_latched_topics(
         bag,
         start_offset_s=1.0,
         duration_s=0.01,  # the window holds data#20 only
-        latched=latched,
-        latched_topics=extra,
-        wait_for=(DATA, STATE),
-        **KNOWN,
+        latched=LatchedOptions(enabled=latched, extra_topics=extra),
+        waits=known(DATA, STATE),
     )
     report = Player(options).run()
     wait_for(lambda: len(listener.messages()) == report.messages, 10.0)

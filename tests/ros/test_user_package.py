@@ -19,177 +19,31 @@ import shutil
 import signal
 import subprocess
 import sys
-import sysconfig
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pandas as pd
 import pytest
+from user_workspace import (
+    BAGKIT,
+    BUILD_TIMEOUT_S,
+    CMAKE_OVERRIDE,
+    EVENT_TYPE,
+    EVENTS_TOPIC,
+    REPORT_TOPIC,
+    REPORT_TYPE,
+    REPORTS,
+    USER_PROJECT,
+    Recording,
+    Workspace,
+    json_lines,
+    run,
+)
 
-USER_PROJECT = Path(__file__).with_name("user_package")
-CMAKE_OVERRIDE = USER_PROJECT / "wheel_python_includes.cmake"
 INSTALL_DOC = Path(__file__).resolve().parents[2] / "docs" / "install.md"
-BAGKIT = str(Path(sys.executable).with_name("bagkit"))
-BUILD_TIMEOUT_S = 900
-RUN_TIMEOUT_S = 120
-REPORTS = 12
-REPORT_TOPIC = "/battery/report"
-EVENTS_TOPIC = "/battery/set_charge_limit/_service_event"
-REPORT_TYPE = "my_robot_msgs/msg/BatteryReport"
-EVENT_TYPE = "my_robot_msgs/srv/SetChargeLimit_Event"
 
 # The first test to ask for the workspace builds it within its own time limit.
 pytestmark = pytest.mark.timeout(BUILD_TIMEOUT_S + 300)
-
-
-@dataclass(frozen=True)
-class Workspace:
-    """The built workspace and the environment of its sourced ``install/local_setup.bash``."""
-
-    root: Path
-    env: dict[str, str]
-
-
-@dataclass(frozen=True)
-class Recording:
-    """A bag recorded from the battery monitor, what it published, the recorder's report."""
-
-    bag: Path
-    published: list[dict[str, Any]]
-    report: str
-
-
-def unavailable(reason: str) -> None:
-    """Skip where the toolchain is missing; under CI a missing toolchain is a failure."""
-    if os.environ.get("CI", "").lower() == "true":
-        pytest.fail(reason)
-    pytest.skip(reason)
-
-
-def prepend(path: str, existing: str | None) -> str:
-    return os.pathsep.join([path, existing]) if existing else path
-
-
-def build_environment() -> dict[str, str]:
-    """This environment as a user's activated venv holding the ROS wheels: its bin on PATH,
-    its prefix on AMENT_PREFIX_PATH (where rosidl looks up the installed type supports)."""
-    env = dict(os.environ)
-    env["PATH"] = prepend(str(Path(sys.executable).parent), env.get("PATH"))
-    env["AMENT_PREFIX_PATH"] = prepend(sys.prefix, env.get("AMENT_PREFIX_PATH"))
-    return env
-
-
-def cmake_args() -> list[str]:
-    """The override of docs/install.md, with this interpreter's Python and NumPy headers."""
-    include = sysconfig.get_paths()["include"]
-    if not Path(include, "Python.h").is_file():
-        unavailable(f"no Python headers at {include}: the interface package cannot be built")
-    return [
-        f"-DCMAKE_PROJECT_INCLUDE={CMAKE_OVERRIDE}",
-        f"-DPython3_EXECUTABLE={sys.executable}",
-        f"-DPython3_INCLUDE_DIR={include}",
-        f"-DPython3_NumPy_INCLUDE_DIR={np.get_include()}",
-    ]
-
-
-def sourced(setup: Path, env: dict[str, str]) -> dict[str, str]:
-    """The environment after ``source setup`` in bash, as a user's shell has it."""
-    script = 'source "$1" >/dev/null && env -0'
-    out = subprocess.run(
-        ["bash", "-c", script, "bash", str(setup)],
-        env=env,
-        capture_output=True,
-        timeout=60,
-        check=False,
-    )
-    assert out.returncode == 0, out.stderr.decode()
-    pairs = (entry.split("=", 1) for entry in out.stdout.decode().split("\0") if "=" in entry)
-    return dict(pairs)
-
-
-@pytest.fixture(scope="session")
-def workspace(tmp_path_factory: pytest.TempPathFactory) -> Workspace:
-    """my_robot_msgs built by colcon into a temporary workspace, and sourced."""
-    colcon = Path(sys.executable).with_name("colcon")
-    if not colcon.is_file():
-        unavailable(f"{colcon} not installed: pip install -e '.[dev]' installs the toolchain")
-    if shutil.which("cmake") is None or shutil.which("c++") is None:
-        unavailable("cmake and a C++ compiler are needed to build an interface package")
-    root = tmp_path_factory.mktemp("colcon_ws")
-    shutil.copytree(USER_PROJECT / "my_robot_msgs", root / "src" / "my_robot_msgs")
-    env = build_environment()
-    env["COLCON_HOME"] = str(root / "colcon_home")  # no defaults or mixins of the developer's
-    args = [str(colcon), "--log-base", "log", "build", "--cmake-args", *cmake_args()]
-    built = subprocess.run(
-        args,
-        cwd=root,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=BUILD_TIMEOUT_S,
-        check=False,
-    )
-    assert built.returncode == 0, built.stdout[-4000:] + built.stderr[-4000:]
-    user_env = sourced(root / "install" / "local_setup.bash", env)
-    for variable in ("AMENT_PREFIX_PATH", "PYTHONPATH", "LD_LIBRARY_PATH"):
-        assert str(root / "install" / "my_robot_msgs") in user_env.get(variable, ""), variable
-    return Workspace(root, user_env)
-
-
-@pytest.fixture(scope="session")
-def project(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The user's nodes (package ``battery``), without the interface sources."""
-    path = tmp_path_factory.mktemp("user_project") / "battery_project"
-    shutil.copytree(USER_PROJECT, path, ignore=shutil.ignore_patterns("my_robot_msgs", "*.cmake"))
-    return path
-
-
-def run(
-    args: list[str], env: dict[str, str], cwd: Path, timeout: float = RUN_TIMEOUT_S
-) -> subprocess.CompletedProcess[str]:
-    """A command in ``env`` (the sourced environment, mostly); it must succeed."""
-    result = subprocess.run(
-        args,
-        cwd=cwd,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-        check=False,
-    )
-    assert result.returncode == 0, f"{args}\n{result.stdout}\n{result.stderr}"
-    return result
-
-
-def json_lines(text: str) -> list[Any]:
-    """The JSON lines of ``text`` (Fast DDS may print its own log lines among them)."""
-    return [json.loads(line) for line in text.splitlines() if line.startswith("{")]
-
-
-@pytest.fixture(scope="module")
-def recording(workspace: Workspace, project: Path) -> Recording:
-    """``bagkit record`` while the monitor publishes REPORTS reports and calls its service."""
-    bag = project.parent / "battery_bag"
-    recorder = subprocess.Popen(
-        [BAGKIT, "record", REPORT_TOPIC, EVENTS_TOPIC, "-o", str(bag)],
-        cwd=project,
-        env=workspace.env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        start_new_session=True,
-    )
-    try:
-        # The monitor waits for the recorder's subscriptions and for its reports' acks.
-        monitor = [sys.executable, "-m", "battery.monitor", "--count", str(REPORTS)]
-        published = json_lines(run(monitor, workspace.env, project).stdout)
-    finally:
-        os.killpg(recorder.pid, signal.SIGINT)
-        stdout, stderr = recorder.communicate(timeout=60)
-    assert recorder.returncode == 130, stderr
-    return Recording(bag, published, stdout)
 
 
 @pytest.mark.ros

@@ -9,6 +9,7 @@ import pytest
 
 from bagkit.compare.options import CompareOptions, Tolerance, ToleranceRule
 from bagkit.selection.fields import FieldSelection, name_matches, path_matches, split_pattern
+from bagkit.selection.query import Query
 from bagkit.stats import summarize
 from tests.stats.rosbags_oracle import imu_data, scan_data, write_bag
 
@@ -90,7 +91,7 @@ def test_stats_uses_the_same_rules(bag: Path) -> None:
     """Every leaf stats reports is one the selection selects, and every selected one is there."""
     everything = {t.topic: [f.field for f in t.fields] for t in summarize([bag]).topics}
     patterns = ["/imu:*_covariance", "header.stamp", "ranges[]", "/scan:angle_?i?"]
-    result = summarize([bag], fields=patterns)
+    result = summarize([bag], Query.create(fields=patterns))
     selection = FieldSelection(patterns)
     reported = {t.topic: [f.field for f in t.fields] for t in result.topics}
     assert reported == {

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from bagkit.selection.query import Query
 from bagkit.stats import Summary, summarize
 
 
 def test_dataframe_has_a_row_per_field(bag: Path) -> None:
-    result = summarize([bag], topics=["/imu/data"])
+    result = summarize([bag], Query.create("/imu/data"))
     frame = result.to_dataframe()
     assert len(frame) == len(result.topics[0].fields)
     row = frame.set_index("field").loc["linear_acceleration.z"]

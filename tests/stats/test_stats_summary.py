@@ -25,6 +25,7 @@ from rosbags_oracle import (
 
 from bagkit.bag import BagNotFoundError
 from bagkit.selection.errors import UnknownFieldError
+from bagkit.selection.query import Query
 from bagkit.stats import (
     NothingToSummarizeError,
     StatsError,
@@ -51,7 +52,7 @@ def test_every_field_matches_numpy(bag: Path, topics: dict[str, TopicData]) -> N
 
 
 def test_rate_is_from_first_to_last_message(bag: Path, topics: dict[str, TopicData]) -> None:
-    result = summarize([bag], topics=["/imu/data"])
+    result = summarize([bag], Query.create("/imu/data"))
     (imu,) = result.topics
     times = [t for t, _ in topics["/imu/data"].messages]
     assert imu.rate_hz == pytest.approx((len(times) - 1) / ((times[-1] - times[0]) / 1e9))
@@ -59,10 +60,10 @@ def test_rate_is_from_first_to_last_message(bag: Path, topics: dict[str, TopicDa
 
 def test_time_window_selects_messages(bag: Path, topics: dict[str, TopicData]) -> None:
     start, end = T0 + 2_000_000_000, T0 + 9_000_000_000
-    result = summarize([bag], start=f"{start}ns", end=f"{end}ns")
+    result = summarize([bag], Query.create(start=f"{start}ns", end=f"{end}ns"))
     assert result.start_ns is not None and result.end_ns is not None
     assert start <= result.start_ns and result.end_ns < end
-    relative = summarize([bag], start="2", end=f"{(end - T0) / 1e9}")
+    relative = summarize([bag], Query.create(start="2", end=f"{(end - T0) / 1e9}"))
     assert relative == result
     for stats in result.topics:
         data = topics[stats.topic]
@@ -75,8 +76,9 @@ def test_time_window_selects_messages(bag: Path, topics: dict[str, TopicData]) -
 def test_topic_and_field_selection(bag: Path, topics: dict[str, TopicData]) -> None:
     result = summarize(
         [bag],
-        topics=["/imu/data", "/scan"],
-        fields=["linear_acceleration.?", "ranges[]", "*_covariance[4]"],
+        Query.create(
+            ["/imu/data", "/scan"], ["linear_acceleration.?", "ranges[]", "*_covariance[4]"]
+        ),
     )
     fields = {t.topic: [f.field for f in t.fields] for t in result.topics}
     assert fields == {
@@ -134,16 +136,16 @@ def test_several_bags_and_split_files_are_pooled(tmp_path: Path, rng: np.random.
 
 def test_bad_input_raises_readable_errors(bag: Path, tmp_path: Path) -> None:
     with pytest.raises(UnknownTopicError, match="/nope"):
-        summarize([bag], topics=["/nope"])
+        summarize([bag], Query.create("/nope"))
     with pytest.raises(BagNotFoundError):
         summarize([tmp_path / "missing"])
-    outside = summarize([bag], start=f"{T0 + 10**15}ns")
+    outside = summarize([bag], Query.create(start=f"{T0 + 10**15}ns"))
     assert outside.topics == () and outside.start_ns is None
     assert len(outside.problems) == 1 and "holds no message" in outside.problems[0]
     with pytest.raises(UnknownFieldError, match="no topic has a numeric field no_such_field"):
-        summarize([bag], fields=["no_such_field"])
+        summarize([bag], Query.create(fields=["no_such_field"]))
     with pytest.raises(UnknownFieldError, match=r"did you mean linear_acceleration.z,"):
-        summarize([bag], topics=["/imu/data"], fields=["linear_acceleration.zz"])
+        summarize([bag], Query.create("/imu/data", ["linear_acceleration.zz"]))
 
 
 def test_empty_bag_is_a_clear_error(tmp_path: Path) -> None:

@@ -45,6 +45,7 @@ from bagkit.ros.record.subscriptions import Subscriptions
 from bagkit.ros.record.take_loop import SimClock, TakeLoop
 from bagkit.ros.record.triggers import DataTriggers, start_trigger_checks
 from bagkit.ros.tuning import process_tuning
+from bagkit.selection.times import NS_PER_S
 from bagkit.selection.topics import absolute_topic_name, missing_on_graph
 
 
@@ -58,7 +59,8 @@ class Recorder:
     Example::
 
         stop = threading.Event()  # set it from anywhere to stop
-        report = Recorder(RecordOptions(Path("run1"), all_topics=True, duration_s=10)).run(stop)
+        options = RecordOptions(Path("run1"), all_topics=True, duration_ns=10 * NS_PER_S)
+        report = Recorder(options).run(stop)
         print(report.messages, report.lost)
 
     Args:
@@ -122,7 +124,7 @@ class Recorder:
         on_progress: Callable[[RecordProgress], None] | None = None,
         progress_period_s: float = POLL_S,
     ) -> RecordReport:
-        """Record until ``stop``, ``options.duration_s``, ``options.max_messages`` or a failure.
+        """Record until ``stop``, ``options.duration_ns``, ``options.max_messages`` or a failure.
 
         The bag is finished in every case, Ctrl-C (KeyboardInterrupt) included.
 
@@ -358,7 +360,7 @@ class Recorder:
             self._stop,
             wake=wake.handle,
             clock=clock,
-            discovery_period_s=self.options.discovery_period_s,
+            discovery_period_s=self.options.discovery_period_ns / NS_PER_S,
         )
 
     def _write(self) -> None:

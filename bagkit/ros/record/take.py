@@ -1,9 +1,10 @@
 """Take serialized messages from a subscription in batches, as columns.
 
-rclpy's ``take_message(raw=True)`` costs about 4.3 us per message here (a tuple and a dict of
-the message info each time); :func:`take_serialized` takes up to a count or byte budget in one
-call for about 1.8 us per message, through the ``_take`` extension, and returns what
-:meth:`bagkit.bag.BagWriter.write_batch` takes.
+rclpy's ``take_message(raw=True)`` builds a tuple and a dict of the message info for each
+message; :func:`take_serialized` takes up to a count or byte budget in one call, through the
+``_take`` extension, for less than half of that per message (benchmarks/README.md,
+"Measurements behind the code"), and returns what :meth:`bagkit.bag.BagWriter.write_batch`
+takes.
 """
 
 from __future__ import annotations

@@ -1,8 +1,8 @@
 """The recorder's take thread: wait for messages, take them in bursts, hand batches over.
 
 The thread owns the node: it waits on a wait set and drains every ready subscription with
-:func:`bagkit.ros.record.take.take_serialized` (an executor callback per message would cost about
-200 us, far too slow for a recorder), polls the graph every ``discovery_period_s`` and hands
+:func:`bagkit.ros.record.take.take_serialized` (an executor callback per message is far too
+slow for a recorder), polls the graph every ``discovery_period_s`` and hands
 the messages to the writer thread through the :class:`~bagkit.recording.handoff.HandoffQueue`.
 """
 
@@ -33,12 +33,12 @@ TAKE_BURST_BYTES = 4 << 20
 # How long taken messages may wait before they are handed to the writer.
 BATCH_AGE_S = 0.005
 # While messages flow, the take thread takes from every subscription in turn instead of waiting
-# on the wait set (a wait costs 30 us of CPU here even when data is there, an empty take
-# 0.7 us), and after a round that found fewer than PAUSE_BELOW messages it first lets PAUSE_S
-# pass: any wake-up costs 30 - 40 us on this kind of machine (a bare 1 ms sleep: 36 us of CPU),
-# so a topic at a few kHz is better taken a few messages per wake-up than one. The messages
-# wait in the middleware with their receive times already stamped; the best-effort
-# subscriptions' keep-last depth (RECORD_DEPTH) holds 2 ms of up to 500k messages/s.
+# on the wait set (a wait costs far more CPU than an empty take, even when data is there), and
+# after a round that found fewer than PAUSE_BELOW messages it first lets PAUSE_S pass: every
+# wake-up has its cost, so a topic at a few kHz is better taken a few messages per wake-up than
+# one (benchmarks/README.md, "Measurements behind the code"). The messages wait in the
+# middleware with their receive times already stamped; the best-effort subscriptions' keep-last
+# depth (RECORD_DEPTH) holds PAUSE_S of up to 500k messages/s.
 PAUSE_BELOW = 16
 PAUSE_S = 0.002
 # How long a stop (or a re-subscription) keeps taking what the middleware already holds.
@@ -193,7 +193,7 @@ class TakeLoop:
         """The topics to take from this round: all while messages flow, else the wait set's."""
         if self._taken_last_round:
             # Messages are flowing: take from every topic without a wait set (an empty take
-            # costs 0.7 us, a wait 30 us), after a pause if the last round was small.
+            # costs less than a wait), after a pause if the last round was small.
             if self._pause_s and not self._full_last_round and self._taken_last_round < PAUSE_BELOW:
                 time.sleep(self._pause_s)
             return self._topics

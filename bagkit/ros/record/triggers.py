@@ -76,13 +76,9 @@ class DataTriggers:
 
     @classmethod
     def of(cls, options: RecordOptions) -> DataTriggers:
-        """The triggers ``options`` asks for."""
-        return cls(
-            [
-                (text, trigger.topic, trigger.condition)
-                for text, trigger in zip(options.triggers, options.trigger_conditions, strict=True)
-            ]
-        )
+        """The triggers of ``options`` (none without snapshot mode)."""
+        triggers = options.snapshot.triggers if options.snapshot is not None else ()
+        return cls([(t.text, t.condition.topic, t.condition.condition) for t in triggers])
 
     @property
     def topics(self) -> list[str]:

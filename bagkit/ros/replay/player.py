@@ -54,7 +54,7 @@ from bagkit.ros.replay.service_requests import ServiceRequests
 from bagkit.ros.replay.services import serve_controls
 from bagkit.ros.replay.topics import PublishableTopics, publishable_topics
 from bagkit.ros.tuning import process_tuning
-from bagkit.selection.times import TimeLike, parse_time, seconds_to_ns
+from bagkit.selection.times import TimeLike, parse_time
 
 _log = logging.getLogger(__name__)
 
@@ -69,7 +69,7 @@ class Player:
     Args:
         options: what to replay and how.
         context: rclpy context to use; None = a private one, shut down on exit.
-        on_progress: called with a ``PlayProgress`` about every ``options.progress_period_s``.
+        on_progress: called with a ``PlayProgress`` about every ``options.progress_period_ns``.
         on_live_publishers: called once before the first message with the replayed topics
             that other nodes publish too (published name -> those nodes).
         on_warning: called with each warning (a seek clamped to the window); default: logging.
@@ -103,9 +103,7 @@ class Player:
         self.on_live_publishers = on_live_publishers
         self.on_warning = on_warning or _log.warning
         self.on_waited = on_waited
-        self.progress_period_ns = seconds_to_ns(
-            options.progress_period_s, options.progress_period_s, PlayerError
-        )
+        self.progress_period_ns = options.progress_period_ns
         self._context = context
         self._stack = ExitStack()
         self._reader: PlaySource | None = None
@@ -158,7 +156,7 @@ class Player:
         self.window.bounds(reader.start_ns, reader.end_ns, Path(reader.name))  # raises past end
         selected = self._select_topics(reader.topics)
         self._latched = latched_topics(
-            reader.topics, options.latched_options, [info.name for info, _ in selected]
+            reader.topics, options.latched, [info.name for info, _ in selected]
         )
         mean_size = reader.uncompressed_size // max(reader.message_count, 1) or 1024
         bag_duration_s = (reader.end_ns - reader.start_ns) / 1e9
@@ -179,7 +177,7 @@ class Player:
                     messages_per_s=self._replay_rate_hz(count, bag_duration_s),
                 )
             self._outputs[info.name] = create_output(node, info, message_class, name, qos)
-            if options.publish_service_requests and ServiceRequests.handles(info):
+            if options.service_requests is not None and ServiceRequests.handles(info):
                 self._outputs[info.name] = self._requests(node).output(
                     info, self._outputs[info.name]
                 )
@@ -190,15 +188,16 @@ class Player:
             self._stack.enter_context(serve_controls(node, self.controls))
 
     def _requests(self, node: Node) -> ServiceRequests:
-        """The sender of recorded service requests (``publish_service_requests``)."""
+        """The sender of recorded service requests (``options.service_requests``)."""
+        replay = self.options.service_requests
         if self._service_requests is None:
-            assert self._reader is not None
+            assert self._reader is not None and replay is not None
             self._service_requests = self._stack.enter_context(
                 ServiceRequests(
                     node,
                     self._reader,
-                    source=self.options.service_requests_source,
-                    timeout_s=self.options.service_timeout_s,
+                    source=replay.source,
+                    timeout_s=replay.timeout_s,
                     on_warning=self.on_warning,
                 )
             )
@@ -282,7 +281,7 @@ class Player:
                 output
                 for output in self._outputs.values()
                 # Their events are not published: the requests are sent instead.
-                if not (options.publish_service_requests and ServiceRequests.handles(output.info))
+                if not (options.service_requests and ServiceRequests.handles(output.info))
             ]
             self.live_publishers = other_publishers(self.node, published)
             if self.live_publishers and self.on_live_publishers is not None:
