@@ -193,8 +193,12 @@ class GoldenFile(pytest.File):
                 for name in assertion_names(outputs_contract(spec.health, spec.outputs)):
                     items.append(HealthItem.from_parent(self, spec=spec, mode=mode, assertion=name))
         for item in items:
+            run = getattr(item, "mode", None)
             item.add_marker("golden")
-            if getattr(item, "mode", None) == "live":
+            # A mode's item and its health items share one run: one worker under xdist's
+            # --dist loadgroup.
+            item.add_marker(pytest.mark.xdist_group(f"golden-{spec.name}-{run}"))
+            if run == "live":
                 item.add_marker("ros")
         return items
 

@@ -122,7 +122,7 @@ def _run(
                 sub.kill()
                 sub.wait()
         result: dict[str, Any] = {**json.loads(out.read_text()), **sent}
-        if mode in ("recorder", "inline"):
+        if mode in ("recorder", "inline", "health"):
             from bagkit.bag import BagReader
 
             with BagReader(out.with_suffix(".bag")) as reader:

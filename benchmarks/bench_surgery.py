@@ -1,8 +1,10 @@
-"""Bag surgery: ``filter`` keeping one topic of a 1M-message mixed bag and ``merge`` of two bags
-against ``rosbags-convert`` (rosbags.convert.converter.convert, the same work: mcap in, mcap out,
-topic selection), and ``recover`` of a 300 MB truncated bag against the machine's sequential
-read speed (``cat FILE > /dev/null``, the file read once before both: warm cache against warm
-cache, since dropping the page cache needs root).
+"""Bag surgery: ``filter`` to a time window and ``recover`` of a 1M-Imu bag against pymcap-cli
+(whole processes, :mod:`benchmarks.surgery_peer`); ``filter`` keeping one topic of a
+1M-message mixed bag and ``merge`` of two bags against ``rosbags-convert``
+(rosbags.convert.converter.convert, the same work: mcap in, mcap out, topic selection), and
+``recover`` of a 300 MB truncated bag against the machine's sequential read speed (``cat FILE >
+/dev/null``, the file read once before both: warm cache against warm cache, since dropping the
+page cache needs root).
 
 Run: ``.venv/bin/python -m benchmarks surgery``
 """
@@ -23,6 +25,7 @@ from rosbags.typesys import Stores, get_typestore
 from bagkit.bag import BagWriter, TopicInfo
 from bagkit.surgery import Selection, filter_bag, merge_bags, recover_bag
 from bagkit.surgery.rewrite import OutputOptions
+from benchmarks.surgery_peer import against_pymcap_cli
 from benchmarks.timing import best_of
 
 IMU, STRING, TEMPERATURE = (
@@ -171,6 +174,9 @@ def main() -> bool:
     with tempfile.TemporaryDirectory(
         prefix="bench_surgery_", dir=os.environ.get("BENCH_TMP")
     ) as tmp:
-        met = _filter_and_merge(Path(tmp))
+        imu = _write(Path(tmp) / "imu", 1_000_000, imu_only=True)
+        met = against_pymcap_cli(imu, Path(tmp))
+        shutil.rmtree(imu)
+        met &= _filter_and_merge(Path(tmp))
         met &= _recover(Path(tmp))
     return met

@@ -3,7 +3,8 @@
 Run as ``python -m benchmarks.record_peers publish KIND SECONDS RATE_HZ`` or ``... subscribe
 MODE KIND OUT``; a subscriber runs until SIGINT, then writes its counts, CPU and peak RSS as JSON
 to OUT. The modes (see bench_record's docstring): ``count``, ``inline``, ``naive``, ``recorder``,
-``snapshot`` (the recorder in snapshot mode, never triggered).
+``snapshot`` (the recorder in snapshot mode, never triggered), ``health`` (the recorder with
+the live health contract :data:`HEALTH_CONTRACT`, as ``bagkit record --health``).
 """
 
 from __future__ import annotations
@@ -24,6 +25,18 @@ IMAGE_BYTES = 1 << 20
 READY_TIMEOUT_S = 30.0
 # The ``snapshot`` mode's --max-cache-size: the Imu flood fills it in a few seconds.
 SNAPSHOT_CACHE_BYTES = 64 << 20
+# The ``health`` mode's contract: log-time checks and checks that read fields (the flood's
+# values are zeros and its rate far above the bound: no check breaks).
+HEALTH_CONTRACT = f"""\
+topics:
+  {TOPIC}:
+    type: sensor_msgs/msg/Imu
+    rate: {{min: 100, over: 1s}}
+    max_gap: 1s
+    values:
+      linear_acceleration.z: {{min: -100, max: 100}}
+    never: [isnan(angular_velocity)]
+"""
 
 
 def _message_type(kind: str) -> Any:
@@ -122,13 +135,14 @@ def subscribe(mode: str, kind: str, out: Path, *, default_transport: bool = Fals
     # allocator or the transport's queue. The default-transport runs vary the queue only.
     keep_freed_memory()
     ready = out.with_suffix(".ready")
-    if mode in ("recorder", "snapshot"):
+    if mode in ("recorder", "snapshot", "health"):
         result = _run_recorder(
             out.with_suffix(".bag"),
             ready,
             stop,
             tune=not default_transport,
             snapshot_bytes=SNAPSHOT_CACHE_BYTES if mode == "snapshot" else 0,
+            health=mode == "health",
         )
     else:
         with process_tuning(not default_transport):
@@ -167,9 +181,18 @@ def _thread_cpu() -> dict[str, float]:
 
 
 def _run_recorder(
-    bag: Path, ready: Path, stop: dict[str, bool], *, tune: bool, snapshot_bytes: int = 0
+    bag: Path,
+    ready: Path,
+    stop: dict[str, bool],
+    *,
+    tune: bool,
+    snapshot_bytes: int = 0,
+    health: bool = False,
 ) -> dict[str, Any]:
-    """``snapshot_bytes``: snapshot mode with this cache bound (0: a plain recording)."""
+    """``snapshot_bytes``: snapshot mode with this cache bound (0: a plain recording);
+    ``health``: check HEALTH_CONTRACT live."""
+    from bagkit.health import HealthSpec
+    from bagkit.health.live import LiveHealth
     from bagkit.recording.options import RecordOptions, SnapshotOptions
     from bagkit.ros.record.recorder import Recorder
 
@@ -179,7 +202,8 @@ def _run_recorder(
         tune_process=tune,
         snapshot=SnapshotOptions(max_bytes=snapshot_bytes) if snapshot_bytes else None,
     )
-    recorder = Recorder(options)
+    watch = LiveHealth(HealthSpec.parse(HEALTH_CONTRACT)) if health else None
+    recorder = Recorder(options, health=watch)
     recorder.start()
     ready.touch()
     while not stop["now"]:
@@ -193,6 +217,7 @@ def _run_recorder(
         "span_ns": (topic.last_ns - topic.first_ns) if topic else 0,
         "lost": report.lost,
         "evicted": sum(report.evicted.values()),
+        "health_breaks": sum(c.breaks for c in report.health or []),
         "error": report.error,
         "threads": threads,
     }
@@ -341,7 +366,7 @@ def _cli() -> None:
     pub.add_argument("seconds", type=float)
     pub.add_argument("rate_hz", type=float)
     sub = roles.add_parser("subscribe")
-    sub.add_argument("mode", choices=["count", "inline", "naive", "recorder", "snapshot"])
+    sub.add_argument("mode", choices=["count", "inline", "naive", "recorder", "snapshot", "health"])
     sub.add_argument("kind", choices=["imu", "image"])
     sub.add_argument("out", type=Path)
     sub.add_argument("--default-transport", action="store_true")

@@ -16,6 +16,7 @@ from bagkit.cli.common import (
     print_json,
 )
 from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers, fleet_run
+from bagkit.cli.selection_options import build_query
 from bagkit.cli.tables import Column, Table, print_table
 from bagkit.errors import BagkitError
 
@@ -187,11 +188,12 @@ def query(  # noqa: PLR0917 (typer maps parameters to options)
 
     if not catalog.exists():
         raise BagkitError(f"{catalog}: no such catalogue")
+    selection = build_query(topic, start=start, end=end)
     if event is not None:
-        rows = query_events(read_events(events_path(catalog)), event, start, end)
+        rows = query_events(read_events(events_path(catalog)), event, selection)
         columns = ["path", "event", "topic", "start", "end", "count"]
     else:
-        rows = select(read_catalog(catalog), topic=topic, start=start, end=end)
+        rows = select(read_catalog(catalog), selection)
         columns = ["path", "topic", "type", "count", "start", "end", "duration"]
     if output is OutputFormat.JSON:
         records = rows[columns].astype({"start": "string", "end": "string"})

@@ -33,7 +33,9 @@ Examples:
 
   bagkit check flight1 --suggest > health.yaml
 
-  bagkit check flights/ --spec health.yaml --junit check.xml --html check.html
+  bagkit check flights/ --spec health.yaml --junit check.xml
+
+  bagkit check flight1 --spec health.yaml --html check.html
 """
 
 

@@ -11,7 +11,7 @@ import typer
 from bagkit.cli import common
 from bagkit.cli.common import bag_location, handle_errors, print_json, split_list, warn
 from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers, fleet_run
-from bagkit.cli.selection_options import Distro, End, Start, StateTopics
+from bagkit.cli.selection_options import Distro, End, Start, StateTopics, build_query
 from bagkit.compat import StrEnum
 
 if TYPE_CHECKING:
@@ -88,6 +88,7 @@ def find(  # noqa: PLR0917 (typer maps parameters to options)
     if (output is FindFormat.PARQUET) != (out is not None):
         raise DataError("--format parquet and -o/--output FILE go together")
     parse_topic_condition(when)  # a bad condition is one error before any bag is read
+    query = build_query(start=start, end=end)
     gap_ns = parse_duration(gap, "--gap")
     bags = expand_bags(inputs)
     with fleet_run(
@@ -100,8 +101,7 @@ def find(  # noqa: PLR0917 (typer maps parameters to options)
             bags,
             when=when,
             gap_ns=gap_ns,
-            start=start,
-            end=end,
+            query=query,
             state_topics=tuple(split_list(state_topics)),
             client=client,
             done=done,

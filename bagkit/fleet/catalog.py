@@ -28,8 +28,9 @@ from bagkit.fleet.execute import ItemDone, run_each
 from bagkit.fleet.inputs import bag_paths
 from bagkit.selection.errors import SelectionError
 from bagkit.selection.fields import name_matches
-from bagkit.selection.times import TimeLike, parse_time
+from bagkit.selection.query import Query
 from bagkit.selection.topics import absolute_topic_name
+from bagkit.selection.windows import TimeRange
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -140,46 +141,42 @@ def complete_update(
     return frame.reset_index(drop=True)
 
 
-def query(
-    frame: pd.DataFrame,
-    *,
-    topic: str | None = None,
-    start: TimeLike | None = None,
-    end: TimeLike | None = None,
-) -> pd.DataFrame:
-    """Rows of bags holding messages on ``topic`` within [``start``, ``end``].
+def query(frame: pd.DataFrame, selection: Query | None = None) -> pd.DataFrame:
+    """Rows of bags holding messages on ``selection``'s topics within its time range.
 
-    ``topic`` is a name (``imu/data`` is ``/imu/data``) or a glob (``/gps/*``, as in
-    :mod:`bagkit.selection.fields`); the times are absolute times of
-    :mod:`bagkit.selection.times` (a catalogue spans many bags: no bag start to count from).
+    A topic is a name (``imu/data`` is ``/imu/data``) or a glob (``/gps/*``, as in
+    :mod:`bagkit.selection.fields`); the times are absolute (a catalogue spans many bags: no
+    bag start to count from).
 
     Raises:
-        SelectionError: a time that is not absolute, or not a time.
+        SelectionError: a time that is not absolute.
     """
+    selection = selection or Query()
     keep = frame["count"].fillna(0) > 0
-    if topic is not None:
-        pattern = absolute_topic_name(topic)
-        names = frame["topic"].fillna("")
-        keep &= names.map(lambda name: name_matches(absolute_topic_name(name), pattern))
-    for side, value in (("start", start), ("end", end)):
-        stamp = absolute_stamp(value, side)
-        if stamp is not None:
-            keep &= frame["end"] >= stamp if side == "start" else frame["start"] <= stamp
+    if selection.topics:
+        patterns = [absolute_topic_name(topic) for topic in selection.topics]
+        names = frame["topic"].fillna("").map(absolute_topic_name)
+        keep &= names.map(lambda name: any(name_matches(name, p) for p in patterns))
+    low, high = absolute_window(selection.span)
+    if low is not None:
+        keep &= frame["end"] >= low
+    if high is not None:
+        keep &= frame["start"] <= high
     return frame[keep].reset_index(drop=True)
 
 
-def absolute_stamp(value: TimeLike | None, side: str) -> pd.Timestamp | None:
-    """``--start``/``--end`` of a catalogue query as a UTC timestamp (None stays None).
+def absolute_window(span: TimeRange) -> tuple[pd.Timestamp | None, pd.Timestamp | None]:
+    """``--start``/``--end`` of a catalogue query as UTC timestamps (an open side None).
 
     Raises:
-        SelectionError: a time that is not absolute, or not a time.
+        SelectionError: a time that is not absolute.
     """
-    if value is None:
-        return None
-    point = parse_time(value, f"--{side}")
-    if not point.absolute:
-        raise SelectionError(
-            f"bad --{side} {value!r}: a catalogue query takes absolute times "
-            "(ISO 8601 or epoch seconds)"
-        )
-    return pd.Timestamp(point.ns, unit="ns", tz="UTC")
+    sides = []
+    for side, point in (("start", span.start), ("end", span.end)):
+        if point is not None and not point.absolute:
+            raise SelectionError(
+                f"bad --{side} '{point.ns / 1e9:g}': a catalogue query takes absolute times "
+                "(ISO 8601 or epoch seconds), not seconds from a bag's start or end"
+            )
+        sides.append(None if point is None else pd.Timestamp(point.ns, unit="ns", tz="UTC"))
+    return sides[0], sides[1]

@@ -16,13 +16,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pandas as pd
 
-from bagkit.fleet.catalog import NAT_NS, CatalogPlan, absolute_stamp, write_catalog
+from bagkit.fleet.catalog import NAT_NS, CatalogPlan, absolute_window, write_catalog
 from bagkit.fleet.errors import CatalogError
 from bagkit.fleet.execute import ItemDone, run_each
 from bagkit.fleet.find import BagEpisodes, episodes_in_bag
 from bagkit.selection.conditions import parse_topic_condition
 from bagkit.selection.errors import SelectionError
-from bagkit.selection.times import TimeLike
+from bagkit.selection.query import Query
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -138,11 +138,9 @@ def _frame(rows: list[dict[str, object]]) -> pd.DataFrame:
     return pd.DataFrame(data, columns=list(EVENT_COLUMNS))
 
 
-def query_events(
-    frame: pd.DataFrame, event: str, start: TimeLike | None = None, end: TimeLike | None = None
-) -> pd.DataFrame:
-    """The episodes of ``event`` overlapping [``start``, ``end``] (absolute times; either may
-    be None), in bag order.
+def query_events(frame: pd.DataFrame, event: str, selection: Query | None = None) -> pd.DataFrame:
+    """The episodes of ``event`` overlapping ``selection``'s time range (absolute times; either
+    side may be open), in bag order.
 
     Raises:
         CatalogError: the catalogue holds no event of that name. SelectionError: a time that
@@ -152,7 +150,7 @@ def query_events(
         names = ", ".join(sorted(set(frame["event"]))) or "none"
         raise CatalogError(f"no event {event!r} in the catalogue (it has: {names})")
     keep = (frame["event"] == event) & (frame["count"] > 0)
-    low, high = absolute_stamp(start, "start"), absolute_stamp(end, "end")
+    low, high = absolute_window((selection or Query()).span)
     if low is not None:
         keep &= frame["end"] >= low
     if high is not None:

@@ -22,9 +22,8 @@ from bagkit.fleet.errors import FleetError
 from bagkit.fleet.execute import ItemDone, run_each
 from bagkit.selection.conditions import parse_topic_condition
 from bagkit.selection.errors import UnknownTopicError
-from bagkit.selection.times import TimeLike
+from bagkit.selection.query import Query
 from bagkit.selection.topics import absolute_topic_name, require_topics
-from bagkit.selection.windows import TimeRange, outside_warning
 from bagkit.storage.errors import StorageError
 
 if TYPE_CHECKING:
@@ -148,11 +147,11 @@ def episodes_in_bag(
     *,
     when: str,
     gap_ns: int = 0,
-    start: TimeLike | None = None,
-    end: TimeLike | None = None,
+    query: Query | None = None,
     state_topics: tuple[str, ...] = (),
 ) -> BagEpisodes:
-    """The episodes of ``when`` (``TOPIC: CONDITION``) in one bag (what a worker runs).
+    """The episodes of ``when`` (``TOPIC: CONDITION``) in one bag (what a worker runs), in
+    ``query``'s window of it (the whole bag when None).
 
     Raises:
         UnknownFieldError, SelectionError: the condition does not fit the topic's type.
@@ -160,16 +159,16 @@ def episodes_in_bag(
     trigger = parse_topic_condition(when)
     try:
         with BagReader(bag, allow_empty=True) as reader:
-            window = TimeRange.parse(start, end).resolve(reader.start_ns, reader.end_ns)
-            outside = outside_warning(bag, window, reader.start_ns, reader.end_ns)
+            resolved = (query or Query()).resolve(reader, label=bag)
+            outside = resolved.outside
             try:
-                found = find_episodes(reader, trigger, gap_ns, window, state_topics)
+                found = find_episodes(reader, trigger, gap_ns, resolved.window, state_topics)
             except UnknownTopicError:
                 return BagEpisodes(bag, has_topic=False, topics=list(reader.topics))
     except (BagError, StorageError) as exc:
         return BagEpisodes(bag, error=str(exc))
     problems = [p if p.startswith(bag) else f"{bag}: {p}" for p in found.problems]
-    if outside is not None and reader.message_count:
+    if outside is not None:
         problems.insert(0, outside)
     return BagEpisodes(bag, found.spans, problems=problems, start_ns=reader.start_ns)
 
@@ -179,8 +178,7 @@ def find_fleet(
     *,
     when: str,
     gap_ns: int = 0,
-    start: TimeLike | None = None,
-    end: TimeLike | None = None,
+    query: Query | None = None,
     state_topics: tuple[str, ...] = (),
     client: Client | None = None,
     done: ItemDone | None = None,
@@ -191,7 +189,7 @@ def find_fleet(
         when: ``'TOPIC: CONDITION'`` (:func:`~bagkit.selection.conditions.parse_topic_condition`).
         gap_ns: matches less than this apart merge into one episode
             (:func:`~bagkit.data.episodes.episode_spans`).
-        start, end: only messages in this window of each bag (seconds from its own start ...).
+        query: only messages in its window of each bag (seconds from its own start ...).
         state_topics: topics whose messages hold until the next one (besides transient-local
             ones, :func:`~bagkit.data.episodes.find_episodes`).
         done: called with the index of each bag once it is searched.
@@ -205,7 +203,7 @@ def find_fleet(
     paths = [str(bag) for bag in bags]
     state_topics = tuple(absolute_topic_name(t) for t in state_topics)
     task = functools.partial(
-        episodes_in_bag, when=when, gap_ns=gap_ns, start=start, end=end, state_topics=state_topics
+        episodes_in_bag, when=when, gap_ns=gap_ns, query=query, state_topics=state_topics
     )
     parts: list[BagEpisodes] = run_each(task, paths, client, done)
     readable = [part for part in parts if part.error is None]

@@ -3,8 +3,12 @@
 Each assertion over time of a :class:`~bagkit.health.spec.HealthSpec` is fed to a
 :class:`~bagkit.selection.streaming.StreamingCondition` (the evaluator of ``--trigger``), from
 its topic's first message on; an episode of it beginning is a check that *broke*, its end a
-check that *cleared*. Only topics whose assertions read fields are decoded (rosbags' reader,
-from the definition the recorder stores); ``rate`` and ``gap`` need the log times alone.
+check that *cleared*. ``rate`` and ``gap`` need the log times alone; a per-message condition
+(value bounds, ``isnan``) reads only its fields, straight from the bytes
+(:func:`bagkit.decode.direct.value_reader`), over the whole batch at once
+(:meth:`~bagkit.selection.conditions.Condition.mask`), and its evaluator is told only where
+the result changes; other conditions that read fields get rosbags' decoded messages (from the
+definition the recorder stores).
 ``present`` is decided at the end, ``type`` when the topic is added, ``forbidden`` at its first
 message. :class:`LiveHealth` is the recorder's :class:`~bagkit.recording.health_watch.HealthWatch`.
 """
@@ -16,13 +20,28 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from bagkit.bag import TopicInfo
 from bagkit.bag.definitions import canonical_type_name
 from bagkit.bag.latched import is_transient_local
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
+from bagkit.decode.direct import ValueReader
 from bagkit.health.spec import HealthSpec, SpecError, TopicContract
 from bagkit.recording.health_watch import HealthCount, HealthEvent
-from bagkit.selection.condition_terms import For, Gap, Latency, Node, Path, Rate, walk
+from bagkit.selection.condition_terms import (
+    Check,
+    Comparison,
+    Expression,
+    For,
+    Gap,
+    Latency,
+    Node,
+    Path,
+    Rate,
+    is_stateless,
+    walk,
+)
 from bagkit.selection.conditions import Condition, message_numbers
 from bagkit.selection.errors import SelectionError
 from bagkit.selection.message_tests import DecodedMessage
@@ -35,15 +54,36 @@ class _Check:
     condition: Condition
     stream: StreamingCondition | None = None
     open: int | None = None  # the start of the episode told of as broken
+    # A per-message condition over fixed fields: the columns each of its comparisons reads.
+    reads: dict[Comparison | Check, list[str]] | None = None
+
+
+class _Known:
+    """A message whose per-message condition is already decided (over the batch's columns)."""
+
+    def __init__(self, hit: bool) -> None:
+        self.hit = hit
+
+    def holds(self, node: Expression) -> bool:
+        return self.hit
+
+    def values(self, path: Path | None) -> np.ndarray:
+        raise AssertionError("a decided message has no values")
+
+
+_HIT, _MISS = _Known(True), _Known(False)
 
 
 @dataclass(slots=True)
 class _Topic:
+    name: str
     contract: TopicContract | None
     checks: list[_Check]
     present: HealthCount | None = None
     type_count: HealthCount | None = None
     decode: Callable[[bytes], Any] | None = None
+    read_values: ValueReader | None = None
+    columns: list[str] = field(default_factory=list)
     state: bool = False
     seen: bool = False
     # Latency checks whose source this topic is, with the stamp path they read.
@@ -52,6 +92,13 @@ class _Topic:
     @property
     def reads_fields(self) -> bool:
         return bool(self.sources) or any(_reads_fields(c.condition) for c in self.checks)
+
+    @property
+    def decodes(self) -> bool:
+        """Whether a check reads decoded messages (not only log times or columns)."""
+        return bool(self.sources) or any(
+            c.reads is None and _reads_fields(c.condition) for c in self.checks
+        )
 
 
 class LiveHealth:
@@ -80,7 +127,9 @@ class LiveHealth:
         self._topics: dict[str, _Topic] = {}
         self._counts: list[HealthCount] = list(self._forbidden.values())
         for contract in spec.topics:
-            entry = _Topic(contract, [], present=HealthCount(contract.topic, "present"))
+            entry = _Topic(
+                contract.topic, contract, [], present=HealthCount(contract.topic, "present")
+            )
             self._counts.append(entry.present)  # type: ignore[arg-type]
             if contract.type is not None:
                 entry.type_count = HealthCount(contract.topic, f"type {contract.type}")
@@ -91,7 +140,7 @@ class LiveHealth:
                 self._counts.append(check.count)
                 for node in walk(condition.tree):
                     if isinstance(node, Latency):
-                        source = self._topics.setdefault(node.source, _Topic(None, []))
+                        source = self._topics.setdefault(node.source, _Topic(node.source, None, []))
                         source.sources.append((check, node.path))
             existing = self._topics.get(contract.topic)
             if existing is not None:  # a latency source named before its own contract
@@ -119,23 +168,32 @@ class LiveHealth:
         if count is not None and wanted is not None and not _same_type(info.type, wanted):
             events.append(self._break(count, time.time_ns()))
         if entry.reads_fields:
-            entry.decode = self._decoder(entry, info, definition)
+            self._readers(entry, info, definition)
         return self._tell(events)
 
-    def _decoder(self, entry: _Topic, info: TopicInfo, definition: str) -> Callable[[bytes], Any]:
+    def _readers(self, entry: _Topic, info: TopicInfo, definition: str) -> None:
+        """Check the fields the assertions read; prepare the column reader and the decoder."""
         try:
             types = MessageTypes.from_definitions({info.type: definition})
             canonical = types.resolve(info.type)
             leaves = [leaf.path for leaf in leaf_fields(types.typestore, canonical)]
-            decode = types.decoder(info.type)
+            for check in entry.checks:
+                try:
+                    check.condition.check_fields(info.name, leaves)
+                except SelectionError as exc:
+                    where = f"{self.spec.source}: {check.count.assertion}"
+                    raise SpecError(f"{where}: {exc}") from None
+                if is_stateless(check.condition.tree):
+                    check.reads = check.condition.bulk_columns(leaves)
+            entry.columns = sorted(
+                {name for c in entry.checks for names in (c.reads or {}).values() for name in names}
+            )
+            if entry.columns:
+                entry.read_values = types.value_reader(info.type, entry.columns)
+            if entry.decodes:
+                entry.decode = types.decoder(info.type)
         except DecodeError as exc:
             raise SpecError(f"{self.spec.source}: {info.name} cannot be decoded: {exc}") from None
-        for check in entry.checks:
-            try:
-                check.condition.check_fields(info.name, leaves)
-            except SelectionError as exc:
-                raise SpecError(f"{self.spec.source}: {check.count.assertion}: {exc}") from None
-        return decode
 
     def observe(
         self, topic: str, payloads: Sequence[bytes], log_times: Sequence[int]
@@ -149,22 +207,53 @@ class LiveHealth:
         if entry is None or not log_times:
             return self._tell(events)
         entry.seen = True
+        try:
+            self._push_columns(entry, payloads, log_times)
+            self._push_messages(entry, payloads, log_times)
+        except SelectionError as exc:  # a text compared with a number
+            raise SpecError(f"{self.spec.source}: {topic}: {exc}") from None
+        for check in entry.checks:
+            events.extend(self._episodes(check))
+        return self._tell(events)
+
+    def _push_columns(
+        self, entry: _Topic, payloads: Sequence[bytes], log_times: Sequence[int]
+    ) -> None:
+        """The checks over columns: decided for the batch at once, pushed where they change."""
+        if entry.read_values is None:
+            return
+        rows = [entry.read_values(data) for data in payloads]
+        columns = {name: np.array([row[i] for row in rows]) for i, name in enumerate(entry.columns)}
+        last = len(log_times) - 1
+        for check in entry.checks:
+            if check.reads is None:
+                continue
+            hits = check.condition.mask(columns, check.reads)
+            changes = np.flatnonzero(hits[1:] != hits[:-1]) + 1
+            # A run's last message and the first after it: where the evaluator's runs end.
+            pushed = sorted({0, last, *changes.tolist(), *(changes - 1).tolist()})
+            stream = self._stream(check, log_times[0], entry.state)
+            for index in pushed:
+                stream.push(log_times[index], _HIT if hits[index] else _MISS)
+
+    def _push_messages(
+        self, entry: _Topic, payloads: Sequence[bytes], log_times: Sequence[int]
+    ) -> None:
+        """The other checks, message by message (decoded where they read fields)."""
+        checks = [c for c in entry.checks if c.reads is None]
+        if not checks and not entry.sources:
+            return
         decode = entry.decode
         for data, time_ns in zip(payloads, log_times, strict=True):
             message = None if decode is None else decode(data)
             for check, path in entry.sources:
                 stream = self._stream(check, time_ns, entry.state)
                 sec, nanosec = message_numbers(message, path)[:2]
-                stream.source(topic, time_ns, int(sec) * 1_000_000_000 + int(nanosec))
-            for check in entry.checks:
-                stream = self._stream(check, time_ns, entry.state)
-                try:
-                    stream.push(time_ns, DecodedMessage(check.condition, message))
-                except SelectionError as exc:
-                    raise SpecError(f"{self.spec.source}: {check.count.assertion}: {exc}") from None
-                if stream.since != check.open or stream.episodes:
-                    events.extend(self._episodes(check))
-        return self._tell(events)
+                stream.source(entry.name, time_ns, int(sec) * 1_000_000_000 + int(nanosec))
+            for check in checks:
+                # No message decoded: the check reads the log times only.
+                read = _MISS if message is None else DecodedMessage(check.condition, message)
+                self._stream(check, time_ns, entry.state).push(time_ns, read)
 
     def advance(self, now_ns: int) -> list[HealthEvent]:
         """Time has come to ``now_ns``: silences long enough break their checks now."""

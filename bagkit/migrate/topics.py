@@ -13,12 +13,15 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+import numpy as np
+
 from bagkit.bag.definitions import canonical_type_name
 from bagkit.bag.messages import TopicInfo
 from bagkit.decode.cdr import has_wide_strings
 from bagkit.decode.drift import definition_changes
 from bagkit.decode.errors import DecodeError, SchemaError
 from bagkit.decode.message_types import MessageTypes
+from bagkit.migrate.bulk import BulkMigration
 from bagkit.migrate.errors import MigrateError
 from bagkit.migrate.plan import Planner
 from bagkit.migrate.rules import Rules
@@ -35,6 +38,7 @@ class TopicMigration:
         changes: what differs from the stored definition (drift lines).
         rules_run: the rules its conversion applies.
         dropped: old fields whose values are not carried over (``--allow-drop``).
+        bulk: the column-by-column path of a chunk's payloads, when the layouts allow it.
         migrated: payloads rewritten so far.
     """
 
@@ -47,7 +51,26 @@ class TopicMigration:
     convert: Callable[[Any], Any] = field(repr=False)
     encode: Callable[[Any], bytes] = field(repr=False)
     check: Callable[[bytes | memoryview], object] = field(repr=False)
+    bulk: BulkMigration | None = field(default=None, repr=False)
     migrated: int = 0
+
+    def payloads(self, buf: np.ndarray, starts: np.ndarray, lengths: np.ndarray) -> list[bytes]:
+        """The payloads at ``starts``/``lengths`` of ``buf`` (uint8) migrated, in order: in
+        bulk when :attr:`bulk` can take them all, else one by one (:meth:`payload`).
+
+        Raises:
+            MigrateError: as :meth:`payload`.
+        """
+        if self.bulk is not None:
+            found = self.bulk.payloads(buf, starts, lengths)
+            if found is not None:
+                self.migrated += len(found)
+                return found
+        view = memoryview(buf.data)
+        return [
+            self.payload(view[start : start + length])
+            for start, length in zip(starts.tolist(), lengths.tolist(), strict=True)
+        ]
 
     def payload(self, data: bytes | memoryview) -> bytes:
         """One payload of the stored definition as a payload of the new one.
@@ -120,8 +143,19 @@ def migrate_topic(
         return bytes(new_store.serialize_cdr(message, new_name))
 
     topic = replace(info, type_description_hash=target.type_hash(name, text))
+    rules_free = not planner.rules_run and not planner.dropped
+    bulk = BulkMigration.of(old_store, new_store, name) if rules_free else None
     return TopicMigration(
-        topic, text, changes, planner.rules_run, planner.dropped, decode, convert, encode, check
+        topic,
+        text,
+        changes,
+        planner.rules_run,
+        planner.dropped,
+        decode,
+        convert,
+        encode,
+        check,
+        bulk,
     )
 
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 from bagkit.bag.latched import LatchedOptions
@@ -262,7 +263,7 @@ class PlayOptions:
             raise PlayerError("extra topics without latched state", "latched")
         _ = self.window, self.selection  # their own checks
 
-    @property
+    @cached_property
     def window(self) -> PlayWindow:
         """The part of the bag each pass replays."""
         return PlayWindow.create(self.start_offset_s, self.duration_s, self.until_ns)
@@ -272,7 +273,7 @@ class PlayOptions:
         """Every bag of the replay, ``bag`` first."""
         return (bag_path(self.bag), *self.more_bags)
 
-    @property
+    @cached_property
     def selection(self) -> TopicSelection:
         """The topic options as a selection: all topics unless ``topics``/``regex``.
 

@@ -27,6 +27,10 @@ _METATRAFFIC_UNICAST = 10
 # rmw_dds_common's topic: one publisher per ROS participant (not a ROS name: not mangled).
 _PARTICIPANT_TOPIC = "ros_discovery_info"
 _SOCKET_TABLES = (Path("/proc/net/udp"), Path("/proc/net/udp6"))
+# A GUID prefix from Fast DDS: vendor 1.15, host id (2 bytes), process id (low 2 bytes, little
+# endian), then random and per-process bytes (Fast DDS 2.x GuidUtils).
+_FAST_DDS_VENDOR = bytes([1, 15])
+_PID_LIMIT = 1 << 22  # Linux's largest pid_max
 
 
 def all_discovered(node: Node, environ: Mapping[str, str]) -> Callable[[], bool] | None:
@@ -76,8 +80,23 @@ def host_participants(domain_id: int) -> int | None:
 
 
 def discovered_participants(node: Node) -> int:
-    """The ROS participants in ``node``'s graph, its own included."""
-    return len(node.get_publishers_info_by_topic(_PARTICIPANT_TOPIC, no_mangle=True))
+    """The live ROS participants in ``node``'s graph, its own included.
+
+    A participant whose process had exited a moment before this one started was seen in the
+    graph (and the census then ended the wait before the one subscriber was found): Fast DDS
+    writes the low 16 bits of its process id into its GUID prefix, and a participant with no
+    process of those bits on this host is not counted.
+    """
+    infos = node.get_publishers_info_by_topic(_PARTICIPANT_TOPIC, no_mangle=True)
+    return sum(1 for info in infos if _process_may_live(bytes(info.endpoint_gid)))
+
+
+def _process_may_live(gid: bytes) -> bool:
+    """False only for a Fast DDS participant none of whose possible processes exists here."""
+    if gid[:2] != _FAST_DDS_VENDOR:
+        return True
+    low = int.from_bytes(gid[4:6], "little")
+    return any(os.path.exists(f"/proc/{pid}") for pid in range(low, _PID_LIMIT, 1 << 16))
 
 
 def _own_socket_inodes() -> set[int]:

@@ -29,6 +29,7 @@ from bagkit.bag.mcapio.chunk_builder import ClosedChunk
 from bagkit.bag.mcapio.raw_chunk import check_raw_chunk, read_raw_chunk, stored_in_log_time_order
 from bagkit.bag.mcapio.records import ChunkIndex
 from bagkit.bag.messages import TopicInfo
+from bagkit.surgery.options import TopicRewrite
 from bagkit.surgery.output import OutputBag
 from bagkit.surgery.runs import Run, emit, open_run
 from bagkit.surgery.select import PayloadFilter, Selection
@@ -48,6 +49,7 @@ class InputFile:
     known: dict[str, TopicInfo] = field(default_factory=dict)  # topics as the bag lists them
     channel_map: dict[int, int] = field(default_factory=dict)  # input id -> output id
     content: dict[int, PayloadFilter] = field(default_factory=dict)  # input id -> --where
+    rewrites: dict[int, TopicRewrite] = field(default_factory=dict)  # input id -> migration
     problems: list[str] = field(default_factory=list)
 
 
@@ -216,8 +218,8 @@ def _may_copy(file: InputFile, block: Block, selection: Selection, out: OutputBa
 def _identity(file: InputFile, channel_ids: Iterable[int]) -> bool:
     """Whether every one of ``channel_ids`` is selected whole (no content filter) and keeps
     its id in the output."""
-    mapping, content = file.channel_map, file.content
-    return all(mapping.get(c) == c and c not in content for c in channel_ids)
+    mapping, content, rewrites = file.channel_map, file.content, file.rewrites
+    return all(mapping.get(c) == c and c not in content and c not in rewrites for c in channel_ids)
 
 
 def _open(
@@ -235,7 +237,13 @@ def _open(
         _lost(file, block, str(exc))
         return
     run, bad = open_run(
-        contents.records, contents.message_index, mapping, selection, stream.order, file.content
+        contents.records,
+        contents.message_index,
+        mapping,
+        selection,
+        stream.order,
+        file.content,
+        file.rewrites,
     )
     stream.order += 1 << 64
     if run is not None:

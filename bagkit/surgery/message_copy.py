@@ -13,9 +13,7 @@ import contextlib
 import heapq
 import itertools
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Protocol
 
 import numpy as np
 
@@ -24,36 +22,19 @@ from bagkit.bag.messages import TopicInfo, make_message
 from bagkit.surgery.carry import latched_messages, merged_custom_data, write_latched
 from bagkit.surgery.chunk_records import Progress, copy_chunk_records
 from bagkit.surgery.errors import SurgeryError
-from bagkit.surgery.options import OutputOptions, RewriteReport, resolve
+from bagkit.surgery.options import (
+    OutputOptions,
+    PayloadRewrites,
+    RewriteReport,
+    TopicRewrite,
+    resolve,
+)
 from bagkit.surgery.output import MessageOutput, OutputBag
 from bagkit.surgery.select import PayloadFilter, Selection
 
 # Messages written at once (and progress reported): 1-2 MB of Imu messages.
 _BATCH = 4096
 _ZERO = np.zeros(1, np.int64)
-
-
-class TopicRewrite(Protocol):
-    """A topic whose payloads are rewritten on the way (``bagkit migrate``)."""
-
-    @property
-    def topic(self) -> TopicInfo:
-        """The topic as the output lists it."""
-
-    @property
-    def definition(self) -> str:
-        """The definition the output stores for it."""
-
-    def payload(self, data: bytes) -> bytes:
-        """One payload as written to the output."""
-
-
-@dataclass(frozen=True)
-class PayloadRewrites:
-    """Topics rewritten on the way, and ``custom_data`` entries the output gains."""
-
-    topics: Mapping[str, TopicRewrite] = field(default_factory=dict)
-    custom_data: Mapping[str, str] = field(default_factory=dict)
 
 
 def open_output(output: Path, options: OutputOptions) -> MessageOutput:

@@ -1,9 +1,11 @@
-"""``bagkit migrate``: a bag rewritten to other definitions, through the message copy.
+"""``bagkit migrate``: a bag rewritten to other definitions, through the rewrite of ``filter``.
 
 Each topic is planned first (:func:`bagkit.migrate.migrate_topic`): a topic whose type the
-target defines differently is rewritten payload by payload; the others are copied as they
-are. Nothing is written before every plan is made, and an error on any message removes what
-was written (:class:`~bagkit.surgery.output.OutputBag`): a failed migration leaves no output.
+target defines differently has its payloads rewritten (in bulk per chunk where the layouts
+allow it, :mod:`bagkit.migrate.bulk`); chunks without one are copied as they are stored
+(:func:`~bagkit.surgery.rewrite.rewrite_topics`; non-MCAP inputs message by message).
+Nothing is written before every plan is made, and an error on any message removes what was
+written (:class:`~bagkit.surgery.output.OutputBag`): a failed migration leaves no output.
 The output keeps the inputs' QoS and ``custom_data`` and gains ``bagkit.migrate``, a JSON list
 with one entry per migration (the target, the rules file, per topic the changes, the rules
 that ran and the fields dropped).
@@ -18,10 +20,9 @@ from typing import Any
 
 from bagkit.bag import BagReader
 from bagkit.migrate import Rules, Target, TopicMigration, migrate_topic
-from bagkit.surgery.message_copy import PayloadRewrites, Progress, rewrite_messages
-from bagkit.surgery.options import OutputOptions, RewriteReport
-from bagkit.surgery.rewrite import check_output
-from bagkit.surgery.select import Selection
+from bagkit.surgery.message_copy import Progress
+from bagkit.surgery.options import OutputOptions, PayloadRewrites, RewriteReport
+from bagkit.surgery.rewrite import check_output, rewrite_topics
 
 CUSTOM_DATA_KEY = "bagkit.migrate"
 
@@ -110,9 +111,7 @@ def migrate_bag(
         {m.topic.name: m for m in migrated},
         {CUSTOM_DATA_KEY: json.dumps([*_entries(previous), entry])},
     )
-    report = rewrite_messages(
-        [bag], output, Selection(), options.output, progress, rewrites=rewrites
-    )
+    report = rewrite_topics(bag, output, rewrites, options.output)
     return MigrateReport(migrated, unchanged, report)
 
 

@@ -4,13 +4,18 @@ inputs) and what it reports (:class:`RewriteReport`): shared by the chunk copy
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Protocol
 
+from bagkit.bag.messages import TopicInfo
 from bagkit.selection.topics import require_topics
 from bagkit.selection.windows import outside_warning
 from bagkit.surgery.select import Selection
+
+if TYPE_CHECKING:
+    import numpy as np
 
 
 @dataclass
@@ -109,3 +114,30 @@ def resolve(
     if outside is not None:
         report.warnings.append(outside)
     return resolved
+
+
+class TopicRewrite(Protocol):
+    """A topic whose payloads are rewritten on the way (``bagkit migrate``)."""
+
+    @property
+    def topic(self) -> TopicInfo:
+        """The topic as the output lists it."""
+
+    @property
+    def definition(self) -> str:
+        """The definition the output stores for it."""
+
+    def payload(self, data: bytes) -> bytes:
+        """One payload as written to the output."""
+
+    def payloads(self, buf: np.ndarray, starts: np.ndarray, lengths: np.ndarray) -> list[bytes]:
+        """The payloads at ``starts``/``lengths`` of a chunk's records ``buf`` (uint8), as
+        written to the output, in order."""
+
+
+@dataclass(frozen=True)
+class PayloadRewrites:
+    """Topics rewritten on the way, and ``custom_data`` entries the output gains."""
+
+    topics: Mapping[str, TopicRewrite] = field(default_factory=dict)
+    custom_data: Mapping[str, str] = field(default_factory=dict)

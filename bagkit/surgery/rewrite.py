@@ -19,7 +19,7 @@ from bagkit.surgery.carry import latched_messages, merged_custom_data, write_lat
 from bagkit.surgery.content import with_content
 from bagkit.surgery.copy import CopyOptions, InputFile, copy_files, topics_of
 from bagkit.surgery.errors import SurgeryError
-from bagkit.surgery.options import OutputOptions, RewriteReport, resolve
+from bagkit.surgery.options import OutputOptions, PayloadRewrites, RewriteReport, resolve
 from bagkit.surgery.output import OutputBag
 from bagkit.surgery.select import Selection
 
@@ -57,6 +57,14 @@ def recover_bag(bag: Path, output: Path, options: OutputOptions | None = None) -
     return _rewrite([bag], output, Selection(), options or OutputOptions())
 
 
+def rewrite_topics(
+    bag: Path, output: Path, rewrites: PayloadRewrites, options: OutputOptions | None = None
+) -> RewriteReport:
+    """Copy ``bag`` whole into ``output``, the payloads of ``rewrites``' topics rewritten
+    (``bagkit migrate``): chunks without them copied as stored, the others opened."""
+    return _rewrite([bag], output, Selection(), options or OutputOptions(), rewrites=rewrites)
+
+
 def _rewrite(
     bags: list[Path],
     output: Path,
@@ -64,13 +72,15 @@ def _rewrite(
     options: OutputOptions,
     *,
     stored_order: bool = False,
+    rewrites: PayloadRewrites | None = None,
 ) -> RewriteReport:
     check_output(bags, output)
     selection = with_content(bags, selection)
+    rewrites = rewrites or PayloadRewrites()
     if options.storage != "mcap" or not all_mcap(bags):
         from bagkit.surgery.message_copy import rewrite_messages
 
-        return rewrite_messages(bags, output, selection, options)
+        return rewrite_messages(bags, output, selection, options, rewrites=rewrites)
     report = RewriteReport(output=output)
     inputs = _Inputs()
     with _opened_inputs(bags, report, inputs) as files:
@@ -87,8 +97,9 @@ def _rewrite(
             force=options.force,
         )
         out.custom_data = merged_custom_data(inputs.custom_data)
+        out.custom_data.update(rewrites.custom_data)
         try:
-            _add_topics(files, out, selection)
+            _add_topics(files, out, selection, rewrites)
             if latched and selection.window.start_ns is not None:
                 write_latched(out, latched, selection.window.start_ns)
             copy_files(files, out, selection, CopyOptions(options.check_crc, stored_order))
@@ -174,8 +185,11 @@ def all_mcap(bags: Sequence[Path]) -> bool:
     return True
 
 
-def _add_topics(files: list[InputFile], out: OutputBag, selection: Selection) -> None:
-    """Give the output every selected topic (input channel ids kept where possible)."""
+def _add_topics(
+    files: list[InputFile], out: OutputBag, selection: Selection, rewrites: PayloadRewrites
+) -> None:
+    """Give the output every selected topic (input channel ids kept where possible); a
+    rewritten topic as its rewrite lists it."""
     types: dict[str, str] = {}
     for file in files:
         for channel_id, topic, definition in topics_of(file.index, file.known):
@@ -188,6 +202,12 @@ def _add_topics(files: list[InputFile], out: OutputBag, selection: Selection) ->
                 raise SurgeryError(
                     f"{topic.name} has type {known} in one input and {topic.type} in {file.path}"
                 )
-            file.channel_map[channel_id] = out.add_topic(topic, definition, channel_id)
+            rewrite = rewrites.topics.get(topic.name)
+            if rewrite is not None:
+                file.rewrites[channel_id] = rewrite
+            written = (
+                (topic, definition) if rewrite is None else (rewrite.topic, rewrite.definition)
+            )
+            file.channel_map[channel_id] = out.add_topic(*written, channel_id)
     if not out.channels:
         raise SurgeryError("no topic is selected")

@@ -15,6 +15,7 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from bagkit.bag.mcapio.records import MESSAGE_PREFIX, MESSAGE_RECORD_HEADER, RECORD_HEADER, Opcode
+from bagkit.surgery.options import TopicRewrite
 from bagkit.surgery.output import OutputBag
 from bagkit.surgery.select import PayloadFilter, Selection
 
@@ -55,9 +56,11 @@ def open_run(  # noqa: PLR0917 (the opened chunk and how it is selected)
     selection: Selection,
     rank: int,
     content: Mapping[int, PayloadFilter] | None = None,
+    rewrites: Mapping[int, TopicRewrite] | None = None,
 ) -> tuple[Run | None, int]:
     """The selected, whole Message records of a chunk as a run, and how many entries pointed at
-    no whole Message record. ``content``: filters of input channels (``--where``)."""
+    no whole Message record. ``content``: filters of input channels (``--where``);
+    ``rewrites``: input channels whose payloads are rewritten (``migrate``)."""
     parts = [(c, e) for c, e in message_index.items() if c in mapping and len(e)]
     if not parts:
         return None, 0
@@ -95,10 +98,49 @@ def open_run(  # noqa: PLR0917 (the opened chunk and how it is selected)
     order = order[np.lexsort((offsets[order], times[order]))]
     if not len(order):
         return None, bad
-    run = Run(
-        records, times[order].astype(np.uint64), offsets[order], ends[order], channels[order], rank
-    )
+    starts, stops = offsets[order], ends[order]
+    if rewrites and not rewrites.keys().isdisjoint(np.unique(inputs[order]).tolist()):
+        records, starts, stops = _rewritten(records, buf, starts, stops, inputs[order], rewrites)
+    run = Run(records, times[order].astype(np.uint64), starts, stops, channels[order], rank)
     return run, bad
+
+
+def _rewritten(  # noqa: PLR0917 (the run's records, as open_run has them)
+    records: bytes,
+    buf: np.ndarray,
+    starts: np.ndarray,
+    ends: np.ndarray,
+    inputs: np.ndarray,
+    rewrites: Mapping[int, TopicRewrite],
+) -> tuple[bytes, np.ndarray, np.ndarray]:
+    """The run's Message records with the payloads of ``rewrites``' channels rewritten (their
+    record lengths set to match), as one new buffer with its record starts and ends."""
+    size = MESSAGE_RECORD_HEADER.size
+    payloads: list[bytes | None] = [None] * len(starts)
+    for channel, rewrite in rewrites.items():
+        rows = np.flatnonzero(inputs == channel)
+        if len(rows):
+            at = starts[rows] + size
+            rewritten = rewrite.payloads(buf, at, ends[rows] - at)
+            for row, data in zip(rows.tolist(), rewritten, strict=True):
+                payloads[row] = data
+    pieces: list[bytes] = []
+    for start, end, payload in zip(starts.tolist(), ends.tolist(), payloads, strict=True):
+        if payload is None:
+            pieces.append(records[start:end])
+            continue
+        length = RECORD_HEADER.pack(Opcode.MESSAGE, MESSAGE_PREFIX.size + len(payload))
+        pieces += [length, records[start + RECORD_HEADER.size : start + size], payload]
+    lengths = np.array(
+        [
+            end - start if data is None else size + len(data)
+            for start, end, data in zip(starts.tolist(), ends.tolist(), payloads, strict=True)
+        ],
+        np.int64,
+    )
+    new_starts = np.zeros(len(lengths), np.int64)
+    np.cumsum(lengths[:-1], out=new_starts[1:])
+    return b"".join(pieces), new_starts, new_starts + lengths
 
 
 def emit(runs: list[Run], before_time: int, before_rank: int, out: OutputBag) -> None:

@@ -87,7 +87,8 @@ def test_one_line_and_a_documented_exit_code(
 
 
 def _swallowed_interrupt() -> None:
-    """Ctrl-C while Python runs a gc callback or ``__del__``: the exception is printed, not raised."""
+    """Ctrl-C while Python runs a gc callback or ``__del__``: the exception is printed, not
+    raised."""
     try:
         os.kill(os.getpid(), signal.SIGINT)
         signal.pthread_sigmask(signal.SIG_BLOCK, [])  # a call: the handler runs before it returns

@@ -226,3 +226,22 @@ def test_json_is_strict_with_infinite_values(tmp_path: Path) -> None:
     (field,) = document["topics"][0]["fields"]
     assert (field["count"], field["min"], field["max"]) == (3, 0.25, "inf")
     assert (field["mean"], field["std"]) == ("inf", "NaN")
+
+
+def test_a_topic_none_of_whose_messages_decode_is_an_error(tmp_path: Path) -> None:
+    """Its stored definition wants more bytes than each payload has: the other topic is
+    summarized, and one error line says the first decodes nothing (exit 2, as echo)."""
+    with BagWriter(tmp_path / "bag") as bag:
+        bag.add_topic(
+            TopicInfo("/r", "my_msgs/msg/Reading"), definition="float64 value\nuint32 n\n"
+        )
+        bag.add_topic(TopicInfo("/ok", "my_msgs/msg/Value"), definition="float64 value\n")
+        payload = b"\x00\x01\x00\x00" + np.float64(2.5).tobytes()  # CDR header, one float64
+        for i in range(5):
+            bag.write("/r", payload, log_time=T0 + i)
+            bag.write("/ok", payload, log_time=T0 + i)
+    done = _run(tmp_path / "bag", "--format", "json")
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.strip().splitlines()[-1] == "error: none of the 5 messages of /r decode"
+    (ok,) = [t for t in json.loads(done.stdout)["topics"] if t["topic"] == "/ok"]
+    assert ok["fields"][0]["mean"] == 2.5

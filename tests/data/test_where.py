@@ -132,6 +132,25 @@ def test_stats_values_under_where_equal_pandas_over_the_kept_rows(sample_bag: Pa
     assert field.std == pytest.approx(kept["x"].std(), rel=1e-9)
 
 
+def test_a_dataframe_read_with_a_query_keeps_what_pandas_keeps(sample_bag: Path) -> None:
+    """``read_dataframe(bag, topic, query=...)``: the query's fields, window and condition,
+    against pandas over the whole topic."""
+    from bagkit.data.frames import read_dataframe
+
+    whole = read_dataframe(sample_bag, "/imu")
+    start = whole.index[len(whole) // 4]
+    query = Query.create(
+        fields=["linear_acceleration.x"], start=start, where="linear_acceleration.z < 0"
+    )
+    got = read_dataframe(sample_bag, "/imu", query=query)
+    expected = whole[(whole.index >= start) & (whole["linear_acceleration.z"] < 0)]
+    assert 0 < len(got) < len(whole)
+    np.testing.assert_array_equal(got["linear_acceleration.x"], expected["linear_acceleration.x"])
+    assert list(got.columns) == ["log_time", "publish_time", "linear_acceleration.x"]
+    with pytest.raises(TypeError):
+        read_dataframe(sample_bag, "/imu", ["x"], query=query)
+
+
 def test_several_topics_keep_those_with_the_fields(sample_bag: Path, tmp_path: Path) -> None:
     report = export(
         sample_bag, tmp_path / "all", query=Query.create(where="header.frame_id == 'imu'")

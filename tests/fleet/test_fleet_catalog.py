@@ -17,6 +17,7 @@ from mcap.reader import make_reader
 
 from bagkit.fleet import describe as describe_module
 from bagkit.fleet.catalog import complete_update, plan_update, query, read_catalog, write_catalog
+from bagkit.selection.query import Query
 
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 
@@ -101,12 +102,12 @@ def test_query_by_topic_and_time(fleet_dir: Path, tmp_path: Path) -> None:
     hour = pd.Timedelta(hours=1)
     t0 = pd.Timestamp(T0, unit="ns", tz="UTC")
     # Bag i runs from T0 + i hours for a few seconds.
-    got = query(
-        frame, topic="/temp*", start=t0 + 2 * hour, end=t0 + 3 * hour + pd.Timedelta(seconds=1)
-    )
+    last = t0 + 3 * hour + pd.Timedelta(seconds=1)
+    window = Query.create("/temp*", start=t0 + 2 * hour, end=last)
+    got = query(frame, window)
     assert sorted(Path(p).name for p in got["path"]) == ["flight_2", "flight_3"]
     assert set(got["topic"]) == {"/temperature"}
-    assert len(query(frame, topic="/nothing")) == 0
+    assert len(query(frame, Query.create("/nothing"))) == 0
     assert len(query(frame)) == 12
 
 

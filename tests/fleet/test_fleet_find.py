@@ -80,7 +80,7 @@ def test_dask_gives_what_one_process_gives(fleet_bags: list[Path], client: Clien
 
 def test_a_window_of_each_bag(fleet_bags: list[Path]) -> None:
     whole = find_fleet(fleet_bags, when=WHEN)
-    part = find_fleet(fleet_bags, when=WHEN, start="1", end="2")
+    part = find_fleet(fleet_bags, when=WHEN, query=Query.create(start="1", end="2"))
     assert part.episodes
     for episode in part.episodes:
         assert episode in whole.episodes  # gap 0: windowing cuts no run of one message
@@ -166,7 +166,7 @@ def test_catalog_events_store_the_episodes_and_search_only_what_changed(
     )] == [(e.bag, e.start_ns, e.end_ns, e.count) for e in expected]  # fmt: skip
     # A window: only the episodes of the first bag's first second.
     first = expected[0]
-    early = query_events(frame, "high", end=f"{first.start_ns}ns")
+    early = query_events(frame, "high", Query.create(end=f"{first.start_ns}ns"))
     assert set(early["path"]) == {first.bag}
 
     shutil.rmtree(bags[0])  # a bag gone, the others unchanged: nothing searched again

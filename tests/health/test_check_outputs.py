@@ -173,8 +173,14 @@ def test_an_unreadable_bag_is_reported_among_the_others(tmp_path: Path) -> None:
     spec.write_text(SPEC)
     broken = tmp_path / "broken.mcap"
     broken.write_bytes(b"\x89MCAP0\r\n" + b"not a bag" * 10)
-    result = bagkit_cli("check", FIXTURES / "nominal" / "golden", broken, "--spec", spec)
+    junit = tmp_path / "check.xml"
+    result = bagkit_cli(
+        "check", FIXTURES / "nominal" / "golden", broken, "--spec", spec, "--junit", junit
+    )
     assert result.returncode == 2, result.stdout + result.stderr
+    suites = ET.parse(junit).getroot().findall("testsuite")
+    assert [int(s.get("errors") or 0) for s in suites] == [0, 1]
+    assert [int(s.get("failures") or 0) for s in suites] == [0, 0]
     assert "fixtures/nominal/golden: 5 assertions, healthy" in result.stdout
     assert f"{broken}: not read" in result.stdout
     assert "Traceback" not in result.stderr

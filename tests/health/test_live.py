@@ -31,6 +31,11 @@ topics:
       temperature: {min: -40, max: 50}
   /barometer/pressure:
     type: sensor_msgs/msg/Temperature
+  /fusion/odometry:
+    never:
+      - delta(pose.pose.position.z) > 0.5
+      - latency(/imu/data -> /fusion/odometry, header.stamp) > 1ms
+      - age(header.stamp) > 1ms
   /not/recorded: {}
 """
 # A dropout cut out of the IMU's stream: seconds after the bag's start.

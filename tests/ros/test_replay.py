@@ -220,7 +220,6 @@ def test_looping_keeps_the_lateness_samples_bounded(
     test_bag: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     from bagkit.playback import lateness
-    from bagkit.ros.replay import player as player_module
 
     kept: list[lateness.LatenessSamples] = []
 
@@ -230,7 +229,7 @@ def test_looping_keeps_the_lateness_samples_bounded(
             kept.append(self)
 
     monkeypatch.setattr(lateness, "LATENESS_SAMPLES", 50)
-    monkeypatch.setattr(player_module, "LatenessSamples", Spied)
+    monkeypatch.setattr(lateness, "LatenessSamples", Spied)  # the player imports it at play()
     per_pass = len(recorded(test_bag))
     report = play(test_bag, rate=100.0, loops=20, waits=NO_WAITS)
     assert report.loops == 20

@@ -326,7 +326,7 @@ class Recorder:
         """
         sink = self._writer.bag if self._writer is not None else None
         if not isinstance(sink, SnapshotSink):
-            raise RecorderOptionsError("snapshots need snapshot mode (--snapshot-mode), started")
+            raise RecorderOptionsError("snapshots need snapshot mode (options.snapshot), started")
         return sink.request(reason)
 
     def _start_node(self, qos_overrides: dict[str, QoSProfile]) -> TakeLoop:

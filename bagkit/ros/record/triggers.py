@@ -110,12 +110,12 @@ class DataTriggers:
         try:
             paths = leaf_paths(import_message_type(type_name))
         except BagkitError as exc:
-            raise TriggerError(f"--trigger on {topic}: {exc}") from None
+            raise TriggerError(f"trigger on {topic}: {exc}") from None
         for trigger in entry.conditions:
             try:
                 trigger.condition.check_fields(topic, paths)
             except SelectionError as exc:
-                raise TriggerError(f"--trigger {trigger.text!r}: {exc}") from None
+                raise TriggerError(f"trigger {trigger.text!r}: {exc}") from None
 
     def matching(
         self, topic: str, payloads: Sequence[bytes], log_times: Sequence[int]
@@ -140,7 +140,7 @@ class DataTriggers:
                 try:
                     hit = self._hit(trigger, time_ns, message)
                 except SelectionError as exc:
-                    raise TriggerError(f"--trigger {trigger.text!r}: {exc}") from None
+                    raise TriggerError(f"trigger {trigger.text!r}: {exc}") from None
                 if hit and hit_text is None:
                     hit_text = trigger.text
             if hit_text is not None:

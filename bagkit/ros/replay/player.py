@@ -18,7 +18,7 @@ import time
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import ExitStack, nullcontext
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import rclpy
 from rclpy.context import Context
@@ -28,12 +28,9 @@ from rclpy.signals import SignalHandlerOptions
 from bagkit.bag import BagMessage, TopicInfo
 from bagkit.bag.latched import latched_topics
 from bagkit.bag.messages import make_message
-from bagkit.migrate import TopicMigration, load_rules
 from bagkit.native import precise_timers
 from bagkit.playback.controls import PlayControls
-from bagkit.playback.lateness import LatenessSamples
 from bagkit.playback.options import PlayOptions
-from bagkit.playback.publish_loop import PassPublisher, PassReader
 from bagkit.playback.report import PlayProgress, PlayReport, SubscriberWait, TopicPlayback
 from bagkit.playback.seeking import WindowSpan
 from bagkit.playback.source import PlaySource
@@ -50,11 +47,20 @@ from bagkit.ros.replay.publishers import (
     wait_until_matched,
 )
 from bagkit.ros.replay.seek_services import serve_seek
-from bagkit.ros.replay.service_requests import ServiceRequests
 from bagkit.ros.replay.services import serve_controls
 from bagkit.ros.replay.topics import PublishableTopics, publishable_topics
 from bagkit.ros.tuning import process_tuning
+from bagkit.selection.services import is_service_event_topic
 from bagkit.selection.times import TimeLike, parse_time
+
+if TYPE_CHECKING:
+    # Imported once the node exists (numpy, the decoder, rosbags, the migrator; topics.py
+    # imports the decoder when called): their import overlaps discovery instead of delaying
+    # the participant that discovery waits for.
+    from bagkit.migrate import TopicMigration
+    from bagkit.playback.lateness import LatenessSamples
+    from bagkit.playback.publish_loop import PassPublisher, PassReader
+    from bagkit.ros.replay.service_requests import ServiceRequests
 
 _log = logging.getLogger(__name__)
 
@@ -154,17 +160,22 @@ class Player:
         reader = PlaySource.open(options.bags, options.message_order, self._stack)
         self._reader = reader
         self.window.bounds(reader.start_ns, reader.end_ns, Path(reader.name))  # raises past end
+        # The participant first: discovery, which the first message waits for, runs while the
+        # topics are checked against the installed types and the publishers are made. Fast DDS
+        # reads its profile when the participant is created; the player sends, so its
+        # shared-memory segment is sized for the largest messages of the selected topics
+        # (issue 27, item 5).
+        largest = reader.largest_message(
+            name for name in reader.topics if self.selection.matches(name)
+        )
+        with process_tuning(options.tune_process, segment_size=segment_size_for(largest)):
+            node = self._create_node()
         selected = self._select_topics(reader.topics)
         self._latched = latched_topics(
             reader.topics, options.latched, [info.name for info, _ in selected]
         )
         mean_size = reader.uncompressed_size // max(reader.message_count, 1) or 1024
         bag_duration_s = (reader.end_ns - reader.start_ns) / 1e9
-        # Fast DDS reads its profile when the participant is created. The player sends: its
-        # shared-memory segment is sized for the bag's largest messages (issue 27, item 5).
-        largest = reader.largest_message(info.name for info, _ in selected)
-        with process_tuning(options.tune_process, segment_size=segment_size_for(largest)):
-            node = self._create_node()
         for info, message_class in selected:
             name = options.remap.get(info.name, info.name)
             count = reader.topic_counts.get(info.name, 0)
@@ -177,7 +188,7 @@ class Player:
                     messages_per_s=self._replay_rate_hz(count, bag_duration_s),
                 )
             self._outputs[info.name] = create_output(node, info, message_class, name, qos)
-            if options.service_requests is not None and ServiceRequests.handles(info):
+            if options.service_requests is not None and _sends_requests(info):
                 self._outputs[info.name] = self._requests(node).output(
                     info, self._outputs[info.name]
                 )
@@ -189,6 +200,8 @@ class Player:
 
     def _requests(self, node: Node) -> ServiceRequests:
         """The sender of recorded service requests (``options.service_requests``)."""
+        from bagkit.ros.replay.service_requests import ServiceRequests
+
         replay = self.options.service_requests
         if self._service_requests is None:
             assert self._reader is not None and replay is not None
@@ -231,6 +244,8 @@ class Player:
         return count / bag_duration_s * self.options.rate
 
     def _select_topics(self, topics: Mapping[str, TopicInfo]) -> list[tuple[TopicInfo, Any]]:
+        from bagkit.migrate import load_rules
+
         self.publishable = publishable_topics(
             topics,
             self.selection,
@@ -260,6 +275,8 @@ class Player:
             return self._play()
 
     def _play(self) -> PlayReport:
+        from bagkit.playback.lateness import LatenessSamples
+
         assert self._reader is not None
         options = self.options
         for output in self._outputs.values():
@@ -281,7 +298,7 @@ class Player:
                 output
                 for output in self._outputs.values()
                 # Their events are not published: the requests are sent instead.
-                if not (options.service_requests and ServiceRequests.handles(output.info))
+                if not (options.service_requests and _sends_requests(output.info))
             ]
             self.live_publishers = other_publishers(self.node, published)
             if self.live_publishers and self.on_live_publishers is not None:
@@ -345,6 +362,8 @@ class Player:
 
     def _play_pass(self, loop: int, lateness: LatenessSamples) -> int:
         """Publish one pass over the window; return the bag time it covered (ns)."""
+        from bagkit.playback.publish_loop import PassPublisher
+
         reader = self._pass_reader()
         window_start = self._span().start_ns
         messages = reader.messages_from(window_start)
@@ -372,6 +391,8 @@ class Player:
             self._latched_published += publisher.latched
 
     def _pass_reader(self) -> PassReader:
+        from bagkit.playback.publish_loop import PassReader
+
         assert self._reader is not None
         source = self._reader
         topics = list(self._outputs)
@@ -456,8 +477,8 @@ class Player:
 
         The graph is watched for ``discovery_time`` seconds after the player's node was created
         (Fast DDS announces participants every 3 s), or, with discovery on this host only,
-        until every participant on this host has been found; topics in ``wait_for``
-        additionally need a subscription.
+        until every participant on this host has been found (at most 1 s longer while one is
+        missing); topics in ``wait_for`` additionally need a subscription.
 
         Returns:
             How long it waited, and for what.
@@ -476,6 +497,12 @@ class Player:
             timeout=self.waits.timeout_s,
             all_discovered=all_discovered(self.node, os.environ),
         )
+
+
+def _sends_requests(info: TopicInfo) -> bool:
+    """Whether ``info`` is a service-event topic (``service_requests`` sends its
+    requests instead of publishing it)."""
+    return is_service_event_topic(info.name, [info.type])
 
 
 def _migrated(migrations: Mapping[str, TopicMigration], message: BagMessage) -> BagMessage:

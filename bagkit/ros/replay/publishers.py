@@ -29,6 +29,10 @@ GRAPH_SETTLE_S = 0.2
 # A publisher sees a subscription match before the subscription sees the publisher; the first
 # message is only safe once both sides have matched, which we cannot observe from here.
 MATCH_GRACE_S = 0.1
+# While the census counts a participant on this host that is not in the graph yet, the watch
+# goes on this long past the discovery time: on a loaded machine the participant's periodic
+# announcement, due within it, came after it, and the first message was lost.
+CENSUS_OVERTIME_S = 1.0
 
 
 @dataclass(slots=True)
@@ -82,10 +86,11 @@ def wait_until_matched(
     """Block until the subscriptions the graph knows on ``outputs`` have matched.
 
     A subscription in another process shows up in the graph only when its participant's
-    discovery announcement arrives, so the graph is watched until ``settled_at`` (monotonic),
-    or until ``all_discovered`` says that every participant has been found, and until it has
-    been unchanged for ``GRAPH_SETTLE_S``; every compatible subscription seen by then must
-    match. Topics in ``wait_for`` additionally need at least one subscription.
+    discovery announcement arrives, so the graph is watched until ``settled_at`` (monotonic;
+    ``CENSUS_OVERTIME_S`` later with a census), or until ``all_discovered`` says that every
+    participant has been found, and until it has been unchanged for ``GRAPH_SETTLE_S``; every
+    compatible subscription seen by then must match, then ``MATCH_GRACE_S`` more. Topics in
+    ``wait_for`` additionally need at least one subscription.
 
     Returns:
         How long it waited, and for what.
@@ -99,25 +104,26 @@ def wait_until_matched(
     last_change = now
     last_graph: dict[str, int] = {}
     found_all = False
+    # A census that still misses a participant at the discovery time waits a little longer.
+    watch_end = settled_at if all_discovered is None else settled_at + CENSUS_OVERTIME_S
     while True:
         graph = {out.name: node.count_subscribers(out.name) for out in outputs}
         graph.update({topic: node.count_subscribers(topic) for topic in required})
+        matched = [out.publisher.get_subscription_count() for out in outputs]
         now = time.monotonic()
         if graph != last_graph:
             last_graph = graph
             last_change = now
-        if not found_all and now < settled_at and all_discovered is not None:
+        if not found_all and now < watch_end and all_discovered is not None:
             found_all = all_discovered()
             if found_all:  # the last participant's endpoints may still be arriving
                 last_change = now
-        settled = now >= last_change + GRAPH_SETTLE_S and (found_all or now >= settled_at)
+        settled = now >= last_change + GRAPH_SETTLE_S and (found_all or now >= watch_end)
         pending = [
-            f"{out.name} ({matched} of {expected} subscriptions matched)"
-            for out in outputs
-            for matched, expected in [
-                (out.publisher.get_subscription_count(), _compatible_subscriptions(node, out))
-            ]
-            if matched < expected
+            f"{out.name} ({count} of {expected} subscriptions matched)"
+            for out, count in zip(outputs, matched, strict=True)
+            for expected in [_compatible_subscriptions(node, out)]
+            if count < expected
         ]
         pending += [f"a subscriber on {topic}" for topic in required if not graph[topic]]
         if not pending and settled:

@@ -44,7 +44,7 @@ from bagkit.playback.source import PlaySource
 from bagkit.ros.errors import MessageClassNotFoundError
 from bagkit.ros.message_classes import import_message_type
 from bagkit.ros.replay.publishers import TopicOutput
-from bagkit.selection.services import is_service_event_topic, service_name, service_type
+from bagkit.selection.services import service_name, service_type
 
 SOURCES = {"service_introspection": REQUEST_RECEIVED, "client_introspection": REQUEST_SENT}
 _POLL_S = 0.01
@@ -121,11 +121,6 @@ class ServiceRequests:
         # Shutting the player's context down ends the spin.
         with contextlib.suppress(ExternalShutdownException):
             self._executor.spin()
-
-    @staticmethod
-    def handles(info: TopicInfo) -> bool:
-        """Whether ``info`` is a service-event topic (its requests are sent, not published)."""
-        return is_service_event_topic(info.name, [info.type])
 
     def output(self, info: TopicInfo, publisher_output: TopicOutput) -> TopicOutput:
         """``publisher_output`` with its publish replaced by sending the event's request.

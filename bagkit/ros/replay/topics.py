@@ -5,16 +5,17 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from bagkit.bag import TopicInfo
 from bagkit.bag.clock import CLOCK_TOPIC
-from bagkit.decode.drift import DriftStatus, topic_drift
-from bagkit.migrate import Rules, Target, TopicMigration, migrate_topic
 from bagkit.playback.options import OnDrift
 from bagkit.ros.errors import MessageClassNotFoundError, PlayerError
 from bagkit.ros.message_classes import import_message_type
 from bagkit.selection.topics import TopicSelection, closest_names, require_topics
+
+if TYPE_CHECKING:
+    from bagkit.migrate import Rules, TopicMigration
 
 
 @dataclass(slots=True)
@@ -62,6 +63,11 @@ def publishable_topics(
         UnknownTopicError: nothing is selected and a named topic is not in the bag.
         PlayerError: nothing is left to publish (the message says why).
     """
+    # Here, not at the top: the player's PublishableTopics() must not import the decoder
+    # (rosbags, numpy) or the migrator before its node exists (see Player._open).
+    from bagkit.decode.drift import DriftStatus, topic_drift
+    from bagkit.migrate import Target, migrate_topic
+
     found = PublishableTopics(missing=selection.missing(topics), known=sorted(topics))
     for name, info in sorted(topics.items()):
         if not selection.matches(name):

@@ -1,0 +1,138 @@
+"""Many payloads of one topic migrated at once, column by column, when the layouts allow it.
+
+When the stored and the new type both have a CDR layout (:mod:`bagkit.decode.layout`: strings
+and sequences of primitives only) and the migration has no rules, every new slot is either a
+slot of the old layout with the same path and type (copied) or a new one (zero, the empty
+string, the empty sequence): the payloads of a chunk are decoded with
+:func:`~bagkit.decode.bulk.decode_bulk`, the new records built with numpy, and checked by
+decoding them with the new layout. Anything else (a type change, a removed field, a rule, a
+payload bulk decoding leaves over) goes message by message.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from rosbags.typesys.store import Typestore
+
+from bagkit.decode.bulk import decode_bulk
+from bagkit.decode.errors import SchemaError
+from bagkit.decode.layout import CDR_LE, U32, CdrLayout, NeedLength, ResolvedLayout
+
+_EMPTY_STRING = 1  # a CDR string's length counts its NUL
+
+
+@dataclass(frozen=True)
+class BulkMigration:
+    """The slot mapping between two layouts of one type.
+
+    Attributes:
+        old, new: the layouts.
+        sources: per new slot, the index of the old slot it copies (None: a new slot).
+    """
+
+    old: CdrLayout
+    new: CdrLayout
+    sources: tuple[int | None, ...]
+
+    @classmethod
+    def of(cls, old: Typestore, new: Typestore, name: str) -> BulkMigration | None:
+        """The bulk migration of ``name`` between the two typestores, or None when the
+        layouts do not allow one (see the module's docstring)."""
+        try:
+            old_layout, new_layout = CdrLayout.of(old, name), CdrLayout.of(new, name)
+        except SchemaError:
+            return None
+        if old_layout is None or new_layout is None:
+            return None
+        by_path = {slot.path: i for i, slot in enumerate(old_layout.slots)}
+        sources: list[int | None] = []
+        for slot in new_layout.slots:
+            index = by_path.get(slot.path)
+            if index is not None and old_layout.slots[index] != slot:
+                return None  # retyped: converted message by message
+            sources.append(index)
+        if len({i for i in sources if i is not None}) != len(old_layout.slots):
+            return None  # an old slot is dropped: the planner decides
+        return cls(old_layout, new_layout, tuple(sources))
+
+    def payloads(
+        self, buf: np.ndarray, starts: np.ndarray, lengths: np.ndarray
+    ) -> list[bytes] | None:
+        """The migrated payloads at ``starts``/``lengths`` of ``buf`` (uint8), in order; None
+        when one of them does not decode in bulk (the caller goes message by message)."""
+        groups, leftover = decode_bulk(buf, starts, lengths, self.old)
+        if len(leftover):
+            return None
+        found: list[bytes] = [b""] * len(starts)
+        for group in groups:
+            first = int(starts[group.indexes[0]])
+            old_lengths = _prefixes(self.old, buf, first)
+            if old_lengths is None:
+                return None
+            made = self._records(group.values, old_lengths)
+            if made is None:
+                return None
+            size = made.shape[1]
+            flat = made.reshape(-1)
+            for position, index in enumerate(group.indexes.tolist()):
+                found[index] = flat[position * size : (position + 1) * size].tobytes()
+        return found
+
+    def _records(self, values: np.ndarray, old_lengths: tuple[int, ...]) -> np.ndarray | None:
+        """The new payloads of one group (rows of bytes), checked by decoding them."""
+        prefixed = [i for i, slot in enumerate(self.old.slots) if slot.count is None]
+        by_old = dict(zip(prefixed, old_lengths, strict=True))
+        new_lengths = tuple(
+            by_old[source]
+            if source is not None
+            else (_EMPTY_STRING if slot.base == "string" else 0)
+            for slot, source in zip(self.new.slots, self.sources, strict=True)
+            if slot.count is None
+        )
+        resolved = self.new.resolve(new_lengths)
+        if isinstance(resolved, NeedLength):
+            return None
+        count, size = len(values), resolved.dtype.itemsize
+        rows = np.zeros((count, size), np.uint8)
+        rows[:, : len(CDR_LE)] = np.frombuffer(CDR_LE, np.uint8)
+        for offset, length in zip(_prefix_offsets(self.new, new_lengths), new_lengths, strict=True):
+            rows[:, offset : offset + 4] = np.frombuffer(U32.pack(length), np.uint8)
+        records = rows.reshape(-1).view(resolved.dtype)
+        old_names = set(values.dtype.names or ())
+        for index, source in enumerate(self.sources):
+            if source is not None and str(source) in old_names:
+                records[str(index)] = values[str(source)]
+        if not _decodes(rows, self.new, resolved):
+            return None
+        return rows
+
+
+def _prefixes(layout: CdrLayout, buf: np.ndarray, start: int) -> tuple[int, ...] | None:
+    """The length prefixes of the payload at ``start`` (already decoded in bulk: they fit)."""
+    lengths: tuple[int, ...] = ()
+    while True:
+        step = layout.resolve(lengths)
+        if not isinstance(step, NeedLength):
+            return lengths
+        at = start + step.offset
+        lengths += (int(buf[at : at + 4].view("<u4")[0]),)
+
+
+def _prefix_offsets(layout: CdrLayout, lengths: tuple[int, ...]) -> list[int]:
+    offsets = []
+    for known in range(len(lengths)):
+        step = layout.resolve(lengths[:known])
+        assert isinstance(step, NeedLength)
+        offsets.append(step.offset)
+    return offsets
+
+
+def _decodes(rows: np.ndarray, layout: CdrLayout, resolved: ResolvedLayout) -> bool:
+    """Whether every row decodes with ``layout`` to one group of ``resolved``'s layout."""
+    count, size = rows.shape
+    starts = np.arange(count, dtype=np.int64) * size
+    lengths = np.full(count, size, np.int64)
+    groups, leftover = decode_bulk(rows.reshape(-1), starts, lengths, layout)
+    return not len(leftover) and len(groups) == 1 and groups[0].layout == resolved
