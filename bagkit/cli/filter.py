@@ -14,7 +14,7 @@ from bagkit.cli.common import (
     handle_errors,
     split_list,
 )
-from bagkit.cli.selection_options import End, Start, StateTopics
+from bagkit.cli.selection_options import End, Start, StateTopics, build_query
 from bagkit.cli.surgery_options import (
     CheckCrc,
     Compression,
@@ -31,7 +31,6 @@ from bagkit.cli.surgery_options import (
     print_cuts,
     print_report,
 )
-from bagkit.selection.conditions import parse_condition
 from bagkit.selection.times import parse_duration
 from bagkit.selection.topics import absolute_topic_name
 from bagkit.storage.transfer import written_to
@@ -109,13 +108,13 @@ def filter_command(
     output_format: Format = ReportFormat.TABLE,
 ) -> None:
     """Write the selected messages of a bag to a new bag."""
-    selection = Selection.create(
-        split_list(topics), regex, split_list(exclude_topics), exclude_regex, start, end
+    query = build_query(topics, start=start, end=end, where=where)
+    selection = Selection.of(
+        query, regex=regex, exclude_topics=split_list(exclude_topics), exclude_regex=exclude_regex
     )
     selection = replace(
         selection,
         latched=latched_options(latched_topics, no_latched),
-        where=None if where is None else parse_condition(where),
         state_topics=frozenset(absolute_topic_name(t) for t in split_list(state_topics)),
     )
     options = output_options(

@@ -8,7 +8,7 @@ from pathlib import Path
 import typer
 
 from bagkit.cli.common import ReportFormat, bag_location, err_console, handle_errors
-from bagkit.cli.selection_options import End, Start
+from bagkit.cli.selection_options import End, Start, build_query
 from bagkit.cli.surgery_options import (
     CheckCrc,
     Compression,
@@ -60,7 +60,7 @@ def merge(
     options = output_options(
         compression, max_bag_size, max_bag_duration, force=force, check_crc=check_crc
     )
-    selection = Selection.create(start=start, end=end)
+    selection = Selection.of(build_query(start=start, end=end))
     selection = replace(selection, latched=latched_options(latched_topics, no_latched))
     with (
         err_console.status(f"merging {len(bags)} bags"),
