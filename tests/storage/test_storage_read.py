@@ -11,6 +11,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from bagkit.bag import BagReader, bag_info
 from bagkit.bag.mcap_file import McapFile
 from bagkit.storage.range_file import HEAD_BYTES, fetched
@@ -142,3 +144,23 @@ def test_outputs_to_urls_are_uploaded(moto_store: Store, local_bags: Path) -> No
         moto_store.env,
     )
     assert "0 read, 2 unchanged" in update.stderr.replace("\n", " ")
+
+
+def test_dask_workers_read_the_store_themselves(moto_store: Store, local_bags: Path) -> None:
+    """Two local workers, each opening its bags by URL (the driver sends URLs, not bytes):
+    the figures one process gives."""
+    for bag in ("a", "b"):
+        moto_store.put(local_bags / "fleet" / bag, f"fleet/{bag}")
+    args = ["stats", "summary", "-t", "/gps/fix", "--format", "json"]
+    remote = cli([*args, f"{moto_store.base}/fleet", "--workers", "2"], moto_store.env)
+    local = cli([*args, str(local_bags / "fleet"), "--workers", "0"], {})
+    assert remote.returncode == 0, remote.stderr
+    assert "local Dask cluster of 2 workers" in remote.stderr
+    # Partials merged on Dask: the same figures up to the order of float sums.
+    (got,), (expected,) = json.loads(remote.stdout)["topics"], json.loads(local.stdout)["topics"]
+    assert got["count"] == expected["count"] == 8
+    for mine, theirs in zip(got["fields"], expected["fields"], strict=True):
+        assert mine["field"] == theirs["field"] and mine["count"] == theirs["count"]
+        assert (mine["min"], mine["max"]) == (theirs["min"], theirs["max"])
+        assert mine["mean"] == pytest.approx(theirs["mean"], rel=1e-12, abs=1e-9)
+        assert mine["std"] == pytest.approx(theirs["std"], rel=1e-9, abs=1e-9)
