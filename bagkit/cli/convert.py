@@ -8,7 +8,7 @@ from pathlib import Path
 
 import typer
 
-from bagkit.cli.common import ReportFormat, handle_errors, split_list
+from bagkit.cli.common import ReportFormat, bag_location, handle_errors, split_list
 from bagkit.cli.filter import (
     EXCLUDE_REGEX_HELP,
     EXCLUDE_TOPICS_HELP,
@@ -17,7 +17,7 @@ from bagkit.cli.filter import (
     WHERE_HELP,
 )
 from bagkit.cli.progress import DelayedProgress
-from bagkit.cli.selection_options import End, Start
+from bagkit.cli.selection_options import End, Start, build_query
 from bagkit.cli.surgery_options import (
     CheckCrc,
     Force,
@@ -31,7 +31,7 @@ from bagkit.cli.surgery_options import (
     output_options,
     print_report,
 )
-from bagkit.selection.conditions import parse_condition
+from bagkit.storage.transfer import written_to
 from bagkit.surgery.convert import convert_bags, read_output_options
 from bagkit.surgery.errors import SurgeryError
 from bagkit.surgery.rewrite import OutputOptions, RewriteReport
@@ -64,10 +64,16 @@ COMMAND_CLASS = SelectionCommand
 
 @handle_errors
 def convert(
-    bags: list[Path] = typer.Argument(..., help="The bags to convert (merged when several)."),
+    bags: list[Path] = typer.Argument(
+        ..., help="The bags to convert (merged when several).", parser=bag_location
+    ),
     *,
     output: Path | None = typer.Option(
-        None, "--output", "-o", help="The bag directory to write (must not exist unless --force)."
+        None,
+        "--output",
+        "-o",
+        help="The bag directory to write (must not exist unless --force); a URL uploads it.",
+        parser=bag_location,
     ),
     output_options_file: Path | None = typer.Option(
         None, "--output-options", help=OPTIONS_HELP, metavar="FILE"
@@ -92,19 +98,19 @@ def convert(
     output_format: Format = ReportFormat.TABLE,
 ) -> None:
     """Convert bags to a rosbag2 MCAP or SQLite3 bag."""
-    condition = None if where is None else parse_condition(where)
+    query = build_query(topics, start=start, end=end, where=where)
     latched = latched_options(latched_topics, no_latched)
     if output_options_file is not None:
         if output is not None:
             raise SurgeryError("give -o or --output-options, not both")
         for spec in read_output_options(output_options_file, force=force):
-            selection = replace(spec.selection, latched=latched, where=condition)
+            selection = replace(spec.selection, latched=latched, where=query.where)
             _convert(bags, spec.uri, selection, spec.options, output_format)
         return
     if output is None:
         raise SurgeryError("no output: give -o OUT (or --output-options FILE)")
-    selection = Selection.create(
-        split_list(topics), regex, split_list(exclude_topics), exclude_regex, start, end
+    selection = Selection.of(
+        query, regex=regex, exclude_topics=split_list(exclude_topics), exclude_regex=exclude_regex
     )
     options = replace(
         output_options(
@@ -116,7 +122,7 @@ def convert(
         ),
         storage=storage,
     )
-    selection = replace(selection, latched=latched, where=condition)
+    selection = replace(selection, latched=latched)
     _convert(bags, output, selection, options, output_format)
 
 
@@ -129,7 +135,9 @@ def _convert(
 ) -> None:
     progress = DelayedProgress(f"converting to {output}")
     try:
-        report: RewriteReport = convert_bags(bags, output, selection, options, progress)
+        with written_to(output, replace=options.force) as local:
+            report: RewriteReport = convert_bags(bags, local, selection, options, progress)
+        report.output = output
     finally:
         progress.close()
     print_report(report, output_format)

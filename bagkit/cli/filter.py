@@ -9,11 +9,12 @@ import typer
 
 from bagkit.cli.common import (
     ReportFormat,
+    bag_location,
     err_console,
     handle_errors,
     split_list,
 )
-from bagkit.cli.selection_options import End, Start, StateTopics
+from bagkit.cli.selection_options import End, Start, StateTopics, build_query
 from bagkit.cli.surgery_options import (
     CheckCrc,
     Compression,
@@ -30,9 +31,9 @@ from bagkit.cli.surgery_options import (
     print_cuts,
     print_report,
 )
-from bagkit.selection.conditions import parse_condition
 from bagkit.selection.times import parse_duration
 from bagkit.selection.topics import absolute_topic_name
+from bagkit.storage.transfer import written_to
 from bagkit.surgery.around import Around, cut_around
 from bagkit.surgery.rewrite import filter_bag
 from bagkit.surgery.select import Selection
@@ -78,7 +79,9 @@ COMMAND_CLASS = SelectionCommand
 
 @handle_errors
 def filter_command(
-    bag: Path = typer.Argument(..., help="The bag to read (directory or .mcap file)."),
+    bag: Path = typer.Argument(
+        ..., help="The bag to read (directory, .mcap file or URL).", parser=bag_location
+    ),
     *,
     output: Output,
     topics: list[str] | None = typer.Option(None, "--topics", help=TOPICS_HELP),
@@ -105,21 +108,22 @@ def filter_command(
     output_format: Format = ReportFormat.TABLE,
 ) -> None:
     """Write the selected messages of a bag to a new bag."""
-    selection = Selection.create(
-        split_list(topics), regex, split_list(exclude_topics), exclude_regex, start, end
+    query = build_query(topics, start=start, end=end, where=where)
+    selection = Selection.of(
+        query, regex=regex, exclude_topics=split_list(exclude_topics), exclude_regex=exclude_regex
     )
     selection = replace(
         selection,
         latched=latched_options(latched_topics, no_latched),
-        where=None if where is None else parse_condition(where),
         state_topics=frozenset(absolute_topic_name(t) for t in split_list(state_topics)),
     )
     options = output_options(
         compression, max_bag_size, max_bag_duration, force=force, check_crc=check_crc
     )
     if around is None:
-        with err_console.status(f"filtering {bag}"):
-            report = filter_bag(bag, output, selection, options)
+        with err_console.status(f"filtering {bag}"), written_to(output, replace=force) as local:
+            report = filter_bag(bag, local, selection, options)
+        report.output = output
         print_report(report, output_format)
         return
     trigger = Around.create(

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Protocol
 
 from bagkit.bag.latched import LatchedOptions
 from bagkit.selection.conditions import Condition
+from bagkit.selection.query import Query
 from bagkit.selection.times import TimeLike
 from bagkit.selection.topics import TopicSelection
 from bagkit.selection.windows import TimeRange, Window
@@ -96,6 +97,24 @@ class Selection:
             ),
             TimeRange.parse(start, end),
         )
+
+    @classmethod
+    def of(
+        cls,
+        query: Query,
+        *,
+        regex: str = "",
+        exclude_topics: Iterable[str] = (),
+        exclude_regex: str = "",
+    ) -> Selection:
+        """A selection of ``query``'s topics (a service by its name), time range and condition,
+        with ``bagkit filter``'s topic rules beside it (``--regex``, exclusions).
+
+        Raises:
+            SelectionError: a regex does not compile.
+        """
+        topics = cls.create(query.topics, regex, exclude_topics, exclude_regex).topics
+        return cls(topics, query.span, where=query.where)
 
     def resolved(self, start_ns: int, end_ns: int) -> Selection:
         """This selection with its window resolved against messages spanning the two times."""
