@@ -8,8 +8,9 @@ prefixes allowed) and, by rule:
 - it needs no ROS graph: not ``record``, ``replay``/``play``, ``control``, ``golden record``,
   nor a live golden mode (those are the ROS tests' business);
 - every bag or file it takes as an argument (or reads with ``--spec``) exists in its working
-  directory. That directory holds a copy of ``fixtures/`` and, under the names the docs give a recording of the demo
-  system (``flight1``, ``drive``, ``day1`` ...), bags made from the fixtures (:data:`RECORDINGS`;
+  directory. That directory holds a copy of ``fixtures/`` and, under the names the docs give
+  a recording of the demo system (``flight1``, ``drive``, ``day1`` ...), bags made from the
+  fixtures (:data:`RECORDINGS`;
   ``crashed`` is a fixture's copy cut short, as a killed recorder leaves it);
   paths elsewhere (``/data/fleet/``, ``bags.txt``) are not there and their commands are skipped.
 
