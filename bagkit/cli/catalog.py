@@ -86,7 +86,7 @@ def build(
 
     named = parse_events(events or [])
     with written_to(output, update=True) as local:
-        _build(roots, local, named, workers, scheduler)
+        _build(roots, local, named, workers, scheduler, shown=output)
 
 
 def _build(
@@ -95,7 +95,10 @@ def _build(
     named: dict[str, str],
     workers: int | None,
     scheduler: str | None,
+    *,
+    shown: Path,
 ) -> None:
+    """Update the catalogue ``output`` (a local copy of ``shown`` when that is a URL)."""
     from bagkit.fleet.catalog import complete_update, plan_update, write_catalog
     from bagkit.fleet.cluster import CATALOG_RATE
 
@@ -118,7 +121,7 @@ def _build(
     if changed:
         write_catalog(frame, output)
     err_console.print(
-        f"{output}: {len(plan.bags)} bags, {len(frame)} rows; {len(plan.to_open)} read, "
+        f"{shown}: {len(plan.bags)} bags, {len(frame)} rows; {len(plan.to_open)} read, "
         f"{len(plan.bags) - len(plan.to_open)} unchanged, {plan.removed} removed",
         highlight=False,
     )

@@ -144,6 +144,7 @@ def test_outputs_to_urls_are_uploaded(moto_store: Store, local_bags: Path) -> No
         moto_store.env,
     )
     assert "0 read, 2 unchanged" in update.stderr.replace("\n", " ")
+    assert update.stderr.startswith(f"{base}/out/c.parquet: 2 bags")
 
 
 def test_dask_workers_read_the_store_themselves(moto_store: Store, local_bags: Path) -> None:
