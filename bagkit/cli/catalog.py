@@ -10,6 +10,7 @@ import typer
 
 from bagkit.cli.common import (
     OutputFormat,
+    bag_location,
     err_console,
     handle_errors,
     print_json,
@@ -50,11 +51,18 @@ app = typer.Typer(
 def build(
     roots: list[Path] = typer.Argument(
         ...,
+        parser=bag_location,
         help=BAGS_HELP + ".",
         metavar="ROOT",
         show_default=False,
     ),
-    output: Path = typer.Option(..., "--output", "-o", help="The catalogue (.parquet)."),
+    output: Path = typer.Option(
+        ...,
+        "--output",
+        "-o",
+        help="The catalogue (.parquet); a URL is fetched, updated, uploaded.",
+        parser=bag_location,
+    ),
     events: list[str] | None = typer.Option(
         None,
         "--events",
@@ -73,11 +81,27 @@ def build(
     Example: bagkit catalog /data/flights -o flights.parquet
     --events gps_lost='/gps/fix: status.status < 0'
     """
-    from bagkit.fleet.catalog import complete_update, plan_update, write_catalog
-    from bagkit.fleet.cluster import CATALOG_RATE
     from bagkit.fleet.events import parse_events
+    from bagkit.storage.transfer import written_to
 
     named = parse_events(events or [])
+    with written_to(output, update=True) as local:
+        _build(roots, local, named, workers, scheduler, shown=output)
+
+
+def _build(
+    roots: list[Path],
+    output: Path,
+    named: dict[str, str],
+    workers: int | None,
+    scheduler: str | None,
+    *,
+    shown: Path,
+) -> None:
+    """Update the catalogue ``output`` (a local copy of ``shown`` when that is a URL)."""
+    from bagkit.fleet.catalog import complete_update, plan_update, write_catalog
+    from bagkit.fleet.cluster import CATALOG_RATE
+
     plan = plan_update(roots, output)
     changed = bool(plan.to_open or plan.removed) or not output.exists()
     if plan.to_open:
@@ -97,7 +121,7 @@ def build(
     if changed:
         write_catalog(frame, output)
     err_console.print(
-        f"{output}: {len(plan.bags)} bags, {len(frame)} rows; {len(plan.to_open)} read, "
+        f"{shown}: {len(plan.bags)} bags, {len(frame)} rows; {len(plan.to_open)} read, "
         f"{len(plan.bags) - len(plan.to_open)} unchanged, {plan.removed} removed",
         highlight=False,
     )

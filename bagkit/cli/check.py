@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 import typer
 
 from bagkit.cli import common
-from bagkit.cli.common import ReportFormat, handle_errors, print_json, warn
+from bagkit.cli.common import ReportFormat, bag_location, handle_errors, print_json, warn
 from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers, fleet_run
 
 if TYPE_CHECKING:
@@ -42,7 +42,7 @@ Examples:
 @handle_errors
 def check(  # noqa: PLR0917 (typer maps parameters to options)
     inputs: list[Path] = typer.Argument(
-        ..., help=BAGS_HELP + ".", metavar="BAGS...", show_default=False
+        ..., help=BAGS_HELP + ".", metavar="BAGS...", show_default=False, parser=bag_location
     ),
     spec: Path | None = typer.Option(None, "--spec", help="The contract (YAML).", metavar="FILE"),
     suggest: bool = typer.Option(

@@ -7,10 +7,14 @@ from typing import Annotated
 
 import typer
 
-from bagkit.cli.common import ReportFormat
+from bagkit.cli.common import ReportFormat, bag_location
 
-Golden = Annotated[Path, typer.Argument(help="The reference bag (directory or .mcap).")]
-Candidate = Annotated[Path, typer.Argument(help="The bag to check against it.")]
+Golden = Annotated[
+    Path, typer.Argument(help="The reference bag (directory, .mcap or URL).", parser=bag_location)
+]
+Candidate = Annotated[
+    Path, typer.Argument(help="The bag to check against it.", parser=bag_location)
+]
 Topics = Annotated[
     list[str] | None,
     typer.Option(

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import typer
 
-from bagkit.cli.common import ReportFormat, handle_errors, split_list
+from bagkit.cli.common import ReportFormat, bag_location, handle_errors, split_list
 from bagkit.cli.filter import (
     EXCLUDE_REGEX_HELP,
     EXCLUDE_TOPICS_HELP,
@@ -31,6 +31,7 @@ from bagkit.cli.surgery_options import (
     output_options,
     print_report,
 )
+from bagkit.storage.transfer import written_to
 from bagkit.surgery.convert import convert_bags, read_output_options
 from bagkit.surgery.errors import SurgeryError
 from bagkit.surgery.rewrite import OutputOptions, RewriteReport
@@ -63,10 +64,16 @@ COMMAND_CLASS = SelectionCommand
 
 @handle_errors
 def convert(
-    bags: list[Path] = typer.Argument(..., help="The bags to convert (merged when several)."),
+    bags: list[Path] = typer.Argument(
+        ..., help="The bags to convert (merged when several).", parser=bag_location
+    ),
     *,
     output: Path | None = typer.Option(
-        None, "--output", "-o", help="The bag directory to write (must not exist unless --force)."
+        None,
+        "--output",
+        "-o",
+        help="The bag directory to write (must not exist unless --force); a URL uploads it.",
+        parser=bag_location,
     ),
     output_options_file: Path | None = typer.Option(
         None, "--output-options", help=OPTIONS_HELP, metavar="FILE"
@@ -128,7 +135,9 @@ def _convert(
 ) -> None:
     progress = DelayedProgress(f"converting to {output}")
     try:
-        report: RewriteReport = convert_bags(bags, output, selection, options, progress)
+        with written_to(output, replace=options.force) as local:
+            report: RewriteReport = convert_bags(bags, local, selection, options, progress)
+        report.output = output
     finally:
         progress.close()
     print_report(report, output_format)

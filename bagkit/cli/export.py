@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from bagkit.cli.common import console, handle_errors, warn
+from bagkit.cli.common import bag_location, console, handle_errors, warn
 from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers
 from bagkit.cli.progress import DelayedProgress
 from bagkit.cli.selection_options import Distro, End, Start, Where, build_query
@@ -48,10 +48,14 @@ Examples:
 @handle_errors
 def export(  # noqa: PLR0917 (typer maps parameters to options)
     inputs: list[Path] = typer.Argument(
-        ..., help=BAGS_HELP + ".", metavar="BAG", show_default=False
+        ..., help=BAGS_HELP + ".", metavar="BAG", show_default=False, parser=bag_location
     ),
     out: Path = typer.Option(
-        ..., "--output", "-o", help="Output directory, or a .parquet/.csv file for one topic."
+        ...,
+        "--output",
+        "-o",
+        help="Output directory, or a .parquet/.csv file for one topic; a URL uploads it.",
+        parser=bag_location,
     ),
     file_format: ExportFormat | None = typer.Option(
         None, "--format", help="parquet or csv (default: from OUT's suffix, else parquet)."
@@ -73,6 +77,7 @@ def export(  # noqa: PLR0917 (typer maps parameters to options)
     distro: Distro = None,
 ) -> None:
     from bagkit.fleet.inputs import BAG_FILE_SUFFIXES, expand_bags, is_bag_directory
+    from bagkit.storage.transfer import written_to
 
     query = build_query(topics, fields, start, end, where)
     if file_format is None:
@@ -83,12 +88,12 @@ def export(  # noqa: PLR0917 (typer maps parameters to options)
         "dataset": dataset,
     }
     named = inputs[0] if len(inputs) == 1 else None
-    if named is not None and (named.suffix in BAG_FILE_SUFFIXES or is_bag_directory(named)):
-        _print_report(_export_one(named, out, options), where=where)
-        return
-    _export_many(
-        expand_bags(inputs), out, options, where=where, workers=workers, scheduler=scheduler
-    )
+    with written_to(out, replace=True) as local:
+        if named is not None and (named.suffix in BAG_FILE_SUFFIXES or is_bag_directory(named)):
+            _print_report(_export_one(named, local, options), where=where)
+            return
+        bags = expand_bags(inputs)
+        _export_many(bags, local, options, where=where, workers=workers, scheduler=scheduler)
 
 
 def _export_one(bag: Path, out: Path, options: dict[str, Any]) -> ExportReport:

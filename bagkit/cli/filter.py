@@ -9,6 +9,7 @@ import typer
 
 from bagkit.cli.common import (
     ReportFormat,
+    bag_location,
     err_console,
     handle_errors,
     split_list,
@@ -32,6 +33,7 @@ from bagkit.cli.surgery_options import (
 )
 from bagkit.selection.times import parse_duration
 from bagkit.selection.topics import absolute_topic_name
+from bagkit.storage.transfer import written_to
 from bagkit.surgery.around import Around, cut_around
 from bagkit.surgery.rewrite import filter_bag
 from bagkit.surgery.select import Selection
@@ -77,7 +79,9 @@ COMMAND_CLASS = SelectionCommand
 
 @handle_errors
 def filter_command(
-    bag: Path = typer.Argument(..., help="The bag to read (directory or .mcap file)."),
+    bag: Path = typer.Argument(
+        ..., help="The bag to read (directory, .mcap file or URL).", parser=bag_location
+    ),
     *,
     output: Output,
     topics: list[str] | None = typer.Option(None, "--topics", help=TOPICS_HELP),
@@ -117,8 +121,9 @@ def filter_command(
         compression, max_bag_size, max_bag_duration, force=force, check_crc=check_crc
     )
     if around is None:
-        with err_console.status(f"filtering {bag}"):
-            report = filter_bag(bag, output, selection, options)
+        with err_console.status(f"filtering {bag}"), written_to(output, replace=force) as local:
+            report = filter_bag(bag, local, selection, options)
+        report.output = output
         print_report(report, output_format)
         return
     trigger = Around.create(

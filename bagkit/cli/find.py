@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 import typer
 
 from bagkit.cli import common
-from bagkit.cli.common import handle_errors, print_json, split_list, warn
+from bagkit.cli.common import bag_location, handle_errors, print_json, split_list, warn
 from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers, fleet_run
 from bagkit.cli.selection_options import Distro, End, Start, StateTopics, build_query
 from bagkit.compat import StrEnum
@@ -49,7 +49,7 @@ class FindFormat(StrEnum):
 @handle_errors
 def find(  # noqa: PLR0917 (typer maps parameters to options)
     inputs: list[Path] = typer.Argument(
-        ..., help=BAGS_HELP + ".", metavar="BAGS...", show_default=False
+        ..., help=BAGS_HELP + ".", metavar="BAGS...", show_default=False, parser=bag_location
     ),
     when: str = typer.Option(
         ...,

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from bagkit.cli.common import ReportFormat, err_console, handle_errors
+from bagkit.cli.common import ReportFormat, bag_location, err_console, handle_errors
 from bagkit.cli.selection_options import End, Start, build_query
 from bagkit.cli.surgery_options import (
     CheckCrc,
@@ -23,6 +23,7 @@ from bagkit.cli.surgery_options import (
     output_options,
     print_report,
 )
+from bagkit.storage.transfer import written_to
 from bagkit.surgery.rewrite import merge_bags
 from bagkit.surgery.select import Selection
 
@@ -39,7 +40,9 @@ Example: bagkit merge drive_part1 drive_part2 -o drive
 
 @handle_errors
 def merge(
-    bags: list[Path] = typer.Argument(..., help="The bags to merge (directories or .mcap files)."),
+    bags: list[Path] = typer.Argument(
+        ..., help="The bags to merge (directories, .mcap files, URLs).", parser=bag_location
+    ),
     *,
     output: Output,
     start: Start = None,
@@ -59,6 +62,10 @@ def merge(
     )
     selection = Selection.of(build_query(start=start, end=end))
     selection = replace(selection, latched=latched_options(latched_topics, no_latched))
-    with err_console.status(f"merging {len(bags)} bags"):
-        report = merge_bags(bags, output, selection, options)
+    with (
+        err_console.status(f"merging {len(bags)} bags"),
+        written_to(output, replace=force) as local,
+    ):
+        report = merge_bags(bags, local, selection, options)
+    report.output = output
     print_report(report, output_format)

@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 
 from bagkit.cli import common
-from bagkit.cli.common import console, handle_errors, split_list
+from bagkit.cli.common import bag_location, console, handle_errors, split_list
 from bagkit.cli.selection_options import Distro, End, Start, Where, build_query
 
 HELP = """Plot fields of BAG over time into OUT: .png (matplotlib) or .html (an interactive page
@@ -32,7 +32,11 @@ Examples:
 @handle_errors
 def plot(  # noqa: PLR0917 (typer maps parameters to options)
     bag: Path = typer.Argument(
-        ..., help="Bag directory or single .mcap/.db3 file.", metavar="BAG", show_default=False
+        ...,
+        help="Bag directory or single .mcap/.db3 file.",
+        metavar="BAG",
+        show_default=False,
+        parser=bag_location,
     ),
     series: list[str] = typer.Argument(
         ..., help="TOPIC:FIELD, field paths or globs.", metavar="SERIES...", show_default=False
@@ -56,7 +60,7 @@ def plot(  # noqa: PLR0917 (typer maps parameters to options)
     suffix = out.suffix.lower()
     if suffix not in (".png", ".html"):
         raise DataError(f"{out}: the output must end in .png or .html")
-    bags = [bag, *(Path(b) for b in split_list(more_bags))]
+    bags = [bag, *(bag_location(b) for b in split_list(more_bags))]
     with common.err_console.status("reading ..."):
         found = load_series(bags, series, absolute=absolute, query=query)
     if not found and (start is not None or end is not None):

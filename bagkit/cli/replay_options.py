@@ -10,7 +10,7 @@ from typing import Annotated
 
 import typer
 
-from bagkit.cli.common import ReportFormat, duration_ns
+from bagkit.cli.common import ReportFormat, bag_location, duration_ns
 from bagkit.playback.options import OnDrift, ServiceRequestSource
 from bagkit.playback.source import MessageOrder
 from bagkit.playback.timing import DEFAULT_CLOCK_HZ
@@ -18,9 +18,10 @@ from bagkit.playback.timing import DEFAULT_CLOCK_HZ
 Bags = Annotated[
     list[Path] | None,
     typer.Argument(
-        help="Bag directories or .mcap files; several are replayed as one timeline.",
+        help="Bag directories, .mcap files or URLs; several are replayed as one timeline.",
         show_default=False,
         metavar="BAG...",
+        parser=bag_location,
     ),
 ]
 Rate = Annotated[
@@ -176,6 +177,7 @@ Inputs = Annotated[
         "-i",
         help="A bag to replay (rosbag2 Kilted's form); repeated for several, with BAG... too.",
         show_default=False,
+        parser=bag_location,
     ),
 ]
 OnDriftOption = Annotated[

@@ -17,6 +17,7 @@ from bagkit.bag.latched import LatchedOptions
 from bagkit.cli.common import (
     MultiValueCommand,
     ReportFormat,
+    bag_location,
     byte_size,
     console,
     print_json,
@@ -32,7 +33,10 @@ if TYPE_CHECKING:
 Output = Annotated[
     Path,
     typer.Option(
-        "--output", "-o", help="The bag directory to write (must not exist unless --force)."
+        "--output",
+        "-o",
+        help="The bag directory to write (must not exist unless --force); a URL uploads it.",
+        parser=bag_location,
     ),
 ]
 Force = Annotated[bool, typer.Option("--force", help="Replace OUT if it exists.")]

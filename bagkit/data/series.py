@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from bagkit.bag import BagReader
+from bagkit.bag.reader import bag_path
 from bagkit.data.errors import DataError, UndecodableTopicError
 from bagkit.data.scan import plan_scan
 from bagkit.data.units import field_unit
@@ -81,7 +82,7 @@ def load_series(
     """
     wanted = [parse_spec(spec) for spec in specs]
     query = query or Query()
-    paths = [Path(bag) for bag in bags]
+    paths = [bag_path(bag) for bag in bags]
     per_spec: list[list[Series]] = [[] for _ in wanted]
     for label, path in zip(bag_labels(paths), paths, strict=True):
         with BagReader(path, allow_empty=True) as reader:

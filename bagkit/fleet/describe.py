@@ -11,6 +11,9 @@ from pathlib import Path
 from typing import Any
 
 from bagkit.bag import BagError, BagReader
+from bagkit.storage.errors import StorageError
+from bagkit.storage.paths import stamp
+from bagkit.storage.urls import is_url
 
 COLUMNS = [
     "path",
@@ -29,6 +32,8 @@ COLUMNS = [
 
 def bag_stamp(path: str | Path) -> tuple[int, int]:
     """(total bytes, latest mtime in ns) of a bag's files: what changes when a bag does."""
+    if is_url(path):
+        return stamp(str(getattr(path, "url", path)))
     try:
         if os.path.isdir(path):
             with os.scandir(path) as entries:
@@ -75,5 +80,5 @@ def describe_bag(path: str) -> list[dict[str, Any]]:
                 )
                 for name, info in topics
             ]
-    except BagError as exc:
+    except (BagError, StorageError) as exc:
         return [_row(path, stamp, problems=str(exc))]

@@ -12,9 +12,10 @@ from __future__ import annotations
 
 import functools
 import os
+import posixpath
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import TYPE_CHECKING, Any
 
 from bagkit.data.export import ExportReport, export
@@ -23,6 +24,7 @@ from bagkit.errors import BagkitError
 from bagkit.fleet.errors import FleetError
 from bagkit.fleet.execute import ItemDone, run_each
 from bagkit.selection.query import Query
+from bagkit.storage.urls import is_url
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -44,16 +46,30 @@ def bag_folders(bags: Sequence[str | Path], out: Path) -> list[Path]:
     Raises:
         FleetError: two bags would share a folder (``a.mcap`` beside a directory ``a``).
     """
-    paths = [Path(bag).resolve() for bag in bags]
-    common = Path(os.path.commonpath([p.parent for p in paths]))
-    folders = [
-        out / (p.relative_to(common).with_suffix("") if p.is_file() else p.relative_to(common))
-        for p in paths
-    ]
+    if any(is_url(bag) for bag in bags):  # in storage: by the URLs' paths
+        names = [str(getattr(bag, "url", bag)).split("://", 1)[-1] for bag in bags]
+        common_url = posixpath.commonpath([posixpath.dirname(n) for n in names])
+        folders = [out / _stem(posixpath.relpath(n, common_url)) for n in names]
+    else:
+        paths = [Path(bag).resolve() for bag in bags]
+        common = Path(os.path.commonpath([p.parent for p in paths]))
+        folders = [
+            out / (p.relative_to(common).with_suffix("") if p.is_file() else p.relative_to(common))
+            for p in paths
+        ]
     if len(set(folders)) < len(folders):
         twice = sorted({str(f) for f in folders if folders.count(f) > 1})
         raise FleetError(f"several bags would be exported into {twice[0]}: rename one")
     return folders
+
+
+def _stem(name: str) -> str:
+    """A bag file's name without its storage suffix (``a.mcap``: ``a``)."""
+    return (
+        name[: -len(suffix)]
+        if (suffix := PurePosixPath(name).suffix) in (".mcap", ".db3", ".bag")
+        else name
+    )
 
 
 def export_bag(job: tuple[str, Path], **options: Any) -> BagExport:

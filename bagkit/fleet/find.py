@@ -24,6 +24,7 @@ from bagkit.selection.conditions import parse_topic_condition
 from bagkit.selection.errors import UnknownTopicError
 from bagkit.selection.query import Query
 from bagkit.selection.topics import absolute_topic_name, require_topics
+from bagkit.storage.errors import StorageError
 
 if TYPE_CHECKING:
     import pyarrow as pa
@@ -164,7 +165,7 @@ def episodes_in_bag(
                 found = find_episodes(reader, trigger, gap_ns, resolved.window, state_topics)
             except UnknownTopicError:
                 return BagEpisodes(bag, has_topic=False, topics=list(reader.topics))
-    except BagError as exc:
+    except (BagError, StorageError) as exc:
         return BagEpisodes(bag, error=str(exc))
     problems = [p if p.startswith(bag) else f"{bag}: {p}" for p in found.problems]
     if outside is not None:

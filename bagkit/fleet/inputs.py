@@ -31,7 +31,10 @@ def is_bag_directory(path: str | Path) -> bool:
     """A rosbag2 bag directory: it holds ``metadata.yaml``, or storage files and no directory.
 
     (A directory of loose ``.mcap`` files beside sub-directories is a root of several bags.)
+    In storage: a prefix holding ``metadata.yaml``.
     """
+    if is_url(path):
+        return (UrlPath(str(getattr(path, "url", path))) / "metadata.yaml").is_file()
     if os.path.isfile(os.path.join(path, "metadata.yaml")):
         return True
     storage = False

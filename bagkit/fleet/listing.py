@@ -3,14 +3,20 @@ info, read from its summary as ``info BAG`` reads it, and what could not be read
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
+from itertools import repeat
 from pathlib import Path
 from typing import Any
 
 from bagkit.bag import BagError, BagInfo, bag_info
 from bagkit.fleet.inputs import BAG_FILE_SUFFIXES, STORAGE_SUFFIXES, find_bags, is_bag_directory
 from bagkit.fleet.url_inputs import url_bags
+from bagkit.storage.errors import StorageError
 from bagkit.storage.urls import is_url
+
+# Bags of a prefix in storage described at once.
+REMOTE_READERS = 16
 
 
 @dataclass(slots=True)
@@ -62,9 +68,19 @@ def folder_info(root: str | Path, *, check_crc: bool = True) -> FolderInfo | Non
     if not paths:
         return None
     found = FolderInfo(text)
-    for path in paths:
-        try:
-            found.bags.append(bag_info(path, check_crc=check_crc))
-        except BagError as exc:
-            found.unread[path] = str(exc)
+    # Bags in storage are read a few at a time: each is a few requests that mostly wait.
+    with ThreadPoolExecutor(REMOTE_READERS if is_url(text) else 1) as pool:
+        for path, result in zip(paths, pool.map(_described, paths, repeat(check_crc)), strict=True):
+            if isinstance(result, BagInfo):
+                found.bags.append(result)
+            else:
+                found.unread[path] = result
     return found
+
+
+def _described(path: str, check_crc: bool) -> BagInfo | str:
+    """The bag's info, or why it could not be read."""
+    try:
+        return bag_info(path, check_crc=check_crc)
+    except (BagError, StorageError) as exc:
+        return str(exc)

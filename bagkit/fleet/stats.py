@@ -24,6 +24,7 @@ from bagkit.selection.topics import absolute_topic_name
 from bagkit.stats import StatsError, Summary
 from bagkit.stats.accumulate import TopicAccumulator
 from bagkit.stats.summary import SummaryRun, check_topics, finish_summary
+from bagkit.storage.errors import StorageError
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -65,7 +66,7 @@ def summarize_bag(
         with BagReader(bag, allow_empty=True, check_crc=check_crc) as reader:
             run.read(reader, topics, bag)
             names = frozenset(reader.topics)
-    except BagError as exc:
+    except (BagError, StorageError) as exc:
         return BagPartial(bag, error=str(exc))
     return BagPartial(bag, names, run.accumulators, run.skipped, run.problems)
 

@@ -31,6 +31,7 @@ from bagkit.health.spec import HealthSpec, SpecError, TopicContract
 from bagkit.selection.errors import SelectionError
 from bagkit.selection.topics import did_you_mean
 from bagkit.selection.windows import Window
+from bagkit.storage.errors import StorageError
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -249,7 +250,7 @@ def _check_one(bag: str, *, spec: HealthSpec, url: str | None) -> HealthReport:
     """What a worker runs: the report of one bag, or why it could not be read."""
     try:
         report = check_bag(bag, spec)
-    except BagError as exc:
+    except (BagError, StorageError) as exc:
         return HealthReport(bag, 0, [], error=str(exc))
     report.bags_url = url
     return report

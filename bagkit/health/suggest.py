@@ -20,6 +20,7 @@ import numpy as np
 import yaml
 
 from bagkit.bag import BagReader
+from bagkit.bag.reader import bag_path
 from bagkit.selection.temporal import window_counts
 from bagkit.stats.result import FieldStats, TopicStats
 
@@ -87,7 +88,7 @@ def suggest_spec(bag: str | Path) -> str:
                 _ranges(suggested, stats[name])
             topics.append(suggested)
     header = (
-        f"# Suggested by `bagkit check {Path(bag).name} --suggest` from what this bag shows:\n"
+        f"# Suggested by `bagkit check {bag_path(bag).name} --suggest` from what this bag shows:\n"
         "# rate lower bounds at half the lowest seen, gaps at twice the longest, value bounds\n"
         "# widened by their span on each side. Edit it: drop what does not matter, tighten\n"
         "# what does.\n"

@@ -12,6 +12,7 @@ from functools import cached_property
 from pathlib import Path
 
 from bagkit.bag.latched import LatchedOptions
+from bagkit.bag.reader import bag_path
 from bagkit.compat import StrEnum
 from bagkit.playback.errors import PlayerError
 from bagkit.playback.source import MessageOrder
@@ -270,7 +271,7 @@ class PlayOptions:
     @property
     def bags(self) -> tuple[Path, ...]:
         """Every bag of the replay, ``bag`` first."""
-        return (Path(self.bag), *self.more_bags)
+        return (bag_path(self.bag), *self.more_bags)
 
     @cached_property
     def selection(self) -> TopicSelection:

@@ -143,9 +143,11 @@ def translated(url: str, exc: BaseException) -> StorageError:
         return AccessDeniedError(
             f"{shown}: no credentials found (environment, profile or instance role)"
         )
-    if status in (401, 403) or isinstance(exc, PermissionError):
+    # fsspec's HTTP filesystem raises FileNotFoundError for any failed HEAD and GET: the status
+    # behind it decides.
+    if status in (401, 403) or (status is None and isinstance(exc, PermissionError)):
         return AccessDeniedError(f"{shown}: access denied ({status or 403})")
-    if status == 404 or isinstance(exc, FileNotFoundError):
+    if status == 404 or (status is None and isinstance(exc, FileNotFoundError)):
         return ObjectNotFoundError(f"{shown}: no such object, prefix or bucket")
     if (status is not None and (status >= 500 or status == 429)) or _transient(exc, kind):
         return UnreachableError(

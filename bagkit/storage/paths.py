@@ -39,6 +39,35 @@ def remembered_size(url: str) -> int:
     return sum(int(i.get("size") or 0) for u, i in _infos.items() if u.startswith(below))
 
 
+def stamp(url: str) -> tuple[int, int]:
+    """(bytes, latest modification in ns) of the object at ``url`` or the objects under it, as
+    listings said (one listing when none did yet): what changes when a bag in storage does."""
+    url = url.rstrip("/")
+    below = url + "/"
+    found = [i for u, i in _infos.items() if u == url or u.startswith(below)]
+    if not found:
+        path = UrlPath(url)
+        info = path.info()
+        if info is not None and info.get("type") == "directory":
+            list(path.iterdir())
+        found = [i for u, i in _infos.items() if u == url or u.startswith(below)]
+    files = [i for i in found if i.get("type") != "directory"]
+    return (
+        sum(int(i.get("size") or 0) for i in files),
+        max((_modified_ns(i) for i in files), default=0),
+    )
+
+
+def _modified_ns(info: dict[str, Any]) -> int:
+    """An object's modification time in ns from what the store said (S3: ``LastModified``)."""
+    value: Any = info.get("LastModified") or info.get("mtime") or info.get("last_modified")
+    if hasattr(value, "timestamp"):
+        return int(value.timestamp() * 1e9)
+    if isinstance(value, (int, float)):
+        return int(value * 1e9)
+    return 0
+
+
 class UrlPath:
     """An object or a prefix at ``url`` (see the module's docstring)."""
 

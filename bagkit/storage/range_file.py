@@ -23,6 +23,12 @@ from bagkit.storage.urls import scheme, shown_url
 # the reading stops, however it reads), up to MAX_READ_AHEAD.
 READ_AHEAD_SHARE = 8
 MAX_READ_AHEAD = 8 << 20
+# The first bytes of a file (magic, header) are fetched at once and kept for the next opening of
+# the same object (the back-end is chosen by the magic, then opens the file again), for the
+# last MAX_HEADS objects.
+HEAD_BYTES = 4096
+MAX_HEADS = 256
+_HEADS: dict[tuple[str, str | None], bytes] = {}
 # The ranges kept per open file; the oldest are dropped beyond.
 CACHE_BYTES = 64 << 20
 
@@ -118,6 +124,9 @@ class RangeFile:
 
     # The cache and the fetches.
     def _cached_span(self, start: int, end: int) -> bytes | None:
+        head = _HEADS.get((self.url, self.etag))
+        if head is not None and end <= len(head):
+            return head[start:end]
         for offset, block in reversed(self._cache.items()):
             if offset <= start and end <= offset + len(block):
                 self._cache.move_to_end(offset)
@@ -125,12 +134,24 @@ class RangeFile:
         return None
 
     def _fetch_span(self, start: int, end: int) -> bytes:
+        # What a cached block (the read-ahead) holds from ``start`` on is not fetched again.
+        held = next(
+            (b[start - o :] for o, b in reversed(self._cache.items()) if o <= start < o + len(b)),
+            b"",
+        )
+        first = start + len(held)
         ahead = min(MAX_READ_AHEAD, self._streak // READ_AHEAD_SHARE)
-        fetch_end = min(self.size, max(end, start + ahead))
-        block = self._fetch(start, fetch_end)
+        if first == 0:  # the magic and the header: one request for every reader of the file
+            ahead = max(ahead, HEAD_BYTES)
+        fetch_end = min(self.size, max(end, first + ahead))
+        block = self._fetch(first, fetch_end)
+        if first == 0:
+            if len(_HEADS) >= MAX_HEADS:
+                _HEADS.pop(next(iter(_HEADS)))
+            _HEADS[(self.url, self.etag)] = block[:HEAD_BYTES]
         if fetch_end > end or len(block) <= CACHE_BYTES // 4:
-            self._keep(start, block)
-        return block[: end - start]
+            self._keep(first, block)
+        return (held + block)[: end - start] if held else block[: end - start]
 
     def _keep(self, offset: int, block: bytes) -> None:
         self._cache[offset] = block

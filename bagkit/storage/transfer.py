@@ -6,6 +6,7 @@ from __future__ import annotations
 import shutil
 import tempfile
 from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -56,6 +57,39 @@ def upload(local: Path, url: str) -> None:
 
 def _put(fs: Any, url: str, local: Path, target: str) -> None:
     call(url, lambda: fs.put_file(str(local), target))
+
+
+@contextmanager
+def written_to(output: Path, *, replace: bool = False, update: bool = False) -> Iterator[Path]:
+    """Where a command writes ``output``: itself, or for a URL (a UrlPath) a local temporary
+    path, uploaded to the URL when the block ends without an error.
+
+    Args:
+        output: the output as given.
+        replace: an object already at the URL may be replaced (``--force``); else an error.
+        update: the output is updated in place (a catalogue): what is at the URL is fetched
+            first.
+
+    Raises:
+        StorageError: the URL exists (without ``replace``), or the upload failed.
+    """
+    if not isinstance(output, UrlPath):
+        yield output
+        return
+    directory = temporary_directory()
+    try:
+        local = directory / output.name
+        if output.exists():
+            if update and output.is_file():
+                local = local_copy(output, directory)
+            elif not (replace or update):
+                raise StorageError(f"{output} exists (--force replaces it)")
+        yield local
+        # What the command wrote beside it too (a catalogue's events file) goes beside it.
+        for written in sorted(directory.iterdir()):
+            upload(written, joined(output.parent.url, written.name))
+    finally:
+        shutil.rmtree(directory, ignore_errors=True)
 
 
 def objects_under(prefix: UrlPath) -> Iterator[UrlPath]:

@@ -5,7 +5,7 @@ inputs) and what it reports (:class:`RewriteReport`): shared by the chunk copy
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
@@ -104,7 +104,10 @@ def resolve(
         UnknownTopicError: a named topic (``--latched-topics`` too, used or not) is in no
             input (the message names the closest).
     """
-    require_topics([*selection.topics.topics, *selection.latched.extra_topics], names)
+    require_topics(selection.latched.extra_topics, names)
+    # Named topics as the inputs store them: a service's name is its event topic (as in echo).
+    stored = frozenset(require_topics(sorted(selection.topics.topics), names))
+    selection = replace(selection, topics=replace(selection.topics, topics=stored))
     if not spans or not selection.span.bounded:
         return selection
     first, last = min(s for s, _ in spans), max(e for _, e in spans)

@@ -130,6 +130,8 @@ def check_output(bags: Sequence[Path], output: Path) -> None:
     """Raise SurgeryError when ``output`` is, holds or is inside one of ``bags``."""
     target = output.resolve()
     for bag in bags:
+        if not isinstance(bag, Path):  # a bag in storage (UrlPath): never under a local output
+            continue
         source = bag.resolve()
         if target == source or target in source.parents or source in target.parents:
             raise SurgeryError(f"the output {output} would overlap the input {bag}")
@@ -153,7 +155,7 @@ def _opened_inputs(
                 inputs.custom_data.append((bag.name, custom_data))
             report.problems.extend(p for p in missing if "missing" in p or "unreadable" in p)
             for path in paths:
-                handle = open(path, "rb")  # noqa: SIM115 (closed below)
+                handle = path.open("rb")  # closed below; a UrlPath's is read by range
                 handles.append(handle)
                 if handle.read(len(MAGIC)) != MAGIC:
                     raise SurgeryError(f"{path}: only MCAP storage can be rewritten")
@@ -177,7 +179,7 @@ def all_mcap(bags: Sequence[Path]) -> bool:
         else:
             files = [bag] if bag.is_file() else []
         for file in files:
-            with open(file, "rb") as f:
+            with file.open("rb") as f:
                 if f.read(len(MAGIC)) != MAGIC:
                     return False
     return True

@@ -268,3 +268,17 @@ def test_check_names_the_closest_topic_of_a_contract_broken_by_a_misspelling(
     )  # fmt: skip
     assert result.returncode == 1, result.stderr
     assert f"/imu/dat: present (not in the bag; did you mean {expected}?)" in result.stdout
+
+
+def test_filter_takes_a_service_name_as_echo_does(interop_dir: Path, tmp_path: Path) -> None:
+    """``filter --topics /service`` keeps the service's event topic, every call of it."""
+    bag = interop_dir / SERVICES
+    with BagReader(bag) as reader:
+        count = reader.topic_counts["/test_service1/_service_event"]
+    result = subprocess.run(
+        [BAGKIT, "filter", str(bag), "-o", "out", "--topics", "/test_service1"],
+        capture_output=True, text=True, timeout=120, cwd=tmp_path, check=False,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    with BagReader(tmp_path / "out") as reader:
+        assert reader.topic_counts == {"/test_service1/_service_event": count}
