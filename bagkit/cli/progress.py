@@ -1,5 +1,6 @@
 """A progress bar for work of unknown length: it appears on stderr once the work has taken a
-second, so that quick commands print nothing but their result."""
+second, so that quick commands print nothing but their result, and only on a terminal (a log or
+a script's pipe gets nothing, not even the blank line a stopped bar leaves)."""
 
 from __future__ import annotations
 
@@ -20,16 +21,20 @@ class DelayedProgress:
         self._started = time.monotonic()
         self._bar: Progress | None = None
         self._task: TaskID | None = None
+        self._off = False
 
     def __call__(self, done: int, total: int) -> None:
         if self._bar is None:
-            if time.monotonic() - self._started < PROGRESS_DELAY_S:
+            if self._off or time.monotonic() - self._started < PROGRESS_DELAY_S:
                 return
             # Here: a command that ends within the delay never imports rich (start-up time).
             from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
             from bagkit.cli.common import err_console
 
+            if not err_console.is_terminal:
+                self._off = True
+                return
             self._bar = Progress(
                 TextColumn(self._label),
                 BarColumn(),

@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 import typer
 
+from bagkit.cli import progress
 from bagkit.cli.common import (
     EXIT_BROKEN_PIPE,
     EXIT_INTERNAL,
@@ -148,8 +149,7 @@ def test_a_closed_output_pipe_is_quiet_and_exit_141(command: list[str]) -> None:
     proc.stdout.close()
     stderr = proc.stderr.read().decode()
     assert proc.wait(timeout=60) == EXIT_BROKEN_PIPE, stderr
-    # Blank lines aside: stats' transient progress bar leaves one on a stderr that is no terminal.
-    assert [line for line in stderr.splitlines() if line] == []
+    assert stderr == ""
 
 
 def test_head_ends_a_long_output_quietly() -> None:
@@ -168,3 +168,16 @@ def test_head_ends_a_long_output_quietly() -> None:
     first, status = pipeline.stdout.splitlines()
     assert first.startswith("# /imu/data at ")
     assert status == f"status {EXIT_BROKEN_PIPE}"
+
+
+def test_the_progress_bar_stays_off_a_stderr_that_is_no_terminal(
+    capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A slow command's bar is for a terminal: a log gets nothing (a stopped bar left a blank
+    line, which broke scripts that expect an empty stderr)."""
+    monkeypatch.setattr(progress, "PROGRESS_DELAY_S", 0.0)
+    bar = progress.DelayedProgress("reading")
+    bar(1, 10)
+    bar(10, 10)
+    bar.close()
+    assert capfd.readouterr().err == ""
