@@ -60,7 +60,10 @@ def outcomes(output: str) -> dict[str, str]:
 def test_each_assertion_is_an_item_on_golden_and_lockstep(
     project: Path, pytester: pytest.Pytester
 ) -> None:
-    result = pytester.runpytest_subprocess("-v", "--golden-mode", "lockstep", "-p", "no:randomly")
+    # -rN: no short summary, whose lines repeat the failures' text unless the terminal is narrow.
+    result = pytester.runpytest_subprocess(
+        "-v", "-rN", "--golden-mode", "lockstep", "-p", "no:randomly"
+    )
     seen = outcomes(result.stdout.str())
     spec = load_spec(project / "fixtures" / "faults")
     assert spec.health is not None
