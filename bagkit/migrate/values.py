@@ -17,24 +17,12 @@ from typing import Any
 import numpy as np
 from rosbags.interfaces import Nodetype
 
-# numpy dtype of each primitive as the rosbags serializer packs it (byte is signed there).
+from bagkit.decode.layout import PRIMITIVE_FORMATS
+
+# numpy dtype of each primitive as the rosbags serializer packs it: CDR's formats, except that
+# bool is numpy's own and byte is signed there.
 NUMPY_TYPES: dict[str, np.dtype] = {
-    name: np.dtype(code)
-    for name, code in {
-        "bool": "?",
-        "byte": "i1",
-        "char": "u1",
-        "int8": "i1",
-        "uint8": "u1",
-        "int16": "<i2",
-        "uint16": "<u2",
-        "int32": "<i4",
-        "uint32": "<u4",
-        "int64": "<i8",
-        "uint64": "<u8",
-        "float32": "<f4",
-        "float64": "<f8",
-    }.items()
+    name: np.dtype(code) for name, code in {**PRIMITIVE_FORMATS, "bool": "?", "byte": "i1"}.items()
 }
 FLOAT32_MAX = float(np.finfo(np.float32).max)
 
