@@ -233,3 +233,20 @@ def test_filter_and_convert_declare_their_selection_options_once() -> None:
     assert sorted(filter_options) == sorted(names)
     assert all(help_ for _, help_, _ in filter_options.values())
     assert declared("convert") == filter_options
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (["filter", "bag"], "error: Missing option '--output' / '-o'."),
+        (["filter", "-o", "out"], "error: Missing argument 'bag'."),
+        (["play", "x", "--rate", "abc"], "error: Invalid value for '--rate' / '-r': Input should"),
+    ],
+)
+def test_plain_parameters_word_their_errors_as_click(args: list[str], expected: str) -> None:
+    """Parameters processed without typer's pydantic adapter (plain_params) still say what is
+    missing or wrong as click says it, in one line, exit 2."""
+    result = _run(*args)
+    assert result.returncode == 2
+    (line,) = result.stderr.splitlines()
+    assert line.startswith(expected), line
