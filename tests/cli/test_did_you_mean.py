@@ -59,6 +59,9 @@ TOPIC_CASES: dict[str, Args] = {
         "/imu/dat",
     ],
     "play --topics": lambda b, t: ["play", b, "--topics", "/imu/dat", "--no-wait-for-subscribers"],
+    "play --topics (beside a known one)": lambda b, t: [
+        *("play", b, "--topics", "/gps/fix", "/imu/dat", "--no-wait-for-subscribers")
+    ],
 }
 FIELD_CASES: dict[str, Args] = {
     "echo --fields": lambda b, t: ["echo", b, "/imu/data", "-f", "linear_accel.z"],
