@@ -144,9 +144,13 @@ class TopicRewrite(Protocol):
     def payload(self, data: bytes) -> bytes:
         """One payload as written to the output."""
 
-    def payloads(self, buf: np.ndarray, starts: np.ndarray, lengths: np.ndarray) -> list[bytes]:
+    def payloads(
+        self, buf: np.ndarray, starts: np.ndarray, lengths: np.ndarray, room: int
+    ) -> list[tuple[np.ndarray, np.ndarray]]:
         """The payloads at ``starts``/``lengths`` of a chunk's records ``buf`` (uint8), as
-        written to the output, in order."""
+        written to the output: groups ``(indexes, rows)``, ``rows[i]`` (a row of a 2-D uint8
+        array) ``room`` bytes for the caller then the payload at ``indexes[i]``, every index
+        once."""
 
 
 @dataclass(frozen=True)
