@@ -296,20 +296,17 @@ def test_filter_where_compiles_for_a_service_named_by_its_name(
     before the condition is compiled, so its calls are filtered by their content."""
     bag = interop_dir / SERVICES
     condition = "request[*].int32_value >= 0"
-    echoed = subprocess.run(
-        [BAGKIT, "echo", str(bag), "/test_service1/_service_event", "--format", "json"],
-        capture_output=True, text=True, timeout=120, check=True,
-    )  # fmt: skip
+    echoed = bagkit_in_process(
+        ["echo", bag, "/test_service1/_service_event", "--format", "json"], tmp_path
+    )
+    assert echoed.returncode == 0, echoed.stderr
     events = [json.loads(line) for line in echoed.stdout.splitlines()]
     expected = [
         e["log_time"] for e in events if any(r["int32_value"] >= 0 for r in e["data"]["request"])
     ]
     assert 0 < len(expected) < len(events)
-    args = ["filter", str(bag), "-o", "out", "--topics", "/test_service1", "--where", condition]
-    result = subprocess.run(
-        [BAGKIT, *args],
-        capture_output=True, text=True, timeout=120, cwd=tmp_path, check=False,
-    )  # fmt: skip
+    args: list[str | Path] = ["filter", bag, "-o", "out", "--topics", "/test_service1"]
+    result = bagkit_in_process([*args, "--where", condition], tmp_path)
     assert result.returncode == 0, result.stderr
     with BagReader(tmp_path / "out") as reader:
         assert [m.log_time for m in reader.messages()] == expected
