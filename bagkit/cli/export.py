@@ -96,9 +96,7 @@ def export(  # noqa: PLR0917 (typer maps parameters to options)
             _print_report(_export_one(named, local, options), shown, where=where)
             return
         bags = expand_bags(inputs)
-        _export_many(
-            bags, local, options, shown, where=where, workers=workers, scheduler=scheduler
-        )
+        _export_many(bags, local, options, shown, where=where, workers=workers, scheduler=scheduler)
 
 
 def _export_one(bag: Path, out: Path, options: dict[str, Any]) -> ExportReport:

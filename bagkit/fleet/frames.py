@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 
 from bagkit.extras import FLEET, require
 from bagkit.fleet.inputs import expand_bags
+from bagkit.storage.urls import location
 
 if TYPE_CHECKING:
     import dask.dataframe as dd
@@ -48,7 +49,7 @@ def dataframe(
     require(FLEET, "bagkit.fleet.dataframe")
     import dask.dataframe as dd
 
-    paths = [str(bag) for bag in expand_bags(bags)]
+    paths = [location(bag) for bag in expand_bags(bags)]
     chosen = tuple(fields) if fields is not None else None
     meta = read_partition(paths[0], topic, chosen).iloc[:0]
     return dd.from_map(

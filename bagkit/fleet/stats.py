@@ -25,6 +25,7 @@ from bagkit.stats import StatsError, Summary
 from bagkit.stats.accumulate import TopicAccumulator
 from bagkit.stats.summary import SummaryRun, check_topics, finish_summary
 from bagkit.storage.errors import StorageError
+from bagkit.storage.urls import location, shown_as
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -62,8 +63,9 @@ def summarize_bag(
     query = query or Query()
     topics = list(query.topics) or None
     run = SummaryRun.of(query, bulk=bulk, prefetch=False)
+    path, bag = bag, shown_as(bag)  # opened in full, named without a URL's secrets
     try:
-        with BagReader(bag, allow_empty=True, check_crc=check_crc) as reader:
+        with BagReader(path, allow_empty=True, check_crc=check_crc) as reader:
             run.read(reader, topics, bag)
             names = frozenset(reader.topics)
     except (BagError, StorageError) as exc:
@@ -153,7 +155,7 @@ def summarize_fleet(
     Raises:
         As :func:`merge_partials`.
     """
-    paths = [str(bag) for bag in bags]
+    paths = [location(bag) for bag in bags]
     query = query or Query()
     query = query.with_topics(absolute_topic_name(topic) for topic in query.topics)
     task = functools.partial(summarize_bag, query=query, bulk=bulk, check_crc=check_crc)

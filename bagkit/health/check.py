@@ -32,6 +32,7 @@ from bagkit.selection.errors import SelectionError
 from bagkit.selection.topics import did_you_mean
 from bagkit.selection.windows import Window
 from bagkit.storage.errors import StorageError
+from bagkit.storage.urls import location, shown_as
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -188,7 +189,7 @@ def check_bag(bag: str | Path, spec: HealthSpec) -> HealthReport:
             type lacks (or compares text with a number).
     """
     found: list[Assertion] = []
-    with BagReader(bag, allow_empty=True) as reader:
+    with BagReader(location(bag), allow_empty=True) as reader:
         problems = list(reader.problems)
         counts = reader.topic_counts
         for topic in spec.forbidden:
@@ -227,7 +228,7 @@ def check_bag(bag: str | Path, spec: HealthSpec) -> HealthReport:
             for (text, _), where in zip(contract.never, broken, strict=True):
                 spans = interval_spans(where, times)
                 found.append(Assertion(topic, text, not len(spans), spans))
-        return HealthReport(str(bag), reader.start_ns, found, problems)
+        return HealthReport(shown_as(location(bag)), reader.start_ns, found, problems)
 
 
 def _field_error(
@@ -251,7 +252,7 @@ def _check_one(bag: str, *, spec: HealthSpec, url: str | None) -> HealthReport:
     try:
         report = check_bag(bag, spec)
     except (BagError, StorageError) as exc:
-        return HealthReport(bag, 0, [], error=str(exc))
+        return HealthReport(shown_as(bag), 0, [], error=str(exc))
     report.bags_url = url
     return report
 
@@ -321,4 +322,4 @@ def check(
 
 
 def _paths(bags: Iterable[str | Path] | str | Path) -> list[str]:
-    return [str(bags)] if isinstance(bags, str | Path) else [str(bag) for bag in bags]
+    return [location(bags)] if isinstance(bags, str | Path) else [location(bag) for bag in bags]

@@ -196,6 +196,36 @@ def test_export_to_a_url_names_the_url(moto_store: Store, local_bags: Path) -> N
     assert "bagkit-storage-" not in result.stdout + result.stderr
 
 
+def test_presigned_urls_keep_their_signature(moto_store: Store, local_bags: Path) -> None:
+    """moto checks the signature of a presigned URL (403 without it): the fleet commands
+    open each bag by its full URL, and never print the signed query."""
+    import s3fs
+
+    fs = s3fs.S3FileSystem()
+    moto_store.put(local_bags / "fleet" / "a" / "a_0.mcap", "signed/a.mcap")
+    moto_store.put(local_bags / "fleet" / "b" / "b_0.mcap", "signed/b.mcap")
+    urls = [fs.url(f"bagkit-test/signed/{n}.mcap", expires=600) for n in "ab"]
+    assert all("Signature=" in url for url in urls)
+    unsigned = urls[0].split("?", 1)[0]
+    assert cli(["info", unsigned], {}).returncode == 2  # moto refuses it: 403
+    local = [str(local_bags / "fleet" / n / f"{n}_0.mcap") for n in "ab"]
+    options = ["--format", "json", "--workers", "0"]
+    stats = ["stats", "summary", "-t", "/gps/fix", *options]
+    remote, on_disk = cli([*stats, *urls], {}), cli([*stats, *local], {})
+    assert remote.returncode == 0, remote.stderr
+    assert json.loads(remote.stdout)["topics"] == json.loads(on_disk.stdout)["topics"]
+    find = ["find", "--when", "/gps/fix: latitude > 48.000001", *options]
+    found, expected = cli([*find, *urls], {}), cli([*find, *local], {})
+    assert found.returncode == 0, found.stderr
+    episodes = json.loads(found.stdout)
+    assert episodes and [e["count"] for e in episodes] == [
+        e["count"] for e in json.loads(expected.stdout)
+    ]
+    assert all(e["bag"].endswith(".mcap?...") for e in episodes)
+    for result in (remote, found):
+        assert "Signature" not in result.stdout + result.stderr
+
+
 def test_dask_workers_read_the_store_themselves(moto_store: Store, local_bags: Path) -> None:
     """Two local workers, each opening its bags by URL (the driver sends URLs, not bytes):
     the figures one process gives."""
