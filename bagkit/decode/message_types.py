@@ -213,10 +213,14 @@ class MessageTypes:
         """
         canonical = self.resolve(name)
         getter = field_getter(self.typestore, canonical, tuple(paths))
-        decode = self.decoder(name)
+        # The object path is made on first use: generating rosbags' deserializer costs more
+        # than a small bag's reading, and the direct reader rarely falls back to it.
+        decoders: list[Callable[[bytes | memoryview], object]] = []
 
         def through_objects(data: bytes | memoryview) -> list[FlatValue]:
-            return getter(decode(data))
+            if not decoders:
+                decoders.append(self.decoder(name))  # SchemaError: a DecodeError per message
+            return getter(decoders[0](data))
 
         return value_reader(self.typestore, canonical, paths, through_objects)
 
