@@ -11,7 +11,7 @@ import typer
 
 from bagkit.cli.common import console, err_console, fail, handle_errors, note
 from bagkit.cli.fleet_options import Scheduler, Workers
-from bagkit.cli.selection_options import End, Start
+from bagkit.cli.selection_options import End, Start, build_query
 from bagkit.regression.spec import FixtureSpec, find_fixtures, load_spec
 
 app = typer.Typer(
@@ -246,8 +246,7 @@ def add(  # noqa: PLR0917 (typer maps parameters to options)
         sys.path.insert(0, os.getcwd())
     options = AddOptions(
         bag,
-        start,
-        end,
+        build_query(start=start, end=end).span,
         like,
         around,
         before_ns=parse_duration(before, "--before"),

@@ -15,9 +15,9 @@ from bagkit.cli import common
 from bagkit.cli.common import (
     CheckCrcOnRead,
     OutputFormat,
-    fail,
     format_rate,
     handle_errors,
+    none_decoded,
     note,
     print_json,
     warn,
@@ -92,9 +92,9 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
     else:
         _print_tables(result)
         _print_services(_service_latencies(bags, summarized))
-    lost = [t for t in result.topics if t.undecodable and t.undecodable == t.count]
-    if lost:  # a topic none of whose messages decode: not a summary of it (as echo says)
-        raise fail("; ".join(f"none of the {t.count} messages of {t.topic} decode" for t in lost))
+    lost = {t.topic: t.count for t in result.topics if t.undecodable and t.undecodable == t.count}
+    if lost:  # a topic none of whose messages decode: not a summary of it
+        raise none_decoded(lost)
 
 
 def _service_latencies(bags: list[Path], topics: set[str]) -> list[dict[str, Any]]:

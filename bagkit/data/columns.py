@@ -151,6 +151,9 @@ class TopicColumns:
         matcher: only the messages it matches (``--where``); those it cannot decode are
             counted in its ``failures``.
 
+    It counts what it read: :attr:`messages` (in the window, before the matcher),
+    :attr:`undecodable`, and :attr:`unindexed` index entries pointing outside their chunk.
+
     Raises:
         SchemaError: the type cannot be decoded.
     """
@@ -176,9 +179,21 @@ class TopicColumns:
         self.read_values = types.value_reader(type_name, paths) if paths else None
         self.layout = CdrLayout.of(types.typestore, canonical) if bulk and paths else None
         self._column_of = {leaf.path: j for j, leaf in enumerate(self.leaves)}
+        self.messages = 0
         self.failures = 0
         self.first_failure = ""
         self.unindexed = 0
+
+    @property
+    def undecodable(self) -> int:
+        """Of the :attr:`messages` read, those that did not decode (in the condition's matcher
+        or into columns)."""
+        return self.failures + (self.matcher.undecodable if self.matcher else 0)
+
+    @property
+    def first_undecodable(self) -> str:
+        """Why the first of :attr:`undecodable` did not decode."""
+        return self.first_failure or (self.matcher.first_failure if self.matcher else "")
 
     def decode_chunk(
         self, records: bytes, index: np.ndarray, window: Window, reserve: Callable[[int], Rows]
@@ -186,6 +201,7 @@ class TopicColumns:
         """Decode the messages of this topic in one chunk into ``reserve(count)``."""
         spans = payload_spans(records, index, window.start_ns, window.end_ns)
         self.unindexed += spans.dropped
+        self.messages += len(spans.starts)
         if self.matcher is not None:
             spans = spans.take(self.matcher.mask_records(records, spans.starts, spans.lengths))
         return self.decode_spans(records, spans, reserve)

@@ -69,11 +69,11 @@ class Scan:
         """What was lost: unreadable parts of the bag, messages that do not decode."""
         found = list(self.reader.problems)
         for topic, columns in self.topics.items():
-            matcher = columns.matcher
-            failures = columns.failures + (matcher.undecodable if matcher else 0)
-            if failures:
-                first = columns.first_failure or (matcher.first_failure if matcher else "")
-                found.append(f"{topic}: {failures} messages could not be decoded ({first})")
+            if columns.undecodable:
+                found.append(
+                    f"{topic}: {columns.undecodable} messages could not be decoded "
+                    f"({columns.first_undecodable})"
+                )
             if columns.unindexed:
                 found.append(
                     f"{topic}: {columns.unindexed} index entries point outside their chunk"

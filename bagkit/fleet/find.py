@@ -84,6 +84,10 @@ class BagEpisodes:
     error: str | None = None
     start_ns: int = 0
     """The log time of the bag's first message."""
+    messages: int = 0
+    """The topic's messages looked at (in the window)."""
+    undecodable: int = 0
+    """Those of them that did not decode (never matched)."""
 
 
 @dataclass(slots=True)
@@ -101,6 +105,15 @@ class FindResult:
     problems: list[str]
     unread: int = 0
     """Bags that could not be read at all."""
+    messages: int = 0
+    """The topic's messages looked at in every bag (in the window)."""
+    undecodable: int = 0
+    """Those of them that did not decode (never matched)."""
+
+    @property
+    def none_decoded(self) -> bool:
+        """The topic had messages and none of them decoded, in any bag."""
+        return 0 < self.messages == self.undecodable
 
     @property
     def count(self) -> int:
@@ -170,7 +183,14 @@ def episodes_in_bag(
     problems = [p if p.startswith(bag) else f"{bag}: {p}" for p in found.problems]
     if outside is not None:
         problems.insert(0, outside)
-    return BagEpisodes(bag, found.spans, problems=problems, start_ns=reader.start_ns)
+    return BagEpisodes(
+        bag,
+        found.spans,
+        problems=problems,
+        start_ns=reader.start_ns,
+        messages=found.messages,
+        undecodable=found.undecodable,
+    )
 
 
 def find_fleet(
@@ -218,4 +238,11 @@ def find_fleet(
             problems.append(f"{part.bag}: not read: {part.error}")
         problems.extend(part.problems)
     found = [part for part in readable if len(part.spans)]
-    return FindResult(trigger.topic, found, problems, len(parts) - len(readable))
+    return FindResult(
+        trigger.topic,
+        found,
+        problems,
+        len(parts) - len(readable),
+        sum(part.messages for part in readable),
+        sum(part.undecodable for part in readable),
+    )

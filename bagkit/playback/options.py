@@ -7,7 +7,7 @@ and :class:`bagkit.ros.replay.player.Player` runs it. Every default is the CLI's
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
 
@@ -17,7 +17,8 @@ from bagkit.compat import StrEnum
 from bagkit.playback.errors import PlayerError
 from bagkit.playback.source import MessageOrder
 from bagkit.playback.timing import DEFAULT_DISCOVERY_TIME_S
-from bagkit.selection.errors import SelectionError
+from bagkit.selection.errors import SelectionError, UnknownTopicError
+from bagkit.selection.query import BagOutline, Query, resolve_names
 from bagkit.selection.times import (
     NS_PER_S,
     Anchor,
@@ -27,7 +28,7 @@ from bagkit.selection.times import (
     seconds_to_ns,
 )
 from bagkit.selection.topics import TopicSelection
-from bagkit.selection.windows import Window, outside_warning
+from bagkit.selection.windows import TimeRange, Window, outside_warning
 
 
 class OnDrift(StrEnum):
@@ -173,7 +174,9 @@ class PlayOptions:
     Attributes:
         bag: bag directory or single ``.mcap`` file.
         rate: playback speed factor (2.0 = twice as fast as recorded).
-        topics: replay only these topics (union with ``regex``); None = all.
+        topics: replay only these topics (union with ``regex``); None = all. A recorded
+            service's or action's name stands for its topics; a name the bags lack is an
+            error naming the closest (:meth:`selection_in`).
         regex: replay topics whose name matches this regular expression (``re.search``).
         exclude_regex: do not replay topics whose name matches this regular expression.
         exclude_topics: do not replay these topics.
@@ -272,6 +275,30 @@ class PlayOptions:
     def bags(self) -> tuple[Path, ...]:
         """Every bag of the replay, ``bag`` first."""
         return (bag_path(self.bag), *self.more_bags)
+
+    @cached_property
+    def query(self) -> Query:
+        """The topics asked for (a service or an action by its name) and where each pass
+        starts, as every command's query; resolved against the bags by :meth:`selection_in`."""
+        return Query(self.topics or (), span=TimeRange(self.window.start))
+
+    def selection_in(self, bags: BagOutline, label: str) -> TopicSelection:
+        """:attr:`selection` against the replay's bags: the named topics as they store them (a
+        service's event topic, an action's topics), and so the excluded ones where they can.
+
+        Raises:
+            UnknownTopicError: a named topic is in none of the bags (the message names the
+                closest ones, as every command's).
+        """
+        types = {name: info.type for name, info in bags.topics.items()}
+        named = self.query.resolve(bags, label=label).topics
+        excluded: list[str] = []
+        for name in self.exclude_topics:  # an exclusion the bags lack excludes nothing
+            try:
+                excluded += resolve_names([name], types)
+            except UnknownTopicError:
+                excluded.append(name)
+        return replace(self.selection, topics=frozenset(named), exclude_topics=frozenset(excluded))
 
     @cached_property
     def selection(self) -> TopicSelection:

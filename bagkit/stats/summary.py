@@ -9,7 +9,7 @@ chunk: topics whose type has a CDR layout are decoded in bulk with numpy
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from contextlib import closing
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,8 +22,8 @@ from bagkit.prefetch import prefetch
 from bagkit.selection.conditions import Condition
 from bagkit.selection.errors import UnknownFieldError
 from bagkit.selection.fields import FieldSelection, unknown_field_message
-from bagkit.selection.query import Query
-from bagkit.selection.topics import absolute_topic_name, did_you_mean, require_topics
+from bagkit.selection.query import Query, resolve_names
+from bagkit.selection.topics import absolute_topic_name, did_you_mean
 from bagkit.selection.windows import TimeRange, Window, outside_warning
 from bagkit.stats.accumulate import TopicAccumulator
 from bagkit.stats.errors import NothingToSummarizeError, StatsError
@@ -257,7 +257,7 @@ def summarize(
     try:
         for path in paths:
             readers.append(BagReader(path, allow_empty=True, check_crc=check_crc).open())
-        known = {name for reader in readers for name in reader.topics}
+        known = {name: info.type for reader in readers for name, info in reader.topics.items()}
         topics = check_topics(known, list(query.topics) or None, len(paths))
         run.total = sum(
             count
@@ -275,15 +275,18 @@ def summarize(
     return finish_summary(run, paths)
 
 
-def check_topics(known: set[str], topics: Sequence[str] | None, bags: int) -> list[str] | None:
-    """``topics`` as absolute names, each in one of the bags at least (None: all topics).
+def check_topics(
+    topic_types: Mapping[str, str], topics: Sequence[str] | None, bags: int
+) -> list[str] | None:
+    """``topics`` as the bags (``topic_types``: every topic of any of them -> its type) store
+    them, a service's or action's name resolved as ``echo`` resolves it (None: all topics).
 
     Raises:
-        UnknownTopicError: a topic is in none of the bags.
+        UnknownTopicError: a name is in none of the bags; the message names the closest ones.
     """
-    if topics is None:
+    if not topics:
         return None
-    return require_topics(topics, known, "the bag" if bags == 1 else "any of the bags")
+    return list(resolve_names(topics, topic_types, "the bag" if bags == 1 else "any of the bags"))
 
 
 def _no_field_message(run: SummaryRun) -> str:

@@ -59,6 +59,9 @@ TOPIC_CASES: dict[str, Args] = {
         "/imu/dat",
     ],
     "play --topics": lambda b, t: ["play", b, "--topics", "/imu/dat", "--no-wait-for-subscribers"],
+    "play --topics (beside a known one)": lambda b, t: [
+        *("play", b, "--topics", "/gps/fix", "/imu/dat", "--no-wait-for-subscribers")
+    ],
 }
 FIELD_CASES: dict[str, Args] = {
     "echo --fields": lambda b, t: ["echo", b, "/imu/data", "-f", "linear_accel.z"],
@@ -282,3 +285,29 @@ def test_filter_takes_a_service_name_as_echo_does(interop_dir: Path, tmp_path: P
     assert result.returncode == 0, result.stderr
     with BagReader(tmp_path / "out") as reader:
         assert reader.topic_counts == {"/test_service1/_service_event": count}
+
+
+def test_filter_where_compiles_for_a_service_named_by_its_name(
+    interop_dir: Path, tmp_path: Path
+) -> None:
+    """``--topics /service --where COND``: the service's name is resolved to its event topic
+    before the condition is compiled, so its calls are filtered by their content."""
+    bag = interop_dir / SERVICES
+    condition = "request[*].int32_value >= 0"
+    echoed = subprocess.run(
+        [BAGKIT, "echo", str(bag), "/test_service1/_service_event", "--format", "json"],
+        capture_output=True, text=True, timeout=120, check=True,
+    )  # fmt: skip
+    events = [json.loads(line) for line in echoed.stdout.splitlines()]
+    expected = [
+        e["log_time"] for e in events if any(r["int32_value"] >= 0 for r in e["data"]["request"])
+    ]
+    assert 0 < len(expected) < len(events)
+    args = ["filter", str(bag), "-o", "out", "--topics", "/test_service1", "--where", condition]
+    result = subprocess.run(
+        [BAGKIT, *args],
+        capture_output=True, text=True, timeout=120, cwd=tmp_path, check=False,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    with BagReader(tmp_path / "out") as reader:
+        assert [m.log_time for m in reader.messages()] == expected
