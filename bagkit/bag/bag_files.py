@@ -7,7 +7,6 @@ file, the same ``metadata.yaml`` totals, and the rosbag2 metadata record before 
 
 from __future__ import annotations
 
-import threading
 from collections.abc import Sequence
 
 import lz4.frame
@@ -28,21 +27,13 @@ def compressor(compression: str) -> tuple[str, Compress]:
 
     The function takes a chunk's records in pieces and returns the compressed data in pieces:
     one zstd or LZ4 frame that declares its size, or for ``none`` the pieces themselves (no
-    copy). Several threads may call it at once.
+    copy).
 
     Raises:
         BagError: not one of :data:`COMPRESSIONS`.
     """
     if compression == "zstd":
-        # A ZstdCompressor must not be used by two threads at once: one per thread.
-        local = threading.local()
-
-        def compress_one(data: Buffer) -> bytes:
-            own = getattr(local, "compressor", None)
-            if own is None:
-                own = local.compressor = zstandard.ZstdCompressor(level=1)
-            return own.compress(data)
-
+        compress_one = zstandard.ZstdCompressor(level=1).compress
     elif compression == "lz4":
         compress_one = lz4.frame.compress
     elif compression == "none":

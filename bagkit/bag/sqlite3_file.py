@@ -227,8 +227,9 @@ class Sqlite3File:
         if self._db is not None:
             self._db.close()
 
-    def topic_spans(self) -> dict[str, Span]:
-        """(first, last) timestamp of each topic with messages, from the counts' query."""
+    def topic_spans(self, *, message_indexes: bool = True) -> dict[str, Span]:
+        """(first, last) timestamp of each topic with messages, from the counts' query (exact
+        whatever ``message_indexes`` says: a database is a local file)."""
         return dict(self._spans)
 
     def index_log_times(self, topic: str) -> np.ndarray | None:

@@ -121,11 +121,14 @@ class StorageFile(Protocol):
     def chunks(self, topics: set[str] | None) -> Iterator[BagChunk]:
         """Yield the chunks holding messages of ``topics`` in file order (none: no chunks)."""
 
-    def topic_spans(self) -> dict[str, Span]:
+    def topic_spans(self, *, message_indexes: bool = True) -> dict[str, Span]:
         """(first, last) log time of each topic with messages, from indexes (no message read).
 
         Where no index tells (salvaged chunks without Message Index records), the bounds of
-        the chunks that may hold the topic.
+        the chunks that may hold the topic. ``message_indexes=False``: those bounds for every
+        topic, from the summary alone (from the start of the first chunk holding the topic to
+        the end of the last: a span that holds the true one); back-ends without a summary to
+        take them from (a local file or copy) give the exact spans.
         """
 
     def index_log_times(self, topic: str) -> np.ndarray | None:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -78,7 +80,7 @@ def export(  # noqa: PLR0917 (typer maps parameters to options)
 ) -> None:
     from bagkit.data.export import none_decoded_topics
     from bagkit.fleet.inputs import BAG_FILE_SUFFIXES, expand_bags, is_bag_directory
-    from bagkit.storage.transfer import written_to
+    from bagkit.storage.transfer import shown_path, written_to
 
     query = build_query(topics, fields, start, end, where)
     if file_format is None:
@@ -90,14 +92,15 @@ def export(  # noqa: PLR0917 (typer maps parameters to options)
     }
     named = inputs[0] if len(inputs) == 1 else None
     with written_to(out, replace=True) as local:
+        shown = partial(shown_path, local=local, output=out)
         if named is not None and (named.suffix in BAG_FILE_SUFFIXES or is_bag_directory(named)):
             reports = [_export_one(named, local, options)]
-            _print_report(reports[0], where=where)
+            _print_report(reports[0], shown, where=where)
             failed = 0
         else:
             bags = expand_bags(inputs)
             reports, failed = _export_many(
-                bags, local, options, where=where, workers=workers, scheduler=scheduler
+                bags, local, options, shown, where=where, workers=workers, scheduler=scheduler
             )
     lost = none_decoded_topics(reports)
     if lost:  # the topic's files hold no row: not an export of it (the rest is written)
@@ -120,6 +123,7 @@ def _export_many(
     bags: list[Path],
     out: Path,
     options: dict[str, Any],
+    shown: Callable[[Path], str],
     *,
     where: str | None,
     workers: int | None,
@@ -140,13 +144,19 @@ def _export_many(
         if result.report is None:
             warn(f"{result.bag} not exported: {result.error}")
             continue
-        console.print(f"{result.bag} -> {result.out}", highlight=False, soft_wrap=True)
-        _print_report(result.report, indent="  ", where=where)
+        console.print(f"{result.bag} -> {shown(result.out)}", highlight=False, soft_wrap=True)
+        _print_report(result.report, shown, indent="  ", where=where)
         reports.append(result.report)
     return reports, len(results) - len(reports)
 
 
-def _print_report(report: ExportReport, indent: str = "", where: str | None = None) -> None:
+def _print_report(
+    report: ExportReport,
+    shown: Callable[[Path], str],
+    indent: str = "",
+    where: str | None = None,
+) -> None:
+    """The report of one bag's export; ``shown`` names a written path (under -o's URL)."""
     for topic, reason in report.skipped.items():
         warn(f"topic {topic} skipped: {reason}")
     for problem in report.problems:
@@ -157,7 +167,7 @@ def _print_report(report: ExportReport, indent: str = "", where: str | None = No
     for topic, files in report.files.items():
         written = files[0].parent if len(files) > 1 else files[0]
         console.print(
-            f"{indent}{topic}: {report.rows[topic]:,} rows -> {written}",
+            f"{indent}{topic}: {report.rows[topic]:,} rows -> {shown(written)}",
             highlight=False,
             soft_wrap=True,
         )

@@ -25,6 +25,7 @@ from bagkit.selection.errors import UnknownTopicError
 from bagkit.selection.query import Query
 from bagkit.selection.topics import absolute_topic_name, require_topics
 from bagkit.storage.errors import StorageError
+from bagkit.storage.urls import location, shown_as
 
 if TYPE_CHECKING:
     import pyarrow as pa
@@ -170,8 +171,9 @@ def episodes_in_bag(
         UnknownFieldError, SelectionError: the condition does not fit the topic's type.
     """
     trigger = parse_topic_condition(when)
+    path, bag = bag, shown_as(bag)  # opened in full, named without a URL's secrets
     try:
-        with BagReader(bag, allow_empty=True) as reader:
+        with BagReader(path, allow_empty=True) as reader:
             resolved = (query or Query()).resolve(reader, label=bag)
             outside = resolved.outside
             try:
@@ -220,7 +222,7 @@ def find_fleet(
             the topic.
     """
     trigger = parse_topic_condition(when)
-    paths = [str(bag) for bag in bags]
+    paths = [location(bag) for bag in bags]
     state_topics = tuple(absolute_topic_name(t) for t in state_topics)
     task = functools.partial(
         episodes_in_bag, when=when, gap_ns=gap_ns, query=query, state_topics=state_topics

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 
 from bagkit.extras import FLEET, require
 from bagkit.fleet.inputs import expand_bags
+from bagkit.storage.urls import location
 
 if TYPE_CHECKING:
     import dask.dataframe as dd
@@ -64,6 +65,6 @@ def dataframe(
     from bagkit.data.frames import topic_query
 
     asked = topic_query(topic, fields, start, end, query)
-    paths = [str(bag) for bag in expand_bags(bags)]
+    paths = [location(bag) for bag in expand_bags(bags)]
     meta = read_partition(paths[0], asked).iloc[:0]
     return dd.from_map(read_partition, paths, query=asked, meta=meta, label="bagkit-read-topic")

@@ -26,6 +26,7 @@ from bagkit.stats import StatsError, Summary
 from bagkit.stats.accumulate import TopicAccumulator
 from bagkit.stats.summary import SummaryRun, check_topics, finish_summary
 from bagkit.storage.errors import StorageError
+from bagkit.storage.urls import location, shown_as
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -67,8 +68,9 @@ def summarize_bag(
     """
     query = query or Query()
     run = SummaryRun.of(query, bulk=bulk, prefetch=False)
+    path, bag = bag, shown_as(bag)  # opened in full, named without a URL's secrets
     try:
-        with BagReader(bag, allow_empty=True, check_crc=check_crc) as reader:
+        with BagReader(path, allow_empty=True, check_crc=check_crc) as reader:
             types = {name: info.type for name, info in reader.topics.items()}
             run.read(reader, _present(query.topics, types), bag)
     except (BagError, StorageError) as exc:
@@ -169,7 +171,7 @@ def summarize_fleet(
     Raises:
         As :func:`merge_partials`.
     """
-    paths = [str(bag) for bag in bags]
+    paths = [location(bag) for bag in bags]
     query = query or Query()
     task = functools.partial(summarize_bag, query=query, bulk=bulk, check_crc=check_crc)
     parts = run_each(task, paths, client, done)

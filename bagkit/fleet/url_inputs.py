@@ -9,7 +9,7 @@ from collections.abc import Iterator
 from bagkit.fleet.errors import NoBagsError
 from bagkit.storage.paths import UrlPath
 from bagkit.storage.transfer import objects_under
-from bagkit.storage.urls import joined
+from bagkit.storage.urls import joined, path_part
 
 
 def url_bags(
@@ -25,8 +25,8 @@ def url_bags(
     Raises:
         NoBagsError: nothing at ``url``. Other StorageErrors: the store refused the listing.
     """
-    if url.rstrip("/").endswith(bag_suffixes):
-        return [url]
+    if path_part(url).rstrip("/").endswith(bag_suffixes):
+        return [url]  # a file (a presigned URL's query kept)
     prefix = UrlPath(url)
     names = [o.relative_to(prefix) for o in objects_under(prefix)]
     if not names:

@@ -33,6 +33,7 @@ from bagkit.selection.query import Query
 from bagkit.selection.topics import did_you_mean, require_topics
 from bagkit.selection.windows import Window, outside_warning
 from bagkit.storage.errors import StorageError
+from bagkit.storage.urls import location, shown_as
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -190,7 +191,7 @@ def check_bag(bag: str | Path, spec: HealthSpec, query: Query | None = None) -> 
             type lacks (or compares text with a number).
     """
     found: list[Assertion] = []
-    with BagReader(bag, allow_empty=True) as reader:
+    with BagReader(location(bag), allow_empty=True) as reader:
         problems = list(reader.problems)
         window = Window()
         if query is not None:
@@ -236,7 +237,7 @@ def check_bag(bag: str | Path, spec: HealthSpec, query: Query | None = None) -> 
             for (text, _), where in zip(contract.never, broken, strict=True):
                 spans = interval_spans(where, times)
                 found.append(Assertion(topic, text, not len(spans), spans))
-        return HealthReport(str(bag), reader.start_ns, found, problems)
+        return HealthReport(shown_as(location(bag)), reader.start_ns, found, problems)
 
 
 def restrict(spec: HealthSpec, query: Query) -> HealthSpec:
@@ -296,7 +297,7 @@ def _check_one(
     try:
         report = check_bag(bag, spec, query)
     except (BagError, StorageError) as exc:
-        return HealthReport(bag, 0, [], error=str(exc))
+        return HealthReport(shown_as(bag), 0, [], error=str(exc))
     report.bags_url = url
     return report
 
@@ -375,4 +376,4 @@ def check(
 
 
 def _paths(bags: Iterable[str | Path] | str | Path) -> list[str]:
-    return [str(bags)] if isinstance(bags, str | Path) else [str(bag) for bag in bags]
+    return [location(bags)] if isinstance(bags, str | Path) else [location(bag) for bag in bags]

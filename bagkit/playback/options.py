@@ -89,19 +89,21 @@ class PlayWindow:
         """Log-time bounds (start, exclusive end or None) in a bag of messages start..end.
 
         Raises:
-            PlayerError: the offset is past the bag's last message (nothing would be replayed):
-                the one message of a window outside a bag.
+            PlayerError: the window holds none of the bag's messages (an offset past its last
+                message, an until before its first): the one message of a window outside a
+                bag.
         """
         window_start = max(start_ns, self.start.resolve(start_ns, end_ns))
-        outside = outside_warning(str(bag), Window(window_start), start_ns, end_ns)
-        if outside is not None:
-            raise PlayerError(outside)
         ends = []
         if self.duration_ns is not None:
             ends.append(window_start + self.duration_ns)
         if self.until_ns is not None:
             ends.append(self.until_ns + 1)
-        return window_start, max(ends) if ends else None
+        window_end = max(ends) if ends else None
+        outside = outside_warning(str(bag), Window(window_start, window_end), start_ns, end_ns)
+        if outside is not None:
+            raise PlayerError(outside)
+        return window_start, window_end
 
 
 @dataclass(frozen=True, slots=True)

@@ -28,6 +28,7 @@ from bagkit.selection.windows import TimeRange, Window, outside_warning
 from bagkit.stats.accumulate import TopicAccumulator
 from bagkit.stats.errors import NothingToSummarizeError, StatsError
 from bagkit.stats.result import Summary
+from bagkit.storage.urls import location, shown_as
 
 ProgressCallback = Callable[[int, int], None]
 """Called with (messages done, messages in total) as the summary advances."""
@@ -248,7 +249,8 @@ def summarize(
         NothingToSummarizeError: no message in the selection, or no topic can be decoded.
         StatsError: a topic has different types in different bags.
     """
-    paths = [str(bag) for bag in bags]
+    paths = [location(bag) for bag in bags]  # opened in full (a presigned URL's query)
+    names = [shown_as(path) for path in paths]
     if not paths:
         raise StatsError("no bag given")
     query = query or Query()
@@ -265,14 +267,14 @@ def summarize(
             for topic, count in reader.topic_counts.items()
             if topics is None or topic in topics
         )
-        for path, reader in zip(paths, readers, strict=True):
-            run.read(reader, topics, path)
+        for name, reader in zip(names, readers, strict=True):
+            run.read(reader, topics, name)
     finally:
         for reader in readers:
             reader.close()
     if progress is not None:
         progress(run.total, run.total)
-    return finish_summary(run, paths)
+    return finish_summary(run, names)
 
 
 def check_topics(

@@ -3,19 +3,12 @@
 Nothing appears under the output name before :meth:`OutputBag.commit`: files are written to a
 hidden sibling directory that is renamed into place, so an error never leaves a half-written
 bag, and an existing output is replaced only with ``force``.
-
-Chunks built here are compressed on a pool of threads (zstd and LZ4 release the GIL), one per
-core, while the next ones are built; up to :data:`COMPRESS_WINDOW` of them wait, and they are
-written in order. An output split by size or duration compresses each chunk before the next
-(the split needs the file's size).
 """
 
 from __future__ import annotations
 
 import os
 import shutil
-from collections import deque
-from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Protocol
 
@@ -56,8 +49,6 @@ _RECORD_HEADER = np.dtype(
 _BAG_SUFFIXES = (".mcap", ".db3", ".yaml", ".zstd", ".lz4")
 # The smallest chunk a split output gets: a split size holds four at least.
 _MIN_CHUNK_SIZE = 4096
-# Chunks being compressed on the pool, at most: enough to keep every core busy.
-COMPRESS_WINDOW = 2 * (os.cpu_count() or 1)
 
 
 def check_replaceable(path: Path) -> None:
@@ -164,9 +155,6 @@ class OutputBag:
         self._files: list[FileInformation] = []
         self._file: McapFileWriter | None = None
         self._chunk = ChunkBuilder()
-        pooled = self.compression and not (max_bag_size or max_bag_duration_s)
-        self._pool = ThreadPoolExecutor(os.cpu_count() or 1) if pooled else None
-        self._closing: deque[Future[ClosedChunk]] = deque()  # in the order they are written
 
     def add_topic(self, topic: TopicInfo, definition: str, preferred_id: int) -> int:
         """Add a topic (once per name); return its channel id (``preferred_id`` when free)."""
@@ -269,7 +257,6 @@ class OutputBag:
     def copy_chunk(self, chunk: ClosedChunk) -> None:
         """Append a chunk as it is stored (its channel ids must be this bag's)."""
         self._close_chunk()
-        self._write_closed(0)
         self._split_if_due(chunk.message_end_time, chunk.length)
         file = self._current_file()
         file.write_chunk(chunk, lost={})
@@ -280,8 +267,6 @@ class OutputBag:
     def commit(self) -> list[Path]:
         """Finish the last file and metadata.yaml, move the bag into place; return its files."""
         self._close_chunk()
-        self._write_closed(0)
-        self._stop_pool()
         if self._file is None and not self._files:
             self._current_file()
         self._finish_file()
@@ -296,8 +281,6 @@ class OutputBag:
 
     def abort(self) -> None:
         """Remove what was written (the output name is left untouched)."""
-        self._closing.clear()
-        self._stop_pool()
         if self._file is not None:
             self._file.close()
             self._file = None
@@ -336,24 +319,9 @@ class OutputBag:
         if not chunk.count:
             return
         self._chunk = ChunkBuilder()
+        self._current_file().write_chunk(chunk.close(self.compression, self._compress), lost={})
         for channel_id, count in chunk.message_counts().items():
             self.counts[channel_id] += count
-        if self._pool is None:
-            self._current_file().write_chunk(chunk.close(self.compression, self._compress), lost={})
-            return
-        self._closing.append(self._pool.submit(chunk.close, self.compression, self._compress))
-        self._write_closed(COMPRESS_WINDOW)
-
-    def _write_closed(self, waiting: int) -> None:
-        """Write the chunks compressed on the pool, in order, until ``waiting`` are left."""
-        while len(self._closing) > waiting:
-            closed = self._closing.popleft().result()
-            self._current_file().write_chunk(closed, lost={})
-
-    def _stop_pool(self) -> None:
-        if self._pool is not None:
-            self._pool.shutdown(cancel_futures=True)
-            self._pool = None
 
     def _finish_file(self, *, last: bool = True) -> None:
         """Close the open file; its rosbag2 record describes the bag when it is the last, else

@@ -119,6 +119,9 @@ WINDOW_WARNS: dict[str, Args] = {
 WINDOW_FAILS: dict[str, Args] = {
     "golden add": lambda b, t: ["golden", "add", t / "fx", "--from", b, *OUTSIDE],
     "play": lambda b, t: ["play", b, "--start-offset", "1000", "--no-wait-for-subscribers"],
+    "play --playback-until-nsec": lambda b, t: [
+        *("play", b, "--playback-until-nsec", "1000", "--no-wait-for-subscribers")
+    ],
 }
 # A service by its name, misspelt (the interop bag of rosbag2's tests, recorded services).
 SERVICE_CASES: dict[str, Args] = {
