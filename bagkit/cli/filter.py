@@ -12,10 +12,12 @@ from bagkit.cli.common import (
     bag_location,
     err_console,
     handle_errors,
+    option_flags,
     split_list,
 )
 from bagkit.cli.selection_options import End, Start, StateTopics, build_query
 from bagkit.cli.surgery_options import (
+    AROUND_FLAGS,
     CheckCrc,
     Compression,
     ExcludeRegex,
@@ -120,13 +122,14 @@ def filter_command(
         report.output = output
         print_report(report, output_format)
         return
-    trigger = Around.create(
-        around,
-        parse_duration(before, "--before"),
-        parse_duration(after, "--after"),
-        parse_duration(gap, "--gap"),
-        selection.state_topics,
-    )
-    with err_console.status(f"cutting around the episodes in {bag}"):
-        found, reports = cut_around(bag, output, trigger, selection, options)
+    with option_flags(AROUND_FLAGS):
+        trigger = Around.create(
+            around,
+            parse_duration(before, "--before"),
+            parse_duration(after, "--after"),
+            parse_duration(gap, "--gap"),
+            selection.state_topics,
+        )
+        with err_console.status(f"cutting around the episodes in {bag}"):
+            found, reports = cut_around(bag, output, trigger, selection, options)
     print_cuts(found, reports, output_format)

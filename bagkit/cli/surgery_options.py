@@ -104,6 +104,14 @@ KeepWhere = Annotated[
         metavar="CONDITION",
     ),
 ]
+# The fields an --around error names (surgery.around, regression.add) as the flags that set them.
+AROUND_FLAGS = {
+    "selection.span": "--start/--end with --around",
+    "span": "--start/--end with --around",
+    "before_ns": "--before",
+    "after_ns": "--after",
+    "gap_ns": "--gap",
+}
 LatchedTopics = Annotated[
     list[str] | None,
     typer.Option(

@@ -198,7 +198,8 @@ def check_bag(bag: str | Path, spec: HealthSpec, query: Query | None = None) -> 
             spec = restrict(spec, query)
             window = query.span.resolve(reader.start_ns, reader.end_ns)
             if reader.message_count:
-                outside = outside_warning(str(bag), window, reader.start_ns, reader.end_ns)
+                label = shown_as(location(bag))  # a URL named without its secrets
+                outside = outside_warning(label, window, reader.start_ns, reader.end_ns)
                 problems += [outside] if outside else []
         counts = _counts(reader, [*spec.forbidden, *(c.topic for c in spec.topics)], window)
         for topic in spec.forbidden:

@@ -15,13 +15,14 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from bagkit.bag import BagReader
+from bagkit.errors import OptionError
 from bagkit.regression.errors import RegressionError
 from bagkit.regression.lockstep import LockstepResult, run_lockstep
 from bagkit.regression.processor import make_processors
 from bagkit.regression.spec import BAG_DIR, SPEC_FILE, FixtureSpec, load_spec
 from bagkit.selection.query import Query
 from bagkit.selection.windows import TimeRange, Window
-from bagkit.surgery.around import Around, episode_window
+from bagkit.surgery.around import SPAN_SET_BY_EPISODES, Around, episode_window
 from bagkit.surgery.rewrite import filter_bag
 from bagkit.surgery.select import Selection
 
@@ -69,6 +70,7 @@ def add_fixture(directory: Path, options: AddOptions) -> AddedFixture:
     Raises:
         RegressionError: ``directory`` exists and is not empty, or the window is empty.
         BagError, SelectionError, SurgeryError: the bag or the window cannot be read.
+        OptionError: a span beside ``around``, a negative margin (the error names the field).
         SpecError: ``like`` has no valid spec.
     """
     if directory.exists() and any(directory.iterdir()):
@@ -133,7 +135,7 @@ def _around(options: AddOptions) -> tuple[AddOptions, int]:
     if options.around is None:
         return options, 0
     if options.span.bounded:
-        raise RegressionError("--around sets the window: it takes no --start or --end")
+        raise OptionError(SPAN_SET_BY_EPISODES, "span")
     around = Around.create(options.around, options.before_ns, options.after_ns, options.gap_ns)
     window, episodes = episode_window(options.bag, around, options.episode)
     return replace(options, span=TimeRange.of_window(window)), episodes
