@@ -137,7 +137,7 @@ def start_http(store: HttpStore) -> ThreadingHTTPServer:
             if ranged:
                 first, _, last = ranged.removeprefix("bytes=").partition("-")
                 start, end, status = int(first), min(len(data), int(last) + 1), 206
-            part = data[start:end]
+            part = memoryview(data)[start:end]  # no copy (a HEAD of a 256 MB object)
             self.send_response(status)
             self.send_header("Content-Length", str(len(part)))
             self.send_header("ETag", etag)
