@@ -12,6 +12,7 @@ from bagkit.cli import common
 from bagkit.cli.common import ReportFormat, bag_location, handle_errors, print_json, warn
 from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers, fleet_run
 from bagkit.cli.selection_options import End, Start, build_query
+from bagkit.cli.tables import Styled, print_line
 
 if TYPE_CHECKING:
     from bagkit.health import CheckResult, HealthReport
@@ -127,19 +128,23 @@ def _write_files(result: CheckResult, junit: Path | None, html: Path | None) -> 
 
 
 def _print(report: HealthReport) -> None:
-    console = common.console
+    # print_line: plain text into a pipe without importing rich, colours on a terminal.
     if report.error is not None:
-        console.print(f"{report.bag}: [bold red]not read[/]: {report.error}", soft_wrap=True)
+        print_line([f"{report.bag}: ", Styled("not read", "bold red"), f": {report.error}"])
         return
     broken = report.broken
-    verdict = "[bold green]healthy[/]" if not broken else f"[bold red]{len(broken)} broken[/]"
+    verdict = (
+        Styled("healthy", "bold green")
+        if not broken
+        else Styled(f"{len(broken)} broken", "bold red")
+    )
     count = len(report.assertions)
-    console.print(f"{report.bag}: {count} assertion{'' if count == 1 else 's'}, {verdict}")
+    print_line([f"{report.bag}: {count} assertion{'' if count == 1 else 's'}, ", verdict])
     for assertion in broken:
         # The assertion and where it broke fit 80 columns; commands and links stay whole.
         lines = [assertion.where(report.start_ns)]
         lines += assertion.commands(report.bag, report.start_ns)
         lines.append(report.link(assertion) or "")
-        console.print(f"  FAIL {assertion.headline}", highlight=False, soft_wrap=True)
+        print_line([f"  FAIL {assertion.headline}"])
         for line in filter(None, lines):
-            console.print(f"       {line}", highlight=False, soft_wrap=True)
+            print_line([f"       {line}"])

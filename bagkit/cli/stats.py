@@ -176,7 +176,7 @@ def _summarize(
     bags: list[Path], options: dict[str, Any], *, workers: int | None, scheduler: str | None
 ) -> Summary:
     """Summarize in this process (a progress bar over messages) or on Dask (over bags)."""
-    from bagkit.fleet import fleet_client, summarize_fleet
+    from bagkit.fleet import fleet_client
     from bagkit.fleet.cluster import SUMMARY_RATE
     from bagkit.fleet.progress import BagProgress, bag_size
     from bagkit.stats import summarize
@@ -191,6 +191,8 @@ def _summarize(
         announce=note,
     ) as client:
         if client is not None:
+            from bagkit.fleet import summarize_fleet
+
             with BagProgress(bags, common.err_console, label="summarizing", sizes=sizes) as done:
                 return summarize_fleet(bags, client=client, done=done, **options)
         progress = DelayedProgress("summarizing")

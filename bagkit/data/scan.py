@@ -6,8 +6,7 @@ from collections.abc import Callable, Iterator
 from contextlib import closing
 from dataclasses import dataclass, field
 from functools import partial
-
-import pyarrow as pa
+from typing import TYPE_CHECKING
 
 from bagkit.bag import BagReader
 from bagkit.data.columns import Rows, TopicColumns
@@ -19,6 +18,9 @@ from bagkit.prefetch import prefetch
 from bagkit.selection.fields import select_fields
 from bagkit.selection.query import Query
 from bagkit.selection.windows import Window
+
+if TYPE_CHECKING:
+    import pyarrow as pa  # only the batches' type: find and check read numpy columns
 
 
 @dataclass(slots=True)

@@ -113,7 +113,7 @@ class SummaryRun:
                     f"{type_name} of topic {topic} is defined differently in {bag} than in "
                     "the bags before it: summarize them separately"
                 )
-            existing.read_values = existing.value_reader(types)
+            existing.use_types(types)
             return existing
         if topic in self.skipped:
             return None
