@@ -32,6 +32,7 @@ FLOOR_S = 1.0
 
 _LISTENER = """
 import sys, time, rclpy
+from rclpy.executors import ExternalShutdownException
 from std_msgs.msg import String
 rclpy.init()
 node = rclpy.create_node("replay_start_listener")
@@ -39,7 +40,10 @@ node.create_subscription(
     String, "/start", lambda m: print(time.time(), m.data, flush=True), 10
 )
 print("ready", flush=True)
-rclpy.spin(node)
+try:
+    rclpy.spin(node)
+except ExternalShutdownException:  # terminate() at the end
+    pass
 """
 
 # The peer: the fewest lines that publish once without losing the message.
