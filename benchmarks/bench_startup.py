@@ -1,13 +1,16 @@
 """Whole-process start of the quick commands against ``python -c pass``.
 
-Target (issue 36, item 2): ``bagkit --help``, ``info``, ``echo -n 1``, ``stats summary`` and
-``find`` each within 0.1 s of ``python -c pass`` in the same environment. Every command is run
-RUNS times, interleaved with the peers so that a change of machine load hits them alike; the
-median wall time of each is compared (the best run is printed beside it). ``python -c "import
-numpy"`` is printed beside them, for scale: ``info`` imports no numpy, but the MCAP reader's
-message path does (``info`` of a bag with services, ``echo``), and ``stats``/``find`` decode in
-bulk with it. ``info BAG`` is a two-topic bag of our own; the others run on ``fixtures/fast``
-(sensor topics and a service), as ``tests/cli/test_startup_imports.py`` does.
+Target (issue 36, item 2): ``bagkit --help``, ``info``, ``echo -n 1``, ``stats summary``,
+``find`` and ``check`` each within 0.1 s of ``python -c pass`` in the same environment. Every
+command is run RUNS times, interleaved with the peers so that a change of machine load hits them
+alike; the median wall time of each is compared (the best run is printed beside it).
+``python -c "import numpy"`` is printed beside them, for scale: ``info`` imports no numpy, but
+the MCAP reader's message path does (``info`` of a bag with services, ``echo``), and ``stats``,
+``find`` and ``check`` decode in bulk with it; ``import numpy, typer`` is the floor of a command
+that decodes in bulk behind bagkit's command line. ``info BAG`` is a two-topic bag of our own;
+the others run on ``fixtures/fast`` (sensor topics and a service), as
+``tests/cli/test_startup_imports.py`` does; ``check`` with a contract of rate, gap, value and
+presence assertions (:data:`CONTRACT`).
 
 Run: ``.venv/bin/python -m benchmarks startup``
 """
@@ -28,6 +31,16 @@ RUNS = 9
 TARGET_S = 0.10
 FAST_BAG = Path(__file__).resolve().parents[1] / "fixtures" / "fast" / "golden"
 STRING = "std_msgs/msg/String"
+CONTRACT = """\
+topics:
+  /imu/data:
+    type: sensor_msgs/msg/Imu
+    rate: {min: 20, over: 1s}
+    max_gap: 1s
+    values:
+      linear_acceleration.z: {min: -100, max: 100}
+  /gps/fix: {}
+"""
 
 
 def _small_bag(directory: Path) -> Path:
@@ -66,9 +79,12 @@ def main() -> bool:
     bagkit = str(Path(sys.executable).with_name("bagkit"))
     with tempfile.TemporaryDirectory() as tmp:
         bag = _small_bag(Path(tmp))
+        contract = Path(tmp) / "health.yaml"
+        contract.write_text(CONTRACT)
         commands = {
             "python -c pass": [sys.executable, "-c", "pass"],
             "python -c 'import numpy'": [sys.executable, "-c", "import numpy"],
+            "python -c 'import numpy, typer'": [sys.executable, "-c", "import numpy, typer"],
             "bagkit --help": [bagkit, "--help"],
             "bagkit info BAG": [bagkit, "info", str(bag)],
             "bagkit info fast": [bagkit, "info", str(FAST_BAG)],
@@ -78,6 +94,7 @@ def main() -> bool:
                 *(bagkit, "find", str(FAST_BAG)),
                 *("--when", "/imu/data: linear_acceleration.z < 5"),
             ],
+            "bagkit check fast": [bagkit, "check", str(FAST_BAG), "--spec", str(contract)],
         }
         for command in commands.values():  # warm-up: bytecode caches, page cache
             _wall(command)
@@ -101,7 +118,7 @@ def main() -> bool:
             ok &= met
             verdict = "ok" if met else "MISSED"
         print(
-            f"  {name:30s} median {median * 1000:7.1f} ms (+{over * 1000:6.1f} ms), "
+            f"  {name:33s} median {median * 1000:7.1f} ms (+{over * 1000:6.1f} ms), "
             f"best {best[name] * 1000:7.1f} ms (+{best_over * 1000:6.1f} ms) {verdict}"
         )
     return ok

@@ -1,9 +1,14 @@
 """Bags in an S3-compatible store on loopback (moto's server), read by range requests.
 
 1. ``info`` of BAGKIT_BENCH_STORAGE_BAGS bags (default 1,000: the nominal fixture's golden,
-   as bag prefixes with metadata.yaml): bytes fetched per bag against its summary section
-   (target <= 2x), and the time against downloading each bag and reading it locally (target
-   >= 20x faster).
+   as bag prefixes with metadata.yaml) in moto, then of BAGKIT_BENCH_STORAGE_LARGE_BAGS bags
+   of BAGKIT_BENCH_STORAGE_LARGE_MB MB (default 9 of 256: camera images and an Imu; the first
+   opens the client, 8 are timed) on the tests' range-capable HTTP server (moto answers a
+   range by reading the whole object): bytes fetched per bag against its summary section
+   (target <= 2x), and the time against fetching the bags concurrently (s3fs's or fsspec's
+   ``get``) and reading them locally (target >= 20x faster). On loopback a request costs
+   what the server takes to answer it whatever its size: the golden's 184 KB download is as
+   many requests as its info; the large bags show what bytes cost.
 2. ``stats summary -t /gps/fix`` over 20 bags of Imu (100 Hz) + NavSatFix (1 Hz): bytes
    fetched against the chunks that hold /gps/fix (target <= 1.2x), values equal to the local
    read.
@@ -21,6 +26,7 @@ import struct
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -28,6 +34,8 @@ from typing import Any
 REPO = Path(__file__).resolve().parents[1]
 GOLDEN = REPO / "fixtures" / "nominal" / "golden"
 BAGS = int(os.environ.get("BAGKIT_BENCH_STORAGE_BAGS", "1000"))
+LARGE_BAGS = int(os.environ.get("BAGKIT_BENCH_STORAGE_LARGE_BAGS", "9"))
+LARGE_MB = int(os.environ.get("BAGKIT_BENCH_STORAGE_LARGE_MB", "256"))
 STATS_BAGS = 20
 STATS_IMU_MESSAGES = int(os.environ.get("BAGKIT_BENCH_STORAGE_IMU", "50000"))
 
@@ -59,46 +67,170 @@ def summary_bytes(file: Path) -> int:
     return file.stat().st_size - summary_start
 
 
-def _info_part(fs: Any, scratch: Path) -> None:
-    from bagkit.bag import bag_info
+def _info_against_download(fs: Any, local: Path, key: str, scratch: Path, what: str) -> None:
+    """``info`` of the bags under ``local``, uploaded to ``bench/key``: by range, against
+    downloading the prefix (s3fs's concurrent ``get``) and reading it locally."""
+    from bagkit.bag.info import bag_info
     from bagkit.fleet.listing import folder_info
+    from bagkit.storage.filesystems import filesystem
     from bagkit.storage.range_file import fetched
 
-    put = fs.put
+    bags = sorted(p for p in local.iterdir() if p.is_dir())
     started = time.perf_counter()
-    local = scratch / "fleet"
-    for i in range(BAGS):
-        shutil.copytree(GOLDEN, local / f"bag_{i:04d}", copy_function=os.link)
-    put(str(local), "bench/", recursive=True)
-    print(f"  {BAGS} bags uploaded in {time.perf_counter() - started:.1f} s")
-    summary = summary_bytes(GOLDEN / "golden_0.mcap")
-    size = sum(f.stat().st_size for f in GOLDEN.iterdir())
+    fs.put(str(local), f"bench/{key}", recursive=True)
+    print(f"  {what}: {len(bags)} bags uploaded in {time.perf_counter() - started:.1f} s")
+    file = next(bags[0].glob("*.mcap"))
+    summary = summary_bytes(file)
+    size = sum(f.stat().st_size for f in bags[0].iterdir())
+    # Both sides warm: the modules imported (a local info), bagkit's S3 client made as the
+    # download's is (one HEAD).
+    exact = bag_info(bags[0])
+    filesystem(f"s3://bench/{key}")[0].info(f"bench/{key}")
 
     before, requests = fetched()
     started = time.perf_counter()
-    remote = folder_info("s3://bench/fleet")
+    remote = folder_info(f"s3://bench/{key}")
     remote_s = time.perf_counter() - started
     spent, asked = fetched()[0] - before, fetched()[1] - requests
-    assert remote is not None and len(remote.bags) == BAGS and not remote.unread
+    assert remote is not None and len(remote.bags) == len(bags) and not remote.unread
+    bounded = {t.topic: t.rate_hz for t in remote.bags[0].topics}
+    worst = max(
+        (abs(bounded[t.topic] - t.rate_hz) / t.rate_hz for t in exact.topics if t.rate_hz),
+        default=0.0,
+    )
 
-    get = fs.get
+    target = scratch / "download" / key
     started = time.perf_counter()
-    for i in range(BAGS):
-        target = scratch / "download" / f"bag_{i:04d}"
-        get(f"bench/fleet/bag_{i:04d}/", str(target), recursive=True)
-        bag_info(target)
-        shutil.rmtree(target)
+    fs.get(f"bench/{key}", str(target), recursive=True)
+    downloaded = folder_info(target)
     download_s = time.perf_counter() - started
-    per_bag = spent / BAGS
+    assert downloaded is not None and len(downloaded.bags) == len(bags)
+    shutil.rmtree(target)
+    per_bag = spent / len(bags)
     print(
-        f"  info of {BAGS} bags: {remote_s:.2f} s by range ({asked / BAGS:.1f} requests, "
-        f"{per_bag:,.0f} bytes per bag; summary {summary:,} B, bag {size:,} B): "
-        f"{per_bag / summary:.2f}x the summary (target <= 2)"
+        f"  info by range: {remote_s:.2f} s ({asked / len(bags):.1f} requests, {per_bag:,.0f} "
+        f"bytes per bag; summary {summary:,} B, bag {size:,} B): {per_bag / summary:.2f}x "
+        f"the summary (target <= 2); rates from chunk bounds, worst {worst:.1%} below exact"
     )
     print(
         f"  download + local info: {download_s:.2f} s: range reads {download_s / remote_s:.1f}x "
         "faster (target >= 20)"
     )
+
+
+def _info_part(fs: Any, scratch: Path) -> None:
+    local = scratch / "fleet"
+    for i in range(BAGS):
+        shutil.copytree(GOLDEN, local / f"bag_{i:04d}", copy_function=os.link)
+    _info_against_download(fs, local, "fleet", scratch, "the nominal golden")
+    _large_part(scratch)
+
+
+def _large_part(scratch: Path) -> None:
+    """``info`` of LARGE_BAGS bags of LARGE_MB MB on the tests' range-capable HTTP server
+    (moto answers a range by reading the whole object: a 64 MB read per request), against
+    fetching each bag (fsspec's concurrent ``get``) and reading it locally."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    import fsspec
+
+    from bagkit.bag.info import bag_info
+    from bagkit.fleet.listing import REMOTE_READERS, folder_info
+    from bagkit.storage.range_file import fetched
+
+    template = scratch / "large" / "bag_00"
+    _write_images(template)
+    files = sorted(p.name for p in template.iterdir())
+    # The server in a process of its own (in this one, it would share the GIL with the reads).
+    server = subprocess.Popen(
+        [sys.executable, "-m", "benchmarks.bench_storage", "serve", str(template), str(LARGE_BAGS)],
+        stdout=subprocess.PIPE,
+        cwd=REPO,
+    )
+    try:
+        assert server.stdout is not None
+        base = server.stdout.readline().decode().strip()
+        urls = [f"{base}/large/bag_{i:02d}" for i in range(LARGE_BAGS)]
+        mcap = template / next(n for n in files if n.endswith(".mcap"))
+        summary = summary_bytes(mcap)
+        size = sum((template / n).stat().st_size for n in files)
+        exact = bag_info(template)  # modules imported for both sides
+        bag_info(urls[0])  # the HTTP client made, as the download's is below
+        before, requests = fetched()
+        started = time.perf_counter()
+        with ThreadPoolExecutor(REMOTE_READERS) as pool:
+            remote = list(pool.map(bag_info, urls[1:]))
+        remote_s = time.perf_counter() - started
+        spent, asked = fetched()[0] - before, fetched()[1] - requests
+        fs = fsspec.filesystem("http")
+        target = scratch / "download" / "large"
+        started = time.perf_counter()
+        sources = [f"{u}/{n}" for u in urls[1:] for n in files]
+        fs.get(sources, [str(target / s.split("/large/", 1)[1]) for s in sources])
+        downloaded = folder_info(target)
+        download_s = time.perf_counter() - started
+        assert downloaded is not None and len(downloaded.bags) == len(remote)
+    finally:
+        server.terminate()
+        server.wait()
+    count = len(remote)
+    bounded = {t.topic: t.rate_hz for t in remote[0].topics}
+    worst = max(abs(bounded[t.topic] - t.rate_hz) / t.rate_hz for t in exact.topics if t.rate_hz)
+    print(
+        f"  {count} bags of {size / 1e6:.0f} MB (camera + Imu) on an HTTP range server: info "
+        f"{remote_s:.2f} s ({asked / count:.1f} requests, {spent / count:,.0f} bytes per bag, "
+        f"{spent / count / summary:.2f}x the summary of {summary:,} B; rates worst "
+        f"{worst:.1%} below exact); fetch + local info {download_s:.2f} s: range reads "
+        f"{download_s / remote_s:.1f}x faster (target >= 20)"
+    )
+
+
+def _write_images(path: Path) -> None:
+    """A bag of about LARGE_MB MB: 640x480 RGB images at 10 Hz (random pixels: incompressible)
+    and a 100 Hz Imu, in chunks of 4 MiB."""
+    import numpy as np
+    from rosbags.typesys import Stores, get_typestore
+
+    from bagkit.bag import BagWriter, TopicInfo
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    types = store.types
+    rng = np.random.default_rng(5)
+    t0 = 1_700_000_000_000_000_000
+    image_type, imu_type = "sensor_msgs/msg/Image", "sensor_msgs/msg/Imu"
+    stamp = types["builtin_interfaces/msg/Time"]
+    vec = types["geometry_msgs/msg/Vector3"]
+    frames = LARGE_MB * (1 << 20) // (640 * 480 * 3)
+    with BagWriter(path, chunk_size=4 << 20) as bag:
+        bag.add_topic(TopicInfo("/camera/image", image_type))
+        bag.add_topic(TopicInfo("/imu/data", imu_type))
+        for i in range(frames * 10):
+            t = t0 + i * 10_000_000
+            header = types["std_msgs/msg/Header"](
+                stamp=stamp(sec=t // 10**9, nanosec=t % 10**9), frame_id="cam"
+            )
+            if i % 10 == 0:
+                image = types[image_type](
+                    header=header,
+                    height=480,
+                    width=640,
+                    encoding="rgb8",
+                    is_bigendian=0,
+                    step=640 * 3,
+                    data=rng.integers(0, 256, 640 * 480 * 3, dtype=np.uint8),
+                )
+                data = bytes(store.serialize_cdr(image, image_type))
+                bag.write("/camera/image", data, log_time=t)
+            imu = types[imu_type](
+                header=header,
+                orientation=types["geometry_msgs/msg/Quaternion"](0.0, 0.0, 0.0, 1.0),
+                orientation_covariance=np.zeros(9),
+                angular_velocity=vec(0.0, 0.0, 0.0),
+                angular_velocity_covariance=np.zeros(9),
+                linear_acceleration=vec(0.0, 0.0, 9.81),
+                linear_acceleration_covariance=np.zeros(9),
+            )
+            bag.write("/imu/data", bytes(store.serialize_cdr(imu, imu_type)), log_time=t)
 
 
 def _stats_part(fs: Any, scratch: Path) -> None:
@@ -108,6 +240,7 @@ def _stats_part(fs: Any, scratch: Path) -> None:
     from bagkit.bag import BagWriter, TopicInfo
     from bagkit.bag.mcap_file import McapFile
     from bagkit.fleet.inputs import bag_paths
+    from bagkit.selection.query import Query
     from bagkit.stats.summary import summarize
     from bagkit.storage.range_file import fetched
 
@@ -162,10 +295,11 @@ def _stats_part(fs: Any, scratch: Path) -> None:
 
     before = fetched()[0]
     started = time.perf_counter()
-    remote = summarize(bag_paths(["s3://bench/imu_gps"]), topics=["/gps/fix"])
+    query = Query(topics=("/gps/fix",))
+    remote = summarize(bag_paths(["s3://bench/imu_gps"]), query)
     remote_s = time.perf_counter() - started
     per_bag = (fetched()[0] - before) / STATS_BAGS
-    local = summarize(bag_paths([str(root)]), topics=["/gps/fix"])
+    local = summarize(bag_paths([str(root)]), query)
     same = remote.to_dict()["topics"] == local.to_dict()["topics"]
     print(
         f"  stats summary -t /gps/fix of {STATS_BAGS} bags ({STATS_IMU_MESSAGES:,} Imu each, "
@@ -199,5 +333,23 @@ def main() -> None:
         shutil.rmtree(scratch, ignore_errors=True)
 
 
+def _serve(template: Path, bags: int) -> None:
+    """The tests' range-capable HTTP server holding ``bags`` copies of the bag ``template``
+    (one bytes object behind all: memory for one); prints its URL, serves until killed."""
+    from tests.storage.servers import HttpStore, start_http
+
+    store = HttpStore()
+    for file in template.iterdir():
+        data = file.read_bytes()
+        for i in range(bags):
+            store.objects[f"/large/bag_{i:02d}/{file.name}"] = data
+    start_http(store)
+    print(store.url, flush=True)
+    threading.Event().wait()
+
+
 if __name__ == "__main__":
-    main()
+    if sys.argv[1:2] == ["serve"]:
+        _serve(Path(sys.argv[2]), int(sys.argv[3]))
+    else:
+        main()

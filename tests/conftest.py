@@ -36,9 +36,10 @@ DDS_FIXTURES = frozenset({"node", "context", "listener_factory", "processes"})
 # Names whose presence in a test module means its tests create participants themselves.
 _DDS_MODULE_NAMES = ("Recorder", "Player", "play")
 # Tests that share session fixtures which build or record for tens of seconds (the colcon
-# workspace; the services' bags), by where they are: under `--dist loadgroup` each group runs on
-# one xdist worker, which makes them once.
-SHARED_FIXTURE_GROUPS = {"tests/ros/test_user_package.py": "colcon", "tests/services/": "services"}
+# workspace, which test_user_package.py and test_user_package_drift.py both record from; the
+# services' bags), by where they are (a path prefix): under `--dist loadgroup` each group runs
+# on one xdist worker, which makes them once.
+SHARED_FIXTURE_GROUPS = {"tests/ros/test_user_package": "colcon", "tests/services/": "services"}
 
 
 def _starts_dds(module: types.ModuleType | None) -> bool:

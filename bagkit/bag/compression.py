@@ -283,9 +283,9 @@ class Decompression:
         problems = chunk.problems
         return BagChunk(chunk.file, bytes(records), index, problems)
 
-    def topic_spans(self) -> dict[str, Span]:
+    def topic_spans(self, *, message_indexes: bool = True) -> dict[str, Span]:
         """The back-end's spans (compression moves no message)."""
-        return self.inner.topic_spans()
+        return self.inner.topic_spans(message_indexes=message_indexes)
 
     def index_log_times(self, topic: str) -> np.ndarray | None:
         """The back-end's (compression moves no message)."""

@@ -39,7 +39,8 @@ def pooled_rate(count: int, intervals: int, span_ns: int) -> float | None:
 
 @dataclass(frozen=True, slots=True)
 class TopicSummary:
-    """One topic of :class:`BagInfo`; ``rate_hz`` is :func:`message_rate` (None below two)."""
+    """One topic of :class:`BagInfo`; ``rate_hz`` is :func:`message_rate` (None below three
+    messages), over the exact span or its chunk bounds (:attr:`BagInfo.exact_rates`)."""
 
     topic: str
     type: str
@@ -55,6 +56,9 @@ class BagInfo:
 
     ``compression_ratio`` is uncompressed / compressed chunk bytes (1.0 without compression or
     chunks); ``summary`` is False when a file had to be salvaged (no MCAP summary).
+    ``exact_rates`` is False when each topic's span came from the chunk indexes (a bag in
+    storage, without ``exact_rates=True``): from the start of the first chunk holding the topic
+    to the end of the last, which holds the true span, so each rate is a lower bound.
     """
 
     path: str
@@ -69,6 +73,7 @@ class BagInfo:
     compression: str
     compression_ratio: float
     summary: bool
+    exact_rates: bool
     custom_data: dict[str, str]
     problems: list[str]
 
@@ -77,10 +82,14 @@ class BagInfo:
         return asdict(self)
 
 
-def bag_info(path: str | Path, *, check_crc: bool = True) -> BagInfo:
+def bag_info(
+    path: str | Path, *, check_crc: bool = True, exact_rates: bool | None = None
+) -> BagInfo:
     """Describe a bag (directory, split bag, single ``.mcap`` or ``.db3``) like ``ros2 bag info``.
 
     ``check_crc``: check the CRC of the chunks a salvage scan opens (see ``BagReader``).
+    ``exact_rates``: read the Message Index records of the chunks at each topic's ends; None:
+    for a bag on disk, not for one in storage (see :meth:`BagReader.topic_spans`).
 
     Raises:
         BagError: the path is missing, not a bag, or in a foreign storage format (a bag
@@ -88,7 +97,8 @@ def bag_info(path: str | Path, *, check_crc: bool = True) -> BagInfo:
     """
     with BagReader(path, check_crc=check_crc, allow_empty=True) as bag:
         duration_s = (bag.end_ns - bag.start_ns) / 1e9
-        spans = bag.topic_spans()
+        exact = not bag.in_storage if exact_rates is None else exact_rates
+        spans = bag.topic_spans(message_indexes=exact)
         topics = [
             TopicSummary(
                 topic=name,
@@ -114,6 +124,7 @@ def bag_info(path: str | Path, *, check_crc: bool = True) -> BagInfo:
             compression=bag.compression,
             compression_ratio=uncompressed / compressed if compressed else 1.0,
             summary=bag.has_summary,
+            exact_rates=exact or "mcap" not in bag.storage.split(","),
             custom_data=dict(bag.metadata.custom_data) if bag.metadata else {},
             problems=bag.problems,
         )

@@ -161,8 +161,10 @@ class McapFile:
         if self._handle is not None:
             self._handle.close()
 
-    def topic_spans(self) -> dict[str, Span]:
-        """(first, last) log time of each topic with messages, from the Message Index records.
+    def topic_spans(self, *, message_indexes: bool = True) -> dict[str, Span]:
+        """(first, last) log time of each topic with messages, from the Message Index records
+        of the chunks at its ends; with ``message_indexes=False`` the bounds of those chunks
+        (the summary's chunk indexes only).
 
         Blocks without them (salvaged chunks, loose messages) widen every topic with messages
         to their bounds: reading them would cost what ``bagkit info`` avoids.
@@ -173,6 +175,13 @@ class McapFile:
             if not _indexed(block):
                 for topic in with_messages:
                     widen(spans, topic, block.message_start_time, block.message_end_time)
+            elif not message_indexes:
+                for channel in block.message_index_offsets:
+                    if self.topic_counts.get(self._channel_topics.get(channel, ""), 0):
+                        topic = self._channel_topics[channel]
+                        widen(spans, topic, block.message_start_time, block.message_end_time)
+        if not message_indexes:
+            return spans
         indexed = [c for c in self.index.chunk_indexes if c.message_index_offsets]
         for channel, (first, last) in channel_spans(self._source, indexed).items():
             if channel in self._channel_topics:

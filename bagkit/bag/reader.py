@@ -357,6 +357,11 @@ class BagReader:
         return self._missing + [p for s in self._storage for p in s.problems]
 
     @property
+    def in_storage(self) -> bool:
+        """True for a bag named by a URL (read by range requests), False for one on disk."""
+        return isinstance(self.path, UrlPath)
+
+    @property
     def has_summary(self) -> bool:
         """True when no file had to be salvaged (every MCAP file's summary was used)."""
         return all(s.has_summary for s in self._storage)
@@ -438,15 +443,23 @@ class BagReader:
             ):
                 yield from _chunks_of_messages(storage.path, storage.messages(wanted, None, None))
 
-    def topic_spans(self) -> dict[str, Span]:
+    def topic_spans(self, *, message_indexes: bool | None = None) -> dict[str, Span]:
         """(first, last) log time of each topic with messages, from indexes (no message read).
 
         See :meth:`bagkit.bag.storage.StorageFile.topic_spans`; over all files.
+        ``message_indexes``: read the Message Index records of the chunks at each topic's ends
+        (exact spans); False: the chunk bounds that the summary gives (a span holding the true
+        one). Default: True for a bag on disk, False for one in storage (a range request
+        more per file, and as many bytes as its summary on a one-chunk bag).
         """
         self._check_open()
+        if message_indexes is None:
+            message_indexes = not self.in_storage
         spans: dict[str, Span] = {}
         for storage in self._storage:
-            for topic, (first, last) in storage.topic_spans().items():
+            for topic, (first, last) in storage.topic_spans(
+                message_indexes=message_indexes
+            ).items():
                 widen(spans, topic, first, last)
         return spans
 

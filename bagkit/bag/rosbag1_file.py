@@ -274,8 +274,9 @@ class Rosbag1File:
         """None: the chunks' index data is read with the messages (no cheaper source)."""
         return None
 
-    def topic_spans(self) -> dict[str, Span]:
-        """(first, last) log time of each topic, from the index data of the chunks at its ends."""
+    def topic_spans(self, *, message_indexes: bool = True) -> dict[str, Span]:
+        """(first, last) log time of each topic, from the index data of the chunks at its ends
+        (whatever ``message_indexes`` says: a ROS 1 bag is a local file or copy)."""
         spans: dict[str, Span] = {}
         for topic in self.topics:
             ids = self._conn_ids({topic})

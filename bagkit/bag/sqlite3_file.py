@@ -12,7 +12,7 @@ free at start-up).
 from __future__ import annotations
 
 import sqlite3
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 from urllib.request import pathname2url
@@ -40,6 +40,8 @@ ROWS_PER_CHUNK = 16_384
 ROWS_PER_BATCH = 1_024
 BATCH_BYTES = 8 << 20
 MAX_CHUNK_BYTES = 64 << 20
+# Up to this many topic ids, counting at open filters per topic instead of grouping.
+FILTERED_COUNT_TOPICS = 4
 INT64_MIN = -(1 << 63)
 INT64_MAX = (1 << 63) - 1
 
@@ -198,11 +200,7 @@ class Sqlite3File:
         orphans = valid = 0
         starts: list[int] = []
         ends: list[int] = []
-        query = (
-            "SELECT topic_id, COUNT(*), MIN(timestamp), MAX(timestamp) FROM messages "
-            f"WHERE {_VALID_ROW} GROUP BY topic_id"
-        )
-        for topic_id, count, first, last in db.execute(query):
+        for topic_id, count, first, last in self._grouped_counts(db):
             valid += count
             starts.append(first)
             ends.append(last)
@@ -222,13 +220,43 @@ class Sqlite3File:
             )
         self.start_ns, self.end_ns = min(starts, default=0), max(ends, default=0)
 
+    def _grouped_counts(self, db: sqlite3.Connection) -> list[tuple[object, int, int, int]]:
+        """(topic id, count, first and last timestamp) of the valid rows of each topic id.
+
+        Few topic ids are counted by one filtered aggregate each in one scan; SQLite would
+        sort every row by topic id for ``GROUP BY``, which costs more than a few filters. The
+        rows of no known id come as one of id None.
+        """
+        ids = list(self._topic_ids)
+        if len(ids) > FILTERED_COUNT_TOPICS or sqlite3.sqlite_version_info < (3, 30):
+            query = (
+                "SELECT topic_id, COUNT(*), MIN(timestamp), MAX(timestamp) FROM messages "
+                f"WHERE {_VALID_ROW} GROUP BY topic_id"
+            )
+            return list(db.execute(query))
+        per_id = ", ".join(
+            f"COUNT(*) FILTER (WHERE topic_id = {i}), MIN(timestamp) FILTER (WHERE topic_id = "
+            f"{i}), MAX(timestamp) FILTER (WHERE topic_id = {i})"
+            for i in ids
+        )
+        query = (
+            f"SELECT COUNT(*), MIN(timestamp), MAX(timestamp){', ' if ids else ''}{per_id} "
+            f"FROM messages WHERE {_VALID_ROW}"
+        )
+        total, first, last, *found = db.execute(query).fetchone()
+        grouped = [(i, *found[3 * k : 3 * k + 3]) for k, i in enumerate(ids)]
+        grouped = [row for row in grouped if row[1]]
+        orphans = total - sum(row[1] for row in grouped)
+        return [*grouped, (None, orphans, first, last)] if orphans else grouped
+
     def close(self) -> None:
         """Close the database."""
         if self._db is not None:
             self._db.close()
 
-    def topic_spans(self) -> dict[str, Span]:
-        """(first, last) timestamp of each topic with messages, from the counts' query."""
+    def topic_spans(self, *, message_indexes: bool = True) -> dict[str, Span]:
+        """(first, last) timestamp of each topic with messages, from the counts' query (exact
+        whatever ``message_indexes`` says: a database is a local file)."""
         return dict(self._spans)
 
     def index_log_times(self, topic: str) -> np.ndarray | None:
@@ -239,17 +267,28 @@ class Sqlite3File:
         """The rows of ``topics`` in timestamp order (ties by row id), laid out as chunks of
         MCAP Message records: :data:`ROWS_PER_CHUNK` rows each, fewer where their payloads
         pass :data:`MAX_CHUNK_BYTES` (large messages: memory stays bounded)."""
-        held: tuple[list[str], list[int], list[bytes | None]] = ([], [], [])
+        held: tuple[list[int], list[int], list[bytes | None]] = ([], [], [])
         size = 0
-        for batch in self._rows(topics, None, None):
-            for part, more in zip(held, batch, strict=True):
-                part.extend(more)  # type: ignore[attr-defined]
-            size += sum(map(len, filter(None, batch[2])))
-            if len(held[0]) >= ROWS_PER_CHUNK or size >= MAX_CHUNK_BYTES:
-                yield chunk_of_rows(self.path, *held)
+        one = self._one_topic(topics)
+        for ids, log_times, stored in self._batches(topics, None, None):
+            payloads = self._filtered(ids, one, stored)
+            if one is None:
+                held[0].extend(ids)
+            held[1].extend(log_times)
+            held[2].extend(payloads)
+            size += sum(map(len, filter(None, payloads)))
+            if len(held[1]) >= ROWS_PER_CHUNK or size >= MAX_CHUNK_BYTES:
+                yield self._chunk(held, one)
                 held, size = ([], [], []), 0
-        if held[0]:
-            yield chunk_of_rows(self.path, *held)
+        if held[1]:
+            yield self._chunk(held, one)
+
+    def _chunk(
+        self, held: tuple[list[int], list[int], list[bytes | None]], one: str | None
+    ) -> BagChunk:
+        ids, log_times, payloads = held
+        topics = one if one is not None else list(map(self._topic_ids.__getitem__, ids))
+        return chunk_of_rows(self.path, topics, log_times, payloads)
 
     def last_messages(self, topics: set[str], before_ns: int) -> dict[str, BagMessage]:
         """The last valid row with ``timestamp < before_ns`` of each of ``topics`` that has one
@@ -285,19 +324,41 @@ class Sqlite3File:
         self, topics: set[str] | None, start_ns: int | None, end_ns: int | None
     ) -> Iterator[BagMessage]:
         """Yield the valid rows in timestamp order (ties by row id)."""
-        for topics_of, log_times, payloads in self._rows(topics, start_ns, end_ns):
+        one = self._one_topic(topics)
+        names = self._topic_ids
+        for ids, log_times, stored in self._batches(topics, start_ns, end_ns):
+            payloads = self._filtered(ids, one, stored)
+            topics_of = [one] * len(log_times) if one is not None else map(names.__getitem__, ids)
             for topic, timestamp, data in zip(topics_of, log_times, payloads, strict=True):
                 if data is not None:
                     yield make_message(topic, data, timestamp, timestamp, 0)
 
-    def _rows(
+    def _one_topic(self, topics: set[str] | None) -> str | None:
+        """The topic of every row read, when the rows read are of one topic id."""
+        wanted = self._wanted_ids(topics)
+        return self._topic_ids[wanted[0]] if len(wanted) == 1 else None
+
+    def _wanted_ids(self, topics: set[str] | None) -> list[int]:
+        return [i for i, t in self._topic_ids.items() if topics is None or t in topics]
+
+    def _filtered(
+        self, ids: Sequence[int], one: str | None, stored: Sequence[bytes]
+    ) -> list[bytes | None]:
+        """The payloads passed through ``payload_filter`` (decompressed), None where lost."""
+        if self.payload_filter is None:
+            return list(stored)
+        if one is not None:
+            return self.payload_filter.many(list(stored), lambda _: one)
+        return self.payload_filter.many(list(stored), lambda i: self._topic_ids[ids[i]])
+
+    def _batches(
         self, topics: set[str] | None, start_ns: int | None, end_ns: int | None
-    ) -> Iterator[tuple[list[str], list[int], list[bytes | None]]]:
-        """The valid rows in timestamp order as (topics, timestamps, payloads passed through
-        ``payload_filter``), a batch at a time: as many rows as fit :data:`BATCH_BYTES` at the
-        mean size so far (one first), at most :data:`ROWS_PER_BATCH`; damage ends them with a
-        problem."""
-        wanted = [i for i, t in self._topic_ids.items() if topics is None or t in topics]
+    ) -> Iterator[tuple[Sequence[int], Sequence[int], Sequence[bytes]]]:
+        """The valid rows in timestamp order as (topic ids, timestamps, stored payloads), a
+        batch at a time: as many rows as fit :data:`BATCH_BYTES` at the mean size so far (one
+        first), at most :data:`ROWS_PER_BATCH`; damage ends them with a problem. Rows of one
+        topic id are read without it (the ids are then empty)."""
+        wanted = self._wanted_ids(topics)
         if not wanted or self._db is None:
             return
         # Each condition only where it can leave a row out (the file is immutable): SQLite
@@ -316,22 +377,22 @@ class Sqlite3File:
                 min(end_ns if end_ns is not None else INT64_MAX, INT64_MAX),
             ]
         where = f"WHERE {' AND '.join(conditions)} " if conditions else ""
-        query = f"SELECT topic_id, timestamp, data FROM messages {where}ORDER BY timestamp, rowid"
-        names = self._topic_ids
+        columns = "timestamp, data" if len(wanted) == 1 else "topic_id, timestamp, data"
+        query = f"SELECT {columns} FROM messages {where}ORDER BY timestamp, rowid"
         read = 0
         try:
             cursor = self._db.execute(query, values)
             batch, stored_bytes = 1, 0
             while rows := cursor.fetchmany(batch):
                 read += len(rows)
-                ids, log_times, stored = zip(*rows, strict=True)
+                if len(wanted) == 1:
+                    ids: Sequence[int] = ()
+                    log_times, stored = zip(*rows, strict=True)
+                else:
+                    ids, log_times, stored = zip(*rows, strict=True)
                 stored_bytes += sum(map(len, stored))
                 batch = max(1, min(ROWS_PER_BATCH, BATCH_BYTES * read // max(stored_bytes, 1)))
-                topics_of = list(map(names.__getitem__, ids))
-                payloads: list[bytes | None] = list(stored)
-                if self.payload_filter is not None:
-                    payloads = self.payload_filter.many(list(stored), topics_of.__getitem__)
-                yield topics_of, list(log_times), payloads
+                yield ids, log_times, stored
         except sqlite3.Error as exc:
             problem = f"{self.path.name}: unreadable after {read} messages ({exc})"
             if problem not in self.problems:  # each read of a damaged file meets it again

@@ -121,11 +121,14 @@ class StorageFile(Protocol):
     def chunks(self, topics: set[str] | None) -> Iterator[BagChunk]:
         """Yield the chunks holding messages of ``topics`` in file order (none: no chunks)."""
 
-    def topic_spans(self) -> dict[str, Span]:
+    def topic_spans(self, *, message_indexes: bool = True) -> dict[str, Span]:
         """(first, last) log time of each topic with messages, from indexes (no message read).
 
         Where no index tells (salvaged chunks without Message Index records), the bounds of
-        the chunks that may hold the topic.
+        the chunks that may hold the topic. ``message_indexes=False``: those bounds for every
+        topic, from the summary alone (from the start of the first chunk holding the topic to
+        the end of the last: a span that holds the true one); back-ends without a summary to
+        take them from (a local file or copy) give the exact spans.
         """
 
     def index_log_times(self, topic: str) -> np.ndarray | None:
@@ -150,41 +153,50 @@ class FiltersPayloads(Protocol):
 
 
 def chunk_of_rows(
-    file: Path, topics: Sequence[str], log_times: Sequence[int], payloads: Sequence[bytes | None]
+    file: Path,
+    topics: Sequence[str] | str,
+    log_times: Sequence[int],
+    payloads: Sequence[bytes | None],
 ) -> BagChunk:
     """Messages laid out as MCAP Message records in one chunk (log time as publish time,
     channel ids and sequences 0), for the bulk decoders of a storage without chunks; a
-    message whose payload is None is left out."""
+    message whose payload is None is left out. ``topics``: each message's, or one for all."""
     import numpy as np
 
     from bagkit.bag.mcapio.records import message_index_dtype
 
-    keep = [i for i, payload in enumerate(payloads) if payload is not None]
-    if len(keep) < len(payloads):
-        topics = [topics[i] for i in keep]
+    if None in payloads:
+        keep = [i for i, payload in enumerate(payloads) if payload is not None]
+        if not isinstance(topics, str):
+            topics = [topics[i] for i in keep]
         log_times = [log_times[i] for i in keep]
         payloads = [payloads[i] for i in keep]
     count = len(payloads)
     lengths = np.fromiter(map(len, payloads), np.int64, count)  # type: ignore[arg-type]
+    times = np.asarray(log_times, np.int64)
     headers = np.zeros(count, _RECORD_HEADER_DTYPE)
     headers["opcode"] = Opcode.MESSAGE
     headers["length"] = lengths + MESSAGE_PREFIX.size
     # Bit for bit: a hostile db3's negative timestamp stays the int64 that its index entry holds.
-    headers["log_time"] = headers["publish_time"] = np.asarray(log_times, np.int64).view(np.uint64)
+    headers["log_time"] = headers["publish_time"] = times.view(np.uint64)
     size = MESSAGE_RECORD_HEADER.size
     parts: list[object] = [None] * (2 * count)
     parts[0::2] = headers.view(f"V{size}").tolist()  # one bytes object each, made in C
     parts[1::2] = payloads
     offsets = np.zeros(count, np.uint64)
     np.cumsum(lengths[:-1] + size, out=offsets[1:])
-    names = np.array(topics, dtype=object)
     index = {}
-    for topic in dict.fromkeys(topics):
-        mine = names == topic
-        entries = np.empty(int(mine.sum()), message_index_dtype())
-        entries["log_time"] = np.asarray(log_times, np.int64)[mine]
-        entries["offset"] = offsets[mine]
-        index[topic] = entries
+    if isinstance(topics, str):
+        index[topics] = np.empty(count, message_index_dtype())
+        index[topics]["log_time"], index[topics]["offset"] = times, offsets
+    else:
+        names = np.array(topics, dtype=object)
+        for topic in dict.fromkeys(topics):
+            mine = names == topic
+            entries = np.empty(int(mine.sum()), message_index_dtype())
+            entries["log_time"] = times[mine]
+            entries["offset"] = offsets[mine]
+            index[topic] = entries
     return BagChunk(file, b"".join(parts), index)  # type: ignore[arg-type]
 
 

@@ -11,6 +11,8 @@ import typer
 from bagkit.cli import common
 from bagkit.cli.common import ReportFormat, bag_location, handle_errors, print_json, warn
 from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers, fleet_run
+from bagkit.cli.selection_options import End, Start, build_query
+from bagkit.cli.tables import Styled, print_line
 
 if TYPE_CHECKING:
     from bagkit.health import CheckResult, HealthReport
@@ -23,7 +25,9 @@ where bags are served (--bags-url or $BAGKIT_BAGS_URL). Several bags run on a lo
 cluster (--workers, or --scheduler); a bag that cannot be read is reported among the others.
 
 --suggest prints a starting contract from one good bag (observed topics, types, rates, gaps,
-value ranges with margins, no NaN where none was seen), to edit.
+value ranges with margins, no NaN where none was seen), to edit. --topics checks only the
+contracts of those topics, --start/--end only the messages of that window (each bag's own:
+10 is ten seconds after its first message).
 
 Exit status: 0 every bag healthy, 1 a contract broken (a required topic missing included),
 2 bad input (a spec that does not parse, an unknown key or field: one error naming its line;
@@ -36,6 +40,8 @@ Examples:
   bagkit check flights/ --spec health.yaml --junit check.xml
 
   bagkit check flight1 --spec health.yaml --html check.html
+
+  bagkit check flight1 --spec health.yaml -t /imu/data --start 10
 """
 
 
@@ -45,6 +51,15 @@ def check(  # noqa: PLR0917 (typer maps parameters to options)
         ..., help=BAGS_HELP + ".", metavar="BAGS...", show_default=False, parser=bag_location
     ),
     spec: Path | None = typer.Option(None, "--spec", help="The contract (YAML).", metavar="FILE"),
+    topics: list[str] | None = typer.Option(
+        None,
+        "--topics",
+        "-t",
+        help="Check only the contracts of these topics (repeat, or a comma list).",
+        metavar="TOPICS",
+    ),
+    start: Start = None,
+    end: End = None,
     suggest: bool = typer.Option(
         False, "--suggest", help="Print a starting contract from one good bag (YAML)."
     ),
@@ -70,20 +85,25 @@ def check(  # noqa: PLR0917 (typer maps parameters to options)
     from bagkit.fleet import expand_bags
     from bagkit.fleet.cluster import CHECK_RATE
     from bagkit.health import HealthSpec, SpecError, check_bags, suggest_spec
+    from bagkit.health.check import restrict
 
+    query = build_query(topics, start=start, end=end)  # a bad time: one error, first
     if suggest:
-        if spec is not None or len(inputs) != 1:
-            raise SpecError("--suggest takes one bag and no --spec")
+        if spec is not None or len(inputs) != 1 or query.topics or query.span.bounded:
+            raise SpecError("--suggest takes one bag and no --spec, --topics, --start or --end")
         common.console.print(suggest_spec(inputs[0]), end="", highlight=False, soft_wrap=True)
         return
     if spec is None:
         raise SpecError("give the contract: --spec health.yaml (or --suggest to write one)")
     contract = HealthSpec.load(spec)  # a bad spec is one error before any bag is read
+    restrict(contract, query)  # as a topic the contract lacks
     bags = expand_bags(inputs)
     with fleet_run(
         bags, workers=workers, scheduler=scheduler, label="checking", rate=CHECK_RATE
     ) as (client, done):
-        result = check_bags(bags, contract, client=client, done=done, bags_url=bags_url)
+        result = check_bags(
+            bags, contract, client=client, done=done, bags_url=bags_url, query=query
+        )
     _write_files(result, junit, html)
     for report in result.reports:
         for problem in report.problems:
@@ -108,19 +128,23 @@ def _write_files(result: CheckResult, junit: Path | None, html: Path | None) -> 
 
 
 def _print(report: HealthReport) -> None:
-    console = common.console
+    # print_line: plain text into a pipe without importing rich, colours on a terminal.
     if report.error is not None:
-        console.print(f"{report.bag}: [bold red]not read[/]: {report.error}", soft_wrap=True)
+        print_line([f"{report.bag}: ", Styled("not read", "bold red"), f": {report.error}"])
         return
     broken = report.broken
-    verdict = "[bold green]healthy[/]" if not broken else f"[bold red]{len(broken)} broken[/]"
+    verdict = (
+        Styled("healthy", "bold green")
+        if not broken
+        else Styled(f"{len(broken)} broken", "bold red")
+    )
     count = len(report.assertions)
-    console.print(f"{report.bag}: {count} assertion{'' if count == 1 else 's'}, {verdict}")
+    print_line([f"{report.bag}: {count} assertion{'' if count == 1 else 's'}, ", verdict])
     for assertion in broken:
         # The assertion and where it broke fit 80 columns; commands and links stay whole.
         lines = [assertion.where(report.start_ns)]
         lines += assertion.commands(report.bag, report.start_ns)
         lines.append(report.link(assertion) or "")
-        console.print(f"  FAIL {assertion.headline}", highlight=False, soft_wrap=True)
+        print_line([f"  FAIL {assertion.headline}"])
         for line in filter(None, lines):
-            console.print(f"       {line}", highlight=False, soft_wrap=True)
+            print_line([f"       {line}"])

@@ -9,19 +9,17 @@ from pathlib import Path
 import typer
 
 from bagkit.cli.common import ReportFormat, bag_location, handle_errors, split_list
-from bagkit.cli.filter import (
-    EXCLUDE_REGEX_HELP,
-    EXCLUDE_TOPICS_HELP,
-    REGEX_HELP,
-    TOPICS_HELP,
-    WHERE_HELP,
-)
 from bagkit.cli.progress import DelayedProgress
 from bagkit.cli.selection_options import End, Start, build_query
 from bagkit.cli.surgery_options import (
     CheckCrc,
+    ExcludeRegex,
+    ExcludeTopics,
     Force,
     Format,
+    KeepRegex,
+    KeepTopics,
+    KeepWhere,
     LatchedTopics,
     MaxBagDuration,
     MaxBagSize,
@@ -80,15 +78,13 @@ def convert(
     ),
     storage: str = typer.Option("mcap", "--storage", "-s", help=STORAGE_HELP),
     compression: str | None = typer.Option(None, "--compression", help=COMPRESSION_HELP),
-    topics: list[str] | None = typer.Option(None, "--topics", help=TOPICS_HELP),
-    regex: str = typer.Option("", "--regex", "-e", help=REGEX_HELP),
-    exclude_topics: list[str] | None = typer.Option(
-        None, "--exclude-topics", help=EXCLUDE_TOPICS_HELP
-    ),
-    exclude_regex: str = typer.Option("", "--exclude-regex", help=EXCLUDE_REGEX_HELP),
+    topics: KeepTopics = None,
+    regex: KeepRegex = "",
+    exclude_topics: ExcludeTopics = None,
+    exclude_regex: ExcludeRegex = "",
     start: Start = None,
     end: End = None,
-    where: str | None = typer.Option(None, "--where", help=WHERE_HELP, metavar="CONDITION"),
+    where: KeepWhere = None,
     latched_topics: LatchedTopics = None,
     no_latched: NoLatched = False,
     max_bag_size: MaxBagSize = 0,

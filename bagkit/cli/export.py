@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import typer
 
-from bagkit.cli.common import bag_location, console, handle_errors, warn
+from bagkit.cli.common import bag_location, console, handle_errors, none_decoded, warn
 from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers
 from bagkit.cli.progress import DelayedProgress
 from bagkit.cli.selection_options import Distro, End, Start, Where, build_query
@@ -76,8 +78,9 @@ def export(  # noqa: PLR0917 (typer maps parameters to options)
     scheduler: Scheduler = None,
     distro: Distro = None,
 ) -> None:
+    from bagkit.data.export import none_decoded_topics
     from bagkit.fleet.inputs import BAG_FILE_SUFFIXES, expand_bags, is_bag_directory
-    from bagkit.storage.transfer import written_to
+    from bagkit.storage.transfer import shown_path, written_to
 
     query = build_query(topics, fields, start, end, where)
     if file_format is None:
@@ -89,11 +92,21 @@ def export(  # noqa: PLR0917 (typer maps parameters to options)
     }
     named = inputs[0] if len(inputs) == 1 else None
     with written_to(out, replace=True) as local:
+        shown = partial(shown_path, local=local, output=out)
         if named is not None and (named.suffix in BAG_FILE_SUFFIXES or is_bag_directory(named)):
-            _print_report(_export_one(named, local, options), where=where)
-            return
-        bags = expand_bags(inputs)
-        _export_many(bags, local, options, where=where, workers=workers, scheduler=scheduler)
+            reports = [_export_one(named, local, options)]
+            _print_report(reports[0], shown, where=where)
+            failed = 0
+        else:
+            bags = expand_bags(inputs)
+            reports, failed = _export_many(
+                bags, local, options, shown, where=where, workers=workers, scheduler=scheduler
+            )
+    lost = none_decoded_topics(reports)
+    if lost:  # the topic's files hold no row: not an export of it (the rest is written)
+        raise none_decoded(lost, 1 if failed else 2)
+    if failed:
+        raise typer.Exit(1)
 
 
 def _export_one(bag: Path, out: Path, options: dict[str, Any]) -> ExportReport:
@@ -110,11 +123,14 @@ def _export_many(
     bags: list[Path],
     out: Path,
     options: dict[str, Any],
+    shown: Callable[[Path], str],
     *,
     where: str | None,
     workers: int | None,
     scheduler: str | None,
-) -> None:
+) -> tuple[list[ExportReport], int]:
+    """Export on a cluster and print each bag's report; return the reports and how many bags
+    failed."""
     from bagkit.cli.fleet_options import fleet_run
     from bagkit.fleet.cluster import EXPORT_RATE
     from bagkit.fleet.export import export_fleet
@@ -123,29 +139,35 @@ def _export_many(
         bags, workers=workers, scheduler=scheduler, label="exporting", rate=EXPORT_RATE
     ) as (client, done):
         results = export_fleet(bags, out, client=client, done=done, **options)
-    failed = 0
+    reports: list[ExportReport] = []
     for result in results:
         if result.report is None:
             warn(f"{result.bag} not exported: {result.error}")
-            failed += 1
             continue
-        console.print(f"{result.bag} -> {result.out}", highlight=False, soft_wrap=True)
-        _print_report(result.report, indent="  ", where=where)
-    if failed:
-        raise typer.Exit(1)
+        console.print(f"{result.bag} -> {shown(result.out)}", highlight=False, soft_wrap=True)
+        _print_report(result.report, shown, indent="  ", where=where)
+        reports.append(result.report)
+    return reports, len(results) - len(reports)
 
 
-def _print_report(report: ExportReport, indent: str = "", where: str | None = None) -> None:
+def _print_report(
+    report: ExportReport,
+    shown: Callable[[Path], str],
+    indent: str = "",
+    where: str | None = None,
+) -> None:
+    """The report of one bag's export; ``shown`` names a written path (under -o's URL)."""
     for topic, reason in report.skipped.items():
         warn(f"topic {topic} skipped: {reason}")
     for problem in report.problems:
         warn(f"lost: {problem}")
-    if where is not None and not any(report.rows.values()):
+    decoded = any(n > report.undecodable[t] for t, n in report.messages.items())
+    if where is not None and decoded and not any(report.rows.values()):
         warn(f"no message satisfies {where!r}")
     for topic, files in report.files.items():
         written = files[0].parent if len(files) > 1 else files[0]
         console.print(
-            f"{indent}{topic}: {report.rows[topic]:,} rows -> {written}",
+            f"{indent}{topic}: {report.rows[topic]:,} rows -> {shown(written)}",
             highlight=False,
             soft_wrap=True,
         )

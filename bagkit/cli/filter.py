@@ -12,14 +12,21 @@ from bagkit.cli.common import (
     bag_location,
     err_console,
     handle_errors,
+    option_flags,
     split_list,
 )
 from bagkit.cli.selection_options import End, Start, StateTopics, build_query
 from bagkit.cli.surgery_options import (
+    AROUND_FLAGS,
     CheckCrc,
     Compression,
+    ExcludeRegex,
+    ExcludeTopics,
     Force,
     Format,
+    KeepRegex,
+    KeepTopics,
+    KeepWhere,
     LatchedTopics,
     MaxBagDuration,
     MaxBagSize,
@@ -56,10 +63,6 @@ its latched state.
 Example: bagkit filter drive -o imu_only --topics /imu/data /gps/fix --start 1763850000
 Example: bagkit filter flight -o cuts --around '/alerts: status[*].level >= 2' --before 10 --after 5
 """
-WHERE_HELP = (
-    "Keep only the messages satisfying CONDITION (e.g. 'linear_acceleration.z < 0') of the "
-    "selected topics that have its fields; the others are kept whole."
-)
 AROUND_HELP = (
     "'TOPIC: CONDITION': write one bag per episode where it holds, OUT/<bag>_<n>/, "
     "with --before/--after around it."
@@ -67,11 +70,6 @@ AROUND_HELP = (
 BEFORE_HELP = "With --around: keep this long before an episode's first match (90, 1m30s, 250ms)."
 AFTER_HELP = "With --around: keep this long after an episode's last match."
 GAP_HELP = "With --around: matches closer than this merge into one episode (default 0)."
-
-TOPICS_HELP = "Topics to keep (several after one flag, repeated, or comma-separated)."
-REGEX_HELP = "Keep topics matching this regular expression (re.search)."
-EXCLUDE_TOPICS_HELP = "Topics to drop (several after one flag, repeated, or comma-separated)."
-EXCLUDE_REGEX_HELP = "Drop topics matching this regular expression."
 
 
 COMMAND_CLASS = SelectionCommand
@@ -84,17 +82,15 @@ def filter_command(
     ),
     *,
     output: Output,
-    topics: list[str] | None = typer.Option(None, "--topics", help=TOPICS_HELP),
-    regex: str = typer.Option("", "--regex", "-e", help=REGEX_HELP),
-    exclude_topics: list[str] | None = typer.Option(
-        None, "--exclude-topics", help=EXCLUDE_TOPICS_HELP
-    ),
-    exclude_regex: str = typer.Option("", "--exclude-regex", help=EXCLUDE_REGEX_HELP),
+    topics: KeepTopics = None,
+    regex: KeepRegex = "",
+    exclude_topics: ExcludeTopics = None,
+    exclude_regex: ExcludeRegex = "",
     start: Start = None,
     end: End = None,
     latched_topics: LatchedTopics = None,
     no_latched: NoLatched = False,
-    where: str | None = typer.Option(None, "--where", help=WHERE_HELP, metavar="CONDITION"),
+    where: KeepWhere = None,
     around: str | None = typer.Option(None, "--around", help=AROUND_HELP, metavar="TRIGGER"),
     before: str = typer.Option("0", "--before", help=BEFORE_HELP, metavar="DURATION"),
     after: str = typer.Option("0", "--after", help=AFTER_HELP, metavar="DURATION"),
@@ -126,13 +122,14 @@ def filter_command(
         report.output = output
         print_report(report, output_format)
         return
-    trigger = Around.create(
-        around,
-        parse_duration(before, "--before"),
-        parse_duration(after, "--after"),
-        parse_duration(gap, "--gap"),
-        selection.state_topics,
-    )
-    with err_console.status(f"cutting around the episodes in {bag}"):
-        found, reports = cut_around(bag, output, trigger, selection, options)
+    with option_flags(AROUND_FLAGS):
+        trigger = Around.create(
+            around,
+            parse_duration(before, "--before"),
+            parse_duration(after, "--after"),
+            parse_duration(gap, "--gap"),
+            selection.state_topics,
+        )
+        with err_console.status(f"cutting around the episodes in {bag}"):
+            found, reports = cut_around(bag, output, trigger, selection, options)
     print_cuts(found, reports, output_format)

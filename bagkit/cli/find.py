@@ -9,7 +9,14 @@ from typing import TYPE_CHECKING
 import typer
 
 from bagkit.cli import common
-from bagkit.cli.common import bag_location, handle_errors, print_json, split_list, warn
+from bagkit.cli.common import (
+    bag_location,
+    handle_errors,
+    none_decoded,
+    print_json,
+    split_list,
+    warn,
+)
 from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers, fleet_run
 from bagkit.cli.selection_options import Distro, End, Start, StateTopics, build_query
 from bagkit.compat import StrEnum
@@ -114,6 +121,8 @@ def find(  # noqa: PLR0917 (typer maps parameters to options)
         _write_parquet(result, out)
     else:
         _print_table(result)
+    if result.none_decoded:  # "0 episodes" of a topic that could not be read is no answer
+        raise none_decoded({result.topic: result.messages}, 1 if result.unread else 2)
     if result.unread:
         raise typer.Exit(1)
 

@@ -9,9 +9,9 @@ from pathlib import Path
 
 import typer
 
-from bagkit.cli.common import console, err_console, fail, handle_errors, note
+from bagkit.cli.common import console, err_console, fail, handle_errors, note, option_flags
 from bagkit.cli.fleet_options import Scheduler, Workers
-from bagkit.cli.selection_options import End, Start
+from bagkit.cli.selection_options import End, Start, build_query
 from bagkit.regression.spec import FixtureSpec, find_fixtures, load_spec
 
 app = typer.Typer(
@@ -239,6 +239,7 @@ def add(  # noqa: PLR0917 (typer maps parameters to options)
     Example: bagkit golden add fixtures/gps_outage --from flight1 --around
     '/alerts: status[*].level >= 2' --before 5 --after 5 --like fixtures/faults
     """
+    from bagkit.cli.surgery_options import AROUND_FLAGS
     from bagkit.regression.add import AddOptions, add_fixture
     from bagkit.selection.times import parse_duration
 
@@ -246,8 +247,7 @@ def add(  # noqa: PLR0917 (typer maps parameters to options)
         sys.path.insert(0, os.getcwd())
     options = AddOptions(
         bag,
-        start,
-        end,
+        build_query(start=start, end=end).span,
         like,
         around,
         before_ns=parse_duration(before, "--before"),
@@ -255,7 +255,8 @@ def add(  # noqa: PLR0917 (typer maps parameters to options)
         gap_ns=parse_duration(gap, "--gap"),
         episode=episode,
     )
-    added = add_fixture(fixture, options)
+    with option_flags(AROUND_FLAGS):
+        added = add_fixture(fixture, options)
     if added.episodes > 1:
         note(
             f"{added.episodes} episodes of {around!r}: episode {episode} made the fixture "

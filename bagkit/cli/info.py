@@ -48,7 +48,9 @@ single .db3 file. Only summaries and indexes are read, so this is instant on mul
 crashed recording without a summary is salvaged and what could not be read is reported.
 A folder of bags (a snapshot-mode output, a fleet folder) lists its bags, one line each, and
 their totals. A topic's rate is (count - 1) / (last - first log time), "-" below three
-messages or one second.
+messages or one second. A bag in storage (a URL) is read by range requests of its summary
+only: each topic's first and last time are then bounded by the chunks that hold them, and
+its rate, a lower bound, is marked "~" (--exact-rates reads the message indexes too).
 Services recorded from their introspection events (NAME/_service_event) are listed with their
 event, request and response counts and their latency (median, 99th percentile, maximum).
 Actions (NAME/_action/feedback and NAME/_action/status) are listed with the message counts of
@@ -211,9 +213,14 @@ def _print_table(info: BagInfo, verbose: bool) -> None:
     topics = Table(
         [*columns, Column("Count", numeric=True), Column("Rate", numeric=True)], "Topics"
     )
+    about = "" if info.exact_rates else "~"
     for topic in info.topics:
-        topics.add_row(topic.topic, topic.type, f"{topic.count:,}", format_rate(topic.rate_hz))
+        rate = format_rate(topic.rate_hz)
+        topics.add_row(topic.topic, topic.type, f"{topic.count:,}", about + rate)
     print_table(topics)
+    if about and any(t.rate_hz is not None for t in info.topics):
+        note = "~ rates over the chunks that hold each topic (lower bounds; --exact-rates"
+        print_wrapped([*note.split(" "), "reads", "the", "message", "indexes)"])
     if verbose:
         # One line per topic (and offered profile) rather than two more columns: at 80
         # columns those would not leave room for the names.
@@ -284,6 +291,12 @@ def info(  # noqa: PLR0917 (typer maps parameters to options)
     check_crc: bool = typer.Option(
         True, "--crc/--no-crc", help="Check the CRC of chunks a salvage scan opens."
     ),
+    exact_rates: bool = typer.Option(
+        False,
+        "--exact-rates",
+        help="For a bag in storage, read the message indexes of the chunks at each topic's "
+        "ends too (exact rates; a range request more per file).",
+    ),
     distro: Distro = None,
 ) -> None:
     """Show what a bag holds (like ros2 bag info)."""
@@ -292,12 +305,12 @@ def info(  # noqa: PLR0917 (typer maps parameters to options)
     if is_url(bag) or (Path(bag).is_dir() and not (Path(bag) / "metadata.yaml").is_file()):
         from bagkit.fleet.listing import folder_info
 
-        folder = folder_info(bag, check_crc=check_crc)
+        folder = folder_info(bag, check_crc=check_crc, exact_rates=exact_rates or None)
         if folder is not None:
             _print_folder(folder, output_format)
             return
     with _reading(bag):
-        result = bag_info(bag, check_crc=check_crc)
+        result = bag_info(bag, check_crc=check_crc, exact_rates=exact_rates or None)
         services = [] if topic_name else _services(bag, result)
     if storage is not None and result.storage != storage:
         raise fail(f"{bag} is a {result.storage} bag, not {storage}")

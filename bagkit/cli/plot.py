@@ -7,7 +7,14 @@ from pathlib import Path
 import typer
 
 from bagkit.cli import common
-from bagkit.cli.common import bag_location, console, handle_errors, split_list
+from bagkit.cli.common import (
+    bag_location,
+    console,
+    handle_errors,
+    none_decoded,
+    split_list,
+    warn,
+)
 from bagkit.cli.selection_options import Distro, End, Start, Where, build_query
 
 HELP = """Plot fields of BAG over time into OUT: .png (matplotlib) or .html (an interactive page
@@ -54,7 +61,7 @@ def plot(  # noqa: PLR0917 (typer maps parameters to options)
     distro: Distro = None,
 ) -> None:
     from bagkit.data.errors import DataError
-    from bagkit.data.series import load_series
+    from bagkit.data.series import read_series
 
     query = build_query(start=start, end=end, where=where)
     suffix = out.suffix.lower()
@@ -62,7 +69,12 @@ def plot(  # noqa: PLR0917 (typer maps parameters to options)
         raise DataError(f"{out}: the output must end in .png or .html")
     bags = [bag, *(bag_location(b) for b in split_list(more_bags))]
     with common.err_console.status("reading ..."):
-        found = load_series(bags, series, absolute=absolute, query=query)
+        reading = read_series(bags, series, absolute=absolute, query=query)
+    for problem in reading.problems:
+        warn(problem)
+    found, lost = reading.series, reading.none_decoded()
+    if lost and not found:
+        raise none_decoded(lost)
     if not found and (start is not None or end is not None):
         console.print(f"0 series: nothing in the time window, {out} not written", highlight=False)
         return  # the window's warning said why: an empty result, as every command gives
@@ -81,3 +93,5 @@ def plot(  # noqa: PLR0917 (typer maps parameters to options)
         title = " vs ".join(dict.fromkeys(s.bag for s in found))
         write_html(found, out, title=title, absolute=absolute)
     console.print(f"{len(found)} series -> {out}", highlight=False, soft_wrap=True)
+    if lost:  # the other series are drawn; a requested one is not there
+        raise none_decoded(lost)

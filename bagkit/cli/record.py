@@ -77,7 +77,6 @@ from bagkit.cli.record_options import (
     UseSimTime,
 )
 from bagkit.cli.record_table import print_record_table, progress_line
-from bagkit.cli.selection_options import duration_seconds
 from bagkit.extras import ROS, require
 from bagkit.playback.keyboard import key_presses
 from bagkit.recording.latched import parse_repeat
@@ -90,6 +89,7 @@ from bagkit.recording.options import (
     SnapshotTrigger,
 )
 from bagkit.recording.report import RecordProgress, RecordReport
+from bagkit.selection.times import parse_duration
 
 if TYPE_CHECKING:
     from pathlib import Path
@@ -284,10 +284,11 @@ def record(  # noqa: PLR0917 (typer maps parameters to options; ros2 bag has the
             repeat_all_transient_local=repeat_all_transient_local,
             start_paused=start_paused,
         )
-    watch = _health_watch(health, trigger_on_health, stop_on_health, quiet=quiet)
-    recorder = Recorder(
-        options, on_warning=(lambda _message: None) if quiet else warn, health=watch
-    )
+    with option_flags(RECORD_FLAGS):
+        watch = _health_watch(health, trigger_on_health, stop_on_health, quiet=quiet)
+        recorder = Recorder(
+            options, on_warning=(lambda _message: None) if quiet else warn, health=watch
+        )
     report, received = _record_until_stopped(recorder)
     _print_outcome(report, received, output_format, quiet=quiet)
 
@@ -306,10 +307,11 @@ def _health_watch(
     def tell(event: HealthEvent) -> None:
         err_console.print(event.line(), style="red" if event.broken else None, highlight=False)
 
+    stop_after_ns = None if stop_after is None else parse_duration(stop_after, "--stop-on-health")
     return LiveHealth(
         HealthSpec.load(spec),
         trigger=trigger,
-        stop_after_s=duration_seconds(stop_after, "--stop-on-health"),
+        stop_after_ns=stop_after_ns,
         on_event=None if quiet else tell,
     )
 

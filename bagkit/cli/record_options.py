@@ -340,4 +340,6 @@ RECORD_FLAGS = {
     "snapshot.pre_ns": "--pre",
     "snapshot.post_ns": "--post",
     "repeat_transient_local": "--repeat-transient-local",
+    "health.trigger": "--trigger-on-health {} (add --snapshot-mode)",
+    "stop_after_ns": "--stop-on-health",
 }

@@ -298,8 +298,6 @@ def _warn_skipped(player: Player) -> None:
     if topics.skipped_formats:
         listed = ", ".join(f"{t} ({f})" for t, f in sorted(topics.skipped_formats.items()))
         warn(f"not replaying topics whose serialization format is not cdr: {listed}")
-    if topics.missing:
-        warn(f"topics not in the bag: {topics.missing_text()}")
     for name, changes in sorted(topics.drifted.items()):
         done = {
             OnDrift.RAW: "published as recorded",

@@ -15,9 +15,9 @@ from bagkit.cli import common
 from bagkit.cli.common import (
     CheckCrcOnRead,
     OutputFormat,
-    fail,
     format_rate,
     handle_errors,
+    none_decoded,
     note,
     print_json,
     warn,
@@ -92,9 +92,9 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
     else:
         _print_tables(result)
         _print_services(_service_latencies(bags, summarized))
-    lost = [t for t in result.topics if t.undecodable and t.undecodable == t.count]
-    if lost:  # a topic none of whose messages decode: not a summary of it (as echo says)
-        raise fail("; ".join(f"none of the {t.count} messages of {t.topic} decode" for t in lost))
+    lost = {t.topic: t.count for t in result.topics if t.undecodable and t.undecodable == t.count}
+    if lost:  # a topic none of whose messages decode: not a summary of it
+        raise none_decoded(lost)
 
 
 def _service_latencies(bags: list[Path], topics: set[str]) -> list[dict[str, Any]]:
@@ -176,7 +176,7 @@ def _summarize(
     bags: list[Path], options: dict[str, Any], *, workers: int | None, scheduler: str | None
 ) -> Summary:
     """Summarize in this process (a progress bar over messages) or on Dask (over bags)."""
-    from bagkit.fleet import fleet_client, summarize_fleet
+    from bagkit.fleet import fleet_client
     from bagkit.fleet.cluster import SUMMARY_RATE
     from bagkit.fleet.progress import BagProgress, bag_size
     from bagkit.stats import summarize
@@ -191,6 +191,8 @@ def _summarize(
         announce=note,
     ) as client:
         if client is not None:
+            from bagkit.fleet import summarize_fleet
+
             with BagProgress(bags, common.err_console, label="summarizing", sizes=sizes) as done:
                 return summarize_fleet(bags, client=client, done=done, **options)
         progress = DelayedProgress("summarizing")

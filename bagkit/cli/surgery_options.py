@@ -69,6 +69,49 @@ MaxBagDuration = Annotated[
         help="Split OUT into files spanning at most this many seconds (0: never).",
     ),
 ]
+KeepTopics = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--topics",
+        help="Topics to keep (several after one flag, repeated, or comma-separated).",
+        metavar="TOPICS",
+    ),
+]
+KeepRegex = Annotated[
+    str,
+    typer.Option("--regex", "-e", help="Keep topics matching this regular expression (re.search)."),
+]
+ExcludeTopics = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--exclude-topics",
+        help="Topics to drop (several after one flag, repeated, or comma-separated).",
+        metavar="TOPICS",
+    ),
+]
+ExcludeRegex = Annotated[
+    str,
+    typer.Option(
+        "--exclude-regex", help="Drop topics matching this regular expression.", metavar="REGEX"
+    ),
+]
+KeepWhere = Annotated[
+    str | None,
+    typer.Option(
+        "--where",
+        help="Keep only the messages satisfying CONDITION (e.g. 'linear_acceleration.z < 0') "
+        "of the selected topics that have its fields; the others are kept whole.",
+        metavar="CONDITION",
+    ),
+]
+# The fields an --around error names (surgery.around, regression.add) as the flags that set them.
+AROUND_FLAGS = {
+    "selection.span": "--start/--end with --around",
+    "span": "--start/--end with --around",
+    "before_ns": "--before",
+    "after_ns": "--after",
+    "gap_ns": "--gap",
+}
 LatchedTopics = Annotated[
     list[str] | None,
     typer.Option(

@@ -14,47 +14,63 @@ back) goes through the general decoder (``MessageTypes.value_reader``). Columns:
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Iterable, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pyarrow as pa
 
 from bagkit.data.engine import BulkGroup, Spans, decode_bulk, payload_spans
 from bagkit.decode import DecodeError, LeafField, MessageTypes
+from bagkit.decode.direct import ValueReader
 from bagkit.decode.flatten import STRING_TYPES
 from bagkit.decode.layout import PRIMITIVE_FORMATS, CdrLayout
 from bagkit.decode.matcher import PayloadMatcher
+from bagkit.decode.typegraph import check_registered
 from bagkit.selection.windows import Window
 
-_ARROW_TYPES: dict[str, pa.DataType] = {
-    "bool": pa.bool_(),
-    "byte": pa.uint8(),
-    "char": pa.uint8(),
-    "int8": pa.int8(),
-    "uint8": pa.uint8(),
-    "int16": pa.int16(),
-    "uint16": pa.uint16(),
-    "int32": pa.int32(),
-    "uint32": pa.uint32(),
-    "int64": pa.int64(),
-    "uint64": pa.uint64(),
-    "float32": pa.float32(),
-    "float64": pa.float64(),
-    "string": pa.string(),
-    "wstring": pa.string(),
-}
+if TYPE_CHECKING:
+    import pyarrow as pa
+
+# pyarrow is imported where Arrow is made: `find` and `check` read columns as numpy only.
 TIME_COLUMNS = ("log_time", "publish_time")
+
+
+@functools.cache
+def _arrow_types() -> dict[str, pa.DataType]:
+    import pyarrow as pa
+
+    return {
+        "bool": pa.bool_(),
+        "byte": pa.uint8(),
+        "char": pa.uint8(),
+        "int8": pa.int8(),
+        "uint8": pa.uint8(),
+        "int16": pa.int16(),
+        "uint16": pa.uint16(),
+        "int32": pa.int32(),
+        "uint32": pa.uint32(),
+        "int64": pa.int64(),
+        "uint64": pa.uint64(),
+        "float32": pa.float32(),
+        "float64": pa.float64(),
+        "string": pa.string(),
+        "wstring": pa.string(),
+    }
 
 
 def arrow_type(leaf: LeafField) -> pa.DataType:
     """The Arrow type of a leaf's column (a list type for a pooled leaf)."""
-    scalar = _ARROW_TYPES[leaf.base]
+    import pyarrow as pa
+
+    scalar = _arrow_types()[leaf.base]
     return pa.list_(scalar) if leaf.pooled else scalar
 
 
 def arrow_schema(leaves: Sequence[LeafField]) -> pa.Schema:
     """``log_time``, ``publish_time`` (int64 ns), then one column per leaf."""
+    import pyarrow as pa
+
     return pa.schema(
         [pa.field(name, pa.int64(), nullable=False) for name in TIME_COLUMNS]
         + [pa.field(leaf.path, arrow_type(leaf)) for leaf in leaves]
@@ -106,6 +122,8 @@ class Rows:
 
     def batch(self, schema: pa.Schema) -> pa.RecordBatch:
         """The rows that decoded, as a record batch of ``schema``."""
+        import pyarrow as pa
+
         ok = self.ok if not self.ok.all() else slice(None)
         arrays = [self.log_times[ok], self.publish_times[ok], *(a[ok] for a in self.arrays)]
         return pa.RecordBatch.from_arrays(arrow_arrays(self.leaves, arrays, schema), schema=schema)
@@ -116,6 +134,8 @@ def arrow_arrays(
 ) -> list[pa.Array]:
     """``log_time``, ``publish_time`` and the leaf arrays as Arrow arrays of ``schema``
     (numbers without a copy)."""
+    import pyarrow as pa
+
     out = [pa.array(arrays[0]), pa.array(arrays[1])]
     for leaf, array, field in zip(leaves, arrays[2:], list(schema)[2:], strict=True):
         if leaf.pooled:
@@ -127,6 +147,8 @@ def arrow_arrays(
 
 def list_array(items: np.ndarray, leaf: LeafField, type_: pa.ListType) -> pa.Array:
     """A list column from per-message sequences (numpy arrays or lists), values copied."""
+    import pyarrow as pa
+
     if leaf.base in STRING_TYPES:
         return pa.array([list(x) for x in items], type=type_)
     dtype = np.dtype(PRIMITIVE_FORMATS[leaf.base])
@@ -151,6 +173,9 @@ class TopicColumns:
         matcher: only the messages it matches (``--where``); those it cannot decode are
             counted in its ``failures``.
 
+    It counts what it read: :attr:`messages` (in the window, before the matcher),
+    :attr:`undecodable`, and :attr:`unindexed` index entries pointing outside their chunk.
+
     Raises:
         SchemaError: the type cannot be decoded.
     """
@@ -171,14 +196,33 @@ class TopicColumns:
         self.matcher = matcher
         self.type_name = type_name
         self.leaves = list(leaves)
-        self.schema = arrow_schema(self.leaves)
         paths = [leaf.path for leaf in self.leaves]
-        self.read_values = types.value_reader(type_name, paths) if paths else None
+        check_registered(types.typestore, canonical)  # what the reader would raise, now
+        self._types = types
+        # The general reader is made when a payload needs it (a bulk-decoded topic never does).
+        self._read_values: ValueReader | None = None
         self.layout = CdrLayout.of(types.typestore, canonical) if bulk and paths else None
         self._column_of = {leaf.path: j for j, leaf in enumerate(self.leaves)}
+        self.messages = 0
         self.failures = 0
         self.first_failure = ""
         self.unindexed = 0
+
+    @functools.cached_property
+    def schema(self) -> pa.Schema:
+        """The Arrow schema of the topic's batches (made on first use: imports pyarrow)."""
+        return arrow_schema(self.leaves)
+
+    @property
+    def undecodable(self) -> int:
+        """Of the :attr:`messages` read, those that did not decode (in the condition's matcher
+        or into columns)."""
+        return self.failures + (self.matcher.undecodable if self.matcher else 0)
+
+    @property
+    def first_undecodable(self) -> str:
+        """Why the first of :attr:`undecodable` did not decode."""
+        return self.first_failure or (self.matcher.first_failure if self.matcher else "")
 
     def decode_chunk(
         self, records: bytes, index: np.ndarray, window: Window, reserve: Callable[[int], Rows]
@@ -186,6 +230,7 @@ class TopicColumns:
         """Decode the messages of this topic in one chunk into ``reserve(count)``."""
         spans = payload_spans(records, index, window.start_ns, window.end_ns)
         self.unindexed += spans.dropped
+        self.messages += len(spans.starts)
         if self.matcher is not None:
             spans = spans.take(self.matcher.mask_records(records, spans.starts, spans.lengths))
         return self.decode_spans(records, spans, reserve)
@@ -215,9 +260,12 @@ class TopicColumns:
     def _fill_general(
         self, columns: Rows, positions: list[int], payloads: Iterable[bytes | memoryview]
     ) -> None:
-        read = self.read_values
-        if read is None:
+        if not positions or not self.leaves:
             return
+        if self._read_values is None:
+            paths = [leaf.path for leaf in self.leaves]
+            self._read_values = self._types.value_reader(self.type_name, paths)
+        read = self._read_values
         rows: list[list[Any]] = []
         done: list[int] = []
         for position, data in zip(positions, payloads, strict=True):

@@ -150,7 +150,7 @@ def find_episodes(
         # Bulk columns (pyarrow): only for a condition over time, not at every find's start.
         from bagkit.data.streams import temporal_intervals
 
-        found, times, problems = temporal_intervals(
+        held = temporal_intervals(
             reader,
             trigger.topic,
             trigger.condition,
@@ -158,7 +158,11 @@ def find_episodes(
             trigger.topic in reader.topics and is_state_topic(reader, trigger.topic, state_topics),
         )
         return Episodes(
-            trigger.topic, interval_spans(found, times, None, gap_ns), len(times), 0, problems
+            trigger.topic,
+            interval_spans(held.found, held.log_times, None, gap_ns),
+            len(held.log_times) + held.undecodable,
+            held.undecodable,
+            held.problems,
         )
     matches = match_topic(reader, trigger.topic, trigger.condition, window)
     if is_state_topic(reader, matches.topic, state_topics):

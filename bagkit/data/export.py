@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import json
 import warnings
-from collections.abc import Callable
+from collections import Counter
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -46,12 +47,27 @@ class ExportReport:
         rows: topic -> rows written.
         skipped: topic -> why it was not exported (cannot be decoded).
         problems: what was lost (unreadable parts of the bag, messages that do not decode).
+        messages: topic -> its messages read (in the window, before the condition kept some).
+        undecodable: topic -> those of them that did not decode (not in the rows).
     """
 
     files: dict[str, list[Path]] = field(default_factory=dict)
     rows: dict[str, int] = field(default_factory=dict)
     skipped: dict[str, str] = field(default_factory=dict)
     problems: list[str] = field(default_factory=list)
+    messages: dict[str, int] = field(default_factory=dict)
+    undecodable: dict[str, int] = field(default_factory=dict)
+
+
+def none_decoded_topics(reports: Iterable[ExportReport]) -> dict[str, int]:
+    """Topic -> its messages, for the topics that had messages in the exports of ``reports``
+    (one bag's, or a fleet's) and decoded none of them in any."""
+    messages: Counter[str] = Counter()
+    undecodable: Counter[str] = Counter()
+    for report in reports:
+        messages.update(report.messages)
+        undecodable.update(report.undecodable)
+    return {t: n for t, n in messages.items() if 0 < n == undecodable[t]}
 
 
 def topic_path(out: Path, topic: str, suffix: str) -> Path:
@@ -108,6 +124,8 @@ def export(
     for topic, sink in sinks.items():
         report.files[topic] = sink.files
         report.rows[topic] = sink.rows
+        report.messages[topic] = scan.topics[topic].messages
+        report.undecodable[topic] = scan.topics[topic].undecodable
     return report
 
 

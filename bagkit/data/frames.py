@@ -56,18 +56,23 @@ def read_arrow(
         BagError: the bag cannot be opened. UnknownTopicError, UnknownFieldError,
         UndecodableTopicError.
     """
-    table, schema = _read(bag, _query(topic, fields, start, end, query), bulk=bulk)
+    table, schema = _read(bag, topic_query(topic, fields, start, end, query), bulk=bulk)
     return table.to_arrow(schema)
 
 
-def _query(
+def topic_query(
     topic: str,
     fields: Sequence[str] | None,
     start: TimeLike | None,
     end: TimeLike | None,
     query: Query | None,
 ) -> Query:
-    """The query of a call: its keywords, or ``query`` for ``topic``."""
+    """The query of a call that reads one topic: its keywords, or ``query`` for ``topic``.
+
+    Raises:
+        TypeError: both ``query`` and keywords are given.
+        SelectionError: a time does not parse.
+    """
     if query is None:
         return Query.create(topic, fields, start, end)
     if fields is not None or start is not None or end is not None:
@@ -111,5 +116,5 @@ def read_dataframe(
         >>> imu = bagkit.read_dataframe("flight1", "/imu/data", ["linear_acceleration.*"])
         >>> imu["linear_acceleration.z"].resample("1s").mean()
     """
-    table, schema = _read(bag, _query(topic, fields, start, end, query), bulk=bulk)
+    table, schema = _read(bag, topic_query(topic, fields, start, end, query), bulk=bulk)
     return table.to_pandas(schema)

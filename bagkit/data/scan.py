@@ -6,8 +6,7 @@ from collections.abc import Callable, Iterator
 from contextlib import closing
 from dataclasses import dataclass, field
 from functools import partial
-
-import pyarrow as pa
+from typing import TYPE_CHECKING
 
 from bagkit.bag import BagReader
 from bagkit.data.columns import Rows, TopicColumns
@@ -19,6 +18,9 @@ from bagkit.prefetch import prefetch
 from bagkit.selection.fields import select_fields
 from bagkit.selection.query import Query
 from bagkit.selection.windows import Window
+
+if TYPE_CHECKING:
+    import pyarrow as pa  # only the batches' type: find and check read numpy columns
 
 
 @dataclass(slots=True)
@@ -69,11 +71,11 @@ class Scan:
         """What was lost: unreadable parts of the bag, messages that do not decode."""
         found = list(self.reader.problems)
         for topic, columns in self.topics.items():
-            matcher = columns.matcher
-            failures = columns.failures + (matcher.undecodable if matcher else 0)
-            if failures:
-                first = columns.first_failure or (matcher.first_failure if matcher else "")
-                found.append(f"{topic}: {failures} messages could not be decoded ({first})")
+            if columns.undecodable:
+                found.append(
+                    f"{topic}: {columns.undecodable} messages could not be decoded "
+                    f"({columns.first_undecodable})"
+                )
             if columns.unindexed:
                 found.append(
                     f"{topic}: {columns.unindexed} index entries point outside their chunk"

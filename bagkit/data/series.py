@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import itertools
 import warnings
+from collections import Counter
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -64,6 +65,31 @@ def bag_labels(bags: Sequence[Path]) -> list[str]:
     return [str(bag) if names.count(bag.name) > 1 else bag.name for bag in bags]
 
 
+@dataclass(slots=True)
+class SeriesReading:
+    """What :func:`read_series` found: the series, what could not be read, and how many
+    messages of each (bag label, topic) were read and did not decode."""
+
+    series: list[Series] = field(default_factory=list)
+    problems: list[str] = field(default_factory=list)
+    """One line each, the bag's label first; each said once."""
+    messages: dict[tuple[str, str], int] = field(default_factory=dict)
+    """(bag label, topic) -> its messages read (in the window, before the condition)."""
+    undecodable: dict[tuple[str, str], int] = field(default_factory=dict)
+    """(bag label, topic) -> those of them that did not decode (not in the series)."""
+
+    def none_decoded(self) -> dict[str, int]:
+        """Topic -> its messages, for the topics that had messages in the bags and decoded
+        none of them in any."""
+        messages: Counter[str] = Counter()
+        undecodable: Counter[str] = Counter()
+        for (_, topic), count in self.messages.items():
+            messages[topic] += count
+        for (_, topic), count in self.undecodable.items():
+            undecodable[topic] += count
+        return {t: n for t, n in messages.items() if 0 < n == undecodable[t]}
+
+
 def load_series(
     bags: Sequence[str | Path],
     specs: Sequence[str],
@@ -71,9 +97,21 @@ def load_series(
     absolute: bool = False,
     query: Query | None = None,
 ) -> list[Series]:
+    """The series of :func:`read_series` (messages that do not decode left out)."""
+    return read_series(bags, specs, absolute=absolute, query=query).series
+
+
+def read_series(
+    bags: Sequence[str | Path],
+    specs: Sequence[str],
+    *,
+    absolute: bool = False,
+    query: Query | None = None,
+) -> SeriesReading:
     """Every numeric field that ``specs`` name, from every bag, in spec order, bag order;
     ``query``'s times resolved against each bag and its condition keeping the messages that
-    satisfy it (each spec's topic must have its fields); the specs name topics and fields.
+    satisfy it (each spec's topic must have its fields); the specs name topics and fields. A
+    topic none of whose messages decode in a bag gives no series there.
 
     Raises:
         BagError, UnknownTopicError, UnknownFieldError, UndecodableTopicError; DataError for
@@ -84,21 +122,25 @@ def load_series(
     query = query or Query()
     paths = [bag_path(bag) for bag in bags]
     per_spec: list[list[Series]] = [[] for _ in wanted]
+    reading = SeriesReading()
     for label, path in zip(bag_labels(paths), paths, strict=True):
         with BagReader(path, allow_empty=True) as reader:
             types = MessageTypes.for_bag(reader)
-            for found, (topic, field) in zip(per_spec, wanted, strict=True):
+            for found, (topic, field_glob) in zip(per_spec, wanted, strict=True):
                 found.extend(
                     _topic_series(
                         reader,
                         types,
                         (label, str(path)),
-                        (topic, field),
+                        (topic, field_glob),
                         query,
                         absolute,
+                        reading,
                     )
                 )
-    return [s for found in per_spec for s in found]
+    reading.series = [s for found in per_spec for s in found]
+    reading.problems = list(dict.fromkeys(reading.problems))
+    return reading
 
 
 def _topic_series(  # noqa: PLR0917 (private, called once)
@@ -108,10 +150,12 @@ def _topic_series(  # noqa: PLR0917 (private, called once)
     spec: tuple[str, str],
     query: Query,
     absolute: bool,
+    reading: SeriesReading,
 ) -> list[Series]:
-    (topic,), field = require_topics([spec[0]], reader.topics), spec[1]
+    """The series of one spec in one bag; its counts and problems go into ``reading``."""
+    (topic,), field_glob = require_topics([spec[0]], reader.topics), spec[1]
     label, given = labels  # the legend's short name; the path as given, for warnings
-    scan = plan_scan(reader, replace(query, topics=(topic,), fields=(field,)), label=given)
+    scan = plan_scan(reader, replace(query, topics=(topic,), fields=(field_glob,)), label=given)
     if scan.outside is not None:
         warnings.warn(scan.outside, EmptyWindowWarning, stacklevel=3)
     if topic in scan.skipped:
@@ -121,7 +165,14 @@ def _topic_series(  # noqa: PLR0917 (private, called once)
         if leaf.pooled or leaf.base in STRING_TYPES:
             kind = "a variable-length sequence" if leaf.pooled else "a string"
             raise DataError(f"{topic}:{leaf.path} is {kind}, not a number over time")
-    batches = [batch for _, batch in scan.batches()]
+    batches = [batch for _, batch in scan.batches() if batch.num_rows]
+    key = (label, topic)
+    reading.messages[key] = columns.messages
+    # Another spec of the topic read other fields: the topic decoded something if one did.
+    reading.undecodable[key] = min(
+        reading.undecodable.get(key, columns.undecodable), columns.undecodable
+    )
+    reading.problems.extend(p if p.startswith(label) else f"{label}: {p}" for p in scan.problems)
     if not batches:
         return []
     log_times = np.concatenate([b.column("log_time").to_numpy() for b in batches])

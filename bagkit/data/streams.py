@@ -9,6 +9,7 @@ durability (latched), or when named in ``state_topics``.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 
@@ -59,7 +60,8 @@ class BagStream:
             wanted.extend(_numeric(self._numeric_paths(topic), subtree_leaves(path, paths)))
         self._paths = paths
         self.problems: list[str] = []
-        self.log_times, self._columns = self._read(topic, sorted(set(wanted)))
+        self.log_times, self._columns, self.undecodable = self._read(topic, sorted(set(wanted)))
+        """Its messages that did not decode (not in the log times)."""
 
     def _leaf_paths(self, topic: str) -> list[str]:
         return [leaf.path for leaf in self._leaves(topic)]
@@ -79,18 +81,20 @@ class BagStream:
             if not leaf.pooled and leaf.base not in ("string", "wstring")
         }
 
-    def _read(self, topic: str, names: list[str]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    def _read(self, topic: str, names: list[str]) -> tuple[np.ndarray, dict[str, np.ndarray], int]:
+        """Log times and columns of the messages that decoded, and how many did not."""
         if not names:  # only log times (gap, rate): from the indexes when they tell
             times = self.reader.index_log_times(topic, self.window.start_ns, self.window.end_ns)
             if times is not None:
-                return times, {}
+                return times, {}, 0
         leaves = [leaf for leaf in self._leaves(topic) if leaf.path in names]
         info = self.reader.topics[topic]
         columns = TopicColumns(self.types.for_topic(topic), topic, info.type, leaves)
         scan = Scan(self.reader, self.window, {topic: columns})
         arrays = scan.table(topic).columns()
-        self.problems = scan_problems(columns)
-        return arrays[0], {leaf.path: a for leaf, a in zip(leaves, arrays[2:], strict=True)}
+        self.problems.extend(scan_problems(columns))
+        values = {leaf.path: a for leaf, a in zip(leaves, arrays[2:], strict=True)}
+        return arrays[0], values, columns.undecodable
 
     def mask(self, node: Expression) -> np.ndarray:
         """Which messages satisfy a stateless part of the condition."""
@@ -119,7 +123,7 @@ class BagStream:
         names = _numeric(self._numeric_paths(topic), subtree_leaves(path, self._leaf_paths(topic)))
         if not names:
             raise UnknownFieldError(f"no field {path_text(path)!r} in {topic}")
-        times, columns = self._read(topic, names)
+        times, columns, _ = self._read(topic, names)
         values = np.stack([columns[n].astype(np.float64) for n in names], axis=1)
         return times, stamps(values)
 
@@ -157,21 +161,34 @@ def scan_problems(columns: TopicColumns) -> list[str]:
     return found
 
 
+class TopicIntervals(NamedTuple):
+    """Where a condition over time holds over a topic (:func:`temporal_intervals`)."""
+
+    found: np.ndarray
+    """The intervals (:mod:`bagkit.selection.intervals`)."""
+    log_times: np.ndarray
+    """The log times of the topic's messages that decoded."""
+    problems: list[str]
+    """What could not be read, one line each."""
+    undecodable: int
+    """The topic's messages that did not decode."""
+
+
 def temporal_intervals(
     reader: BagReader,
     topic: str,
     condition: Condition,
     window: Window,
     state: bool = False,
-) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """Where ``condition`` holds over ``topic`` in ``window`` of an open bag: the intervals
-    (:mod:`bagkit.selection.intervals`), the topic's log times, and what could not be read.
+) -> TopicIntervals:
+    """Where ``condition`` holds over ``topic`` in ``window`` of an open bag.
 
     Raises:
         UnknownTopicError, UnknownFieldError, UndecodableTopicError, SelectionError.
     """
-    (found,), times, problems = intervals_of_each(reader, topic, [condition], window, state)
-    return found, times, problems
+    (found,), stream = _evaluate(reader, topic, [condition], window, state)
+    problems = [*reader.problems, *stream.problems]
+    return TopicIntervals(found, stream.log_times, problems, stream.undecodable)
 
 
 def intervals_of_each(
@@ -187,6 +204,18 @@ def intervals_of_each(
     Raises:
         UnknownTopicError, UnknownFieldError, UndecodableTopicError, SelectionError.
     """
+    found, stream = _evaluate(reader, topic, conditions, window, state)
+    return found, stream.log_times, [*reader.problems, *stream.problems]
+
+
+def _evaluate(
+    reader: BagReader,
+    topic: str,
+    conditions: Sequence[Condition],
+    window: Window,
+    state: bool,
+) -> tuple[list[np.ndarray], BagStream]:
+    """The intervals of each condition, and the stream they were evaluated over."""
     (topic,) = require_topics([topic], reader.topics)
     every = Condition(
         " or ".join(f"({c.text})" for c in conditions),
@@ -200,7 +229,7 @@ def intervals_of_each(
         evaluate(c.tree, stream, scope) if reader.message_count else intervals.NONE
         for c in conditions
     ]
-    return found, stream.log_times, [*reader.problems, *stream.problems]
+    return found, stream
 
 
 def _stateless_parts(tree: Expression) -> list[Expression]:

@@ -11,13 +11,13 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
-import pyarrow as pa
 
 from bagkit.data.columns import Rows, arrow_arrays, list_array, numpy_dtype
 from bagkit.decode import LeafField
 
 if TYPE_CHECKING:
     import pandas as pd
+    import pyarrow as pa
 
 
 class ColumnTable:
@@ -61,6 +61,8 @@ class ColumnTable:
 
     def to_arrow(self, schema: pa.Schema) -> pa.Table:
         """The table (numeric columns shared with the arrays, not copied)."""
+        import pyarrow as pa
+
         return pa.Table.from_arrays(
             arrow_arrays(self.leaves, self.columns(), schema), schema=schema
         )
@@ -68,6 +70,7 @@ class ColumnTable:
     def to_pandas(self, schema: pa.Schema) -> pd.DataFrame:
         """A DataFrame of :meth:`columns` (numeric columns not copied), log time as index."""
         import pandas as pd
+        import pyarrow as pa
 
         arrays = self.columns()
         data: dict[str, object] = {"log_time": arrays[0], "publish_time": arrays[1]}

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from rosbags.interfaces import Nodetype
@@ -124,6 +124,11 @@ class CdrLayout:
     """The slots of a message type in CDR order."""
 
     slots: tuple[Slot, ...]
+    # resolve()'s answers per set of length prefixes (up to MAX_CACHED_MASKS: the lengths
+    # come from the payloads); every batch of a topic asks the same few again.
+    _resolved: dict[tuple[int, ...], ResolvedLayout | NeedLength] = field(
+        default_factory=dict, compare=False, repr=False
+    )
 
     @classmethod
     def of(cls, typestore: Typestore, typename: str) -> CdrLayout | None:
@@ -148,6 +153,14 @@ class CdrLayout:
         ``lengths`` are the values of the first prefixes in order (for strings: bytes including
         the terminating NUL, as CDR stores them).
         """
+        found = self._resolved.get(lengths)
+        if found is None:
+            found = self._resolve(lengths)
+            if len(self._resolved) < MAX_CACHED_MASKS:
+                self._resolved[lengths] = found
+        return found
+
+    def _resolve(self, lengths: tuple[int, ...]) -> ResolvedLayout | NeedLength:
         placed = self._place(lengths)
         if isinstance(placed, NeedLength):
             return placed

@@ -39,6 +39,39 @@ if TYPE_CHECKING:
     from bagkit.bag.reader import BagReader
 
 
+class _MessageClasses(dict[str, type]):
+    """Type name -> message class, each made on first lookup from the typestore's definitions.
+
+    Only decoding into objects needs the classes (rosbags' deserializers and converters look
+    them up here); the bulk and direct readers never do, and making one costs about 1 ms, more
+    than a small bag's reading for a bag of twenty types.
+    """
+
+    def __init__(self, fielddefs: Mapping[str, Any]) -> None:
+        super().__init__()
+        self._fielddefs = fielddefs
+
+    def __missing__(self, typename: str) -> type:
+        definition = self._fielddefs.get(typename)
+        if definition is None:
+            raise KeyError(typename)
+        made = self[typename] = _message_class(typename, definition)
+        return made
+
+    def __contains__(self, typename: object) -> bool:
+        return typename in self._fielddefs
+
+    def get(self, typename: str, default: Any = None) -> Any:
+        return self[typename] if typename in self._fielddefs else default
+
+
+def _typestore() -> Typestore:
+    """An empty typestore whose message classes are made on first use."""
+    store = Typestore()
+    store.types = _MessageClasses(store.fielddefs)
+    return store
+
+
 @dataclass(slots=True)
 class MessageTypes:
     """The message types of one or more bags, decodable from their stored definitions.
@@ -52,7 +85,7 @@ class MessageTypes:
     ``types.for_topic(topic)``.
     """
 
-    typestore: Typestore = field(default_factory=Typestore)
+    typestore: Typestore = field(default_factory=_typestore)
     problems: dict[str, str] = field(default_factory=dict)
     # Topics whose schema holds another text for their type: (type, text), parsed on first use.
     _topic_texts: dict[str, tuple[str, str]] = field(default_factory=dict)
@@ -128,8 +161,7 @@ class MessageTypes:
         fielddefs: dict[str, Any] = self.typestore.fielddefs
         for typename, definition in parsed.items():
             if typename not in fielddefs:
-                self.typestore.types[typename] = _message_class(typename, definition)
-                fielddefs[typename] = definition
+                fielddefs[typename] = definition  # its class is made on first use
 
     def resolve(self, name: str) -> str:
         """The typestore name of bag type ``name``.
@@ -213,10 +245,14 @@ class MessageTypes:
         """
         canonical = self.resolve(name)
         getter = field_getter(self.typestore, canonical, tuple(paths))
-        decode = self.decoder(name)
+        # The object path is made on first use: generating rosbags' deserializer costs more
+        # than a small bag's reading, and the direct reader rarely falls back to it.
+        decoders: list[Callable[[bytes | memoryview], object]] = []
 
         def through_objects(data: bytes | memoryview) -> list[FlatValue]:
-            return getter(decode(data))
+            if not decoders:
+                decoders.append(self.decoder(name))  # SchemaError: a DecodeError per message
+            return getter(decoders[0](data))
 
         return value_reader(self.typestore, canonical, paths, through_objects)
 

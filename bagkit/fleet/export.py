@@ -24,7 +24,7 @@ from bagkit.errors import BagkitError
 from bagkit.fleet.errors import FleetError
 from bagkit.fleet.execute import ItemDone, run_each
 from bagkit.selection.query import Query
-from bagkit.storage.urls import is_url
+from bagkit.storage.urls import is_url, location, path_part, shown_as
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -47,7 +47,7 @@ def bag_folders(bags: Sequence[str | Path], out: Path) -> list[Path]:
         FleetError: two bags would share a folder (``a.mcap`` beside a directory ``a``).
     """
     if any(is_url(bag) for bag in bags):  # in storage: by the URLs' paths
-        names = [str(getattr(bag, "url", bag)).split("://", 1)[-1] for bag in bags]
+        names = [path_part(location(bag)).split("://", 1)[-1] for bag in bags]
         common_url = posixpath.commonpath([posixpath.dirname(n) for n in names])
         folders = [out / _stem(posixpath.relpath(n, common_url)) for n in names]
     else:
@@ -74,9 +74,10 @@ def _stem(name: str) -> str:
 
 def export_bag(job: tuple[str, Path], **options: Any) -> BagExport:
     """Export one bag (what a worker runs); ``options`` as :func:`bagkit.data.export.export`."""
-    bag, out = job
+    path, out = job
+    bag = shown_as(path)  # opened in full, named without a URL's secrets
     try:
-        report = export(bag, out, **options)
+        report = export(path, out, **options)
     except BagkitError as exc:
         return BagExport(bag, out, error=str(exc))
     return BagExport(bag, out, report=report)
@@ -110,5 +111,5 @@ def export_fleet(
         query=query,
         dataset=dataset,
     )
-    jobs = [(str(bag), folder) for bag, folder in zip(bags, folders, strict=True)]
+    jobs = [(location(bag), folder) for bag, folder in zip(bags, folders, strict=True)]
     return run_each(task, jobs, client, done)

@@ -25,6 +25,7 @@ from bagkit.selection.errors import UnknownTopicError
 from bagkit.selection.query import Query
 from bagkit.selection.topics import absolute_topic_name, require_topics
 from bagkit.storage.errors import StorageError
+from bagkit.storage.urls import location, shown_as
 
 if TYPE_CHECKING:
     import pyarrow as pa
@@ -84,6 +85,10 @@ class BagEpisodes:
     error: str | None = None
     start_ns: int = 0
     """The log time of the bag's first message."""
+    messages: int = 0
+    """The topic's messages looked at (in the window)."""
+    undecodable: int = 0
+    """Those of them that did not decode (never matched)."""
 
 
 @dataclass(slots=True)
@@ -101,6 +106,15 @@ class FindResult:
     problems: list[str]
     unread: int = 0
     """Bags that could not be read at all."""
+    messages: int = 0
+    """The topic's messages looked at in every bag (in the window)."""
+    undecodable: int = 0
+    """Those of them that did not decode (never matched)."""
+
+    @property
+    def none_decoded(self) -> bool:
+        """The topic had messages and none of them decoded, in any bag."""
+        return 0 < self.messages == self.undecodable
 
     @property
     def count(self) -> int:
@@ -157,8 +171,9 @@ def episodes_in_bag(
         UnknownFieldError, SelectionError: the condition does not fit the topic's type.
     """
     trigger = parse_topic_condition(when)
+    path, bag = bag, shown_as(bag)  # opened in full, named without a URL's secrets
     try:
-        with BagReader(bag, allow_empty=True) as reader:
+        with BagReader(path, allow_empty=True) as reader:
             resolved = (query or Query()).resolve(reader, label=bag)
             outside = resolved.outside
             try:
@@ -170,7 +185,14 @@ def episodes_in_bag(
     problems = [p if p.startswith(bag) else f"{bag}: {p}" for p in found.problems]
     if outside is not None:
         problems.insert(0, outside)
-    return BagEpisodes(bag, found.spans, problems=problems, start_ns=reader.start_ns)
+    return BagEpisodes(
+        bag,
+        found.spans,
+        problems=problems,
+        start_ns=reader.start_ns,
+        messages=found.messages,
+        undecodable=found.undecodable,
+    )
 
 
 def find_fleet(
@@ -200,7 +222,7 @@ def find_fleet(
             the topic.
     """
     trigger = parse_topic_condition(when)
-    paths = [str(bag) for bag in bags]
+    paths = [location(bag) for bag in bags]
     state_topics = tuple(absolute_topic_name(t) for t in state_topics)
     task = functools.partial(
         episodes_in_bag, when=when, gap_ns=gap_ns, query=query, state_topics=state_topics
@@ -218,4 +240,11 @@ def find_fleet(
             problems.append(f"{part.bag}: not read: {part.error}")
         problems.extend(part.problems)
     found = [part for part in readable if len(part.spans)]
-    return FindResult(trigger.topic, found, problems, len(parts) - len(readable))
+    return FindResult(
+        trigger.topic,
+        found,
+        problems,
+        len(parts) - len(readable),
+        sum(part.messages for part in readable),
+        sum(part.undecodable for part in readable),
+    )

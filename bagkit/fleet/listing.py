@@ -53,9 +53,12 @@ class FolderInfo:
         }
 
 
-def folder_info(root: str | Path, *, check_crc: bool = True) -> FolderInfo | None:
+def folder_info(
+    root: str | Path, *, check_crc: bool = True, exact_rates: bool | None = None
+) -> FolderInfo | None:
     """The bags under ``root`` (a directory or a URL prefix), or None when ``root`` is no
-    folder of bags (a bag itself, a file, or a folder holding no bag)."""
+    folder of bags (a bag itself, a file, or a folder holding no bag); ``exact_rates`` as
+    :func:`~bagkit.bag.info.bag_info` takes it."""
     text = str(getattr(root, "url", root))
     if is_url(text):
         paths = url_bags(text, STORAGE_SUFFIXES, BAG_FILE_SUFFIXES)
@@ -70,7 +73,8 @@ def folder_info(root: str | Path, *, check_crc: bool = True) -> FolderInfo | Non
     found = FolderInfo(text)
     # Bags in storage are read a few at a time: each is a few requests that mostly wait.
     with ThreadPoolExecutor(REMOTE_READERS if is_url(text) else 1) as pool:
-        for path, result in zip(paths, pool.map(_described, paths, repeat(check_crc)), strict=True):
+        described = pool.map(_described, paths, repeat(check_crc), repeat(exact_rates))
+        for path, result in zip(paths, described, strict=True):
             if isinstance(result, BagInfo):
                 found.bags.append(result)
             else:
@@ -78,9 +82,9 @@ def folder_info(root: str | Path, *, check_crc: bool = True) -> FolderInfo | Non
     return found
 
 
-def _described(path: str, check_crc: bool) -> BagInfo | str:
+def _described(path: str, check_crc: bool, exact_rates: bool | None) -> BagInfo | str:
     """The bag's info, or why it could not be read."""
     try:
-        return bag_info(path, check_crc=check_crc)
+        return bag_info(path, check_crc=check_crc, exact_rates=exact_rates)
     except (BagError, StorageError) as exc:
         return str(exc)

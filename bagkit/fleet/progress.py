@@ -12,7 +12,7 @@ from types import TracebackType
 from typing import TYPE_CHECKING
 
 from bagkit.storage.paths import remembered_size
-from bagkit.storage.urls import is_url
+from bagkit.storage.urls import is_url, location
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -22,7 +22,7 @@ def bag_size(path: str | Path) -> int:
     """Bytes of a bag (its files for a directory); 0 where it cannot be read (in storage:
     what the listing that found it said, no request)."""
     if is_url(path):
-        return remembered_size(str(path))
+        return remembered_size(location(path))
     path = Path(path)
     try:
         if path.is_dir():

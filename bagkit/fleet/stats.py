@@ -10,6 +10,7 @@ rounding. A bag that cannot be read is reported in ``problems``; the others are 
 
 from __future__ import annotations
 
+import contextlib
 import functools
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
@@ -19,12 +20,13 @@ from typing import TYPE_CHECKING
 from bagkit.bag import BagError, BagReader
 from bagkit.fleet.errors import FleetError
 from bagkit.fleet.execute import ItemDone, run_each
-from bagkit.selection.query import Query
-from bagkit.selection.topics import absolute_topic_name
+from bagkit.selection.errors import UnknownTopicError
+from bagkit.selection.query import Query, resolve_names
 from bagkit.stats import StatsError, Summary
 from bagkit.stats.accumulate import TopicAccumulator
 from bagkit.stats.summary import SummaryRun, check_topics, finish_summary
 from bagkit.storage.errors import StorageError
+from bagkit.storage.urls import location, shown_as
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -36,7 +38,8 @@ class BagPartial:
 
     Attributes:
         bag: the bag as given.
-        topics: every topic of the bag (to check ``topics=`` against all the bags).
+        topics: every topic of the bag and its type (to resolve the query's names against all
+            the bags).
         accumulators: the running figures per summarized topic.
         skipped: topic -> why its messages could not be decoded.
         problems: what could not be read in the bag.
@@ -44,7 +47,7 @@ class BagPartial:
     """
 
     bag: str
-    topics: frozenset[str] = frozenset()
+    topics: dict[str, str] = field(default_factory=dict)
     accumulators: dict[str, TopicAccumulator] = field(default_factory=dict)
     skipped: dict[str, str] = field(default_factory=dict)
     problems: list[str] = field(default_factory=list)
@@ -58,17 +61,32 @@ def summarize_bag(
     bulk: bool = True,
     check_crc: bool = True,
 ) -> BagPartial:
-    """The partial summary of one bag (what a worker computes); arguments as ``summarize``."""
+    """The partial summary of one bag (what a worker computes); arguments as ``summarize``.
+
+    The query's names that this bag has are summarized (a service's or action's name resolved
+    as ``echo`` resolves it); :func:`merge_partials` checks each is in one of the bags.
+    """
     query = query or Query()
-    topics = list(query.topics) or None
     run = SummaryRun.of(query, bulk=bulk, prefetch=False)
+    path, bag = bag, shown_as(bag)  # opened in full, named without a URL's secrets
     try:
-        with BagReader(bag, allow_empty=True, check_crc=check_crc) as reader:
-            run.read(reader, topics, bag)
-            names = frozenset(reader.topics)
+        with BagReader(path, allow_empty=True, check_crc=check_crc) as reader:
+            types = {name: info.type for name, info in reader.topics.items()}
+            run.read(reader, _present(query.topics, types), bag)
     except (BagError, StorageError) as exc:
         return BagPartial(bag, error=str(exc))
-    return BagPartial(bag, names, run.accumulators, run.skipped, run.problems)
+    return BagPartial(bag, types, run.accumulators, run.skipped, run.problems)
+
+
+def _present(names: Sequence[str], topic_types: dict[str, str]) -> list[str] | None:
+    """The topics of ``names`` that a bag has (None: all, when no name is given)."""
+    if not names:
+        return None
+    found: list[str] = []
+    for name in names:
+        with contextlib.suppress(UnknownTopicError):
+            found += resolve_names([name], topic_types)
+    return found
 
 
 def _merge_topic(into: TopicAccumulator, other: TopicAccumulator, bag: str) -> None:
@@ -125,7 +143,7 @@ def merge_partials(parts: Sequence[BagPartial], query: Query | None = None) -> S
     if not readable:
         raise FleetError(f"no bag could be read ({parts[0].error if parts else 'no bag given'})")
     query = query or Query()
-    known = set().union(*(part.topics for part in readable))
+    known = {name: kind for part in readable for name, kind in part.topics.items()}
     check_topics(known, list(query.topics) or None, len(parts))
     run = SummaryRun.of(query, prefetch=False)
     for part in parts:
@@ -153,9 +171,8 @@ def summarize_fleet(
     Raises:
         As :func:`merge_partials`.
     """
-    paths = [str(bag) for bag in bags]
+    paths = [location(bag) for bag in bags]
     query = query or Query()
-    query = query.with_topics(absolute_topic_name(topic) for topic in query.topics)
     task = functools.partial(summarize_bag, query=query, bulk=bulk, check_crc=check_crc)
     parts = run_each(task, paths, client, done)
     return merge_partials(parts, query)

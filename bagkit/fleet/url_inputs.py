@@ -9,7 +9,7 @@ from collections.abc import Iterator
 from bagkit.fleet.errors import NoBagsError
 from bagkit.storage.paths import UrlPath
 from bagkit.storage.transfer import objects_under
-from bagkit.storage.urls import joined
+from bagkit.storage.urls import joined, path_part, scheme
 
 
 def url_bags(
@@ -25,9 +25,17 @@ def url_bags(
     Raises:
         NoBagsError: nothing at ``url``. Other StorageErrors: the store refused the listing.
     """
-    if url.rstrip("/").endswith(bag_suffixes):
-        return [url]
+    if path_part(url).rstrip("/").endswith(bag_suffixes):
+        return [url]  # a file (a presigned URL's query kept)
     prefix = UrlPath(url)
+    if scheme(url) in ("http", "https"):
+        # No listing: what fsspec lists of an HTTP URL is the links of a page, not objects.
+        if prefix.is_dir():  # a bag's prefix, known by its metadata.yaml
+            return [url]
+        raise NoBagsError(
+            f"{prefix}: no bag there (an HTTP server lists no prefixes: name each bag, by its "
+            ".mcap file or the prefix holding its metadata.yaml)"
+        )
     names = [o.relative_to(prefix) for o in objects_under(prefix)]
     if not names:
         if prefix.is_file() or prefix.is_dir():  # HTTP: a bag's prefix, known by metadata.yaml

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -29,9 +29,11 @@ from bagkit.health import links
 from bagkit.health.links import filter_command, foxglove_link, play_command
 from bagkit.health.spec import HealthSpec, SpecError, TopicContract
 from bagkit.selection.errors import SelectionError
-from bagkit.selection.topics import did_you_mean
-from bagkit.selection.windows import Window
+from bagkit.selection.query import Query
+from bagkit.selection.topics import did_you_mean, require_topics
+from bagkit.selection.windows import Window, outside_warning
 from bagkit.storage.errors import StorageError
+from bagkit.storage.urls import location, shown_as
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -180,17 +182,26 @@ class CheckResult:
         return [report.to_dict() for report in self.reports]
 
 
-def check_bag(bag: str | Path, spec: HealthSpec) -> HealthReport:
-    """Evaluate ``spec`` on ``bag``.
+def check_bag(bag: str | Path, spec: HealthSpec, query: Query | None = None) -> HealthReport:
+    """Evaluate ``spec`` on ``bag``; with a ``query``, only the contracts of its topics (see
+    :func:`restrict`) over the messages of its window (a window outside the bag is a problem).
 
     Raises:
         BagError: the bag cannot be read; SpecError: a condition names a field the topic's
             type lacks (or compares text with a number).
     """
     found: list[Assertion] = []
-    with BagReader(bag, allow_empty=True) as reader:
+    with BagReader(location(bag), allow_empty=True) as reader:
         problems = list(reader.problems)
-        counts = reader.topic_counts
+        window = Window()
+        if query is not None:
+            spec = restrict(spec, query)
+            window = query.span.resolve(reader.start_ns, reader.end_ns)
+            if reader.message_count:
+                label = shown_as(location(bag))  # a URL named without its secrets
+                outside = outside_warning(label, window, reader.start_ns, reader.end_ns)
+                problems += [outside] if outside else []
+        counts = _counts(reader, [*spec.forbidden, *(c.topic for c in spec.topics)], window)
         for topic in spec.forbidden:
             present = counts.get(topic, 0) > 0
             reason = f"{counts.get(topic, 0)} messages" if present else ""
@@ -198,7 +209,7 @@ def check_bag(bag: str | Path, spec: HealthSpec) -> HealthReport:
         for contract in spec.topics:
             topic = contract.topic
             if not counts.get(topic, 0):
-                reason = "no message"
+                reason = "no message" if not window.bounded else "no message in the window"
                 if topic not in reader.topics:  # a misspelling reads as a broken contract
                     guess = did_you_mean(topic, reader.topics).rstrip()
                     reason = f"not in the bag{'; ' + guess if guess else ''}"
@@ -218,7 +229,7 @@ def check_bag(bag: str | Path, spec: HealthSpec) -> HealthReport:
                     reader,
                     topic,
                     [condition for _, condition in contract.never],
-                    Window(),
+                    window,
                     is_state_topic(reader, topic),
                 )
             except SelectionError as exc:
@@ -227,7 +238,41 @@ def check_bag(bag: str | Path, spec: HealthSpec) -> HealthReport:
             for (text, _), where in zip(contract.never, broken, strict=True):
                 spans = interval_spans(where, times)
                 found.append(Assertion(topic, text, not len(spans), spans))
-        return HealthReport(str(bag), reader.start_ns, found, problems)
+        return HealthReport(shown_as(location(bag)), reader.start_ns, found, problems)
+
+
+def restrict(spec: HealthSpec, query: Query) -> HealthSpec:
+    """The contracts of ``spec`` on the query's topics (all when it names none).
+
+    Raises:
+        UnknownTopicError: a topic is not in the contract; the message names the closest.
+    """
+    if not query.topics:
+        return spec
+    named = [c.topic for c in spec.topics] + list(spec.forbidden)
+    wanted = set(require_topics(query.topics, named, f"the contract {spec.source}".rstrip()))
+    return replace(
+        spec,
+        topics=tuple(c for c in spec.topics if c.topic in wanted),
+        forbidden=tuple(t for t in spec.forbidden if t in wanted),
+    )
+
+
+def _counts(reader: BagReader, topics: list[str], window: Window) -> dict[str, int]:
+    """Each topic's messages in ``window`` (from the indexes where they tell)."""
+    if not window.bounded:
+        return reader.topic_counts
+    counts = {}
+    for topic in topics:
+        if topic not in reader.topics:
+            continue
+        times = reader.index_log_times(topic, window.start_ns, window.end_ns)
+        counts[topic] = (
+            len(times)
+            if times is not None
+            else sum(1 for _ in reader.messages([topic], window.start_ns, window.end_ns))
+        )
+    return counts
 
 
 def _field_error(
@@ -246,12 +291,14 @@ def _field_error(
     return SpecError(f"{spec.source}: {contract.topic}: {error}")
 
 
-def _check_one(bag: str, *, spec: HealthSpec, url: str | None) -> HealthReport:
+def _check_one(
+    bag: str, *, spec: HealthSpec, url: str | None, query: Query | None = None
+) -> HealthReport:
     """What a worker runs: the report of one bag, or why it could not be read."""
     try:
-        report = check_bag(bag, spec)
+        report = check_bag(bag, spec, query)
     except (BagError, StorageError) as exc:
-        return HealthReport(bag, 0, [], error=str(exc))
+        return HealthReport(shown_as(bag), 0, [], error=str(exc))
     report.bags_url = url
     return report
 
@@ -263,12 +310,14 @@ def check_bags(
     client: Client | None = None,
     done: ItemDone | None = None,
     bags_url: str | None = None,
+    query: Query | None = None,
 ) -> CheckResult:
     """Evaluate a health contract on bags, on ``client``'s Dask workers (here when None).
 
     Args:
         bags: a bag, or bags (directories or ``.mcap`` files).
         spec: the contract, or the path of its YAML file.
+        query: only the contracts of its topics, over its window (as :func:`check_bag`).
         done: called with the index of each bag once it is checked.
         bags_url: where the bags are served over HTTP(S) (default ``$BAGKIT_BAGS_URL``): each
             failure then gets a Foxglove link to its moment.
@@ -276,11 +325,15 @@ def check_bags(
     Raises:
         SpecError: the spec cannot be used (before any bag is read), or a condition names a
             field the topic's type lacks.
+        UnknownTopicError: a topic of ``query`` is not in the contract (before any bag is
+            read).
     """
     if not isinstance(spec, HealthSpec):
         spec = HealthSpec.load(spec)
+    if query is not None:
+        restrict(spec, query)  # an unknown topic is one error before any bag is read
     paths = _paths(bags)
-    task = functools.partial(_check_one, spec=spec, url=links.bags_url(bags_url))
+    task = functools.partial(_check_one, spec=spec, url=links.bags_url(bags_url), query=query)
     return CheckResult(run_each(task, paths, client, done))
 
 
@@ -291,11 +344,12 @@ def check(
     workers: int | None = 0,
     scheduler: str | None = None,
     bags_url: str | None = None,
+    query: Query | None = None,
 ) -> CheckResult:
     """``bagkit.check``: evaluate a health contract on bags, here or on Dask.
 
     Args:
-        bags, spec, bags_url: as :func:`check_bags`.
+        bags, spec, bags_url, query: as :func:`check_bags`.
         workers: local Dask worker processes (0: in this process; None: a local cluster
             where the bags are enough work to pay for its start).
         scheduler: the address of a ``dask.distributed`` scheduler to run on.
@@ -309,6 +363,8 @@ def check(
 
     if not isinstance(spec, HealthSpec):
         spec = HealthSpec.load(spec)  # before any cluster starts
+    if query is not None:
+        restrict(spec, query)  # an unknown topic too
     paths = _paths(bags)
     with fleet_client(
         workers=workers,
@@ -317,8 +373,8 @@ def check(
         size_bytes=sum(bag_size(path) for path in paths),
         rate=CHECK_RATE,
     ) as client:
-        return check_bags(paths, spec, client=client, bags_url=bags_url)
+        return check_bags(paths, spec, client=client, bags_url=bags_url, query=query)
 
 
 def _paths(bags: Iterable[str | Path] | str | Path) -> list[str]:
-    return [str(bags)] if isinstance(bags, str | Path) else [str(bag) for bag in bags]
+    return [location(bags)] if isinstance(bags, str | Path) else [location(bag) for bag in bags]

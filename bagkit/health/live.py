@@ -27,6 +27,7 @@ from bagkit.bag.definitions import canonical_type_name
 from bagkit.bag.latched import is_transient_local
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
 from bagkit.decode.direct import ValueReader
+from bagkit.errors import OptionError
 from bagkit.health.spec import HealthSpec, SpecError, TopicContract
 from bagkit.recording.health_watch import HealthCount, HealthEvent
 from bagkit.selection.condition_terms import (
@@ -106,9 +107,13 @@ class LiveHealth:
 
     Args:
         spec: the contract.
-        trigger: a check that breaks triggers a snapshot (``--trigger-on-health``).
-        stop_after_s: stop once a check has been broken this long (``--stop-on-health``).
+        trigger: a check that breaks triggers a snapshot (the recorder must be in snapshot
+            mode).
+        stop_after_ns: stop once a check has been broken this long (None: never).
         on_event: called with each check that breaks or clears (from the writer thread).
+
+    Raises:
+        OptionError: ``stop_after_ns`` is not positive (the error names the field).
     """
 
     def __init__(
@@ -116,12 +121,14 @@ class LiveHealth:
         spec: HealthSpec,
         *,
         trigger: bool = False,
-        stop_after_s: float | None = None,
+        stop_after_ns: int | None = None,
         on_event: Callable[[HealthEvent], None] | None = None,
     ) -> None:
         self.spec = spec
         self.trigger = trigger
-        self.stop_after_ns = None if stop_after_s is None else int(stop_after_s * 1e9)
+        if stop_after_ns is not None and stop_after_ns <= 0:
+            raise OptionError(f"must be positive, got {stop_after_ns}", "stop_after_ns")
+        self.stop_after_ns = stop_after_ns
         self._on_event = on_event
         self._forbidden = {topic: HealthCount(topic, "forbidden") for topic in spec.forbidden}
         self._topics: dict[str, _Topic] = {}

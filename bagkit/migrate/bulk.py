@@ -22,6 +22,11 @@ from bagkit.decode.layout import CDR_LE, U32, CdrLayout, NeedLength, ResolvedLay
 
 _EMPTY_STRING = 1  # a CDR string's length counts its NUL
 
+# Payloads handed out as groups ``(indexes, rows)``: ``rows[i]`` (a row of a 2-D uint8 array,
+# one size per group) holds the payload at ``indexes[i]`` of the batch, after the room the
+# caller asked for; None: not taken in bulk.
+PayloadRows = list[tuple[np.ndarray, np.ndarray]] | None
+
 
 @dataclass(frozen=True)
 class BulkMigration:
@@ -58,30 +63,29 @@ class BulkMigration:
         return cls(old_layout, new_layout, tuple(sources))
 
     def payloads(
-        self, buf: np.ndarray, starts: np.ndarray, lengths: np.ndarray
-    ) -> list[bytes] | None:
-        """The migrated payloads at ``starts``/``lengths`` of ``buf`` (uint8), in order; None
-        when one of them does not decode in bulk (the caller goes message by message)."""
+        self, buf: np.ndarray, starts: np.ndarray, lengths: np.ndarray, room: int = 0
+    ) -> PayloadRows:
+        """The migrated payloads at ``starts``/``lengths`` of ``buf`` (uint8) as rows of equal
+        size (see :data:`PayloadRows`), each payload after ``room`` zero bytes left for the
+        caller; None when one of them does not decode in bulk (the caller goes message by
+        message)."""
         groups, leftover = decode_bulk(buf, starts, lengths, self.old)
         if len(leftover):
             return None
-        found: list[bytes] = [b""] * len(starts)
+        found = []
         for group in groups:
-            first = int(starts[group.indexes[0]])
-            old_lengths = _prefixes(self.old, buf, first)
-            if old_lengths is None:
-                return None
-            made = self._records(group.values, old_lengths)
+            old_lengths = _prefixes(self.old, buf, int(starts[group.indexes[0]]))
+            made = self._records(group.values, old_lengths, room)
             if made is None:
                 return None
-            size = made.shape[1]
-            flat = made.reshape(-1)
-            for position, index in enumerate(group.indexes.tolist()):
-                found[index] = flat[position * size : (position + 1) * size].tobytes()
+            found.append((group.indexes, made))
         return found
 
-    def _records(self, values: np.ndarray, old_lengths: tuple[int, ...]) -> np.ndarray | None:
-        """The new payloads of one group (rows of bytes), checked by decoding them."""
+    def _records(
+        self, values: np.ndarray, old_lengths: tuple[int, ...], room: int
+    ) -> np.ndarray | None:
+        """The new payloads of one group (rows of bytes after ``room``), checked by decoding
+        them."""
         prefixed = [i for i, slot in enumerate(self.old.slots) if slot.count is None]
         by_old = dict(zip(prefixed, old_lengths, strict=True))
         new_lengths = tuple(
@@ -95,21 +99,22 @@ class BulkMigration:
         if isinstance(resolved, NeedLength):
             return None
         count, size = len(values), resolved.dtype.itemsize
-        rows = np.zeros((count, size), np.uint8)
-        rows[:, : len(CDR_LE)] = np.frombuffer(CDR_LE, np.uint8)
+        rows = np.zeros((count, room + size), np.uint8)
+        payloads = rows[:, room:]
+        payloads[:, : len(CDR_LE)] = np.frombuffer(CDR_LE, np.uint8)
         for offset, length in zip(_prefix_offsets(self.new, new_lengths), new_lengths, strict=True):
-            rows[:, offset : offset + 4] = np.frombuffer(U32.pack(length), np.uint8)
-        records = rows.reshape(-1).view(resolved.dtype)
+            payloads[:, offset : offset + 4] = np.frombuffer(U32.pack(length), np.uint8)
+        records = payloads.view(resolved.dtype)[:, 0]
         old_names = set(values.dtype.names or ())
         for index, source in enumerate(self.sources):
             if source is not None and str(source) in old_names:
                 records[str(index)] = values[str(source)]
-        if not _decodes(rows, self.new, resolved):
+        if not _decodes(rows, room, self.new, resolved):
             return None
         return rows
 
 
-def _prefixes(layout: CdrLayout, buf: np.ndarray, start: int) -> tuple[int, ...] | None:
+def _prefixes(layout: CdrLayout, buf: np.ndarray, start: int) -> tuple[int, ...]:
     """The length prefixes of the payload at ``start`` (already decoded in bulk: they fit)."""
     lengths: tuple[int, ...] = ()
     while True:
@@ -129,10 +134,11 @@ def _prefix_offsets(layout: CdrLayout, lengths: tuple[int, ...]) -> list[int]:
     return offsets
 
 
-def _decodes(rows: np.ndarray, layout: CdrLayout, resolved: ResolvedLayout) -> bool:
-    """Whether every row decodes with ``layout`` to one group of ``resolved``'s layout."""
-    count, size = rows.shape
-    starts = np.arange(count, dtype=np.int64) * size
-    lengths = np.full(count, size, np.int64)
+def _decodes(rows: np.ndarray, room: int, layout: CdrLayout, resolved: ResolvedLayout) -> bool:
+    """Whether every row's payload (after ``room``) decodes with ``layout`` to one group of
+    ``resolved``'s layout."""
+    count, width = rows.shape
+    starts = np.arange(count, dtype=np.int64) * width + room
+    lengths = np.full(count, width - room, np.int64)
     groups, leftover = decode_bulk(rows.reshape(-1), starts, lengths, layout)
     return not len(leftover) and len(groups) == 1 and groups[0].layout == resolved

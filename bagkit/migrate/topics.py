@@ -54,23 +54,28 @@ class TopicMigration:
     bulk: BulkMigration | None = field(default=None, repr=False)
     migrated: int = 0
 
-    def payloads(self, buf: np.ndarray, starts: np.ndarray, lengths: np.ndarray) -> list[bytes]:
-        """The payloads at ``starts``/``lengths`` of ``buf`` (uint8) migrated, in order: in
-        bulk when :attr:`bulk` can take them all, else one by one (:meth:`payload`).
+    def payloads(
+        self, buf: np.ndarray, starts: np.ndarray, lengths: np.ndarray, room: int = 0
+    ) -> list[tuple[np.ndarray, np.ndarray]]:
+        """The payloads at ``starts``/``lengths`` of ``buf`` (uint8) migrated, as groups
+        ``(indexes, rows)`` of payloads of one size (``rows[i]``: ``room`` zero bytes left for
+        the caller, then the payload at ``indexes[i]`` of the batch): in bulk when :attr:`bulk`
+        can take them all, else one by one (:meth:`payload`).
 
         Raises:
             MigrateError: as :meth:`payload`.
         """
         if self.bulk is not None:
-            found = self.bulk.payloads(buf, starts, lengths)
+            found = self.bulk.payloads(buf, starts, lengths, room)
             if found is not None:
-                self.migrated += len(found)
+                self.migrated += len(starts)
                 return found
         view = memoryview(buf.data)
-        return [
+        made = [
             self.payload(view[start : start + length])
             for start, length in zip(starts.tolist(), lengths.tolist(), strict=True)
         ]
+        return _rows(made, room)
 
     def payload(self, data: bytes | memoryview) -> bytes:
         """One payload of the stored definition as a payload of the new one.
@@ -157,6 +162,20 @@ def migrate_topic(
         check,
         bulk,
     )
+
+
+def _rows(payloads: list[bytes], room: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``payloads`` as groups of one size, each after ``room`` zero bytes (see
+    :meth:`TopicMigration.payloads`)."""
+    sizes = np.fromiter(map(len, payloads), np.int64, len(payloads))
+    groups = []
+    for size in np.unique(sizes).tolist():
+        indexes = np.flatnonzero(sizes == size)
+        rows = np.zeros((len(indexes), room + size), np.uint8)
+        joined = b"".join(payloads[i] for i in indexes.tolist())
+        rows[:, room:] = np.frombuffer(joined, np.uint8).reshape(len(indexes), size)
+        groups.append((indexes, rows))
+    return groups
 
 
 def _has_rules(rules: Rules, types: dict[str, Any]) -> bool:

@@ -7,7 +7,7 @@ and :class:`bagkit.ros.replay.player.Player` runs it. Every default is the CLI's
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
 
@@ -17,7 +17,8 @@ from bagkit.compat import StrEnum
 from bagkit.playback.errors import PlayerError
 from bagkit.playback.source import MessageOrder
 from bagkit.playback.timing import DEFAULT_DISCOVERY_TIME_S
-from bagkit.selection.errors import SelectionError
+from bagkit.selection.errors import SelectionError, UnknownTopicError
+from bagkit.selection.query import BagOutline, Query, resolve_names
 from bagkit.selection.times import (
     NS_PER_S,
     Anchor,
@@ -27,7 +28,7 @@ from bagkit.selection.times import (
     seconds_to_ns,
 )
 from bagkit.selection.topics import TopicSelection
-from bagkit.selection.windows import Window, outside_warning
+from bagkit.selection.windows import TimeRange, Window, outside_warning
 
 
 class OnDrift(StrEnum):
@@ -88,19 +89,21 @@ class PlayWindow:
         """Log-time bounds (start, exclusive end or None) in a bag of messages start..end.
 
         Raises:
-            PlayerError: the offset is past the bag's last message (nothing would be replayed):
-                the one message of a window outside a bag.
+            PlayerError: the window holds none of the bag's messages (an offset past its last
+                message, an until before its first): the one message of a window outside a
+                bag.
         """
         window_start = max(start_ns, self.start.resolve(start_ns, end_ns))
-        outside = outside_warning(str(bag), Window(window_start), start_ns, end_ns)
-        if outside is not None:
-            raise PlayerError(outside)
         ends = []
         if self.duration_ns is not None:
             ends.append(window_start + self.duration_ns)
         if self.until_ns is not None:
             ends.append(self.until_ns + 1)
-        return window_start, max(ends) if ends else None
+        window_end = max(ends) if ends else None
+        outside = outside_warning(str(bag), Window(window_start, window_end), start_ns, end_ns)
+        if outside is not None:
+            raise PlayerError(outside)
+        return window_start, window_end
 
 
 @dataclass(frozen=True, slots=True)
@@ -173,7 +176,9 @@ class PlayOptions:
     Attributes:
         bag: bag directory or single ``.mcap`` file.
         rate: playback speed factor (2.0 = twice as fast as recorded).
-        topics: replay only these topics (union with ``regex``); None = all.
+        topics: replay only these topics (union with ``regex``); None = all. A recorded
+            service's or action's name stands for its topics; a name the bags lack is an
+            error naming the closest (:meth:`selection_in`).
         regex: replay topics whose name matches this regular expression (``re.search``).
         exclude_regex: do not replay topics whose name matches this regular expression.
         exclude_topics: do not replay these topics.
@@ -272,6 +277,30 @@ class PlayOptions:
     def bags(self) -> tuple[Path, ...]:
         """Every bag of the replay, ``bag`` first."""
         return (bag_path(self.bag), *self.more_bags)
+
+    @cached_property
+    def query(self) -> Query:
+        """The topics asked for (a service or an action by its name) and where each pass
+        starts, as every command's query; resolved against the bags by :meth:`selection_in`."""
+        return Query(self.topics or (), span=TimeRange(self.window.start))
+
+    def selection_in(self, bags: BagOutline, label: str) -> TopicSelection:
+        """:attr:`selection` against the replay's bags: the named topics as they store them (a
+        service's event topic, an action's topics), and so the excluded ones where they can.
+
+        Raises:
+            UnknownTopicError: a named topic is in none of the bags (the message names the
+                closest ones, as every command's).
+        """
+        types = {name: info.type for name, info in bags.topics.items()}
+        named = self.query.resolve(bags, label=label).topics
+        excluded: list[str] = []
+        for name in self.exclude_topics:  # an exclusion the bags lack excludes nothing
+            try:
+                excluded += resolve_names([name], types)
+            except UnknownTopicError:
+                excluded.append(name)
+        return replace(self.selection, topics=frozenset(named), exclude_topics=frozenset(excluded))
 
     @cached_property
     def selection(self) -> TopicSelection:

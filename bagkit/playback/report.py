@@ -88,8 +88,6 @@ class PlayReport:
     drifted: dict[str, list[str]] = field(default_factory=dict)
     """Topic -> how its stored definition differs from the installed one (not replayed
     unless ``on_drift`` is raw)."""
-    missing_topics: list[str] = field(default_factory=list)
-    """Topics asked for with ``topics`` that the bag does not have."""
     problems: list[str] = field(default_factory=list)
     """What the reader could not read (a truncated or damaged file), naming the chunk."""
     unacknowledged: list[str] = field(default_factory=list)

@@ -11,17 +11,18 @@ from __future__ import annotations
 
 import shutil
 import tempfile
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from bagkit.bag import BagReader
+from bagkit.errors import OptionError
 from bagkit.regression.errors import RegressionError
 from bagkit.regression.lockstep import LockstepResult, run_lockstep
 from bagkit.regression.processor import make_processors
 from bagkit.regression.spec import BAG_DIR, SPEC_FILE, FixtureSpec, load_spec
 from bagkit.selection.query import Query
-from bagkit.selection.times import TimeLike
-from bagkit.surgery.around import Around, episode_window
+from bagkit.selection.windows import TimeRange, Window
+from bagkit.surgery.around import SPAN_SET_BY_EPISODES, Around, episode_window
 from bagkit.surgery.rewrite import filter_bag
 from bagkit.surgery.select import Selection
 
@@ -32,16 +33,16 @@ class AddOptions:
 
     Attributes:
         bag: the recording to cut.
-        start, end: the window (:mod:`bagkit.selection.times`, read against ``bag``).
+        span: the window, as a query holds it (``Query.create(start=..., end=...).span``),
+            read against ``bag``.
         like: a fixture folder whose ``spec.yaml`` the new fixture copies (None: a template).
-        around: instead of start/end, ``TOPIC: CONDITION``: the window of its ``episode``-th
+        around: instead of a span, ``TOPIC: CONDITION``: the window of its ``episode``-th
             episode (1: the first; matches less than ``gap_ns`` apart merged), ``before_ns``
             before its first match to ``after_ns`` after its last.
     """
 
     bag: Path
-    start: TimeLike | None = None
-    end: TimeLike | None = None
+    span: TimeRange = field(default_factory=TimeRange)
     like: Path | None = None
     around: str | None = None
     before_ns: int = 0
@@ -69,33 +70,34 @@ def add_fixture(directory: Path, options: AddOptions) -> AddedFixture:
     Raises:
         RegressionError: ``directory`` exists and is not empty, or the window is empty.
         BagError, SelectionError, SurgeryError: the bag or the window cannot be read.
+        OptionError: a span beside ``around``, a negative margin (the error names the field).
         SpecError: ``like`` has no valid spec.
     """
     if directory.exists() and any(directory.iterdir()):
         raise RegressionError(f"{directory} exists and is not empty: choose a new folder")
     like = None if options.like is None else load_spec(options.like)
     options, episodes = _around(options)
-    duration_s = _window_seconds(options)
+    window, duration_s = _bag_window(options)
     # On a failure, the folders made here go too (``fixtures/`` as well as ``fixtures/new``).
     made = next((p for p in reversed([directory, *directory.parents]) if not p.exists()), None)
     directory.mkdir(parents=True, exist_ok=True)
     try:
         with tempfile.TemporaryDirectory(dir=directory, prefix=".add-") as tmp:
-            window = Path(tmp) / "window"
-            filter_bag(options.bag, window, Selection.create(start=options.start, end=options.end))
-            with BagReader(window, allow_empty=True) as reader:
+            cut = Path(tmp) / "window"
+            filter_bag(options.bag, cut, Selection(span=TimeRange.of_window(window)))
+            with BagReader(cut, allow_empty=True) as reader:
                 counts = dict(sorted(reader.topic_counts.items()))
                 types = {name: info.type for name, info in reader.topics.items()}
             if not any(counts.values()):
                 raise RegressionError(f"no message of {options.bag} in the window")
             if like is None:
-                window.rename(directory / BAG_DIR)
-                (directory / SPEC_FILE).write_text(_template(options, counts, types))
+                cut.rename(directory / BAG_DIR)
+                (directory / SPEC_FILE).write_text(_template(options, window, counts, types))
                 return AddedFixture(directory, None, counts, episodes=episodes)
-            (directory / SPEC_FILE).write_text(_copied(options, like, duration_s))
+            (directory / SPEC_FILE).write_text(_copied(options, window, like, duration_s))
             spec = load_spec(directory)
             result = run_lockstep(
-                window,
+                cut,
                 directory / BAG_DIR,
                 processors=make_processors(spec.processor or "", spec.processor_args),
                 input_topics=spec.inputs,
@@ -108,8 +110,8 @@ def add_fixture(directory: Path, options: AddOptions) -> AddedFixture:
     return AddedFixture(directory, spec, counts, result, episodes)
 
 
-def _window_seconds(options: AddOptions) -> float:
-    """How long the window lasts within the bag, in seconds.
+def _bag_window(options: AddOptions) -> tuple[Window, float]:
+    """The window in the bag's log times, and how long it lasts within the bag in seconds.
 
     Raises:
         RegressionError: the window holds none of the bag's messages (the one warning's text):
@@ -117,42 +119,38 @@ def _window_seconds(options: AddOptions) -> float:
             test).
     """
     with BagReader(options.bag, allow_empty=True) as reader:
-        resolved = Query.create(start=options.start, end=options.end).resolve(
-            reader, label=str(options.bag)
-        )
+        resolved = Query(span=options.span).resolve(reader, label=str(options.bag))
         first, last = reader.start_ns, reader.end_ns
     if resolved.outside is not None:
         raise RegressionError(resolved.outside)
     window = resolved.window
     start = first if window.start_ns is None else max(window.start_ns, first)
     end = last if window.end_ns is None else min(window.end_ns, last)
-    return round(max(end - start, 0) / 1e9, 3)
+    return window, round(max(end - start, 0) / 1e9, 3)
 
 
 def _around(options: AddOptions) -> tuple[AddOptions, int]:
-    """``options`` with the window of the chosen episode of ``around`` as start and end (in
-    absolute ns), and how many episodes there were."""
+    """``options`` with the window of the chosen episode of ``around`` as its span (absolute
+    times), and how many episodes there were."""
     if options.around is None:
         return options, 0
-    if options.start is not None or options.end is not None:
-        raise RegressionError("--around sets the window: it takes no --start or --end")
+    if options.span.bounded:
+        raise OptionError(SPAN_SET_BY_EPISODES, "span")
     around = Around.create(options.around, options.before_ns, options.after_ns, options.gap_ns)
     window, episodes = episode_window(options.bag, around, options.episode)
-    return replace(options, start=f"{window.start_ns}ns", end=f"{window.end_ns}ns"), episodes
+    return replace(options, span=TimeRange.of_window(window)), episodes
 
 
-def _origin(options: AddOptions) -> str:
-    start = "the start" if options.start is None else str(options.start)
-    end = "the end" if options.end is None else str(options.end)
+def _origin(options: AddOptions, window: Window) -> str:
     why = (
         ""
         if options.around is None
         else f" (around episode {options.episode} of {options.around!r})"
     )
-    return f"# Cut by `bagkit golden add` from {options.bag}, from {start} to {end}{why}.\n"
+    return f"# Cut by `bagkit golden add` from {options.bag}, {window.describe()}{why}.\n"
 
 
-def _copied(options: AddOptions, like: FixtureSpec, duration_s: float) -> str:
+def _copied(options: AddOptions, window: Window, like: FixtureSpec, duration_s: float) -> str:
     """``like``'s spec.yaml made to fit the new fixture, under a line saying where the window
     comes from: no description (the old one tells of another recording), the window's
     duration, and no ``record_launch`` that reads files of the old fixture's folder (the new
@@ -179,7 +177,8 @@ def _copied(options: AddOptions, like: FixtureSpec, duration_s: float) -> str:
             skipping = True
         else:
             kept.append(line)
-    return _origin(options) + f"# Spec adapted from {like.directory}.\n" + "\n".join(kept) + "\n"
+    origin = _origin(options, window)
+    return origin + f"# Spec adapted from {like.directory}.\n" + "\n".join(kept) + "\n"
 
 
 def _top_level(line: str) -> bool:
@@ -193,10 +192,12 @@ def _block(lines: list[str], n: int) -> list[str]:
     return lines[n:end]
 
 
-def _template(options: AddOptions, counts: dict[str, int], types: dict[str, str]) -> str:
+def _template(
+    options: AddOptions, window: Window, counts: dict[str, int], types: dict[str, str]
+) -> str:
     topics = "\n".join(f"#   {t}: {types[t]}, {n} messages" for t, n in counts.items())
     return (
-        _origin(options)
+        _origin(options, window)
         + "# golden/ holds the window as recorded. Name the system under test, split the\n"
         "# topics into inputs and outputs, then `bagkit golden update` makes the expected\n"
         "# outputs from the inputs (docs/regression.md, 'The spec').\n"

@@ -157,11 +157,14 @@ class ResolvedQuery:
         return not self.topics or topic in self.topics
 
 
-def resolve_names(wanted: Iterable[str], topic_types: Mapping[str, str]) -> tuple[str, ...]:
+def resolve_names(
+    wanted: Iterable[str], topic_types: Mapping[str, str], where: str = "the bag"
+) -> tuple[str, ...]:
     """Topic, service and action names as the bag (``topic_types``: name -> type) stores them.
 
     A topic name is itself (``imu/data`` and ``/imu/data`` are one), a service's name its event
     topic, an action's name the topics of its parts; duplicates are dropped, order kept.
+    ``where`` names the bags in the error (``any of the bags``).
 
     Raises:
         UnknownTopicError: a name is none of these; the message names the closest ones.
@@ -169,5 +172,5 @@ def resolve_names(wanted: Iterable[str], topic_types: Mapping[str, str]) -> tupl
     found: list[str] = []
     for name in wanted:
         parts = [] if name in topic_types else action_part_topics(name, topic_types.items())
-        found += parts or require_topics([name], topic_types)
+        found += parts or require_topics([name], topic_types, where)
     return tuple(dict.fromkeys(found))

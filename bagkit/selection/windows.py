@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from bagkit.selection.errors import SelectionError
-from bagkit.selection.times import TimeLike, TimePoint, format_ns, parse_time
+from bagkit.selection.times import Anchor, TimeLike, TimePoint, format_ns, parse_time
 
 if TYPE_CHECKING:
     import numpy as np
@@ -85,6 +85,14 @@ class TimeRange:
         if first and last and first.anchor is last.anchor and last.ns <= first.ns:
             raise SelectionError(f"empty time range: {prefix}end {end!r} is not after {start!r}")
         return cls(first, last)
+
+    @classmethod
+    def of_window(cls, window: Window) -> TimeRange:
+        """A window of absolute log times as a range (the same instants in every bag)."""
+        return cls(
+            None if window.start_ns is None else TimePoint(Anchor.EPOCH, window.start_ns),
+            None if window.end_ns is None else TimePoint(Anchor.EPOCH, window.end_ns),
+        )
 
     @property
     def bounded(self) -> bool:

@@ -41,7 +41,10 @@ class TopicAccumulator:
         self.layout = layout
         self.scalar_paths = [leaf.path for leaf in leaves if not leaf.pooled]
         self.paths = [leaf.path for leaf in leaves]
-        self.read_values = self.value_reader(types)
+        # The general path's reader is made when a payload needs it: a topic decoded in bulk
+        # never does, and making one generates code (see bench_startup).
+        self.types = types
+        self.read_values: ValueReader | None = None
         self.column = {path: i for i, path in enumerate(self.scalar_paths)}
         self.scalars = Moments(len(self.scalar_paths))
         self.pooled = {leaf.path: Moments(1) for leaf in leaves if leaf.pooled}
@@ -64,12 +67,22 @@ class TopicAccumulator:
     def __getstate__(self) -> dict[str, Any]:
         """The figures only (bagkit.fleet ships them between processes): no decoder, no buffer."""
         self.flush()
-        return {k: v for k, v in self.__dict__.items() if k not in ("read_values", "layout")}
+        skipped = ("read_values", "layout", "types")
+        return {k: v for k, v in self.__dict__.items() if k not in skipped}
 
-    def value_reader(self, types: MessageTypes) -> ValueReader:
+    def use_types(self, types: MessageTypes) -> None:
+        """Decode the next bag's payloads with ``types`` (its own definitions)."""
+        self.types = types
+        self.read_values = None
+
+    def value_reader(self) -> ValueReader:
         """payload -> the values of ``scalar_paths``, then of the pooled paths."""
-        pooled = [leaf.path for leaf in self.leaves if leaf.pooled]
-        return types.value_reader(self.type_name, [*self.scalar_paths, *pooled])
+        if self.read_values is None:
+            pooled = [leaf.path for leaf in self.leaves if leaf.pooled]
+            self.read_values = self.types.value_reader(
+                self.type_name, [*self.scalar_paths, *pooled]
+            )
+        return self.read_values
 
     def add_times(self, log_times: np.ndarray) -> None:
         if not len(log_times):
@@ -106,6 +119,8 @@ class TopicAccumulator:
                 self.add_columns(group.columns(self.paths), len(group.indexes))
         else:
             leftover = np.arange(len(starts))
+        if not len(leftover):
+            return
         starts, lengths = starts[leftover], lengths[leftover]
         inside = spans_inside(len(buf), starts, lengths)
         if not inside.all():
@@ -137,7 +152,7 @@ class TopicAccumulator:
             self._add_payloads(payloads)
 
     def _add_payloads(self, payloads: Iterable[bytes | memoryview]) -> None:
-        read_values, rows = self.read_values, self._rows
+        read_values, rows = self.value_reader(), self._rows
         split = len(self.scalar_paths)
         for data in payloads:
             try:

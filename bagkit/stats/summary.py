@@ -9,7 +9,7 @@ chunk: topics whose type has a CDR layout are decoded in bulk with numpy
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from contextlib import closing
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,12 +22,13 @@ from bagkit.prefetch import prefetch
 from bagkit.selection.conditions import Condition
 from bagkit.selection.errors import UnknownFieldError
 from bagkit.selection.fields import FieldSelection, unknown_field_message
-from bagkit.selection.query import Query
-from bagkit.selection.topics import absolute_topic_name, did_you_mean, require_topics
+from bagkit.selection.query import Query, resolve_names
+from bagkit.selection.topics import absolute_topic_name, did_you_mean
 from bagkit.selection.windows import TimeRange, Window, outside_warning
 from bagkit.stats.accumulate import TopicAccumulator
 from bagkit.stats.errors import NothingToSummarizeError, StatsError
 from bagkit.stats.result import Summary
+from bagkit.storage.urls import location, shown_as
 
 ProgressCallback = Callable[[int, int], None]
 """Called with (messages done, messages in total) as the summary advances."""
@@ -112,7 +113,7 @@ class SummaryRun:
                     f"{type_name} of topic {topic} is defined differently in {bag} than in "
                     "the bags before it: summarize them separately"
                 )
-            existing.read_values = existing.value_reader(types)
+            existing.use_types(types)
             return existing
         if topic in self.skipped:
             return None
@@ -248,7 +249,8 @@ def summarize(
         NothingToSummarizeError: no message in the selection, or no topic can be decoded.
         StatsError: a topic has different types in different bags.
     """
-    paths = [str(bag) for bag in bags]
+    paths = [location(bag) for bag in bags]  # opened in full (a presigned URL's query)
+    names = [shown_as(path) for path in paths]
     if not paths:
         raise StatsError("no bag given")
     query = query or Query()
@@ -257,7 +259,7 @@ def summarize(
     try:
         for path in paths:
             readers.append(BagReader(path, allow_empty=True, check_crc=check_crc).open())
-        known = {name for reader in readers for name in reader.topics}
+        known = {name: info.type for reader in readers for name, info in reader.topics.items()}
         topics = check_topics(known, list(query.topics) or None, len(paths))
         run.total = sum(
             count
@@ -265,25 +267,28 @@ def summarize(
             for topic, count in reader.topic_counts.items()
             if topics is None or topic in topics
         )
-        for path, reader in zip(paths, readers, strict=True):
-            run.read(reader, topics, path)
+        for name, reader in zip(names, readers, strict=True):
+            run.read(reader, topics, name)
     finally:
         for reader in readers:
             reader.close()
     if progress is not None:
         progress(run.total, run.total)
-    return finish_summary(run, paths)
+    return finish_summary(run, names)
 
 
-def check_topics(known: set[str], topics: Sequence[str] | None, bags: int) -> list[str] | None:
-    """``topics`` as absolute names, each in one of the bags at least (None: all topics).
+def check_topics(
+    topic_types: Mapping[str, str], topics: Sequence[str] | None, bags: int
+) -> list[str] | None:
+    """``topics`` as the bags (``topic_types``: every topic of any of them -> its type) store
+    them, a service's or action's name resolved as ``echo`` resolves it (None: all topics).
 
     Raises:
-        UnknownTopicError: a topic is in none of the bags.
+        UnknownTopicError: a name is in none of the bags; the message names the closest ones.
     """
-    if topics is None:
+    if not topics:
         return None
-    return require_topics(topics, known, "the bag" if bags == 1 else "any of the bags")
+    return list(resolve_names(topics, topic_types, "the bag" if bags == 1 else "any of the bags"))
 
 
 def _no_field_message(run: SummaryRun) -> str:

@@ -125,7 +125,9 @@ class UrlPath:
             # An HTTP server lists no directories: a bag's prefix is known by its metadata.yaml.
             http = scheme(self.url) in ("http", "https") and not self.url.endswith(".yaml")
             if http and (self / "metadata.yaml").is_file():
-                return {"type": "directory", "size": 0}
+                found = {"type": "directory", "size": 0}
+                remember(self.url, found)  # asked again by every exists()/is_dir()
+                return found
             return None
         remember(self.url, found)
         return found

@@ -4,7 +4,10 @@ What the bag readers need from a file: ``seek``, ``tell``, ``read``. A read is s
 bounded cache of the ranges fetched; a miss fetches exactly what was asked (an MCAP reader
 seeks by its indexes: the footer, the summary, the chunks it needs), and reading on where the
 last reads ended (a file without a summary, read through) fetches ahead an eighth of what was
-read on so far, up to :data:`MAX_READ_AHEAD`. Every range is asked for with the ETag seen at
+read on so far, up to :data:`MAX_READ_AHEAD`. A first read of an object's end (an MCAP footer)
+fetches as deep into its tail as the reads of the last object of its kind went (the same
+suffix, its bag beside this one's: its footer and summary), up to a quarter of the object:
+one request where two would be. Every range is asked for with the ETag seen at
 open (``If-Match``) where the store takes one, and its length is checked: an object that
 changes while it is read is an error, never a mix of two versions.
 """
@@ -26,11 +29,17 @@ MAX_READ_AHEAD = 8 << 20
 # The first bytes of a file (magic, header) are fetched at once and kept for the next opening of
 # the same object (the back-end is chosen by the magic, then opens the file again), for the
 # last MAX_HEADS objects.
-HEAD_BYTES = 4096
+HEAD_BYTES = 1024
 MAX_HEADS = 256
 _HEADS: dict[tuple[str, str | None], bytes] = {}
 # The ranges kept per open file; the oldest are dropped beyond.
 CACHE_BYTES = 64 << 20
+# How far from its end the reads of the last object of a kind went (reads contiguous with its
+# end: an MCAP footer, then its summary), and the share of an object that guess may fetch. A
+# kind: the suffix and the prefix two levels up (the bags of one fleet), so that another
+# fleet's larger summaries are no guess here.
+_TAIL_DEPTHS: dict[tuple[str, str], int] = {}
+TAIL_SHARE = 4
 
 
 class _Counter:
@@ -72,6 +81,8 @@ class RangeFile:
         self.size = int(info.get("size") or 0)
         self.etag = info.get("ETag") or info.get("etag")
         self.fetched_bytes = 0
+        self._kind = (url.rsplit("/", 2)[0], url.rsplit("/", 1)[-1].rpartition(".")[2])
+        self._tail_low = self.size  # the lowest offset read on contiguously to the end
         self._position = 0
         self._last_end = -1
         self._streak = 0
@@ -103,6 +114,9 @@ class RangeFile:
         data = self._cached_span(start, end)
         if data is None:
             data = self._fetch_span(start, end)
+        if start < self._tail_low <= end:  # what the next object's footer read will fetch
+            self._tail_low = start
+            _TAIL_DEPTHS[self._kind] = self.size - start
         self._position = end
         self._last_end = end
         return data
@@ -140,6 +154,9 @@ class RangeFile:
             b"",
         )
         first = start + len(held)
+        if end == self.size and not held:  # a footer: the summary before it, as last time
+            depth = min(_TAIL_DEPTHS.get(self._kind, 0), self.size // TAIL_SHARE)
+            first = min(first, self.size - depth)
         ahead = min(MAX_READ_AHEAD, self._streak // READ_AHEAD_SHARE)
         if first == 0:  # the magic and the header: one request for every reader of the file
             ahead = max(ahead, HEAD_BYTES)
@@ -149,9 +166,9 @@ class RangeFile:
             if len(_HEADS) >= MAX_HEADS:
                 _HEADS.pop(next(iter(_HEADS)))
             _HEADS[(self.url, self.etag)] = block[:HEAD_BYTES]
-        if fetch_end > end or len(block) <= CACHE_BYTES // 4:
+        if fetch_end > end or first < start or len(block) <= CACHE_BYTES // 4:
             self._keep(first, block)
-        return (held + block)[: end - start] if held else block[: end - start]
+        return (held + block)[: end - start] if held else block[start - first : end - first]
 
     def _keep(self, offset: int, block: bytes) -> None:
         self._cache[offset] = block

@@ -92,6 +92,15 @@ def written_to(output: Path, *, replace: bool = False, update: bool = False) -> 
         shutil.rmtree(directory, ignore_errors=True)
 
 
+def shown_path(path: Path, local: Path, output: Path) -> str:
+    """How ``path``, written under ``local`` (what :func:`written_to` gave for ``output``), is
+    named to the user: under ``output``'s URL when it is one (shown without secrets)."""
+    if not isinstance(output, UrlPath) or not path.is_relative_to(local):
+        return str(path)
+    relative = path.relative_to(local).as_posix()
+    return str(output / relative if relative != "." else output)
+
+
 def objects_under(prefix: UrlPath) -> Iterator[UrlPath]:
     """Every object under ``prefix`` (one listing request per page), remembered for opening."""
     fs, path = filesystem(prefix.url)

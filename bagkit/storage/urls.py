@@ -23,6 +23,24 @@ def is_url(text: object) -> bool:
     return match is not None and match.group(1).lower() not in LOCAL_SCHEMES
 
 
+def location(path: object) -> str:
+    """A bag's path as text that opens it again: a URL in full (a presigned URL keeps its
+    signed query; a :class:`~bagkit.storage.paths.UrlPath` gives its ``.url``), anything
+    else as ``str``. What fleet tasks are given; never shown (:func:`shown_url` is)."""
+    url = getattr(path, "url", None)
+    return url if isinstance(url, str) else str(path)
+
+
+def shown_as(path: str) -> str:
+    """``path`` as messages and reports name it: a URL by :func:`shown_url`, else as is."""
+    return shown_url(path) if is_url(path) else path
+
+
+def path_part(url: str) -> str:
+    """The URL without its query and fragment (what its name and suffix are read from)."""
+    return url.split("?", 1)[0].split("#", 1)[0]
+
+
 def scheme(url: str) -> str:
     """The URL's scheme, lower case (``s3``, ``https``)."""
     return url.split("://", 1)[0].lower()
@@ -55,5 +73,4 @@ def parent(url: str) -> str:
 
 def name(url: str) -> str:
     """The last segment of the URL's path, without query."""
-    path = urlsplit(url).path if "?" in url or "#" in url else url.split("://", 1)[-1]
-    return path.rstrip("/").rsplit("/", 1)[-1]
+    return path_part(url).rstrip("/").rsplit("/", 1)[-1]

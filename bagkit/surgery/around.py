@@ -13,6 +13,7 @@ from pathlib import Path
 
 from bagkit.bag import BagReader
 from bagkit.data.episodes import Episodes, episode_windows, find_episodes
+from bagkit.errors import OptionError
 from bagkit.selection.conditions import TopicCondition, parse_topic_condition
 from bagkit.selection.topics import absolute_topic_name
 from bagkit.selection.windows import Window
@@ -21,6 +22,8 @@ from bagkit.surgery.cut import cut_windows
 from bagkit.surgery.errors import NothingToCutError, SurgeryError
 from bagkit.surgery.options import OutputOptions, RewriteReport
 from bagkit.surgery.select import Selection
+
+SPAN_SET_BY_EPISODES = "must be empty (each episode of the trigger sets its window)"
 
 
 @dataclass(frozen=True, slots=True)
@@ -53,10 +56,12 @@ class Around:
         """Parse ``TOPIC: CONDITION``.
 
         Raises:
-            SelectionError: the trigger does not parse; a margin is negative.
+            SelectionError: the trigger does not parse. OptionError: a margin is negative
+                (the error names its field).
         """
-        if min(before_ns, after_ns, gap_ns) < 0:
-            raise SurgeryError("--before, --after and --gap are durations of 0 or more")
+        for name, value in (("before_ns", before_ns), ("after_ns", after_ns), ("gap_ns", gap_ns)):
+            if value < 0:
+                raise OptionError(f"must be 0 or more, got {value}", name)
         return cls(
             parse_topic_condition(trigger),
             before_ns,
@@ -96,11 +101,12 @@ def cut_around(
     ``selection``'s topics, condition and latched state in each.
 
     Raises:
-        SurgeryError: ``selection`` has a time range (the episodes set the windows); what
-        :func:`find_around` and :func:`~bagkit.surgery.cut.cut_windows` raise.
+        OptionError: ``selection`` has a time range (``selection.span``: the episodes set the
+            windows); what :func:`find_around` and :func:`~bagkit.surgery.cut.cut_windows`
+            raise.
     """
     if selection.span.bounded:
-        raise SurgeryError("--around sets the windows: it takes no --start or --end")
+        raise OptionError(SPAN_SET_BY_EPISODES, "selection.span")
     with BagReader(bag) as reader:
         found = find_around(reader, around, around.merge_ns, str(bag))
     windows = episode_windows(found.episodes, around.before_ns, around.after_ns)

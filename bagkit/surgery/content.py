@@ -8,33 +8,40 @@ time); the other topics are kept whole. Done once per selection, before any bag 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from contextlib import ExitStack
 from dataclasses import replace
 from pathlib import Path
 
 from bagkit.bag import BagReader
+from bagkit.surgery.options import stored_names
 from bagkit.surgery.select import PayloadFilter, Selection
 
 
 def with_content(bags: Sequence[Path], selection: Selection) -> Selection:
-    """``selection`` with its condition compiled into per-topic filters (the first input's
-    filter where several bags share a topic); as given when it has no condition or has them.
+    """``selection`` with its named topics as the inputs store them (a service's name is its
+    event topic) and its condition compiled into per-topic filters (the first input's filter
+    where several bags share a topic); as given when it has no condition or has them.
 
     Raises:
-        UnknownFieldError: no selected topic has the condition's fields; UndecodableTopicError.
+        UnknownTopicError: a named topic is in no input; UnknownFieldError: no selected topic
+            has the condition's fields; UndecodableTopicError.
     """
-    if selection.where is None or selection.content:
+    condition = selection.where
+    if condition is None or selection.content:
         return selection
     from bagkit.data.where import where_filters  # numpy, rosbags: only when asked
 
-    content: dict[str, PayloadFilter] = {}
-    for bag in bags:
-        with BagReader(bag) as reader:
+    with ExitStack() as stack:
+        readers = [stack.enter_context(BagReader(bag)) for bag in bags]
+        selection = stored_names(selection, (name for r in readers for name in r.topics))
+        content: dict[str, PayloadFilter] = {}
+        for reader in readers:
             found = where_filters(
                 reader,
-                selection.where,
+                condition,
                 selection.topic_passes,
                 state_topics=selection.state_topics,
             )
-        for topic, matcher in found.items():
-            content.setdefault(topic, matcher)
+            for topic, matcher in found.items():
+                content.setdefault(topic, matcher)
     return replace(selection, content=content)

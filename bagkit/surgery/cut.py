@@ -7,7 +7,6 @@ from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
 
-from bagkit.selection.times import Anchor, TimePoint
 from bagkit.selection.windows import TimeRange, Window
 from bagkit.surgery.errors import SurgeryError
 from bagkit.surgery.rewrite import OutputOptions, RewriteReport, check_output, filter_bag
@@ -52,9 +51,6 @@ def cut_windows(
     reports = []
     for n, window in enumerate(windows):
         assert window.start_ns is not None and window.end_ns is not None
-        span = TimeRange(
-            TimePoint(Anchor.EPOCH, window.start_ns), TimePoint(Anchor.EPOCH, window.end_ns)
-        )
-        cut = replace(selection, span=span, window=Window())
+        cut = replace(selection, span=TimeRange.of_window(window), window=Window())
         reports.append(filter_bag(bag, output / window_bag_name(bag, n), cut, options))
     return reports

@@ -4,7 +4,7 @@ inputs) and what it reports (:class:`RewriteReport`): shared by the chunk copy
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
@@ -90,6 +90,20 @@ class OutputOptions:
     compression_mode: str = "message"
 
 
+def stored_names(selection: Selection, names: Iterable[str]) -> Selection:
+    """The selection's named topics as the inputs (their topic ``names``) store them: a
+    service's name is its event topic, as in echo.
+
+    Raises:
+        UnknownTopicError: a named topic (``--latched-topics`` too, used or not) is in no
+            input (the message names the closest).
+    """
+    names = set(names)
+    require_topics(selection.latched.extra_topics, names)
+    stored = frozenset(require_topics(sorted(selection.topics.topics), names))
+    return replace(selection, topics=replace(selection.topics, topics=stored))
+
+
 def resolve(
     selection: Selection,
     bags: Sequence[Path],
@@ -104,10 +118,7 @@ def resolve(
         UnknownTopicError: a named topic (``--latched-topics`` too, used or not) is in no
             input (the message names the closest).
     """
-    require_topics(selection.latched.extra_topics, names)
-    # Named topics as the inputs store them: a service's name is its event topic (as in echo).
-    stored = frozenset(require_topics(sorted(selection.topics.topics), names))
-    selection = replace(selection, topics=replace(selection.topics, topics=stored))
+    selection = stored_names(selection, names)
     if not spans or not selection.span.bounded:
         return selection
     first, last = min(s for s, _ in spans), max(e for _, e in spans)
@@ -133,9 +144,13 @@ class TopicRewrite(Protocol):
     def payload(self, data: bytes) -> bytes:
         """One payload as written to the output."""
 
-    def payloads(self, buf: np.ndarray, starts: np.ndarray, lengths: np.ndarray) -> list[bytes]:
+    def payloads(
+        self, buf: np.ndarray, starts: np.ndarray, lengths: np.ndarray, room: int
+    ) -> list[tuple[np.ndarray, np.ndarray]]:
         """The payloads at ``starts``/``lengths`` of a chunk's records ``buf`` (uint8), as
-        written to the output, in order."""
+        written to the output: groups ``(indexes, rows)``, ``rows[i]`` (a row of a 2-D uint8
+        array) ``room`` bytes for the caller then the payload at ``indexes[i]``, every index
+        once."""
 
 
 @dataclass(frozen=True)

@@ -195,13 +195,14 @@ class OutputBag:
 
     def write_records(
         self,
-        data: bytes | bytearray,
+        data: bytes | bytearray | memoryview,
         offsets: np.ndarray,
         lengths: np.ndarray,
         channels: np.ndarray,
         times: np.ndarray,
     ) -> None:
         """Append whole Message records (channel ids already this bag's), chunk by chunk."""
+        view = memoryview(data)  # slices without copies: the chunk copies what it takes
         ends = offsets + lengths
         i, n = 0, len(offsets)
         while i < n:
@@ -210,7 +211,7 @@ class OutputBag:
             room = self._chunk_size - chunk.size
             j = max(i + 1, int(np.searchsorted(ends, offsets[i] + room, side="right")))
             chunk.add_records(
-                data[offsets[i] : ends[j - 1]],
+                view[offsets[i] : ends[j - 1]],
                 channels[i:j],
                 times[i:j],
                 offsets[i:j] - offsets[i],

@@ -31,7 +31,7 @@ class Run:
     ``rank`` orders runs whose messages have equal log times (input, then block in the file).
     """
 
-    records: bytes
+    records: bytes | memoryview  # memoryview: records rebuilt here (writable)
     times: np.ndarray  # uint64
     starts: np.ndarray  # int64, Message record starts in ``records``
     ends: np.ndarray  # int64
@@ -99,48 +99,58 @@ def open_run(  # noqa: PLR0917 (the opened chunk and how it is selected)
     if not len(order):
         return None, bad
     starts, stops = offsets[order], ends[order]
+    kept: bytes | memoryview = records
     if rewrites and not rewrites.keys().isdisjoint(np.unique(inputs[order]).tolist()):
-        records, starts, stops = _rewritten(records, buf, starts, stops, inputs[order], rewrites)
-    run = Run(records, times[order].astype(np.uint64), starts, stops, channels[order], rank)
+        kept, starts, stops = _rewritten(buf, starts, stops, inputs[order], rewrites)
+    run = Run(kept, times[order].astype(np.uint64), starts, stops, channels[order], rank)
     return run, bad
 
 
-def _rewritten(  # noqa: PLR0917 (the run's records, as open_run has them)
-    records: bytes,
+def _rewritten(
     buf: np.ndarray,
     starts: np.ndarray,
     ends: np.ndarray,
     inputs: np.ndarray,
     rewrites: Mapping[int, TopicRewrite],
-) -> tuple[bytes, np.ndarray, np.ndarray]:
-    """The run's Message records with the payloads of ``rewrites``' channels rewritten (their
-    record lengths set to match), as one new buffer with its record starts and ends."""
+) -> tuple[memoryview, np.ndarray, np.ndarray]:
+    """The run's Message records with the payloads of ``rewrites``' channels rewritten, as one
+    new buffer with its record starts and ends.
+
+    Each group of rewritten payloads of one size comes as the rows of a 2-D array with room
+    for the record's header before the payload: the opcode and the new length are set, the
+    stored channel, sequence and times copied, for all rows at once. The records not rewritten
+    follow the groups, as they are stored.
+    """
     size = MESSAGE_RECORD_HEADER.size
-    payloads: list[bytes | None] = [None] * len(starts)
+    new_starts, new_ends = np.empty_like(starts), np.empty_like(ends)
+    rewritten = np.zeros(len(starts), bool)
+    blocks: list[np.ndarray] = []
+    at = 0
     for channel, rewrite in rewrites.items():
         rows = np.flatnonzero(inputs == channel)
-        if len(rows):
-            at = starts[rows] + size
-            rewritten = rewrite.payloads(buf, at, ends[rows] - at)
-            for row, data in zip(rows.tolist(), rewritten, strict=True):
-                payloads[row] = data
-    pieces: list[bytes] = []
-    for start, end, payload in zip(starts.tolist(), ends.tolist(), payloads, strict=True):
-        if payload is None:
-            pieces.append(records[start:end])
+        if not len(rows):
             continue
-        length = RECORD_HEADER.pack(Opcode.MESSAGE, MESSAGE_PREFIX.size + len(payload))
-        pieces += [length, records[start + RECORD_HEADER.size : start + size], payload]
-    lengths = np.array(
-        [
-            end - start if data is None else size + len(data)
-            for start, end, data in zip(starts.tolist(), ends.tolist(), payloads, strict=True)
-        ],
-        np.int64,
-    )
-    new_starts = np.zeros(len(lengths), np.int64)
-    np.cumsum(lengths[:-1], out=new_starts[1:])
-    return b"".join(pieces), new_starts, new_starts + lengths
+        payload_at = starts[rows] + size
+        for indexes, block in rewrite.payloads(buf, payload_at, ends[rows] - payload_at, size):
+            which = rows[indexes]
+            count, width = block.shape
+            block[:, 0] = Opcode.MESSAGE
+            block[:, 1 : RECORD_HEADER.size] = np.frombuffer(
+                (width - RECORD_HEADER.size).to_bytes(8, "little"), np.uint8
+            )
+            prefixes = sliding_window_view(buf, size - RECORD_HEADER.size)
+            block[:, RECORD_HEADER.size : size] = prefixes[starts[which] + RECORD_HEADER.size]
+            new_starts[which] = at + np.arange(count, dtype=np.int64) * width
+            new_ends[which] = new_starts[which] + width
+            rewritten[which] = True
+            blocks.append(block.reshape(-1))
+            at += block.size
+    if not rewritten.all():
+        blocks.append(buf)
+        new_starts[~rewritten] = starts[~rewritten] + at
+        new_ends[~rewritten] = ends[~rewritten] + at
+    joined = blocks[0] if len(blocks) == 1 else np.concatenate(blocks)
+    return joined.data, new_starts, new_ends
 
 
 def emit(runs: list[Run], before_time: int, before_rank: int, out: OutputBag) -> None:
@@ -161,11 +171,15 @@ def emit(runs: list[Run], before_time: int, before_rank: int, out: OutputBag) ->
         return
     if len(taken) == 1:
         run, a, b = taken[0]
-        pieces = [
-            run.records[s:e]
-            for s, e in zip(run.starts[a:b].tolist(), run.ends[a:b].tolist(), strict=True)
-        ]
-        _write(out, pieces, run.times[a:b], run.channels[a:b])
+        starts, ends = run.starts[a:b], run.ends[a:b]
+        if (starts[1:] == ends[:-1]).all():  # back to back: one slice
+            first = int(starts[0])
+            data = memoryview(run.records)[first : int(ends[-1])]
+            writable = data if not data.readonly else bytearray(data)  # each record goes once
+            _write(out, writable, starts - first, ends - starts, run.times[a:b], run.channels[a:b])
+            return
+        pieces = [run.records[s:e] for s, e in zip(starts.tolist(), ends.tolist(), strict=True)]
+        _write_pieces(out, pieces, run.times[a:b], run.channels[a:b])
         return
     times = np.concatenate([r.times[a:b] for r, a, b in taken])
     which = np.concatenate([np.full(b - a, i, np.int64) for i, (_, a, b) in enumerate(taken)])
@@ -175,14 +189,27 @@ def emit(runs: list[Run], before_time: int, before_rank: int, out: OutputBag) ->
     buffers = [r.records for r, _, _ in taken]
     pieces = [buffers[w][s:e] for w, s, e in zip(which[order].tolist(), starts, ends, strict=True)]
     channels = np.concatenate([r.channels[a:b] for r, a, b in taken])[order]
-    _write(out, pieces, times[order], channels)
+    _write_pieces(out, pieces, times[order], channels)
 
 
-def _write(out: OutputBag, pieces: list[bytes], times: np.ndarray, channels: np.ndarray) -> None:
+def _write_pieces(
+    out: OutputBag, pieces: list[bytes | memoryview], times: np.ndarray, channels: np.ndarray
+) -> None:
     lengths = np.fromiter(map(len, pieces), np.int64, len(pieces))
-    data = bytearray(b"".join(pieces))
     offsets = np.zeros(len(pieces), np.int64)
     np.cumsum(lengths[:-1], out=offsets[1:])
+    _write(out, bytearray(b"".join(pieces)), offsets, lengths, times, channels)
+
+
+def _write(  # noqa: PLR0917 (the records and what each needs)
+    out: OutputBag,
+    data: bytearray | memoryview,
+    offsets: np.ndarray,
+    lengths: np.ndarray,
+    times: np.ndarray,
+    channels: np.ndarray,
+) -> None:
+    """Write the Message records ``data`` holds at ``offsets``, their channel ids set first."""
     view = np.frombuffer(data, np.uint8)
     view[offsets + _CHANNEL_AT] = (channels & 0xFF).astype(np.uint8)
     view[offsets + _CHANNEL_AT + 1] = (channels >> 8).astype(np.uint8)

@@ -12,7 +12,7 @@ import pytest
 from ros2_messages import DB3_SCHEMA as SCHEMA
 from rosbags.typesys import Stores, get_typestore
 
-from bagkit.bag import BagReader, CorruptBagError, NotABagError
+from bagkit.bag import BagReader, CorruptBagError, NotABagError, sqlite3_file
 from bagkit.bag.distro_definitions import DistroDefinitionsWarning
 from bagkit.errors import BagkitError
 
@@ -100,6 +100,37 @@ def test_nulls_where_not_null_was_dropped(tmp_path: Path) -> None:
     assert len(messages) == 17
     assert "nulls.db3: 2 messages without an integer timestamp or blob data skipped" in problems
     assert "nulls.db3: 1 messages of no known topic skipped" in problems
+
+
+@pytest.mark.parametrize("filtered", [0, 4], ids=["grouped", "filtered"])
+def test_counts_at_open_by_either_query(
+    tmp_path: Path, filtered: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Counts, spans and the rows of no known topic are the same whether the topic ids are
+    grouped or filtered one by one (a few ids), against the rows as sqlite3 lists them."""
+    monkeypatch.setattr(sqlite3_file, "FILTERED_COUNT_TOPICS", filtered)
+    bag = _alter(
+        write_db3(tmp_path / "orphans.db3", n=21),
+        "UPDATE messages SET topic_id = 7 WHERE id IN (1, 2); "
+        "UPDATE messages SET timestamp = 'soon' WHERE id = 5",
+    )
+    db = sqlite3.connect(bag)
+    rows = db.execute("SELECT topic_id, timestamp FROM messages").fetchall()
+    db.close()
+    valid = [(i, t) for i, t in rows if isinstance(t, int)]
+    with BagReader(bag) as reader:
+        for topic_id, name in ((1, "/a"), (2, "/b")):
+            times = [t for i, t in valid if i == topic_id]
+            assert reader.topic_counts[name] == len(times)
+            assert reader.topic_spans()[name] == (min(times), max(times))
+        assert (reader.start_ns, reader.end_ns) == (
+            min(t for _, t in valid),
+            max(t for _, t in valid),
+        )
+        assert sorted(reader.problems) == [
+            "orphans.db3: 1 messages without an integer timestamp or blob data skipped",
+            "orphans.db3: 2 messages of no known topic skipped",
+        ]
 
 
 def test_a_blob_topic_name_skips_that_topic(tmp_path: Path) -> None:

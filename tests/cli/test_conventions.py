@@ -212,3 +212,41 @@ def test_number_options_are_parsed_without_pydantic(tmp_path: Path, args: list[s
     assert "PYDANTIC False" in result.stderr
     expected = 2 if "-1" in args else 0
     assert f"EXIT {expected}" in result.stderr, result.stderr
+
+
+def test_filter_and_convert_declare_their_selection_options_once() -> None:
+    """The topic rules and --where of filter and convert are one declaration (one help)."""
+    from bagkit.cli.main import load_command
+
+    names = ("--topics", "--regex", "--exclude-topics", "--exclude-regex", "--where")
+
+    def declared(command: str) -> dict[str, tuple[object, ...]]:
+        loaded = load_command(command)
+        assert loaded is not None
+        return {
+            p.opts[0]: (tuple(p.opts), p.help, p.metavar)  # type: ignore[attr-defined]
+            for p in loaded.params
+            if p.opts[0] in names
+        }
+
+    filter_options = declared("filter")
+    assert sorted(filter_options) == sorted(names)
+    assert all(help_ for _, help_, _ in filter_options.values())
+    assert declared("convert") == filter_options
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (["filter", "bag"], "error: Missing option '--output' / '-o'."),
+        (["filter", "-o", "out"], "error: Missing argument 'bag'."),
+        (["play", "x", "--rate", "abc"], "error: Invalid value for '--rate' / '-r': Input should"),
+    ],
+)
+def test_plain_parameters_word_their_errors_as_click(args: list[str], expected: str) -> None:
+    """Parameters processed without typer's pydantic adapter (plain_params) still say what is
+    missing or wrong as click says it, in one line, exit 2."""
+    result = _run(*args)
+    assert result.returncode == 2
+    (line,) = result.stderr.splitlines()
+    assert line.startswith(expected), line

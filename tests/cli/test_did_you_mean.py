@@ -1,11 +1,13 @@
-"""A misspelt topic, field, service or time is the same answer from every command (subprocesses).
+"""A misspelt topic, field, service or time is the same answer from every command.
 
 One ``error:`` line naming what was typed and the closest names the bag has, exit 2, nothing on
 stdout. The guesses expected are the bag's own names, read with the bag reader and the
 decoder's leaf paths, not written out here. A window outside the bag is the one warning and an
 empty result where a result can be empty, the same line as an error where it cannot (golden
-add, play). ``record`` needs a ROS graph: its missing topic is tests/ros' (the wording,
-selection's ``missing_on_graph``, is tested in tests/selection/test_query.py).
+add, play). The commands run in this process (tests/bagkit_runs.py); ``play`` (which loads
+rclpy), echo's error and its warning run as subprocesses, as a shell sees them. ``record``
+needs a ROS graph: its missing topic is tests/ros' (the wording, selection's
+``missing_on_graph``, is tested in tests/selection/test_query.py).
 """
 
 from __future__ import annotations
@@ -13,17 +15,16 @@ from __future__ import annotations
 import difflib
 import json
 import subprocess
-import sys
 from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from bagkit_runs import bagkit_in_process, bagkit_subprocess
 
 from bagkit.bag import BagReader
 from bagkit.decode import MessageTypes, leaf_fields
 from bagkit.selection.times import format_ns
 
-BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 BAG = Path(__file__).resolve().parents[2] / "fixtures" / "faults" / "golden"
 SERVICES = "rosbag2_tests/resources/mcap/bag_with_topics_and_service_events"
 
@@ -59,6 +60,9 @@ TOPIC_CASES: dict[str, Args] = {
         "/imu/dat",
     ],
     "play --topics": lambda b, t: ["play", b, "--topics", "/imu/dat", "--no-wait-for-subscribers"],
+    "play --topics (beside a known one)": lambda b, t: [
+        *("play", b, "--topics", "/gps/fix", "/imu/dat", "--no-wait-for-subscribers")
+    ],
 }
 FIELD_CASES: dict[str, Args] = {
     "echo --fields": lambda b, t: ["echo", b, "/imu/data", "-f", "linear_accel.z"],
@@ -116,6 +120,9 @@ WINDOW_WARNS: dict[str, Args] = {
 WINDOW_FAILS: dict[str, Args] = {
     "golden add": lambda b, t: ["golden", "add", t / "fx", "--from", b, *OUTSIDE],
     "play": lambda b, t: ["play", b, "--start-offset", "1000", "--no-wait-for-subscribers"],
+    "play --playback-until-nsec": lambda b, t: [
+        *("play", b, "--playback-until-nsec", "1000", "--no-wait-for-subscribers")
+    ],
 }
 # A service by its name, misspelt (the interop bag of rosbag2's tests, recorded services).
 SERVICE_CASES: dict[str, Args] = {
@@ -147,10 +154,21 @@ def _spec(directory: Path, topic: str, field: str) -> Path:
     return spec
 
 
-def _error_line(args: list[str | Path], cwd: Path) -> str:
-    result = subprocess.run(
-        [BAGKIT, *map(str, args)], capture_output=True, text=True, timeout=120, cwd=cwd, check=False
-    )
+# The cases run as a user's shell runs them: the one error line, exit 2 and the empty stdout
+# across the process boundary.
+IN_SUBPROCESS = ("play", "echo")
+
+
+def _bagkit(args: list[str | Path], cwd: Path, case: str = "") -> subprocess.CompletedProcess[str]:
+    """``bagkit ARGS``: in a subprocess for ``play`` (it loads rclpy) and for ``case`` in
+    IN_SUBPROCESS, in this process otherwise."""
+    if args[0] == "play" or case in IN_SUBPROCESS:
+        return bagkit_subprocess(args, cwd)
+    return bagkit_in_process(args, cwd)
+
+
+def _error_line(args: list[str | Path], cwd: Path, case: str = "") -> str:
+    result = _bagkit(args, cwd, case)
     assert result.returncode == 2, result.stderr
     assert result.stdout == ""
     lines = result.stderr.splitlines()
@@ -168,7 +186,7 @@ def _close_to(wrong: str, names: list[str]) -> str:
 def test_a_misspelt_topic_names_the_closest_topic(command: str, tmp_path: Path) -> None:
     with BagReader(BAG) as reader:
         expected = _close_to("/imu/dat", list(reader.topics))
-    line = _error_line(TOPIC_CASES[command](BAG, tmp_path), tmp_path)
+    line = _error_line(TOPIC_CASES[command](BAG, tmp_path), tmp_path, command)
     assert "/imu/dat " in line and f"did you mean {expected}?" in line
     assert not (tmp_path / "fx").exists()  # golden add leaves nothing behind
     assert not (tmp_path / "m").exists()  # nor merge
@@ -216,10 +234,7 @@ def _outside_line(line: str, span: tuple[int, int]) -> None:
 def test_a_window_outside_the_bag_is_the_one_warning(command: str, tmp_path: Path) -> None:
     with BagReader(BAG) as reader:
         span = reader.start_ns, reader.end_ns
-    result = subprocess.run(
-        [BAGKIT, *map(str, WINDOW_WARNS[command](BAG, tmp_path))],
-        capture_output=True, text=True, timeout=120, cwd=tmp_path, check=False,
-    )  # fmt: skip
+    result = _bagkit(WINDOW_WARNS[command](BAG, tmp_path), tmp_path, command)
     assert result.returncode == 0, result.stderr
     (line,) = [x for x in result.stderr.splitlines() if "the time window" in x]
     assert line.startswith("warning: ") and "error" not in result.stderr
@@ -237,17 +252,13 @@ def test_a_window_outside_the_bag_fails_where_nothing_is_no_result(
     assert not (tmp_path / "fx").exists()  # golden add writes nothing
 
 
-def test_stats_takes_a_service_name_as_echo_does(interop_dir: Path) -> None:
+def test_stats_takes_a_service_name_as_echo_does(interop_dir: Path, tmp_path: Path) -> None:
     """``stats summary -t /service`` summarizes the service's event topic, as echo prints it."""
     bag = interop_dir / SERVICES
     with BagReader(bag) as reader:
         count = reader.topic_counts["/test_service1/_service_event"]
-    result = subprocess.run(
-        [BAGKIT, "stats", "summary", str(bag), "-t", "/test_service1", "--format", "json"],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
+    result = bagkit_in_process(
+        ["stats", "summary", bag, "-t", "/test_service1", "--format", "json"], tmp_path
     )
     assert result.returncode == 0, result.stderr
     (topic,) = json.loads(result.stdout)["topics"]
@@ -262,10 +273,7 @@ def test_check_names_the_closest_topic_of_a_contract_broken_by_a_misspelling(
     with BagReader(BAG) as reader:
         expected = _close_to("/imu/dat", list(reader.topics))
     spec = _spec(tmp_path, "/imu/dat", "linear_acceleration.z")
-    result = subprocess.run(
-        [BAGKIT, "check", str(BAG), "--spec", str(spec)],
-        capture_output=True, text=True, timeout=120, check=False,
-    )  # fmt: skip
+    result = bagkit_in_process(["check", BAG, "--spec", spec], tmp_path)
     assert result.returncode == 1, result.stderr
     assert f"/imu/dat: present (not in the bag; did you mean {expected}?)" in result.stdout
 
@@ -275,10 +283,30 @@ def test_filter_takes_a_service_name_as_echo_does(interop_dir: Path, tmp_path: P
     bag = interop_dir / SERVICES
     with BagReader(bag) as reader:
         count = reader.topic_counts["/test_service1/_service_event"]
-    result = subprocess.run(
-        [BAGKIT, "filter", str(bag), "-o", "out", "--topics", "/test_service1"],
-        capture_output=True, text=True, timeout=120, cwd=tmp_path, check=False,
-    )  # fmt: skip
+    result = bagkit_in_process(["filter", bag, "-o", "out", "--topics", "/test_service1"], tmp_path)
     assert result.returncode == 0, result.stderr
     with BagReader(tmp_path / "out") as reader:
         assert reader.topic_counts == {"/test_service1/_service_event": count}
+
+
+def test_filter_where_compiles_for_a_service_named_by_its_name(
+    interop_dir: Path, tmp_path: Path
+) -> None:
+    """``--topics /service --where COND``: the service's name is resolved to its event topic
+    before the condition is compiled, so its calls are filtered by their content."""
+    bag = interop_dir / SERVICES
+    condition = "request[*].int32_value >= 0"
+    echoed = bagkit_in_process(
+        ["echo", bag, "/test_service1/_service_event", "--format", "json"], tmp_path
+    )
+    assert echoed.returncode == 0, echoed.stderr
+    events = [json.loads(line) for line in echoed.stdout.splitlines()]
+    expected = [
+        e["log_time"] for e in events if any(r["int32_value"] >= 0 for r in e["data"]["request"])
+    ]
+    assert 0 < len(expected) < len(events)
+    args: list[str | Path] = ["filter", bag, "-o", "out", "--topics", "/test_service1"]
+    result = bagkit_in_process([*args, "--where", condition], tmp_path)
+    assert result.returncode == 0, result.stderr
+    with BagReader(tmp_path / "out") as reader:
+        assert [m.log_time for m in reader.messages()] == expected

@@ -1,8 +1,10 @@
-"""The same topics and times mean one thing in every command (subprocesses of the CLI).
+"""The same topics and times mean one thing in every command.
 
 Each selection runs through echo, export, stats summary, filter and plot's series; what each
 selected is compared with what the bag holds in that window, read with the bag reader alone.
-The edges (unknown topic, window outside the bag, missing path) are checked once for all.
+The edges (unknown topic, window outside the bag, missing path) are checked once for all. The
+commands run in this process (tests/bagkit_runs.py); echo's edges as subprocesses, the
+process boundary once.
 """
 
 from __future__ import annotations
@@ -11,25 +13,25 @@ import csv
 import datetime as dt
 import json
 import subprocess
-import sys
 from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from bagkit_runs import bagkit_in_process, bagkit_subprocess
 
 from bagkit.bag import BagReader
 from bagkit.data.series import load_series
 from bagkit.selection.query import Query
 
-BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 BAG = Path(__file__).resolve().parents[2] / "fixtures" / "faults" / "golden"
 S = 1_000_000_000
 
 
-def _bagkit(*args: str | Path, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [BAGKIT, *map(str, args)], capture_output=True, text=True, timeout=120, check=False, cwd=cwd
-    )
+def _bagkit(
+    *args: str | Path, cwd: Path | None = None, in_subprocess: bool = False
+) -> subprocess.CompletedProcess[str]:
+    run = bagkit_subprocess if in_subprocess else bagkit_in_process
+    return run(list(args), cwd or Path.cwd())
 
 
 @pytest.fixture(scope="module")
@@ -138,7 +140,8 @@ EDGE_COMMANDS = {
 
 @pytest.mark.parametrize("command", EDGE_COMMANDS)
 def test_an_unknown_topic_is_one_error_naming_the_closest(command: str, tmp_path: Path) -> None:
-    result = _bagkit(*EDGE_COMMANDS[command](BAG, "/imu/dat", tmp_path), cwd=tmp_path)
+    args = EDGE_COMMANDS[command](BAG, "/imu/dat", tmp_path)
+    result = _bagkit(*args, cwd=tmp_path, in_subprocess=command == "echo")
     assert result.returncode == 2, result.stderr
     assert result.stderr.count("\n") == 1
     assert result.stderr.startswith("error: topic /imu/dat not in ")
@@ -148,7 +151,8 @@ def test_an_unknown_topic_is_one_error_naming_the_closest(command: str, tmp_path
 @pytest.mark.parametrize("command", EDGE_COMMANDS)
 def test_a_missing_path_is_one_error(command: str, tmp_path: Path) -> None:
     missing = tmp_path / "no_such_bag"
-    result = _bagkit(*EDGE_COMMANDS[command](missing, "/imu/data", tmp_path), cwd=tmp_path)
+    args = EDGE_COMMANDS[command](missing, "/imu/data", tmp_path)
+    result = _bagkit(*args, cwd=tmp_path, in_subprocess=command == "echo")
     assert result.returncode == 2
     assert result.stderr == f"error: {missing}: no such file or directory\n"
 
@@ -164,7 +168,7 @@ def test_a_window_outside_the_bag_is_one_warning_and_an_empty_result(
     command: str, tmp_path: Path
 ) -> None:
     args = [*WINDOW_COMMANDS[command](BAG, "/imu/data", tmp_path), "--start", "1h"]
-    result = _bagkit(*args, cwd=tmp_path)
+    result = _bagkit(*args, cwd=tmp_path, in_subprocess=command == "echo")
     warnings = [line for line in result.stderr.splitlines() if line.startswith("warning:")]
     assert len(warnings) == 1, result.stderr
     assert warnings[0].startswith(f"warning: {BAG}: the time window [")

@@ -169,3 +169,45 @@ def test_record_options_make_names_absolute() -> None:
 def test_play_options_out_of_range(fields: dict[str, object], message: str) -> None:
     with pytest.raises(PlayerError, match=message):
         PlayOptions(Path("bag"), **fields)  # type: ignore[arg-type]
+
+
+def test_live_health_names_its_field() -> None:
+    from bagkit.errors import OptionError
+    from bagkit.health import HealthSpec
+    from bagkit.health.live import LiveHealth
+
+    spec = HealthSpec.parse("topics:\n  /a: {max_gap: 1s}\n")
+    assert LiveHealth(spec, stop_after_ns=2 * 10**9).stop_after_ns == 2 * 10**9
+    with pytest.raises(OptionError, match=r"^stop_after_ns: must be positive") as error:
+        LiveHealth(spec, stop_after_ns=0)
+    assert error.value.field == "stop_after_ns"
+
+
+@pytest.mark.parametrize(
+    ("flags", "expected"),
+    [
+        (
+            ["--trigger-on-health"],
+            "error: --trigger-on-health triggers snapshots outside snapshot mode "
+            "(add --snapshot-mode)",
+        ),
+        (["--stop-on-health", "0"], "error: --stop-on-health: must be positive, got 0"),
+    ],
+)
+def test_record_health_errors_name_the_flags(
+    flags: list[str], expected: str, tmp_path: Path
+) -> None:
+    """The library names its fields (health.trigger, stop_after_ns); the CLI its flags. Both
+    are refused before the recorder starts: nothing is written."""
+    import subprocess
+    import sys
+
+    spec = tmp_path / "health.yaml"
+    spec.write_text("topics:\n  /imu/data: {max_gap: 1s}\n")
+    bagkit = str(Path(sys.executable).with_name("bagkit"))
+    result = subprocess.run(
+        [bagkit, "record", "-a", "--health", str(spec), *flags, "-o", str(tmp_path / "out")],
+        capture_output=True, text=True, timeout=120, check=False,
+    )  # fmt: skip
+    assert result.returncode == 2 and result.stderr.splitlines() == [expected], result.stderr
+    assert not (tmp_path / "out").exists()

@@ -31,7 +31,19 @@ CASES = {
     "echo": (["echo", str(SERVICES_BAG), "/imu/data", "-n", "1"], HEAVY),
     "stats": (["stats", "summary", str(SERVICES_BAG)], HEAVY),
     "find": (["find", str(SERVICES_BAG), "--when", "/imu/data: linear_acceleration.z < 5"], HEAVY),
+    "check": (["check", str(SERVICES_BAG), "--spec", "{contract}"], HEAVY),
 }
+# check's contract: presence, type, rate, gap and value assertions (the ones read in bulk).
+CONTRACT = """\
+topics:
+  /imu/data:
+    type: sensor_msgs/msg/Imu
+    rate: {min: 20, over: 1s}
+    max_gap: 1s
+    values:
+      linear_acceleration.z: {min: -100, max: 100}
+  /gps/fix: {}
+"""
 
 
 def imported_at_start(args: list[str]) -> tuple[set[str], str]:
@@ -53,9 +65,11 @@ def imported_at_start(args: list[str]) -> tuple[set[str], str]:
 
 
 @pytest.mark.parametrize("case", sorted(CASES))
-def test_a_quick_command_imports_no_heavy_module(case: str) -> None:
+def test_a_quick_command_imports_no_heavy_module(case: str, tmp_path: Path) -> None:
     args, forbidden = CASES[case]
-    modules, stdout = imported_at_start(args)
+    contract = tmp_path / "health.yaml"
+    contract.write_text(CONTRACT)
+    modules, stdout = imported_at_start([a.format(contract=contract) for a in args])
     assert stdout  # the command did its work
     assert "bagkit.bag.reader" in modules  # and the check sees what ran
     heavy = sorted(n for n in modules if any(n == f or n.startswith(f"{f}.") for f in forbidden))

@@ -172,7 +172,7 @@ def test_undecodable_topic_is_skipped_with_one_warning(tmp_path: Path) -> None:
     assert not (tmp_path / "out" / "blob.parquet").exists()
 
 
-def test_topic_of_which_no_message_decodes_is_one_warning_and_an_empty_file(
+def test_topic_of_which_no_message_decodes_is_an_error_and_an_empty_file(
     tmp_path: Path,
 ) -> None:
     bag = tmp_path / "garbage"
@@ -183,11 +183,12 @@ def test_topic_of_which_no_message_decodes_is_one_warning_and_an_empty_file(
     for suffix in (".parquet", ".csv"):
         out = tmp_path / f"t{suffix}"
         result = _run(bag, "-o", out)
-        assert result.returncode == 0, result.stderr
+        assert result.returncode == 2, result.stderr
         assert "internal error" not in result.stderr and "Traceback" not in result.stderr
         warnings = [line for line in result.stderr.splitlines() if line.startswith("warning:")]
         assert len(warnings) == 1, result.stderr
         assert "/t: 5 messages could not be decoded" in warnings[0]
+        assert result.stderr.splitlines()[-1] == "error: none of the 5 messages of /t decode"
         read = pd.read_parquet(out) if suffix == ".parquet" else pd.read_csv(out)
         assert len(read) == 0 and "temperature" in read.columns
 

@@ -11,6 +11,7 @@ from distributed import Client
 
 from bagkit.data import read_dataframe
 from bagkit.fleet import dataframe
+from bagkit.selection.query import Query
 
 FIELDS = ["linear_acceleration.z", "angular_velocity.x"]
 
@@ -30,3 +31,29 @@ def test_reductions_run_on_the_cluster(client: Client, fleet_bags: list[Path]) -
     column = FIELDS[1]
     assert frame[column].max().compute() == expected[column].max()
     assert frame[column].mean().compute() == pytest.approx(expected[column].mean(), rel=1e-12)
+
+
+def test_a_query_selects_fields_window_and_messages_in_every_partition(
+    client: Client, fleet_bags: list[Path]
+) -> None:
+    """A query (window relative to each bag's start, a condition) is each bag's read_dataframe
+    of that query, concatenated; the same as the keywords."""
+    query = Query.create(
+        "/imu/data", FIELDS, start="1", end="3", where="linear_acceleration.z > 9.81"
+    )
+    got = dataframe(fleet_bags, "/imu/data", query=query).compute()
+    parts = []
+    for bag in fleet_bags:
+        whole = read_dataframe(bag, "/imu/data", fields=FIELDS)
+        first = whole.index[0]
+        inside = whole[
+            (whole.index >= first + pd.Timedelta(seconds=1))
+            & (whole.index < first + pd.Timedelta(seconds=3))
+            & (whole["linear_acceleration.z"] > 9.81)
+        ]
+        parts.append(inside)
+    expected = pd.concat(parts)
+    assert 0 < len(got) < sum(len(read_dataframe(b, "/imu/data")) for b in fleet_bags)
+    pd.testing.assert_frame_equal(got, expected)
+    with pytest.raises(TypeError):
+        dataframe(fleet_bags, "/imu/data", FIELDS, query=query)

@@ -155,3 +155,20 @@ def test_a_killed_worker_does_not_change_the_result(
     assert victim not in worker_pids(client).values()
     assert_same(expected, got)
     client.wait_for_workers(2)  # the nanny restarts it: the next tests have two workers again
+
+
+def test_a_service_name_is_resolved_in_each_bag_as_in_process(
+    client: Client, fleet_bags: list[Path], interop_dir: Path
+) -> None:
+    """``-t /service`` summarizes the service's event topic of the bags that recorded it, on the
+    workers as in one process; a misspelt one names the closest service."""
+    services = interop_dir / "rosbag2_tests/resources/mcap/bag_with_topics_and_service_events"
+    bags = [services, fleet_bags[0]]
+    query = Query.create("/test_service1")
+    fleet = summarize_fleet(bags, client=client, query=query)
+    assert [t.topic for t in fleet.topics] == ["/test_service1/_service_event"]
+    assert fleet.topics[0].count > 0
+    assert_same(summarize(bags, query), fleet)
+    with pytest.raises(UnknownTopicError, match="/test_servce1 not in any of the bags") as err:
+        summarize_fleet(bags, client=client, query=Query.create("/test_servce1"))
+    assert "/test_service1" in str(err.value)

@@ -147,3 +147,24 @@ def test_episode_picks_another_episode_and_one_past_the_last_is_one_line(tmp_pat
     lines = past.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error:") and "there are" in lines[0]
     assert not (tmp_path / "past").exists()
+
+
+def test_a_span_from_the_end_is_read_against_the_bag(tmp_path: Path) -> None:
+    """The library takes the window as a query holds it: ``-5`` is five seconds before the
+    bag's last message; the spec's first line names the window in absolute times."""
+    from bagkit.regression.add import AddOptions, add_fixture
+    from bagkit.selection.query import Query
+    from bagkit.selection.times import format_ns
+
+    faults = load_spec(Path(__file__).resolve().parents[2] / "fixtures" / "faults")
+    with BagReader(faults.bag) as reader:
+        last = reader.end_ns
+        expected = [m.log_time for m in reader.messages() if m.log_time >= last - 5 * 10**9]
+    added = add_fixture(tmp_path / "tail", AddOptions(faults.bag, Query.create(start="-5").span))
+    with BagReader(tmp_path / "tail" / "golden") as window:
+        # The latched state (logged at the start) aside, the messages are the bag's last 5 s.
+        got = [m.log_time for m in window.messages() if m.log_time > last - 5 * 10**9]
+    assert got == [t for t in expected if t > last - 5 * 10**9] and got
+    assert sum(added.counts.values()) >= len(expected)
+    first_line = (tmp_path / "tail" / "spec.yaml").read_text().splitlines()[0]
+    assert f"[{format_ns(last - 5 * 10**9)}, end)" in first_line

@@ -1,22 +1,31 @@
 """The column-by-column migration of a chunk's payloads gives the bytes the message-by-message
-one gives, and hands back what it cannot take."""
+one gives, hands back what it cannot take, and the records rebuilt around its rows keep each
+message's channel, sequence and times."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 from rclpy.serialization import deserialize_message, serialize_message
-from sensor_msgs.msg import Imu
+from sensor_msgs.msg import Imu, Range
 
-from bagkit.bag import TopicInfo, message_definition
-from bagkit.migrate import Target, migrate_topic
+from bagkit.bag import BagReader, BagWriter, TopicInfo, message_definition
+from bagkit.migrate import Target, TopicMigration, migrate_topic
+from bagkit.surgery.migrate import MigrateOptions, migrate_bag
 
 IMU = "sensor_msgs/msg/Imu"
 LAST = "float64[9] linear_acceleration_covariance"
+LAST_BYTES = 72  # float64[9], the last field: no padding after it
+OLD_IMU = "\n".join(
+    line for line in message_definition(IMU).splitlines() if line.split("#")[0].strip() != LAST
+)
+START_NS = 1_700_000_000_000_000_000
 
 
-def _messages() -> list[Imu]:
+def _messages(count: int = 40) -> list[Imu]:
     found = []
-    for i in range(40):
+    for i in range(count):
         msg = Imu()
         msg.header.frame_id = "imu" + "x" * (i % 3)  # three layouts
         msg.header.stamp.sec = i
@@ -26,27 +35,96 @@ def _messages() -> list[Imu]:
     return found
 
 
-def test_bulk_equals_one_by_one() -> None:
-    text = "\n".join(
-        line for line in message_definition(IMU).splitlines() if line.split("#")[0].strip() != LAST
-    )
-    migration = migrate_topic(TopicInfo("/imu", IMU), text, Target())
+def _old(msg: Imu) -> bytes:
+    return bytes(serialize_message(msg))[:-LAST_BYTES]
+
+
+def _migration() -> TopicMigration:
+    migration = migrate_topic(TopicInfo("/imu", IMU), OLD_IMU, Target())
     assert migration is not None and migration.bulk is not None
+    return migration
+
+
+def _by_index(groups: list[tuple[np.ndarray, np.ndarray]], room: int) -> dict[int, bytes]:
+    """Payload per batch index; asserts each index comes once and the room is zeros."""
+    found: dict[int, bytes] = {}
+    for indexes, rows in groups:
+        assert not rows[:, :room].any()
+        for index, row in zip(indexes.tolist(), rows, strict=True):
+            assert index not in found
+            found[index] = row[room:].tobytes()
+    return found
+
+
+def test_bulk_equals_one_by_one() -> None:
+    migration = _migration()
+    assert migration.bulk is not None
     messages = _messages()
-    old = [bytes(serialize_message(m))[:-72] for m in messages]
+    old = [_old(m) for m in messages]
     buf = np.frombuffer(b"".join(old), np.uint8)
     lengths = np.array([len(p) for p in old], np.int64)
     starts = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
-    bulk = migration.bulk.payloads(buf, starts, lengths)
-    assert bulk is not None
-    assert bulk == [migration.payload(p) for p in old]
-    decoded = [deserialize_message(p, Imu) for p in bulk]
+    groups = migration.bulk.payloads(buf, starts, lengths, 7)
+    assert groups is not None and len(groups) == 3
+    bulk = _by_index(groups, 7)
+    assert [bulk[i] for i in range(len(old))] == [migration.payload(p) for p in old]
+    decoded = [deserialize_message(bulk[i], Imu) for i in range(len(old))]
     assert [(d.header.frame_id, d.header.stamp.sec, d.linear_acceleration.z) for d in decoded] == [
         (m.header.frame_id, m.header.stamp.sec, m.linear_acceleration.z) for m in messages
     ]
     assert {tuple(d.linear_acceleration_covariance) for d in decoded} == {(0.0,) * 9}
     # A payload cut short is not taken in bulk: the whole batch goes one by one.
-    assert (
-        migration.bulk.payloads(buf, starts, lengths - np.eye(1, len(old), 3, np.int64)[0] * 8)
-        is None
-    )
+    short = lengths - np.eye(1, len(old), 3, np.int64)[0] * 8
+    assert migration.bulk.payloads(buf, starts, short, 0) is None
+
+
+def test_one_by_one_comes_as_rows_too() -> None:
+    """The message-by-message path (a rule-free migration without bulk) hands out the same
+    groups of rows."""
+    migration = _migration()
+    old = [_old(m) for m in _messages(9)]
+    buf = np.frombuffer(b"".join(old), np.uint8)
+    lengths = np.array([len(p) for p in old], np.int64)
+    starts = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
+    expected = [migration.payload(p) for p in old]
+    migration.bulk = None
+    found = _by_index(migration.payloads(buf, starts, lengths, 31), 31)
+    assert [found[i] for i in range(len(old))] == expected
+
+
+def test_migrated_bag_keeps_every_record_s_fields(tmp_path: Path) -> None:
+    """Imu in three layouts (migrated in bulk) interleaved in the same chunks with an unchanged
+    Range: every Imu message equals the message-by-message migration of its old payload and
+    keeps its log time, publish time and sequence; every Range message is stored as it was."""
+    messages = _messages(300)
+    bag = tmp_path / "old"
+    expected_imu, expected_range = [], []
+    migration = _migration()
+    with BagWriter(bag) as writer:
+        writer.add_topic(TopicInfo("/imu", IMU), OLD_IMU)
+        writer.add_topic(TopicInfo("/range", "sensor_msgs/msg/Range"))
+        for i, msg in enumerate(messages):
+            t = START_NS + 10 * i
+            writer.write("/imu", _old(msg), log_time=t, publish_time=t - 3, sequence=i + 1)
+            expected_imu.append((t, t - 3, i + 1, migration.payload(_old(msg))))
+            if i % 4 == 0:
+                data = bytes(serialize_message(Range(range=float(i))))
+                writer.write("/range", data, log_time=t + 5, publish_time=t, sequence=7)
+                expected_range.append((t + 5, t, 7, data))
+            if i % 50 == 49:
+                writer.flush()  # several chunks
+    report = migrate_bag(bag, tmp_path / "new", MigrateOptions())
+    (done,) = report.migrated
+    assert done.migrated == len(messages)
+    with BagReader(tmp_path / "new") as reader:
+        stored = list(reader.messages(["/imu", "/range"]))
+    got = {
+        topic: [
+            (m.log_time, m.publish_time, m.sequence, m.data) for m in stored if m.topic == topic
+        ]
+        for topic in ("/imu", "/range")
+    }
+    assert got == {"/imu": expected_imu, "/range": expected_range}
+    assert [deserialize_message(d, Imu).linear_acceleration.z for *_, d in got["/imu"]] == [
+        m.linear_acceleration.z for m in messages
+    ]

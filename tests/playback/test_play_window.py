@@ -41,3 +41,15 @@ def test_from_the_end_and_absolute_starts() -> None:
         PlayWindow.create("2m").bounds(START, END, bag)
     with pytest.raises(PlayerError, match="bad start offset"):
         PlayWindow.create("soon")
+
+
+def test_an_until_before_the_bag_is_the_one_outside_message() -> None:
+    window = PlayWindow.create(until_ns=START - S)
+    with pytest.raises(PlayerError, match=r"^bag: the time window \[.*holds no message"):
+        window.bounds(START, END, Path("bag"))
+    # Until inside the bag, or a duration reaching past it (the later end counts): a window.
+    assert PlayWindow.create(until_ns=START).bounds(START, END, Path("bag")) == (START, START + 1)
+    assert PlayWindow.create(duration=2.0, until_ns=START - S).bounds(START, END, Path("bag")) == (
+        START,
+        START + 2 * S,
+    )

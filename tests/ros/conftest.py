@@ -6,7 +6,6 @@ from __future__ import annotations
 import os
 import shutil
 import signal
-import subprocess
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -24,6 +23,7 @@ from user_workspace import (
     USER_PROJECT,
     Recording,
     Workspace,
+    background,
     build_workspace,
     json_lines,
     run,
@@ -68,21 +68,14 @@ def project(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def recording(workspace: Workspace, project: Path) -> Recording:
     """``bagkit record`` while the monitor publishes REPORTS reports and calls its service."""
     bag = project.parent / "battery_bag"
-    recorder = subprocess.Popen(
-        [BAGKIT, "record", REPORT_TOPIC, EVENTS_TOPIC, "-o", str(bag)],
-        cwd=project,
-        env=workspace.env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        start_new_session=True,
-    )
-    try:
-        # The monitor waits for the recorder's subscriptions and for its reports' acks.
-        monitor = [sys.executable, "-m", "battery.monitor", "--count", str(REPORTS)]
-        published = json_lines(run(monitor, workspace.env, project).stdout)
-    finally:
-        os.killpg(recorder.pid, signal.SIGINT)
-        stdout, stderr = recorder.communicate(timeout=60)
+    record = [BAGKIT, "record", REPORT_TOPIC, EVENTS_TOPIC, "-o", str(bag)]
+    with background(record, workspace.env, project) as recorder:
+        try:
+            # The monitor waits for the recorder's subscriptions and for its reports' acks.
+            monitor = [sys.executable, "-m", "battery.monitor", "--count", str(REPORTS)]
+            published = json_lines(run(monitor, workspace.env, project).stdout)
+        finally:
+            os.killpg(recorder.pid, signal.SIGINT)
+            stdout, stderr = recorder.communicate(timeout=60)
     assert recorder.returncode == 130, stderr
     return Recording(bag, published, stdout)

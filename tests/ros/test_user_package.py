@@ -16,7 +16,6 @@ import json
 import os
 import re
 import shutil
-import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -30,12 +29,14 @@ from user_workspace import (
     CMAKE_OVERRIDE,
     EVENT_TYPE,
     EVENTS_TOPIC,
+    LISTENER,
     REPORT_TOPIC,
     REPORT_TYPE,
     REPORTS,
     USER_PROJECT,
     Recording,
     Workspace,
+    background,
     json_lines,
     run,
 )
@@ -134,25 +135,11 @@ def test_stats_summary_of_the_users_fields(recording: Recording, workspace: Work
 def test_replay_to_a_subscriber_of_the_users_type(
     recording: Recording, workspace: Workspace, project: Path
 ) -> None:
-    listen = [sys.executable, "-m", "battery.listener", "--count", str(REPORTS)]
-    listener = subprocess.Popen(
-        listen,
-        cwd=project,
-        env=workspace.env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        start_new_session=True,
-    )
-    try:
+    with background(LISTENER, workspace.env, project) as listener:
         replay = [BAGKIT, "replay", str(recording.bag), "--topics", REPORT_TOPIC, "--rate", "4"]
         replay += ["--wait-for", REPORT_TOPIC, "--format", "json"]
         out = run(replay, workspace.env, project).stdout
         stdout, stderr = listener.communicate(timeout=60)
-    finally:
-        if listener.poll() is None:
-            os.killpg(listener.pid, signal.SIGKILL)
-            listener.wait()
     assert listener.returncode == 0, stderr
     assert json_lines(stdout) == recording.published
     (topic,) = json.loads(out[out.index("{") :])["topics"]

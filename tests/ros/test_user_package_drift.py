@@ -11,9 +11,7 @@ rules file computes the new field from the old ones (the service events migrated
 from __future__ import annotations
 
 import json
-import os
 import shutil
-import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -24,12 +22,14 @@ from user_workspace import (
     BAGKIT,
     BUILD_TIMEOUT_S,
     EVENTS_TOPIC,
+    LISTENER,
     REPORT_TOPIC,
     REPORT_TYPE,
     REPORTS,
     USER_PROJECT,
     Recording,
     Workspace,
+    background,
     build_workspace,
     json_lines,
     run,
@@ -148,25 +148,11 @@ def test_play_on_drift_to_a_subscriber_of_version_2(
         skipped.stderr
     )
 
-    listen = [sys.executable, "-m", "battery.listener", "--count", str(REPORTS)]
     project = USER_PROJECT
-    listener = subprocess.Popen(
-        listen,
-        cwd=project,
-        env=workspace_v2.env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        start_new_session=True,
-    )
-    try:
+    with background(LISTENER, workspace_v2.env, project) as listener:
         migrated = run([*play, "--on-drift", "migrate", "--wait-for", REPORT_TOPIC],
                        workspace_v2.env, project)  # fmt: skip
         stdout, stderr = listener.communicate(timeout=60)
-    finally:
-        if listener.poll() is None:
-            os.killpg(listener.pid, signal.SIGKILL)
-            listener.wait()
     assert listener.returncode == 0, stderr
     assert "each message migrated to the installed definition" in migrated.stderr
     received = json_lines(stdout)

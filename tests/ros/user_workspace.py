@@ -9,9 +9,12 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import sysconfig
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -29,6 +32,8 @@ REPORT_TOPIC = "/battery/report"
 EVENTS_TOPIC = "/battery/set_charge_limit/_service_event"
 REPORT_TYPE = "my_robot_msgs/msg/BatteryReport"
 EVENT_TYPE = "my_robot_msgs/srv/SetChargeLimit_Event"
+# The user's subscriber: prints each of REPORTS reports it receives as a JSON line, then exits.
+LISTENER = [sys.executable, "-m", "battery.listener", "--count", str(REPORTS)]
 
 
 @dataclass(frozen=True)
@@ -138,6 +143,27 @@ def run(
     )
     assert result.returncode == 0, f"{args}\n{result.stdout}\n{result.stderr}"
     return result
+
+
+@contextmanager
+def background(args: list[str], env: dict[str, str], cwd: Path) -> Iterator[subprocess.Popen[str]]:
+    """``args`` running in a process group of its own, its output piped; the group is killed
+    on leaving if the process still runs (a test that failed half-way)."""
+    process = subprocess.Popen(
+        args,
+        cwd=cwd,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    try:
+        yield process
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.communicate()
 
 
 def json_lines(text: str) -> list[Any]:

@@ -4,6 +4,7 @@ mix. Faults come from the HTTP server on loopback; S3's from moto's server."""
 
 from __future__ import annotations
 
+import importlib.util
 import os
 from pathlib import Path
 
@@ -82,6 +83,20 @@ def test_an_object_that_is_no_bag(http_store: tuple[Store, HttpStore], tmp_path:
     assert f"{store.base}/notes.mcap" in line
 
 
+def test_an_http_prefix_of_bags_is_one_error(
+    http_store: tuple[Store, HttpStore], local_bags: Path
+) -> None:
+    """HTTP lists no prefixes (fsspec would list the links of a page): a URL that is neither a
+    bag file nor a bag's prefix is one error saying to name the bags."""
+    store, objects = http_store
+    store.put(local_bags / "fleet" / "a", "listed/a")
+    objects.objects["/listed/index.html"] = b'<a href="a/a_0.mcap">a</a>'
+    for url in (f"{store.base}/listed", f"{store.base}/listed/index.html"):
+        line = one_error(["stats", "summary", url, "--workers", "0"])
+        assert "an HTTP server lists no prefixes: name each bag" in line
+    assert cli(["info", f"{store.base}/listed/a"], {}).returncode == 0
+
+
 def test_secrets_in_a_url_are_never_shown(http: HttpStore) -> None:
     host = http.url.removeprefix("http://")
     url = f"http://user:hunter2@{host}/missing.mcap?X-Amz-Signature=s3cr3t"
@@ -92,6 +107,17 @@ def test_secrets_in_a_url_are_never_shown(http: HttpStore) -> None:
 
 def test_an_unknown_scheme(tmp_path: Path) -> None:
     assert "unknown URL scheme 'nosuch'" in one_error(["info", "nosuch://bucket/bag.mcap"])
+
+
+@pytest.mark.parametrize(("url", "package"), [("gs://b/x.mcap", "gcsfs"), ("az://c/x", "adlfs")])
+def test_a_scheme_whose_package_is_missing_names_it(url: str, package: str) -> None:
+    """gcsfs and adlfs are not in bagkit[storage] (nor in the lock): one error naming the
+    package, when it is not installed."""
+    if importlib.util.find_spec(package) is not None:
+        pytest.skip(f"{package} is installed")
+    error = one_error(["info", url])
+    assert f"needs {package}, which bagkit[storage] does not include" in error
+    assert f"pip install {package})" in error
 
 
 def test_a_bucket_that_does_not_exist(moto_store: Store) -> None:

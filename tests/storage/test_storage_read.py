@@ -9,6 +9,7 @@ import os
 import struct
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -56,18 +57,50 @@ def chunk_bytes_holding(file: Path, topic: str) -> int:
 
 
 def without_paths(info: dict[str, object]) -> dict[str, object]:
-    return {k: v for k, v in info.items() if k not in ("path", "files")}
+    return {k: v for k, v in info.items() if k not in ("path", "files", "exact_rates")}
+
+
+def chunk_bounded_rates(file: Path) -> dict[str, float]:
+    """Each topic's (count - 1) / span, the span from the start of the first chunk holding it
+    to the end of the last, from the summary as the ``mcap`` package reads it."""
+    from mcap.reader import make_reader
+
+    with open(file, "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None and summary.statistics is not None
+    rates = {}
+    for channel in summary.channels.values():
+        holding = [c for c in summary.chunk_indexes if channel.id in c.message_index_offsets]
+        span = max(c.message_end_time for c in holding) - min(c.message_start_time for c in holding)
+        rates[channel.topic] = (summary.statistics.channel_message_counts[channel.id] - 1) / (
+            span / 1e9
+        )
+    return rates
 
 
 def test_info_reads_the_summary_only(store: Store, local_bags: Path) -> None:
+    """The summary, not the message indexes: each rate over the chunks holding its topic, a
+    lower bound of the exact one (which ``exact_rates`` reads)."""
     local = local_bags / "fleet" / "a" / "a_0.mcap"
     before = fetched()[0]
     remote = bag_info(f"{store.base}/a.mcap")
     spent = fetched()[0] - before
-    assert without_paths(remote.to_dict()) == without_paths(bag_info(local).to_dict())
+    on_disk = bag_info(local)
+    assert not remote.exact_rates and on_disk.exact_rates
+    rates = {t.topic: t.rate_hz for t in remote.topics}
+    expected = chunk_bounded_rates(local)
+    assert rates == pytest.approx(expected, rel=1e-12)
+    for topic in on_disk.topics:
+        assert topic.rate_hz is not None and rates[topic.topic] <= topic.rate_hz
+    unrated = [replace(t, rate_hz=None) for t in remote.topics]
+    assert without_paths({**remote.to_dict(), "topics": unrated}) == without_paths(
+        {**on_disk.to_dict(), "topics": [replace(t, rate_hz=None) for t in on_disk.topics]}
+    )
     assert remote.path == f"{store.base}/a.mcap"
     assert 0 < spent <= 2 * summary_bytes(local)
     assert spent < local.stat().st_size / 4
+    exact = bag_info(f"{store.base}/a.mcap", exact_rates=True)
+    assert exact.exact_rates and exact.topics == on_disk.topics
 
 
 def test_a_topic_fetches_the_chunks_that_hold_it(store: Store, local_bags: Path) -> None:
@@ -145,6 +178,52 @@ def test_outputs_to_urls_are_uploaded(moto_store: Store, local_bags: Path) -> No
     )
     assert "0 read, 2 unchanged" in update.stderr.replace("\n", " ")
     assert update.stderr.startswith(f"{base}/out/c.parquet: 2 bags")
+
+
+def test_export_to_a_url_names_the_url(moto_store: Store, local_bags: Path) -> None:
+    """What export prints is where the files are: under the URL, not a temporary folder."""
+    import s3fs
+
+    base = moto_store.base
+    moto_store.put(local_bags / "fleet" / "b", "fleet/b")
+    result = cli(
+        ["export", f"{base}/fleet/b", "-o", f"{base}/tables/b", "-t", "/gps/fix"], moto_store.env
+    )
+    assert result.returncode == 0, result.stderr
+    printed = result.stdout.split("-> ")[-1].strip()
+    assert printed == f"{base}/tables/b/gps/fix.parquet", result.stdout
+    assert s3fs.S3FileSystem().exists(printed.removeprefix("s3://"))
+    assert "bagkit-storage-" not in result.stdout + result.stderr
+
+
+def test_presigned_urls_keep_their_signature(moto_store: Store, local_bags: Path) -> None:
+    """moto checks the signature of a presigned URL (403 without it): the fleet commands
+    open each bag by its full URL, and never print the signed query."""
+    import s3fs
+
+    fs = s3fs.S3FileSystem()
+    moto_store.put(local_bags / "fleet" / "a" / "a_0.mcap", "signed/a.mcap")
+    moto_store.put(local_bags / "fleet" / "b" / "b_0.mcap", "signed/b.mcap")
+    urls = [fs.url(f"bagkit-test/signed/{n}.mcap", expires=600) for n in "ab"]
+    assert all("Signature=" in url for url in urls)
+    unsigned = urls[0].split("?", 1)[0]
+    assert cli(["info", unsigned], {}).returncode == 2  # moto refuses it: 403
+    local = [str(local_bags / "fleet" / n / f"{n}_0.mcap") for n in "ab"]
+    options = ["--format", "json", "--workers", "0"]
+    stats = ["stats", "summary", "-t", "/gps/fix", *options]
+    remote, on_disk = cli([*stats, *urls], {}), cli([*stats, *local], {})
+    assert remote.returncode == 0, remote.stderr
+    assert json.loads(remote.stdout)["topics"] == json.loads(on_disk.stdout)["topics"]
+    find = ["find", "--when", "/gps/fix: latitude > 48.000001", *options]
+    found, expected = cli([*find, *urls], {}), cli([*find, *local], {})
+    assert found.returncode == 0, found.stderr
+    episodes = json.loads(found.stdout)
+    assert episodes and [e["count"] for e in episodes] == [
+        e["count"] for e in json.loads(expected.stdout)
+    ]
+    assert all(e["bag"].endswith(".mcap?...") for e in episodes)
+    for result in (remote, found):
+        assert "Signature" not in result.stdout + result.stderr
 
 
 def test_dask_workers_read_the_store_themselves(moto_store: Store, local_bags: Path) -> None:

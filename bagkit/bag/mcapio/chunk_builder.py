@@ -157,7 +157,7 @@ class ChunkBuilder:
 
     def add_records(
         self,
-        records: bytes | bytearray,
+        records: Buffer,
         channel_ids: np.ndarray,
         log_times: np.ndarray,
         offsets: np.ndarray,

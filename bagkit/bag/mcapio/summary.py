@@ -34,7 +34,6 @@ from bagkit.bag.mcapio.records import (
     parse_chunk_index,
     parse_footer,
     parse_header,
-    parse_metadata,
     parse_metadata_index,
     parse_schema,
     parse_statistics,
@@ -52,6 +51,10 @@ class FileIndex:
             record or from the Message Index records of its chunk indexes); a file whose summary
             does not is scanned (:mod:`bagkit.bag.mcapio.salvage`), ``summary`` still True.
         channel_message_counts: messages per channel id.
+        metadata: the Metadata records a salvage scan met. A summary's Metadata Index
+            entries are only checked against the data section: nothing needs the records to
+            describe a bag (metadata.yaml is what rosbag2 reads), and from storage each would
+            be one more range request.
         problems: what could not be read (empty for intact files).
     """
 
@@ -154,7 +157,7 @@ def read_summary(source: Source, header: Header) -> FileIndex | None:
         elif opcode == Opcode.METADATA_INDEX:
             metadata_indexes.append(parse_metadata_index(content))
     for entry in metadata_indexes:
-        _read_metadata(index, source, entry, summary_start)
+        _check_metadata_index(index, source, entry, summary_start)
     if statistics is not None and statistics.message_count and not index.chunk_indexes:
         return index  # messages outside chunks, or no chunk indexes: the data must be read
     _keep_valid_chunk_indexes(index, source, summary_start)
@@ -227,17 +230,13 @@ def _keep_valid_chunk_indexes(index: FileIndex, source: Source, data_end: int) -
     index.chunk_indexes = kept
 
 
-def _read_metadata(index: FileIndex, source: Source, entry: MetadataIndex, data_end: int) -> None:
-    """Add the Metadata record of ``entry``, or a problem when it cannot be read."""
-    try:
-        if not RECORD_HEADER.size <= entry.length <= min(MAX_SECTION_SIZE, data_end - entry.offset):
-            raise CorruptBagError(
-                f"{entry.length} bytes at byte {entry.offset} are outside the data"
-            )
-        record = source.read(entry.offset, entry.length)
-        opcode, length = RECORD_HEADER.unpack_from(record)
-        if opcode != Opcode.METADATA or length != entry.length - RECORD_HEADER.size:
-            raise CorruptBagError(f"no metadata record at byte {entry.offset}")
-        index.metadata.append(parse_metadata(memoryview(record)[RECORD_HEADER.size :]))
-    except CorruptBagError as exc:
-        index.problems.append(f"{source.name}: metadata {entry.name!r} unreadable ({exc})")
+def _check_metadata_index(
+    index: FileIndex, source: Source, entry: MetadataIndex, data_end: int
+) -> None:
+    """A problem when ``entry`` points outside the data section."""
+    if RECORD_HEADER.size <= entry.length <= min(MAX_SECTION_SIZE, data_end - entry.offset):
+        return
+    index.problems.append(
+        f"{source.name}: metadata {entry.name!r} unreadable ({entry.length} bytes at byte "
+        f"{entry.offset} are outside the data)"
+    )

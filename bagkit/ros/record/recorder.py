@@ -73,7 +73,7 @@ class Recorder:
 
     Raises:
         RecorderOptionsError: the output exists, or the health check triggers snapshots
-            without snapshot mode.
+            outside snapshot mode (the error names ``health.trigger``).
     """
 
     def __init__(
@@ -86,7 +86,7 @@ class Recorder:
     ) -> None:
         self.options = options
         if health is not None and health.trigger and not options.snapshot_mode:
-            raise RecorderOptionsError("--trigger-on-health needs --snapshot-mode")
+            raise RecorderOptionsError("triggers snapshots outside snapshot mode", "health.trigger")
         self.health = health
         self.path = options.output or Path(default_output_name())
         if self.path.exists():

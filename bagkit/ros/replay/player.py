@@ -160,6 +160,7 @@ class Player:
         reader = PlaySource.open(options.bags, options.message_order, self._stack)
         self._reader = reader
         self.window.bounds(reader.start_ns, reader.end_ns, Path(reader.name))  # raises past end
+        self.selection = options.selection_in(reader, reader.name)  # raises on unknown names
         # The participant first: discovery, which the first message waits for, runs while the
         # topics are checked against the installed types and the publishers are made. Fast DDS
         # reads its profile when the participant is created; the player sends, so its
@@ -338,7 +339,6 @@ class Player:
             skipped_types=dict(self.publishable.skipped_types),
             drifted=dict(self.publishable.drifted),
             skipped_formats=dict(self.publishable.skipped_formats),
-            missing_topics=list(self.publishable.missing),
             problems=list(dict.fromkeys(self._reader.problems)),
             unacknowledged=unacknowledged,
             interrupted=interrupted,

@@ -12,7 +12,7 @@ from bagkit.bag.clock import CLOCK_TOPIC
 from bagkit.playback.options import OnDrift
 from bagkit.ros.errors import MessageClassNotFoundError, PlayerError
 from bagkit.ros.message_classes import import_message_type
-from bagkit.selection.topics import TopicSelection, closest_names, require_topics
+from bagkit.selection.topics import TopicSelection
 
 if TYPE_CHECKING:
     from bagkit.migrate import Rules, TopicMigration
@@ -27,19 +27,11 @@ class PublishableTopics:
     """Topic -> its message type, not installed."""
     skipped_formats: dict[str, str] = field(default_factory=dict)
     """Topic -> its serialization format, not cdr."""
-    missing: list[str] = field(default_factory=list)
-    """Topics named by the selection that the bag does not have."""
     drifted: dict[str, list[str]] = field(default_factory=dict)
     """Topic -> how its stored definition differs from the installed one (skipped unless
     published raw or migrated)."""
     migrations: dict[str, TopicMigration] = field(default_factory=dict)
     """Topic -> its migration to the installed definition (``on_drift`` migrate)."""
-    known: list[str] = field(default_factory=list)
-    """The bag's topics, for the closest names to the missing ones."""
-
-    def missing_text(self) -> str:
-        """``/imu/dat (did you mean /imu/data? it has ...)``: the missing topics, for a warning."""
-        return f"{', '.join(self.missing)} ({closest_names(self.missing[0], self.known)})"
 
 
 def publishable_topics(
@@ -60,7 +52,6 @@ def publishable_topics(
 
     Raises:
         MigrateError: with MIGRATE, a drifted topic cannot be migrated.
-        UnknownTopicError: nothing is selected and a named topic is not in the bag.
         PlayerError: nothing is left to publish (the message says why).
     """
     # Here, not at the top: the player's PublishableTopics() must not import the decoder
@@ -68,7 +59,7 @@ def publishable_topics(
     from bagkit.decode.drift import DriftStatus, topic_drift
     from bagkit.migrate import Target, migrate_topic
 
-    found = PublishableTopics(missing=selection.missing(topics), known=sorted(topics))
+    found = PublishableTopics()
     for name, info in sorted(topics.items()):
         if not selection.matches(name):
             continue
@@ -92,8 +83,6 @@ def publishable_topics(
                 if migration is not None:
                     found.migrations[name] = migration
         found.selected.append((info, message_class))
-    if not found.selected and found.missing:
-        require_topics(found.missing, topics)  # raises, with the closest topics of the bag
     if not found.selected:
         reason = "no topic of the bag matches the topic selection"
         if found.skipped_types or found.skipped_formats or found.drifted:

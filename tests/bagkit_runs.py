@@ -1,0 +1,46 @@
+"""``bagkit`` run in this process, answered as a subprocess run would be.
+
+A subprocess costs the interpreter's and the CLI's start (a few tenths of a second) per run;
+tests that check what many commands answer run them here, and keep a subprocess where the
+process boundary is the point (what reaches the terminal, the exit status a shell sees).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+from bagkit.cli.common import run_app
+from bagkit.cli.main import app
+
+BAGKIT = str(Path(sys.executable).with_name("bagkit"))
+
+
+def bagkit_in_process(args: list[str | Path], cwd: Path) -> subprocess.CompletedProcess[str]:
+    """``bagkit ARGS`` through the console script's ``run_app``, in ``cwd``: its exit status
+    and what it wrote to stdout and stderr."""
+    argv = [str(arg) for arg in args]
+    out, err = io.StringIO(), io.StringIO()
+    code: int | str | None = 0
+    before = Path.cwd()
+    os.chdir(cwd)
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            run_app(app, argv)
+    except SystemExit as exc:
+        code = exc.code
+    finally:
+        os.chdir(before)
+    returncode = code if isinstance(code, int) else (0 if code is None else 1)
+    return subprocess.CompletedProcess([BAGKIT, *argv], returncode, out.getvalue(), err.getvalue())
+
+
+def bagkit_subprocess(args: list[str | Path], cwd: Path) -> subprocess.CompletedProcess[str]:
+    """``bagkit ARGS`` as a user's shell runs it, in ``cwd``."""
+    return subprocess.run(
+        [BAGKIT, *map(str, args)], capture_output=True, text=True, timeout=120, cwd=cwd, check=False
+    )
