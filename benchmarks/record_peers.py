@@ -22,6 +22,9 @@ from typing import Any
 
 TOPIC = "/bench/record"
 IMAGE_BYTES = 1 << 20
+# The ``cloud`` kind: a PointCloud2 of x, y, z, intensity (float32) points, 4 MiB of them.
+CLOUD_POINTS = 1 << 18
+KINDS = ("imu", "image", "cloud")
 READY_TIMEOUT_S = 30.0
 # The ``snapshot`` mode's --max-cache-size: the Imu flood fills it in a few seconds.
 SNAPSHOT_CACHE_BYTES = 64 << 20
@@ -44,6 +47,10 @@ def _message_type(kind: str) -> Any:
         from sensor_msgs.msg import Imu
 
         return Imu
+    if kind == "cloud":
+        from sensor_msgs.msg import PointCloud2
+
+        return PointCloud2
     from sensor_msgs.msg import Image
 
     return Image
@@ -58,7 +65,38 @@ def _payload(kind: str) -> bytes:
         message.height, message.width, message.step = 512, 512, 2048
         message.encoding = "rgba8"
         message.data = bytes(IMAGE_BYTES)
+    elif kind == "cloud":
+        _fill_cloud(message)
     return bytes(serialize_message(message))
+
+
+def _fill_cloud(message: Any) -> None:
+    """A lidar-like scan: 64 rings of points at noisy ranges, with an intensity.
+
+    Not zeros: float32 coordinates with noise in their low bits compress as a real scan's do
+    (a little), so the writer's compression does the work it does on real clouds.
+    """
+    import numpy as np
+    from sensor_msgs.msg import PointField
+
+    rng = np.random.default_rng(7)
+    azimuth = np.linspace(0, 2 * np.pi, CLOUD_POINTS // 64, endpoint=False)
+    elevation = np.linspace(-0.4, 0.2, 64)
+    az, el = np.meshgrid(azimuth, elevation)
+    distance = 10 + 3 * np.sin(4 * az) + rng.normal(0, 0.02, az.shape)
+    points = np.empty((64, len(azimuth), 4), np.float32)
+    points[..., 0] = distance * np.cos(el) * np.cos(az)
+    points[..., 1] = distance * np.cos(el) * np.sin(az)
+    points[..., 2] = distance * np.sin(el)
+    points[..., 3] = rng.uniform(0, 255, az.shape).round()
+    message.height, message.width = 64, len(azimuth)
+    message.fields = [
+        PointField(name=name, offset=4 * index, datatype=PointField.FLOAT32, count=1)
+        for index, name in enumerate(("x", "y", "z", "intensity"))
+    ]
+    message.point_step, message.row_step = 16, 16 * len(azimuth)
+    message.is_dense = True
+    message.data = points.tobytes()
 
 
 def _init(name: str) -> tuple[Any, Any]:
@@ -362,12 +400,12 @@ def _cli() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     roles = parser.add_subparsers(dest="role", required=True)
     pub = roles.add_parser("publish")
-    pub.add_argument("kind", choices=["imu", "image"])
+    pub.add_argument("kind", choices=KINDS)
     pub.add_argument("seconds", type=float)
     pub.add_argument("rate_hz", type=float)
     sub = roles.add_parser("subscribe")
     sub.add_argument("mode", choices=["count", "inline", "naive", "recorder", "snapshot", "health"])
-    sub.add_argument("kind", choices=["imu", "image"])
+    sub.add_argument("kind", choices=KINDS)
     sub.add_argument("out", type=Path)
     sub.add_argument("--default-transport", action="store_true")
     args = parser.parse_args()

@@ -13,6 +13,7 @@ import os
 import subprocess
 import sys
 from pathlib import Path
+from unittest import mock
 
 from bagkit.cli.common import run_app
 from bagkit.cli.main import app
@@ -29,7 +30,12 @@ def bagkit_in_process(args: list[str | Path], cwd: Path) -> subprocess.Completed
     before = Path.cwd()
     os.chdir(cwd)
     try:
-        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        # sys.argv as the console script has it: click names the program from it (Usage: bagkit).
+        with (
+            mock.patch.object(sys, "argv", [BAGKIT, *argv]),
+            contextlib.redirect_stdout(out),
+            contextlib.redirect_stderr(err),
+        ):
             run_app(app, argv)
     except SystemExit as exc:
         code = exc.code

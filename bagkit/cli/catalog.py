@@ -158,7 +158,11 @@ def _update_events(
 @app.command("query", no_args_is_help=True)
 @handle_errors
 def query(  # noqa: PLR0917 (typer maps parameters to options)
-    catalog: Path = typer.Argument(..., help="A catalogue written by bagkit catalog."),
+    catalog: Path = typer.Argument(
+        ...,
+        help="A catalogue written by bagkit catalog (a path or a URL).",
+        parser=bag_location,
+    ),
     topic: str | None = typer.Option(
         None, "--topic", "-t", help="Bags with messages on this topic (a glob: '/gps/*')."
     ),
@@ -188,16 +192,19 @@ def query(  # noqa: PLR0917 (typer maps parameters to options)
     from bagkit.fleet.catalog import query as select
     from bagkit.fleet.catalog import read_catalog
     from bagkit.fleet.events import events_path, query_events, read_events
+    from bagkit.storage.transfer import read_from
 
-    if not catalog.exists():
-        raise BagkitError(f"{catalog}: no such catalogue")
     selection = build_query(topic, start=start, end=end)
-    if event is not None:
-        rows = query_events(read_events(events_path(catalog)), event, selection)
-        columns = ["path", "event", "topic", "start", "end", "count"]
-    else:
-        rows = select(read_catalog(catalog), selection)
-        columns = ["path", "topic", "type", "count", "start", "end", "duration"]
+    # A catalogue at a URL is fetched (with its events file) into a temporary folder.
+    with read_from(catalog, events_path(Path(catalog.name)).name) as local:
+        if not local.exists():
+            raise BagkitError(f"{catalog}: no such catalogue")
+        if event is not None:
+            rows = query_events(read_events(events_path(local)), event, selection)
+            columns = ["path", "event", "topic", "start", "end", "count"]
+        else:
+            rows = select(read_catalog(local), selection)
+            columns = ["path", "topic", "type", "count", "start", "end", "duration"]
     if output is OutputFormat.JSON:
         records = rows[columns].astype({"start": "string", "end": "string"})
         print_json(records.astype(object).where(records.notna(), None).to_dict("records"))

@@ -92,6 +92,32 @@ def written_to(output: Path, *, replace: bool = False, update: bool = False) -> 
         shutil.rmtree(directory, ignore_errors=True)
 
 
+@contextmanager
+def read_from(path: Path, *beside: str) -> Iterator[Path]:
+    """Where a command reads the file ``path``: itself, or for a URL (a UrlPath) a local copy
+    (with the objects named ``beside`` that exist next to it, copied next to it), removed
+    when the block ends; a URL with no object is a local path that does not exist.
+
+    Raises:
+        StorageError: the object cannot be read.
+    """
+    if not isinstance(path, UrlPath):
+        yield path
+        return
+    directory = temporary_directory()
+    try:
+        if not path.is_file():
+            yield directory / path.name
+            return
+        local = local_copy(path, directory)
+        for name in beside:
+            if (path.parent / name).is_file():
+                local_copy(path.parent / name, directory)
+        yield local
+    finally:
+        shutil.rmtree(directory, ignore_errors=True)
+
+
 def shown_path(path: Path, local: Path, output: Path) -> str:
     """How ``path``, written under ``local`` (what :func:`written_to` gave for ``output``), is
     named to the user: under ``output``'s URL when it is one (shown without secrets)."""

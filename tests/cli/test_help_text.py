@@ -1,15 +1,15 @@
 """Help paragraphs joined for the terminal to wrap; example commands kept as written; every
-option name whole at 80 columns (subprocesses of the CLI)."""
+option name whole at 80 columns (in-process; a command without arguments as a subprocess)."""
 
 from __future__ import annotations
 
-import os
 import re
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from bagkit_runs import bagkit_in_process
 
 from bagkit.cli.help_text import reflow
 
@@ -65,13 +65,10 @@ COMMANDS = _commands()
     ("path", "options"), COMMANDS, ids=[" ".join(["bagkit", *p]) for p, _ in COMMANDS]
 )
 def test_help_at_80_columns_shows_every_option_name_whole(
-    path: list[str], options: list[str]
+    path: list[str], options: list[str], monkeypatch: pytest.MonkeyPatch, tmp_path: Path
 ) -> None:
-    bagkit = str(Path(sys.executable).with_name("bagkit"))
-    env = {**os.environ, "COLUMNS": "80"}
-    result = subprocess.run(
-        [bagkit, *path, "-h"], capture_output=True, text=True, timeout=60, env=env, check=False
-    )
+    monkeypatch.setenv("COLUMNS", "80")
+    result = bagkit_in_process([*path, "-h"], tmp_path)
     assert result.returncode == 0, result.stderr
     assert "…" not in result.stdout
     words = set(re.split(r"[\s,/=\[\]()]+", result.stdout))

@@ -8,7 +8,6 @@ path (sequences, ``--no-bulk``) and the CLI must keep exactly those messages.
 from __future__ import annotations
 
 import subprocess
-import sys
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -16,6 +15,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 import pytest
+from bagkit_runs import bagkit_in_process, bagkit_subprocess
 from oracle import raw_messages
 from samples import JAZZY, SAMPLE_TYPES, random_message
 
@@ -26,7 +26,6 @@ from bagkit.selection.errors import SelectionError, UnknownFieldError
 from bagkit.selection.query import Query
 from bagkit.stats import summarize
 
-BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 Check = Callable[[Any], bool]
 
 # (topic, condition, the same condition on a rosbags message). Values are random: NaN and
@@ -215,10 +214,11 @@ def test_undecodable_messages_are_counted_not_matched(tmp_path: Path) -> None:
         assert any(f"{cut} messages could not be decoded" in p for p in result.problems)
 
 
-def _bagkit(*args: str | Path, cwd: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [BAGKIT, *map(str, args)], capture_output=True, text=True, timeout=120, cwd=cwd, check=False
-    )
+def _bagkit(
+    *args: str | Path, cwd: Path, in_subprocess: bool = True
+) -> subprocess.CompletedProcess[str]:
+    """``bagkit ARGS`` in ``cwd``: as a shell runs it, or in this process (tests/bagkit_runs.py)."""
+    return (bagkit_subprocess if in_subprocess else bagkit_in_process)(list(args), cwd)
 
 
 def _commands(bag: Path, condition: str) -> dict[str, list[str | Path]]:
@@ -242,7 +242,8 @@ def _commands(bag: Path, condition: str) -> dict[str, list[str | Path]]:
 def test_bad_conditions_are_one_error_line(
     command: str, condition: str, error: str, sample_bag: Path, tmp_path: Path
 ) -> None:
-    result = _bagkit(*_commands(sample_bag, condition)[command], cwd=tmp_path)
+    args = _commands(sample_bag, condition)[command]
+    result = _bagkit(*args, cwd=tmp_path, in_subprocess=command == "echo")
     assert result.returncode == 2, result.stderr
     assert result.stderr.startswith(error), result.stderr
     assert result.stderr.count("\n") == 1 and result.stdout == ""
@@ -251,7 +252,8 @@ def test_bad_conditions_are_one_error_line(
 @pytest.mark.parametrize("command", ["echo", "export", "stats", "plot"])
 def test_an_empty_match_is_one_warning_line(command: str, sample_bag: Path, tmp_path: Path) -> None:
     condition = "header.frame_id == 'nowhere'"
-    result = _bagkit(*_commands(sample_bag, condition)[command], cwd=tmp_path)
+    args = _commands(sample_bag, condition)[command]
+    result = _bagkit(*args, cwd=tmp_path, in_subprocess=command == "echo")
     assert result.returncode == 0, result.stderr
     said = (result.stderr + result.stdout).count("no message satisfies")
     assert said == 1, result.stderr + result.stdout

@@ -178,6 +178,11 @@ def test_outputs_to_urls_are_uploaded(moto_store: Store, local_bags: Path) -> No
     )
     assert "0 read, 2 unchanged" in update.stderr.replace("\n", " ")
     assert update.stderr.startswith(f"{base}/out/c.parquet: 2 bags")
+    query = ["catalog", "query", f"{base}/out/c.parquet", "-t", "/gps/fix", "--format", "json"]
+    rows = json.loads(cli(query, moto_store.env).stdout)
+    assert {r["path"]: r["count"] for r in rows} == {f"{base}/fleet/a": 3, f"{base}/fleet/b": 5}
+    missing = cli([*query[:2], f"{base}/out/none.parquet"], moto_store.env)
+    assert missing.returncode == 2 and "no such catalogue" in missing.stderr
 
 
 def test_export_to_a_url_names_the_url(moto_store: Store, local_bags: Path) -> None:
