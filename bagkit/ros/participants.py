@@ -6,13 +6,13 @@ player that must not lose a first message watches the graph for 3 s. Where disco
 to this host, the participants there can be counted instead: each one binds the metatraffic
 unicast port of its participant id (RTPS 9.6.1.1: 7400 + 250 * domain + 10 + 2 * id), and each
 ROS participant publishes ``ros_discovery_info``. Once every bound port's participant has been
-discovered, no subscriber is still to come.
+discovered, and each one's readers have arrived, no subscriber is still to come.
 """
 
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from pathlib import Path
 
 from rclpy.node import Node
@@ -31,25 +31,73 @@ _SOCKET_TABLES = (Path("/proc/net/udp"), Path("/proc/net/udp6"))
 # endian), then random and per-process bytes (Fast DDS 2.x GuidUtils).
 _FAST_DDS_VENDOR = bytes([1, 15])
 _PID_LIMIT = 1 << 22  # Linux's largest pid_max
+# A gid is a GUID: the participant's prefix, then the entity id.
+_PREFIX = 12
 
 
-def all_discovered(node: Node, environ: Mapping[str, str]) -> Callable[[], bool] | None:
-    """A test of whether ``node`` has discovered every participant it can, or None.
+class Census:
+    """Whether ``node`` has discovered every participant on this host and their readers.
+
+    A participant is in the graph once its ``ros_discovery_info`` writer has been discovered,
+    but its readers come in a separate discovery stream: when that stream's first packet was
+    lost, they came at its resend (1 s with Fast DDS), and a census of participants alone had
+    ended the wait before the one subscriber was found. So a participant other than this one
+    also needs a reader in the graph: the stream brings them together, and every ROS
+    participant has one (it reads ``ros_discovery_info``).
+    """
+
+    def __init__(self, node: Node) -> None:
+        self._node = node
+        self._domain = node.context.get_domain_id()
+        self._own: bytes | None = None
+
+    def __call__(self) -> bool:
+        """True once every participant on this host, and a reader of each other one, is found."""
+        on_host = host_participants(self._domain)
+        if on_host is None:
+            return False
+        participants = {gid[:_PREFIX] for gid in live_participant_gids(self._node)}
+        if len(participants) < on_host:
+            return False
+        own = self._own_prefix()
+        if own is None:
+            return False
+        with_readers = {gid[:_PREFIX] for gid in self._readers_in_graph()}
+        return participants - {own} <= with_readers
+
+    def _own_prefix(self) -> bytes | None:
+        """The GUID prefix of ``node``'s participant, from one of its publishers in the graph."""
+        if self._own is None:
+            node = self._node
+            me = (node.get_name(), node.get_namespace())
+            for topic, _ in node.get_publisher_names_and_types_by_node(*me):
+                for info in node.get_publishers_info_by_topic(topic):
+                    if (info.node_name, info.node_namespace) == me:
+                        self._own = bytes(info.endpoint_gid)[:_PREFIX]
+                        return self._own
+        return self._own
+
+    def _readers_in_graph(self) -> set[bytes]:
+        node = self._node
+        return {
+            bytes(info.endpoint_gid)
+            for name, _ in node.get_topic_names_and_types(no_demangle=True)
+            for info in node.get_subscriptions_info_by_topic(name, no_mangle=True)
+        }
+
+
+def all_discovered(node: Node, environ: Mapping[str, str]) -> Census | None:
+    """A census of ``node``'s discovery, or None when one cannot be taken.
 
     None when discovery reaches beyond this host (``ROS_AUTOMATIC_DISCOVERY_RANGE`` other than
-    LOCALHOST, or static peers): participants elsewhere cannot be counted. The test is False
-    while the count cannot be trusted (:func:`host_participants`) or a participant on this host
-    is not in the graph yet (one that is no ROS participant never is).
+    LOCALHOST, or static peers): participants elsewhere cannot be counted. The census says
+    False while the count cannot be trusted (:func:`host_participants`), a participant on this
+    host is not in the graph yet (one that is no ROS participant never is), or its readers are
+    not (:class:`Census`).
     """
     if not localhost_only(environ) or environ.get("ROS_STATIC_PEERS", "").strip():
         return None
-    domain = node.context.get_domain_id()
-
-    def test() -> bool:
-        on_host = host_participants(domain)
-        return on_host is not None and discovered_participants(node) >= on_host
-
-    return test
+    return Census(node)
 
 
 def host_participants(domain_id: int) -> int | None:
@@ -80,7 +128,13 @@ def host_participants(domain_id: int) -> int | None:
 
 
 def discovered_participants(node: Node) -> int:
-    """The live ROS participants in ``node``'s graph, its own included.
+    """The number of :func:`live_participant_gids`."""
+    return len(live_participant_gids(node))
+
+
+def live_participant_gids(node: Node) -> list[bytes]:
+    """The gids of the live ROS participants' ``ros_discovery_info`` writers, ``node``'s own
+    included.
 
     A participant whose process had exited a moment before this one started was seen in the
     graph (and the census then ended the wait before the one subscriber was found): Fast DDS
@@ -88,7 +142,8 @@ def discovered_participants(node: Node) -> int:
     process of those bits on this host is not counted.
     """
     infos = node.get_publishers_info_by_topic(_PARTICIPANT_TOPIC, no_mangle=True)
-    return sum(1 for info in infos if _process_may_live(bytes(info.endpoint_gid)))
+    gids = [bytes(info.endpoint_gid) for info in infos]
+    return [gid for gid in gids if _process_may_live(gid)]
 
 
 def _process_may_live(gid: bytes) -> bool:

@@ -1,14 +1,16 @@
-"""The participant census's liveness check: a Fast DDS participant of an exited process."""
+"""The participant census: a Fast DDS participant of an exited process; readers still to come."""
 
 from __future__ import annotations
 
 import os
 import subprocess
 import sys
+import time
+from typing import Any
 
 import pytest
 
-from bagkit.ros.participants import _process_may_live
+from bagkit.ros.participants import _process_may_live, all_discovered, discovered_participants
 
 FAST_DDS_PREFIX = bytes([1, 15, 0x78, 0xFD])
 
@@ -39,3 +41,47 @@ def test_a_participant_of_an_exited_process_does_not() -> None:
 def test_another_vendor_always_counts() -> None:
     # RTI's vendor id: its prefix does not hold a process id that we know of.
     assert _process_may_live(_gid(pid=0xFFFE, vendor_prefix=bytes([1, 1, 0, 0])))
+
+
+# A participant in another process with a node that subscribes.
+_WITH_READER = """
+import time, rclpy
+from std_msgs.msg import String
+rclpy.init()
+node = rclpy.create_node("census_with_reader")
+node.create_subscription(String, "/census", lambda m: None, 10)
+print("ready", flush=True)
+time.sleep(60)
+"""
+
+
+def _census_after_other(node: Any, script: str) -> tuple[bool, int, int]:
+    """(census, subscribers on /census, participants in the graph) once the other process's
+    participant is in ``node``'s graph (or the census said yes, or 30 s passed)."""
+    from std_msgs.msg import String
+
+    node.create_publisher(String, "/census", 10)
+    census = all_discovered(node, {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"})
+    assert census is not None
+    other = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+    try:
+        assert other.stdout is not None and other.stdout.readline().strip() == "ready"
+        deadline = time.monotonic() + 30
+        found = False
+        while not found and time.monotonic() < deadline:
+            found = census() or discovered_participants(node) >= 2
+            time.sleep(0.02)
+        # Read the graph the moment the census answered, before more can arrive.
+        said = census()
+        return said, node.count_subscribers("/census"), discovered_participants(node)
+    finally:
+        other.kill()
+        other.wait()
+
+
+@pytest.mark.ros
+def test_the_census_waits_for_a_participants_readers(node: Any) -> None:
+    said, subscribers, participants = _census_after_other(node, _WITH_READER)
+    if said:
+        assert subscribers == 1
+    assert participants == 2

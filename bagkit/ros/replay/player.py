@@ -28,6 +28,7 @@ from rclpy.signals import SignalHandlerOptions
 from bagkit.bag import BagMessage, TopicInfo
 from bagkit.bag.latched import latched_topics
 from bagkit.bag.messages import make_message
+from bagkit.bag.reader import bag_path
 from bagkit.native import precise_timers
 from bagkit.playback.controls import PlayControls
 from bagkit.playback.options import PlayOptions
@@ -100,7 +101,7 @@ class Player:
     ) -> None:
         """Set up a replay; nothing is opened until the player is entered."""
         self.options = options
-        self.bag_path = Path(options.bag)
+        self.bag_path = bag_path(options.bag)  # a UrlPath for a bag in storage
         self.controls = PlayControls(options.rate, paused=options.start_paused)
         self.selection = options.selection
         self.window = options.window
@@ -251,7 +252,7 @@ class Player:
             topics,
             self.selection,
             clock_published=self.options.clock_hz is not None,
-            bag_path=Path(self._reader.name) if self._reader else self.bag_path,
+            bag_path=bag_path(self._reader.name) if self._reader else self.bag_path,
             definition=self._reader.definition if self._reader else lambda _: None,
             on_drift=self.options.on_drift,
             rules=load_rules(self.options.drift_rules) if self.options.drift_rules else None,
