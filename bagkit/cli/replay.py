@@ -74,7 +74,7 @@ from bagkit.playback.options import (
 )
 from bagkit.playback.progress import ProgressLine
 from bagkit.playback.source import MessageOrder
-from bagkit.playback.timing import DEFAULT_CLOCK_HZ, DEFAULT_DISCOVERY_TIME_S, LATE_THRESHOLD_NS
+from bagkit.playback.timing import DEFAULT_CLOCK_HZ, DEFAULT_DISCOVERY_TIME_NS, LATE_THRESHOLD_NS
 from bagkit.selection.times import NS_PER_S, seconds_to_ns
 
 if TYPE_CHECKING:
@@ -155,7 +155,7 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
     wait_for_subscribers: WaitForSubscribers = True,
     wait_for: WaitFor = None,
     wait_timeout: WaitTimeout = 10.0,
-    discovery_time: DiscoveryTime = DEFAULT_DISCOVERY_TIME_S,
+    discovery_time: DiscoveryTime = DEFAULT_DISCOVERY_TIME_NS / NS_PER_S,
     wait_for_all_acked: WaitForAllAcked = 10_000,
     qos_overrides: QosOverrides = None,
     read_ahead_queue_size: ReadAheadQueueSize = 1000,
@@ -194,16 +194,18 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
             duration_s=duration_seconds(duration, "--playback-duration"),
             until_ns=_until_ns(until_sec, until_nsec),
             loops=0 if loop else 1,
-            delay_s=delay,
+            delay_ns=_seconds_ns(delay, "--delay"),
             clock_hz=clock,
             start_paused=start_paused,
             remap=parse_remaps(rule for value in remap or () for rule in value.split(",") if rule),
             waits=SubscriberWaits(
                 before_start=wait_for_subscribers,
                 topics=tuple(wait_for or ()),
-                timeout_s=wait_timeout,
-                discovery_s=discovery_time,
-                ack_timeout_s=wait_for_all_acked / 1e3 if wait_for_all_acked else _FOREVER_S,
+                timeout_ns=_seconds_ns(wait_timeout, "--wait-timeout"),
+                discovery_ns=_seconds_ns(discovery_time, "--discovery-time"),
+                ack_timeout_ns=wait_for_all_acked * 1_000_000
+                if wait_for_all_acked
+                else _FOREVER_NS,
             ),
             qos_overrides=qos_overrides,
             progress_period_ns=PROGRESS_PERIOD_NS,
@@ -215,7 +217,9 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
             seek_step_ns=seek_step,
             on_drift=on_drift,
             drift_rules=drift_rules,
-            service_requests=ServiceRequestReplay(service_requests_source, service_timeout)
+            service_requests=ServiceRequestReplay(
+                service_requests_source, _seconds_ns(service_timeout, "--service-timeout")
+            )
             if publish_service_requests
             else None,
         )
@@ -255,6 +259,11 @@ def _until_ns(until_sec: float | None, until_nsec: int | None) -> int | None:
     return seconds_to_ns(until_sec, until_sec, BagkitError)
 
 
+def _seconds_ns(seconds: float, flag: str) -> int:
+    """A wait flag's seconds as the options' ns (a negative one is the options' error)."""
+    return seconds_to_ns(seconds, seconds, BagkitError, flag)
+
+
 def _run(player: Player, *, keyboard: bool) -> PlayReport:
     """Open the player (which tunes the process), hand it the terminal's keys, replay."""
     from bagkit.playback.keyboard import terminal_controls
@@ -271,7 +280,7 @@ def _run(player: Player, *, keyboard: bool) -> PlayReport:
 
 
 # --wait-for-all-acked 0: wait "forever" (a year).
-_FOREVER_S = 365 * 24 * 3600.0
+_FOREVER_NS = 365 * 24 * 3600 * NS_PER_S
 # The progress line is redrawn four times a second.
 PROGRESS_PERIOD_NS = NS_PER_S // 4
 

@@ -257,12 +257,12 @@ ServiceTimeout = Annotated[
 # The fields of PlayOptions as the flags that set them: an options error names the flag.
 PLAY_FLAGS = {
     "rate": "--rate",
-    "delay_s": "--delay",
+    "delay_ns": "--delay",
     "clock_hz": "--clock",
     "seek_step_ns": "--seek-step",
     "latched": "--latched-topics and --no-latched exclude each other ({})",
-    "waits.timeout_s": "--wait-timeout",
-    "waits.discovery_s": "--discovery-time",
-    "waits.ack_timeout_s": "--wait-for-all-acked",
-    "service_requests.timeout_s": "--service-timeout",
+    "waits.timeout_ns": "--wait-timeout",
+    "waits.discovery_ns": "--discovery-time",
+    "waits.ack_timeout_ns": "--wait-for-all-acked",
+    "service_requests.timeout_ns": "--service-timeout",
 }

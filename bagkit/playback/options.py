@@ -16,7 +16,7 @@ from bagkit.bag.reader import bag_path
 from bagkit.compat import StrEnum
 from bagkit.playback.errors import PlayerError
 from bagkit.playback.source import MessageOrder
-from bagkit.playback.timing import DEFAULT_DISCOVERY_TIME_S
+from bagkit.playback.timing import DEFAULT_DISCOVERY_TIME_NS
 from bagkit.selection.errors import SelectionError, UnknownTopicError
 from bagkit.selection.query import BagOutline, Query, resolve_names
 from bagkit.selection.times import (
@@ -114,24 +114,23 @@ class SubscriberWaits:
         before_start: wait until every subscription the graph shows on a replayed topic has
             matched.
         topics: topics that must have a subscriber before playback starts.
-        timeout_s: how long to wait for them before giving up.
-        discovery_s: after the node's creation, how long the graph is watched for
+        timeout_ns: how long to wait for them before giving up.
+        discovery_ns: after the node's creation, how long the graph is watched for
             subscriptions that already exist.
-        ack_timeout_s: at the end, how long subscribers of reliable topics get to acknowledge
+        ack_timeout_ns: at the end, how long subscribers of reliable topics get to acknowledge
             every message.
     """
 
     before_start: bool = True
     topics: tuple[str, ...] = ()
-    timeout_s: float = 10.0
-    discovery_s: float = DEFAULT_DISCOVERY_TIME_S
-    ack_timeout_s: float = 10.0
+    timeout_ns: int = 10 * NS_PER_S
+    discovery_ns: int = DEFAULT_DISCOVERY_TIME_NS
+    ack_timeout_ns: int = 10 * NS_PER_S
 
     def __post_init__(self) -> None:
-        for name in ("timeout_s", "discovery_s", "ack_timeout_s"):
-            seconds = getattr(self, name)
-            if not 0 <= seconds < float("inf"):
-                raise PlayerError(f"must be >= 0 and finite, got {seconds}", f"waits.{name}")
+        for name in ("timeout_ns", "discovery_ns", "ack_timeout_ns"):
+            if getattr(self, name) < 0:
+                raise PlayerError("must be >= 0", f"waits.{name}")
 
 
 class ServiceRequestSource(StrEnum):
@@ -151,18 +150,16 @@ class ServiceRequestReplay:
 
     Attributes:
         source: which recorded events hold the requests.
-        timeout_s: after the last request, how long answers are waited for; requests still
+        timeout_ns: after the last request, how long answers are waited for; requests still
             unanswered then (a service that is not there) count as unanswered.
     """
 
     source: ServiceRequestSource = ServiceRequestSource.SERVICE
-    timeout_s: float = 5.0
+    timeout_ns: int = 5 * NS_PER_S
 
     def __post_init__(self) -> None:
-        if not 0 <= self.timeout_s < float("inf"):
-            raise PlayerError(
-                f"must be >= 0 and finite, got {self.timeout_s}", "service_requests.timeout_s"
-            )
+        if self.timeout_ns < 0:
+            raise PlayerError("must be >= 0", "service_requests.timeout_ns")
 
 
 @dataclass(frozen=True)
@@ -189,7 +186,7 @@ class PlayOptions:
         until_ns: replay only messages logged at or before this time (ns since the epoch);
             with ``duration_s``, the later of the two ends the replay (as rosbag2).
         loops: passes over the bag; 0 = until interrupted.
-        delay_s: seconds to sleep before each pass.
+        delay_ns: how long to sleep before each pass.
         clock_hz: publish ``/clock`` at this rate (and before each message); None = off.
         start_paused: start paused (``player.controls.resume()`` or a service resumes).
         services: offer rosbag2's control services and a ``rate`` parameter on the node
@@ -215,7 +212,7 @@ class PlayOptions:
             (:mod:`bagkit.decode.drift`): skipped, published as recorded, or migrated.
         drift_rules: the rules file of ``on_drift`` migrate (as ``bagkit migrate --rules``).
 
-    Errors name the field (``waits.timeout_s: must be >= 0``); the CLI names its flag.
+    Errors name the field (``waits.timeout_ns: must be >= 0``); the CLI names its flag.
 
     Raises:
         PlayerError: an option out of its range, or a regular expression that does not compile.
@@ -231,7 +228,7 @@ class PlayOptions:
     duration_s: float | None = None
     until_ns: int | None = None
     loops: int = 1
-    delay_s: float = 0.0
+    delay_ns: int = 0
     clock_hz: float | None = None
     start_paused: bool = False
     services: bool = True
@@ -252,8 +249,8 @@ class PlayOptions:
     def __post_init__(self) -> None:
         if not 0 < self.rate < float("inf"):
             raise PlayerError(f"must be positive, got {self.rate}", "rate")
-        if not 0 <= self.delay_s < float("inf"):
-            raise PlayerError(f"must not be negative, got {self.delay_s}", "delay_s")
+        if self.delay_ns < 0:
+            raise PlayerError("must not be negative", "delay_ns")
         if self.clock_hz is not None and not 0 < self.clock_hz < float("inf"):
             raise PlayerError(f"must be positive, got {self.clock_hz}", "clock_hz")
         if self.loops < 0:

@@ -20,7 +20,7 @@ LATE_THRESHOLD_NS = 1_000_000
 DEFAULT_CLOCK_HZ = 40.0
 # How long the player watches the graph for subscriptions that existed before it: Fast DDS
 # announces a participant every 3 s, and a new participant is often found only at the next one.
-DEFAULT_DISCOVERY_TIME_S = 3.0
+DEFAULT_DISCOVERY_TIME_NS = 3_000_000_000
 
 
 @dataclass(frozen=True, slots=True)

@@ -28,6 +28,7 @@ from bagkit.recording.options import (
     SnapshotOptions,
     SnapshotTrigger,
 )
+from bagkit.selection.times import NS_PER_S
 
 
 def cli_defaults(command: object) -> dict[str, object]:
@@ -65,14 +66,14 @@ def test_play_options_default_to_the_cli() -> None:
     assert options.window.bounds(10**18, 10**18 + 5, Path("bag")) == (10**18, None)
     assert options.window.start == PlayWindow.create(cli["start_offset"]).start
     assert options.duration_s is cli["duration"] is None
-    assert options.delay_s == cli["delay"]
+    assert options.delay_ns == cli["delay"] * NS_PER_S
     assert options.clock_hz is cli["clock"] is None
     assert options.loops == 1 and cli["loop"] is False
     assert options.start_paused is cli["start_paused"] is False
     assert options.waits.before_start is cli["wait_for_subscribers"] is True
-    assert options.waits.timeout_s == cli["wait_timeout"]
-    assert options.waits.discovery_s == cli["discovery_time"]
-    assert options.waits.ack_timeout_s == cli["wait_for_all_acked"] / 1000  # type: ignore[operator]
+    assert options.waits.timeout_ns == cli["wait_timeout"] * NS_PER_S
+    assert options.waits.discovery_ns == cli["discovery_time"] * NS_PER_S
+    assert options.waits.ack_timeout_ns == cli["wait_for_all_acked"] * 1_000_000  # type: ignore[operator]
     assert options.seek_step_ns == cli["seek_step"]
     assert options.latched == LatchedOptions() and cli["no_latched"] is False
     assert options.service_requests is None and cli["publish_service_requests"] is False
@@ -138,9 +139,9 @@ def test_record_option_parts_name_their_fields(make: Callable[[], object], messa
 @pytest.mark.parametrize(
     ("make", "message"),
     [
-        (lambda: SubscriberWaits(timeout_s=-1), "^waits.timeout_s: must be >= 0"),
-        (lambda: SubscriberWaits(ack_timeout_s=float("nan")), "^waits.ack_timeout_s: must be"),
-        (lambda: ServiceRequestReplay(timeout_s=-1), "^service_requests.timeout_s: must be"),
+        (lambda: SubscriberWaits(timeout_ns=-1), "^waits.timeout_ns: must be >= 0"),
+        (lambda: SubscriberWaits(ack_timeout_ns=-1), "^waits.ack_timeout_ns: must be >= 0"),
+        (lambda: ServiceRequestReplay(timeout_ns=-1), "^service_requests.timeout_ns: must be"),
     ],
 )
 def test_play_option_parts_name_their_fields(make: Callable[[], object], message: str) -> None:

@@ -150,7 +150,7 @@ STRING_TOPICS = dict.fromkeys(SCHEDULE, String)
 # in this process is discovered at once; one in another process takes up to 3 s).
 def known(*topics: str) -> SubscriberWaits:
     """Wait for a subscriber on each of ``topics``, without watching the graph first."""
-    return SubscriberWaits(topics=topics, discovery_s=0.0)
+    return SubscriberWaits(topics=topics, discovery_ns=0)
 
 
 NO_WAITS = SubscriberWaits(before_start=False)

@@ -15,6 +15,7 @@ from bagkit.playback.keyboard import DOWN, RIGHT, SPACE, UP, key_actions, split_
 from bagkit.playback.options import PlayOptions
 from bagkit.playback.source import MessageOrder
 from bagkit.playback.timing import Timeline, effective_rate
+from bagkit.selection.times import NS_PER_S
 
 MS = 1_000_000
 
@@ -181,11 +182,11 @@ def test_ros2_bag_play_options_reach_the_player(monkeypatch: pytest.MonkeyPatch)
     assert seen["exclude_topics"] == ("/a", "/b")
     assert seen["start_paused"] is True
     assert seen["loops"] == 0
-    assert seen["delay_s"] == 2.0
+    assert seen["delay_ns"] == 2 * NS_PER_S
     assert seen["duration_s"] == 3.0
     assert seen["until_ns"] == 17
     assert seen["remap"] == {"/a": "/x", "/b": "/y"}
-    assert seen["waits"].ack_timeout_s > 3600  # type: ignore[attr-defined]
+    assert seen["waits"].ack_timeout_ns > 3600 * NS_PER_S  # type: ignore[attr-defined]
     assert str(seen["qos_overrides"]) == "q.yaml"
 
 

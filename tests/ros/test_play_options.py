@@ -66,7 +66,7 @@ def test_window_out_of_range(options: dict[str, float], message: str) -> None:
         (0.0, 0.0, None, 1, "^rate: must be positive"),
         (float("nan"), 0.0, None, 1, "^rate: must be positive"),
         (float("inf"), 0.0, None, 1, "^rate: must be positive"),
-        (1.0, -0.5, None, 1, "^delay_s: must not be negative"),
+        (1.0, -1, None, 1, "^delay_ns: must not be negative"),
         (1.0, 0.0, 0.0, 1, "^clock_hz: must be positive"),
         (1.0, 0.0, None, -1, "^loops: must be 0"),
     ],
@@ -75,5 +75,5 @@ def test_options_out_of_range(
     rate: float, delay: float, clock_hz: float | None, loops: int, message: str
 ) -> None:
     with pytest.raises(PlayerError, match=message):
-        PlayOptions(BAG, rate=rate, delay_s=delay, clock_hz=clock_hz, loops=loops)
+        PlayOptions(BAG, rate=rate, delay_ns=delay, clock_hz=clock_hz, loops=loops)
     assert PlayOptions(BAG, loops=0).loops == 0  # 0 loops: until interrupted

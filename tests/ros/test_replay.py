@@ -33,6 +33,7 @@ from bagkit.bag.clock import clock_message
 from bagkit.playback.options import PlayOptions
 from bagkit.ros.qos import dump_offered_qos_profiles
 from bagkit.ros.replay.player import Player
+from bagkit.selection.times import NS_PER_S
 
 pytestmark = pytest.mark.ros
 
@@ -133,7 +134,9 @@ def test_remap_publishes_under_the_new_name(
 def test_loops_and_delay(test_bag: Path, listener_factory: type[Listener]) -> None:
     expected = [(t, d) for t, d, _ in recorded(test_bag)]
     listener = listener_factory(STRING_TOPICS)
-    options = PlayOptions(test_bag, rate=5.0, loops=2, delay_s=0.5, waits=known(*SCHEDULE))
+    options = PlayOptions(
+        test_bag, rate=5.0, loops=2, delay_ns=NS_PER_S // 2, waits=known(*SCHEDULE)
+    )
     with Player(options) as player:
         player.wait_until_matched()
         player.waits = dataclasses.replace(player.waits, before_start=False, topics=())

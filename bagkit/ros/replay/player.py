@@ -52,7 +52,7 @@ from bagkit.ros.replay.services import serve_controls
 from bagkit.ros.replay.topics import PublishableTopics, publishable_topics
 from bagkit.ros.tuning import process_tuning
 from bagkit.selection.services import is_service_event_topic
-from bagkit.selection.times import TimeLike, parse_time
+from bagkit.selection.times import NS_PER_S, TimeLike, parse_time
 
 if TYPE_CHECKING:
     # Imported once the node exists (numpy, the decoder, rosbags, the migrator; topics.py
@@ -212,7 +212,7 @@ class Player:
                     node,
                     self._reader,
                     source=replay.source,
-                    timeout_s=replay.timeout_s,
+                    timeout_s=replay.timeout_ns / NS_PER_S,
                     on_warning=self.on_warning,
                 )
             )
@@ -307,8 +307,8 @@ class Player:
                 self.on_live_publishers(self.live_publishers)
             wall_start = time.monotonic_ns()
             while options.loops == 0 or passes < options.loops:
-                if options.delay_s > 0:
-                    time.sleep(options.delay_s)
+                if options.delay_ns > 0:
+                    time.sleep(options.delay_ns / NS_PER_S)
                 before = lateness.count
                 bag_ns += self._play_pass(passes, lateness)
                 self._pass = None
@@ -471,7 +471,9 @@ class Player:
 
         A fast replay ends while messages are in flight. Waits at most ``ack_timeout`` s in all.
         """
-        return wait_until_acknowledged(list(self._outputs.values()), self.waits.ack_timeout_s)
+        return wait_until_acknowledged(
+            list(self._outputs.values()), self.waits.ack_timeout_ns / NS_PER_S
+        )
 
     def wait_until_matched(self) -> SubscriberWait:
         """Block until the subscriptions the graph knows on replayed topics have matched.
@@ -494,8 +496,8 @@ class Player:
             self.node,
             outputs,
             wait_for=list(self.waits.topics),
-            settled_at=self._node_created + self.waits.discovery_s,
-            timeout=self.waits.timeout_s,
+            settled_at=self._node_created + self.waits.discovery_ns / NS_PER_S,
+            timeout=self.waits.timeout_ns / NS_PER_S,
             all_discovered=all_discovered(self.node, os.environ),
         )
 
