@@ -28,17 +28,25 @@ def run_campaign(
     timeout: float,
     subprocess_sample: int,
     full_fixtures: bool = True,
+    campaign_size: int | None = None,
 ) -> tuple[list[campaign.Case], list[runner.Outcome]]:
-    """Build the cases, run every command in-process and a sample as real subprocesses."""
+    """Build the cases, run every command in-process and a sample as real subprocesses.
+
+    ``campaign_size``: the cases of the whole campaign when ``cases`` is one part of it; the
+    sample is spread over the whole, so the parts together repeat the runs it would.
+    """
     built = campaign.make_cases(seed, cases, directory, full_fixtures=full_fixtures)
-    tasks = [
-        runner.Task(f"{c.number} {cmd}", c.argv(cmd)) for c in built for cmd in campaign.COMMANDS
-    ]
+    commands = campaign.COMMANDS
+    tasks = [runner.Task(f"{c.number} {cmd}", c.argv(cmd)) for c in built for cmd in commands]
     outcomes = runner.run_in_process(tasks, jobs=jobs, timeout=timeout)
-    step = max(1, len(tasks) // subprocess_sample) if subprocess_sample else 0
-    for task in tasks[::step] if step else []:
-        outcome = runner.run_subprocess(task, timeout=timeout)
-        outcomes.append(dataclasses.replace(outcome, key=outcome.key + " (subprocess)"))
+    # Place of each task in the whole campaign (case number x commands + command).
+    places = [c.number * len(commands) + i for c in built for i in range(len(commands))]
+    total = (campaign_size or len(cases)) * len(commands)
+    step = max(1, total // subprocess_sample) if subprocess_sample else 0
+    for place, task in zip(places, tasks, strict=True) if step else []:
+        if place % step == 0:
+            outcome = runner.run_subprocess(task, timeout=timeout)
+            outcomes.append(dataclasses.replace(outcome, key=outcome.key + " (subprocess)"))
     return built, outcomes
 
 
