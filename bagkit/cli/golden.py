@@ -9,7 +9,15 @@ from pathlib import Path
 
 import typer
 
-from bagkit.cli.common import console, err_console, fail, handle_errors, note, option_flags
+from bagkit.cli.common import (
+    bag_location,
+    console,
+    err_console,
+    fail,
+    handle_errors,
+    note,
+    option_flags,
+)
 from bagkit.cli.fleet_options import Scheduler, Workers
 from bagkit.cli.selection_options import End, Start, build_query
 from bagkit.regression.spec import FixtureSpec, find_fixtures, load_spec
@@ -28,6 +36,15 @@ FIXTURES_ARG = typer.Argument(
 )
 
 
+CHECKED_FIXTURES_ARG = typer.Argument(
+    None,
+    help="Fixture directories (holding spec.yaml), or their prefixes in storage (s3://...); "
+    "default: every fixture under ./fixtures.",
+    show_default=False,
+    parser=bag_location,
+)
+
+
 def _specs(fixtures: list[Path] | None) -> list[FixtureSpec]:
     # Processor factories import from the current directory too, as under `python -m`.
     if "" not in sys.path and os.getcwd() not in sys.path:
@@ -43,7 +60,7 @@ def _specs(fixtures: list[Path] | None) -> list[FixtureSpec]:
 @app.command()
 @handle_errors
 def check(
-    fixtures: list[Path] | None = FIXTURES_ARG,
+    fixtures: list[Path] | None = CHECKED_FIXTURES_ARG,
     *,
     mode: str = typer.Option(
         "lockstep",
@@ -66,13 +83,28 @@ def check(
 
     Example: bagkit golden check fixtures/takeoff --mode all
     """
-    from bagkit.cli.fleet_options import fleet_run
-    from bagkit.fleet.cluster import LOCKSTEP_RATE
-    from bagkit.regression.batch import check_fixtures
+    from bagkit.storage.transfer import local_folders
 
     mode = "live" if live else mode
     if mode not in {"lockstep", "live", "all"}:
         raise fail(f"--mode must be lockstep, live or all, not {mode!r}")
+    # Fixtures in storage are copied whole into a temporary folder (spec, inputs, golden).
+    with local_folders(fixtures or []) as local:
+        _check(local or None, mode, failures, workers, scheduler)
+
+
+def _check(
+    fixtures: list[Path] | None,
+    mode: str,
+    failures: Path,
+    workers: int | None,
+    scheduler: str | None,
+) -> None:
+    """Check ``fixtures`` (local folders; None: every one under ./fixtures) and print."""
+    from bagkit.cli.fleet_options import fleet_run
+    from bagkit.fleet.cluster import LOCKSTEP_RATE
+    from bagkit.regression.batch import check_fixtures
+
     jobs = [
         (spec, each)
         for spec in _specs(fixtures)

@@ -32,6 +32,9 @@ from bagkit.storage.urls import location, shown_as
 
 ProgressCallback = Callable[[int, int], None]
 """Called with (messages done, messages in total) as the summary advances."""
+# From this much chunk data on, glibc keeps freed buffers (bagkit.native): below it the
+# ctypes import costs more than the page faults it saves.
+KEEP_FREED_FROM_BYTES = 64 << 20
 
 
 @dataclass(slots=True)
@@ -267,6 +270,13 @@ def summarize(
             for topic, count in reader.topic_counts.items()
             if topics is None or topic in topics
         )
+        if sum(reader.uncompressed_size for reader in readers) >= KEEP_FREED_FROM_BYTES:
+            # Each chunk's buffers and columns are freed and allocated again for the next:
+            # kept by glibc, not paid for in page faults chunk after chunk (180k -> 11k, a
+            # quarter of the CPU of 1M Imu: benchmarks/README.md, issue 36 item 3).
+            from bagkit.native import keep_freed_memory
+
+            keep_freed_memory()
         for name, reader in zip(names, readers, strict=True):
             run.read(reader, topics, name)
     finally:

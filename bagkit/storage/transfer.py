@@ -13,7 +13,7 @@ from typing import Any
 from bagkit.storage.errors import StorageError
 from bagkit.storage.filesystems import call, filesystem
 from bagkit.storage.paths import UrlPath, remember
-from bagkit.storage.urls import joined
+from bagkit.storage.urls import joined, scheme
 
 # A copy is fetched in pieces of this size (memory stays bounded whatever the object's size).
 COPY_PIECE = 8 << 20
@@ -114,6 +114,37 @@ def read_from(path: Path, *beside: str) -> Iterator[Path]:
             if (path.parent / name).is_file():
                 local_copy(path.parent / name, directory)
         yield local
+    finally:
+        shutil.rmtree(directory, ignore_errors=True)
+
+
+@contextmanager
+def local_folders(paths: list[Path]) -> Iterator[list[Path]]:
+    """``paths`` with each prefix in storage (a UrlPath) replaced by a local copy of the
+    objects under it (named as the prefix), removed when the block ends; local paths as
+    given. For inputs read as folders of files (golden fixtures).
+
+    Raises:
+        StorageError: a prefix cannot be listed (HTTP lists none) or an object read.
+    """
+    directory = temporary_directory()
+    try:
+        found: list[Path] = []
+        for index, path in enumerate(paths):
+            if not isinstance(path, UrlPath):
+                found.append(path)
+                continue
+            if scheme(path.url) in ("http", "https"):
+                raise StorageError(f"{path}: an HTTP server lists no prefixes to copy")
+            target = directory / str(index) / path.name
+            for item in objects_under(path):
+                folder = target / item.relative_to(path)
+                folder.parent.mkdir(parents=True, exist_ok=True)
+                local_copy(item, folder.parent)
+            if not target.is_dir():
+                raise StorageError(f"{path}: no object under this prefix")
+            found.append(target)
+        yield found
     finally:
         shutil.rmtree(directory, ignore_errors=True)
 

@@ -231,6 +231,22 @@ def test_presigned_urls_keep_their_signature(moto_store: Store, local_bags: Path
         assert "Signature" not in result.stdout + result.stderr
 
 
+def test_golden_check_of_fixtures_in_storage(moto_store: Store, tmp_path: Path) -> None:
+    """A fixture's prefix (spec, inputs, golden bag) checked as its folder on disk is; an
+    HTTP URL, which lists nothing, is one error."""
+    fixture = Path(__file__).resolve().parents[2] / "fixtures" / "nominal"
+    moto_store.put(fixture, "fixtures/nominal")
+    args = ["golden", "check", "--workers", "0", "--failures", str(tmp_path)]
+    remote = cli([*args, f"{moto_store.base}/fixtures/nominal"], moto_store.env)
+    local = cli([*args, str(fixture)], {})
+    assert remote.returncode == local.returncode == 0, remote.stderr
+    assert (
+        remote.stdout.splitlines()[0] == local.stdout.splitlines()[0] == "nominal (lockstep): pass"
+    )
+    http = cli([*args, "http://127.0.0.1:9/fixtures/nominal"], {})
+    assert http.returncode == 2 and "lists no prefixes" in http.stderr
+
+
 def test_dask_workers_read_the_store_themselves(moto_store: Store, local_bags: Path) -> None:
     """Two local workers, each opening its bags by URL (the driver sends URLs, not bytes):
     the figures one process gives."""
