@@ -243,9 +243,26 @@ def option_flags(flags: Mapping[str, str]) -> Iterator[None]:
     except OptionError as exc:
         if exc.field is None:
             raise
-        names = ", ".join(flags.get(name.strip(), name.strip()) for name in exc.field.split(","))
-        message = names.format(exc.problem) if "{}" in names else f"{names}: {exc.problem}"
-        raise fail(message, exc.exit_code) from None
+        raise fail(_naming_flags(exc, flags), exc.exit_code) from None
+
+
+# Fields every command that has them sets with the same flag (for handle_errors and every
+# option_flags block).
+SHARED_FLAGS = {
+    "output.force": "{} (use --force to replace it)",
+    "output.compression": "--compression {}",
+    "output.max_bag_size": "--max-bag-size",
+    "output.max_bag_duration_s": "--max-bag-duration",
+}
+
+
+def _naming_flags(exc: OptionError, flags: Mapping[str, str]) -> str:
+    """``exc``'s message with its fields named by their flags (or templates) in ``flags``,
+    else in SHARED_FLAGS."""
+    assert exc.field is not None
+    fields = [name.strip() for name in exc.field.split(",")]
+    names = ", ".join(flags.get(name, SHARED_FLAGS.get(name, name)) for name in fields)
+    return names.format(exc.problem) if "{}" in names else f"{names}: {exc.problem}"
 
 
 def format_rate(rate_hz: float | None, digits: int = 2) -> str:
@@ -306,6 +323,9 @@ def handle_errors(func: Callable[P, R]) -> Callable[P, R]:
             if interrupted.seen:
                 raise KeyboardInterrupt
             return result
+        except OptionError as exc:
+            message = str(exc) if exc.field is None else _naming_flags(exc, SHARED_FLAGS)
+            raise fail(message, exc.exit_code) from None
         except BagkitError as exc:
             raise fail(str(exc), exc.exit_code) from None
         except KeyboardInterrupt:

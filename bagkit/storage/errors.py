@@ -6,11 +6,16 @@ password, a token or a signed query.
 
 from __future__ import annotations
 
-from bagkit.errors import BagkitError
+from bagkit.errors import BagkitError, OptionError
 
 
 class StorageError(BagkitError):
     """An object or prefix in storage that cannot be read or written."""
+
+
+class OutputExistsError(StorageError, OptionError):
+    """Something is already at the output URL and replacing it was not asked
+    (``output.force``)."""
 
 
 class UnsupportedUrlError(StorageError):

@@ -10,7 +10,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from bagkit.storage.errors import StorageError
+from bagkit.storage.errors import OutputExistsError, StorageError
 from bagkit.storage.filesystems import call, filesystem
 from bagkit.storage.paths import UrlPath, remember
 from bagkit.storage.urls import joined, scheme
@@ -66,7 +66,8 @@ def written_to(output: Path, *, replace: bool = False, update: bool = False) -> 
 
     Args:
         output: the output as given.
-        replace: an object already at the URL may be replaced (``--force``); else an error.
+        replace: an object already at the URL may be replaced (``output.force``); else an
+            error.
         update: the output is updated in place (a catalogue): what is at the URL is fetched
             first.
 
@@ -83,7 +84,7 @@ def written_to(output: Path, *, replace: bool = False, update: bool = False) -> 
             if update and output.is_file():
                 local = local_copy(output, directory)
             elif not (replace or update):
-                raise StorageError(f"{output} exists (--force replaces it)")
+                raise OutputExistsError(f"{output} exists", "output.force")
         yield local
         # What the command wrote beside it too (a catalogue's events file) goes beside it.
         for written in sorted(directory.iterdir()):

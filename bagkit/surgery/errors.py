@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
-from bagkit.errors import BagkitError
+from bagkit.errors import OptionError
 
 
-class SurgeryError(BagkitError):
-    """A bag cannot be rewritten as asked (bad option, output exists, nothing to write)."""
+class SurgeryError(OptionError):
+    """A bag cannot be rewritten as asked (bad option, output exists, nothing to write); a
+    bad option's ``field`` is its path in the options (``output.force``)."""
 
     exit_code = 2
 

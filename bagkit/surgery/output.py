@@ -125,7 +125,7 @@ class OutputBag:
             raise SurgeryError(f"{str(path)!r} names no bag directory to write")
         if path.exists() or path.is_symlink():
             if not force:
-                raise SurgeryError(f"{path} already exists (use --force to replace it)")
+                raise SurgeryError(f"{path} already exists", "output.force")
             check_replaceable(path)
         if not path.parent.is_dir():
             raise SurgeryError(f"{path.parent}: no such directory")

@@ -38,18 +38,21 @@ class Sqlite3OutputBag:
     def __init__(self, path: Path, options: OutputOptions) -> None:
         if options.compression not in ("zstd", "none"):
             raise SurgeryError(
-                f"--compression {options.compression}: rosbag2 compresses sqlite3 bags with "
-                "zstd only (zstd or none)"
+                f"{options.compression}: rosbag2 compresses sqlite3 bags with zstd only "
+                "(zstd or none)",
+                "output.compression",
             )
         if options.compression == "zstd" and options.compression_mode not in _MODES:
             raise SurgeryError(f"compression mode {options.compression_mode!r}: message or file")
         if options.max_bag_size or options.max_bag_duration_s:
-            raise SurgeryError("a sqlite3 output is not split (no --max-bag-size/-duration)")
+            raise SurgeryError(
+                "a sqlite3 output is not split", "output.max_bag_size, output.max_bag_duration_s"
+            )
         if not path.name or path.name == "..":
             raise SurgeryError(f"{str(path)!r} names no bag directory to write")
         if path.exists() or path.is_symlink():
             if not options.force:
-                raise SurgeryError(f"{path} already exists (use --force to replace it)")
+                raise SurgeryError(f"{path} already exists", "output.force")
             check_replaceable(path)
         if not path.parent.is_dir():
             raise SurgeryError(f"{path.parent}: no such directory")

@@ -16,7 +16,10 @@ import pytest
 
 from bagkit.bag import BagReader, bag_info
 from bagkit.bag.mcap_file import McapFile
+from bagkit.storage.errors import OutputExistsError
+from bagkit.storage.paths import UrlPath
 from bagkit.storage.range_file import HEAD_BYTES, fetched
+from bagkit.storage.transfer import written_to
 from tests.storage.conftest import Store
 
 
@@ -164,7 +167,10 @@ def test_outputs_to_urls_are_uploaded(moto_store: Store, local_bags: Path) -> No
     )
     assert cut.returncode == 0, cut.stderr
     again = cli(["filter", f"{base}/fleet/a", "-o", f"{base}/out/cut"], moto_store.env)
-    assert again.returncode == 2 and "exists (--force replaces it)" in again.stderr
+    assert again.returncode == 2 and "exists (use --force to replace it)" in again.stderr
+    with pytest.raises(OutputExistsError) as raised, written_to(UrlPath(f"{base}/out/cut")):
+        pass  # the library names its own field; the CLI named the flag
+    assert raised.value.field == "output.force"
     info = cli(["info", f"{base}/out/cut", "--format", "json"], moto_store.env)
     assert json.loads(info.stdout)["message_count"] == 3
     catalog = cli(

@@ -227,7 +227,7 @@ def test_ros2_bag_convert_options_file(mixed: Path, tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("args", "says"),
     [
-        (["--storage", "sqlite3", "--compression", "lz4"], "zstd only"),
+        (["--storage", "sqlite3", "--compression", "lz4"], "--compression lz4: rosbag2 "),
         (["--storage", "rosbag1"], "mcap or sqlite3"),
         (["--output-options", "OPTIONS"], "topic_types"),
         (["--topics", "/nope"], "/nope"),

@@ -35,6 +35,10 @@ from surgery_samples import (
 
 from bagkit.bag import BagWriter, TopicInfo
 from bagkit.surgery import Selection, filter_bag
+from bagkit.surgery.errors import SurgeryError
+from bagkit.surgery.options import OutputOptions
+from bagkit.surgery.output import OutputBag
+from bagkit.surgery.sqlite3_output import Sqlite3OutputBag
 
 
 def run_here(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
@@ -276,3 +280,22 @@ def test_force_replaces_bags_only_and_never_the_working_directory(
         assert result.stderr.startswith("error: ") and len(result.stderr.splitlines()) == 1
     assert (here / "notes.mcap").read_text() == (other / "notes.txt").read_text() == "mine"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["here", "other"]  # nothing partial
+
+
+def test_output_errors_name_the_options_fields(tmp_path: Path) -> None:
+    """The library names OutputOptions' fields; the CLI (above) names their flags."""
+    taken = tmp_path / "taken"
+    taken.mkdir()
+    with pytest.raises(SurgeryError) as raised:
+        OutputBag(taken)
+    assert raised.value.field == "output.force"
+    asks = [
+        (OutputOptions(), "output.force"),
+        (OutputOptions(force=True, compression="lz4"), "output.compression"),
+        (OutputOptions(force=True, max_bag_size=1 << 20), "output.max_bag_size, "),
+    ]
+    for options, field in asks:
+        with pytest.raises(SurgeryError) as raised:
+            Sqlite3OutputBag(taken, options)
+        assert (raised.value.field or "").startswith(field), options
+    assert [p.name for p in tmp_path.iterdir()] == ["taken"]
