@@ -4,21 +4,20 @@ size is refused with the reason; a free-space floor already passed fails before 
 from __future__ import annotations
 
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from bagkit_runs import bagkit_in_process, bagkit_subprocess
 
 from bagkit.bag import BagReader
 
-BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 BAG = Path(__file__).resolve().parents[2] / "fixtures" / "faults" / "golden"
 
 
 def _bagkit(*args: str | Path, cwd: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [BAGKIT, *map(str, args)], capture_output=True, text=True, timeout=120, cwd=cwd, check=False
-    )
+    """``record`` in a process of its own (it loads rclpy); the bag commands in this one."""
+    run = bagkit_subprocess if args[0] == "record" else bagkit_in_process
+    return run(list(args), cwd)
 
 
 @pytest.mark.parametrize("command", ["filter", "merge"])

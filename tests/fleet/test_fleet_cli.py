@@ -1,5 +1,6 @@
-"""``bagkit stats summary`` over many bags in a real ``bagkit`` process: a local cluster gives
-the in-process output; Ctrl-C stops it with exit 130 and leaves no process behind."""
+"""``bagkit stats summary`` over many bags: a local cluster, started by a real ``bagkit``
+process, gives the in-process output; Ctrl-C stops it with exit 130 and leaves no process
+behind. Runs that start no cluster run in the test's process, but for one error line."""
 
 from __future__ import annotations
 
@@ -11,12 +12,14 @@ import sys
 from pathlib import Path
 
 import psutil
+from bagkit_runs import bagkit_in_process
 from test_fleet_stats import RELATIVE
 
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 
 
-def _summary(*args: str) -> tuple[dict[str, object], str]:
+def _cluster_summary(*args: str) -> tuple[dict[str, object], str]:
+    """In a ``bagkit`` process of its own: the cluster it starts is that process's to stop."""
     done = subprocess.run(
         [BAGKIT, "stats", "summary", *args, "--format", "json"],
         capture_output=True,
@@ -27,8 +30,14 @@ def _summary(*args: str) -> tuple[dict[str, object], str]:
     return json.loads(done.stdout), done.stderr
 
 
+def _summary(*args: str) -> tuple[dict[str, object], str]:
+    done = bagkit_in_process(["stats", "summary", *args, "--format", "json"], Path.cwd())
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout), done.stderr
+
+
 def test_workers_give_the_in_process_output(fleet_dir: Path) -> None:
-    local, notes = _summary(str(fleet_dir), "--workers", "2")
+    local, notes = _cluster_summary(str(fleet_dir), "--workers", "2")
     here, _ = _summary(str(fleet_dir), "--workers", "0")
     assert "local Dask cluster of 2 workers, dashboard http://127.0.0.1:" in notes
     assert local["bags"] == here["bags"] and len(local["bags"]) == 6  # type: ignore[arg-type]
@@ -87,16 +96,15 @@ def test_ctrl_c_stops_the_local_cluster(fleet_bags: list[Path], tmp_path: Path) 
             proc.wait()
 
 
-def _error_line(*args: str, env: dict[str, str] | None = None) -> str:
+def _error_line(*args: str, env: dict[str, str] | None = None, in_process: bool = False) -> str:
     """``bagkit stats summary ARGS``, which must end with one error line and exit 2."""
-    done = subprocess.run(
-        [BAGKIT, "stats", "summary", *args],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-        env=env,
-    )
+    command = ["stats", "summary", *args]
+    if in_process:
+        done = bagkit_in_process(list(command), Path.cwd())
+    else:
+        done = subprocess.run(
+            [BAGKIT, *command], capture_output=True, text=True, timeout=120, check=False, env=env
+        )
     assert done.returncode == 2
     assert len(done.stderr.strip().splitlines()) == 1, done.stderr
     return done.stderr.strip()
@@ -113,7 +121,7 @@ def test_unreachable_scheduler_is_one_error_line(fleet_bags: list[Path]) -> None
 
 
 def test_a_mistyped_worker_count_starts_no_process(fleet_bags: list[Path]) -> None:
-    line = _error_line(*map(str, fleet_bags[:2]), "--workers", "100000")
+    line = _error_line(*map(str, fleet_bags[:2]), "--workers", "100000", in_process=True)
     assert line.startswith("error: --workers 100000: a local cluster runs at most 4")
 
 

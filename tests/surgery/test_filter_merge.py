@@ -1,13 +1,19 @@
-"""``bagkit filter`` and ``bagkit merge``: outputs equal to the selection rosbags makes."""
+"""``bagkit filter`` and ``bagkit merge``: outputs equal to the selection rosbags makes.
+
+Most runs are in the test's process (``run_here``); one per behaviour is a real ``bagkit``
+process (``run``): a filter, a merge, and a refusal of each.
+"""
 
 from __future__ import annotations
 
 import json
 import re
+import subprocess
 from pathlib import Path
 
 import pytest
 import yaml
+from bagkit_runs import bagkit_in_process
 from mcap.reader import make_reader
 from rosbags.highlevel import AnyReader
 from surgery_samples import (
@@ -33,6 +39,10 @@ from bagkit.surgery.errors import SurgeryError
 from bagkit.surgery.options import OutputOptions
 from bagkit.surgery.output import OutputBag
 from bagkit.surgery.sqlite3_output import Sqlite3OutputBag
+
+
+def run_here(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    return bagkit_in_process(list(args), cwd or Path.cwd())
 
 
 @pytest.fixture(scope="module")
@@ -70,7 +80,7 @@ def test_filter_equals_rosbags_selection(
     mixed: Path, tmp_path: Path, args: list[str], keep: object
 ) -> None:
     out = tmp_path / "out"
-    result = run("filter", str(mixed), "-o", str(out), *args, "--format", "json")
+    result = run_here("filter", str(mixed), "-o", str(out), *args, "--format", "json")
     assert result.returncode == 0, result.stderr
     expected = _expected(mixed, keep)
     assert expected  # the case selects something
@@ -91,7 +101,7 @@ def test_several_topics_before_the_bag(mixed: Path, tmp_path: Path) -> None:
 def test_compression_and_split(mixed: Path, tmp_path: Path, compression: str) -> None:
     out = tmp_path / "out"
     size = 40_000
-    result = run(
+    result = run_here(
         "filter", str(mixed), "-o", str(out), "--compression", compression,
         "--max-bag-size", str(size), "--exclude-topics", "/temperature",
     )  # fmt: skip
@@ -121,7 +131,7 @@ def test_compression_and_split(mixed: Path, tmp_path: Path, compression: str) ->
 
 def test_split_by_duration(mixed: Path, tmp_path: Path) -> None:
     out = tmp_path / "out"
-    result = run("filter", str(mixed), "-o", str(out), "-d", "4")
+    result = run_here("filter", str(mixed), "-o", str(out), "-d", "4")
     assert result.returncode == 0, result.stderr
     files = sorted(out.glob("*.mcap"), key=lambda p: int(p.stem.rsplit("_", 1)[1]))
     assert len(files) >= 5  # 20 s of messages, split at chunk boundaries
@@ -168,10 +178,10 @@ def test_chunk_copied_as_stored(tmp_path: Path) -> None:
             writer.write("/text", string_cdr(str(i)), log_time=START + 2 * i + 1)
     source_chunks = chunk_records(next(bag.glob("*.mcap")))
     copy = tmp_path / "copy"
-    assert run("filter", str(bag), "-o", str(copy)).returncode == 0
+    assert run_here("filter", str(bag), "-o", str(copy)).returncode == 0
     assert chunk_records(next(copy.glob("*.mcap"))) == source_chunks
     imu = tmp_path / "imu"
-    assert run("filter", str(bag), "-o", str(imu), "--topics", "/imu/data").returncode == 0
+    assert run_here("filter", str(bag), "-o", str(imu), "--topics", "/imu/data").returncode == 0
     copied = chunk_records(next(imu.glob("*.mcap")))
     imu_only = [c for c in source_chunks if c in copied]
     assert len(imu_only) >= 3  # the IMU-only chunks, not rebuilt
@@ -179,7 +189,7 @@ def test_chunk_copied_as_stored(tmp_path: Path) -> None:
     assert rosbags_messages(imu) == [m for m in rosbags_messages(bag) if m[0] == "/imu/data"]
     # Recompressing is asked for: nothing is copied as stored.
     lz4 = tmp_path / "lz4"
-    assert run("filter", str(bag), "-o", str(lz4), "--compression", "lz4").returncode == 0
+    assert run_here("filter", str(bag), "-o", str(lz4), "--compression", "lz4").returncode == 0
     assert not set(chunk_records(next(lz4.glob("*.mcap")))) & set(source_chunks)
     assert rosbags_messages(lz4) == rosbags_messages(bag)
 
@@ -188,7 +198,7 @@ def test_merge_interleaved_equals_sorted_union(tmp_path: Path) -> None:
     a = write_mixed_bag(tmp_path / "a", 600)
     b = write_mixed_bag(tmp_path / "b", 500, offset_ns=3_333_333, step_ns=13_000_000)
     out = tmp_path / "merged"
-    result = run("merge", str(a), str(b), "-o", str(out), "--format", "json")
+    result = run_here("merge", str(a), str(b), "-o", str(out), "--format", "json")
     assert result.returncode == 0, result.stderr
     union = sorted(rosbags_messages(a) + rosbags_messages(b), key=key)
     merged = mcap_messages(sorted(out.glob("*.mcap")))
@@ -236,21 +246,21 @@ def test_output_is_never_half_written_nor_overwritten(mixed: Path, tmp_path: Pat
     assert result.stderr == f"error: {out} already exists (use --force to replace it)\n"
     assert [p.name for p in out.iterdir()] == ["keep.txt"]
     for bad in (["--compression", "brotli"], ["--topics", "/nothing"], ["-e", "[a"]):
-        result = run("filter", str(mixed), "-o", str(tmp_path / "new"), *bad)
+        result = run_here("filter", str(mixed), "-o", str(tmp_path / "new"), *bad)
         assert result.returncode == 2, bad
         assert result.stderr.startswith("error: ") and len(result.stderr.splitlines()) == 1
         assert "Traceback" not in result.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]  # no partial output left
-    result = run("filter", str(mixed), "-o", str(out), "--force")
+    result = run_here("filter", str(mixed), "-o", str(out), "--force")
     assert result.returncode == 2
     assert result.stderr.startswith(f"error: {out} is not a bag directory (it holds keep.txt)")
     assert [p.name for p in out.iterdir()] == ["keep.txt"]
     (out / "keep.txt").unlink()
     for _ in range(2):  # an empty directory, then the bag written there, are replaced
-        result = run("filter", str(mixed), "-o", str(out), "--force", "--topics", "/text")
+        result = run_here("filter", str(mixed), "-o", str(out), "--force", "--topics", "/text")
         assert result.returncode == 0, result.stderr
         assert {m[0] for m in rosbags_messages(out)} == {"/text"}
-    result = run("filter", str(mixed), "-o", str(mixed / "inside"))
+    result = run_here("filter", str(mixed), "-o", str(mixed / "inside"))
     assert result.returncode == 2
     assert "overlap" in result.stderr
 
@@ -265,7 +275,7 @@ def test_force_replaces_bags_only_and_never_the_working_directory(
     other.mkdir()
     (other / "notes.txt").write_text("mine")
     for name in ["", ".", "..", str(here), str(tmp_path), "../other"]:
-        result = run("filter", str(mixed), "-o", name, "--force", cwd=here)
+        result = run_here("filter", str(mixed), "-o", name, "--force", cwd=here)
         assert result.returncode == 2, name
         assert result.stderr.startswith("error: ") and len(result.stderr.splitlines()) == 1
     assert (here / "notes.mcap").read_text() == (other / "notes.txt").read_text() == "mine"
