@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
-from bagkit.errors import BagkitError
+from bagkit.errors import OptionError
 
 
-class MigrateError(BagkitError):
-    """A migration that cannot be made as asked (bad input: exit 2)."""
+class MigrateError(OptionError):
+    """A migration that cannot be made as asked (bad input: exit 2); ``field`` names the option
+    that would allow it (``allow_drop``)."""
 
     exit_code = 2
 
@@ -18,4 +19,4 @@ class RuleError(MigrateError):
 
 
 class DataLossError(MigrateError):
-    """Fields whose values the migration would drop with no rule saying so (``--allow-drop``)."""
+    """Fields whose values the migration would drop with no rule saying so (``allow_drop``)."""

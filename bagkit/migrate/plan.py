@@ -112,7 +112,8 @@ class Planner:
             if not self.allow_drop:
                 raise DataLossError(
                     f"{'; '.join(lost)}: the migration would drop these values; name them "
-                    "under drop: (or rename/compute) in a rules file, or pass --allow-drop"
+                    "under drop: (or rename/compute) in a rules file",
+                    "allow_drop",
                 )
             self.dropped.extend(lost)
         make = self.new.types[new_type]
@@ -155,8 +156,7 @@ class Planner:
         problem = f"{where} changed type ({describe(old)} -> {describe(new)})"
         if not self.allow_drop:
             raise MigrateError(
-                f"{problem} and cannot be converted: give it a compute rule, or pass "
-                "--allow-drop to drop its values"
+                f"{problem} and cannot be converted: give it a compute rule", "allow_drop"
             )
         return None
 

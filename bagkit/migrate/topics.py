@@ -92,7 +92,7 @@ class TopicMigration:
         try:
             new = self.convert(old)
         except MigrateError as exc:
-            raise type(exc)(f"{exc} ({where})") from None
+            raise type(exc)(f"{exc.problem} ({where})", exc.field) from None
         try:
             encoded = self.encode(new)
             self.check(encoded)
@@ -142,7 +142,7 @@ def migrate_topic(
     try:
         convert = planner.converter(old_name, new_name)
     except MigrateError as exc:
-        raise type(exc)(f"{info.name} ({name}): {exc}") from None
+        raise type(exc)(f"{info.name} ({name}): {exc.problem}", exc.field) from None
 
     def encode(message: Any) -> bytes:
         return bytes(new_store.serialize_cdr(message, new_name))

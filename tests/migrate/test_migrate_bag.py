@@ -23,6 +23,8 @@ from sensor_msgs.msg import Range, Temperature
 from bagkit.bag import BagReader, BagWriter, TopicInfo, message_definition
 from bagkit.bag.distro_definitions import distro_definitions
 from bagkit.decode import MessageTypes
+from bagkit.migrate.errors import DataLossError
+from bagkit.surgery.migrate import MigrateOptions, plan_migrations
 
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 START_NS = 1_700_000_000_000_000_000
@@ -153,6 +155,9 @@ def test_data_loss_is_refused_unless_allowed(tmp_path: Path) -> None:
     assert line.startswith("error: /temperature (sensor_msgs/msg/Temperature):")
     assert "temp_milli_c (int32)" in line and "legacy (int32)" in line and "--allow-drop" in line
     assert not (tmp_path / "new").exists()
+    with pytest.raises(DataLossError) as raised:  # the library names its own field
+        plan_migrations(old, MigrateOptions())
+    assert raised.value.field == "allow_drop" and "--allow-drop" not in str(raised.value)
 
     allowed = _migrate(str(old), "-o", str(tmp_path / "new"), "--allow-drop")
     assert allowed.returncode == 0, allowed.stderr
