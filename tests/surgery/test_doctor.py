@@ -1,13 +1,19 @@
-"""``bagkit doctor``: healthy bags, the interop bags' real problems, and corrupted copies."""
+"""``bagkit doctor``: healthy bags, the interop bags' real problems, and corrupted copies.
+
+Most runs are in the test's process (``run_here``); a real ``bagkit`` process (``run``) for
+each exit status a shell sees: 1 for a damaged bag, 2 for input that is no bag.
+"""
 
 from __future__ import annotations
 
 import json
 import shutil
+import subprocess
 from pathlib import Path
 
 import pytest
 import yaml
+from bagkit_runs import bagkit_in_process
 from mcap.reader import make_reader
 from mcap.records import Message
 from mcap.stream_reader import StreamReader
@@ -16,6 +22,10 @@ from surgery_samples import STRING, chunk_records, run, string_cdr, write_mixed_
 from bagkit.bag import BagWriter, TopicInfo
 
 FIXTURES = Path(__file__).resolve().parents[2] / "fixtures"
+
+
+def run_here(*args: str) -> subprocess.CompletedProcess[str]:
+    return bagkit_in_process(list(args), Path.cwd())
 
 
 def stored_out_of_order(files: list[Path]) -> int:
@@ -34,7 +44,7 @@ def stored_out_of_order(files: list[Path]) -> int:
 @pytest.mark.parametrize("name", ["nominal", "faults", "fast"])
 def test_golden_fixtures_are_healthy(name: str) -> None:
     bag = FIXTURES / name / "golden"
-    result = run("doctor", str(bag), "--deep", "--format", "json")
+    result = run_here("doctor", str(bag), "--deep", "--format", "json")
     assert result.returncode == 0, result.stdout
     report = json.loads(result.stdout)
     assert report["healthy"] and report["problems"] == []
@@ -77,7 +87,7 @@ def test_every_interop_bag(interop_dir: Path) -> None:
                 reader = make_reader(f, validate_crcs=True)
                 count = sum(1 for _ in reader.iter_messages())
                 assert reader.get_summary().statistics.message_count == count
-        result = run("doctor", str(bag), "--deep", "--format", "json")
+        result = run_here("doctor", str(bag), "--deep", "--format", "json")
         report = json.loads(result.stdout)
         file_problems = [p for p in report["problems"] if p["where"] != "metadata.yaml"]
         assert file_problems == [], bag
@@ -114,7 +124,7 @@ def test_cut_file(bag: Path) -> None:
     file = next(bag.glob("*.mcap"))
     data = file.read_bytes()
     file.write_bytes(data[: len(data) // 2])
-    lines = _lines(run("doctor", str(bag)))
+    lines = _lines(run_here("doctor", str(bag)))
     assert any(line.startswith("bag_0.mcap: truncated at byte") for line in lines)
     assert any("no usable summary" in line for line in lines)
     assert any(
@@ -130,7 +140,7 @@ def test_wrong_count_in_metadata(bag: Path) -> None:
     root["topics_with_message_count"][1]["message_count"] += 3
     root["relative_file_paths"].append("bag_1.mcap")
     path.write_text(yaml.safe_dump(info))
-    result = run("doctor", str(bag))
+    result = run_here("doctor", str(bag))
     assert result.returncode == 1
     assert _lines(result) == [
         "metadata.yaml: lists bag_1.mcap, which is missing or unreadable",
@@ -155,7 +165,7 @@ def test_chunk_index_pointing_wrong(bag: Path) -> None:
         data[first : first + 8],
     )
     file.write_bytes(bytes(data))
-    lines = _lines(run("doctor", str(bag)))
+    lines = _lines(run_here("doctor", str(bag)))
     assert "bag_0.mcap: summary CRC mismatch (the summary is damaged)" in lines
     assert sum("chunk index" in line and "disagrees" in line for line in lines) == 2
 
@@ -166,8 +176,8 @@ def test_undecodable_message_only_with_deep(tmp_path: Path) -> None:
         writer.add_topic(TopicInfo("/text", STRING))
         writer.write("/text", string_cdr("fine"), log_time=10)
         writer.write("/text", b"\x00\x01\x00\x00\xff\xff\x00\x00abc", log_time=20)
-    assert run("doctor", str(bag)).returncode == 0
-    result = run("doctor", str(bag), "--deep")
+    assert run_here("doctor", str(bag)).returncode == 0
+    result = run_here("doctor", str(bag), "--deep")
     assert result.returncode == 1
     (line,) = _lines(result)
     assert line.startswith("bag: /text: 1 messages do not decode (first at log time 20:")
@@ -185,7 +195,7 @@ def test_unreadable(tmp_path: Path) -> None:
 def test_json_matches_text(bag: Path) -> None:
     shutil.copy(bag / "metadata.yaml", bag / "metadata.bak")
     (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: [")
-    text = _lines(run("doctor", str(bag)))
-    report = json.loads(run("doctor", str(bag), "--format", "json").stdout)
+    text = _lines(run_here("doctor", str(bag)))
+    report = json.loads(run_here("doctor", str(bag), "--format", "json").stdout)
     assert [f"{p['where']}: {p['problem']}" for p in report["problems"]] == text
     assert text[0].startswith("metadata.yaml: not valid YAML (while parsing a flow node did not")
