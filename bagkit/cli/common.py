@@ -256,6 +256,7 @@ SHARED_FLAGS = {
     "allow_drop": "{}, or pass --allow-drop",
     "regex": "--regex {}",
     "exclude_regex": "--exclude-regex {}",
+    "where": "--where {}",
 }
 
 

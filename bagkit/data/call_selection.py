@@ -51,7 +51,7 @@ def call_filter(
     window = query.span.resolve(reader.start_ns, reader.end_ns)
     condition = query.where
     if condition is not None:
-        condition.require_per_message("--where")
+        condition.require_per_message()
         paths, texts = _call_paths(types, reader.topics[topic].type)
         condition.check_fields(service_name(absolute_topic_name(topic)), paths, texts)
 

@@ -44,7 +44,7 @@ class PayloadMatcher:
         *,
         bulk: bool = True,
     ) -> None:
-        condition.require_per_message("--where")
+        condition.require_per_message()
         types = types.for_topic(topic)
         canonical = types.resolve(type_name)
         leaves = leaf_fields(types.typestore, canonical)

@@ -72,11 +72,12 @@ class Condition:
         """Whether a term needs more than one message (``gap``, ``delta``, ``for`` ...)."""
         return not is_stateless(self.tree)
 
-    def require_per_message(self, what: str) -> None:
-        """Raise SelectionError if the condition is temporal: ``what`` checks one message."""
+    def require_per_message(self) -> None:
+        """Raise SelectionError (naming the ``where`` option) if the condition is temporal:
+        a ``where`` that checks one message at a time was given it."""
         if self.temporal:
             raise SelectionError(
-                f"{what} {self.text!r} checks each message alone: {_TEMPORAL_HELP}"
+                f"{self.text!r} checks each message alone: {_TEMPORAL_HELP}", "where"
             )
 
     def comparisons(self) -> list[Comparison | Check]:

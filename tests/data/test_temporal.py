@@ -15,7 +15,8 @@ from rosbags.typesys import Stores, get_typestore
 
 from bagkit.bag import BagReader, BagWriter, TopicInfo
 from bagkit.data.episodes import find_episodes
-from bagkit.selection.conditions import parse_topic_condition
+from bagkit.selection.conditions import parse_condition, parse_topic_condition
+from bagkit.selection.errors import SelectionError
 
 TS = get_typestore(Stores.ROS2_JAZZY)
 IMU = "sensor_msgs/msg/Imu"
@@ -214,7 +215,11 @@ def test_filter_where_over_time_keeps_the_messages_inside(bag: Path, tmp_path: P
 def test_stats_where_refuses_a_temporal_condition_with_one_error(bag: Path) -> None:
     result = bagkit("stats", "summary", str(bag), "--where", "gap > 1s")
     assert result.returncode == 2
-    assert result.stderr.startswith("error:") and len(result.stderr.strip().splitlines()) == 1
+    assert result.stderr.startswith("error: --where 'gap > 1s' checks each message alone")
+    assert len(result.stderr.strip().splitlines()) == 1
+    with pytest.raises(SelectionError) as raised:  # the library names its own field
+        parse_condition("gap > 1s").require_per_message()
+    assert raised.value.field == "where" and str(raised.value).startswith("where: 'gap > 1s'")
 
 
 @pytest.mark.parametrize("storage", ["mcap", "db3"])
