@@ -254,6 +254,8 @@ SHARED_FLAGS = {
     "output.max_bag_size": "--max-bag-size",
     "output.max_bag_duration_s": "--max-bag-duration",
     "allow_drop": "{}, or pass --allow-drop",
+    "regex": "--regex {}",
+    "exclude_regex": "--exclude-regex {}",
 }
 
 

@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from bagkit.errors import BagkitError
+from bagkit.errors import OptionError
 
 
-class SelectionError(BagkitError):
+class SelectionError(OptionError):
     """A selection that cannot be understood: a bad regex, time, window or condition."""
 
 

@@ -17,7 +17,7 @@ import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
-from bagkit.errors import BagkitError
+from bagkit.errors import OptionError
 from bagkit.selection.errors import SelectionError, UnknownTopicError
 
 SERVICE_EVENT_SUFFIX = "/_service_event"
@@ -43,15 +43,16 @@ def is_hidden(name: str) -> bool:
 
 
 def compile_topic_pattern(
-    pattern: str | None, option: str, *, error: type[BagkitError] = SelectionError
+    pattern: str | None, field: str, *, error: type[OptionError] = SelectionError
 ) -> re.Pattern[str] | None:
-    """Compile a ``--regex``/``--exclude`` option; a bad expression raises ``error``."""
+    """Compile the ``regex``/``exclude_regex`` option; a bad expression raises ``error``
+    naming ``field``."""
     if pattern is None:
         return None
     try:
         return re.compile(pattern)
     except re.error as exc:
-        raise error(f"{option} {pattern!r} is not a valid regular expression: {exc}") from None
+        raise error(f"{pattern!r} is not a valid regular expression: {exc}", field) from None
 
 
 @dataclass(frozen=True, slots=True)
@@ -79,7 +80,7 @@ class TopicSelection:
         topic_types: Iterable[str] = (),
         exclude_topics: Iterable[str] = (),
         exclude_topic_types: Iterable[str] = (),
-        error: type[BagkitError] = SelectionError,
+        error: type[OptionError] = SelectionError,
     ) -> TopicSelection:
         """Build a selection from command-line style options.
 
@@ -89,8 +90,8 @@ class TopicSelection:
         return cls(
             topics=frozenset(absolute_topic_name(t) for t in topics),
             all_topics=all_topics,
-            regex=compile_topic_pattern(regex, "--regex", error=error),
-            exclude=compile_topic_pattern(exclude, "--exclude-regex", error=error),
+            regex=compile_topic_pattern(regex, "regex", error=error),
+            exclude=compile_topic_pattern(exclude, "exclude_regex", error=error),
             include_hidden=include_hidden,
             topic_types=frozenset(canonical_type(t) for t in topic_types),
             exclude_topics=frozenset(absolute_topic_name(t) for t in exclude_topics),

@@ -142,6 +142,7 @@ def test_record_option_parts_name_their_fields(make: Callable[[], object], messa
         (lambda: SubscriberWaits(timeout_ns=-1), "^waits.timeout_ns: must be >= 0"),
         (lambda: SubscriberWaits(ack_timeout_ns=-1), "^waits.ack_timeout_ns: must be >= 0"),
         (lambda: ServiceRequestReplay(timeout_ns=-1), "^service_requests.timeout_ns: must be"),
+        (lambda: PlayOptions(Path("b"), exclude_regex="(").selection, "^exclude_regex: '\\('"),
     ],
 )
 def test_play_option_parts_name_their_fields(make: Callable[[], object], message: str) -> None:
@@ -157,7 +158,7 @@ def test_record_options_make_names_absolute() -> None:
 @pytest.mark.parametrize(
     ("fields", "message"),
     [
-        ({"regex": "("}, "--regex '\\(' is not a valid regular expression"),
+        ({"regex": "("}, "^regex: '\\(' is not a valid regular expression"),
         ({"progress_period_ns": 0}, "^progress_period_ns: must be positive"),
         ({"seek_step_ns": -1}, "^seek_step_ns: must be positive"),
         (
