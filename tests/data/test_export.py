@@ -1,5 +1,6 @@
-"""``bagkit export`` as a real subprocess: Parquet and CSV read back by pandas equal
-read_dataframe; streaming row groups; undecodable topics and damaged bags."""
+"""``bagkit export``: Parquet and CSV read back by pandas equal read_dataframe; streaming row
+groups; undecodable topics and damaged bags. A real ``bagkit`` process for one export and for
+the error exit; the other runs in the test's process (``_run_here``)."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
 import pytest
+from bagkit_runs import bagkit_in_process
 from samples import JAZZY, SAMPLE_TYPES, random_message
 
 import bagkit
@@ -34,6 +36,10 @@ def _run(*args: str | Path) -> subprocess.CompletedProcess[str]:
         timeout=120,
         check=False,
     )
+
+
+def _run_here(*args: str | Path) -> subprocess.CompletedProcess[str]:
+    return bagkit_in_process(["export", *args], Path.cwd())
 
 
 def _frame(bag: Path, topic: str) -> pd.DataFrame:
@@ -78,7 +84,7 @@ ROUND_TRIP = {"float_precision": "round_trip"} if int(pd.__version__.split(".")[
 
 
 def test_csv_reads_back_equal_with_sequences_as_json(sample_bag: Path, tmp_path: Path) -> None:
-    result = _run(sample_bag, "-o", tmp_path / "csv", "--format", "csv")
+    result = _run_here(sample_bag, "-o", tmp_path / "csv", "--format", "csv")
     assert result.returncode == 0, result.stderr
     for topic in SAMPLE_TYPES:
         expected = _frame(sample_bag, topic)
@@ -101,7 +107,7 @@ def test_csv_reads_back_equal_with_sequences_as_json(sample_bag: Path, tmp_path:
 def test_one_topic_to_one_file_and_datasets_in_parts(
     sample_bag: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    result = _run(sample_bag, "-t", "/odom", "-o", tmp_path / "odom.parquet")
+    result = _run_here(sample_bag, "-t", "/odom", "-o", tmp_path / "odom.parquet")
     assert result.returncode == 0, result.stderr
     _assert_equal(pd.read_parquet(tmp_path / "odom.parquet"), _frame(sample_bag, "/odom"))
     # In process, with small row groups and parts: streaming writes many of each.
@@ -118,7 +124,7 @@ def test_one_topic_to_one_file_and_datasets_in_parts(
 
 
 def test_window_fields_and_unknown_names(sample_bag: Path, tmp_path: Path) -> None:
-    result = _run(
+    result = _run_here(
         sample_bag,
         "-o",
         tmp_path / "w",
@@ -143,11 +149,11 @@ def test_window_fields_and_unknown_names(sample_bag: Path, tmp_path: Path) -> No
         "header.stamp.sec",
         "header.stamp.nanosec",
     ]
-    result = _run(sample_bag, "-o", tmp_path / "x", "-t", "/nope")
+    result = _run_here(sample_bag, "-o", tmp_path / "x", "-t", "/nope")
     assert result.returncode == 2 and result.stderr.startswith(
         "error: topic /nope not in the bag (it has /diagnostics"
     )
-    result = _run(sample_bag, "-o", tmp_path / "x.csv")
+    result = _run_here(sample_bag, "-o", tmp_path / "x.csv")
     assert result.returncode == 2 and "give a directory" in result.stderr
 
 
@@ -163,7 +169,7 @@ def test_undecodable_topic_is_skipped_with_one_warning(tmp_path: Path) -> None:
         for i in range(5):
             writer.write("/blob", b"\x00\x01\x00\x00" + bytes(8), log_time=i)
             writer.write("/temperature", temperature, log_time=i)
-    result = _run(bag, "-o", tmp_path / "out")
+    result = _run_here(bag, "-o", tmp_path / "out")
     assert result.returncode == 0, result.stderr
     warnings = [line for line in result.stderr.splitlines() if line.startswith("warning:")]
     assert len(warnings) == 1 and warnings[0].startswith("warning: topic /blob skipped: ")
@@ -201,7 +207,7 @@ def test_damaged_bag_exports_what_is_intact_and_says_what_was_lost(
     [file] = sample_bag.glob("*.mcap")
     data = file.read_bytes()
     (damaged / file.name).write_bytes(data[: len(data) * 2 // 3])
-    result = _run(damaged, "-o", tmp_path / "out", "-t", "/imu")
+    result = _run_here(damaged, "-o", tmp_path / "out", "-t", "/imu")
     assert result.returncode == 0, result.stderr
     assert "warning: lost: " in result.stderr and "truncated" in result.stderr
     read = pd.read_parquet(tmp_path / "out" / "imu.parquet")
