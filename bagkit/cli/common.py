@@ -257,6 +257,7 @@ SHARED_FLAGS = {
     "regex": "--regex {}",
     "exclude_regex": "--exclude-regex {}",
     "where": "--where {}",
+    "events": "--events {}",
 }
 
 

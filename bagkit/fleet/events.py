@@ -41,16 +41,17 @@ def parse_events(specs: Sequence[str]) -> dict[str, str]:
     """``NAME='TOPIC: CONDITION'`` options -> {name: condition text}, each checked.
 
     Raises:
-        SelectionError: no ``NAME=``, a name given twice, or a condition that does not parse.
+        SelectionError: no ``NAME=``, a name given twice (these name the ``events`` field),
+            or a condition that does not parse.
     """
     events: dict[str, str] = {}
     for spec in specs:
         name, sep, when = spec.partition("=")
         name = name.strip()
         if not sep or not _NAME.fullmatch(name):
-            raise SelectionError(f"bad --events {spec!r}: expected NAME='TOPIC: CONDITION'")
+            raise SelectionError(f"{spec!r}: expected NAME='TOPIC: CONDITION'", "events")
         if name in events:
-            raise SelectionError(f"--events names {name!r} twice")
+            raise SelectionError(f"names {name!r} twice", "events")
         events[name] = parse_topic_condition(when).text
     return events
 

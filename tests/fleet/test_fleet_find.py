@@ -20,6 +20,7 @@ from fleet_bags import IMU, STORE
 from mcap.reader import make_reader
 
 from bagkit.fleet.errors import FleetError
+from bagkit.fleet.events import parse_events
 from bagkit.fleet.find import FoundEpisode, find_fleet
 from bagkit.selection.errors import SelectionError, UnknownFieldError, UnknownTopicError
 from bagkit.selection.query import Query
@@ -98,6 +99,10 @@ def test_bad_input(fleet_bags: list[Path], tmp_path: Path) -> None:
         find_fleet([tmp_path / "broken.mcap"], when=WHEN)
     result = find_fleet([*fleet_bags[:1], tmp_path / "broken.mcap"], when=WHEN)
     assert result.unread == 1 and any("broken.mcap: not read" in p for p in result.problems)
+    for specs in (["no name"], [f"a={WHEN}", f"a={WHEN}"]):
+        with pytest.raises(SelectionError) as raised:  # the library names its own field
+            parse_events(specs)
+        assert raised.value.field == "events" and "--events" not in str(raised.value)
 
 
 def _bagkit(*args: str | Path, cwd: Path) -> subprocess.CompletedProcess[str]:
@@ -155,6 +160,9 @@ def test_catalog_events_store_the_episodes_and_search_only_what_changed(
     built = _bagkit("catalog", root, "-o", catalog, "--events", event, "--workers", "0",
                     cwd=tmp_path)  # fmt: skip
     assert built.returncode == 0, built.stderr
+    twice = _bagkit("catalog", root, "-o", catalog, "--events", event, "--events", event,
+                    cwd=tmp_path)  # fmt: skip
+    assert (twice.returncode, twice.stderr) == (2, "error: --events names 'high' twice\n")
     from bagkit.fleet import expand_bags
 
     bags = expand_bags([root])
