@@ -258,6 +258,7 @@ SHARED_FLAGS = {
     "exclude_regex": "--exclude-regex {}",
     "where": "--where {}",
     "events": "--events {}",
+    "workers": "--workers {}; for more, start a cluster and give --scheduler",
 }
 
 

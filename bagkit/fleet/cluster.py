@@ -129,7 +129,7 @@ def fleet_client(
 
     Raises:
         SchedulerError: ``scheduler`` cannot be reached.
-        FleetError: more local workers than MAX_WORKERS_PER_CORE per core.
+        FleetError: more local workers than MAX_WORKERS_PER_CORE per core (field ``workers``).
     """
     # In this process, without importing distributed (slow to import); also by default where
     # the fleet extra is not installed.
@@ -154,9 +154,9 @@ def fleet_client(
         return
     if workers is not None and workers > MAX_WORKERS_PER_CORE * default_workers():
         raise FleetError(
-            f"--workers {workers}: a local cluster runs at most {MAX_WORKERS_PER_CORE} worker "
-            f"processes per core ({MAX_WORKERS_PER_CORE * default_workers()} here); for more, "
-            "start a cluster and give --scheduler"
+            f"{workers}: a local cluster runs at most {MAX_WORKERS_PER_CORE} worker processes "
+            f"per core ({MAX_WORKERS_PER_CORE * default_workers()} here)",
+            "workers",
         )
     cluster = local_cluster(workers or default_workers())
     try:

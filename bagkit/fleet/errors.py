@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from bagkit.errors import BagkitError
+from bagkit.errors import OptionError
 
 
-class FleetError(BagkitError):
+class FleetError(OptionError):
     """A many-bag run that cannot start or complete."""
 
 

@@ -12,8 +12,12 @@ import sys
 from pathlib import Path
 
 import psutil
+import pytest
 from bagkit_runs import bagkit_in_process
 from test_fleet_stats import RELATIVE
+
+from bagkit.fleet.cluster import WorkRate, fleet_client
+from bagkit.fleet.errors import FleetError
 
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 
@@ -123,6 +127,11 @@ def test_unreachable_scheduler_is_one_error_line(fleet_bags: list[Path]) -> None
 def test_a_mistyped_worker_count_starts_no_process(fleet_bags: list[Path]) -> None:
     line = _error_line(*map(str, fleet_bags[:2]), "--workers", "100000", in_process=True)
     assert line.startswith("error: --workers 100000: a local cluster runs at most 4")
+    assert line.endswith("; for more, start a cluster and give --scheduler")
+    many = fleet_client(workers=100_000, scheduler=None, bags=2, size_bytes=1, rate=WorkRate(1, 1))
+    with pytest.raises(FleetError) as raised, many:  # the library names its own field
+        pass
+    assert raised.value.field == "workers" and "--" not in str(raised.value)
 
 
 def test_no_bag_in_the_inputs_is_one_error_line(tmp_path: Path) -> None:
