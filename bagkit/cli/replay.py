@@ -231,7 +231,8 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
         # Plain: rich (note()) would be imported just before the first message.
         on_waited=lambda waited: print(waited.line(), file=sys.stderr, flush=True),
     )
-    report = _run(player, keyboard=not disable_keyboard_controls)
+    with option_flags(PLAY_FLAGS):
+        report = _run(player, keyboard=not disable_keyboard_controls)
     progress.finish()
     _finish(report, " + ".join(map(str, all_bags)), output_format)
 

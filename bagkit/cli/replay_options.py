@@ -261,6 +261,7 @@ PLAY_FLAGS = {
     "clock_hz": "--clock",
     "seek_step_ns": "--seek-step",
     "latched": "--latched-topics and --no-latched exclude each other ({})",
+    "waits.before_start": "{}; use --no-wait-for-subscribers to start anyway",
     "waits.timeout_ns": "--wait-timeout",
     "waits.discovery_ns": "--discovery-time",
     "waits.ack_timeout_ns": "--wait-for-all-acked",

@@ -271,6 +271,17 @@ def test_cli_start_offset_past_the_end_is_one_clear_line(test_bag: Path) -> None
     assert "nan" not in result.stdout + result.stderr
 
 
+def test_cli_wait_for_a_topic_nobody_reads_times_out_naming_the_way_out(test_bag: Path) -> None:
+    topic = next(iter(STRING_TOPICS))
+    result = bagkit_cli("replay", str(test_bag), "--wait-for", topic, "--wait-timeout", "0.5")
+    assert result.returncode == 1
+    (line,) = result.stderr.strip().splitlines()[-1:]
+    assert line.startswith("error: timed out after 0.5 s waiting for ")
+    assert f"a subscriber on {topic}" in line
+    assert line.endswith("; use --no-wait-for-subscribers to start anyway")
+    assert "Traceback" not in result.stderr
+
+
 @pytest.mark.parametrize("user_profile", [False, True])
 def test_replay_gives_itself_the_large_shared_memory_pool_unless_the_user_has_a_profile(
     test_bag: Path, listener_factory: type[Listener], tmp_path: Path, user_profile: bool

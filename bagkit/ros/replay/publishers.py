@@ -130,8 +130,8 @@ def wait_until_matched(
             break
         if now >= deadline:
             raise SubscriberTimeoutError(
-                f"timed out after {timeout:g} s waiting for {', '.join(pending)}; "
-                "use --no-wait-for-subscribers to start anyway"
+                f"timed out after {timeout:g} s waiting for {', '.join(pending)}",
+                "waits.before_start",
             )
         time.sleep(0.02)
     time.sleep(MATCH_GRACE_S)
