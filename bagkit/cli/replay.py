@@ -61,7 +61,6 @@ from bagkit.cli.replay_options import (
     WaitForSubscribers,
     WaitTimeout,
 )
-from bagkit.cli.selection_options import duration_seconds
 from bagkit.cli.tables import Column, Table, print_table
 from bagkit.errors import BagkitError
 from bagkit.extras import ROS, require
@@ -75,7 +74,7 @@ from bagkit.playback.options import (
 from bagkit.playback.progress import ProgressLine
 from bagkit.playback.source import MessageOrder
 from bagkit.playback.timing import DEFAULT_CLOCK_HZ, DEFAULT_DISCOVERY_TIME_NS, LATE_THRESHOLD_NS
-from bagkit.selection.times import NS_PER_S, seconds_to_ns
+from bagkit.selection.times import NS_PER_S, parse_duration, seconds_to_ns
 
 if TYPE_CHECKING:
     # The player imports rclpy: only `bagkit replay` itself pays for that import.
@@ -190,8 +189,10 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
             regex=regex,
             exclude_regex=exclude,
             exclude_topics=tuple(split_list(exclude_topics)),
-            start_offset_s=start_offset,
-            duration_s=duration_seconds(duration, "--playback-duration"),
+            start_offset=start_offset,
+            duration_ns=None
+            if duration is None
+            else parse_duration(duration, "--playback-duration"),
             until_ns=_until_ns(until_sec, until_nsec),
             loops=0 if loop else 1,
             delay_ns=_seconds_ns(delay, "--delay"),

@@ -257,6 +257,8 @@ ServiceTimeout = Annotated[
 # The fields of PlayOptions as the flags that set them: an options error names the flag.
 PLAY_FLAGS = {
     "rate": "--rate",
+    "start_offset": "{}",  # the problem names it: bad start offset ...
+    "duration_ns": "--playback-duration",
     "delay_ns": "--delay",
     "clock_hz": "--clock",
     "seek_step_ns": "--seek-step",

@@ -75,17 +75,6 @@ Distro = Annotated[
 ]
 
 
-def duration_seconds(text: str | None, option: str) -> float | None:
-    """A duration option (``90``, ``1m30s``, ``250ms``) in seconds, as the library takes it.
-
-    Raises:
-        SelectionError: not a duration of the one grammar.
-    """
-    from bagkit.selection.times import NS_PER_S, parse_duration
-
-    return None if text is None else parse_duration(text, option) / NS_PER_S
-
-
 def build_query(
     topics: list[str] | str | None = None,
     fields: list[str] | None = None,

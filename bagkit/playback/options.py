@@ -25,7 +25,6 @@ from bagkit.selection.times import (
     TimeLike,
     TimePoint,
     parse_time,
-    seconds_to_ns,
 )
 from bagkit.selection.topics import TopicSelection
 from bagkit.selection.windows import TimeRange, Window, outside_warning
@@ -60,20 +59,20 @@ class PlayWindow:
 
     @classmethod
     def create(
-        cls, start: TimeLike = 0.0, duration: float | None = None, until_ns: int | None = None
+        cls, start: TimeLike = 0, duration_ns: int | None = None, until_ns: int | None = None
     ) -> PlayWindow:
-        """The window of the player's options (``start`` a time, ``duration`` in seconds).
+        """The window of the player's options (``start`` a time of the one grammar).
 
         Raises:
-            PlayerError: not a time, or a duration that is not positive.
+            PlayerError: not a time (field ``start_offset``), or a duration that is not
+                positive (``duration_ns``).
         """
         try:
             point = parse_time(start, "start offset")
         except SelectionError as exc:
-            raise PlayerError(str(exc)) from None
-        if duration is not None and not duration > 0:
-            raise PlayerError(f"duration must be positive, got {duration}")
-        duration_ns = None if duration is None else seconds_to_ns(duration, duration, PlayerError)
+            raise PlayerError(exc.problem, "start_offset") from None
+        if duration_ns is not None and not duration_ns > 0:
+            raise PlayerError(f"must be positive, got {duration_ns}", "duration_ns")
         return cls(point, duration_ns, until_ns)
 
     @property
@@ -179,12 +178,12 @@ class PlayOptions:
         regex: replay topics whose name matches this regular expression (``re.search``).
         exclude_regex: do not replay topics whose name matches this regular expression.
         exclude_topics: do not replay these topics.
-        start_offset_s: where to start, a time of the one grammar
+        start_offset: where to start, a time of the one grammar
             (:mod:`bagkit.selection.times`): seconds from the bag's start (``10``, ``1m30s``),
             before its end (``-5``), or absolute (epoch seconds, ISO 8601, ``NNNns``).
-        duration_s: replay only this many seconds of bag time (after ``start_offset_s``).
+        duration_ns: replay only this much bag time (after ``start_offset``).
         until_ns: replay only messages logged at or before this time (ns since the epoch);
-            with ``duration_s``, the later of the two ends the replay (as rosbag2).
+            with ``duration_ns``, the later of the two ends the replay (as rosbag2).
         loops: passes over the bag; 0 = until interrupted.
         delay_ns: how long to sleep before each pass.
         clock_hz: publish ``/clock`` at this rate (and before each message); None = off.
@@ -204,7 +203,7 @@ class PlayOptions:
             thread); False leaves the host process alone.
         more_bags: further bags replayed with ``bag`` as one timeline (``bagkit play A B``).
         message_order: merge and schedule by log time (received) or send time (sent).
-        latched: on a late start (``start_offset_s``, a seek, each loop), first publish the
+        latched: on a late start (``start_offset``, a seek, each loop), first publish the
             last message before it of each latched topic (and of ``extra_topics``);
             ``LatchedOptions(enabled=False)``: none (``--no-latched``).
         seek_step_ns: bag time one seek key moves back or forward.
@@ -224,8 +223,8 @@ class PlayOptions:
     regex: str | None = None
     exclude_regex: str | None = None
     exclude_topics: tuple[str, ...] = ()
-    start_offset_s: TimeLike = 0.0
-    duration_s: float | None = None
+    start_offset: TimeLike = 0
+    duration_ns: int | None = None
     until_ns: int | None = None
     loops: int = 1
     delay_ns: int = 0
@@ -268,7 +267,7 @@ class PlayOptions:
     @cached_property
     def window(self) -> PlayWindow:
         """The part of the bag each pass replays."""
-        return PlayWindow.create(self.start_offset_s, self.duration_s, self.until_ns)
+        return PlayWindow.create(self.start_offset, self.duration_ns, self.until_ns)
 
     @property
     def bags(self) -> tuple[Path, ...]:

@@ -65,7 +65,7 @@ def test_play_options_default_to_the_cli() -> None:
     assert options.rate == cli["rate"]
     assert options.window.bounds(10**18, 10**18 + 5, Path("bag")) == (10**18, None)
     assert options.window.start == PlayWindow.create(cli["start_offset"]).start
-    assert options.duration_s is cli["duration"] is None
+    assert options.duration_ns is cli["duration"] is None
     assert options.delay_ns == cli["delay"] * NS_PER_S
     assert options.clock_hz is cli["clock"] is None
     assert options.loops == 1 and cli["loop"] is False
@@ -165,7 +165,8 @@ def test_record_options_make_names_absolute() -> None:
             {"latched": LatchedOptions(enabled=False, extra_topics=("/a",))},
             "^latched: extra topics without latched state",
         ),
-        ({"start_offset_s": "5 mins"}, "bad start offset '5 mins': not a time"),
+        ({"start_offset": "5 mins"}, "^start_offset: bad start offset '5 mins': not a time"),
+        ({"duration_ns": 0}, "^duration_ns: must be positive, got 0"),
     ],
 )
 def test_play_options_out_of_range(fields: dict[str, object], message: str) -> None:

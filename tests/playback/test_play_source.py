@@ -159,7 +159,7 @@ def test_a_seek_is_clamped_to_the_window_with_a_warning(tmp_path: Path) -> None:
     bag = write(tmp_path / "a", [("/x", i * 10, i * 10) for i in range(10)])
     with ExitStack() as stack:
         source = PlaySource.open([bag], MessageOrder.RECEIVED, stack)
-        span = WindowSpan.of(PlayWindow.create(start="20ns", duration=30e-9), source)
+        span = WindowSpan.of(PlayWindow.create(start="20ns", duration_ns=30), source)
         assert (span.start_ns - START, span.last_ns - START) == (20, 49)
         assert span.clamp(START + 30) == (START + 30, None)
         target, warning = span.clamp(START + 500)

@@ -49,7 +49,9 @@ def test_an_until_before_the_bag_is_the_one_outside_message() -> None:
         window.bounds(START, END, Path("bag"))
     # Until inside the bag, or a duration reaching past it (the later end counts): a window.
     assert PlayWindow.create(until_ns=START).bounds(START, END, Path("bag")) == (START, START + 1)
-    assert PlayWindow.create(duration=2.0, until_ns=START - S).bounds(START, END, Path("bag")) == (
+    assert PlayWindow.create(duration_ns=2 * S, until_ns=START - S).bounds(
+        START, END, Path("bag")
+    ) == (
         START,
         START + 2 * S,
     )

@@ -183,7 +183,7 @@ def test_ros2_bag_play_options_reach_the_player(monkeypatch: pytest.MonkeyPatch)
     assert seen["start_paused"] is True
     assert seen["loops"] == 0
     assert seen["delay_ns"] == 2 * NS_PER_S
-    assert seen["duration_s"] == 3.0
+    assert seen["duration_ns"] == 3 * NS_PER_S
     assert seen["until_ns"] == 17
     assert seen["remap"] == {"/a": "/x", "/b": "/y"}
     assert seen["waits"].ack_timeout_ns > 3600 * NS_PER_S  # type: ignore[attr-defined]
@@ -196,7 +196,7 @@ def test_old_spellings_still_work(monkeypatch: pytest.MonkeyPatch) -> None:
         monkeypatch,
         command="replay",
     )
-    assert (seen["exclude_regex"], seen["duration_s"]) == ("^/tf", 3.0)
+    assert (seen["exclude_regex"], seen["duration_ns"]) == ("^/tf", 3 * NS_PER_S)
     assert str(seen["qos_overrides"]) == "q.yaml"
     assert _options(["BAG", "--playback-until-sec", "1.5"], monkeypatch)["until_ns"] == (
         1_500_000_000

@@ -20,15 +20,15 @@ def test_whole_bag_has_no_end() -> None:
 
 
 def test_offset_and_duration_in_seconds() -> None:
-    window = PlayWindow.create(start=2.5, duration=1.25)
+    window = PlayWindow.create(start=2.5, duration_ns=1_250_000_000)
     assert not window.whole
     assert window.bounds(START, END, BAG) == (START + 2_500_000_000, START + 3_750_000_000)
 
 
 def test_the_later_of_duration_and_until_ends_the_window() -> None:
     until = START + 5_000_000_000
-    shorter = PlayWindow.create(duration=1.0, until_ns=until)
-    longer = PlayWindow.create(duration=8.0, until_ns=until)
+    shorter = PlayWindow.create(duration_ns=1_000_000_000, until_ns=until)
+    longer = PlayWindow.create(duration_ns=8_000_000_000, until_ns=until)
     assert shorter.bounds(START, END, BAG) == (START, until + 1)  # until is inclusive
     assert longer.bounds(START, END, BAG) == (START, START + 8_000_000_000)
     assert not PlayWindow.create(until_ns=until).whole
@@ -49,13 +49,12 @@ def test_offset_past_the_last_message_names_the_bag() -> None:
     ("options", "message"),
     [
         ({"start": "soon"}, "bad start offset 'soon': not a time"),
-        ({"duration": 0.0}, "duration must be positive"),
-        ({"duration": float("nan")}, "duration must be positive"),
-        ({"duration": float("inf")}, "bad time inf"),
+        ({"duration_ns": 0}, "^duration_ns: must be positive, got 0"),
+        ({"duration_ns": -1}, "^duration_ns: must be positive, got -1"),
         ({"start": 1e300}, "1e"),
     ],
 )
-def test_window_out_of_range(options: dict[str, float], message: str) -> None:
+def test_window_out_of_range(options: dict[str, object], message: str) -> None:
     with pytest.raises(PlayerError, match=message):
         PlayWindow.create(**options)
 

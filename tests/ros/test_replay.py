@@ -81,7 +81,9 @@ def test_start_offset_and_duration_select_a_window_of_bag_time(
     window = (BAG_START_NS + 300_000_000, BAG_START_NS + 700_000_000)
     expected = [(t, d) for t, d, log in recorded(test_bag) if window[0] <= log < window[1]]
     listener = listener_factory(STRING_TOPICS)
-    report = play(test_bag, rate=4.0, start_offset_s=0.3, duration_s=0.4, waits=known(*SCHEDULE))
+    report = play(
+        test_bag, rate=4.0, start_offset=0.3, duration_ns=400_000_000, waits=known(*SCHEDULE)
+    )
     got = listener.wait_for_count(len(expected))
     assert [(r.topic, r.data) for r in got] == expected
     assert report.bag_duration_s == pytest.approx(0.35)  # last message at +650 ms

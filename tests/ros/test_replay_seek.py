@@ -109,7 +109,7 @@ def test_start_offset_first_publishes_the_latched_state(
 ) -> None:
     bag = write_debug_bag(tmp_path / "bag")
     listener = listener_factory({DATA: String, STATE: String})
-    options = PlayOptions(bag, start_offset_s=1.0, start_paused=True, waits=known(DATA, STATE))
+    options = PlayOptions(bag, start_offset=1.0, start_paused=True, waits=known(DATA, STATE))
     with playing(options) as (_player, reports):
         wait_for(lambda: listener.messages(STATE), 10.0, what="the latched state")
         late = late_state_subscriber(node)
@@ -278,7 +278,7 @@ def test_each_loop_pass_starts_with_the_latched_state(
     bag = write_debug_bag(tmp_path / "bag")
     listener = listener_factory({DATA: String, STATE: String})
     report = Player(
-        PlayOptions(bag, start_offset_s=2.5, loops=2, rate=2.0, waits=known(DATA, STATE))
+        PlayOptions(bag, start_offset=2.5, loops=2, rate=2.0, waits=known(DATA, STATE))
     ).run()
     wait_for(lambda: len(listener.messages()) == report.messages, 10.0)
     assert [text(r.data) for r in listener.messages(STATE)] == ["state#1", "state#1"]
@@ -303,8 +303,8 @@ def test_no_latched_and_latched_topics(
     listener = listener_factory({DATA: String, STATE: String})
     options = PlayOptions(
         bag,
-        start_offset_s=1.0,
-        duration_s=0.01,  # the window holds data#20 only
+        start_offset=1.0,
+        duration_ns=10_000_000,  # the window holds data#20 only
         latched=LatchedOptions(enabled=latched, extra_topics=extra),
         waits=known(DATA, STATE),
     )
