@@ -349,12 +349,14 @@ class _InterruptLatch:
     """Remembers a Ctrl-C even when its KeyboardInterrupt is swallowed on the way.
 
     Python ignores an exception raised in a gc callback or ``__del__`` (Dask's run there):
-    the command would then finish and exit 0 although the user interrupted it.
+    the command would then finish and exit 0 although the user interrupted it, and Python
+    would print the ignored KeyboardInterrupt's traceback; the latch keeps that quiet too.
     """
 
     def __init__(self) -> None:
         self.seen = False
         self._previous: Any = None
+        self._previous_unraisable: Any = None
 
     def __enter__(self) -> None:
         current = signal.getsignal(signal.SIGINT)
@@ -366,14 +368,23 @@ class _InterruptLatch:
         ):
             self._previous = current
             signal.signal(signal.SIGINT, self._on_sigint)
+            self._previous_unraisable = sys.unraisablehook
+            sys.unraisablehook = self._on_unraisable
 
     def __exit__(self, *_: object) -> None:
         if self._previous is not None:
             signal.signal(signal.SIGINT, self._previous)
+            sys.unraisablehook = self._previous_unraisable
 
     def _on_sigint(self, signum: int, frame: Any) -> None:
         self.seen = True
         signal.default_int_handler(signum, frame)
+
+    def _on_unraisable(self, unraisable: Any) -> None:
+        if isinstance(unraisable.exc_value, KeyboardInterrupt):
+            self.seen = True  # reported as "interrupted" when the command returns
+        else:
+            self._previous_unraisable(unraisable)
 
 
 def _warning_line(message: Warning | str, *_: object, **__: object) -> None:

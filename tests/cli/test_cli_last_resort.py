@@ -97,15 +97,36 @@ def _swallowed_interrupt() -> None:
         pass
 
 
-def test_a_swallowed_ctrl_c_still_ends_with_exit_130(capsys: pytest.CaptureFixture[str]) -> None:
+class _InterruptedFinalizer:
+    def __del__(self) -> None:
+        os.kill(os.getpid(), signal.SIGINT)
+        signal.pthread_sigmask(signal.SIG_BLOCK, [])
+
+
+def _interrupt_in_a_finalizer() -> None:
+    """Ctrl-C inside ``__del__`` (as in Dask's gc callback): Python hands the exception to
+    ``sys.unraisablehook``, which would print it with its traceback."""
+    _InterruptedFinalizer()
+
+
+@pytest.mark.parametrize("action", [_swallowed_interrupt, _interrupt_in_a_finalizer])
+def test_a_swallowed_ctrl_c_still_ends_with_exit_130(
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+    action: Callable[[], None],
+) -> None:
+    unraisable: list[object] = []
+    monkeypatch.setattr(sys, "unraisablehook", unraisable.append)
     # As from a shell: a test runner's worker may ignore SIGINT.
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
-        exit_code, lines = _exit(_raises(_swallowed_interrupt), capsys)
+        exit_code, lines = _exit(_raises(action), capsys)
     finally:
         signal.signal(signal.SIGINT, previous)
     assert (exit_code, lines) == (EXIT_INTERRUPTED, ["error: interrupted"])
+    assert unraisable == []  # nothing printed the ignored KeyboardInterrupt
     assert signal.getsignal(signal.SIGINT) is previous
+    assert sys.unraisablehook == unraisable.append
 
 
 def test_an_internal_error_names_where_it_was_raised_and_asks_for_a_report(
