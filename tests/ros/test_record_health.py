@@ -189,7 +189,7 @@ def test_stop_on_health_ends_the_recording_when_a_check_stays_broken(
     [
         (
             ["--health", "{spec}", "--trigger-on-health"],
-            "--trigger-on-health needs --snapshot-mode",
+            "--trigger-on-health triggers snapshots outside snapshot mode (add --snapshot-mode)",
         ),
         (["--trigger-on-health"], "need --health SPEC"),
         (["--health", "{spec}", "--stop-on-health", "soon"], "--stop-on-health"),
