@@ -67,7 +67,7 @@ def _write(path: Path, topic_rows: list[tuple[str, int]], latched: str | None = 
 
 
 def _options(bag: Path, **extra: Any) -> PlayOptions:
-    waits = SubscriberWaits(before_start=False, ack_timeout_s=0.0)
+    waits = SubscriberWaits(before_start=False, ack_timeout_ns=0)
     return PlayOptions(bag, waits=waits, services=False, **extra)
 
 
