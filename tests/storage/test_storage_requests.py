@@ -12,7 +12,7 @@ from mcap.writer import Writer
 from bagkit.bag import BagError, bag_info
 from bagkit.storage.range_file import fetched
 from tests.storage.conftest import Store
-from tests.storage.test_storage_read import summary_bytes, without_paths
+from tests.storage.test_storage_read import summary_bytes
 
 
 def counted_info(url: str) -> tuple[int, int]:
