@@ -74,3 +74,60 @@ def test_an_mcap_of_another_profile_is_refused_as_on_disk(store: Store, tmp_path
         bag_info(f"{store.base}/foreign/f/ros1.mcap")
     assert "MCAP profile 'ros1' is not ROS 2" in str(on_disk.value)
     assert str(remote.value).split(": ", 1)[1] == str(on_disk.value).split(": ", 1)[1]
+
+
+def test_bags_of_a_prefix_read_at_once_fail_one_by_one(
+    moto_store: Store, local_bags: Path, tmp_path: Path
+) -> None:
+    """info and catalog read a prefix's bags several at a time; a bag that cannot be read is
+    one bag's problem, named by its URL, among the others read."""
+    from bagkit.fleet.catalog import complete_update, plan_update
+    from bagkit.fleet.listing import folder_info
+
+    for bag in ("a", "b"):
+        moto_store.put(local_bags / "fleet" / bag, f"mixed/{bag}")
+    (tmp_path / "notes.mcap").write_bytes(b"not a bag at all, " * 100)
+    moto_store.put(tmp_path / "notes.mcap", "mixed/notes.mcap")
+    base = f"{moto_store.base}/mixed"
+    folder = folder_info(base)
+    assert folder is not None
+    assert [b.path for b in folder.bags] == [f"{base}/a", f"{base}/b"]
+    assert list(folder.unread) == [f"{base}/notes.mcap"]
+    assert folder.unread[f"{base}/notes.mcap"].startswith(f"{base}/notes.mcap: ")
+    frame = complete_update(plan_update([base], tmp_path / "c.parquet"), None)
+    problems = frame.drop_duplicates("path").set_index("path")["problems"]
+    assert problems[f"{base}/notes.mcap"].startswith(f"{base}/notes.mcap: ")
+    assert problems[f"{base}/a"] == problems[f"{base}/b"] == ""
+    counts = frame[frame.topic == "/gps/fix"].set_index("path")["count"]
+    assert counts.to_dict() == {f"{base}/a": 3, f"{base}/b": 5}
+
+
+def test_filter_around_writes_its_cuts_under_an_output_url(
+    moto_store: Store, local_bags: Path
+) -> None:
+    """One bag per episode, under the URL (uploaded), named by their URLs in what is printed;
+    the same messages as the cuts written on disk."""
+    import json
+
+    from tests.storage.test_storage_read import cli
+
+    moto_store.put(local_bags / "fleet" / "b", "around/b")
+    base = moto_store.base
+    args = ["--around", "/gps/fix: latitude > 48.0000015", "--before", "1", "--after", "1"]
+    args += ["--format", "json"]
+    remote = cli(["filter", f"{base}/around/b", "-o", f"{base}/cuts", *args], moto_store.env)
+    assert remote.returncode == 0, remote.stderr
+    local_out = local_bags / "around-cuts"
+    local = cli(["filter", str(local_bags / "fleet" / "b"), "-o", str(local_out), *args], {})
+    assert local.returncode == 0, local.stderr
+    cuts, expected = json.loads(remote.stdout), json.loads(local.stdout)
+    assert len(cuts) == len(expected) >= 1
+    for cut, on_disk in zip(cuts, expected, strict=True):
+        name = Path(on_disk["output"]).name
+        assert cut["output"] == f"{base}/cuts/{name}"
+        assert cut["message_count"] == on_disk["message_count"] > 0
+        info = cli(["info", cut["output"], "--format", "json"], moto_store.env)
+        assert json.loads(info.stdout)["message_count"] == on_disk["message_count"]
+    again = cli(["filter", f"{base}/around/b", "-o", f"{base}/cuts", *args], moto_store.env)
+    assert again.returncode == 2 and "exists (use --force to replace it)" in again.stderr
+    assert again.stderr.count("\n") == 1 and again.stderr.startswith("error: ")
