@@ -1,4 +1,5 @@
-"""bagkit.bag.mcapio.chunk_indexes: rows as the mcap package encodes them, order, bounds, size."""
+"""bagkit.bag.mcapio.chunk_indexes: rows as the mcap package encodes them, order, bounds, size;
+FileIndex.blocks over them."""
 
 from __future__ import annotations
 
@@ -7,11 +8,13 @@ import struct
 import tracemalloc
 
 import pytest
-from mcap.records import ChunkIndex
+from mcap.records import ChunkIndex, Header
 
 from bagkit.bag.errors import CorruptBagError
 from bagkit.bag.mcapio.chunk_indexes import ChunkIndexes
+from bagkit.bag.mcapio.chunks import MessageRun
 from bagkit.bag.mcapio.records import RECORD_HEADER, encode
+from bagkit.bag.mcapio.summary import FileIndex
 
 
 def _chunk_indexes(count: int, seed: int = 1) -> list[ChunkIndex]:
@@ -129,3 +132,27 @@ def test_a_chunk_costs_columns_not_an_object() -> None:
     # by up to an eighth more than they hold.
     exact = len(chunks) * (8 * 8 + 4) + channels * 10
     assert held < 1.25 * exact + 4096
+
+
+def test_file_index_blocks_merge_chunks_and_runs_by_start_then_offset() -> None:
+    chunks = _chunk_indexes(30, seed=7)
+    for n, chunk in enumerate(chunks):  # small times, so that runs fall among them
+        chunk.message_start_time = n % 7 * 10 + 1
+        chunk.message_end_time = chunk.message_start_time + (5 if n % 5 else -1)  # some empty
+        if n % 5 == 0:
+            chunk.message_index_offsets = {}
+    in_order = sorted(chunks, key=lambda c: (c.message_start_time, c.chunk_start_offset))
+    runs = [MessageRun(offset, 10, start, start + 3) for offset, start in [(90, 25), (5, 0)]]
+    index = FileIndex(header=Header(profile="ros2", library="test"))
+    index.chunk_indexes = _table(in_order)
+    index.message_runs = runs
+
+    def key(block: ChunkIndex | MessageRun) -> tuple[int, int]:
+        offset = block.offset if isinstance(block, MessageRun) else block.chunk_start_offset
+        return block.message_start_time, offset
+
+    everything = sorted([*in_order, *runs], key=key)
+    assert list(index.blocks(with_empty=True)) == everything
+    with_messages = [b for b in everything if b.message_start_time <= b.message_end_time]
+    assert len(with_messages) < len(everything)
+    assert list(index.blocks()) == with_messages
