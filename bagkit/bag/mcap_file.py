@@ -379,11 +379,13 @@ class McapFile:
         no numpy, no decompression, may be over); None when such a chunk has no Message Index
         records (salvaged, loose messages) or they are damaged.
         """
+        wanted = self._channel_ids(topics)
         last: dict[int, Block] = {}  # channel -> the block holding its latest messages
-        for channel in self._channel_ids(topics):
-            holding = [b for b in self._sorted_blocks if _may_hold(b, {channel})]
-            if holding:
-                last[channel] = max(holding, key=lambda b: b.message_end_time)
+        for block in self.index.blocks():  # ties in end time: the first block
+            held = wanted.intersection(block.message_index_offsets) if _indexed(block) else wanted
+            for channel in held:
+                if channel not in last or block.message_end_time > last[channel].message_end_time:
+                    last[channel] = block
         found: dict[str, int] = {}
         for block in {id(b): b for b in last.values()}.values():
             if not _indexed(block):
