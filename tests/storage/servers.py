@@ -85,6 +85,7 @@ class HttpStore:
     objects: dict[str, bytes] = field(default_factory=dict)
     faults: dict[str, Faults] = field(default_factory=dict)
     gets: dict[str, int] = field(default_factory=dict)
+    requests: dict[str, int] = field(default_factory=dict)  # by method: HEAD, GET
     url: str = ""
     # id(object) -> (the object, its MD5): hashed once per object, not per request (a 64 MB
     # object served by ranges, under several paths).
@@ -109,6 +110,7 @@ def start_http(store: HttpStore) -> ThreadingHTTPServer:
         def _answer(self, body: bool) -> None:
             path = self.path.split("?", 1)[0]
             faults = store.faults.get(path, Faults())
+            store.requests[self.command] = store.requests.get(self.command, 0) + 1
             if body:
                 store.gets[path] = store.gets.get(path, 0) + 1
             if faults.stall_s:
