@@ -163,6 +163,7 @@ def _info_part(moto: Moto, scratch: Path) -> None:
         write_images(local / "bag_00", MOTO_MB)
         for i in range(1, MOTO_BAGS):
             shutil.copytree(local / "bag_00", local / f"bag_{i:02d}", copy_function=os.link)
+        os.sync()
         what = f"bags of {MOTO_MB} MB (camera + Imu)"
         _info_against_download(moto, local, "moto_large", scratch, what)
         moto.fs.rm("bench/moto_large", recursive=True)
@@ -182,6 +183,7 @@ def _large_part(scratch: Path) -> None:
 
     template = scratch / "large" / "bag_00"
     write_images(template, LARGE_MB)
+    os.sync()  # its write-back would slow whichever side runs first
     files = sorted(p.name for p in template.iterdir())
     server = HttpServer(template, LARGE_BAGS)
     try:

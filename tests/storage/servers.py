@@ -102,6 +102,12 @@ class HttpStore:
         return f'"{digest}{"-2" if changed else ""}"'
 
 
+class _Server(ThreadingHTTPServer):
+    # socketserver listens with a backlog of 5: 16 readers connecting at once lose SYNs,
+    # which their kernel sends again after a second.
+    request_queue_size = 128
+
+
 def start_http(store: HttpStore) -> ThreadingHTTPServer:
     class Handler(BaseHTTPRequestHandler):
         def log_message(self, *args: object) -> None:
@@ -156,7 +162,7 @@ def start_http(store: HttpStore) -> ThreadingHTTPServer:
         def do_GET(self) -> None:
             self._answer(body=True)
 
-    server = ThreadingHTTPServer(("127.0.0.1", free_port()), Handler)
+    server = _Server(("127.0.0.1", free_port()), Handler)
     server.daemon_threads = True
     threading.Thread(target=server.serve_forever, daemon=True).start()
     store.url = f"http://127.0.0.1:{server.server_address[1]}"
