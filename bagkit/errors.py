@@ -22,3 +22,18 @@ class OptionError(BagkitError):
         super().__init__(f"{field}: {problem}" if field else problem)
         self.problem = problem
         self.field = field
+
+
+class SettingWarning(UserWarning):
+    """A warning whose remedy is a setting: ``setting`` names it as the library knows it
+    (``BAGKIT_DISTRO``), so that the CLI can name its flag instead.
+
+    Args:
+        problem: what happened.
+        setting: what chooses otherwise.
+    """
+
+    def __init__(self, problem: str, setting: str) -> None:
+        super().__init__(f"{problem} ({setting} chooses)")
+        self.problem = problem
+        self.setting = setting

@@ -14,6 +14,7 @@ import warnings
 from collections.abc import Iterable
 
 from bagkit.bag.errors import BagError
+from bagkit.errors import SettingWarning
 
 DISTRO_ENV = "BAGKIT_DISTRO"
 DEFAULT_DISTRO = "jazzy"
@@ -21,7 +22,7 @@ DISTROS = ("foxy", "galactic", "humble", "iron", "jazzy", "kilted", "lyrical")
 """The distributions whose types rosbags ships (``rosbags.typesys.Stores.ROS2_<NAME>``)."""
 
 
-class DistroDefinitionsWarning(UserWarning):
+class DistroDefinitionsWarning(SettingWarning):
     """A bag stores no definitions and names no known distribution: Jazzy's types are used."""
 
 
@@ -72,10 +73,11 @@ def distro_definitions(
     if found and guessed:
         named = f"names ros_distro {ros_distro!r}" if ros_distro else "names no ros_distro"
         warnings.warn(
-            f"the bag stores no message definitions and {named}: decoding "
-            f"{', '.join(sorted(found))} with ROS 2 {distro.capitalize()}'s (--distro NAME "
-            "chooses)",
-            DistroDefinitionsWarning,
+            DistroDefinitionsWarning(
+                f"the bag stores no message definitions and {named}: decoding "
+                f"{', '.join(sorted(found))} with ROS 2 {distro.capitalize()}'s",
+                DISTRO_ENV,
+            ),
             stacklevel=2,
         )
     return found

@@ -26,7 +26,7 @@ import typer
 from typer.core import TyperCommand
 
 from bagkit.compat import StrEnum
-from bagkit.errors import BagkitError, OptionError
+from bagkit.errors import BagkitError, OptionError, SettingWarning
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -247,7 +247,7 @@ def option_flags(flags: Mapping[str, str]) -> Iterator[None]:
 
 
 # Fields every command that has them sets with the same flag (for handle_errors and every
-# option_flags block).
+# option_flags block), and the settings that SettingWarnings name.
 SHARED_FLAGS = {
     "output.force": "{} (use --force to replace it)",
     "output.compression": "--compression {}",
@@ -259,6 +259,7 @@ SHARED_FLAGS = {
     "where": "--where {}",
     "events": "--events {}",
     "workers": "--workers {}; for more, start a cluster and give --scheduler",
+    "BAGKIT_DISTRO": "--distro NAME",
 }
 
 
@@ -388,8 +389,13 @@ class _InterruptLatch:
 
 
 def _warning_line(message: Warning | str, *_: object, **__: object) -> None:
-    """The library's warnings (an empty time window, data loss) as ``warning:`` lines."""
-    warn(str(message))
+    """The library's warnings (an empty time window, data loss) as ``warning:`` lines, a
+    setting that chooses otherwise named by its flag."""
+    if isinstance(message, SettingWarning):
+        flag = SHARED_FLAGS.get(message.setting, message.setting)
+        warn(f"{message.problem} ({flag} chooses)")
+    else:
+        warn(str(message))
 
 
 def _broken_pipe() -> typer.Exit:

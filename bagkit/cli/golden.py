@@ -287,7 +287,7 @@ def add(  # noqa: PLR0917 (typer maps parameters to options)
         gap_ns=parse_duration(gap, "--gap"),
         episode=episode,
     )
-    with option_flags(AROUND_FLAGS):
+    with option_flags({**AROUND_FLAGS, "like": "--like needs a spec with a processor: {}"}):
         added = add_fixture(fixture, options)
     if added.episodes > 1:
         note(

@@ -70,7 +70,8 @@ def add_fixture(directory: Path, options: AddOptions) -> AddedFixture:
     Raises:
         RegressionError: ``directory`` exists and is not empty, or the window is empty.
         BagError, SelectionError, SurgeryError: the bag or the window cannot be read.
-        OptionError: a span beside ``around``, a negative margin (the error names the field).
+        OptionError: a span beside ``around``, a negative margin, ``like``'s spec without a
+            processor (the error names the field).
         SpecError: ``like`` has no valid spec.
     """
     if directory.exists() and any(directory.iterdir()):
@@ -156,9 +157,10 @@ def _copied(options: AddOptions, window: Window, like: FixtureSpec, duration_s: 
     duration, and no ``record_launch`` that reads files of the old fixture's folder (the new
     one lacks them); the rest (system under test, topics, tolerances) as written there."""
     if like.processor is None:
-        raise RegressionError(
-            f"{like.directory / SPEC_FILE}: --like needs a spec with a processor (lockstep "
-            "makes the expected outputs of the window)"
+        raise OptionError(
+            f"{like.directory / SPEC_FILE} has no processor (lockstep makes the expected "
+            "outputs of the window from it)",
+            "like",
         )
     lines = (like.directory / SPEC_FILE).read_text().splitlines()
     kept: list[str] = []

@@ -16,6 +16,7 @@ from rosbags.rosbag2 import Writer
 from rosbags.typesys import Stores, get_typestore
 
 from bagkit.bag import BagReader
+from bagkit.bag.distro_definitions import DistroDefinitionsWarning
 
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 HUMBLE = get_typestore(Stores.ROS2_HUMBLE)
@@ -86,7 +87,17 @@ def test_without_ros_distro_jazzy_is_used_with_one_warning(tmp_path: Path) -> No
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 2, proc.stderr
     assert lines[0].startswith("warning:") and "Jazzy" in lines[0] and RANGE in lines[0]
+    assert lines[0].endswith("(--distro NAME chooses)")
     assert lines[1].startswith("error:") and "none of the 6 messages" in lines[1]
+
+
+def test_the_library_warning_names_the_environment_setting(tmp_path: Path) -> None:
+    bag = humble_bag(tmp_path / "unnamed", None)
+    with BagReader(bag) as reader, pytest.warns(DistroDefinitionsWarning) as caught:
+        assert RANGE in reader.definitions
+    (warning,) = caught
+    assert str(warning.message).endswith("with ROS 2 Jazzy's (BAGKIT_DISTRO chooses)")
+    assert "--distro" not in str(warning.message)
 
 
 @pytest.mark.parametrize("ros_distro", [None, "jazzy"])

@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 import yaml
+from bagkit_runs import bagkit_in_process
 from test_mutation import EXPONENT, failing, mutated_copy, run_golden
 
 from bagkit.bag import BagReader
@@ -168,3 +169,30 @@ def test_a_span_from_the_end_is_read_against_the_bag(tmp_path: Path) -> None:
     assert sum(added.counts.values()) >= len(expected)
     first_line = (tmp_path / "tail" / "spec.yaml").read_text().splitlines()[0]
     assert f"[{format_ns(last - 5 * 10**9)}, end)" in first_line
+
+
+def test_like_a_spec_without_a_processor_is_one_line_naming_the_flag(tmp_path: Path) -> None:
+    """A spec that only launches nodes cannot make the window's expected outputs in lockstep:
+    one error naming ``--like``, and nothing written."""
+    root = Path(__file__).resolve().parents[2]
+    launched = tmp_path / "launched"
+    launched.mkdir()
+    spec = (root / "fixtures" / "faults" / "spec.yaml").read_text()
+    kept = [
+        line
+        for line in spec.splitlines()
+        if not line.startswith(("processor", "  nodes:", "    data_logger", "    alert_system"))
+        and not line.startswith("    sensor_fusion")
+    ]
+    (launched / "spec.yaml").write_text("\n".join(kept) + "\n")
+    (launched / "golden").symlink_to(root / "fixtures" / "faults" / "golden")
+    assert load_spec(launched).processor is None
+    proc = bagkit_in_process(
+        ["golden", "add", tmp_path / "new", "--from", launched / "golden", "--like", launched],
+        tmp_path,
+    )
+    assert proc.returncode == 2 and proc.stdout == ""
+    assert proc.stderr.startswith("error: --like needs a spec with a processor: ")
+    assert f"{launched / 'spec.yaml'} has no processor" in proc.stderr
+    assert proc.stderr.count("\n") == 1
+    assert not (tmp_path / "new").exists()
