@@ -1,7 +1,11 @@
 """``bagkit migrate`` of a 1M-message Imu bag whose stored Imu lacks one field of today's
-(``linear_acceleration_covariance``), against ``bagkit filter`` of the same bag (every topic:
-the copy with no decoding) measured in the same run; and the peak memory of each, in a child
-process of its own, against the bag's size (flat: it must not grow with the bag).
+(``linear_acceleration_covariance``), against two ``bagkit filter`` runs of the same bag
+measured in the same run: of every topic (chunks copied as stored: no decompression beyond the
+CRC check, no recompression; the target's figure), and with a ``--where`` that every message
+passes (every chunk opened, one field of every message decoded, the records written into new
+chunks and compressed: the read-and-write work, so that what migrate adds is the decode and
+encode of every field). And the peak memory of migrate, in a child process of its own, against
+the bag's size (flat: it must not grow with the bag).
 
 Run: ``.venv/bin/python -m benchmarks migrate``
 """
@@ -23,6 +27,8 @@ RATIO_TARGET = 0.5
 # The last field of Imu, float64[9]: 72 bytes at the end of each payload.
 REMOVED = "float64[9] linear_acceleration_covariance"
 REMOVED_BYTES = 72
+# Every message passes (the field is uniform in [0, 1)): filter opens and rewrites every chunk.
+EVERY_MESSAGE = "linear_acceleration.z >= 0"
 
 _RUN = """
 import resource, sys, time
@@ -33,6 +39,12 @@ start = time.perf_counter()
 if sys.argv[1] == "migrate":
     report = migrate_bag(Path(sys.argv[2]), Path(sys.argv[3]), MigrateOptions())
     assert report.migrated and report.migrated[0].migrated, "nothing was migrated"
+elif sys.argv[1] == "rewrite":
+    from bagkit.selection.query import Query
+    where = Selection.of(Query.create([], [], None, None, sys.argv[4]))
+    report = filter_bag(Path(sys.argv[2]), Path(sys.argv[3]), where)
+    assert report.chunks_copied == 0, "chunks were copied as stored"
+    assert sum(report.topic_counts.values()) == report.input_messages, "messages were dropped"
 else:
     filter_bag(Path(sys.argv[2]), Path(sys.argv[3]), Selection())
 usage = resource.getrusage(resource.RUSAGE_SELF)
@@ -64,7 +76,7 @@ def _run(command: str, bag: Path, out: Path) -> tuple[float, int, float]:
     command in a fresh interpreter."""
     shutil.rmtree(out, ignore_errors=True)
     done = subprocess.run(
-        [sys.executable, "-c", _RUN, command, str(bag), str(out)],
+        [sys.executable, "-c", _RUN, command, str(bag), str(out), EVERY_MESSAGE],
         capture_output=True,
         text=True,
         check=True,
@@ -81,25 +93,37 @@ def main() -> bool:
         small = _old_imu_bag(Path(tmp) / "small", MESSAGES // 10)
         bag = _old_imu_bag(Path(tmp) / "old", MESSAGES)
         size = sum(f.stat().st_size for f in bag.iterdir())
-        runs: dict[str, list[tuple[float, int, float]]] = {"filter": [], "migrate": []}
+        runs: dict[str, list[tuple[float, int, float]]] = {
+            "filter": [],
+            "rewrite": [],
+            "migrate": [],
+        }
         for _ in range(2):
             for command, times in runs.items():
                 times.append(_run(command, bag, Path(tmp) / command))
-        t_filter = min(t for t, _, _ in runs["filter"])
-        t_migrate = min(t for t, _, _ in runs["migrate"])
-        cpu_filter = min(c for _, _, c in runs["filter"])
-        cpu_migrate = min(c for _, _, c in runs["migrate"])
+        wall = {command: min(t for t, _, _ in times) for command, times in runs.items()}
+        cpu = {command: min(c for _, _, c in times) for command, times in runs.items()}
         _, rss_small, _ = _run("migrate", small, Path(tmp) / "small_out")
         rss = min(r for _, r, _ in runs["migrate"])
-    ratio = t_filter / t_migrate
+    ratio = wall["filter"] / wall["migrate"]
     print(f"  bag: {MESSAGES:,} Imu messages, {size / 1e6:.0f} MB, one field added by migrate")
-    print(f"  filter (every topic): {t_filter:.2f} s; migrate: {t_migrate:.2f} s")
-    print(f"  migrate / filter throughput: {ratio:.2f} (target >= {RATIO_TARGET})")
-    # On a loaded machine each process gets a share of the cores: the CPU ratio is what the
-    # time ratio tends to there, the time ratio with idle cores shows the threads' overlap.
+    # CPU: all threads, the interpreter's start-up included. On a loaded machine each process
+    # gets a share of the cores: the CPU ratio is what the time ratio tends to there, the time
+    # ratio with idle cores shows the threads' overlap.
+    for command, what in (
+        ("filter", "filter, every topic (chunks copied as stored)"),
+        ("rewrite", f"filter --where '{EVERY_MESSAGE}' (every chunk opened and rewritten)"),
+        ("migrate", "migrate"),
+    ):
+        print(f"  {what}: {wall[command]:.2f} s, {cpu[command]:.2f} s CPU")
     print(
-        f"  CPU seconds (all threads, start-up included): filter {cpu_filter:.2f}, "
-        f"migrate {cpu_migrate:.2f}; ratio {cpu_filter / cpu_migrate:.2f}"
+        f"  migrate / filter (chunks copied) throughput: {ratio:.2f} (target >= "
+        f"{RATIO_TARGET}), CPU {cpu['filter'] / cpu['migrate']:.2f}"
+    )
+    print(
+        "  migrate / filter --where (rewritten) throughput: "
+        f"{wall['rewrite'] / wall['migrate']:.2f}, CPU {cpu['rewrite'] / cpu['migrate']:.2f}"
+        " (the peer the target's wording describes: 'the decode and encode are the extra work')"
     )
     print(
         f"  peak RSS of migrate: {rss / 1024:.0f} MiB for {MESSAGES:,} messages, "

@@ -135,7 +135,8 @@ def _large_part(scratch: Path) -> None:
     import fsspec
 
     from bagkit.bag.info import bag_info
-    from bagkit.fleet.listing import REMOTE_READERS, folder_info
+    from bagkit.fleet.execute import REMOTE_READERS
+    from bagkit.fleet.listing import folder_info
     from bagkit.storage.range_file import fetched
 
     template = scratch / "large" / "bag_00"

@@ -29,8 +29,10 @@ from bagkit.bag.mcapio import (
 from bagkit.bag.mcapio.latest import Latest, latest_before
 from bagkit.bag.mcapio.message_index import Span, channel_spans, read_message_indexes, widen
 from bagkit.bag.mcapio.records import MESSAGE_RECORD_HEADER, RECORD_HEADER, ChunkIndex, Opcode
+from bagkit.bag.mcapio.summary import read_header
 from bagkit.bag.messages import BagMessage, TopicInfo, make_message
 from bagkit.bag.storage import BagChunk
+from bagkit.storage.urls import is_url
 
 if TYPE_CHECKING:
     import numpy as np
@@ -106,12 +108,23 @@ class McapFile:
         self._handle = self.path.open("rb")  # closed in close(); a UrlPath's reads by range
         try:
             self._source = Source(self._handle, self.path.name)
+            # In storage the header is a request of its own: read when the summary is not
+            # enough, or to check the profile of a file whose channels are not all CDR (a ROS
+            # 2 bag's are; another profile's are not).
+            in_storage = is_url(self.path)
             self.index = read_file_index(
-                self._source, check_crc=self.check_crc, max_chunk_size=self.max_chunk_size
+                self._source,
+                check_crc=self.check_crc,
+                max_chunk_size=self.max_chunk_size,
+                header_first=not in_storage,
             )
+            header = self.index.header
+            channels = self.index.channels.values()
+            if header is None and any(c.message_encoding != "cdr" for c in channels):
+                header = read_header(self._source)
         except (NotABagError, CorruptBagError) as exc:
             raise type(exc)(f"{self.path}: {exc}") from exc
-        profile = self.index.header.profile
+        profile = header.profile if header is not None else Profile.ROS2
         if profile not in (Profile.ROS2, ""):
             raise UnsupportedStorageError(f"{self.path}: MCAP profile {profile!r} is not ROS 2")
         self.problems = list(self.index.problems)

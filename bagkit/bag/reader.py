@@ -9,7 +9,7 @@ import shutil
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from types import TracebackType
-from typing import TYPE_CHECKING, cast
+from typing import TYPE_CHECKING, BinaryIO, cast
 
 from bagkit.bag.compression import (
     Decompression,
@@ -113,6 +113,18 @@ def _resolve_files(path: Path) -> tuple[Path, list[Path], BagMetadata | None]:
     return path, found, metadata
 
 
+def _leading_bytes(f: BinaryIO, *, in_storage: bool) -> bytes:
+    """What the back-end is chosen by: the file's first bytes; in storage, an MCAP's closing
+    magic stands for them (its footer and summary come in the same range request, and its
+    header is read only if needed: :meth:`McapFile.open`)."""
+    if in_storage and f.seek(0, 2) >= len(MAGIC):
+        f.seek(-len(MAGIC), 2)
+        if f.read(len(MAGIC)) == MAGIC:
+            return MAGIC
+        f.seek(0)
+    return f.read(len(SQLITE_MAGIC))
+
+
 def open_storage_file(
     path: Path,
     *,
@@ -134,7 +146,7 @@ def open_storage_file(
             ``open()`` raises.
     """
     with path.open("rb") as f:
-        head = f.read(len(SQLITE_MAGIC))
+        head = _leading_bytes(f, in_storage=isinstance(path, UrlPath))
     source, temporary = path, None
     copied = isinstance(path, UrlPath) and not head.startswith(MAGIC) and not is_zstd(head)
     if copied:  # SQLite3 and ROS 1 back-ends read files on disk only

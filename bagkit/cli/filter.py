@@ -130,6 +130,11 @@ def filter_command(
             parse_duration(gap, "--gap"),
             selection.state_topics,
         )
-        with err_console.status(f"cutting around the episodes in {bag}"):
-            found, reports = cut_around(bag, output, trigger, selection, options)
+        with (
+            err_console.status(f"cutting around the episodes in {bag}"),
+            written_to(output, replace=force) as local,
+        ):
+            found, reports = cut_around(bag, local, trigger, selection, options)
+    for report in reports:  # named where they are: under an output URL, not the local copy
+        report.output = output / report.output.relative_to(local).as_posix()
     print_cuts(found, reports, output_format)

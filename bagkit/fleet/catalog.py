@@ -24,7 +24,7 @@ import pandas as pd
 
 from bagkit.fleet.describe import COLUMNS, bag_stamp, describe_bag
 from bagkit.fleet.errors import CatalogError
-from bagkit.fleet.execute import ItemDone, run_each
+from bagkit.fleet.execute import ItemDone, readers_for, run_each
 from bagkit.fleet.inputs import bag_paths
 from bagkit.selection.errors import SelectionError
 from bagkit.selection.fields import name_matches
@@ -133,7 +133,8 @@ def complete_update(
     Args:
         done: called with the index (in ``plan.to_open``) of each bag described.
     """
-    described = run_each(describe_bag, plan.to_open, client, done)
+    threads = readers_for(plan.to_open)  # in storage: a few requests each, mostly waiting
+    described = run_each(describe_bag, plan.to_open, client, done, threads=threads)
     new = to_frame(row for rows in described for row in rows)
     frame = pd.concat([plan.kept, new], ignore_index=True) if len(plan.kept) else new
     order = {bag: i for i, bag in enumerate(plan.bags)}

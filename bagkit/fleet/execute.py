@@ -13,10 +13,12 @@ from __future__ import annotations
 import functools
 import itertools
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING, TypeVar
 
 from bagkit.fleet.errors import FleetError
+from bagkit.storage.urls import is_url
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -32,6 +34,8 @@ ItemDone = Callable[[int], None]
 TASKS_PER_WORKER = 4
 MAX_BATCH = 64
 """Items per task at most (a task lost with its worker is rerun whole)."""
+REMOTE_READERS = 16
+"""Bags in storage read at once per process by the commands that read summaries only."""
 
 
 def batch_ranges(items: int, workers: int) -> list[range]:
@@ -46,9 +50,27 @@ def batch_ranges(items: int, workers: int) -> list[range]:
     return [range(a, b) for a, b in itertools.pairwise(bounds)]
 
 
-def _run_batch(func: Callable[[T], R], batch: Sequence[T]) -> list[R]:
-    """One task: ``func`` over its items, in order."""
-    return [func(item) for item in batch]
+def readers_for(bags: Sequence[object]) -> int:
+    """How many of ``bags`` a process reads at once: REMOTE_READERS when some are in storage
+    (each is a few requests that mostly wait), else one."""
+    return REMOTE_READERS if any(is_url(bag) for bag in bags) else 1
+
+
+def _mapped(func: Callable[[T], R], items: Sequence[T], threads: int) -> Iterator[R]:
+    """``func`` over ``items``, results in their order, ``threads`` items at a time."""
+    if threads <= 1 or len(items) <= 1:
+        yield from map(func, items)
+        return
+    pool = ThreadPoolExecutor(min(threads, len(items)))
+    try:
+        yield from pool.map(func, items)
+    finally:  # on an error or Ctrl-C: what has not started never does
+        pool.shutdown(cancel_futures=True)
+
+
+def _run_batch(func: Callable[[T], R], threads: int, batch: Sequence[T]) -> list[R]:
+    """One task: ``func`` over its items, results in order."""
+    return list(_mapped(func, batch, threads))
 
 
 def run_each(
@@ -56,23 +78,26 @@ def run_each(
     items: Sequence[T],
     client: Client | None,
     done: ItemDone | None = None,
+    *,
+    threads: int = 1,
 ) -> list[R]:
     """``[func(item) for item in items]``, on ``client``'s workers when there is a client.
 
     ``func`` must be importable by the workers (a module-level function or a
-    :func:`functools.partial` of one).
+    :func:`functools.partial` of one). ``threads``: items run at once in this process, or in
+    each task (:func:`readers_for`).
     """
     if client is None:
         results = []
-        for index, item in enumerate(items):
-            results.append(func(item))
+        for index, result in enumerate(_mapped(func, items, threads)):
+            results.append(result)
             if done is not None:
                 done(index)
         return results
     from distributed import KilledWorker, as_completed
 
     ranges = batch_ranges(len(items), len(client.scheduler_info()["workers"]))
-    task = functools.partial(_run_batch, func)
+    task = functools.partial(_run_batch, func, threads)
     # pure=False: a bag read twice is read again (it may have changed on disk).
     futures = client.map(task, [[items[i] for i in span] for span in ranges], pure=False)
     range_of = {future.key: span for future, span in zip(futures, ranges, strict=True)}

@@ -3,20 +3,17 @@ info, read from its summary as ``info BAG`` reads it, and what could not be read
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
-from itertools import repeat
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 from bagkit.bag import BagError, BagInfo, bag_info
+from bagkit.fleet.execute import readers_for, run_each
 from bagkit.fleet.inputs import BAG_FILE_SUFFIXES, STORAGE_SUFFIXES, find_bags, is_bag_directory
 from bagkit.fleet.url_inputs import url_bags
 from bagkit.storage.errors import StorageError
 from bagkit.storage.urls import is_url
-
-# Bags of a prefix in storage described at once.
-REMOTE_READERS = 16
 
 
 @dataclass(slots=True)
@@ -71,14 +68,13 @@ def folder_info(
     if not paths:
         return None
     found = FolderInfo(text)
-    # Bags in storage are read a few at a time: each is a few requests that mostly wait.
-    with ThreadPoolExecutor(REMOTE_READERS if is_url(text) else 1) as pool:
-        described = pool.map(_described, paths, repeat(check_crc), repeat(exact_rates))
-        for path, result in zip(paths, described, strict=True):
-            if isinstance(result, BagInfo):
-                found.bags.append(result)
-            else:
-                found.unread[path] = result
+    describe = partial(_described, check_crc=check_crc, exact_rates=exact_rates)
+    described = run_each(describe, paths, None, threads=readers_for(paths))
+    for path, result in zip(paths, described, strict=True):
+        if isinstance(result, BagInfo):
+            found.bags.append(result)
+        else:
+            found.unread[path] = result
     return found
 
 

@@ -4,12 +4,14 @@ What the bag readers need from a file: ``seek``, ``tell``, ``read``. A read is s
 bounded cache of the ranges fetched; a miss fetches exactly what was asked (an MCAP reader
 seeks by its indexes: the footer, the summary, the chunks it needs), and reading on where the
 last reads ended (a file without a summary, read through) fetches ahead an eighth of what was
-read on so far, up to :data:`MAX_READ_AHEAD`. A first read of an object's end (an MCAP footer)
-fetches as deep into its tail as the reads of the last object of its kind went (the same
-suffix, its bag beside this one's: its footer and summary), up to a quarter of the object:
-one request where two would be. Every range is asked for with the ETag seen at
-open (``If-Match``) where the store takes one, and its length is checked: an object that
-changes while it is read is an error, never a mix of two versions.
+read on so far, up to :data:`MAX_READ_AHEAD`. A first read of an object's end (an MCAP's
+closing magic, its footer) fetches as deep into its tail as the reads of the last object of
+its kind went, and an eighth more (the same suffix, its bag beside this one's: its footer and
+summary), :data:`FIRST_TAIL_BYTES` before any, up to a quarter of the object: one request
+where two would be. The blocks fetched at an object's ends are kept for its next opening (the
+back-end is chosen by them, then opens the file again). Every range is asked for with the
+ETag seen at open (``If-Match``) where the store takes one, and its length is checked: an
+object that changes while it is read is an error, never a mix of two versions.
 """
 
 from __future__ import annotations
@@ -26,20 +28,56 @@ from bagkit.storage.urls import scheme, shown_url
 # the reading stops, however it reads), up to MAX_READ_AHEAD.
 READ_AHEAD_SHARE = 8
 MAX_READ_AHEAD = 8 << 20
-# The first bytes of a file (magic, header) are fetched at once and kept for the next opening of
-# the same object (the back-end is chosen by the magic, then opens the file again), for the
-# last MAX_HEADS objects.
+# A file's first request fetches at least this much (magic and header: what a back-end is
+# chosen by when its end is no MCAP's).
 HEAD_BYTES = 1024
-MAX_HEADS = 256
-_HEADS: dict[tuple[str, str | None], bytes] = {}
 # The ranges kept per open file; the oldest are dropped beyond.
 CACHE_BYTES = 64 << 20
 # How far from its end the reads of the last object of a kind went (reads contiguous with its
 # end: an MCAP footer, then its summary), and the share of an object that guess may fetch. A
 # kind: the suffix and the prefix two levels up (the bags of one fleet), so that another
-# fleet's larger summaries are no guess here.
+# fleet's larger summaries are no guess here. Reads of the last bytes only (a closing magic, a
+# footer: MIN_LEARNED_DEPTH) say nothing of a summary's depth and are not learned: a bag read
+# beside this one would otherwise guess from them.
 _TAIL_DEPTHS: dict[tuple[str, str], int] = {}
 TAIL_SHARE = 4
+TAIL_SLACK = 8
+MIN_LEARNED_DEPTH = 64
+# The first guess, before any object of the kind was read: small bags' summaries (schemas,
+# channels, a few chunk indexes) are a few to a few tens of KiB; a deeper one costs a second
+# request on its kind's first object only.
+FIRST_TAIL_BYTES = 16 << 10
+
+
+class _Kept:
+    """The blocks fetched at the ends of the last MAX_OBJECTS objects (by URL and ETag), at
+    most MAX_BYTES: what the next opening of the same object reads first."""
+
+    MAX_OBJECTS = 256
+    MAX_BYTES = 32 << 20
+
+    def __init__(self) -> None:
+        self.lock = threading.Lock()
+        self.blocks: OrderedDict[tuple[str, str | None], list[tuple[int, bytes]]] = OrderedDict()
+        self.bytes = 0
+
+    def get(self, key: tuple[str, str | None]) -> list[tuple[int, bytes]]:
+        with self.lock:
+            return list(self.blocks.get(key, ()))
+
+    def add(self, key: tuple[str, str | None], offset: int, block: bytes) -> None:
+        if len(block) > self.MAX_BYTES // 4:
+            return
+        with self.lock:
+            self.blocks.setdefault(key, []).append((offset, block))
+            self.blocks.move_to_end(key)
+            self.bytes += len(block)
+            while self.bytes > self.MAX_BYTES or len(self.blocks) > self.MAX_OBJECTS:
+                _, dropped = self.blocks.popitem(last=False)
+                self.bytes -= sum(len(b) for _, b in dropped)
+
+
+_KEPT = _Kept()
 
 
 class _Counter:
@@ -88,6 +126,8 @@ class RangeFile:
         self._streak = 0
         self._cache: OrderedDict[int, bytes] = OrderedDict()
         self._cached = 0
+        for offset, block in _KEPT.get((url, self.etag)):
+            self._keep(offset, block)
         self.closed = False
 
     # The file API the readers use.
@@ -116,7 +156,8 @@ class RangeFile:
             data = self._fetch_span(start, end)
         if start < self._tail_low <= end:  # what the next object's footer read will fetch
             self._tail_low = start
-            _TAIL_DEPTHS[self._kind] = self.size - start
+            if self.size - start >= MIN_LEARNED_DEPTH:
+                _TAIL_DEPTHS[self._kind] = self.size - start
         self._position = end
         self._last_end = end
         return data
@@ -138,9 +179,6 @@ class RangeFile:
 
     # The cache and the fetches.
     def _cached_span(self, start: int, end: int) -> bytes | None:
-        head = _HEADS.get((self.url, self.etag))
-        if head is not None and end <= len(head):
-            return head[start:end]
         for offset, block in reversed(self._cache.items()):
             if offset <= start and end <= offset + len(block):
                 self._cache.move_to_end(offset)
@@ -148,27 +186,37 @@ class RangeFile:
         return None
 
     def _fetch_span(self, start: int, end: int) -> bytes:
-        # What a cached block (the read-ahead) holds from ``start`` on is not fetched again.
-        held = next(
-            (b[start - o :] for o, b in reversed(self._cache.items()) if o <= start < o + len(b)),
-            b"",
-        )
+        # What a cached block (the read-ahead) holds from ``start`` on is not fetched again,
+        # nor what one (the tail fetched with a footer) holds up to ``end``.
+        blocks = list(reversed(self._cache.items()))
+        held = next((b[start - o :] for o, b in blocks if o <= start < o + len(b)), b"")
         first = start + len(held)
+        later = next(((o, b) for o, b in blocks if first < o < end <= o + len(b)), None)
+        if later is not None:
+            block = self._fetch(first, later[0])
+            if len(block) <= CACHE_BYTES // 4:
+                self._keep(first, block)
+            return held + block + later[1][: end - later[0]]
         if end == self.size and not held:  # a footer: the summary before it, as last time
-            depth = min(_TAIL_DEPTHS.get(self._kind, 0), self.size // TAIL_SHARE)
-            first = min(first, self.size - depth)
+            first = min(first, self.size - self._tail_guess())
         ahead = min(MAX_READ_AHEAD, self._streak // READ_AHEAD_SHARE)
         if first == 0:  # the magic and the header: one request for every reader of the file
             ahead = max(ahead, HEAD_BYTES)
         fetch_end = min(self.size, max(end, first + ahead))
         block = self._fetch(first, fetch_end)
         if first == 0:
-            if len(_HEADS) >= MAX_HEADS:
-                _HEADS.pop(next(iter(_HEADS)))
-            _HEADS[(self.url, self.etag)] = block[:HEAD_BYTES]
+            _KEPT.add((self.url, self.etag), 0, block[:HEAD_BYTES])
+        elif fetch_end == self.size:
+            _KEPT.add((self.url, self.etag), first, block)
         if fetch_end > end or first < start or len(block) <= CACHE_BYTES // 4:
             self._keep(first, block)
         return (held + block)[: end - start] if held else block[start - first : end - first]
+
+    def _tail_guess(self) -> int:
+        """How much of the object's end its first read of the end fetches."""
+        depth = _TAIL_DEPTHS.get(self._kind)
+        guess = FIRST_TAIL_BYTES if depth is None else depth + depth // TAIL_SLACK
+        return min(guess, self.size // TAIL_SHARE)
 
     def _keep(self, offset: int, block: bytes) -> None:
         self._cache[offset] = block

@@ -3,12 +3,19 @@
 Nothing appears under the output name before :meth:`OutputBag.commit`: files are written to a
 hidden sibling directory that is renamed into place, so an error never leaves a half-written
 bag, and an existing output is replaced only with ``force``.
+
+A chunk built here is compressed on a worker thread (zstd and LZ4 release the GIL) while the
+next one is built, and written by the calling thread once that one closes: in order, and at
+most :data:`COMPRESSING` chunks in flight, so memory stays flat. An output split by size or
+duration compresses each chunk before building the next (the split needs the file's size).
 """
 
 from __future__ import annotations
 
 import os
 import shutil
+from collections import deque
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Protocol
 
@@ -49,6 +56,8 @@ _RECORD_HEADER = np.dtype(
 _BAG_SUFFIXES = (".mcap", ".db3", ".yaml", ".zstd", ".lz4")
 # The smallest chunk a split output gets: a split size holds four at least.
 _MIN_CHUNK_SIZE = 4096
+# Chunks closed and not yet written: the one being compressed while the next is built.
+COMPRESSING = 1
 
 
 def check_replaceable(path: Path) -> None:
@@ -155,6 +164,10 @@ class OutputBag:
         self._files: list[FileInformation] = []
         self._file: McapFileWriter | None = None
         self._chunk = ChunkBuilder()
+        # One worker: it owns the compressor (zstd's is not thread-safe) and keeps the order.
+        threaded = self.compression and not (max_bag_size or max_bag_duration_s)
+        self._compressor = ThreadPoolExecutor(1, "bagkit-compress") if threaded else None
+        self._closing: deque[Future[ClosedChunk]] = deque()  # in the order they are written
 
     def add_topic(self, topic: TopicInfo, definition: str, preferred_id: int) -> int:
         """Add a topic (once per name); return its channel id (``preferred_id`` when free)."""
@@ -257,6 +270,7 @@ class OutputBag:
     def copy_chunk(self, chunk: ClosedChunk) -> None:
         """Append a chunk as it is stored (its channel ids must be this bag's)."""
         self._close_chunk()
+        self._write_closed(0)
         self._split_if_due(chunk.message_end_time, chunk.length)
         file = self._current_file()
         file.write_chunk(chunk, lost={})
@@ -267,6 +281,8 @@ class OutputBag:
     def commit(self) -> list[Path]:
         """Finish the last file and metadata.yaml, move the bag into place; return its files."""
         self._close_chunk()
+        self._write_closed(0)
+        self._stop_compressor()
         if self._file is None and not self._files:
             self._current_file()
         self._finish_file()
@@ -281,6 +297,8 @@ class OutputBag:
 
     def abort(self) -> None:
         """Remove what was written (the output name is left untouched)."""
+        self._closing.clear()
+        self._stop_compressor()
         if self._file is not None:
             self._file.close()
             self._file = None
@@ -319,9 +337,24 @@ class OutputBag:
         if not chunk.count:
             return
         self._chunk = ChunkBuilder()
-        self._current_file().write_chunk(chunk.close(self.compression, self._compress), lost={})
         for channel_id, count in chunk.message_counts().items():
             self.counts[channel_id] += count
+        if self._compressor is None:
+            self._current_file().write_chunk(chunk.close(self.compression, self._compress), lost={})
+            return
+        self._closing.append(self._compressor.submit(chunk.close, self.compression, self._compress))
+        self._write_closed(COMPRESSING)
+
+    def _write_closed(self, waiting: int) -> None:
+        """Write the chunks compressed on the worker, in order, until ``waiting`` are left."""
+        while len(self._closing) > waiting:
+            self._current_file().write_chunk(self._closing.popleft().result(), lost={})
+
+    def _stop_compressor(self) -> None:
+        """Let the worker finish the chunk it holds (the others are cancelled) and end."""
+        if self._compressor is not None:
+            self._compressor.shutdown(cancel_futures=True)
+            self._compressor = None
 
     def _finish_file(self, *, last: bool = True) -> None:
         """Close the open file; its rosbag2 record describes the bag when it is the last, else

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import time
 
 import pytest
 from distributed import Client
@@ -46,3 +47,36 @@ def test_a_failing_item_raises_its_error(client: Client) -> None:
 
     with pytest.raises(ValueError, match="item five"):
         run_each(fail_on_five, list(range(20)), client)
+
+
+def test_threads_in_this_process_keep_the_order_and_run_at_once() -> None:
+    """Items in storage (waiting on requests) run several at a time: all 8 are in flight
+    together, results still in item order, each reported."""
+    import threading
+
+    barrier = threading.Barrier(8, timeout=30)
+
+    def wait_for_all(i: int) -> tuple[int, int]:
+        barrier.wait()  # breaks (an error) unless 8 items run at once
+        return i * i, threading.get_ident()
+
+    reported: list[int] = []
+    got = run_each(wait_for_all, list(range(8)), None, reported.append, threads=8)
+    assert [square for square, _ in got] == [i * i for i in range(8)]
+    assert reported == list(range(8))
+    assert len({thread for _, thread in got}) == 8
+
+
+def test_an_error_in_a_thread_stops_what_has_not_started() -> None:
+    started: list[int] = []
+
+    def fail_on_zero(i: int) -> int:
+        started.append(i)
+        if i == 0:
+            raise ValueError("item zero")
+        time.sleep(0.01)  # a request's wait: 1,000 of them outlast the error by far
+        return i
+
+    with pytest.raises(ValueError, match="item zero"):
+        run_each(fail_on_zero, list(range(1000)), None, threads=2)
+    assert len(started) < 1000

@@ -4,14 +4,21 @@ message's channel, sequence and times."""
 
 from __future__ import annotations
 
+import itertools
+import threading
 from pathlib import Path
 
 import numpy as np
+import pytest
+from mcap.reader import make_reader
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Imu, Range
 
 from bagkit.bag import BagReader, BagWriter, TopicInfo, message_definition
+from bagkit.bag.mcapio.records import MESSAGE_RECORD_HEADER
+from bagkit.bag.writer import DEFAULT_CHUNK_SIZE
 from bagkit.migrate import Target, TopicMigration, migrate_topic
+from bagkit.migrate.errors import MigrateError
 from bagkit.surgery.migrate import MigrateOptions, migrate_bag
 
 IMU = "sensor_msgs/msg/Imu"
@@ -128,3 +135,58 @@ def test_migrated_bag_keeps_every_record_s_fields(tmp_path: Path) -> None:
     assert [deserialize_message(d, Imu).linear_acceleration.z for *_, d in got["/imu"]] == [
         m.linear_acceleration.z for m in messages
     ]
+
+
+def _per_output_chunk() -> int:
+    """About how many migrated Imu records fill one output chunk."""
+    return DEFAULT_CHUNK_SIZE // (MESSAGE_RECORD_HEADER.size + len(_old(Imu())) + LAST_BYTES)
+
+
+def _many_chunks_bag(path: Path, chunks: int, bad_at: int | None = None) -> list[bytes]:
+    """An old Imu bag whose migrated records fill about ``chunks`` output chunks (the payload
+    at ``bad_at`` cut short: it decodes with no definition); returns the old payloads."""
+    distinct = [_old(m) for m in _messages(7)]
+    count = chunks * _per_output_chunk()
+    payloads = [distinct[i % len(distinct)] for i in range(count)]
+    if bad_at is not None:
+        payloads[bad_at] = payloads[bad_at][:20]
+    with BagWriter(path) as writer:
+        writer.add_topic(TopicInfo("/imu", IMU), OLD_IMU)
+        writer.write_batch("/imu", payloads, log_times=[START_NS + i for i in range(count)])
+    return payloads
+
+
+def test_a_bag_of_many_chunks_comes_out_in_order_and_the_same_each_time(tmp_path: Path) -> None:
+    """Chunks are compressed on a thread while the next is built: they are written in the
+    order built, and two migrations of one bag are the same bytes."""
+    old = _many_chunks_bag(tmp_path / "old", 6)
+    migration = _migration()
+    outputs = [tmp_path / run / "new" for run in ("a", "b")]
+    for out in outputs:
+        out.parent.mkdir()
+        migrate_bag(tmp_path / "old", out, MigrateOptions())
+    files = [sorted(out.glob("*.mcap")) for out in outputs]
+    assert len(files[0]) == 1
+    assert files[0][0].read_bytes() == files[1][0].read_bytes()
+    with files[0][0].open("rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    chunks = summary.chunk_indexes
+    assert len(chunks) >= 5
+    assert [c.chunk_start_offset for c in chunks] == sorted(c.chunk_start_offset for c in chunks)
+    assert all(a.message_end_time < b.message_start_time for a, b in itertools.pairwise(chunks))
+    with BagReader(outputs[0]) as reader:
+        stored = [(m.log_time, m.data) for m in reader.messages(["/imu"])]
+    migrated = {p: migration.payload(p) for p in set(old)}
+    assert stored == [(START_NS + i, migrated[p]) for i, p in enumerate(old)]
+
+
+def test_a_failure_after_chunks_were_written_leaves_nothing(tmp_path: Path) -> None:
+    """A payload that does not decode, after several output chunks were compressed and
+    written: the error names it, no output or partial directory is left, the compressing
+    thread has ended."""
+    _many_chunks_bag(tmp_path / "old", 6, bad_at=4 * _per_output_chunk())
+    with pytest.raises(MigrateError, match=r"/imu message \d+"):
+        migrate_bag(tmp_path / "old", tmp_path / "new", MigrateOptions())
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["old"]
+    assert not [t for t in threading.enumerate() if t.name.startswith("bagkit-compress")]

@@ -43,18 +43,25 @@ _CHUNK_HEAD_BYTES = CHUNK_PREFIX.size + 4 + 256 + 8
 
 
 def read_file_index(
-    source: Source, *, check_crc: bool = True, max_chunk_size: int = DEFAULT_MAX_CHUNK_SIZE
+    source: Source,
+    *,
+    check_crc: bool = True,
+    max_chunk_size: int = DEFAULT_MAX_CHUNK_SIZE,
+    header_first: bool = True,
 ) -> FileIndex:
     """What an MCAP file holds: from its summary, or by salvage when it has no usable one.
 
     ``check_crc`` and ``max_chunk_size`` apply to the chunks a scan opens (see
-    :func:`~bagkit.bag.mcapio.chunks.read_chunk`).
+    :func:`~bagkit.bag.mcapio.chunks.read_chunk`). ``header_first=False`` reads the leading
+    magic and the Header record only when the summary is not enough (a file in storage, where
+    they are a range request of their own; its footer and closing magic are checked
+    instead): ``header`` is then None.
 
     Raises:
         NotABagError: not an MCAP file.
         CorruptBagError: the header is unreadable.
     """
-    header = read_header(source)
+    header = read_header(source) if header_first else None
     problem = None
     try:
         index = read_summary(source, header)
@@ -62,6 +69,7 @@ def read_file_index(
         index = None
         problem = f"{source.name}: summary unreadable ({exc}); the file was scanned instead"
     if index is None or not index.complete:
+        header = header or read_header(source)  # a scan starts after it
         summary = index  # one that does not index every message: scanned, and kept for topics
         index = _Scanner(source, header, check_crc, max_chunk_size).scan()
         if summary is not None:

@@ -56,9 +56,11 @@ class FileIndex:
             describe a bag (metadata.yaml is what rosbag2 reads), and from storage each would
             be one more range request.
         problems: what could not be read (empty for intact files).
+        header: None when it was not read: a file in storage whose summary was enough
+            (:func:`~bagkit.bag.mcapio.salvage.read_file_index`, ``header_first``).
     """
 
-    header: Header
+    header: Header | None
     schemas: dict[int, Schema] = field(default_factory=dict)
     channels: dict[int, Channel] = field(default_factory=dict)
     chunk_indexes: list[ChunkIndex] = field(default_factory=list)
@@ -121,7 +123,7 @@ def _summary_bounds(source: Source) -> tuple[int, int] | None:
     return footer.summary_start, footer_offset
 
 
-def read_summary(source: Source, header: Header) -> FileIndex | None:
+def read_summary(source: Source, header: Header | None) -> FileIndex | None:
     """Build the index from the summary section; None when the file has none (not closed).
 
     Statistics, chunk indexes and message indexes are optional records: without Statistics

@@ -1,0 +1,133 @@
+"""How few requests a bag in storage costs: ``info`` of an MCAP fetches its closing magic,
+footer and summary in one request (its header only when the summary is not enough), and
+files that are cut or not ROS 2 still read as they do on disk."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from mcap.writer import Writer
+
+from bagkit.bag import BagError, bag_info
+from bagkit.storage.range_file import fetched
+from tests.storage.conftest import Store
+from tests.storage.test_storage_read import summary_bytes
+
+
+def counted_info(url: str) -> tuple[int, int]:
+    """(bytes, range requests) of ``bag_info(url)``."""
+    before = fetched()
+    bag_info(url)
+    after = fetched()
+    return after[0] - before[0], after[1] - before[1]
+
+
+def test_info_of_an_mcap_is_one_request(store: Store, local_bags: Path, tmp_path: Path) -> None:
+    """The tail guess holds the summary: magic, header and footer are not fetched apart; a
+    second bag of the same fleet is guessed from the first (a summary deeper than the first
+    guess)."""
+    file = local_bags / "fleet" / "a" / "a_0.mcap"
+    store.put(file, "single/a/a.mcap")
+    spent, requests = counted_info(f"{store.base}/single/a/a.mcap")
+    assert requests == 1
+    assert summary_bytes(file) <= spent <= 2 * summary_bytes(file)
+    # A bag prefix: its metadata.yaml and one request per file, once the kind is known.
+    golden = Path(__file__).resolve().parents[2] / "fixtures" / "nominal" / "golden"
+    for name in ("g1", "g2"):
+        store.put(golden, f"deep/{name}")
+    counted_info(f"{store.base}/deep/g1")  # the first of its kind: a summary deeper than 16 KiB
+    spent, requests = counted_info(f"{store.base}/deep/g2")
+    assert requests == 2
+    mcap = next(golden.glob("*.mcap"))
+    assert spent <= 1.25 * summary_bytes(mcap) + (golden / "metadata.yaml").stat().st_size
+
+
+def test_a_cut_bag_is_salvaged_as_on_disk(store: Store, local_bags: Path, tmp_path: Path) -> None:
+    """No closing magic: the header is read and the file scanned, as on disk."""
+    data = (local_bags / "fleet" / "a" / "a_0.mcap").read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: len(data) * 3 // 5])
+    store.put(cut, "cut/c/cut.mcap")
+    remote, local = bag_info(f"{store.base}/cut/c/cut.mcap"), bag_info(cut)
+    assert not remote.summary and remote.problems and len(remote.problems) == len(local.problems)
+    assert remote.message_count == local.message_count > 0
+    assert [t.count for t in remote.topics] == [t.count for t in local.topics]
+    assert (remote.start_ns, remote.end_ns) == (local.start_ns, local.end_ns)
+
+
+def test_an_mcap_of_another_profile_is_refused_as_on_disk(store: Store, tmp_path: Path) -> None:
+    """Channels that are not CDR: the header is read for its profile, and the same error."""
+    file = tmp_path / "ros1.mcap"
+    with open(file, "wb") as f:
+        writer = Writer(f)
+        writer.start(profile="ros1", library="test")
+        schema = writer.register_schema("std_msgs/String", "ros1msg", b"string data")
+        channel = writer.register_channel("/chatter", "ros1", schema)
+        for i in range(3):
+            writer.add_message(channel, i, b"\x02\x00\x00\x00hi", i)
+        writer.finish()
+    store.put(file, "foreign/f/ros1.mcap")
+    with pytest.raises(BagError) as on_disk:
+        bag_info(file)
+    with pytest.raises(BagError) as remote:
+        bag_info(f"{store.base}/foreign/f/ros1.mcap")
+    assert "MCAP profile 'ros1' is not ROS 2" in str(on_disk.value)
+    assert str(remote.value).split(": ", 1)[1] == str(on_disk.value).split(": ", 1)[1]
+
+
+def test_bags_of_a_prefix_read_at_once_fail_one_by_one(
+    moto_store: Store, local_bags: Path, tmp_path: Path
+) -> None:
+    """info and catalog read a prefix's bags several at a time; a bag that cannot be read is
+    one bag's problem, named by its URL, among the others read."""
+    from bagkit.fleet.catalog import complete_update, plan_update
+    from bagkit.fleet.listing import folder_info
+
+    for bag in ("a", "b"):
+        moto_store.put(local_bags / "fleet" / bag, f"mixed/{bag}")
+    (tmp_path / "notes.mcap").write_bytes(b"not a bag at all, " * 100)
+    moto_store.put(tmp_path / "notes.mcap", "mixed/notes.mcap")
+    base = f"{moto_store.base}/mixed"
+    folder = folder_info(base)
+    assert folder is not None
+    assert [b.path for b in folder.bags] == [f"{base}/a", f"{base}/b"]
+    assert list(folder.unread) == [f"{base}/notes.mcap"]
+    assert folder.unread[f"{base}/notes.mcap"].startswith(f"{base}/notes.mcap: ")
+    frame = complete_update(plan_update([base], tmp_path / "c.parquet"), None)
+    problems = frame.drop_duplicates("path").set_index("path")["problems"]
+    assert problems[f"{base}/notes.mcap"].startswith(f"{base}/notes.mcap: ")
+    assert problems[f"{base}/a"] == problems[f"{base}/b"] == ""
+    counts = frame[frame.topic == "/gps/fix"].set_index("path")["count"]
+    assert counts.to_dict() == {f"{base}/a": 3, f"{base}/b": 5}
+
+
+def test_filter_around_writes_its_cuts_under_an_output_url(
+    moto_store: Store, local_bags: Path
+) -> None:
+    """One bag per episode, under the URL (uploaded), named by their URLs in what is printed;
+    the same messages as the cuts written on disk."""
+    import json
+
+    from tests.storage.test_storage_read import cli
+
+    moto_store.put(local_bags / "fleet" / "b", "around/b")
+    base = moto_store.base
+    args = ["--around", "/gps/fix: latitude > 48.0000015", "--before", "1", "--after", "1"]
+    args += ["--format", "json"]
+    remote = cli(["filter", f"{base}/around/b", "-o", f"{base}/cuts", *args], moto_store.env)
+    assert remote.returncode == 0, remote.stderr
+    local_out = local_bags / "around-cuts"
+    local = cli(["filter", str(local_bags / "fleet" / "b"), "-o", str(local_out), *args], {})
+    assert local.returncode == 0, local.stderr
+    cuts, expected = json.loads(remote.stdout), json.loads(local.stdout)
+    assert len(cuts) == len(expected) >= 1
+    for cut, on_disk in zip(cuts, expected, strict=True):
+        name = Path(on_disk["output"]).name
+        assert cut["output"] == f"{base}/cuts/{name}"
+        assert cut["message_count"] == on_disk["message_count"] > 0
+        info = cli(["info", cut["output"], "--format", "json"], moto_store.env)
+        assert json.loads(info.stdout)["message_count"] == on_disk["message_count"]
+    again = cli(["filter", f"{base}/around/b", "-o", f"{base}/cuts", *args], moto_store.env)
+    assert again.returncode == 2 and "exists (use --force to replace it)" in again.stderr
+    assert again.stderr.count("\n") == 1 and again.stderr.startswith("error: ")
