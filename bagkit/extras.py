@@ -30,10 +30,6 @@ class Extra:
 ROS = Extra("ros", ("rclpy",), "ROS 2 (rclpy)", " or source your ROS 2 Jazzy install")
 FLEET = Extra("fleet", ("dask", "distributed"), "Dask (dask, distributed)")
 PLOT = Extra("plot", ("plotly",), "plotly")
-# Bags in storage, one extra per client library: an S3 user gets neither grpc nor the Azure SDK.
-STORAGE = Extra("storage", ("fsspec", "s3fs", "aiohttp"), "fsspec, s3fs and aiohttp")
-GCS = Extra("gcs", ("gcsfs",), "gcsfs")
-AZURE = Extra("azure", ("adlfs",), "adlfs")
 
 
 def installed(extra: Extra) -> bool:

@@ -15,7 +15,6 @@ import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, TypeVar
 
-from bagkit.extras import AZURE, GCS, STORAGE, Extra
 from bagkit.storage.errors import (
     AccessDeniedError,
     ObjectChangedError,
@@ -37,12 +36,13 @@ TIMEOUT_S = float(os.environ.get("BAGKIT_STORAGE_TIMEOUT", "30"))
 # between them.
 ATTEMPTS = int(os.environ.get("BAGKIT_STORAGE_ATTEMPTS", "4"))
 BACKOFF_S = float(os.environ.get("BAGKIT_STORAGE_BACKOFF", "0.25"))
-# Which package and extra serve a scheme, for the error that says what to install.
-_PACKAGES: dict[str, tuple[str, Extra]] = {
-    **dict.fromkeys(("s3", "s3a"), ("s3fs", STORAGE)),
-    **dict.fromkeys(("http", "https"), ("aiohttp", STORAGE)),
-    **dict.fromkeys(("gs", "gcs"), ("gcsfs", GCS)),
-    **dict.fromkeys(("az", "abfs", "abfss"), ("adlfs", AZURE)),
+# Which package and extra of pyproject.toml serve a scheme, for the error that says what to
+# install: one extra per client library (an S3 user gets neither grpc nor the Azure SDK).
+_PACKAGES: dict[str, tuple[str, str]] = {
+    **dict.fromkeys(("s3", "s3a"), ("s3fs", "storage")),
+    **dict.fromkeys(("http", "https"), ("aiohttp", "storage")),
+    **dict.fromkeys(("gs", "gcs"), ("gcsfs", "gcs")),
+    **dict.fromkeys(("az", "abfs", "abfss"), ("adlfs", "azure")),
 }
 # gcsfs's default class (``gcsfs.GCSFileSystem`` in recent releases) first asks a gRPC control
 # API for each bucket's layout, and asks again after every failure (an emulator, an anonymous
@@ -64,7 +64,7 @@ def filesystem(url: str) -> tuple[AbstractFileSystem, str]:
         import fsspec
     except ImportError:
         raise UnsupportedUrlError(
-            f"{shown_url(url)}: reading URLs needs fsspec: pip install 'bagkit[{STORAGE.name}]'"
+            f"{shown_url(url)}: reading URLs needs fsspec: pip install 'bagkit[storage]'"
         ) from None
     fs = _filesystems.get(protocol)
     if fs is None:
@@ -95,7 +95,7 @@ def _missing(protocol: str) -> str:
     """What to install to read ``protocol://`` URLs."""
     if protocol in _PACKAGES:
         package, extra = _PACKAGES[protocol]
-        return f"reading {protocol}:// URLs needs {package}: pip install 'bagkit[{extra.name}]'"
+        return f"reading {protocol}:// URLs needs {package}: pip install 'bagkit[{extra}]'"
     return f"reading {protocol}:// URLs needs the fsspec implementation of {protocol}"
 
 
