@@ -99,7 +99,8 @@ class PayloadDecompressor:
     def __init__(self, limit: int) -> None:
         self.limit = limit
         self.failures: dict[str, tuple[int, str]] = {}
-        self._decompress = zstandard.ZstdDecompressor().decompress
+        self._decompressor = zstandard.ZstdDecompressor()
+        self._decompress = self._decompressor.decompress
 
     def __call__(self, topic: str, data: bytes | memoryview) -> bytes | None:
         """The payload decompressed (a payload not framed as zstd as it is), or None when the
@@ -127,12 +128,100 @@ class PayloadDecompressor:
             pass  # not all frames, or a broken one: each on its own, to count which
         return [self(topic_of(i), payload) for i, payload in enumerate(payloads)]
 
+    def joined(
+        self, stored: bytes, lengths: np.ndarray, topic_of: Callable[[int], str]
+    ) -> Iterator[tuple[np.ndarray, bytes, np.ndarray]]:
+        """The payloads stored back to back in ``stored`` (``lengths``, int64) decompressed, in
+        pieces of consecutive payloads: (indices of the payloads kept, their bytes back to
+        back, their lengths), each piece at most ``limit`` bytes.
+
+        Runs of frames that declare their sizes within the bound (rosbag2's and rosbags' do)
+        are decompressed in one call each, bounded by the sum they declare: zstd checks each
+        frame's size against its declaration, so a frame that is not what it declares fails
+        its run. A failed run and the payloads of other kinds go one by one as
+        :meth:`__call__` takes them (failures counted, the others kept).
+        """
+        import numpy as np
+
+        from bagkit.bag.zstd_frames import declared_sizes
+
+        starts = np.cumsum(lengths) - lengths
+        sizes = declared_sizes(np.frombuffer(stored, np.uint8), starts, lengths)
+        if not len(sizes) or sizes.min() < 0 or sizes.max() > self.limit:
+            yield from self._one_by_one(stored, starts, lengths, 0, topic_of)
+            return
+        ends = np.cumsum(sizes)
+        first = 0
+        while first < len(sizes):
+            before = int(ends[first - 1]) if first else 0
+            last = max(int(np.searchsorted(ends, before + self.limit, side="right")), first + 1)
+            run = slice(first, last)
+            end = int(starts[last - 1] + lengths[last - 1])
+            data = self._run(
+                memoryview(stored)[int(starts[first]) : end], int(ends[last - 1]) - before
+            )
+            if data is None:
+                yield from self._one_by_one(stored, starts[run], lengths[run], first, topic_of)
+            else:
+                yield np.arange(first, last), data, sizes[run]
+            first = last
+
+    def _run(self, frames: memoryview, size: int) -> bytes | None:
+        """``frames`` decompressed when they yield exactly ``size`` bytes, else None."""
+        reader = self._decompressor.stream_reader(frames, read_across_frames=True)
+        try:
+            data = reader.read(size + 1)
+        except zstandard.ZstdError:
+            return None
+        return data if len(data) == size else None
+
+    def _one_by_one(
+        self,
+        stored: bytes,
+        starts: np.ndarray,
+        lengths: np.ndarray,
+        first: int,
+        topic_of: Callable[[int], str],
+    ) -> Iterator[tuple[np.ndarray, bytes, np.ndarray]]:
+        """The payloads at ``starts`` (numbered from ``first``) each through :meth:`__call__`,
+        in pieces of at most ``limit`` bytes (or one payload)."""
+        import numpy as np
+
+        view = memoryview(stored)
+        kept: list[int] = []
+        parts: list[bytes] = []
+        size = 0
+        for number, (start, length) in enumerate(
+            zip(starts.tolist(), lengths.tolist(), strict=True), first
+        ):
+            data = self(topic_of(number), view[start : start + length])
+            if data is None:
+                continue
+            if parts and size + len(data) > self.limit:
+                yield (
+                    np.array(kept, np.int64),
+                    b"".join(parts),
+                    np.fromiter(map(len, parts), np.int64),
+                )
+                kept, parts, size = [], [], 0
+            kept.append(number)
+            parts.append(data)
+            size += len(data)
+        if parts:
+            yield _piece(kept, parts)
+
     def problems(self, file: Path) -> list[str]:
         """One line per topic with payloads that did not decompress."""
         return [
             f"{file.name}: {count} messages of {topic} do not decompress ({first}): lost"
             for topic, (count, first) in self.failures.items()
         ]
+
+
+def _piece(kept: list[int], parts: list[bytes]) -> tuple[np.ndarray, bytes, np.ndarray]:
+    import numpy as np
+
+    return np.array(kept, np.int64), b"".join(parts), np.fromiter(map(len, parts), np.int64)
 
 
 class Decompression:

@@ -27,7 +27,13 @@ from bagkit.bag.mcapio import (
     read_file_index,
 )
 from bagkit.bag.mcapio.latest import Latest, latest_before
-from bagkit.bag.mcapio.message_index import Span, channel_spans, read_message_indexes, widen
+from bagkit.bag.mcapio.message_index import (
+    Span,
+    channel_spans,
+    largest_messages,
+    read_message_indexes,
+    widen,
+)
 from bagkit.bag.mcapio.records import MESSAGE_RECORD_HEADER, RECORD_HEADER, ChunkIndex, Opcode
 from bagkit.bag.mcapio.summary import read_header
 from bagkit.bag.messages import BagMessage, TopicInfo, make_message
@@ -360,6 +366,31 @@ class McapFile:
             if message is not None and (topic not in found or where.key() > found[topic][0]):
                 found[topic] = (where.key(), message)
         return {topic: message for topic, (_, message) in found.items()}
+
+    def largest_messages(self, topics: set[str]) -> dict[str, int] | None:
+        """Payload bytes of each topic's largest message in the last chunk holding it, from that
+        chunk's Message Index records (:func:`~bagkit.bag.mcapio.message_index.largest_messages`:
+        no numpy, no decompression, may be over); None when such a chunk has no Message Index
+        records (salvaged, loose messages) or they are damaged.
+        """
+        last: dict[int, Block] = {}  # channel -> the block holding its latest messages
+        for channel in self._channel_ids(topics):
+            holding = [b for b in self._sorted_blocks if _may_hold(b, {channel})]
+            if holding:
+                last[channel] = max(holding, key=lambda b: b.message_end_time)
+        found: dict[str, int] = {}
+        for block in {id(b): b for b in last.values()}.values():
+            if not _indexed(block):
+                return None
+            channels = {c for c, b in last.items() if b is block}
+            try:
+                sizes = largest_messages(self._source, block, channels)
+            except CorruptBagError:
+                return None
+            for channel, size in sizes.items():
+                topic = self._channel_topics[channel]
+                found[topic] = max(found.get(topic, 0), size)
+        return found
 
     def _block_index(self, block: Block, channels: set[int]) -> dict[int, np.ndarray] | None:
         """The message index of a block: its Message Index records, else the chunk read."""

@@ -12,7 +12,7 @@ free at start-up).
 from __future__ import annotations
 
 import sqlite3
-from collections.abc import Iterator, Sequence
+import threading
 from pathlib import Path
 from typing import TYPE_CHECKING
 from urllib.request import pathname2url
@@ -21,8 +21,9 @@ from bagkit.bag.action_definitions import split_action_part
 from bagkit.bag.definitions import DEFINITION_ENCODINGS, canonical_type_name
 from bagkit.bag.errors import CorruptBagError, NotABagError
 from bagkit.bag.mcapio.message_index import Span, widen
-from bagkit.bag.messages import BagMessage, TopicInfo, make_message
-from bagkit.bag.storage import BagChunk, PayloadFilter, chunk_of_rows
+from bagkit.bag.messages import TopicInfo
+from bagkit.bag.sqlite3_reading import VALID_ROW, Sqlite3Reading
+from bagkit.bag.storage import PayloadFilter
 
 if TYPE_CHECKING:
     import numpy as np
@@ -32,18 +33,10 @@ TOPIC_COLUMNS = ("id", "name", "type", "serialization_format")
 MESSAGE_COLUMNS = ("topic_id", "timestamp", "data")
 DEFINITION_COLUMNS = ("topic_type", "encoding", "encoded_message_definition")
 _OPTIONAL_TOPIC_COLUMNS = ("offered_qos_profiles", "type_description_hash")
-# A message row is readable when its timestamp is an integer and its data a blob.
-_VALID_ROW = "typeof(timestamp) = 'integer' AND typeof(data) = 'blob'"
-# Rows laid out in one chunk for the bulk decoders (a few MB of small messages), read from
-# SQLite in batches; payload bytes held in one chunk at most (a batch more at worst).
-ROWS_PER_CHUNK = 16_384
-ROWS_PER_BATCH = 1_024
-BATCH_BYTES = 8 << 20
-MAX_CHUNK_BYTES = 64 << 20
 # Up to this many topic ids, counting at open filters per topic instead of grouping.
 FILTERED_COUNT_TOPICS = 4
-INT64_MIN = -(1 << 63)
-INT64_MAX = (1 << 63) - 1
+# From this many row ids on, counting at open scans two halves at once.
+PARALLEL_COUNT_ROWS = 200_000
 
 
 def connect(path: Path) -> sqlite3.Connection:
@@ -92,6 +85,21 @@ def _table_columns(db: sqlite3.Connection) -> dict[str, set[str]]:
     }
 
 
+def _row_id_halves(db: sqlite3.Connection) -> tuple[str, str] | None:
+    """Conditions on the row id that split ``messages`` in two halves (None: a table under
+    :data:`PARALLEL_COUNT_ROWS` row ids); each end found in the row id b-tree alone."""
+    (first,) = db.execute("SELECT min(rowid) FROM messages").fetchone()
+    (last,) = db.execute("SELECT max(rowid) FROM messages").fetchone()
+    if (
+        not isinstance(first, int)
+        or not isinstance(last, int)
+        or last - first < PARALLEL_COUNT_ROWS
+    ):
+        return None
+    middle = first + (last - first) // 2
+    return f" AND rowid <= {middle}", f" AND rowid > {middle}"
+
+
 def _missing_columns(columns: dict[str, set[str]]) -> str:
     """What a rosbag2 reader needs and the file lacks ('' when nothing), for the error line."""
     needed = {"topics": TOPIC_COLUMNS, "messages": MESSAGE_COLUMNS}
@@ -104,7 +112,7 @@ def _missing_columns(columns: dict[str, set[str]]) -> str:
     return ", ".join(missing)
 
 
-class Sqlite3File:
+class Sqlite3File(Sqlite3Reading):
     """A rosbag2 SQLite3 (``.db3``) storage file, opened read-only and immutable.
 
     A :class:`~bagkit.bag.storage.StorageFile`: nothing is read before :meth:`open`. Its
@@ -157,9 +165,6 @@ class Sqlite3File:
             raise kind(f"{self.path}: unreadable SQLite3 database ({exc})") from exc
         except sqlite3.Error as exc:
             raise CorruptBagError(f"{self.path}: unreadable SQLite3 database ({exc})") from exc
-
-    def _problem(self, text: str) -> None:
-        self.problems.append(f"{self.path.name}: {text}")
 
     def _read_topics(self, db: sqlite3.Connection, columns: set[str]) -> None:
         optional = [c if c in columns else "''" for c in _OPTIONAL_TOPIC_COLUMNS]
@@ -221,7 +226,41 @@ class Sqlite3File:
         self.start_ns, self.end_ns = min(starts, default=0), max(ends, default=0)
 
     def _grouped_counts(self, db: sqlite3.Connection) -> list[tuple[object, int, int, int]]:
-        """(topic id, count, first and last timestamp) of the valid rows of each topic id.
+        """(topic id, count, first and last timestamp) of the valid rows of each topic id,
+        several tuples of one id where the rows were counted in parts.
+
+        A large table is counted in two halves of its row ids at once, the second on a
+        connection of its own in a thread (SQLite steps rows without the GIL): the scan is
+        the one part of opening that grows with the rows.
+        """
+        halves = _row_id_halves(db)
+        if halves is None:
+            return self._counts_in(db, "")
+        second: list[tuple[object, int, int, int]] | BaseException = []
+
+        def count_second_half() -> None:
+            nonlocal second
+            other = connect(self.path)
+            try:
+                second = self._counts_in(other, halves[1])
+            except BaseException as exc:  # raised by the opening thread
+                second = exc
+            finally:
+                other.close()
+
+        worker = threading.Thread(target=count_second_half, name="bagkit-db3-count")
+        worker.start()
+        try:
+            first = self._counts_in(db, halves[0])
+        finally:
+            worker.join()
+        if isinstance(second, BaseException):
+            raise second
+        return first + second
+
+    def _counts_in(self, db: sqlite3.Connection, rows: str) -> list[tuple[object, int, int, int]]:
+        """:meth:`_grouped_counts` of the rows that ``rows`` (an SQL condition after AND, or
+        '') leaves in.
 
         Few topic ids are counted by one filtered aggregate each in one scan; SQLite would
         sort every row by topic id for ``GROUP BY``, which costs more than a few filters. The
@@ -231,7 +270,7 @@ class Sqlite3File:
         if len(ids) > FILTERED_COUNT_TOPICS or sqlite3.sqlite_version_info < (3, 30):
             query = (
                 "SELECT topic_id, COUNT(*), MIN(timestamp), MAX(timestamp) FROM messages "
-                f"WHERE {_VALID_ROW} GROUP BY topic_id"
+                f"WHERE {VALID_ROW}{rows} GROUP BY topic_id"
             )
             return list(db.execute(query))
         per_id = ", ".join(
@@ -241,7 +280,7 @@ class Sqlite3File:
         )
         query = (
             f"SELECT COUNT(*), MIN(timestamp), MAX(timestamp){', ' if ids else ''}{per_id} "
-            f"FROM messages WHERE {_VALID_ROW}"
+            f"FROM messages WHERE {VALID_ROW}{rows}"
         )
         total, first, last, *found = db.execute(query).fetchone()
         grouped = [(i, *found[3 * k : 3 * k + 3]) for k, i in enumerate(ids)]
@@ -262,138 +301,3 @@ class Sqlite3File:
     def index_log_times(self, topic: str) -> np.ndarray | None:
         """None: the messages are read (a timestamp query costs what reading them does)."""
         return None
-
-    def chunks(self, topics: set[str] | None) -> Iterator[BagChunk]:
-        """The rows of ``topics`` in timestamp order (ties by row id), laid out as chunks of
-        MCAP Message records: :data:`ROWS_PER_CHUNK` rows each, fewer where their payloads
-        pass :data:`MAX_CHUNK_BYTES` (large messages: memory stays bounded)."""
-        held: tuple[list[int], list[int], list[bytes | None]] = ([], [], [])
-        size = 0
-        one = self._one_topic(topics)
-        for ids, log_times, stored in self._batches(topics, None, None):
-            payloads = self._filtered(ids, one, stored)
-            if one is None:
-                held[0].extend(ids)
-            held[1].extend(log_times)
-            held[2].extend(payloads)
-            size += sum(map(len, filter(None, payloads)))
-            if len(held[1]) >= ROWS_PER_CHUNK or size >= MAX_CHUNK_BYTES:
-                yield self._chunk(held, one)
-                held, size = ([], [], []), 0
-        if held[1]:
-            yield self._chunk(held, one)
-
-    def _chunk(
-        self, held: tuple[list[int], list[int], list[bytes | None]], one: str | None
-    ) -> BagChunk:
-        ids, log_times, payloads = held
-        topics = one if one is not None else list(map(self._topic_ids.__getitem__, ids))
-        return chunk_of_rows(self.path, topics, log_times, payloads)
-
-    def last_messages(self, topics: set[str], before_ns: int) -> dict[str, BagMessage]:
-        """The last valid row with ``timestamp < before_ns`` of each of ``topics`` that has one
-        (ties: the last row id), one indexed query per topic."""
-        found: dict[str, BagMessage] = {}
-        if self._db is None or before_ns <= INT64_MIN:
-            return found
-        upper = min(before_ns, INT64_MAX)
-        for topic in sorted(topics):
-            ids = [i for i, t in self._topic_ids.items() if t == topic]
-            if not ids:
-                continue
-            marks = ",".join("?" * len(ids))
-            query = (
-                f"SELECT timestamp, data FROM messages WHERE topic_id IN ({marks}) "
-                f"AND timestamp < ? AND {_VALID_ROW} ORDER BY timestamp DESC, rowid DESC LIMIT 1"
-            )
-            try:
-                row = self._db.execute(query, (*ids, upper)).fetchone()
-            except sqlite3.Error as exc:
-                self._problem(f"last message of {topic} unreadable ({exc})")
-                continue
-            if row is None:
-                continue
-            data = row[1]
-            if self.payload_filter is not None:
-                (data,) = self.payload_filter.many([data], [topic].__getitem__)
-            if data is not None:
-                found[topic] = make_message(topic, data, row[0], row[0], 0)
-        return found
-
-    def messages(
-        self, topics: set[str] | None, start_ns: int | None, end_ns: int | None
-    ) -> Iterator[BagMessage]:
-        """Yield the valid rows in timestamp order (ties by row id)."""
-        one = self._one_topic(topics)
-        names = self._topic_ids
-        for ids, log_times, stored in self._batches(topics, start_ns, end_ns):
-            payloads = self._filtered(ids, one, stored)
-            topics_of = [one] * len(log_times) if one is not None else map(names.__getitem__, ids)
-            for topic, timestamp, data in zip(topics_of, log_times, payloads, strict=True):
-                if data is not None:
-                    yield make_message(topic, data, timestamp, timestamp, 0)
-
-    def _one_topic(self, topics: set[str] | None) -> str | None:
-        """The topic of every row read, when the rows read are of one topic id."""
-        wanted = self._wanted_ids(topics)
-        return self._topic_ids[wanted[0]] if len(wanted) == 1 else None
-
-    def _wanted_ids(self, topics: set[str] | None) -> list[int]:
-        return [i for i, t in self._topic_ids.items() if topics is None or t in topics]
-
-    def _filtered(
-        self, ids: Sequence[int], one: str | None, stored: Sequence[bytes]
-    ) -> list[bytes | None]:
-        """The payloads passed through ``payload_filter`` (decompressed), None where lost."""
-        if self.payload_filter is None:
-            return list(stored)
-        if one is not None:
-            return self.payload_filter.many(list(stored), lambda _: one)
-        return self.payload_filter.many(list(stored), lambda i: self._topic_ids[ids[i]])
-
-    def _batches(
-        self, topics: set[str] | None, start_ns: int | None, end_ns: int | None
-    ) -> Iterator[tuple[Sequence[int], Sequence[int], Sequence[bytes]]]:
-        """The valid rows in timestamp order as (topic ids, timestamps, stored payloads), a
-        batch at a time: as many rows as fit :data:`BATCH_BYTES` at the mean size so far (one
-        first), at most :data:`ROWS_PER_BATCH`; damage ends them with a problem. Rows of one
-        topic id are read without it (the ids are then empty)."""
-        wanted = self._wanted_ids(topics)
-        if not wanted or self._db is None:
-            return
-        # Each condition only where it can leave a row out (the file is immutable): SQLite
-        # then walks the timestamp index alone.
-        conditions: list[str] = []
-        values: list[int] = []
-        if not self._clean or len(wanted) < len(self._topic_ids):
-            conditions.append(f"topic_id IN ({','.join('?' * len(wanted))})")
-            values += wanted
-        if not self._clean:
-            conditions.append(_VALID_ROW)
-        if start_ns is not None or end_ns is not None:
-            conditions.append("timestamp >= ? AND timestamp < ?")
-            values += [
-                max(start_ns if start_ns is not None else INT64_MIN, INT64_MIN),
-                min(end_ns if end_ns is not None else INT64_MAX, INT64_MAX),
-            ]
-        where = f"WHERE {' AND '.join(conditions)} " if conditions else ""
-        columns = "timestamp, data" if len(wanted) == 1 else "topic_id, timestamp, data"
-        query = f"SELECT {columns} FROM messages {where}ORDER BY timestamp, rowid"
-        read = 0
-        try:
-            cursor = self._db.execute(query, values)
-            batch, stored_bytes = 1, 0
-            while rows := cursor.fetchmany(batch):
-                read += len(rows)
-                if len(wanted) == 1:
-                    ids: Sequence[int] = ()
-                    log_times, stored = zip(*rows, strict=True)
-                else:
-                    ids, log_times, stored = zip(*rows, strict=True)
-                stored_bytes += sum(map(len, stored))
-                batch = max(1, min(ROWS_PER_BATCH, BATCH_BYTES * read // max(stored_bytes, 1)))
-                yield ids, log_times, stored
-        except sqlite3.Error as exc:
-            problem = f"{self.path.name}: unreadable after {read} messages ({exc})"
-            if problem not in self.problems:  # each read of a damaged file meets it again
-                self.problems.append(problem)

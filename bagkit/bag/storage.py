@@ -9,7 +9,7 @@ through rosbags, imported only when one is opened). The reader and ``bagkit info
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol, runtime_checkable
@@ -143,6 +143,12 @@ class PayloadFilter(Protocol):
         """Each payload to use, or None to leave its message out (``topic_of(i)``: the topic
         of payload ``i``, for the problems)."""
 
+    def joined(
+        self, stored: bytes, lengths: np.ndarray, topic_of: Callable[[int], str]
+    ) -> Iterator[tuple[np.ndarray, bytes, np.ndarray]]:
+        """The payloads stored back to back (``lengths`` each) as pieces of the ones to use:
+        (their indices, their bytes back to back, their lengths)."""
+
 
 @runtime_checkable
 class FiltersPayloads(Protocol):
@@ -163,41 +169,89 @@ def chunk_of_rows(
     message whose payload is None is left out. ``topics``: each message's, or one for all."""
     import numpy as np
 
-    from bagkit.bag.mcapio.records import message_index_dtype
-
     if None in payloads:
         keep = [i for i, payload in enumerate(payloads) if payload is not None]
         if not isinstance(topics, str):
             topics = [topics[i] for i in keep]
         log_times = [log_times[i] for i in keep]
         payloads = [payloads[i] for i in keep]
-    count = len(payloads)
-    lengths = np.fromiter(map(len, payloads), np.int64, count)  # type: ignore[arg-type]
+    lengths = np.fromiter(map(len, payloads), np.int64, len(payloads))  # type: ignore[arg-type]
     times = np.asarray(log_times, np.int64)
+    joined = b"".join(payloads)  # type: ignore[arg-type]
+    if isinstance(topics, str):
+        return chunk_of_payloads(file, topics, times, joined, lengths)
+    numbers: dict[str, int] = {}
+    ids = np.fromiter((numbers.setdefault(t, len(numbers)) for t in topics), np.int64, len(topics))
+    names = {number: topic for topic, number in numbers.items()}
+    return chunk_of_payloads(file, names, times, joined, lengths, topic_ids=ids)
+
+
+def chunk_of_payloads(
+    file: Path,
+    topics: Mapping[int, str] | str,
+    log_times: np.ndarray,
+    payloads: bytes,
+    lengths: np.ndarray,
+    *,
+    topic_ids: np.ndarray | None = None,
+) -> BagChunk:
+    """Messages laid out as MCAP Message records in one chunk, as :func:`chunk_of_rows` does,
+    from their payloads back to back (``lengths``, int64, summing to ``len(payloads)``).
+
+    ``topics``: one for all, or by the id in ``topic_ids`` (int64, one per message; several
+    ids may name one topic).
+    """
+    import numpy as np
+
+    from bagkit.bag.mcapio.records import message_index_dtype
+
+    count = len(lengths)
     headers = np.zeros(count, _RECORD_HEADER_DTYPE)
     headers["opcode"] = Opcode.MESSAGE
     headers["length"] = lengths + MESSAGE_PREFIX.size
     # Bit for bit: a hostile db3's negative timestamp stays the int64 that its index entry holds.
-    headers["log_time"] = headers["publish_time"] = times.view(np.uint64)
+    headers["log_time"] = headers["publish_time"] = log_times.view(np.uint64)
     size = MESSAGE_RECORD_HEADER.size
-    parts: list[object] = [None] * (2 * count)
-    parts[0::2] = headers.view(f"V{size}").tolist()  # one bytes object each, made in C
-    parts[1::2] = payloads
     offsets = np.zeros(count, np.uint64)
     np.cumsum(lengths[:-1] + size, out=offsets[1:])
+    records = _laid_out(headers, payloads, lengths)
     index = {}
     if isinstance(topics, str):
         index[topics] = np.empty(count, message_index_dtype())
-        index[topics]["log_time"], index[topics]["offset"] = times, offsets
+        index[topics]["log_time"], index[topics]["offset"] = log_times, offsets
     else:
-        names = np.array(topics, dtype=object)
-        for topic in dict.fromkeys(topics):
-            mine = names == topic
-            entries = np.empty(int(mine.sum()), message_index_dtype())
-            entries["log_time"] = times[mine]
-            entries["offset"] = offsets[mine]
+        assert topic_ids is not None
+        ids, numbers = np.unique(topic_ids, return_inverse=True)
+        named: dict[str, list[int]] = {}
+        for number, topic_id in enumerate(ids.tolist()):
+            named.setdefault(topics[topic_id], []).append(number)
+        for topic, mine in named.items():
+            rows = np.isin(numbers, mine)
+            entries = np.empty(int(rows.sum()), message_index_dtype())
+            entries["log_time"] = log_times[rows]
+            entries["offset"] = offsets[rows]
             index[topic] = entries
-    return BagChunk(file, b"".join(parts), index)  # type: ignore[arg-type]
+    return BagChunk(file, records, index)
+
+
+def _laid_out(headers: np.ndarray, payloads: bytes, lengths: np.ndarray) -> bytes:
+    """Each header followed by its payload: row by row in numpy when the payloads are all of
+    one length (a topic of fixed-size messages), else joined from slices."""
+    import numpy as np
+
+    count, size = len(headers), MESSAGE_RECORD_HEADER.size
+    if count and (lengths == lengths[0]).all():
+        width = int(lengths[0])
+        records = np.empty((count, size + width), np.uint8)
+        records[:, :size] = headers.view(np.uint8).reshape(count, size)
+        records[:, size:] = np.frombuffer(payloads, np.uint8).reshape(count, width)
+        return records.tobytes()
+    view = memoryview(payloads)
+    ends = np.cumsum(lengths).tolist()
+    parts: list[object] = [None] * (2 * count)
+    parts[0::2] = headers.view(f"V{size}").tolist()  # one bytes object each, made in C
+    parts[1::2] = [view[end - n : end] for end, n in zip(ends, lengths.tolist(), strict=True)]
+    return b"".join(parts)  # type: ignore[arg-type]
 
 
 # A Message record's header (opcode, length, then the Message prefix), as numpy lays it out.

@@ -104,14 +104,31 @@ class BulkMigration:
         payloads[:, : len(CDR_LE)] = np.frombuffer(CDR_LE, np.uint8)
         for offset, length in zip(_prefix_offsets(self.new, new_lengths), new_lengths, strict=True):
             payloads[:, offset : offset + 4] = np.frombuffer(U32.pack(length), np.uint8)
-        records = payloads.view(resolved.dtype)[:, 0]
-        old_names = set(values.dtype.names or ())
-        for index, source in enumerate(self.sources):
-            if source is not None and str(source) in old_names:
-                records[str(index)] = values[str(source)]
+        old_bytes = values[:, None].view(np.uint8)  # one row of bytes per payload (a view)
+        for at, source_at, length in self._spans(values.dtype, resolved.dtype):
+            payloads[:, at : at + length] = old_bytes[:, source_at : source_at + length]
         if not _decodes(rows, room, self.new, resolved):
             return None
         return rows
+
+    def _spans(self, old: np.dtype, new: np.dtype) -> list[tuple[int, int, int]]:
+        """``(offset in new, offset in old, length)`` of the bytes copied from old payloads:
+        each slot with values on both sides, slots adjacent on both sides joined (the padding
+        between slots is never copied: it stays zero, as a serializer writes it)."""
+        old_fields, new_fields = old.fields, new.fields
+        assert old_fields is not None and new_fields is not None  # structured: one per slot
+        spans: list[list[int]] = []
+        for index, source in enumerate(self.sources):
+            if source is None or str(source) not in old_fields:
+                continue
+            field_type, at = new_fields[str(index)][:2]
+            source_at = old_fields[str(source)][1]
+            last = spans[-1] if spans else None
+            if last and last[0] + last[2] == at and last[1] + last[2] == source_at:
+                last[2] += field_type.itemsize
+            else:
+                spans.append([at, source_at, field_type.itemsize])
+        return [(at, source_at, length) for at, source_at, length in spans]
 
 
 def _prefixes(layout: CdrLayout, buf: np.ndarray, start: int) -> tuple[int, ...]:

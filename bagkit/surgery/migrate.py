@@ -75,18 +75,23 @@ def plan_migrations(bag: Path, options: MigrateOptions) -> tuple[list[TopicMigra
     Raises:
         BagError: the bag cannot be opened. MigrateError: a topic cannot be migrated.
     """
+    with BagReader(bag, allow_empty=True) as reader:
+        return _plan(reader, options)
+
+
+def _plan(reader: BagReader, options: MigrateOptions) -> tuple[list[TopicMigration], list[str]]:
+    """:func:`plan_migrations` of an open reader."""
     migrated: list[TopicMigration] = []
     unchanged: list[str] = []
-    with BagReader(bag, allow_empty=True) as reader:
-        for name, info in sorted(reader.topics.items()):
-            stored = reader.topic_definitions.get(name, reader.definitions.get(info.type))
-            plan = migrate_topic(
-                info, stored, options.target, options.rules, allow_drop=options.allow_drop
-            )
-            if plan is None:
-                unchanged.append(name)
-            else:
-                migrated.append(plan)
+    for name, info in sorted(reader.topics.items()):
+        stored = reader.topic_definitions.get(name, reader.definitions.get(info.type))
+        plan = migrate_topic(
+            info, stored, options.target, options.rules, allow_drop=options.allow_drop
+        )
+        if plan is None:
+            unchanged.append(name)
+        else:
+            migrated.append(plan)
     return migrated, unchanged
 
 
@@ -100,13 +105,13 @@ def migrate_bag(
         migration cannot be made; nothing is written. SurgeryError: the output cannot be.
     """
     check_output([bag], output)
-    migrated, unchanged = plan_migrations(bag, options)
+    with BagReader(bag, allow_empty=True) as reader:
+        migrated, unchanged = _plan(reader, options)
+        previous = reader.metadata.custom_data.get(CUSTOM_DATA_KEY, "") if reader.metadata else ""
     # Each opened chunk's buffers (decompressed, rebuilt, compressed) are freed and allocated
     # again for the next: kept by glibc instead of returned to the kernel, they are not paid
     # for in page faults chunk after chunk (benchmarks/README.md, "bagkit migrate").
     keep_freed_memory()
-    with BagReader(bag, allow_empty=True) as reader:
-        previous = reader.metadata.custom_data.get(CUSTOM_DATA_KEY, "") if reader.metadata else ""
     entry = {
         "target": options.target.describe(),
         "rules_file": options.rules_file,

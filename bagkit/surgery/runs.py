@@ -100,8 +100,9 @@ def open_run(  # noqa: PLR0917 (the opened chunk and how it is selected)
         return None, bad
     starts, stops = offsets[order], ends[order]
     kept: bytes | memoryview = records
-    if rewrites and not rewrites.keys().isdisjoint(np.unique(inputs[order]).tolist()):
-        kept, starts, stops = _rewritten(buf, starts, stops, inputs[order], rewrites)
+    kept_inputs = inputs[order]
+    if rewrites and any((kept_inputs == c).any() for c, _ in parts if c in rewrites):
+        kept, starts, stops = _rewritten(buf, starts, stops, kept_inputs, rewrites)
     run = Run(kept, times[order].astype(np.uint64), starts, stops, channels[order], rank)
     return run, bad
 

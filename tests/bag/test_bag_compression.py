@@ -210,10 +210,10 @@ def test_echo_fails_when_no_message_of_the_topic_decodes(tmp_path: Path) -> None
 def test_db3_chunks_of_large_messages_stay_bounded(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from bagkit.bag import sqlite3_file
+    from bagkit.bag import sqlite3_windows
 
-    monkeypatch.setattr(sqlite3_file, "MAX_CHUNK_BYTES", 100_000)
-    monkeypatch.setattr(sqlite3_file, "BATCH_BYTES", 40_000)
+    monkeypatch.setattr(sqlite3_windows, "WINDOW_BYTES", 40_000)
+    monkeypatch.setattr(sqlite3_windows, "MAX_WINDOW_BYTES", 100_000)
     path = tmp_path / "large"
     payloads = [b"\x00\x01\x00\x00" + bytes([i]) * 20_000 for i in range(30)]
     with Writer(path, version=9) as writer:

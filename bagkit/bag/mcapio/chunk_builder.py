@@ -178,11 +178,16 @@ class ChunkBuilder:
         entries = np.empty((len(offsets), 2), np.uint64)
         entries[:, 0] = log_times
         entries[:, 1] = offsets + base
-        for channel_id in np.unique(channel_ids).tolist():
+        first = int(channel_ids[0])
+        if (channel_ids == first).all():  # the usual batch: one channel, no sort to find it
+            by_channel = [(first, entries)]
+        else:
+            by_channel = [(c, entries[channel_ids == c]) for c in np.unique(channel_ids).tolist()]
+        for channel_id, found in by_channel:
             index = self.index.get(channel_id)
             if index is None:
                 index = self.index[channel_id] = array("Q")
-            index.frombytes(entries[channel_ids == channel_id].tobytes())
+            index.frombytes(found.tobytes())
         self.start = min(self.start, int(log_times.min()))
         self.end = max(self.end, int(log_times.max()))
         self.count += len(offsets)

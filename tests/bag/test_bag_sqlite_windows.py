@@ -1,0 +1,249 @@
+"""The SQLite3 back-end's bulk read (bagkit.bag.sqlite3_windows): rows in windows of row ids,
+payloads decompressed in runs. Small bags written by rosbags' rosbag2 writer, windows made
+tiny; chunks compared with the row-by-row path (bag.messages(), same order) and with rosbags'
+reader (same values)."""
+
+from __future__ import annotations
+
+import sqlite3
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+import zstandard
+from rosbags.rosbag2 import Reader, Writer
+from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlugin
+from rosbags.typesys import Stores, get_typestore
+
+from bagkit.bag import BagReader, sqlite3_windows
+from bagkit.bag.sqlite3_file import Sqlite3File
+from bagkit.bag.zstd_frames import declared_sizes
+
+STORE = get_typestore(Stores.ROS2_JAZZY)
+STRING = "std_msgs/msg/String"
+T0 = 1_700_000_000_000_000_000
+Row = tuple[str, int, bytes]
+
+
+def _text(text: str) -> bytes:
+    return bytes(STORE.serialize_cdr(STORE.types[STRING](data=text), STRING))
+
+
+def _write(path: Path, rows: list[tuple[str, int, bytes]], *, zstd: bool = False) -> Path:
+    """A rosbags-written sqlite3 bag of ``rows`` (topic, time, payload) in that row order;
+    topics /a, /b, /c and /empty (no message)."""
+    writer = Writer(path, version=9, storage_plugin=StoragePlugin.SQLITE3)
+    if zstd:
+        writer.set_compression(CompressionMode.MESSAGE, CompressionFormat.ZSTD)
+    with writer:
+        connections = {
+            topic: writer.add_connection(topic, STRING, typestore=STORE)
+            for topic in ("/a", "/b", "/c", "/empty")
+        }
+        for topic, time, payload in rows:
+            writer.write(connections[topic], time, payload)
+    return path
+
+
+def _interleaved(n: int, seed: int = 0) -> list[Row]:
+    """``n`` messages over /a, /b, /c in an irregular mix, payloads of varied lengths."""
+    rng = np.random.default_rng(seed)
+    topics = rng.choice(["/a", "/b", "/c"], size=n, p=[0.6, 0.3, 0.1])
+    return [
+        (str(topic), T0 + i * 1000, _text(f"{i}" * int(rng.integers(1, 12))))
+        for i, topic in enumerate(topics)
+    ]
+
+
+def _from_chunks(bag: BagReader, topics: list[str] | None = None) -> list[Row]:
+    """The messages of ``bag.chunks()`` in the order their records are laid out."""
+    found: list[Row] = []
+    for chunk in bag.chunks(topics):
+        records = []
+        for topic in chunk.message_index:
+            times, starts, lengths = chunk.payloads(topic)
+            for time, start, length in zip(
+                times.tolist(), starts.tolist(), lengths.tolist(), strict=True
+            ):
+                records.append((start, topic, time, chunk.records[start : start + length]))
+        found += [(topic, time, data) for _, topic, time, data in sorted(records)]
+    return found
+
+
+def _rosbags(path: Path, topics: list[str] | None = None) -> dict[str, list[tuple[int, bytes]]]:
+    """Per topic, rosbags' messages ordered by time (ties: by payload)."""
+    found: dict[str, list[tuple[int, bytes]]] = {}
+    with Reader(path) as reader:
+        for connection, time, data in reader.messages():
+            if topics is None or connection.topic in topics:
+                found.setdefault(connection.topic, []).append((time, bytes(data)))
+    return {topic: sorted(messages) for topic, messages in found.items()}
+
+
+def _per_topic(rows: list[Row]) -> dict[str, list[tuple[int, bytes]]]:
+    found: dict[str, list[tuple[int, bytes]]] = {}
+    for topic, time, data in rows:
+        found.setdefault(topic, []).append((time, data))
+    return {topic: sorted(messages) for topic, messages in found.items()}
+
+
+@pytest.fixture
+def tiny_windows(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(sqlite3_windows, "ROWS_PER_WINDOW", 7)
+
+
+@pytest.fixture
+def by_rows(monkeypatch: pytest.MonkeyPatch) -> list[int | None]:
+    """The row ids from which ``chunks`` went on by rows (the bulk read stopped)."""
+    calls: list[int | None] = []
+    original = Sqlite3File._row_chunks
+
+    def spy(self: Sqlite3File, *args: object) -> Iterator[object]:
+        calls.append(args[2])  # type: ignore[arg-type]
+        return original(self, *args)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(Sqlite3File, "_row_chunks", spy)
+    return calls
+
+
+def _check(path: Path, topics: list[str] | None = None) -> list[str]:
+    """Chunks equal the row path's messages in order and rosbags' in values; the problems."""
+    with BagReader(path) as bag:
+        chunked = _from_chunks(bag, topics)
+        assert chunked == [(m.topic, m.log_time, bytes(m.data)) for m in bag.messages(topics)]
+        problems = list(bag.problems)
+    assert _per_topic(chunked) == _rosbags(path, topics)
+    return problems
+
+
+@pytest.mark.usefixtures("tiny_windows")
+@pytest.mark.parametrize("zstd", [False, True], ids=["plain", "zstd"])
+@pytest.mark.parametrize("topics", [None, ["/a"], ["/b", "/c"], ["/empty"]])
+def test_windows_match_the_rows_and_rosbags(
+    tmp_path: Path, by_rows: list[int | None], zstd: bool, topics: list[str] | None
+) -> None:
+    path = _write(tmp_path / "bag", _interleaved(101), zstd=zstd)
+    assert _check(path, topics) == []
+    assert by_rows == []  # in order: the bulk read alone
+
+
+@pytest.mark.usefixtures("tiny_windows")
+def test_ties_and_older_rows_after_newer_ones(tmp_path: Path, by_rows: list[int | None]) -> None:
+    # Equal times keep their row order; every 10th message is written 3 us early, older than
+    # the two written before it: some window boundary falls between them.
+    rows = [
+        (topic, time - (3000 if i % 10 == 9 else 0), data)
+        for i, (topic, time, data) in enumerate(_interleaved(80, seed=1))
+    ]
+    rows += [("/a", T0 + 10**9, _text(f"tie {i}")) for i in range(12)]
+    path = _write(tmp_path / "bag", rows)
+    assert _check(path) == []
+    assert len(by_rows) == 1  # from that window on, by rows
+
+
+def test_disorder_inside_a_window_is_sorted_there(
+    tmp_path: Path, by_rows: list[int | None]
+) -> None:
+    rows = _interleaved(127, seed=2)
+    shuffled = np.random.default_rng(2).permutation(len(rows))
+    path = _write(tmp_path / "bag", [rows[i] for i in shuffled])
+    assert _check(path) == []
+    assert by_rows == []  # a small file: one window
+
+
+@pytest.mark.usefixtures("tiny_windows")
+def test_values_that_do_not_add_up_go_by_rows(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, by_rows: list[int | None]
+) -> None:
+    path = _write(tmp_path / "bag", _interleaved(50))
+    original = sqlite3_windows.RowWindows.__init__
+
+    def short_payloads(self: sqlite3_windows.RowWindows, *args: object, **kwargs: object) -> None:
+        original(self, *args, **kwargs)  # type: ignore[arg-type]
+        # A payload a byte short of its length: the lengths' sum is not the payloads' size.
+        self._query = self._query.replace(
+            "group_concat(data, '')",
+            "group_concat(CASE WHEN rowid = 23 THEN substr(data, 2) ELSE data END, '')",
+        )
+
+    monkeypatch.setattr(sqlite3_windows.RowWindows, "__init__", short_payloads)
+    assert _check(path) == []
+    assert len(by_rows) == 1 and by_rows[0] is not None and 1 < by_rows[0] <= 23
+
+
+@pytest.mark.usefixtures("tiny_windows")
+def test_a_bad_zstd_frame_in_the_middle(tmp_path: Path) -> None:
+    rows = _interleaved(70)
+    clean = _write(tmp_path / "clean", rows, zstd=True)
+    path = _write(tmp_path / "bag", rows, zstd=True)
+    (db3,) = path.glob("*.db3")
+    db = sqlite3.connect(db3)
+    topic_of = dict(
+        db.execute("SELECT messages.id, name FROM messages JOIN topics ON topic_id = topics.id")
+    )
+    declared_too_much = bytearray(zstandard.ZstdCompressor().compress(b"x")[:4])
+    declared_too_much += bytes([0xC0]) + (1 << 40).to_bytes(8, "little") + bytes(8)
+    damaged = {
+        30: b"\x28\xb5\x2f\xfd junk",  # not a frame
+        31: bytes(declared_too_much),  # declares 1 TiB
+    }
+    unsized = zstandard.ZstdCompressor(write_content_size=False).compress(rows[40][2])
+    for rowid, data in [*damaged.items(), (41, unsized)]:  # row 41: rows[40], no size
+        db.execute("UPDATE messages SET data = ? WHERE id = ?", (data, rowid))
+    db.commit()
+    db.close()
+    with BagReader(path) as bag:
+        chunked = _from_chunks(bag)
+        problems = list(bag.problems)
+    expected = _per_topic(
+        [(topic, time, data) for i, (topic, time, data) in enumerate(rows) if i + 1 not in damaged]
+    )
+    assert _per_topic(chunked) == expected
+    with_bad = {topic_of[rowid] for rowid in damaged}
+    assert len(problems) == len(with_bad)
+    assert all("do not decompress" in p and p.endswith(": lost") for p in problems)
+    assert sum(int(p.split(": ", 1)[1].split()[0]) for p in problems) == 2
+    with BagReader(clean) as bag:  # the same bag undamaged: as rosbags reads it
+        assert _per_topic(_from_chunks(bag)) == _rosbags(clean)
+
+
+@pytest.mark.skipif(sys.version_info < (3, 11), reason="Connection.setlimit: Python 3.11+")
+def test_a_window_over_the_byte_limit_is_halved(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, by_rows: list[int | None]
+) -> None:
+    monkeypatch.setattr(sqlite3_windows, "MAX_WINDOW_BYTES", 50_000)
+    # Small rows first (the windows grow), then rows of 60 kB: a window of several is refused
+    # by SQLite and halved down to one row, read alone (over the limit by itself).
+    rows = [("/a", T0 + i, _text("s" * 10)) for i in range(40)]
+    rows += [("/b", T0 + 40 + i, _text(str(i) * 60_000)) for i in range(5)]
+    path = _write(tmp_path / "bag", rows)
+    with BagReader(path) as bag:
+        chunks = list(bag.chunks())
+    large = [chunk for chunk in chunks if "/b" in chunk.message_index]
+    assert [len(chunk.message_index["/b"]) for chunk in large] == [1] * 5
+    assert all(len(chunk.records) < 50_000 for chunk in chunks if chunk not in large)
+    assert _check(path) == [] and by_rows == []
+
+
+def test_declared_sizes_agree_with_zstandard() -> None:
+    rng = np.random.default_rng(3)
+    frames = [
+        zstandard.ZstdCompressor(level=level, **options).compress(bytes(size))
+        for level in (1, 19)
+        for size in (0, 1, 255, 256, 257, 65_791, 65_792, 1 << 20)
+        for options in ({}, {"write_checksum": True}, {"write_dict_id": True})
+    ]
+    frames += [zstandard.ZstdCompressor(write_content_size=False).compress(b"abc"), b"", b"\0"]
+    frames += [b"\x28\xb5\x2f\xfd" + rng.bytes(int(rng.integers(0, 20))) for _ in range(3000)]
+    lengths = np.array([len(f) for f in frames], np.int64)
+    got = declared_sizes(
+        np.frombuffer(b"".join(frames), np.uint8), np.cumsum(lengths) - lengths, lengths
+    )
+    for frame, size in zip(frames, got.tolist(), strict=True):
+        try:
+            expected = zstandard.frame_content_size(frame)
+        except zstandard.ZstdError:
+            expected = -1
+        assert size == (expected if expected < 1 << 63 else -1), frame.hex()
