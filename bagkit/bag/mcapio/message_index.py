@@ -15,6 +15,7 @@ from itertools import pairwise
 from typing import TYPE_CHECKING, TypeVar
 
 from bagkit.bag.errors import CorruptBagError
+from bagkit.bag.mcapio.chunk_indexes import ChunkIndexes
 from bagkit.bag.mcapio.records import (
     MAX_SECTION_SIZE,
     MESSAGE_RECORD_HEADER,
@@ -141,33 +142,35 @@ def message_index_times(
     return spans
 
 
-def channel_spans(source: Source, chunk_indexes: list[ChunkIndex]) -> dict[int, Span]:
+def channel_spans(source: Source, chunks: ChunkIndexes) -> dict[int, Span]:
     """(first, last) log time of each channel, from the Message Index records of the chunks.
 
     Only the chunks that can hold a channel's first or last message are read: the index of a
     chunk starting after the earliest time found (or ending before the latest) cannot. A chunk
     whose Message Index records are not where its index says is passed over.
     """
-    indexed = [c for c in chunk_indexes if c.message_index_offsets]
+    starts, ends = chunks.start_times, chunks.end_times
+    indexed = [row for row in range(len(chunks)) if chunks.indexed(row)]
     found: dict[int, Span] = {}
-    by_start = sorted(indexed, key=lambda c: c.message_start_time)
-    by_end = sorted(indexed, key=lambda c: -c.message_end_time)
-    for chunks, earliest in ((by_start, True), (by_end, False)):
+    by_start = sorted(indexed, key=starts.__getitem__)
+    by_end = sorted(indexed, key=ends.__getitem__, reverse=True)  # stable, as by -end
+    for rows, earliest in ((by_start, True), (by_end, False)):
         seen: set[int] = set()
-        for chunk in chunks:
+        for row in rows:
             # Chunks are visited in bound order: once a channel's time is beyond the next
             # chunk's bound, no later chunk can hold an earlier (later) message of it.
+            start, end = starts[row], ends[row]
             wanted = [
                 c
-                for c in chunk.message_index_offsets
+                for c in chunks.channels(row)
                 if c not in seen
-                or (chunk.message_start_time < found[c][0] if earliest else False)
-                or (chunk.message_end_time > found[c][1] if not earliest else False)
+                or (start < found[c][0] if earliest else False)
+                or (end > found[c][1] if not earliest else False)
             ]
             if not wanted:
                 continue
             try:
-                spans = message_index_times(source, chunk, wanted)
+                spans = message_index_times(source, chunks[row], wanted)
             except CorruptBagError:
                 spans = {}
             for channel, (first, last) in spans.items():
