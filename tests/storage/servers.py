@@ -143,6 +143,7 @@ class HttpStore:
     objects: dict[str, bytes] = field(default_factory=dict)
     faults: dict[str, Faults] = field(default_factory=dict)
     gets: dict[str, int] = field(default_factory=dict)
+    requests: dict[str, int] = field(default_factory=dict)  # by method: HEAD, GET
     url: str = ""
     # id(object) -> (the object, its MD5): hashed once per object, not per request (a 64 MB
     # object served by ranges, under several paths).
@@ -159,6 +160,12 @@ class HttpStore:
         return f'"{digest}{"-2" if changed else ""}"'
 
 
+class _Server(ThreadingHTTPServer):
+    # socketserver listens with a backlog of 5: 16 readers connecting at once lose SYNs,
+    # which their kernel sends again after a second.
+    request_queue_size = 128
+
+
 def start_http(store: HttpStore) -> ThreadingHTTPServer:
     class Handler(BaseHTTPRequestHandler):
         def log_message(self, *args: object) -> None:
@@ -167,6 +174,7 @@ def start_http(store: HttpStore) -> ThreadingHTTPServer:
         def _answer(self, body: bool) -> None:
             path = self.path.split("?", 1)[0]
             faults = store.faults.get(path, Faults())
+            store.requests[self.command] = store.requests.get(self.command, 0) + 1
             if body:
                 store.gets[path] = store.gets.get(path, 0) + 1
             if faults.stall_s:
@@ -212,7 +220,7 @@ def start_http(store: HttpStore) -> ThreadingHTTPServer:
         def do_GET(self) -> None:
             self._answer(body=True)
 
-    server = ThreadingHTTPServer(("127.0.0.1", free_port()), Handler)
+    server = _Server(("127.0.0.1", free_port()), Handler)
     server.daemon_threads = True
     threading.Thread(target=server.serve_forever, daemon=True).start()
     store.url = f"http://127.0.0.1:{server.server_address[1]}"

@@ -150,15 +150,20 @@ def test_stats_of_a_prefix_equal_the_local_stats(store: Store, local_bags: Path)
 
 
 @pytest.mark.parametrize("store", ["s3", "gs", "az", "real"], indirect=True)
-def test_info_of_a_prefix_lists_its_bags(store: Store) -> None:
+def test_info_of_a_prefix_lists_its_bags(store: Store, local_bags: Path) -> None:
     """Each store's listing (an HTTP server lists no prefixes)."""
-    result = cli(["info", store.base, "--format", "json"], store.env)
+    # A prefix of its own: other tests put more bags into the store.
+    for bag in ("a", "b"):
+        store.put(local_bags / "fleet" / bag, f"listed/fleet/{bag}")
+    store.put(local_bags / "fleet" / "a" / "a_0.mcap", "listed/a.mcap")
+    base = f"{store.base}/listed"
+    result = cli(["info", base, "--format", "json"], store.env)
     assert result.returncode == 0, result.stderr
     bags = json.loads(result.stdout)["bags"]
     assert sorted(b["path"] for b in bags) == [
-        f"{store.base}/a.mcap",
-        f"{store.base}/fleet/a",
-        f"{store.base}/fleet/b",
+        f"{base}/a.mcap",
+        f"{base}/fleet/a",
+        f"{base}/fleet/b",
     ]
 
 
