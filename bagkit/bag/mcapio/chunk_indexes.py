@@ -221,12 +221,16 @@ class ChunkIndexes(Sequence[ChunkIndex]):
             taken.channel_starts.append(len(taken.channel_ids))
         return taken
 
-    def rows_by(self, *columns: array[int]) -> array[int]:
-        """The rows sorted by ``columns`` (the first, then the next on ties), as an array."""
-        if len(columns) == 1:
-            key = columns[0].__getitem__
-            return array("Q", sorted(range(len(self)), key=key))
-        return array("Q", sorted(range(len(self)), key=lambda row: [c[row] for c in columns]))
+    def rows_by(self, column: array[int], then: array[int] | None = None) -> array[int]:
+        """The rows sorted by ``column``, then by ``then`` on ties (stable), as an array.
+
+        The key of a row is one integer (``then`` below ``column``'s bits), not a tuple: a
+        summary may hold millions of chunk indexes.
+        """
+        rows = range(len(self))
+        if then is None:
+            return array("Q", sorted(rows, key=column.__getitem__))
+        return array("Q", sorted(rows, key=lambda row: column[row] << 64 | then[row]))
 
 
 def _overrun(size: int, at: int, record_size: int) -> CorruptBagError:

@@ -195,10 +195,11 @@ def read_summary(source: Source, header: Header | None) -> FileIndex | None:
     index.complete = True
     # Chunk indexes before Statistics: the Go writer's statistics skip log_time 0.
     chunks = index.chunk_indexes
-    with_messages = [row for row in range(len(chunks)) if not chunks.empty(row)]
-    if with_messages:
-        index.message_start_time = min(chunks.start_times[row] for row in with_messages)
-        index.message_end_time = max(chunks.end_times[row] for row in with_messages)
+    rows = range(len(chunks))
+    first = min((chunks.start_times[r] for r in rows if not chunks.empty(r)), default=None)
+    if first is not None:
+        index.message_start_time = first
+        index.message_end_time = max(chunks.end_times[r] for r in rows if not chunks.empty(r))
     elif statistics is not None and statistics.message_count:
         index.message_start_time = statistics.message_start_time
         index.message_end_time = statistics.message_end_time
