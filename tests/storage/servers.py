@@ -5,6 +5,7 @@ pid, and a small HTTP server with byte ranges and injected faults."""
 from __future__ import annotations
 
 import hashlib
+import importlib.util
 import os
 import shutil
 import socket
@@ -84,9 +85,12 @@ def start_moto() -> Emulator:
 
 
 def start_gcs() -> Emulator:
-    """gcp-storage-emulator, in memory; clients find it by ``STORAGE_EMULATOR_HOST``."""
-    port = free_port()
+    """gcp-storage-emulator, in memory; clients find it by ``STORAGE_EMULATOR_HOST``.
+    Skipped (failed under CI=true) where the lock's packages are not installed yet."""
     emulator = str(Path(sys.executable).with_name("gcp-storage-emulator"))
+    if importlib.util.find_spec("gcsfs") is None or not Path(emulator).exists():
+        needed("gcsfs or gcp-storage-emulator not installed (make .venv/.installed: the lock)")
+    port = free_port()
     args = [emulator, "start", "--host", "127.0.0.1", "--port", str(port), "--in-memory", "-q"]
     process, endpoint = _serve(args, port)
     env = {
@@ -102,6 +106,8 @@ def start_azurite() -> Emulator:
     """Azurite's blob service, in memory, without telemetry; clients find it by
     ``AZURE_STORAGE_CONNECTION_STRING``. Skipped (failed under CI=true) without Node.js or
     Azurite."""
+    if importlib.util.find_spec("adlfs") is None:
+        needed("adlfs not installed (make .venv/.installed installs the lock)")
     if shutil.which("node") is None:
         needed("Node.js not found: Azurite (the az:// tests' emulator) needs it")
     if not AZURITE.exists():
