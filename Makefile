@@ -20,6 +20,17 @@ export RMW_IMPLEMENTATION := rmw_fastrtps_cpp
 
 .PHONY: demo test test-fast test-py lint format bench golden lock dist clean
 
+# Azurite, Azure Storage's emulator, for tests/storage: npm's package at this version, in
+# .azurite/ (3.35 is the last that runs on Node.js 20). Without npm the step says so and the
+# Azure tests skip (under CI=true they fail).
+AZURITE_VERSION := 3.35.0
+AZURITE := .azurite/.installed-$(AZURITE_VERSION)
+$(AZURITE):
+	@if command -v npm >/dev/null 2>&1; then \
+		rm -rf .azurite && npm install --prefix .azurite --no-fund --no-audit --loglevel=error \
+			azurite@$(AZURITE_VERSION) && touch $@; \
+	else echo "note: no npm: Azurite not installed, the az:// tests will skip" >&2; fi
+
 # uv (pinned in the lock) installs the lock: pip would take minutes longer. Unlike pip, uv
 # writes no bytecode unless asked; where PYTHONDONTWRITEBYTECODE is set (as in CI) every process
 # would then compile numpy, pandas and rclpy from source at each start (benchmarks/README.md).
@@ -42,14 +53,14 @@ demo: $(STAMP)
 # The tests that start no DDS participant on two workers, then those that do, on two workers
 # too: each worker holds ROS domains of its own (tests/domains.py); last the DDS tests that
 # assert timings (`serial`, tests/conftest.py), one at a time.
-test: $(STAMP)
+test: $(STAMP) $(AZURITE)
 	$(PY) -m compileall -q bagkit fusion
 	$(PY) -m pytest -q -m "not ros" -n 2
 	$(PY) -m pytest -q -m "ros and not serial" -n 2 --dist loadgroup --durations=10
 	$(PY) -m pytest -q -m "ros and serial" --durations=5
 
 # The fast loop: every test that starts no DDS participant, on two worker processes.
-test-fast: $(STAMP)
+test-fast: $(STAMP) $(AZURITE)
 	$(PY) -m pytest -q -m "not ros" -n 2
 
 lint: $(STAMP)
@@ -90,7 +101,7 @@ endif
 
 # PYTESTS: which tests (default: the whole offline suite).
 PYTESTS ?= tests
-test-py: $(XVENV)/.installed
+test-py: $(XVENV)/.installed $(AZURITE)
 	$(XVENV)/bin/python -m compileall -q bagkit fusion
 	$(XVENV)/bin/python -m pytest -q -p no:cacheprovider -m "not ros" -n 2 $(PYTESTS)
 	$(XVENV)/bin/python -m pytest -q -p no:cacheprovider tests/install/test_dds_smoke.py
@@ -111,4 +122,4 @@ dist: $(STAMP)
 	@ls -1 dist
 
 clean:
-	rm -rf $(VENV) .venv-* .pytest_cache .mypy_cache .ruff_cache dist
+	rm -rf $(VENV) .venv-* .azurite .pytest_cache .mypy_cache .ruff_cache dist

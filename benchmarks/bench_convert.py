@@ -24,7 +24,7 @@ from rosbags.typesys import Stores, get_typestore
 from bagkit.bag import BagWriter, TopicInfo
 from bagkit.surgery.convert import convert_bags
 from bagkit.surgery.rewrite import OutputOptions
-from benchmarks.timing import best_of
+from benchmarks.timing import best_of, best_of_with_cpu
 
 IMU = "sensor_msgs/msg/Imu"
 MESSAGES = 1_000_000
@@ -84,8 +84,11 @@ def _convert(tmp: Path) -> bool:
     met = True
     for compression in ("none", "zstd"):
         options = OutputOptions(compression=compression)
-        t_ours = best_of(2, lambda o=options: convert_bags([db3], _fresh(tmp / "ours"), None, o))  # type: ignore[misc]
-        t_theirs = best_of(
+        t_ours, cpu_ours = best_of_with_cpu(
+            2,
+            lambda o=options: convert_bags([db3], _fresh(tmp / "ours"), None, o),  # type: ignore[misc]
+        )
+        t_theirs, cpu_theirs = best_of_with_cpu(
             1,
             lambda: convert(
                 [db3], _fresh(tmp / "theirs"), "mcap", 9, None, "file", None, None, [], [], [], []
@@ -93,9 +96,10 @@ def _convert(tmp: Path) -> bool:
         )
         ratio = t_theirs / t_ours
         print(
-            f"  convert {MESSAGES:,} Imu db3 -> MCAP ({compression}): bagkit {t_ours:.2f} s, "
-            f"rosbags-convert {t_theirs:.2f} s (uncompressed), ratio {ratio:.1f}x "
-            f"(target >= {RATIO_TARGET}x)",
+            f"  convert {MESSAGES:,} Imu db3 -> MCAP ({compression}): bagkit {t_ours:.2f} s "
+            f"(CPU {cpu_ours:.2f} s), rosbags-convert {t_theirs:.2f} s (CPU {cpu_theirs:.2f} s, "
+            f"uncompressed), ratio {ratio:.1f}x (target >= {RATIO_TARGET}x), by CPU "
+            f"{cpu_theirs / cpu_ours:.1f}x",
             flush=True,
         )
         met &= ratio >= RATIO_TARGET

@@ -1,19 +1,23 @@
 """Bags in an S3-compatible store on loopback (moto's server), read by range requests.
 
+0. The floor: range GETs of 1 KiB a second that moto answers (one object, one at a time and
+   16 at a time, from s3fs), and its CPU per request: on loopback a request costs what the
+   server takes to answer it, whatever its size.
 1. ``info`` of BAGKIT_BENCH_STORAGE_BAGS bags (default 1,000: the nominal fixture's golden,
-   as bag prefixes with metadata.yaml) in moto, then of BAGKIT_BENCH_STORAGE_LARGE_BAGS bags
-   of BAGKIT_BENCH_STORAGE_LARGE_MB MB (default 9 of 256: camera images and an Imu; the first
-   opens the client, 8 are timed) on the tests' range-capable HTTP server (moto answers a
-   range by reading the whole object): bytes fetched per bag against its summary section
-   (target <= 2x), and the time against fetching the bags concurrently (s3fs's or fsspec's
-   ``get``) and reading them locally (target >= 20x faster). On loopback a request costs
-   what the server takes to answer it whatever its size: the golden's 184 KB download is as
-   many requests as its info; the large bags show what bytes cost.
-2. ``stats summary -t /gps/fix`` over 20 bags of Imu (100 Hz) + NavSatFix (1 Hz): bytes
+   as bag prefixes with metadata.yaml) in moto, against downloading the prefix (s3fs's
+   concurrent ``get``) and reading it locally: bytes fetched per bag against its summary
+   section (target <= 2x), time (target >= 20x faster), requests of each side per bag by
+   operation (HEAD and listings included), and moto's CPU for each side. The same for
+   BAGKIT_BENCH_STORAGE_MOTO_BAGS bags of BAGKIT_BENCH_STORAGE_MOTO_MB MB (default 16 of 32:
+   camera images and an Imu, a realistic size at a count this machine holds).
+2. The same for BAGKIT_BENCH_STORAGE_LARGE_BAGS bags of BAGKIT_BENCH_STORAGE_LARGE_MB MB
+   (default 9 of 256: the first opens the client, 8 are timed) on the tests' range-capable HTTP
+   server (moto answers a range by reading the whole object), requests counted by the server.
+3. ``stats summary -t /gps/fix`` over 20 bags of Imu (100 Hz) + NavSatFix (1 Hz): bytes
    fetched against the chunks that hold /gps/fix (target <= 1.2x), values equal to the local
    read.
 
-Both in this process (the byte counter is per process), the same store, the same run.
+All in this process (the byte counter is per process), the same stores, the same run.
 Run: ``.venv/bin/python -m benchmarks storage``
 """
 
@@ -21,41 +25,33 @@ from __future__ import annotations
 
 import os
 import shutil
-import socket
 import struct
-import subprocess
-import sys
 import tempfile
-import threading
 import time
+from collections import Counter
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
+
+from benchmarks.storage_stores import (
+    HttpServer,
+    S3Requests,
+    cpu_s,
+    per_bag,
+    start_moto,
+    write_images,
+)
 
 REPO = Path(__file__).resolve().parents[1]
 GOLDEN = REPO / "fixtures" / "nominal" / "golden"
 BAGS = int(os.environ.get("BAGKIT_BENCH_STORAGE_BAGS", "1000"))
+MOTO_BAGS = int(os.environ.get("BAGKIT_BENCH_STORAGE_MOTO_BAGS", "16"))
+MOTO_MB = int(os.environ.get("BAGKIT_BENCH_STORAGE_MOTO_MB", "32"))
 LARGE_BAGS = int(os.environ.get("BAGKIT_BENCH_STORAGE_LARGE_BAGS", "9"))
 LARGE_MB = int(os.environ.get("BAGKIT_BENCH_STORAGE_LARGE_MB", "256"))
 STATS_BAGS = 20
 STATS_IMU_MESSAGES = int(os.environ.get("BAGKIT_BENCH_STORAGE_IMU", "50000"))
-
-
-def _moto() -> tuple[subprocess.Popen[bytes], str]:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    server = subprocess.Popen(
-        [str(Path(sys.executable).with_name("moto_server")), "-H", "127.0.0.1", "-p", str(port)],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
-    for _ in range(300):
-        try:
-            socket.create_connection(("127.0.0.1", port), timeout=0.2).close()
-            break
-        except OSError:
-            time.sleep(0.1)
-    return server, f"http://127.0.0.1:{port}"
+FLOOR_REQUESTS = 400
 
 
 def summary_bytes(file: Path) -> int:
@@ -67,14 +63,48 @@ def summary_bytes(file: Path) -> int:
     return file.stat().st_size - summary_start
 
 
-def _info_against_download(fs: Any, local: Path, key: str, scratch: Path, what: str) -> None:
+class Moto:
+    """The moto server, the peer's s3fs client and bagkit's, each counting its requests."""
+
+    def __init__(self, pid: int, fs: Any) -> None:
+        from bagkit.storage.filesystems import filesystem
+
+        self.pid = pid
+        self.fs = fs
+        self.bagkit_fs = filesystem("s3://bench")[0]
+        self.bagkit_fs.info("bench")  # its client made, as the peer's is
+        self.peer = S3Requests(fs)
+        self.bagkit = S3Requests(self.bagkit_fs)
+
+
+def _floor(moto: Moto) -> None:
+    """Range GETs of 1 KiB a second moto answers (the peer's client), one and 16 at a time."""
+    fs = moto.fs
+    fs.pipe_file("bench/floor", bytes(200_000))
+    fs.cat_file("bench/floor", 0, 1024)
+    cpu, started = cpu_s(moto.pid), time.perf_counter()
+    for _ in range(FLOOR_REQUESTS):
+        fs.cat_file("bench/floor", 0, 1024)
+    one_s, one_cpu = time.perf_counter() - started, cpu_s(moto.pid) - cpu
+    started = time.perf_counter()
+    with ThreadPoolExecutor(16) as pool:
+        list(pool.map(lambda _: fs.cat_file("bench/floor", 0, 1024), range(FLOOR_REQUESTS)))
+    many_s = time.perf_counter() - started
+    print(
+        f"  floor: moto answers {FLOOR_REQUESTS / one_s:.0f} range GETs/s one at a time, "
+        f"{FLOOR_REQUESTS / many_s:.0f}/s 16 at a time ({one_cpu / FLOOR_REQUESTS * 1e3:.1f} ms "
+        "of its CPU each)"
+    )
+
+
+def _info_against_download(moto: Moto, local: Path, key: str, scratch: Path, what: str) -> None:
     """``info`` of the bags under ``local``, uploaded to ``bench/key``: by range, against
     downloading the prefix (s3fs's concurrent ``get``) and reading it locally."""
     from bagkit.bag.info import bag_info
     from bagkit.fleet.listing import folder_info
-    from bagkit.storage.filesystems import filesystem
     from bagkit.storage.range_file import fetched
 
+    fs = moto.fs
     bags = sorted(p for p in local.iterdir() if p.is_dir())
     started = time.perf_counter()
     fs.put(str(local), f"bench/{key}", recursive=True)
@@ -82,16 +112,15 @@ def _info_against_download(fs: Any, local: Path, key: str, scratch: Path, what: 
     file = next(bags[0].glob("*.mcap"))
     summary = summary_bytes(file)
     size = sum(f.stat().st_size for f in bags[0].iterdir())
-    # Both sides warm: the modules imported (a local info), bagkit's S3 client made as the
-    # download's is (one HEAD).
-    exact = bag_info(bags[0])
-    filesystem(f"s3://bench/{key}")[0].info(f"bench/{key}")
+    exact = bag_info(bags[0])  # the modules imported for both sides
 
-    before, requests = fetched()
+    before, sent, cpu = fetched(), Counter(moto.bagkit.counts), cpu_s(moto.pid)
     started = time.perf_counter()
     remote = folder_info(f"s3://bench/{key}")
     remote_s = time.perf_counter() - started
-    spent, asked = fetched()[0] - before, fetched()[1] - requests
+    remote_cpu = cpu_s(moto.pid) - cpu
+    spent = fetched()[0] - before[0]
+    remote_requests = moto.bagkit.counts - sent
     assert remote is not None and len(remote.bags) == len(bags) and not remote.unread
     bounded = {t.topic: t.rate_hz for t in remote.bags[0].topics}
     worst = max(
@@ -100,38 +129,51 @@ def _info_against_download(fs: Any, local: Path, key: str, scratch: Path, what: 
     )
 
     target = scratch / "download" / key
+    sent, cpu = Counter(moto.peer.counts), cpu_s(moto.pid)
     started = time.perf_counter()
     fs.get(f"bench/{key}", str(target), recursive=True)
     downloaded = folder_info(target)
     download_s = time.perf_counter() - started
+    download_cpu = cpu_s(moto.pid) - cpu
+    peer_requests = moto.peer.counts - sent
     assert downloaded is not None and len(downloaded.bags) == len(bags)
     shutil.rmtree(target)
-    per_bag = spent / len(bags)
+    count = len(bags)
+    requests_ratio = peer_requests.total() / remote_requests.total()
     print(
-        f"  info by range: {remote_s:.2f} s ({asked / len(bags):.1f} requests, {per_bag:,.0f} "
-        f"bytes per bag; summary {summary:,} B, bag {size:,} B): {per_bag / summary:.2f}x "
-        f"the summary (target <= 2); rates from chunk bounds, worst {worst:.1%} below exact"
-    )
-    print(
-        f"  download + local info: {download_s:.2f} s: range reads {download_s / remote_s:.1f}x "
-        "faster (target >= 20)"
+        f"  info by range: {remote_s:.2f} s; {spent / count:,.0f} bytes per bag (summary "
+        f"{summary:,} B, bag {size:,} B): {spent / count / summary:.2f}x the summary (target "
+        f"<= 2); rates from chunk bounds, worst {worst:.1%} below exact\n"
+        f"    requests a bag: {per_bag(remote_requests, count)}; moto CPU {remote_cpu:.2f} s\n"
+        f"  download + local info: {download_s:.2f} s\n"
+        f"    requests a bag: {per_bag(peer_requests, count)}; moto CPU {download_cpu:.2f} s\n"
+        f"  range reads {download_s / remote_s:.1f}x faster (target >= 20); the download "
+        f"makes {requests_ratio:.2f}x their requests"
     )
 
 
-def _info_part(fs: Any, scratch: Path) -> None:
+def _info_part(moto: Moto, scratch: Path) -> None:
     local = scratch / "fleet"
     for i in range(BAGS):
         shutil.copytree(GOLDEN, local / f"bag_{i:04d}", copy_function=os.link)
-    _info_against_download(fs, local, "fleet", scratch, "the nominal golden")
-    _large_part(scratch)
+    _info_against_download(moto, local, "fleet", scratch, "the nominal golden")
+    shutil.rmtree(local)
+    if MOTO_BAGS:
+        local = scratch / "moto_large"
+        write_images(local / "bag_00", MOTO_MB)
+        for i in range(1, MOTO_BAGS):
+            shutil.copytree(local / "bag_00", local / f"bag_{i:02d}", copy_function=os.link)
+        os.sync()
+        what = f"bags of {MOTO_MB} MB (camera + Imu)"
+        _info_against_download(moto, local, "moto_large", scratch, what)
+        moto.fs.rm("bench/moto_large", recursive=True)
+        shutil.rmtree(local)
 
 
 def _large_part(scratch: Path) -> None:
     """``info`` of LARGE_BAGS bags of LARGE_MB MB on the tests' range-capable HTTP server
     (moto answers a range by reading the whole object: a 64 MB read per request), against
     fetching each bag (fsspec's concurrent ``get``) and reading it locally."""
-    from concurrent.futures import ThreadPoolExecutor
-
     import fsspec
 
     from bagkit.bag.info import bag_info
@@ -140,29 +182,24 @@ def _large_part(scratch: Path) -> None:
     from bagkit.storage.range_file import fetched
 
     template = scratch / "large" / "bag_00"
-    _write_images(template)
+    write_images(template, LARGE_MB)
+    os.sync()  # its write-back would slow whichever side runs first
     files = sorted(p.name for p in template.iterdir())
-    # The server in a process of its own (in this one, it would share the GIL with the reads).
-    server = subprocess.Popen(
-        [sys.executable, "-m", "benchmarks.bench_storage", "serve", str(template), str(LARGE_BAGS)],
-        stdout=subprocess.PIPE,
-        cwd=REPO,
-    )
+    server = HttpServer(template, LARGE_BAGS)
     try:
-        assert server.stdout is not None
-        base = server.stdout.readline().decode().strip()
-        urls = [f"{base}/large/bag_{i:02d}" for i in range(LARGE_BAGS)]
+        urls = [f"{server.url}/large/bag_{i:02d}" for i in range(LARGE_BAGS)]
         mcap = template / next(n for n in files if n.endswith(".mcap"))
         summary = summary_bytes(mcap)
         size = sum((template / n).stat().st_size for n in files)
         exact = bag_info(template)  # modules imported for both sides
         bag_info(urls[0])  # the HTTP client made, as the download's is below
-        before, requests = fetched()
+        before, answered = fetched(), server.requests()
         started = time.perf_counter()
         with ThreadPoolExecutor(REMOTE_READERS) as pool:
             remote = list(pool.map(bag_info, urls[1:]))
         remote_s = time.perf_counter() - started
-        spent, asked = fetched()[0] - before, fetched()[1] - requests
+        spent = fetched()[0] - before[0]
+        remote_requests, answered = server.requests() - answered, server.requests()
         fs = fsspec.filesystem("http")
         target = scratch / "download" / "large"
         started = time.perf_counter()
@@ -170,68 +207,25 @@ def _large_part(scratch: Path) -> None:
         fs.get(sources, [str(target / s.split("/large/", 1)[1]) for s in sources])
         downloaded = folder_info(target)
         download_s = time.perf_counter() - started
+        peer_requests = server.requests() - answered
         assert downloaded is not None and len(downloaded.bags) == len(remote)
     finally:
-        server.terminate()
-        server.wait()
+        server.stop()
     count = len(remote)
     bounded = {t.topic: t.rate_hz for t in remote[0].topics}
-    worst = max(abs(bounded[t.topic] - t.rate_hz) / t.rate_hz for t in exact.topics if t.rate_hz)
+    worst = max(
+        (abs(bounded[t.topic] - t.rate_hz) / t.rate_hz for t in exact.topics if t.rate_hz),
+        default=0.0,
+    )
     print(
         f"  {count} bags of {size / 1e6:.0f} MB (camera + Imu) on an HTTP range server: info "
-        f"{remote_s:.2f} s ({asked / count:.1f} requests, {spent / count:,.0f} bytes per bag, "
-        f"{spent / count / summary:.2f}x the summary of {summary:,} B; rates worst "
-        f"{worst:.1%} below exact); fetch + local info {download_s:.2f} s: range reads "
-        f"{download_s / remote_s:.1f}x faster (target >= 20)"
+        f"{remote_s:.2f} s ({spent / count:,.0f} bytes per bag, {spent / count / summary:.2f}x "
+        f"the summary of {summary:,} B; rates worst {worst:.1%} below exact); fetch + local "
+        f"info {download_s:.2f} s: range reads {download_s / remote_s:.1f}x faster (target "
+        f">= 20)\n"
+        f"    requests a bag: info {per_bag(remote_requests, count)}; fetch "
+        f"{per_bag(peer_requests, count)}"
     )
-
-
-def _write_images(path: Path) -> None:
-    """A bag of about LARGE_MB MB: 640x480 RGB images at 10 Hz (random pixels: incompressible)
-    and a 100 Hz Imu, in chunks of 4 MiB."""
-    import numpy as np
-    from rosbags.typesys import Stores, get_typestore
-
-    from bagkit.bag import BagWriter, TopicInfo
-
-    store = get_typestore(Stores.ROS2_JAZZY)
-    types = store.types
-    rng = np.random.default_rng(5)
-    t0 = 1_700_000_000_000_000_000
-    image_type, imu_type = "sensor_msgs/msg/Image", "sensor_msgs/msg/Imu"
-    stamp = types["builtin_interfaces/msg/Time"]
-    vec = types["geometry_msgs/msg/Vector3"]
-    frames = LARGE_MB * (1 << 20) // (640 * 480 * 3)
-    with BagWriter(path, chunk_size=4 << 20) as bag:
-        bag.add_topic(TopicInfo("/camera/image", image_type))
-        bag.add_topic(TopicInfo("/imu/data", imu_type))
-        for i in range(frames * 10):
-            t = t0 + i * 10_000_000
-            header = types["std_msgs/msg/Header"](
-                stamp=stamp(sec=t // 10**9, nanosec=t % 10**9), frame_id="cam"
-            )
-            if i % 10 == 0:
-                image = types[image_type](
-                    header=header,
-                    height=480,
-                    width=640,
-                    encoding="rgb8",
-                    is_bigendian=0,
-                    step=640 * 3,
-                    data=rng.integers(0, 256, 640 * 480 * 3, dtype=np.uint8),
-                )
-                data = bytes(store.serialize_cdr(image, image_type))
-                bag.write("/camera/image", data, log_time=t)
-            imu = types[imu_type](
-                header=header,
-                orientation=types["geometry_msgs/msg/Quaternion"](0.0, 0.0, 0.0, 1.0),
-                orientation_covariance=np.zeros(9),
-                angular_velocity=vec(0.0, 0.0, 0.0),
-                angular_velocity_covariance=np.zeros(9),
-                linear_acceleration=vec(0.0, 0.0, 9.81),
-                linear_acceleration_covariance=np.zeros(9),
-            )
-            bag.write("/imu/data", bytes(store.serialize_cdr(imu, imu_type)), log_time=t)
 
 
 def _stats_part(fs: Any, scratch: Path) -> None:
@@ -313,7 +307,7 @@ def _stats_part(fs: Any, scratch: Path) -> None:
 
 def main() -> None:
     print(f"storage (moto's S3 server on loopback; load {os.getloadavg()[0]:.1f}):")
-    server, endpoint = _moto()
+    server, endpoint = start_moto()
     os.environ.update(
         AWS_ENDPOINT_URL=endpoint,
         AWS_ACCESS_KEY_ID="bench",
@@ -326,31 +320,17 @@ def main() -> None:
 
         fs = s3fs.S3FileSystem()
         fs.mkdir("bench")
-        _info_part(fs, scratch)
+        moto = Moto(server.pid, fs)
+        _floor(moto)
+        _info_part(moto, scratch)
+        _large_part(scratch)
         _stats_part(fs, scratch)
     finally:
         server.terminate()
         server.wait()
         shutil.rmtree(scratch, ignore_errors=True)
-
-
-def _serve(template: Path, bags: int) -> None:
-    """The tests' range-capable HTTP server holding ``bags`` copies of the bag ``template``
-    (one bytes object behind all: memory for one); prints its URL, serves until killed."""
-    from tests.storage.servers import HttpStore, start_http
-
-    store = HttpStore()
-    for file in template.iterdir():
-        data = file.read_bytes()
-        for i in range(bags):
-            store.objects[f"/large/bag_{i:02d}/{file.name}"] = data
-    start_http(store)
-    print(store.url, flush=True)
-    threading.Event().wait()
+    print(f"  load at the end {os.getloadavg()[0]:.1f}")
 
 
 if __name__ == "__main__":
-    if sys.argv[1:2] == ["serve"]:
-        _serve(Path(sys.argv[2]), int(sys.argv[3]))
-    else:
-        main()
+    main()

@@ -12,6 +12,7 @@ import io
 import os
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 from unittest import mock
 
@@ -21,17 +22,21 @@ from bagkit.cli.main import app
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 
 
-def bagkit_in_process(args: list[str | Path], cwd: Path) -> subprocess.CompletedProcess[str]:
-    """``bagkit ARGS`` through the console script's ``run_app``, in ``cwd``: its exit status
+def bagkit_in_process(
+    args: list[str | Path], cwd: Path | None = None, env: dict[str, str | None] | None = None
+) -> subprocess.CompletedProcess[str]:
+    """``bagkit ARGS`` through the console script's ``run_app``, in ``cwd`` (default: here),
+    with ``env`` over this process's environment (None: unset) while it runs: its exit status
     and what it wrote to stdout and stderr."""
     argv = [str(arg) for arg in args]
     out, err = io.StringIO(), io.StringIO()
     code: int | str | None = 0
     before = Path.cwd()
-    os.chdir(cwd)
+    os.chdir(cwd or before)
     try:
         # sys.argv as the console script has it: click names the program from it (Usage: bagkit).
         with (
+            _environment(env or {}),
             mock.patch.object(sys, "argv", [BAGKIT, *argv]),
             contextlib.redirect_stdout(out),
             contextlib.redirect_stderr(err),
@@ -43,6 +48,18 @@ def bagkit_in_process(args: list[str | Path], cwd: Path) -> subprocess.Completed
         os.chdir(before)
     returncode = code if isinstance(code, int) else (0 if code is None else 1)
     return subprocess.CompletedProcess([BAGKIT, *argv], returncode, out.getvalue(), err.getvalue())
+
+
+@contextlib.contextmanager
+def _environment(env: dict[str, str | None]) -> Iterator[None]:
+    """``env`` over ``os.environ`` (None: unset), restored after."""
+    with mock.patch.dict(os.environ):
+        for name, value in env.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
+        yield
 
 
 def bagkit_subprocess(args: list[str | Path], cwd: Path) -> subprocess.CompletedProcess[str]:

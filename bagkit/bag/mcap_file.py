@@ -27,7 +27,13 @@ from bagkit.bag.mcapio import (
     read_file_index,
 )
 from bagkit.bag.mcapio.latest import Latest, latest_before
-from bagkit.bag.mcapio.message_index import Span, channel_spans, read_message_indexes, widen
+from bagkit.bag.mcapio.message_index import (
+    Span,
+    channel_spans,
+    largest_messages,
+    read_message_indexes,
+    widen,
+)
 from bagkit.bag.mcapio.records import MESSAGE_RECORD_HEADER, RECORD_HEADER, ChunkIndex, Opcode
 from bagkit.bag.mcapio.summary import read_header
 from bagkit.bag.messages import BagMessage, TopicInfo, make_message
@@ -96,7 +102,6 @@ class McapFile:
         self.compressed_size = self.uncompressed_size = 0
         self._handle: BinaryIO | None = None
         self._channel_topics: dict[int, str] = {}
-        self._sorted_blocks: list[Block] = []
 
     def open(self) -> None:
         """Read the summary (or salvage the file without one).
@@ -133,14 +138,10 @@ class McapFile:
         self.start_ns = self.index.message_start_time
         self.end_ns = self.index.message_end_time
         chunks = self.index.chunk_indexes
-        with_messages = [c for c in chunks if c.message_start_time <= c.message_end_time]
-        self._sorted_blocks = sorted(
-            [*with_messages, *self.index.message_runs],
-            key=lambda b: (b.message_start_time, extent(b)[0]),
-        )
-        self.compressed_size = sum(c.compressed_size for c in chunks)
-        self.uncompressed_size = sum(c.uncompressed_size for c in chunks)
-        self.compression = ",".join(sorted({c.compression or "none" for c in chunks}))
+        self.compressed_size = sum(chunks.compressed_sizes)
+        self.uncompressed_size = sum(chunks.uncompressed_sizes)
+        names = {chunks.compressions[i] for i in set(chunks.compression_ids)}
+        self.compression = ",".join(sorted(name or "none" for name in names))
 
     def _describe_topics(self) -> None:
         """Topics, definitions and counts from the channels and schemas."""
@@ -184,19 +185,25 @@ class McapFile:
         """
         spans: dict[str, Span] = {}
         with_messages = [t for t, count in self.topic_counts.items() if count]
-        for block in self._sorted_blocks:
-            if not _indexed(block):
+        chunks = self.index.chunk_indexes
+        starts, ends = chunks.start_times, chunks.end_times
+        for row in range(len(chunks)):
+            start, end = starts[row], ends[row]
+            if start > end:
+                continue  # no messages
+            if not chunks.indexed(row):
                 for topic in with_messages:
-                    widen(spans, topic, block.message_start_time, block.message_end_time)
+                    widen(spans, topic, start, end)
             elif not message_indexes:
-                for channel in block.message_index_offsets:
+                for channel in chunks.channels(row):
                     if self.topic_counts.get(self._channel_topics.get(channel, ""), 0):
-                        topic = self._channel_topics[channel]
-                        widen(spans, topic, block.message_start_time, block.message_end_time)
+                        widen(spans, self._channel_topics[channel], start, end)
+        for run in self.index.message_runs:
+            for topic in with_messages:
+                widen(spans, topic, run.message_start_time, run.message_end_time)
         if not message_indexes:
             return spans
-        indexed = [c for c in self.index.chunk_indexes if c.message_index_offsets]
-        for channel, (first, last) in channel_spans(self._source, indexed).items():
+        for channel, (first, last) in channel_spans(self._source, chunks).items():
             if channel in self._channel_topics:
                 widen(spans, self._channel_topics[channel], first, last)
         return spans
@@ -206,15 +213,20 @@ class McapFile:
         decompressed), in no order; None when a block has none or they are damaged."""
         import numpy as np
 
+        if self.index.message_runs:
+            return None  # loose messages: only their records tell
         wanted = self._channel_ids({topic})
+        chunks = self.index.chunk_indexes
         parts: list[np.ndarray] = []
-        for block in self._sorted_blocks:
-            if not _indexed(block):
+        for row in range(len(chunks)):
+            if chunks.start_times[row] > chunks.end_times[row]:
+                continue  # no messages
+            if not chunks.indexed(row):
                 return None  # salvaged: only its records tell
-            if wanted.isdisjoint(block.message_index_offsets):
+            if wanted.isdisjoint(chunks.channels(row)):
                 continue
             try:
-                indexes = read_message_indexes(self._source, block)
+                indexes = read_message_indexes(self._source, chunks[row])
             except CorruptBagError:
                 return None
             parts.extend(indexes[c]["log_time"] for c in wanted if c in indexes)
@@ -225,7 +237,7 @@ class McapFile:
 
     def _blocks(self, start_ns: int | None, end_ns: int | None) -> Iterator[Block]:
         """Chunks (and runs of loose messages) that may hold messages in the time range."""
-        for block in self._sorted_blocks:
+        for block in self.index.blocks():
             if start_ns is not None and block.message_end_time < start_ns:
                 continue
             if end_ns is not None and block.message_start_time >= end_ns:
@@ -348,7 +360,7 @@ class McapFile:
         """
         found: dict[str, tuple[tuple[int, int, int], BagMessage]] = {}
         latest = latest_before(
-            self._sorted_blocks, self._channel_ids(topics), before_ns, self._block_index
+            self.index.blocks(), self._channel_ids(topics), before_ns, self._block_index
         )
         chunks: dict[int, ChunkContents | None] = {}  # by file offset: each read once
         for channel, where in latest.items():
@@ -360,6 +372,33 @@ class McapFile:
             if message is not None and (topic not in found or where.key() > found[topic][0]):
                 found[topic] = (where.key(), message)
         return {topic: message for topic, (_, message) in found.items()}
+
+    def largest_messages(self, topics: set[str]) -> dict[str, int] | None:
+        """Payload bytes of each topic's largest message in the last chunk holding it, from that
+        chunk's Message Index records (:func:`~bagkit.bag.mcapio.message_index.largest_messages`:
+        no numpy, no decompression, may be over); None when such a chunk has no Message Index
+        records (salvaged, loose messages) or they are damaged.
+        """
+        wanted = self._channel_ids(topics)
+        last: dict[int, Block] = {}  # channel -> the block holding its latest messages
+        for block in self.index.blocks():  # ties in end time: the first block
+            held = wanted.intersection(block.message_index_offsets) if _indexed(block) else wanted
+            for channel in held:
+                if channel not in last or block.message_end_time > last[channel].message_end_time:
+                    last[channel] = block
+        found: dict[str, int] = {}
+        for block in {id(b): b for b in last.values()}.values():
+            if not _indexed(block):
+                return None
+            channels = {c for c, b in last.items() if b is block}
+            try:
+                sizes = largest_messages(self._source, block, channels)
+            except CorruptBagError:
+                return None
+            for channel, size in sizes.items():
+                topic = self._channel_topics[channel]
+                found[topic] = max(found.get(topic, 0), size)
+        return found
 
     def _block_index(self, block: Block, channels: set[int]) -> dict[int, np.ndarray] | None:
         """The message index of a block: its Message Index records, else the chunk read."""
@@ -394,12 +433,21 @@ class McapFile:
         )
         return None
 
+    def _in_file_order(self) -> Iterator[Block]:
+        """The blocks with messages in file order, each chunk made a ``ChunkIndex`` when
+        reached (a bag's worth of them is not held while it is read)."""
+        chunks = self.index.chunk_indexes
+        starts, ends = chunks.start_times, chunks.end_times
+        rows = chunks.rows_by(chunks.chunk_offsets)
+        with_messages = (chunks[row] for row in rows if starts[row] <= ends[row])
+        return heapq.merge(with_messages, sorted(self.index.message_runs, key=extent), key=extent)
+
     def chunks(self, topics: set[str] | None) -> Iterator[BagChunk]:
         """Yield the chunks holding messages of ``topics`` (all when None), in file order."""
         import numpy as np
 
         wanted = self._channel_ids(topics)
-        for block in sorted(self._sorted_blocks, key=extent):
+        for block in self._in_file_order():
             if not _may_hold(block, wanted):
                 continue
             data = self._read(block)

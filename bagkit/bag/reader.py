@@ -436,6 +436,25 @@ class BagReader:
                     found[topic] = message
         return found
 
+    def largest_message(self, topics: Iterable[str]) -> int:
+        """Payload bytes of the largest message of ``topics`` near the bag's end (0: none).
+
+        A topic's messages are taken to be of one size (images, point clouds of one sensor):
+        MCAP files answer from the Message Index records of the last chunk holding each topic,
+        without numpy or decompression (the player sizes its shared-memory segment by this
+        before its participant exists); other files by each topic's last message.
+        """
+        self._check_open()
+        wanted = set(topics)
+        largest = 0
+        for storage in self._storage:
+            sizes = storage.largest_messages(wanted) if isinstance(storage, McapFile) else None
+            if sizes is None:
+                last = storage.last_messages(wanted, storage.end_ns + 1)
+                sizes = {topic: len(message.data) for topic, message in last.items()}
+            largest = max(largest, *sizes.values(), 0)
+        return largest
+
     def chunks(self, topics: Iterable[str] | None = None) -> Iterator[BagChunk]:
         """Yield the decompressed chunks holding ``topics``, file by file, in file order.
 

@@ -12,6 +12,7 @@ free at start-up).
 from __future__ import annotations
 
 import sqlite3
+import threading
 from pathlib import Path
 from typing import TYPE_CHECKING
 from urllib.request import pathname2url
@@ -34,6 +35,8 @@ DEFINITION_COLUMNS = ("topic_type", "encoding", "encoded_message_definition")
 _OPTIONAL_TOPIC_COLUMNS = ("offered_qos_profiles", "type_description_hash")
 # Up to this many topic ids, counting at open filters per topic instead of grouping.
 FILTERED_COUNT_TOPICS = 4
+# From this many row ids on, counting at open scans two halves at once.
+PARALLEL_COUNT_ROWS = 200_000
 
 
 def connect(path: Path) -> sqlite3.Connection:
@@ -80,6 +83,21 @@ def _table_columns(db: sqlite3.Connection) -> dict[str, set[str]]:
         for table in tables
         if isinstance(table, str)
     }
+
+
+def _row_id_halves(db: sqlite3.Connection) -> tuple[str, str] | None:
+    """Conditions on the row id that split ``messages`` in two halves (None: a table under
+    :data:`PARALLEL_COUNT_ROWS` row ids); each end found in the row id b-tree alone."""
+    (first,) = db.execute("SELECT min(rowid) FROM messages").fetchone()
+    (last,) = db.execute("SELECT max(rowid) FROM messages").fetchone()
+    if (
+        not isinstance(first, int)
+        or not isinstance(last, int)
+        or last - first < PARALLEL_COUNT_ROWS
+    ):
+        return None
+    middle = first + (last - first) // 2
+    return f" AND rowid <= {middle}", f" AND rowid > {middle}"
 
 
 def _missing_columns(columns: dict[str, set[str]]) -> str:
@@ -208,7 +226,41 @@ class Sqlite3File(Sqlite3Reading):
         self.start_ns, self.end_ns = min(starts, default=0), max(ends, default=0)
 
     def _grouped_counts(self, db: sqlite3.Connection) -> list[tuple[object, int, int, int]]:
-        """(topic id, count, first and last timestamp) of the valid rows of each topic id.
+        """(topic id, count, first and last timestamp) of the valid rows of each topic id,
+        several tuples of one id where the rows were counted in parts.
+
+        A large table is counted in two halves of its row ids at once, the second on a
+        connection of its own in a thread (SQLite steps rows without the GIL): the scan is
+        the one part of opening that grows with the rows.
+        """
+        halves = _row_id_halves(db)
+        if halves is None:
+            return self._counts_in(db, "")
+        second: list[tuple[object, int, int, int]] | BaseException = []
+
+        def count_second_half() -> None:
+            nonlocal second
+            other = connect(self.path)
+            try:
+                second = self._counts_in(other, halves[1])
+            except BaseException as exc:  # raised by the opening thread
+                second = exc
+            finally:
+                other.close()
+
+        worker = threading.Thread(target=count_second_half, name="bagkit-db3-count")
+        worker.start()
+        try:
+            first = self._counts_in(db, halves[0])
+        finally:
+            worker.join()
+        if isinstance(second, BaseException):
+            raise second
+        return first + second
+
+    def _counts_in(self, db: sqlite3.Connection, rows: str) -> list[tuple[object, int, int, int]]:
+        """:meth:`_grouped_counts` of the rows that ``rows`` (an SQL condition after AND, or
+        '') leaves in.
 
         Few topic ids are counted by one filtered aggregate each in one scan; SQLite would
         sort every row by topic id for ``GROUP BY``, which costs more than a few filters. The
@@ -218,7 +270,7 @@ class Sqlite3File(Sqlite3Reading):
         if len(ids) > FILTERED_COUNT_TOPICS or sqlite3.sqlite_version_info < (3, 30):
             query = (
                 "SELECT topic_id, COUNT(*), MIN(timestamp), MAX(timestamp) FROM messages "
-                f"WHERE {VALID_ROW} GROUP BY topic_id"
+                f"WHERE {VALID_ROW}{rows} GROUP BY topic_id"
             )
             return list(db.execute(query))
         per_id = ", ".join(
@@ -228,7 +280,7 @@ class Sqlite3File(Sqlite3Reading):
         )
         query = (
             f"SELECT COUNT(*), MIN(timestamp), MAX(timestamp){', ' if ids else ''}{per_id} "
-            f"FROM messages WHERE {VALID_ROW}"
+            f"FROM messages WHERE {VALID_ROW}{rows}"
         )
         total, first, last, *found = db.execute(query).fetchone()
         grouped = [(i, *found[3 * k : 3 * k + 3]) for k, i in enumerate(ids)]

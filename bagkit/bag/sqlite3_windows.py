@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-ROWS_PER_WINDOW = 16_384
+ROWS_PER_WINDOW = 8_192
 WINDOW_BYTES = 16 << 20
 MAX_WINDOW_BYTES = 64 << 20
 # Row ids spanned by one window at most (a topic that is a small share of the rows).

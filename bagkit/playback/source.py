@@ -120,18 +120,14 @@ class PlaySource:
         return heapq.merge(*streams, key=_log_time)
 
     def largest_message(self, topics: Iterable[str]) -> int:
-        """Bytes of the largest of one message per topic (each topic's last, from the indexes).
+        """Payload bytes of the largest message of ``topics`` over the bags, from their indexes
+        (:meth:`~bagkit.bag.reader.BagReader.largest_message`).
 
         What the player sizes its shared-memory segment by; a topic's messages are taken to be
         of one size (images, point clouds of one sensor), without reading the bag.
         """
         wanted = set(topics)
-        sizes = [
-            len(message.data)
-            for reader in self.readers
-            for message in last_messages_before(reader, wanted, reader.end_ns + 1).values()
-        ]
-        return max(sizes, default=0)
+        return max((reader.largest_message(wanted) for reader in self.readers), default=0)
 
     def latched_before(self, before_ns: int, topics: set[str]) -> list[BagMessage]:
         """The latched state at ``before_ns`` over all the bags, in log-time order.

@@ -33,6 +33,13 @@ PORT_QUEUE_CAPACITY = 65536
 DEFAULT_SEGMENT_SIZE = 512 << 10
 SEGMENT_SAMPLES = 16
 MAX_SEGMENT_SIZE = 256 << 20
+# How often the participant announces itself (Fast DDS: every 3 s). A participant answers a new
+# one's first announcement at once, but Fast DDS 2.14 sends that first announcement before it
+# listens (``RTPSParticipantImpl::enable``), so the answer is often lost and the newcomer finds
+# the older participant only at its next periodic announcement: a publisher that starts while
+# ``bagkit record`` runs (or a subscriber while ``bagkit play`` does) waited up to 3 s for its
+# first match (benchmarks/README.md, "Replay and record start").
+ANNOUNCEMENT_PERIOD_NS = 500_000_000
 PROFILES_FILE_VARIABLE = "FASTRTPS_DEFAULT_PROFILES_FILE"
 # Where Fast DDS 2.x looks for a profile of the user's: these variables, then these files in the
 # working directory. FASTDDS_BUILTIN_TRANSPORTS is the user choosing the transports.
@@ -60,7 +67,8 @@ def shared_memory_profile(
     port_queue_capacity: int = PORT_QUEUE_CAPACITY,
     segment_size: int | None = None,
 ) -> str:
-    """A Fast DDS XML profile: Fast DDS's own transports, with a larger shared-memory transport.
+    """A Fast DDS XML profile: Fast DDS's own transports, with a larger shared-memory transport,
+    and announcements every :data:`ANNOUNCEMENT_PERIOD_NS`.
 
     Args:
         localhost: discovery is limited to this host. rmw_fastrtps then adds a shared-memory and
@@ -101,6 +109,14 @@ def shared_memory_profile(
           <transport_id>bagkit_shm</transport_id>{udp_reference}
         </userTransports>
         <useBuiltinTransports>false</useBuiltinTransports>
+        <builtin>
+          <discovery_config>
+            <leaseAnnouncement>
+              <sec>{ANNOUNCEMENT_PERIOD_NS // 1_000_000_000}</sec>
+              <nanosec>{ANNOUNCEMENT_PERIOD_NS % 1_000_000_000}</nanosec>
+            </leaseAnnouncement>
+          </discovery_config>
+        </builtin>
       </rtps>
     </participant>
   </profiles>

@@ -270,7 +270,8 @@ def summarize(
             for topic, count in reader.topic_counts.items()
             if topics is None or topic in topics
         )
-        read = sum(r.uncompressed_size or r.size_bytes for r in readers)  # db3: no chunks
+        # A local db3 has no chunks: its file's size instead.
+        read = sum(r.uncompressed_size or (0 if r.in_storage else r.size_bytes) for r in readers)
         if read >= KEEP_FREED_FROM_BYTES:
             # Each chunk's buffers and columns are freed and allocated again for the next:
             # kept by glibc, not paid for in page faults chunk after chunk (180k -> 11k, a

@@ -9,6 +9,7 @@ caches them too), so a Dask worker that reads many bags opens its connections on
 from __future__ import annotations
 
 import errno
+import importlib
 import os
 import time
 from collections.abc import Callable
@@ -35,10 +36,19 @@ TIMEOUT_S = float(os.environ.get("BAGKIT_STORAGE_TIMEOUT", "30"))
 # between them.
 ATTEMPTS = int(os.environ.get("BAGKIT_STORAGE_ATTEMPTS", "4"))
 BACKOFF_S = float(os.environ.get("BAGKIT_STORAGE_BACKOFF", "0.25"))
-# Which package serves a scheme, for the error that says what to install: those of the
-# ``storage`` extra, and those it leaves out (not tested here: docs/fleet.md).
-_EXTRA_PACKAGES = {"s3": "s3fs", "s3a": "s3fs", "http": "aiohttp", "https": "aiohttp"}
-_OTHER_PACKAGES = {"gs": "gcsfs", "gcs": "gcsfs", "az": "adlfs", "abfs": "adlfs", "abfss": "adlfs"}
+# Which package and extra of pyproject.toml serve a scheme, for the error that says what to
+# install: one extra per client library (an S3 user gets neither grpc nor the Azure SDK).
+_PACKAGES: dict[str, tuple[str, str]] = {
+    **dict.fromkeys(("s3", "s3a"), ("s3fs", "storage")),
+    **dict.fromkeys(("http", "https"), ("aiohttp", "storage")),
+    **dict.fromkeys(("gs", "gcs"), ("gcsfs", "gcs")),
+    **dict.fromkeys(("az", "abfs", "abfss"), ("adlfs", "azure")),
+}
+# gcsfs's default class (``gcsfs.GCSFileSystem`` in recent releases) first asks a gRPC control
+# API for each bucket's layout, and asks again after every failure (an emulator, an anonymous
+# reader): a minute per call where it cannot. Its JSON-API base class reads every bucket but
+# zonal ones.
+_CLASSES = {"gs": ("gcsfs.core", "GCSFileSystem"), "gcs": ("gcsfs.core", "GCSFileSystem")}
 
 _filesystems: dict[str, AbstractFileSystem] = {}
 
@@ -54,12 +64,12 @@ def filesystem(url: str) -> tuple[AbstractFileSystem, str]:
         import fsspec
     except ImportError:
         raise UnsupportedUrlError(
-            f"{shown_url(url)}: reading URLs needs fsspec (pip install 'bagkit[storage]')"
+            f"{shown_url(url)}: reading URLs needs fsspec: pip install 'bagkit[storage]'"
         ) from None
     fs = _filesystems.get(protocol)
     if fs is None:
         try:
-            cls = fsspec.get_filesystem_class(protocol)
+            cls = _filesystem_class(fsspec, protocol)
         except ValueError:
             raise UnsupportedUrlError(
                 f"{shown_url(url)}: unknown URL scheme {protocol!r} "
@@ -72,22 +82,26 @@ def filesystem(url: str) -> tuple[AbstractFileSystem, str]:
     return fs, fs._strip_protocol(url)
 
 
+def _filesystem_class(fsspec: Any, protocol: str) -> type[AbstractFileSystem]:
+    """fsspec's class for ``protocol``, or the one bagkit chooses instead (``_CLASSES``)."""
+    if protocol in _CLASSES:
+        module, name = _CLASSES[protocol]
+        cls: type[AbstractFileSystem] = getattr(importlib.import_module(module), name)
+        return cls
+    return fsspec.get_filesystem_class(protocol)
+
+
 def _missing(protocol: str) -> str:
     """What to install to read ``protocol://`` URLs."""
-    if protocol in _EXTRA_PACKAGES:
-        package = _EXTRA_PACKAGES[protocol]
-        return f"reading {protocol}:// URLs needs {package} (pip install 'bagkit[storage]')"
-    if protocol in _OTHER_PACKAGES:
-        package = _OTHER_PACKAGES[protocol]
-        return (
-            f"reading {protocol}:// URLs needs {package}, which bagkit[storage] does not "
-            f"include (pip install {package})"
-        )
+    if protocol in _PACKAGES:
+        package, extra = _PACKAGES[protocol]
+        return f"reading {protocol}:// URLs needs {package}: pip install 'bagkit[{extra}]'"
     return f"reading {protocol}:// URLs needs the fsspec implementation of {protocol}"
 
 
 def _options(protocol: str) -> dict[str, Any]:
-    """Timeouts and retries per client; nothing about credentials (each library finds them)."""
+    """Timeouts and retries per client; no credentials (each library finds them), except that
+    a GCS emulator (``STORAGE_EMULATOR_HOST``) is read anonymously."""
     if protocol in ("s3", "s3a"):
         return {
             "config_kwargs": {
@@ -100,6 +114,15 @@ def _options(protocol: str) -> dict[str, Any]:
         import aiohttp
 
         return {"client_kwargs": {"timeout": aiohttp.ClientTimeout(sock_read=TIMEOUT_S)}}
+    if protocol in ("gs", "gcs"):
+        options: dict[str, Any] = {"requests_timeout": TIMEOUT_S}
+        # An emulator takes no credentials: anonymous, as Google's own client library does
+        # there (and no look-up of the machine's metadata server for a token).
+        if os.environ.get("STORAGE_EMULATOR_HOST"):
+            options["token"] = "anon"
+        return options
+    if protocol in ("az", "abfs", "abfss"):
+        return {"connection_timeout": int(TIMEOUT_S), "read_timeout": int(TIMEOUT_S)}
     return {}
 
 
@@ -121,13 +144,15 @@ def call(url: str, what: Callable[[], T], *, retries: bool = True) -> T:
 
 
 def _status(exc: BaseException) -> int | None:
-    """The HTTP status behind an exception of aiohttp, botocore or s3fs, if any."""
+    """The HTTP status behind an exception of aiohttp, botocore, s3fs, gcsfs (``code``) or
+    the Azure SDK (``status_code``), if any."""
     for error in (exc, exc.__cause__, exc.__context__):
         if error is None:
             continue
-        status = getattr(error, "status", None)
-        if isinstance(status, int):
-            return status
+        for attribute in ("status", "status_code", "code"):
+            status = getattr(error, attribute, None)
+            if isinstance(status, int) and 100 <= status < 600:
+                return status
         response = getattr(error, "response", None)
         if isinstance(response, dict):
             code = response.get("ResponseMetadata", {}).get("HTTPStatusCode")

@@ -118,18 +118,26 @@ class UrlPath:
         known = _infos.get(self.url)
         if known is not None:
             return known
+        # An HTTP server lists no directories: a bag's prefix is known by its metadata.yaml,
+        # asked for first where the name has no suffix (a bag's prefix, most likely: a URL
+        # that is not there costs fsspec a HEAD and a GET).
+        http = scheme(self.url) in ("http", "https") and not self.url.endswith(".yaml")
+        if http and not self.suffix and (prefix := self._bag_prefix()) is not None:
+            return prefix
         fs, path = filesystem(self.url)
         try:
             found: dict[str, Any] = call(self.url, lambda: fs.info(path))
         except ObjectNotFoundError:
-            # An HTTP server lists no directories: a bag's prefix is known by its metadata.yaml.
-            http = scheme(self.url) in ("http", "https") and not self.url.endswith(".yaml")
-            if http and (self / "metadata.yaml").is_file():
-                found = {"type": "directory", "size": 0}
-                remember(self.url, found)  # asked again by every exists()/is_dir()
-                return found
-            return None
+            return self._bag_prefix() if http and self.suffix else None
         remember(self.url, found)
+        return found
+
+    def _bag_prefix(self) -> dict[str, Any] | None:
+        """A directory's info (remembered) when this prefix holds metadata.yaml, else None."""
+        if not (self / "metadata.yaml").is_file():
+            return None
+        found = {"type": "directory", "size": 0}
+        remember(self.url, found)  # asked again by every exists()/is_dir()
         return found
 
     def exists(self) -> bool:

@@ -49,8 +49,12 @@ MIN_LEARNED_DEPTH = 64
 FIRST_TAIL_BYTES = 16 << 10
 
 
+# An object as its openings see it: URL, ETag, size (without an ETag, a size that changed).
+_Key = tuple[str, str | None, int]
+
+
 class _Kept:
-    """The blocks fetched at the ends of the last MAX_OBJECTS objects (by URL and ETag), at
+    """The blocks fetched at the ends of the last MAX_OBJECTS objects (by URL, ETag, size), at
     most MAX_BYTES: what the next opening of the same object reads first."""
 
     MAX_OBJECTS = 256
@@ -58,14 +62,14 @@ class _Kept:
 
     def __init__(self) -> None:
         self.lock = threading.Lock()
-        self.blocks: OrderedDict[tuple[str, str | None], list[tuple[int, bytes]]] = OrderedDict()
+        self.blocks: OrderedDict[_Key, list[tuple[int, bytes]]] = OrderedDict()
         self.bytes = 0
 
-    def get(self, key: tuple[str, str | None]) -> list[tuple[int, bytes]]:
+    def get(self, key: _Key) -> list[tuple[int, bytes]]:
         with self.lock:
             return list(self.blocks.get(key, ()))
 
-    def add(self, key: tuple[str, str | None], offset: int, block: bytes) -> None:
+    def add(self, key: _Key, offset: int, block: bytes) -> None:
         if len(block) > self.MAX_BYTES // 4:
             return
         with self.lock:
@@ -119,6 +123,7 @@ class RangeFile:
         self.size = int(info.get("size") or 0)
         self.etag = info.get("ETag") or info.get("etag")
         self.fetched_bytes = 0
+        self._key: _Key = (url, self.etag, self.size)
         self._kind = (url.rsplit("/", 2)[0], url.rsplit("/", 1)[-1].rpartition(".")[2])
         self._tail_low = self.size  # the lowest offset read on contiguously to the end
         self._position = 0
@@ -126,7 +131,7 @@ class RangeFile:
         self._streak = 0
         self._cache: OrderedDict[int, bytes] = OrderedDict()
         self._cached = 0
-        for offset, block in _KEPT.get((url, self.etag)):
+        for offset, block in _KEPT.get(self._key):
             self._keep(offset, block)
         self.closed = False
 
@@ -205,9 +210,9 @@ class RangeFile:
         fetch_end = min(self.size, max(end, first + ahead))
         block = self._fetch(first, fetch_end)
         if first == 0:
-            _KEPT.add((self.url, self.etag), 0, block[:HEAD_BYTES])
+            _KEPT.add(self._key, 0, block[:HEAD_BYTES])
         elif fetch_end == self.size:
-            _KEPT.add((self.url, self.etag), first, block)
+            _KEPT.add(self._key, first, block)
         if fetch_end > end or first < start or len(block) <= CACHE_BYTES // 4:
             self._keep(first, block)
         return (held + block)[: end - start] if held else block[start - first : end - first]

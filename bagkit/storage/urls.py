@@ -48,12 +48,15 @@ def scheme(url: str) -> str:
 
 def shown_url(url: str) -> str:
     """``url`` without what may be a secret: the user and password, and the query (presigned
-    URLs carry their signature there), replaced by ``?...``."""
+    URLs carry their signature there, Azure its SAS token), replaced by ``?...``. Azure's
+    ``abfs://container@account.dfs.core.windows.net/`` keeps its container (no password)."""
     try:
         parts = urlsplit(url)
     except ValueError:
         return url.split("://", 1)[0] + "://..."
-    netloc = parts.netloc.rsplit("@", 1)[-1]
+    user, at, host = parts.netloc.rpartition("@")
+    container = at and ":" not in user and parts.scheme.lower() in ("abfs", "abfss", "az")
+    netloc = parts.netloc if container else host
     query = "..." if parts.query else ""
     return urlunsplit((parts.scheme, netloc, parts.path, query, ""))
 

@@ -77,17 +77,24 @@ def topics_of(index: FileIndex, known: dict[str, TopicInfo]) -> list[tuple[int, 
 
 
 class _Stream:
-    """The blocks of one input file not yet read."""
+    """The blocks of one input file not yet read (made one at a time, as they are reached)."""
 
     def __init__(self, file: InputFile, rank: int) -> None:
         self.file = file
-        blocks: list[Block] = [*file.index.chunk_indexes, *file.index.message_runs]
-        self.blocks = deque(sorted(blocks, key=lambda b: (b.message_start_time, extent(b)[0])))
+        self._blocks = file.index.blocks(with_empty=True)
+        self.head: Block | None = next(self._blocks, None)
         self.order = rank << 96  # then block after block, by offset inside it
 
     def next_block_start(self) -> int:
         """Log time the next block starts at (2**64 when done)."""
-        return self.blocks[0].message_start_time if self.blocks else _END
+        return self.head.message_start_time if self.head is not None else _END
+
+    def pop(self) -> Block:
+        """The next block (there is one: ``head``), then the one after it is ``head``."""
+        block = self.head
+        assert block is not None
+        self.head = next(self._blocks, None)
+        return block
 
 
 class _CheckedCopies:
@@ -156,7 +163,7 @@ def copy_files(
     copies = _CheckedCopies(out, check_crc)
     try:
         while True:
-            waiting = [s for s in streams if s.blocks]
+            waiting = [s for s in streams if s.head is not None]
             if not waiting:
                 copies.flush()
                 emit(pending, _END, 0, out)
@@ -166,7 +173,7 @@ def copy_files(
                 copies.flush()
             # Messages before the block (equal times: those of earlier blocks or inputs) go first.
             emit(pending, stream.next_block_start(), stream.order, out)
-            block = stream.blocks.popleft()
+            block = stream.pop()
             bound = min(s.next_block_start() for s in streams)
             if pending:
                 bound = min(bound, *(run.head() for run in pending))

@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from bagkit_runs import bagkit_in_process
 from rosbags.rosbag2 import Writer
 from rosbags.typesys import Stores, get_typestore
 
@@ -60,13 +61,8 @@ def humble_bag(path: Path, ros_distro: str | None) -> Path:
 
 
 def _echo(bag: Path, *options: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [BAGKIT, "echo", str(bag), "/sonar", "--format", "json", *options],
-        capture_output=True,
-        text=True,
-        timeout=60,
-        check=False,
-    )
+    """``bagkit echo`` of /sonar in this process (tests/bagkit_runs.py); stats is a real one."""
+    return bagkit_in_process(["echo", bag, "/sonar", "--format", "json", *options])
 
 
 def _ranges_echoed(stdout: str) -> list[float]:

@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
+from bagkit_runs import bagkit_in_process, bagkit_subprocess
 from mcap.reader import make_reader
 from mcap.writer import CompressionType
 from mcap_ros2.decoder import DecoderFactory
@@ -34,7 +34,6 @@ from ros2_messages import IMU, TEMPERATURE, TYPESTORE
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from test_bag_mcap_variants import VARIANTS, _write
 
-BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 ImuMsg = TYPESTORE.types[IMU]
 Header = TYPESTORE.types["std_msgs/msg/Header"]
 Time = TYPESTORE.types["builtin_interfaces/msg/Time"]
@@ -43,13 +42,13 @@ Vector3 = TYPESTORE.types["geometry_msgs/msg/Vector3"]
 
 
 def bagkit(*args: str | Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [BAGKIT, *map(str, args)], check=False, capture_output=True, text=True, timeout=120
-    )
+    """``bagkit ARGS`` in this process (tests/bagkit_runs.py): what the bags hold is the point,
+    not the process; one run per test module is a real ``bagkit`` process (``ok(process=True)``)."""
+    return bagkit_in_process(list(args))
 
 
-def ok(*args: str | Path) -> str:
-    done = bagkit(*args)
+def ok(*args: str | Path, process: bool = False) -> str:
+    done = bagkit_subprocess(list(args), Path.cwd()) if process else bagkit(*args)
     assert done.returncode == 0, done.stderr
     assert "Traceback" not in done.stderr
     return done.stdout
@@ -99,7 +98,7 @@ def test_rosbags_mcap_bag_through_every_command(tmp_path: Path) -> None:
     bag = tmp_path / "rosbags_bag"
     write_rosbags_bag(bag, 120)
     expected = rosbags_values(bag)
-    info = json.loads(ok("info", bag, "--format", "json"))
+    info = json.loads(ok("info", bag, "--format", "json", process=True))
     assert info["summary"] is True
     assert {t["topic"]: t["count"] for t in info["topics"]} == {"/imu": 120, "/temperature": 0}
     assert (info["start_ns"], info["end_ns"]) == (expected[0][0], expected[-1][0])

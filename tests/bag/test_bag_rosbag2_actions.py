@@ -14,11 +14,11 @@ from __future__ import annotations
 import json
 import sqlite3
 import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
 import pytest
+from bagkit_runs import bagkit_in_process
 from rolling_bags import (
     RollingBag,
     action_definition,
@@ -29,7 +29,6 @@ from rolling_bags import (
 )
 from rosbags.rosbag2 import StoragePlugin, Writer
 
-BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 ACTION = "test_msgs/action/Fibonacci"
 # Status and cancel first: rosbag2 does not know the action's type yet when it stores them.
 ORDER = ("status", "cancel_goal", "feedback", "send_goal", "get_result")
@@ -38,9 +37,8 @@ Written = dict[str, list[tuple[int, dict[str, Any]]]]
 
 
 def _run(*args: str | Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [BAGKIT, *map(str, args)], check=False, capture_output=True, text=True, timeout=120
-    )
+    """``bagkit ARGS`` in this process (tests/bagkit_runs.py): the bags' texts are the point."""
+    return bagkit_in_process(list(args))
 
 
 def _echo(bag: Path, topic: str) -> list[tuple[int, Any]]:

@@ -102,13 +102,16 @@ def test_nulls_where_not_null_was_dropped(tmp_path: Path) -> None:
     assert "nulls.db3: 1 messages of no known topic skipped" in problems
 
 
+@pytest.mark.parametrize("halves", [1, 200_000], ids=["halves", "whole"])
 @pytest.mark.parametrize("filtered", [0, 4], ids=["grouped", "filtered"])
 def test_counts_at_open_by_either_query(
-    tmp_path: Path, filtered: int, monkeypatch: pytest.MonkeyPatch
+    tmp_path: Path, filtered: int, halves: int, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Counts, spans and the rows of no known topic are the same whether the topic ids are
-    grouped or filtered one by one (a few ids), against the rows as sqlite3 lists them."""
+    grouped or filtered one by one (a few ids), the rows counted whole or in two halves at
+    once, against the rows as sqlite3 lists them."""
     monkeypatch.setattr(sqlite3_file, "FILTERED_COUNT_TOPICS", filtered)
+    monkeypatch.setattr(sqlite3_file, "PARALLEL_COUNT_ROWS", halves)
     bag = _alter(
         write_db3(tmp_path / "orphans.db3", n=21),
         "UPDATE messages SET topic_id = 7 WHERE id IN (1, 2); "

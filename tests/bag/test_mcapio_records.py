@@ -23,6 +23,7 @@ from mcap.stream_reader import StreamReader
 
 from bagkit.bag.errors import CorruptBagError
 from bagkit.bag.mcapio import records
+from bagkit.bag.mcapio.chunk_indexes import ChunkIndexes
 from bagkit.bag.mcapio.records import MAGIC, RECORD_HEADER, encode, iter_records
 
 SAMPLES = [
@@ -54,7 +55,7 @@ SAMPLES = [
             compressed_size=900,
             uncompressed_size=4000,
         ),
-        records.parse_chunk_index,
+        lambda content: _one_row(content)[0],
     ),
     (
         Statistics(
@@ -73,6 +74,13 @@ SAMPLES = [
     (Metadata(name="rosbag2", metadata={"serialized_metadata": "a: 1"}), records.parse_metadata),
     (MetadataIndex(offset=99, length=40, name="rosbag2"), records.parse_metadata_index),
 ]
+
+
+def _one_row(content: bytes) -> ChunkIndexes:
+    """A Chunk Index record's content parsed as the one row of a table."""
+    table = ChunkIndexes()
+    table.append_record(content)
+    return table
 
 
 @pytest.mark.parametrize(("record", "parse"), SAMPLES, ids=lambda x: type(x).__name__)

@@ -1,4 +1,6 @@
-"""``bagkit info`` as a subprocess: table, JSON, salvaged bags and bad input."""
+"""``bagkit info``: table, JSON, salvaged bags and bad input; in this process
+(tests/bagkit_runs.py), as a subprocess where the process is the point (its imports, the table
+as a terminal of 80 columns gets it)."""
 
 from __future__ import annotations
 
@@ -10,6 +12,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from bagkit_runs import bagkit_in_process
 from mcap.reader import make_reader
 from ros2_messages import STRING, TYPESTORE, qos_yaml
 
@@ -21,10 +24,7 @@ START = 1_763_850_000_000_000_000
 
 
 def _run(*args: str) -> subprocess.CompletedProcess[str]:
-    env = {**os.environ, "COLUMNS": "200"}
-    return subprocess.run(
-        [BAGKIT, "info", *args], capture_output=True, text=True, timeout=60, check=False, env=env
-    )
+    return bagkit_in_process(["info", *args], env={"COLUMNS": "200"})
 
 
 @pytest.fixture
@@ -113,13 +113,8 @@ def test_rate_is_the_one_stats_summary_reports(tmp_path: Path) -> None:
             bag.write("/ten_hz", data, log_time=START + i * 100_000_000 + (i % 3) * 1_000_000)
         bag.write("/once", data, log_time=START + 5_000_000_000)
     info = {t["topic"]: t for t in json.loads(_run(str(path), "--format", "json").stdout)["topics"]}
-    stats = subprocess.run(
-        [BAGKIT, "stats", "summary", str(path), "--format", "json"],
-        capture_output=True,
-        text=True,
-        timeout=60,
-        check=True,
-    )
+    stats = bagkit_in_process(["stats", "summary", path, "--format", "json"])
+    assert stats.returncode == 0, stats.stderr
     by_stats = {t["topic"]: t["rate_hz"] for t in json.loads(stats.stdout)["topics"]}
     last = 30 * 100_000_000 + (30 % 3) * 1_000_000
     assert info["/ten_hz"]["rate_hz"] == by_stats["/ten_hz"] == pytest.approx(30 / (last / 1e9))

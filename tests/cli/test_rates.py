@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from bagkit_runs import bagkit_in_process
 
 from bagkit.bag import BagReader, BagWriter, TopicInfo
 
@@ -20,13 +21,7 @@ PAYLOAD = b"\x00\x01\x00\x00\x02\x00\x00\x00x\x00"
 
 
 def _json(*args: str | Path) -> dict:
-    result = subprocess.run(
-        [BAGKIT, *map(str, args), "--format", "json"],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-    )
+    result = bagkit_in_process([*args, "--format", "json"])  # tests/bagkit_runs.py
     assert result.returncode == 0, result.stderr
     return json.loads(result.stdout)
 

@@ -1,4 +1,5 @@
-"""``bagkit stats summary`` as a subprocess: table, JSON and CSV output; bad input."""
+"""``bagkit stats summary`` (in this process, tests/bagkit_runs.py): table, JSON and CSV output;
+bad input."""
 
 from __future__ import annotations
 
@@ -7,30 +8,24 @@ import io
 import json
 import sqlite3
 import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
+from bagkit_runs import bagkit_in_process
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from bagkit.bag import BagWriter, TopicInfo
 from bagkit.stats import summarize
 
-BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 T0 = 1_750_000_000_000_000_000
 
 
 def _run(*args: str | Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [BAGKIT, "stats", "summary", *map(str, args)],
-        capture_output=True,
-        text=True,
-        timeout=60,
-        check=False,
-    )
+    """``bagkit stats summary ARGS`` in this process (tests/bagkit_runs.py)."""
+    return bagkit_in_process(["stats", "summary", *args])
 
 
 @pytest.fixture(scope="module")

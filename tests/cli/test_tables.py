@@ -1,19 +1,17 @@
-"""Every table of the CLI, as a subprocess at 80 columns and narrower: no name is ever cut."""
+"""Every table of the CLI (run in this process, tests/bagkit_runs.py) at 80 columns and narrower:
+no name is ever cut."""
 
 from __future__ import annotations
 
-import os
 import re
 import struct
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from bagkit_runs import bagkit_in_process
 
 from bagkit.bag import BagWriter, TopicInfo
 
-BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 START = 1_763_850_000_000_000_000
 LONG_TOPIC = "/a/very/long/namespace/for/the/battery/management/system/of_the_robot/report"
 LONG_TYPE = "my_robot_msgs/msg/SomeVeryLongTypeNameForTesting"
@@ -43,15 +41,8 @@ def long_names_bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def _run(columns: int, *args: str, cwd: Path | None = None) -> str:
-    done = subprocess.run(
-        [BAGKIT, *args],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-        cwd=cwd,
-        env={**os.environ, "COLUMNS": str(columns)},
-    )
+    """``bagkit ARGS`` in this process (tests/bagkit_runs.py), ``COLUMNS`` wide."""
+    done = bagkit_in_process(list(args), cwd, env={"COLUMNS": str(columns)})
     assert done.returncode in (0, 1), done.stderr
     return done.stdout
 

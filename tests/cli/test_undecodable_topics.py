@@ -1,25 +1,25 @@
-"""Topics whose messages do not decode, through ``export``, ``plot`` and ``find`` as
-subprocesses (as ``stats summary`` and ``echo``): a topic none of whose messages decode ends
-the command with one error line and exit 2, the others are done; a topic some of whose
-messages decode is done with a warning that counts the rest."""
+"""Topics whose messages do not decode, through ``export``, ``plot`` and ``find`` (in this
+process, tests/bagkit_runs.py; one export a real process), as ``stats summary`` and ``echo``:
+a topic none of whose messages decode ends the command with one error line and exit 2, the
+others are done; a topic some of whose messages decode is done with a warning that counts the
+rest."""
 
 from __future__ import annotations
 
 import json
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
+from bagkit_runs import bagkit_in_process, bagkit_subprocess
 
 from bagkit.bag import BagWriter, TopicInfo
 from bagkit.data.export import export
 from bagkit.data.series import read_series
 from bagkit.fleet.find import find_fleet
 
-BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 T0 = 1_750_000_000_000_000_000
 READING = "float64 value\nuint32 n\n"
 CDR = b"\x00\x01\x00\x00"  # little-endian plain CDR encapsulation
@@ -54,10 +54,9 @@ def _short(topic: str) -> int:
     return sum(payload == SHORT for payload in LAYOUT[topic])
 
 
-def _run(*args: str | Path) -> subprocess.CompletedProcess[str]:
-    done = subprocess.run(
-        [BAGKIT, *map(str, args)], capture_output=True, text=True, timeout=120, check=False
-    )
+def _run(*args: str | Path, process: bool = False) -> subprocess.CompletedProcess[str]:
+    """``bagkit ARGS`` in this process (tests/bagkit_runs.py), or a real one."""
+    done = bagkit_subprocess(list(args), Path.cwd()) if process else bagkit_in_process(list(args))
     assert "Traceback" not in done.stderr and "internal error" not in done.stderr, done.stderr
     return done
 
@@ -87,7 +86,7 @@ def test_the_library_counts_per_topic(bag: Path, tmp_path: Path) -> None:
 
 
 def test_export_writes_the_other_topics_then_fails(bag: Path, tmp_path: Path) -> None:
-    done = _run("export", bag, "-o", tmp_path / "out")
+    done = _run("export", bag, "-o", tmp_path / "out", process=True)
     _failed_on_broken(done)
     warnings = _lines(done, "warning:")
     assert any(f"/mixed: {_short('/mixed')} messages could not be decoded" in w for w in warnings)

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 import pytest
 import yaml
+from bagkit_runs import bagkit_in_process
 from oracle import raw_messages, same
 from samples import JAZZY, SAMPLE_TYPES
 
@@ -24,9 +25,9 @@ GOLDEN = REPO / "fixtures" / "nominal" / "golden"
 
 
 def _echo(*args: str | Path, check: bool = True) -> subprocess.CompletedProcess[str]:
-    result = subprocess.run(
-        [BAGKIT, "echo", *map(str, args)], capture_output=True, text=True, timeout=120, check=False
-    )
+    """``bagkit echo ARGS`` in this process (tests/bagkit_runs.py); the pipe into ``head`` is a
+    real process."""
+    result = bagkit_in_process(["echo", *args])
     if check:
         assert result.returncode == 0, result.stderr
     return result

@@ -4,11 +4,11 @@ Chromium with no network, one trace per requested field; series values from the 
 from __future__ import annotations
 
 import subprocess
-import sys
 from html.parser import HTMLParser
 from pathlib import Path
 
 import numpy as np
+from bagkit_runs import bagkit_in_process
 from chromium import dump_dom, screenshot
 from matplotlib.image import imread
 
@@ -16,16 +16,14 @@ import bagkit
 from bagkit.data.plot_png import Layout
 from bagkit.data.series import decimate, load_series
 
-BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 REPO = Path(__file__).resolve().parents[2]
 NOMINAL = REPO / "fixtures" / "nominal" / "golden"
 FAULTS = REPO / "fixtures" / "faults" / "golden"
 
 
 def _plot(*args: str | Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [BAGKIT, "plot", *map(str, args)], capture_output=True, text=True, timeout=120, check=False
-    )
+    """``bagkit plot ARGS`` in this process (tests/bagkit_runs.py)."""
+    return bagkit_in_process(["plot", *args])
 
 
 def _external_resources(html: str) -> list[str]:

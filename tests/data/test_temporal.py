@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from bagkit_runs import bagkit_in_process
 from rosbags.typesys import Stores, get_typestore
 
 from bagkit.bag import BagReader, BagWriter, TopicInfo
@@ -144,10 +145,8 @@ def test_the_gap_at_the_end_of_the_bag(tmp_path: Path) -> None:
 
 
 def bagkit(*args: str) -> subprocess.CompletedProcess[str]:
-    exe = Path(sys.executable).parent / "bagkit"
-    return subprocess.run(
-        [str(exe), *args], check=False, capture_output=True, text=True, timeout=120
-    )
+    """``bagkit ARGS`` in this process (tests/bagkit_runs.py)."""
+    return bagkit_in_process(list(args))
 
 
 def test_find_cli_with_a_temporal_condition(bag: Path) -> None:

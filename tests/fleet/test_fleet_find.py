@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 from pathlib import Path
 
 import pandas as pd
 import pytest
+from bagkit_runs import bagkit_in_process, bagkit_subprocess
 from distributed import Client
 from fleet_bags import IMU, STORE
 from mcap.reader import make_reader
@@ -25,7 +25,6 @@ from bagkit.fleet.find import FoundEpisode, find_fleet
 from bagkit.selection.errors import SelectionError, UnknownFieldError, UnknownTopicError
 from bagkit.selection.query import Query
 
-BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 WHEN = "/imu/data: linear_acceleration.z > 9.85 or angular_velocity.x < -0.03"
 
 
@@ -105,10 +104,11 @@ def test_bad_input(fleet_bags: list[Path], tmp_path: Path) -> None:
         assert raised.value.field == "events" and "--events" not in str(raised.value)
 
 
-def _bagkit(*args: str | Path, cwd: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [BAGKIT, *map(str, args)], capture_output=True, text=True, timeout=300, cwd=cwd, check=False
-    )
+def _bagkit(
+    *args: str | Path, cwd: Path, process: bool = False
+) -> subprocess.CompletedProcess[str]:
+    """``bagkit ARGS`` in this process (tests/bagkit_runs.py), or a real one."""
+    return (bagkit_subprocess if process else bagkit_in_process)(list(args), cwd)
 
 
 def test_cli_json_and_parquet_hold_the_episodes(fleet_dir: Path, tmp_path: Path) -> None:
@@ -140,7 +140,9 @@ def test_cli_json_and_parquet_hold_the_episodes(fleet_dir: Path, tmp_path: Path)
 def test_cli_bad_input_is_one_line(
     fleet_dir: Path, tmp_path: Path, args: list[str], error: str
 ) -> None:
-    result = _bagkit("find", fleet_dir, *args, "--workers", "0", cwd=tmp_path)
+    # The injection a real process: what it could run would run there.
+    injection = "__import__" in args[1]
+    result = _bagkit("find", fleet_dir, *args, "--workers", "0", cwd=tmp_path, process=injection)
     assert result.returncode == 2, result.stderr
     assert result.stderr.startswith(error) and result.stderr.count("\n") == 1, result.stderr
     assert not (tmp_path / "PWNED").exists()

@@ -4,15 +4,14 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from bagkit_runs import bagkit_in_process
 
 from bagkit.health import HealthSpec, SpecError, check_bag
 
 FIXTURES = Path(__file__).parents[2] / "fixtures"
-BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 CONTRACT = """\
 forbidden: [/debug]
 topics:
@@ -33,9 +32,8 @@ topics:
 
 
 def bagkit(*args: str | Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [BAGKIT, *map(str, args)], check=False, capture_output=True, text=True, timeout=120
-    )
+    """``bagkit ARGS`` in this process (tests/bagkit_runs.py)."""
+    return bagkit_in_process(list(args))
 
 
 @pytest.fixture

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from bagkit_runs import bagkit_in_process
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Range, Temperature
 
@@ -63,6 +64,10 @@ def _old_bag(path: Path) -> Path:
 
 
 def _migrate(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
+    """``bagkit migrate ARGS`` in this process (tests/bagkit_runs.py); a real one with ``env``
+    (a PYTHONPATH that its rules' modules are imported from)."""
+    if env is None:
+        return bagkit_in_process(["migrate", *args])
     return subprocess.run(
         [BAGKIT, "migrate", *args],
         capture_output=True,

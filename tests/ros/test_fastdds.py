@@ -50,6 +50,15 @@ def test_profile_keeps_fast_dds_transports_with_a_larger_port() -> None:
     ]
 
 
+@pytest.mark.parametrize("localhost", [True, False])
+def test_profile_announces_the_participant_every_half_second(localhost: bool) -> None:
+    root = ET.fromstring(shared_memory_profile(localhost=localhost))
+    (period,) = root.iterfind(".//f:participant//f:discovery_config/f:leaseAnnouncement", NS)
+    seconds = int(period.findtext("f:sec", namespaces=NS) or "x")
+    nanoseconds = int(period.findtext("f:nanosec", namespaces=NS) or "x")
+    assert seconds * 10**9 + nanoseconds == 500_000_000
+
+
 @pytest.mark.parametrize(
     ("environ", "expected"),
     [

@@ -1,20 +1,31 @@
-"""Stores on 127.0.0.1 for the storage tests (moto's S3 server, a range-capable HTTP server),
-a real bucket when ``BAGKIT_TEST_BUCKET`` names one, and the bags put in them."""
+"""Stores on 127.0.0.1 for the storage tests (moto's S3 server, gcp-storage-emulator,
+Azurite, a range-capable HTTP server), a real bucket when ``BAGKIT_TEST_BUCKET`` names one,
+and the bags put in them."""
 
 from __future__ import annotations
 
 import os
 import uuid
 from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 from rosbags.typesys import Stores, get_typestore
 
 from bagkit.bag import BagWriter, TopicInfo
-from tests.storage.servers import HttpStore, real_bucket, start_http, start_moto
+from tests.storage.servers import (
+    Emulator,
+    HttpStore,
+    real_bucket,
+    start_azurite,
+    start_gcs,
+    start_http,
+    start_moto,
+)
 
 STORE = get_typestore(Stores.ROS2_JAZZY)
 T0 = 1_700_000_000_000_000_000
@@ -80,21 +91,14 @@ class Store:
     put: Callable[[Path, str], None]
 
 
-@pytest.fixture(scope="session")
-def moto_store() -> Iterator[Store]:
-    server = start_moto()
+@contextmanager
+def serving(server: Emulator) -> Iterator[Emulator]:
+    """``server``'s environment in this process's (the library's calls here read it), until
+    the server is stopped."""
     saved = {k: os.environ.get(k) for k in server.env}
     os.environ.update(server.env)
     try:
-        import s3fs
-
-        fs = s3fs.S3FileSystem()
-        fs.mkdir("bagkit-test")
-
-        def put(local: Path, key: str) -> None:
-            fs.put(str(local), f"bagkit-test/{key}", recursive=local.is_dir())
-
-        yield Store("s3", "s3://bagkit-test", server.env, put)
+        yield server
     finally:
         server.stop()
         for key, value in saved.items():
@@ -102,6 +106,40 @@ def moto_store() -> Iterator[Store]:
                 os.environ.pop(key, None)
             else:
                 os.environ[key] = value
+
+
+def fsspec_store(name: str, fs: Any, bucket: str, env: dict[str, str]) -> Store:
+    """A store served by the fsspec filesystem ``fs``, its ``bucket`` made."""
+    fs.mkdir(bucket)
+
+    def put(local: Path, key: str) -> None:
+        fs.put(str(local), f"{bucket}/{key}", recursive=local.is_dir())
+
+    return Store(name, f"{name}://{bucket}", env, put)
+
+
+@pytest.fixture(scope="session")
+def moto_store() -> Iterator[Store]:
+    with serving(start_moto()) as server:
+        import s3fs
+
+        yield fsspec_store("s3", s3fs.S3FileSystem(), "bagkit-test", server.env)
+
+
+@pytest.fixture(scope="session")
+def gcs_store() -> Iterator[Store]:
+    with serving(start_gcs()) as server:
+        from gcsfs.core import GCSFileSystem
+
+        yield fsspec_store("gs", GCSFileSystem(token="anon"), "bagkit-test", server.env)
+
+
+@pytest.fixture(scope="session")
+def azure_store() -> Iterator[Store]:
+    with serving(start_azurite()) as server:
+        from adlfs import AzureBlobFileSystem
+
+        yield fsspec_store("az", AzureBlobFileSystem(), "bagkit-test", server.env)
 
 
 @pytest.fixture(scope="session")
@@ -138,15 +176,16 @@ def real_store() -> Store:
     return Store("real", base, {}, put)
 
 
-@pytest.fixture(params=["s3", "http", "real"])
+STORES = {"s3": "moto_store", "gs": "gcs_store", "az": "azure_store", "real": "real_store"}
+
+
+@pytest.fixture(params=["s3", "gs", "az", "http", "real"])
 def store(request: pytest.FixtureRequest, local_bags: Path) -> Store:
     """Each store, holding ``fleet/a``, ``fleet/b`` (bag prefixes) and ``a.mcap``."""
-    if request.param == "s3":
-        chosen: Store = request.getfixturevalue("moto_store")
-    elif request.param == "http":
-        chosen = request.getfixturevalue("http_store")[0]
+    if request.param == "http":
+        chosen: Store = request.getfixturevalue("http_store")[0]
     else:
-        chosen = request.getfixturevalue("real_store")
+        chosen = request.getfixturevalue(STORES[request.param])
     if not getattr(chosen, "_filled", False):
         chosen.put(local_bags / "fleet" / "a", "fleet/a")
         chosen.put(local_bags / "fleet" / "b", "fleet/b")

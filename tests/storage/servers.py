@@ -1,10 +1,13 @@
-"""The stores the storage tests read from, all on 127.0.0.1: moto's S3-compatible server (a
-subprocess, killed by its pid) and a small HTTP server with byte ranges and injected faults."""
+"""The stores the storage tests read from, all on 127.0.0.1: moto's S3-compatible server,
+gcp-storage-emulator (GCS) and Azurite (Azure Blob Storage), each a subprocess stopped by its
+pid, and a small HTTP server with byte ranges and injected faults."""
 
 from __future__ import annotations
 
 import hashlib
+import importlib.util
 import os
+import shutil
 import socket
 import subprocess
 import sys
@@ -13,8 +16,19 @@ import time
 from dataclasses import dataclass, field
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
+from typing import NoReturn
 
 import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+# Installed by the Makefile (`make test`): npm's azurite, pinned there.
+AZURITE = REPO / ".azurite" / "node_modules" / ".bin" / "azurite-blob"
+# Azurite's well-known development account (published with Azurite: no secret), reached as
+# every Azure client does, through the connection string in the environment.
+AZURITE_ACCOUNT = "devstoreaccount1"
+AZURITE_KEY = (
+    "Eby8vdM02xNOcqFlqUwJPLlmEtlCDXJ1OUzFT50uSRZ6IFsuFq2UVErCz4I6tq/K1SZFPTOtr/KBHBeksoGMGw=="
+)
 
 
 def free_port() -> int:
@@ -24,8 +38,8 @@ def free_port() -> int:
 
 
 @dataclass
-class MotoServer:
-    """moto's standalone S3 server; ``env``: what a client needs to reach it."""
+class Emulator:
+    """A store's server in a subprocess; ``env``: what a client needs to reach it."""
 
     process: subprocess.Popen[bytes]
     endpoint: str
@@ -40,31 +54,81 @@ class MotoServer:
             self.process.wait()
 
 
-def start_moto() -> MotoServer:
-    port = free_port()
-    process = subprocess.Popen(
-        [str(Path(sys.executable).with_name("moto_server")), "-H", "127.0.0.1", "-p", str(port)],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
+def _serve(args: list[str], port: int) -> tuple[subprocess.Popen[bytes], str]:
+    """Start ``args`` and wait until it listens on ``port`` of 127.0.0.1."""
+    process = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.monotonic() + 30
     while time.monotonic() < deadline:
         try:
             socket.create_connection(("127.0.0.1", port), timeout=0.2).close()
-            break
+            return process, f"http://127.0.0.1:{port}"
         except OSError:
+            if process.poll() is not None:
+                break
             time.sleep(0.1)
-    else:
-        process.kill()
-        pytest.fail("moto_server did not start")
-    endpoint = f"http://127.0.0.1:{port}"
+    process.kill()
+    process.wait()
+    pytest.fail(f"{Path(args[0]).name} did not start")
+
+
+def start_moto() -> Emulator:
+    port = free_port()
+    moto = str(Path(sys.executable).with_name("moto_server"))
+    process, endpoint = _serve([moto, "-H", "127.0.0.1", "-p", str(port)], port)
     env = {
         "AWS_ENDPOINT_URL": endpoint,
         "AWS_ACCESS_KEY_ID": "testing",
         "AWS_SECRET_ACCESS_KEY": "testing-secret",
         "AWS_DEFAULT_REGION": "us-east-1",
     }
-    return MotoServer(process, endpoint, env)
+    return Emulator(process, endpoint, env)
+
+
+def start_gcs() -> Emulator:
+    """gcp-storage-emulator, in memory; clients find it by ``STORAGE_EMULATOR_HOST``.
+    Skipped (failed under CI=true) where the lock's packages are not installed yet."""
+    emulator = str(Path(sys.executable).with_name("gcp-storage-emulator"))
+    if importlib.util.find_spec("gcsfs") is None or not Path(emulator).exists():
+        needed("gcsfs or gcp-storage-emulator not installed (make .venv/.installed: the lock)")
+    port = free_port()
+    args = [emulator, "start", "--host", "127.0.0.1", "--port", str(port), "--in-memory", "-q"]
+    process, endpoint = _serve(args, port)
+    env = {
+        "STORAGE_EMULATOR_HOST": endpoint,
+        # Should anything ask Google's metadata server for a token, it asks a closed port here.
+        "GCE_METADATA_HOST": "127.0.0.1:9",
+        "GCE_METADATA_IP": "127.0.0.1:9",
+    }
+    return Emulator(process, endpoint, env)
+
+
+def start_azurite() -> Emulator:
+    """Azurite's blob service, in memory, without telemetry; clients find it by
+    ``AZURE_STORAGE_CONNECTION_STRING``. Skipped (failed under CI=true) without Node.js or
+    Azurite."""
+    if importlib.util.find_spec("adlfs") is None:
+        needed("adlfs not installed (make .venv/.installed installs the lock)")
+    if shutil.which("node") is None:
+        needed("Node.js not found: Azurite (the az:// tests' emulator) needs it")
+    if not AZURITE.exists():
+        needed(f"Azurite not installed at {AZURITE.relative_to(REPO)} (make test installs it)")
+    port = free_port()
+    args = [str(AZURITE), "--blobHost", "127.0.0.1", "--blobPort", str(port)]
+    args += ["--inMemoryPersistence", "--disableTelemetry", "--skipApiVersionCheck", "--silent"]
+    process, endpoint = _serve(args, port)
+    connection = (
+        f"DefaultEndpointsProtocol=http;AccountName={AZURITE_ACCOUNT};AccountKey={AZURITE_KEY};"
+        f"BlobEndpoint={endpoint}/{AZURITE_ACCOUNT};"
+    )
+    return Emulator(process, endpoint, {"AZURE_STORAGE_CONNECTION_STRING": connection})
+
+
+def needed(reason: str) -> NoReturn:
+    """Skip for want of ``reason``'s tool, or under CI (``CI=true``) fail: CI never passes by
+    skipping."""
+    if os.environ.get("CI", "").lower() == "true":
+        pytest.fail(reason)
+    pytest.skip(reason)
 
 
 @dataclass
@@ -85,6 +149,7 @@ class HttpStore:
     objects: dict[str, bytes] = field(default_factory=dict)
     faults: dict[str, Faults] = field(default_factory=dict)
     gets: dict[str, int] = field(default_factory=dict)
+    requests: dict[str, int] = field(default_factory=dict)  # by method: HEAD, GET
     url: str = ""
     # id(object) -> (the object, its MD5): hashed once per object, not per request (a 64 MB
     # object served by ranges, under several paths).
@@ -101,6 +166,12 @@ class HttpStore:
         return f'"{digest}{"-2" if changed else ""}"'
 
 
+class _Server(ThreadingHTTPServer):
+    # socketserver listens with a backlog of 5: 16 readers connecting at once lose SYNs,
+    # which their kernel sends again after a second.
+    request_queue_size = 128
+
+
 def start_http(store: HttpStore) -> ThreadingHTTPServer:
     class Handler(BaseHTTPRequestHandler):
         def log_message(self, *args: object) -> None:
@@ -109,6 +180,7 @@ def start_http(store: HttpStore) -> ThreadingHTTPServer:
         def _answer(self, body: bool) -> None:
             path = self.path.split("?", 1)[0]
             faults = store.faults.get(path, Faults())
+            store.requests[self.command] = store.requests.get(self.command, 0) + 1
             if body:
                 store.gets[path] = store.gets.get(path, 0) + 1
             if faults.stall_s:
@@ -154,7 +226,7 @@ def start_http(store: HttpStore) -> ThreadingHTTPServer:
         def do_GET(self) -> None:
             self._answer(body=True)
 
-    server = ThreadingHTTPServer(("127.0.0.1", free_port()), Handler)
+    server = _Server(("127.0.0.1", free_port()), Handler)
     server.daemon_threads = True
     threading.Thread(target=server.serve_forever, daemon=True).start()
     store.url = f"http://127.0.0.1:{server.server_address[1]}"

@@ -1,15 +1,16 @@
 """Bad URLs and failing stores: one ``error:`` line naming the URL without its secrets, exit
 2; retries ride out a few 5xx answers; an object that changes while read is an error, not a
-mix. Faults come from the HTTP server on loopback; S3's from moto's server."""
+mix. Faults come from the HTTP server on loopback; missing buckets and objects that are no bag
+from every store (moto's S3 server, gcp-storage-emulator, Azurite)."""
 
 from __future__ import annotations
 
-import importlib.util
 import os
 from pathlib import Path
 
 import pytest
 
+from bagkit.storage.urls import shown_url
 from tests.storage.conftest import Store
 from tests.storage.servers import Faults, HttpStore
 from tests.storage.test_storage_read import cli
@@ -75,12 +76,13 @@ def test_forbidden_is_access_denied(http: HttpStore) -> None:
     assert "access denied" in one_error(["info", f"{http.url}/faulty.mcap"])
 
 
-def test_an_object_that_is_no_bag(http_store: tuple[Store, HttpStore], tmp_path: Path) -> None:
-    store, _ = http_store
+@pytest.mark.parametrize("store", ["s3", "gs", "az", "http"], indirect=True)
+def test_an_object_that_is_no_bag(store: Store, tmp_path: Path) -> None:
     (tmp_path / "notes.mcap").write_bytes(b"not a bag at all, " * 100)
     store.put(tmp_path / "notes.mcap", "notes.mcap")
-    line = one_error(["info", f"{store.base}/notes.mcap"])
+    line = one_error(["info", f"{store.base}/notes.mcap"], store.env)
     assert f"{store.base}/notes.mcap" in line
+    assert not any(secret in line for secret in store.env.values() if "Key=" in secret)
 
 
 def test_an_http_prefix_of_bags_is_one_error(
@@ -105,24 +107,62 @@ def test_secrets_in_a_url_are_never_shown(http: HttpStore) -> None:
     assert f"http://{host}/missing.mcap" in line
 
 
+@pytest.mark.parametrize(
+    ("url", "shown"),
+    [
+        ("https://user:pw@host/a.mcap?sig=1", "https://host/a.mcap?..."),
+        ("https://token@host/a.mcap", "https://host/a.mcap"),
+        (
+            "abfs://bags@acct.dfs.core.windows.net/a.mcap",
+            "abfs://bags@acct.dfs.core.windows.net/a.mcap",
+        ),
+        ("abfs://bags:key@acct.dfs.core.windows.net/a", "abfs://acct.dfs.core.windows.net/a"),
+        ("az://bags/a.mcap?sv=2024&sig=s3cr3t", "az://bags/a.mcap?..."),
+    ],
+)
+def test_urls_are_shown_without_secrets(url: str, shown: str) -> None:
+    assert shown_url(url) == shown
+
+
 def test_an_unknown_scheme(tmp_path: Path) -> None:
     assert "unknown URL scheme 'nosuch'" in one_error(["info", "nosuch://bucket/bag.mcap"])
 
 
-@pytest.mark.parametrize(("url", "package"), [("gs://b/x.mcap", "gcsfs"), ("az://c/x", "adlfs")])
-def test_a_scheme_whose_package_is_missing_names_it(url: str, package: str) -> None:
-    """gcsfs and adlfs are not in bagkit[storage] (nor in the lock): one error naming the
-    package, when it is not installed."""
-    if importlib.util.find_spec(package) is not None:
-        pytest.skip(f"{package} is installed")
-    error = one_error(["info", url])
-    assert f"needs {package}, which bagkit[storage] does not include" in error
-    assert f"pip install {package})" in error
+@pytest.mark.parametrize(
+    ("url", "package", "extra"),
+    [
+        ("s3://b/x.mcap", "s3fs", "storage"),
+        ("gs://b/x.mcap", "gcsfs", "gcs"),
+        ("az://c/x", "adlfs", "azure"),
+    ],
+)
+def test_a_scheme_whose_package_is_missing_names_it(
+    url: str, package: str, extra: str, tmp_path: Path
+) -> None:
+    """Each client library in an extra of its own: without it, one error naming the extra (the
+    package hidden by one on PYTHONPATH that does not import, as an absent one does not)."""
+    hidden = tmp_path / package
+    hidden.mkdir()
+    message = f"No module named {package!r}"
+    (hidden / "__init__.py").write_text(f"raise ModuleNotFoundError({message!r}, name={package!r})")
+    error = one_error(["info", url], {"PYTHONPATH": str(tmp_path)})
+    assert error == f"error: {url}: reading {url[:2]}:// URLs needs {package}: " + (
+        f"pip install 'bagkit[{extra}]'"
+    )
 
 
-def test_a_bucket_that_does_not_exist(moto_store: Store) -> None:
-    line = one_error(["info", "s3://no-such-bucket-here/bag.mcap"], moto_store.env)
-    assert "s3://no-such-bucket-here/bag.mcap" in line
+@pytest.mark.parametrize(
+    ("store", "url"),
+    [
+        ("s3", "s3://no-such-bucket-here/bag.mcap"),
+        ("gs", "gs://no-such-bucket-here/bag.mcap"),
+        ("az", "az://no-such-container/bag.mcap"),
+    ],
+    indirect=["store"],
+)
+def test_a_bucket_that_does_not_exist(store: Store, url: str) -> None:
+    line = one_error(["info", url], store.env)
+    assert line.startswith(f"error: {url}: no such ")
 
 
 def test_no_credentials(moto_store: Store, tmp_path: Path) -> None:

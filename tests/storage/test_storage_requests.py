@@ -12,6 +12,7 @@ from mcap.writer import Writer
 from bagkit.bag import BagError, bag_info
 from bagkit.storage.range_file import fetched
 from tests.storage.conftest import Store
+from tests.storage.servers import HttpStore
 from tests.storage.test_storage_read import summary_bytes
 
 
@@ -131,3 +132,16 @@ def test_filter_around_writes_its_cuts_under_an_output_url(
     again = cli(["filter", f"{base}/around/b", "-o", f"{base}/cuts", *args], moto_store.env)
     assert again.returncode == 2 and "exists (use --force to replace it)" in again.stderr
     assert again.stderr.count("\n") == 1 and again.stderr.startswith("error: ")
+
+
+def test_an_http_bag_prefix_costs_no_probe_that_fails(
+    http_store: tuple[Store, HttpStore], local_bags: Path
+) -> None:
+    """A bag named by its prefix on an HTTP server (which lists nothing): its metadata.yaml
+    is asked for first, no request answered 404 (fsspec follows a failed HEAD with a GET)."""
+    store, objects = http_store
+    store.put(local_bags / "fleet" / "b", "probe/b")
+    before = dict(objects.requests)
+    bag_info(f"{store.base}/probe/b")
+    sent = {m: n - before.get(m, 0) for m, n in objects.requests.items()}
+    assert sent == {"HEAD": 2, "GET": 2}  # metadata.yaml and the .mcap: a HEAD and a GET each

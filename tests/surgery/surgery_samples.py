@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+from bagkit_runs import bagkit_in_process
 from mcap.reader import make_reader
 from ros2_messages import IMU, STRING, TEMPERATURE, TYPESTORE, imu_cdr, qos_yaml, string_cdr
 from rosbags.highlevel import AnyReader
@@ -93,6 +94,12 @@ def run(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]
     return subprocess.run(
         [BAGKIT, *args], capture_output=True, text=True, timeout=120, check=False, cwd=cwd
     )
+
+
+def run_here(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    """What ``run`` answers, from ``bagkit`` in this process (tests/bagkit_runs.py): each test
+    module keeps a real process for one of its runs."""
+    return bagkit_in_process(list(args), cwd)
 
 
 def key(message: Message) -> tuple[int, str, bytes]:

@@ -14,7 +14,7 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
-from surgery_samples import key, mcap_messages, rosbags_messages, run, write_mixed_bag
+from surgery_samples import key, mcap_messages, rosbags_messages, run, run_here, write_mixed_bag
 
 from tests.bag.ros1_samples import SAMPLE, ros1_messages, write_ros1_bag
 
@@ -31,7 +31,7 @@ def ros1(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def _convert(*args: str | Path) -> dict[str, object]:
-    result = run("convert", *map(str, args), "--format", "json")
+    result = run_here("convert", *map(str, args), "--format", "json")
     assert result.returncode == 0, result.stderr
     report: dict[str, object] = json.loads(result.stdout)
     return report
@@ -161,13 +161,13 @@ def test_ros1_and_mcap_merged_into_sqlite3_with_zstd(
 def test_selection_is_filters(mixed: Path, tmp_path: Path) -> None:
     selection = ["--topics", "/imu/data", "/text", "--start", "2", "--end", "9"]
     _convert(mixed, "-o", tmp_path / "converted", "--storage", "sqlite3", *selection)
-    result = run("filter", str(mixed), "-o", str(tmp_path / "filtered"), *selection)
+    result = run_here("filter", str(mixed), "-o", str(tmp_path / "filtered"), *selection)
     assert result.returncode == 0, result.stderr
     converted = rosbags_messages(tmp_path / "converted")
     assert converted and converted == rosbags_messages(tmp_path / "filtered")
     where = ["--topics", "/imu/data", "--where", "linear_acceleration.x > 0.5"]
     _convert(mixed, "-o", tmp_path / "where_db3", "--storage", "sqlite3", *where)
-    result = run("filter", str(mixed), "-o", str(tmp_path / "where_mcap"), *where)
+    result = run_here("filter", str(mixed), "-o", str(tmp_path / "where_mcap"), *where)
     assert result.returncode == 0, result.stderr
     kept = rosbags_messages(tmp_path / "where_db3")
     assert 0 < len(kept) < 1500
@@ -182,7 +182,7 @@ def test_db3_into_mcap_selection_is_filters(mixed: Path, tmp_path: Path) -> None
     selection = ["--topics", "/imu/data", "/text", "--start", "2", "--end", "9"]
     selection += ["--where", "linear_acceleration.x > 0.5"]
     _convert(db3, "-o", tmp_path / "converted", *selection)
-    result = run("filter", str(mixed), "-o", str(tmp_path / "filtered"), *selection)
+    result = run_here("filter", str(mixed), "-o", str(tmp_path / "filtered"), *selection)
     assert result.returncode == 0, result.stderr
     converted = mcap_messages(_mcap_files(tmp_path / "converted"))
     expected = mcap_messages(_mcap_files(tmp_path / "filtered"))
@@ -240,7 +240,7 @@ def test_bad_requests_are_one_error_line(
     options.write_text(yaml.safe_dump({"output_bags": [{"uri": "x", "topic_types": ["a/msg/B"]}]}))
     args = [str(options) if a == "OPTIONS" else a for a in args]
     output = [] if "--output-options" in args else ["-o", str(tmp_path / "out")]
-    result = run("convert", str(mixed), *output, *args)
+    result = run_here("convert", str(mixed), *output, *args)
     assert result.returncode == 2, result.stdout
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error:") and says in lines[0], result.stderr

@@ -7,26 +7,19 @@ from __future__ import annotations
 import json
 import struct
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from bagkit_runs import bagkit_in_process
 from rosbags.rosbag1 import Reader
 from rosbags.rosbag1.reader import Header, RecordType
 
 from tests.bag.ros1_samples import write_ros1_bag
 
-BAGKIT = str(Path(sys.executable).with_name("bagkit"))
-
 
 def _doctor(*args: str | Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [BAGKIT, "doctor", *map(str, args)],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-    )
+    """``bagkit doctor ARGS`` in this process (tests/bagkit_runs.py)."""
+    return bagkit_in_process(["doctor", *args])
 
 
 def _first_index_entry(path: Path) -> tuple[int, int]:

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 import yaml
-from surgery_samples import run
+from surgery_samples import run, run_here
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bag"))
 from test_bag_compression import write_compressed
@@ -34,7 +34,7 @@ def test_every_interop_db3_bag(interop_dir: Path) -> None:
     assert len(bags) >= 8
     for bag in bags:
         files = sorted(bag.glob("*.db3"))
-        result = run("doctor", str(bag), "--deep", "--format", "json")
+        result = run_here("doctor", str(bag), "--deep", "--format", "json")
         report = json.loads(result.stdout)
         # rosbag2's talker test bag stores cut definitions ('uint8 level' for a Log): real.
         undecodable = [p["problem"] for p in report["problems"] if p["where"] == "bag"]
@@ -60,7 +60,7 @@ def test_every_interop_db3_bag(interop_dir: Path) -> None:
 @pytest.mark.parametrize("mode", ["file", "message"])
 def test_compressed_bags_are_healthy(tmp_path: Path, storage: str, mode: str) -> None:
     bag = write_compressed(tmp_path / "bag", storage, mode)
-    result = run("doctor", str(bag), "--deep", "--format", "json")
+    result = run_here("doctor", str(bag), "--deep", "--format", "json")
     report = json.loads(result.stdout)
     assert result.returncode == 0 and report["problems"] == [], report
     assert report["message_count"] == 132
@@ -73,7 +73,7 @@ def test_a_count_that_metadata_yaml_gets_wrong(tmp_path: Path) -> None:
     db.execute("DELETE FROM messages WHERE rowid = 2")
     db.commit()
     db.close()
-    result = run("doctor", str(bag), "--deep")
+    result = run_here("doctor", str(bag), "--deep")
     assert result.returncode == 1
     lines = result.stdout.splitlines()
     assert "metadata.yaml: message_count is 132, the files hold 131" in lines

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 from ros2_messages import IMU, STRING, imu_cdr, qos_yaml, string_cdr
-from surgery_samples import START, mcap_messages, rosbags_messages, run
+from surgery_samples import START, mcap_messages, rosbags_messages, run, run_here
 
 from bagkit.bag import BagReader, BagWriter, TopicInfo
 from bagkit.surgery import Selection, diagnose, filter_bag, merge_bags, recover_bag
@@ -90,7 +90,7 @@ def test_latched_topics_and_no_latched(robot: tuple[Path, list[Written]], tmp_pa
     bag, written = robot
     start = START + 9_000_000_000
     plus = tmp_path / "plus"
-    result = run(
+    result = run_here(
         "filter", str(bag), "-o", str(plus), "--start", f"{start}ns", "--latched-topics", "mode"
     )
     assert result.returncode == 0, result.stderr
@@ -100,14 +100,14 @@ def test_latched_topics_and_no_latched(robot: tuple[Path, list[Written]], tmp_pa
     assert {(t, d) for t, _, d in head} == {(t, d) for t, _, d in expected}
     assert all(t == start for _, t, _ in head)
     none = tmp_path / "none"
-    result = run("filter", str(bag), "-o", str(none), "--start", f"{start}ns", "--no-latched")
+    result = run_here("filter", str(bag), "-o", str(none), "--start", f"{start}ns", "--no-latched")
     assert result.returncode == 0, result.stderr
     assert rosbags_messages(none) == [w for w in written if w[1] >= start]
     only_imu = filter_bag(
         bag, tmp_path / "imu", Selection.create(["/imu/data", "/map"], start=f"{start}ns")
     )
     assert only_imu.latched_messages == 1  # /map only: /tf_static is not selected
-    bad = run(
+    bad = run_here(
         "filter", str(bag), "-o", str(tmp_path / "bad"), "--start", "5", "--latched-topics", "/x"
     )
     assert bad.returncode == 2 and bad.stderr.startswith("error:") and "/x" in bad.stderr

@@ -10,7 +10,14 @@ import pytest
 import yaml
 from mcap.reader import make_reader
 from rosbags.rosbag2 import Reader as Rosbag2Reader
-from surgery_samples import chunk_records, mcap_messages, rosbags_messages, run, write_mixed_bag
+from surgery_samples import (
+    chunk_records,
+    mcap_messages,
+    rosbags_messages,
+    run,
+    run_here,
+    write_mixed_bag,
+)
 
 from bagkit.bag import BagReader
 
@@ -73,7 +80,7 @@ def test_truncated_copies(source: Path, tmp_path: Path, fraction: float) -> None
     cut.write_bytes(data[: int(len(data) * fraction)])
     expected = salvaged(cut)
     out = tmp_path / "recovered"
-    result = run("recover", str(cut), "-o", str(out))
+    result = run_here("recover", str(cut), "-o", str(out))
     assert f"{len(expected):,} messages" in result.stdout
     if not expected:  # nothing recovered: a failure
         assert result.returncode == 1, result.stderr
@@ -111,7 +118,7 @@ def test_no_summary_and_no_indexes(source: Path, tmp_path: Path) -> None:
     for damaged in (no_summary, no_indexes):
         assert salvaged(damaged) == everything
         out = tmp_path / f"{damaged.stem}_recovered"
-        result = run("reindex", str(damaged), "-o", str(out))
+        result = run_here("reindex", str(damaged), "-o", str(out))
         assert result.returncode == 0, result.stderr
         check_recovered(out, everything)
         assert chunk_records(next(out.glob("*.mcap"))) == chunk_records(source)
@@ -135,7 +142,7 @@ def test_killed_bag_directory(source: Path, tmp_path: Path) -> None:
     damaged[data.find(middle) + len(middle) // 2] ^= 0xFF
     (bag / "killed_0.mcap").write_bytes(bytes(damaged))
     expected = salvaged(bag)
-    result = run("recover", str(bag), "-o", str(out))
+    result = run_here("recover", str(bag), "-o", str(out))
     assert result.returncode == 3, result.stderr
     assert "unreadable" in result.stderr and "messages are lost" in result.stderr
     check_recovered(out, expected)
@@ -148,9 +155,9 @@ def test_bad_input(tmp_path: Path) -> None:
     text = tmp_path / "text.mcap"
     text.write_text("not a bag")
     for args in (["recover", str(text)], ["recover", str(tmp_path / "none")]):
-        result = run(*args, "-o", str(tmp_path / "out"))
+        result = run_here(*args, "-o", str(tmp_path / "out"))
         assert result.returncode == 2
         assert result.stderr.startswith("error: ") and len(result.stderr.splitlines()) == 1
     assert sorted(p.name for p in tmp_path.iterdir()) == ["text.mcap"]
     bag = write_mixed_bag(tmp_path / "bag", 10)
-    assert run("recover", str(bag), "-o", str(bag)).returncode == 2
+    assert run_here("recover", str(bag), "-o", str(bag)).returncode == 2

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from ros2_messages import IMU, STRING, TYPESTORE, qos_yaml, string_cdr
-from surgery_samples import START, rosbags_messages, run
+from surgery_samples import START, rosbags_messages, run, run_here
 
 from bagkit.bag import BagWriter, TopicInfo
 
@@ -90,7 +90,7 @@ def test_where_keeps_matching_messages_of_the_topics_with_the_fields(
     expected = [w for w in flight.written if w[0] != "/imu/data" or w[1] in below]
     assert rosbags_messages(out) == expected
     only_text = tmp_path / "text"
-    result = run(
+    result = run_here(
         "filter", str(flight.path), "-o", str(only_text), "--topics", "/text",
         "--where", "data == 'text 50'",
     )  # fmt: skip
@@ -103,7 +103,7 @@ def test_around_writes_one_bag_per_episode_with_its_latched_state(
     flight: Flight, tmp_path: Path, gap: str
 ) -> None:
     out = tmp_path / "cuts"
-    result = run(
+    result = run_here(
         "filter", str(flight.path), "-o", str(out), "--around",
         "imu/data: linear_acceleration.z < 0", "--before", "1", "--after", "500ms",
         "--gap", gap, "--format", "json",
@@ -144,7 +144,7 @@ def test_around_and_where_bad_input(flight: Flight, tmp_path: Path) -> None:
         (["--where", "linear_acceleration.z == 'up'"], 2, "cannot compare"),
     ]
     for args, code, text in cases:
-        result = run("filter", str(flight.path), "-o", str(tmp_path / "x"), *args)
+        result = run_here("filter", str(flight.path), "-o", str(tmp_path / "x"), *args)
         assert result.returncode == code, (args, result.stderr)
         lines = result.stderr.strip().splitlines()
         assert lines[-1].startswith("error:") and text in result.stderr, (args, result.stderr)

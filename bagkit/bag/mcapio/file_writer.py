@@ -20,6 +20,7 @@ from zlib_ng.zlib_ng import crc32
 
 from bagkit.bag.errors import BagWriteError
 from bagkit.bag.mcapio.chunk_builder import Buffer, ClosedChunk
+from bagkit.bag.mcapio.chunk_indexes import ChunkIndexes
 from bagkit.bag.mcapio.records import (
     MAGIC,
     Channel,
@@ -56,7 +57,8 @@ class McapFileWriter:
         self.path = path
         self._handle = handle
         self.offset = 0
-        self.chunk_indexes: list[ChunkIndex] = []
+        # Columns, not an object a chunk: a long recording holds one row per chunk written.
+        self.chunk_indexes = ChunkIndexes()
         self.metadata_indexes: list[MetadataIndex] = []
         self.channel_counts: dict[int, int] = {}
         self.message_count = 0

@@ -1,8 +1,9 @@
-"""The Message Index records after a chunk: as bytes, as numpy arrays, first and last times.
+"""The Message Index records after a chunk: as bytes, as numpy arrays, times, message sizes.
 
 ``bagkit info`` reads them as bytes (:func:`message_index_times`, :func:`channel_spans`) and
-starts without numpy (benchmarks/README.md, start-up); numpy is imported by
-:func:`read_message_indexes` only.
+starts without numpy (benchmarks/README.md, start-up), as does the player sizing its
+shared-memory segment before its participant exists (:func:`largest_messages`); numpy is
+imported by :func:`read_message_indexes` only.
 """
 
 from __future__ import annotations
@@ -10,11 +11,14 @@ from __future__ import annotations
 import sys
 from array import array
 from collections.abc import Hashable, Iterable
+from itertools import pairwise
 from typing import TYPE_CHECKING, TypeVar
 
 from bagkit.bag.errors import CorruptBagError
+from bagkit.bag.mcapio.chunk_indexes import ChunkIndexes
 from bagkit.bag.mcapio.records import (
     MAX_SECTION_SIZE,
+    MESSAGE_RECORD_HEADER,
     ChunkIndex,
     Opcode,
     iter_records,
@@ -76,6 +80,49 @@ def read_message_indexes(source: Source, chunk_index: ChunkIndex) -> dict[int, n
     }
 
 
+def _words(entries: memoryview) -> array[int]:
+    """Message Index entries as (log_time, offset, log_time, offset, ...) integers."""
+    words = array("Q")
+    words.frombytes(entries)
+    if sys.byteorder == "big":  # MCAP is little-endian
+        words.byteswap()
+    return words
+
+
+def largest_messages(
+    source: Source, chunk_index: ChunkIndex, channels: Iterable[int]
+) -> dict[int, int]:
+    """Payload bytes of the largest message of each of ``channels`` in a chunk, from its Message
+    Index records alone (no decompression, no numpy).
+
+    A Message record runs to the next record any channel's index names, the last one to the
+    chunk's end; a Schema or Channel record stored between two messages counts with the
+    message before it, so a size may be over, never under.
+
+    Raises:
+        CorruptBagError: the records are not where the chunk index says, or name offsets
+            past the chunk's end.
+    """
+    wanted = set(channels)
+    starts: dict[int, array[int]] = {}
+    offsets: set[int] = set()
+    for channel_id, entries in message_index_bytes(source, chunk_index).items():
+        channel_offsets = _words(entries)[1::2]
+        offsets.update(channel_offsets)
+        if channel_id in wanted and len(channel_offsets):
+            starts[channel_id] = channel_offsets
+    size = chunk_index.uncompressed_size
+    bounds = sorted(offsets)
+    if bounds and bounds[-1] + MESSAGE_RECORD_HEADER.size > size:
+        raise CorruptBagError("a message index names an offset past its chunk's end")
+    bounds.append(size)
+    record_end = dict(pairwise(bounds))
+    return {
+        channel: max(record_end[start] - start for start in found) - MESSAGE_RECORD_HEADER.size
+        for channel, found in starts.items()
+    }
+
+
 def message_index_times(
     source: Source, chunk_index: ChunkIndex, channels: Iterable[int]
 ) -> dict[int, Span]:
@@ -90,42 +137,40 @@ def message_index_times(
     for channel_id, entries in message_index_bytes(source, chunk_index).items():
         if channel_id not in wanted or not len(entries):
             continue
-        words = array("Q")
-        words.frombytes(entries)
-        if sys.byteorder == "big":  # MCAP is little-endian
-            words.byteswap()
-        log_times = words[0::2]
+        log_times = _words(entries)[0::2]
         spans[channel_id] = (min(log_times), max(log_times))
     return spans
 
 
-def channel_spans(source: Source, chunk_indexes: list[ChunkIndex]) -> dict[int, Span]:
+def channel_spans(source: Source, chunks: ChunkIndexes) -> dict[int, Span]:
     """(first, last) log time of each channel, from the Message Index records of the chunks.
 
     Only the chunks that can hold a channel's first or last message are read: the index of a
     chunk starting after the earliest time found (or ending before the latest) cannot. A chunk
     whose Message Index records are not where its index says is passed over.
     """
-    indexed = [c for c in chunk_indexes if c.message_index_offsets]
+    starts, ends = chunks.start_times, chunks.end_times
+    indexed = [row for row in range(len(chunks)) if chunks.indexed(row)]
     found: dict[int, Span] = {}
-    by_start = sorted(indexed, key=lambda c: c.message_start_time)
-    by_end = sorted(indexed, key=lambda c: -c.message_end_time)
-    for chunks, earliest in ((by_start, True), (by_end, False)):
+    by_start = sorted(indexed, key=starts.__getitem__)
+    by_end = sorted(indexed, key=ends.__getitem__, reverse=True)  # stable, as by -end
+    for rows, earliest in ((by_start, True), (by_end, False)):
         seen: set[int] = set()
-        for chunk in chunks:
+        for row in rows:
             # Chunks are visited in bound order: once a channel's time is beyond the next
             # chunk's bound, no later chunk can hold an earlier (later) message of it.
+            start, end = starts[row], ends[row]
             wanted = [
                 c
-                for c in chunk.message_index_offsets
+                for c in chunks.channels(row)
                 if c not in seen
-                or (chunk.message_start_time < found[c][0] if earliest else False)
-                or (chunk.message_end_time > found[c][1] if not earliest else False)
+                or (start < found[c][0] if earliest else False)
+                or (end > found[c][1] if not earliest else False)
             ]
             if not wanted:
                 continue
             try:
-                spans = message_index_times(source, chunk, wanted)
+                spans = message_index_times(source, chunks[row], wanted)
             except CorruptBagError:
                 spans = {}
             for channel, (first, last) in spans.items():

@@ -60,7 +60,6 @@ CHUNK_PREFIX = struct.Struct("<QQQI")
 MAX_SECTION_SIZE = 256 << 20
 FOOTER = struct.Struct("<QQI")
 FOOTER_RECORD_SIZE = RECORD_HEADER.size + FOOTER.size
-_CHUNK_INDEX_PREFIX = struct.Struct("<QQQQ")
 _STATISTICS_PREFIX = struct.Struct("<QHIIIIQQ")
 _U16 = struct.Struct("<H")
 _U32 = struct.Struct("<I")
@@ -218,26 +217,6 @@ def parse_message_index(content: bytes | memoryview) -> tuple[int, np.ndarray]:
 
     channel_id, entries = message_index_entries(content)
     return channel_id, np.frombuffer(entries, dtype=message_index_dtype())
-
-
-def parse_chunk_index(content: bytes | memoryview) -> ChunkIndex:
-    """Parse a Chunk Index record's content."""
-    cur = Cursor(content)
-    start, end, offset, length = cur.unpack(_CHUNK_INDEX_PREFIX)
-    offsets = cur.int_map()
-    index_length = cur.u64()
-    compression = cur.string()
-    return ChunkIndex(
-        message_start_time=start,
-        message_end_time=end,
-        chunk_start_offset=offset,
-        chunk_length=length,
-        message_index_offsets=offsets,
-        message_index_length=index_length,
-        compression=compression,
-        compressed_size=cur.u64(),
-        uncompressed_size=cur.u64(),
-    )
 
 
 def parse_statistics(content: bytes | memoryview) -> Statistics:

@@ -10,6 +10,9 @@ in benchmarks/README.md, "bagkit.bag.mcapio").
 
 from __future__ import annotations
 
+from array import array
+from itertools import chain
+
 from bagkit.bag.errors import CorruptBagError
 from bagkit.bag.mcapio.chunks import (
     DEFAULT_MAX_CHUNK_SIZE,
@@ -80,7 +83,10 @@ def read_file_index(
                 index.channels.setdefault(channel_id, channel)
         if problem:
             index.problems.insert(0, problem)
-    index.chunk_indexes.sort(key=lambda c: (c.message_start_time, c.chunk_start_offset))
+    chunks = index.chunk_indexes
+    rows = chunks.rows_by(chunks.start_times, chunks.chunk_offsets)
+    if rows != array("Q", range(len(chunks))):
+        index.chunk_indexes = chunks.take(rows)
     return index
 
 
@@ -237,10 +243,11 @@ class _Scanner:
                 continue  # its messages are reported when they are read
 
     def _set_times(self) -> None:
-        blocks: list[ChunkIndex | MessageRun] = [
-            *self.index.chunk_indexes,
-            *self.index.message_runs,
-        ]
-        if blocks:
-            self.index.message_start_time = min(b.message_start_time for b in blocks)
-            self.index.message_end_time = max(b.message_end_time for b in blocks)
+        chunks, runs = self.index.chunk_indexes, self.index.message_runs
+        if chunks or runs:
+            self.index.message_start_time = min(
+                chain(chunks.start_times, (run.message_start_time for run in runs))
+            )
+            self.index.message_end_time = max(
+                chain(chunks.end_times, (run.message_end_time for run in runs))
+            )

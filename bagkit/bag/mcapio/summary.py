@@ -10,10 +10,14 @@ dropped with a problem. Parsing is bagkit's own because it checks lengths (see
 
 from __future__ import annotations
 
+import heapq
+from array import array
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 from bagkit.bag.errors import CorruptBagError, NotABagError
-from bagkit.bag.mcapio.chunks import MessageRun
+from bagkit.bag.mcapio.chunk_indexes import ChunkIndexes
+from bagkit.bag.mcapio.chunks import Block, MessageRun, extent
 from bagkit.bag.mcapio.message_index import message_index_bytes
 from bagkit.bag.mcapio.records import (
     FOOTER_RECORD_SIZE,
@@ -22,7 +26,6 @@ from bagkit.bag.mcapio.records import (
     MESSAGE_INDEX_ENTRY_SIZE,
     RECORD_HEADER,
     Channel,
-    ChunkIndex,
     Header,
     Metadata,
     MetadataIndex,
@@ -31,7 +34,6 @@ from bagkit.bag.mcapio.records import (
     Statistics,
     iter_records,
     parse_channel,
-    parse_chunk_index,
     parse_footer,
     parse_header,
     parse_metadata_index,
@@ -50,6 +52,9 @@ class FileIndex:
         complete: True when the summary indexes every message (counts from its Statistics
             record or from the Message Index records of its chunk indexes); a file whose summary
             does not is scanned (:mod:`bagkit.bag.mcapio.salvage`), ``summary`` still True.
+        chunk_indexes: the chunks' indexes, sorted by start time then file offset when the
+            index comes from :func:`~bagkit.bag.mcapio.salvage.read_file_index`.
+        message_runs: runs of loose messages (a scan's), in file order.
         channel_message_counts: messages per channel id.
         metadata: the Metadata records a salvage scan met. A summary's Metadata Index
             entries are only checked against the data section: nothing needs the records to
@@ -63,7 +68,7 @@ class FileIndex:
     header: Header | None
     schemas: dict[int, Schema] = field(default_factory=dict)
     channels: dict[int, Channel] = field(default_factory=dict)
-    chunk_indexes: list[ChunkIndex] = field(default_factory=list)
+    chunk_indexes: ChunkIndexes = field(default_factory=ChunkIndexes)
     message_runs: list[MessageRun] = field(default_factory=list)
     channel_message_counts: dict[int, int] = field(default_factory=dict)
     message_start_time: int = 0
@@ -77,6 +82,23 @@ class FileIndex:
     def message_count(self) -> int:
         """Messages in the file."""
         return sum(self.channel_message_counts.values())
+
+    def blocks(self, *, with_empty: bool = False) -> Iterator[Block]:
+        """The chunks (with messages, or all with ``with_empty``) and runs of loose messages,
+        by start time then file offset; each chunk made a ``ChunkIndex`` when it is reached.
+
+        Needs ``chunk_indexes`` in that order (as :func:`read_file_index` leaves them).
+        """
+        chunks = self.chunk_indexes
+        starts, ends = chunks.start_times, chunks.end_times
+        rows = range(len(chunks))
+        in_order = (chunks[r] for r in rows if with_empty or starts[r] <= ends[r])
+        runs = sorted(self.message_runs, key=_start_and_offset)
+        return heapq.merge(in_order, runs, key=_start_and_offset)
+
+
+def _start_and_offset(block: Block) -> tuple[int, int]:
+    return block.message_start_time, extent(block)[0]
 
 
 def read_header(source: Source) -> Header:
@@ -153,7 +175,7 @@ def read_summary(source: Source, header: Header | None) -> FileIndex | None:
             channel = parse_channel(content)
             index.channels[channel.id] = channel
         elif opcode == Opcode.CHUNK_INDEX:
-            index.chunk_indexes.append(parse_chunk_index(content))
+            index.chunk_indexes.append_record(content)
         elif opcode == Opcode.STATISTICS:
             statistics = parse_statistics(content)
         elif opcode == Opcode.METADATA_INDEX:
@@ -172,38 +194,34 @@ def read_summary(source: Source, header: Header | None) -> FileIndex | None:
         index.channel_message_counts = counts
     index.complete = True
     # Chunk indexes before Statistics: the Go writer's statistics skip log_time 0.
-    with_messages = [c for c in index.chunk_indexes if not _empty(c)]
-    if with_messages:
-        index.message_start_time = min(c.message_start_time for c in with_messages)
-        index.message_end_time = max(c.message_end_time for c in with_messages)
+    chunks = index.chunk_indexes
+    rows = range(len(chunks))
+    first = min((chunks.start_times[r] for r in rows if not chunks.empty(r)), default=None)
+    if first is not None:
+        index.message_start_time = first
+        index.message_end_time = max(chunks.end_times[r] for r in rows if not chunks.empty(r))
     elif statistics is not None and statistics.message_count:
         index.message_start_time = statistics.message_start_time
         index.message_end_time = statistics.message_end_time
     return index
 
 
-def _empty(chunk: ChunkIndex) -> bool:
-    """A chunk without messages (rosbags' writer closes an empty bag with one): its times are
-    the writer's initial values, its start after its end."""
-    return chunk.message_start_time > chunk.message_end_time and not chunk.message_index_offsets
-
-
-def _indexed_counts(source: Source, chunk_indexes: list[ChunkIndex]) -> dict[int, int] | None:
+def _indexed_counts(source: Source, chunks: ChunkIndexes) -> dict[int, int] | None:
     """Messages per channel from the Message Index records of the chunks; None when a chunk
     with messages has none (or there are no chunk indexes: loose messages are possible).
 
     Raises:
         CorruptBagError: message indexes are not where a chunk index says.
     """
-    if not chunk_indexes:
+    if not chunks:
         return None
     counts: dict[int, int] = {}
-    for chunk in chunk_indexes:
-        if _empty(chunk):
+    for row in range(len(chunks)):
+        if chunks.empty(row):
             continue
-        if not chunk.message_index_offsets:
+        if not chunks.indexed(row):
             return None
-        for channel_id, entries in message_index_bytes(source, chunk).items():
+        for channel_id, entries in message_index_bytes(source, chunks[row]).items():
             found = len(entries) // MESSAGE_INDEX_ENTRY_SIZE
             counts[channel_id] = counts.get(channel_id, 0) + found
     return counts
@@ -211,25 +229,27 @@ def _indexed_counts(source: Source, chunk_indexes: list[ChunkIndex]) -> dict[int
 
 def _keep_valid_chunk_indexes(index: FileIndex, source: Source, data_end: int) -> None:
     """Drop (as problems) chunk indexes outside the data section or overlapping another."""
-    kept: list[ChunkIndex] = []
+    chunks = index.chunk_indexes
+    kept = array("Q")
     covered = 0  # end of the last kept chunk, in file order
-    for chunk in sorted(index.chunk_indexes, key=lambda c: c.chunk_start_offset):
-        start, length = chunk.chunk_start_offset, chunk.chunk_length
+    for row in chunks.rows_by(chunks.chunk_offsets):
+        start, length = chunks.chunk_offsets[row], chunks.chunk_lengths[row]
         if start < len(MAGIC) or length < RECORD_HEADER.size or length > data_end - start:
             what = "points outside the data section"
         elif start < covered:
             what = "overlaps the chunk before it"
-        elif chunk.message_start_time > chunk.message_end_time and not _empty(chunk):
+        elif chunks.start_times[row] > chunks.end_times[row] and not chunks.empty(row):
             what = "ends before it starts"
         else:
-            kept.append(chunk)
+            kept.append(row)
             covered = start + length
             continue
         index.problems.append(
             f"{source.name}: the index of a chunk at byte {start} ({length} bytes) {what}: "
             "that chunk is not read"
         )
-    index.chunk_indexes = kept
+    if kept != array("Q", range(len(chunks))):
+        index.chunk_indexes = chunks.take(kept)
 
 
 def _check_metadata_index(
