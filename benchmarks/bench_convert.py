@@ -13,6 +13,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -125,17 +126,17 @@ def _info(tmp: Path) -> bool:
             out.write_batch(
                 "/imu/data", [cdr[(base + k) % 1000] for k in range(n)], log_times=times
             )
-    times = {}
+    info_s: dict[str, float] = {}
     for label, path in (("ROS 1", bag), ("MCAP", mcap)):
         command = [BAGKIT, "info", str(path)]
         subprocess.run(command, check=True, capture_output=True)  # warm the page cache
-        times[label] = best_of(
-            3, lambda c=command: subprocess.run(c, check=True, capture_output=True)
-        )  # type: ignore[misc]
-    gap = times["ROS 1"] - times["MCAP"]
+        info_s[label] = best_of(
+            3, partial(subprocess.run, command, check=True, capture_output=True)
+        )
+    gap = info_s["ROS 1"] - info_s["MCAP"]
     print(
         f"  info of a {bag.stat().st_size / 1e9:.2f} GB ROS 1 bag ({count:,} messages): "
-        f"{times['ROS 1'] * 1000:.0f} ms; of the same as MCAP: {times['MCAP'] * 1000:.0f} ms; "
+        f"{info_s['ROS 1'] * 1000:.0f} ms; of the same as MCAP: {info_s['MCAP'] * 1000:.0f} ms; "
         f"gap {gap * 1000:.0f} ms (target <= {INFO_GAP_TARGET_S * 1000:.0f} ms)",
         flush=True,
     )

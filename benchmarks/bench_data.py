@@ -102,7 +102,7 @@ def _probe(kind: str, bag: Path) -> dict[str, int]:
     out = subprocess.run(
         [sys.executable, "-c", _PROBE, kind, str(bag)], capture_output=True, text=True, check=True
     ).stdout
-    return json.loads(out)  # type: ignore[no-any-return]
+    return json.loads(out)
 
 
 def _echo_seconds(bag: Path) -> tuple[float, float]:

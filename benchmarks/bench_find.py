@@ -25,6 +25,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 from benchmarks.bench_fleet import BAGS, imu_fleet
 from benchmarks.bench_stats import LARGE, TOPIC, imu_bag
@@ -49,7 +50,7 @@ def _rosbags_episodes(bag: Path) -> list[tuple[int, int, int]]:
     with AnyReader([bag]) as reader:
         connections = [c for c in reader.connections if c.topic == TOPIC]
         for connection, log_time, raw in reader.messages(connections=connections):
-            msg = reader.deserialize(raw, connection.msgtype)
+            msg: Any = reader.deserialize(raw, connection.msgtype)
             hit = msg.linear_acceleration.z > 2.0
             if hit and episodes and (last_hit or log_time - episodes[-1][1] < GAP_NS):
                 episodes[-1][1], episodes[-1][2] = log_time, episodes[-1][2] + 1

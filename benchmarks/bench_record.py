@@ -151,7 +151,7 @@ def _publish_to(
     deadline = time.monotonic() + READY_TIMEOUT_S
     while not out.with_suffix(".ready").exists():
         if sub.poll() is not None or time.monotonic() > deadline:
-            raise RuntimeError(f"the subscriber did not start: {sub.args[3:]}")
+            raise RuntimeError(f"the subscriber did not start: {sub.args!r}")
         time.sleep(0.05)
     pub = subprocess.run(
         [*PEERS, "publish", *args],

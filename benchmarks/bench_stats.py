@@ -184,7 +184,7 @@ def _peak_rss(bag: Path) -> dict[str, int]:
         text=True,
         check=True,
     ).stdout
-    return json.loads(out)  # type: ignore[no-any-return]
+    return json.loads(out)
 
 
 def main() -> bool:

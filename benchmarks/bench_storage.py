@@ -124,7 +124,11 @@ def _info_against_download(moto: Moto, local: Path, key: str, scratch: Path, wha
     assert remote is not None and len(remote.bags) == len(bags) and not remote.unread
     bounded = {t.topic: t.rate_hz for t in remote.bags[0].topics}
     worst = max(
-        (abs(bounded[t.topic] - t.rate_hz) / t.rate_hz for t in exact.topics if t.rate_hz),
+        (
+            abs(bound - t.rate_hz) / t.rate_hz
+            for t in exact.topics
+            if t.rate_hz and (bound := bounded[t.topic]) is not None
+        ),
         default=0.0,
     )
 
@@ -214,7 +218,11 @@ def _large_part(scratch: Path) -> None:
     count = len(remote)
     bounded = {t.topic: t.rate_hz for t in remote[0].topics}
     worst = max(
-        (abs(bounded[t.topic] - t.rate_hz) / t.rate_hz for t in exact.topics if t.rate_hz),
+        (
+            abs(bound - t.rate_hz) / t.rate_hz
+            for t in exact.topics
+            if t.rate_hz and (bound := bounded[t.topic]) is not None
+        ),
         default=0.0,
     )
     print(
