@@ -115,6 +115,8 @@ def test_a_broken_spec_is_one_error_line(project: Path, pytester: pytest.Pyteste
     assert "Traceback" not in result.stdout.str()
 
 
+# The fixture's live item replays over DDS (lockstep alone never imports the warning's module).
+@pytest.mark.ros
 def test_a_users_run_shows_no_warning_from_the_ros_wheels(tmp_path: Path) -> None:
     """lark-parser (rosidl_parser's, imported with a message's type support) warns on import:
     not the user's to fix, so not in the user's run."""
