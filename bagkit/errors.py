@@ -37,3 +37,7 @@ class SettingWarning(UserWarning):
         super().__init__(f"{problem} ({setting} chooses)")
         self.problem = problem
         self.setting = setting
+
+    def __reduce__(self) -> tuple[type[SettingWarning], tuple[str, str]]:
+        # Rebuilt from both parts: pytest-xdist and Dask pickle warnings between processes.
+        return type(self), (self.problem, self.setting)

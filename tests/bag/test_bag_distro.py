@@ -4,6 +4,7 @@ Jazzy's with one warning; ``--distro`` overrides. Values checked against rosbags
 from __future__ import annotations
 
 import json
+import pickle
 import re
 import sqlite3
 import subprocess
@@ -98,6 +99,9 @@ def test_the_library_warning_names_the_environment_setting(tmp_path: Path) -> No
     (warning,) = caught
     assert str(warning.message).endswith("with ROS 2 Jazzy's (BAGKIT_DISTRO chooses)")
     assert "--distro" not in str(warning.message)
+    # As another process gets it (pytest-xdist, a Dask worker): the same warning.
+    again = pickle.loads(pickle.dumps(warning.message))
+    assert type(again) is DistroDefinitionsWarning and str(again) == str(warning.message)
 
 
 @pytest.mark.parametrize("ros_distro", [None, "jazzy"])
