@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from fastdds_ports import listened_port_sizes, remove_stale_ports
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -310,28 +311,6 @@ def test_existing_or_unwritable_output_exits_2(processes: object, tmp_path: Path
     assert (existing / "keep.txt").read_text() == "mine"
 
 
-def shared_memory_ports(pid: int) -> dict[int, int]:
-    """Sizes of the Fast DDS shared-memory ports in this process's domain that ``pid`` listens
-    on (it holds the port's ``_el`` lock file open).
-
-    Not every port it maps: it also maps the ports of the participants it sends to, and a port
-    is a file that outlives its process, sized by whoever created it (an earlier recorder with
-    participant id 0 leaves a large one that the next participant 0 reuses). The few outside
-    the domain's range (7000, 7001) are shared by every domain and may have been sized by anyone.
-    """
-    first = 7400 + 250 * int(os.environ["ROS_DOMAIN_ID"])
-    ports = {}
-    for fd in Path(f"/proc/{pid}/fd").iterdir():
-        try:
-            name = os.readlink(fd)
-        except OSError:  # closed meanwhile
-            continue
-        number = name.removeprefix("/dev/shm/fastrtps_port").removesuffix("_el")
-        if number.isdigit() and first <= int(number) < first + 250 and name.endswith("_el"):
-            ports[int(number)] = os.stat(f"/dev/shm/fastrtps_port{number}").st_size
-    return ports
-
-
 @pytest.mark.parametrize("user_profile", [False, True])
 def test_record_gives_itself_a_large_receive_queue_unless_the_user_has_a_profile(
     node: Node, processes: object, tmp_path: Path, user_profile: bool
@@ -350,12 +329,13 @@ def test_record_gives_itself_a_large_receive_queue_unless_the_user_has_a_profile
         env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(mine)
     publisher = node.create_publisher(String, "/cli/queue", 100)
     bag = tmp_path / "queue"
+    remove_stale_ports()
     proc = record(processes, "/cli/queue", "-o", str(bag), "--format", "json", env=env)
     wait_for(lambda: publisher.get_subscription_count() > 0, STARTUP_TIMEOUT_S)
     for i in range(20):
         publisher.publish(String(data=f"q{i}"))
     assert publisher.wait_for_all_acked(Duration(seconds=10))  # in the recorder
-    ports = shared_memory_ports(proc.pid)
+    ports = listened_port_sizes(proc.pid)
     proc.send_signal(signal.SIGINT)
     stdout, stderr = proc.communicate(timeout=20)
     assert proc.returncode == 130, stderr.decode()

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from fastdds_ports import listened_port_sizes, remove_stale_ports
 from rclpy.serialization import deserialize_message
 from replay_harness import (
     BAG_SPAN_NS,
@@ -286,8 +287,6 @@ def test_cli_wait_for_a_topic_nobody_reads_times_out_naming_the_way_out(test_bag
 def test_replay_gives_itself_the_large_shared_memory_pool_unless_the_user_has_a_profile(
     test_bag: Path, listener_factory: type[Listener], tmp_path: Path, user_profile: bool
 ) -> None:
-    from test_record_cli import shared_memory_ports
-
     env = dict(os.environ)
     if user_profile:
         mine = tmp_path / "mine.xml"
@@ -299,6 +298,7 @@ def test_replay_gives_itself_the_large_shared_memory_pool_unless_the_user_has_a_
         )
         env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(mine)
     listener = listener_factory(STRING_TOPICS)
+    remove_stale_ports()
     proc = subprocess.Popen(
         [
             str(Path(sys.executable).with_name("bagkit")),
@@ -314,7 +314,7 @@ def test_replay_gives_itself_the_large_shared_memory_pool_unless_the_user_has_a_
     )
     try:
         listener.wait_for_count(1)
-        ports = shared_memory_ports(proc.pid)  # read while the replay runs (about 1 s)
+        ports = listened_port_sizes(proc.pid)  # read while the replay runs (about 1 s)
         _, stderr = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:
