@@ -12,8 +12,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+import fastdds_files
 import pytest
-from fastdds_ports import listened_port_sizes, remove_stale_ports
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -317,25 +317,16 @@ def test_record_gives_itself_a_large_receive_queue_unless_the_user_has_a_profile
 ) -> None:
     # Fast DDS sizes a port file by its descriptors: 52 KB for the default 512, 1.3 MB for
     # bagkit's 65536. This test's own process has the default; both map each other's port.
-    env = dict(os.environ)
-    if user_profile:
-        mine = tmp_path / "mine.xml"
-        mine.write_text(
-            '<?xml version="1.0" encoding="UTF-8"?>\n'
-            '<dds xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"><profiles>'
-            '<participant profile_name="mine" is_default_profile="true"><rtps/></participant>'
-            "</profiles></dds>\n"
-        )
-        env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(mine)
+    env = fastdds_files.environment(tmp_path, user_profile=user_profile)
     publisher = node.create_publisher(String, "/cli/queue", 100)
     bag = tmp_path / "queue"
-    remove_stale_ports()
+    fastdds_files.remove_stale_ports()
     proc = record(processes, "/cli/queue", "-o", str(bag), "--format", "json", env=env)
     wait_for(lambda: publisher.get_subscription_count() > 0, STARTUP_TIMEOUT_S)
     for i in range(20):
         publisher.publish(String(data=f"q{i}"))
     assert publisher.wait_for_all_acked(Duration(seconds=10))  # in the recorder
-    ports = listened_port_sizes(proc.pid)
+    ports = fastdds_files.listened_port_sizes(proc.pid)
     proc.send_signal(signal.SIGINT)
     stdout, stderr = proc.communicate(timeout=20)
     assert proc.returncode == 130, stderr.decode()

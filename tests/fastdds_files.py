@@ -1,8 +1,8 @@
-"""Fast DDS's shared-memory ports of this process's ROS domain, as files under /dev/shm.
+"""Fast DDS's files in tests: a user's own profile, and the shared-memory ports of this domain.
 
-A port is a file that outlives its process and is reused, at its old size, by the next
-participant that gets the same port number: a test that reads a port's size first removes the
-domain's ports that no live process listens on.
+A port is a file under /dev/shm that outlives its process and is reused, at its old size, by
+the next participant that gets the same port number: a test that reads a port's size first
+removes the domain's ports that no live process listens on.
 """
 
 from __future__ import annotations
@@ -11,8 +11,25 @@ import os
 from pathlib import Path
 
 SHM = Path("/dev/shm")
+USER_PROFILE = (
+    '<?xml version="1.0" encoding="UTF-8"?>\n'
+    '<dds xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"><profiles>'
+    '<participant profile_name="mine" is_default_profile="true"><rtps/></participant>'
+    "</profiles></dds>\n"
+)
 _PORT_BASE, _PORTS_PER_DOMAIN = 7400, 250
 _PREFIX = "fastrtps_port"
+
+
+def environment(directory: Path, *, user_profile: bool) -> dict[str, str]:
+    """This process's environment; with ``user_profile``, a default profile of the user's own
+    (written in ``directory``), which bagkit must not override with its tuning."""
+    env = dict(os.environ)
+    if user_profile:
+        mine = directory / "mine.xml"
+        mine.write_text(USER_PROFILE)
+        env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(mine)
+    return env
 
 
 def _domain_range() -> range:
