@@ -4,10 +4,11 @@ Target (issue 36, item 2): ``bagkit --help``, ``info``, ``echo -n 1``, ``stats s
 ``find`` and ``check`` each within 0.1 s of ``python -c pass`` in the same environment. Every
 command is run RUNS times, interleaved with the peers so that a change of machine load hits them
 alike; the median wall time of each is compared (the best run is printed beside it).
-``python -c "import numpy"`` is printed beside them, for scale: ``info`` imports no numpy, but
-the MCAP reader's message path does (``info`` of a bag with services, ``echo``), and ``stats``,
-``find`` and ``check`` decode in bulk with it; ``import numpy, typer`` is the floor of a command
-that decodes in bulk behind bagkit's command line. ``info BAG`` is a two-topic bag of our own;
+``python -c "import numpy"`` is printed beside them, for scale: ``info`` imports no numpy (not
+for a bag with services either: their events are read by their fixed header, the message index
+ordered without it), ``echo`` decodes with it, and ``stats``, ``find`` and ``check`` decode in
+bulk with it; ``import numpy, typer`` is the floor of a command that decodes behind bagkit's
+command line. ``info BAG`` is a two-topic bag of our own;
 the others run on ``fixtures/fast`` (sensor topics and a service), as
 ``tests/cli/test_startup_imports.py`` does; ``check`` with a contract of rate, gap, value and
 presence assertions (``fixtures/fast/health.yaml``).

@@ -31,6 +31,7 @@ from bagkit.bag.mcapio.message_index import (
     Span,
     channel_spans,
     largest_messages,
+    ordered_offsets,
     read_message_indexes,
     widen,
 )
@@ -308,21 +309,17 @@ class McapFile:
     ) -> Iterator[BagMessage]:
         """The messages of one block in log-time order, built one at a time as they are taken.
 
-        Only the message index is ordered up front (numpy): a replay that takes the next message
-        when it is due is not held up for the whole chunk's worth of objects.
+        Only the message index is ordered up front (without numpy: ``bagkit info`` reads the
+        events of services this way): a replay that takes the next message when it is due is
+        not held up for the whole chunk's worth of objects.
         """
-        import numpy as np
-
         chunk = self._read(block)
         if chunk is None:
             return
-        parts = [entries for channel, entries in chunk.message_index.items() if channel in wanted]
+        parts = [entries for channel, entries in chunk.entries.items() if channel in wanted]
         if not parts:
             return
-        index = np.concatenate(parts) if len(parts) > 1 else parts[0]
-        times = index["log_time"]
-        index = index[(times >= lower) & (times < upper)]
-        offsets = index["offset"][np.lexsort((index["offset"], index["log_time"]))].tolist()
+        offsets = ordered_offsets(parts, lower, upper)
         records = chunk.records
         size = len(records)
         channel_topics = self._channel_topics

@@ -12,16 +12,18 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from bagkit.bag import BagReader
 from bagkit.bag.service_calls import ServiceCall
 from bagkit.decode import MessageTypes, leaf_fields
 from bagkit.decode.flatten import STRING_TYPES
-from bagkit.selection.conditions import Condition
 from bagkit.selection.query import Query
 from bagkit.selection.services import service_name
 from bagkit.selection.topics import absolute_topic_name
+
+if TYPE_CHECKING:
+    from bagkit.selection.conditions import Condition
 
 # The event type's sequences of at most one element, read as the part itself.
 _PARTS = ("request", "response")

@@ -12,7 +12,7 @@ import json
 import warnings
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import yaml
@@ -23,7 +23,6 @@ from rosbags.typesys.store import Typestore
 from bagkit.bag import BagReader
 from bagkit.data.errors import UndecodableTopicError
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
-from bagkit.decode.matcher import PayloadMatcher
 from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER
 from bagkit.selection import intervals
 from bagkit.selection.actions import action_part_topics
@@ -32,6 +31,9 @@ from bagkit.selection.fields import select_fields
 from bagkit.selection.query import Query
 from bagkit.selection.topics import absolute_topic_name, require_topics
 from bagkit.selection.windows import outside_warning
+
+if TYPE_CHECKING:
+    from bagkit.decode.matcher import PayloadMatcher
 
 Plain = dict[str, Any]
 
@@ -85,6 +87,9 @@ def echo(
             state = is_state_topic(reader, topic)
             inside = temporal_intervals(reader, topic, condition, window, state)[0]
         elif condition is not None:
+            # The condition's bulk decoder only with a condition: echo starts light.
+            from bagkit.decode.matcher import PayloadMatcher
+
             matcher = PayloadMatcher(types, topic, info.type, condition, bulk=False)
         if reader.message_count:
             outside = outside_warning(str(bag), window, reader.start_ns, reader.end_ns)

@@ -28,7 +28,6 @@ from rosbags.typesys.store import Typestore
 
 from bagkit.bag.definitions import canonical_type_name
 from bagkit.decode.cdr import has_wide_strings, payload_reader
-from bagkit.decode.direct import ValueReader, value_reader
 from bagkit.decode.errors import DecodeError, DefinitionError, SchemaError
 from bagkit.decode.flatten import FlatValue, field_getter
 from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER, TypeDef
@@ -37,6 +36,7 @@ from bagkit.decode.typegraph import check_type_graph
 
 if TYPE_CHECKING:
     from bagkit.bag.reader import BagReader
+    from bagkit.decode.direct import ValueReader
 
 
 class _MessageClasses(dict[str, type]):
@@ -253,6 +253,9 @@ class MessageTypes:
             if not decoders:
                 decoders.append(self.decoder(name))  # SchemaError: a DecodeError per message
             return getter(decoders[0](data))
+
+        # The direct reader (and its layouts) when a command reads leaves: echo starts without.
+        from bagkit.decode.direct import value_reader
 
         return value_reader(self.typestore, canonical, paths, through_objects)
 

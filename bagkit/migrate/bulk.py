@@ -1,24 +1,30 @@
 """Many payloads of one topic migrated at once, column by column, when the layouts allow it.
 
 When the stored and the new type both have a CDR layout (:mod:`bagkit.decode.layout`: strings
-and sequences of primitives only) and the migration has no rules, every new slot is either a
-slot of the old layout with the same path and type (copied) or a new one (zero, the empty
-string, the empty sequence): the payloads of a chunk are decoded with
-:func:`~bagkit.decode.bulk.decode_bulk`, the new records built with numpy, and checked by
-decoding them with the new layout. Anything else (a type change, a removed field, a rule, a
+and sequences of primitives only), the new one bounds no string or sequence, and the migration
+runs no rule, every new slot is either a slot of the old layout with the same path and type
+(copied) or a new one (zero, the empty string, the empty sequence), and an old slot the new
+layout lacks is dropped (the planner has refused that without ``--allow-drop``): the
+payloads of a chunk are decoded with :func:`~bagkit.decode.bulk.decode_bulk`, and each group
+of one layout is built with numpy by the same byte operations on every row (constants
+broadcast, the same spans copied), so that its rows differ only in the values copied; the
+caller checks them (:meth:`~bagkit.migrate.topics.TopicMigration.payloads`). Anything else
+(a type change, a bound, a rule, a string that is not ASCII, a bool that is not 0 or 1, a
 payload bulk decoding leaves over) goes message by message.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
 
 from bagkit.decode.bulk import decode_bulk
 from bagkit.decode.errors import SchemaError
-from bagkit.decode.layout import CDR_LE, U32, CdrLayout, NeedLength, ResolvedLayout
+from bagkit.decode.layout import CDR_LE, U32, CdrLayout, NeedLength
 
 _EMPTY_STRING = 1  # a CDR string's length counts its NUL
 
@@ -49,7 +55,7 @@ class BulkMigration:
             old_layout, new_layout = CdrLayout.of(old, name), CdrLayout.of(new, name)
         except SchemaError:
             return None
-        if old_layout is None or new_layout is None:
+        if old_layout is None or new_layout is None or _bounded(new, name):
             return None
         by_path = {slot.path: i for i, slot in enumerate(old_layout.slots)}
         sources: list[int | None] = []
@@ -58,8 +64,6 @@ class BulkMigration:
             if index is not None and old_layout.slots[index] != slot:
                 return None  # retyped: converted message by message
             sources.append(index)
-        if len({i for i in sources if i is not None}) != len(old_layout.slots):
-            return None  # an old slot is dropped: the planner decides
         return cls(old_layout, new_layout, tuple(sources))
 
     def payloads(
@@ -74,6 +78,8 @@ class BulkMigration:
             return None
         found = []
         for group in groups:
+            if not self._decodable(group.values):
+                return None
             old_lengths = _prefixes(self.old, buf, int(starts[group.indexes[0]]))
             made = self._records(group.values, old_lengths, room)
             if made is None:
@@ -81,11 +87,28 @@ class BulkMigration:
             found.append((group.indexes, made))
         return found
 
+    def _decodable(self, values: np.ndarray) -> bool:
+        """Whether every string of ``values`` is ASCII and every bool 0 or 1: values that the
+        message-by-message decoder takes (it refuses a string that is not UTF-8), as it takes
+        every number. Others go message by message, which keeps or refuses them."""
+        fields = values.dtype.fields
+        assert fields is not None  # structured: one field per slot with values
+        for index, slot in enumerate(self.old.slots):
+            if slot.base not in {"string", "bool"} or str(index) not in fields:
+                continue
+            column = values[str(index)]
+            if slot.base == "string":
+                if (column[:, None].view(np.uint8) >= 0x80).any():
+                    return False
+            elif (column > 1).any():
+                return False
+        return True
+
     def _records(
         self, values: np.ndarray, old_lengths: tuple[int, ...], room: int
     ) -> np.ndarray | None:
-        """The new payloads of one group (rows of bytes after ``room``), checked by decoding
-        them."""
+        """The new payloads of one group (rows of bytes after ``room``); None when the new
+        layout needs a length it cannot place."""
         prefixed = [i for i, slot in enumerate(self.old.slots) if slot.count is None]
         by_old = dict(zip(prefixed, old_lengths, strict=True))
         new_lengths = tuple(
@@ -107,8 +130,6 @@ class BulkMigration:
         old_bytes = values[:, None].view(np.uint8)  # one row of bytes per payload (a view)
         for at, source_at, length in self._spans(values.dtype, resolved.dtype):
             payloads[:, at : at + length] = old_bytes[:, source_at : source_at + length]
-        if not _decodes(rows, room, self.new, resolved):
-            return None
         return rows
 
     def _spans(self, old: np.dtype, new: np.dtype) -> list[tuple[int, int, int]]:
@@ -131,6 +152,28 @@ class BulkMigration:
         return [(at, source_at, length) for at, source_at, length in spans]
 
 
+def _bounded(typestore: Typestore, name: str) -> bool:
+    """Whether ``name`` or a type it holds has a bounded string or sequence (the message-by-
+    message path checks each value against its bound)."""
+    seen, todo = set(), [name]
+    while todo:
+        current = todo.pop()
+        if current in seen:
+            continue
+        seen.add(current)
+        for _, (kind, rest) in typestore.fielddefs[current][1]:
+            element: Any = (kind, rest)  # rosbags' field descriptions: (kind, details)
+            if kind in {Nodetype.ARRAY, Nodetype.SEQUENCE}:
+                if kind == Nodetype.SEQUENCE and rest[1]:
+                    return True
+                element = rest[0]
+            if element[0] == Nodetype.BASE and element[1][1]:
+                return True
+            if element[0] == Nodetype.NAME:
+                todo.append(element[1])
+    return False
+
+
 def _prefixes(layout: CdrLayout, buf: np.ndarray, start: int) -> tuple[int, ...]:
     """The length prefixes of the payload at ``start`` (already decoded in bulk: they fit)."""
     lengths: tuple[int, ...] = ()
@@ -149,13 +192,3 @@ def _prefix_offsets(layout: CdrLayout, lengths: tuple[int, ...]) -> list[int]:
         assert isinstance(step, NeedLength)
         offsets.append(step.offset)
     return offsets
-
-
-def _decodes(rows: np.ndarray, room: int, layout: CdrLayout, resolved: ResolvedLayout) -> bool:
-    """Whether every row's payload (after ``room``) decodes with ``layout`` to one group of
-    ``resolved``'s layout."""
-    count, width = rows.shape
-    starts = np.arange(count, dtype=np.int64) * width + room
-    lengths = np.full(count, width - room, np.int64)
-    groups, leftover = decode_bulk(rows.reshape(-1), starts, lengths, layout)
-    return not len(leftover) and len(groups) == 1 and groups[0].layout == resolved

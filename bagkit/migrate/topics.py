@@ -5,6 +5,14 @@
 (:class:`~bagkit.migrate.plan.Planner`); :meth:`TopicMigration.payload` then rewrites one
 payload. Every payload written is decoded with the new definition first, so a migrated bag
 never holds a message its own definition cannot read.
+
+A chunk's payloads migrated in bulk (:mod:`bagkit.migrate.bulk`) come in groups of one old
+and one new layout, every row built by the same byte operations: the first and last row of
+each group must be the very bytes this path gives for their old payloads (decoded, converted,
+encoded and decoded with the new definition), else the whole batch goes this path. That checks
+every row: the rows of a group share every byte that is not a copied value (header, length
+prefixes, padding), and a copied value is a number or the bytes of a string, which decode
+whatever they hold, as they did in the old payload (decoded in bulk with the old layout).
 """
 
 from __future__ import annotations
@@ -67,7 +75,7 @@ class TopicMigration:
         """
         if self.bulk is not None:
             found = self.bulk.payloads(buf, starts, lengths, room)
-            if found is not None:
+            if found is not None and self._agrees(found, buf, starts, lengths, room):
                 self.migrated += len(starts)
                 return found
         view = memoryview(buf.data)
@@ -84,6 +92,34 @@ class TopicMigration:
             MigrateError: it does not decode with its stored definition, or the result does
                 not encode or decode with the new one. RuleError: a rule failed on it.
         """
+        encoded = self._migrated(data)
+        self.migrated += 1
+        return encoded
+
+    def _agrees(
+        self,
+        groups: list[tuple[np.ndarray, np.ndarray]],
+        buf: np.ndarray,
+        starts: np.ndarray,
+        lengths: np.ndarray,
+        room: int,
+    ) -> bool:
+        """Whether the first and last row of each bulk group hold what :meth:`payload` gives
+        for their old payloads (see the module's docstring)."""
+        view = memoryview(buf.data)
+        for indexes, rows in groups:
+            for row in {0, len(indexes) - 1}:
+                start, length = int(starts[indexes[row]]), int(lengths[indexes[row]])
+                try:
+                    expected = self._migrated(view[start : start + length])
+                except MigrateError:
+                    return False  # this path raises it, naming the message
+                if rows[row, room:].data != expected:
+                    return False
+        return True
+
+    def _migrated(self, data: bytes | memoryview) -> bytes:
+        """:meth:`payload` without counting it."""
         where = f"{self.topic.name} message {self.migrated + 1}"
         try:
             old = self.decode(data)
@@ -102,7 +138,6 @@ class TopicMigration:
             raise MigrateError(
                 f"{where}: cannot be encoded ({type(exc).__name__}: {exc})"
             ) from None
-        self.migrated += 1
         return encoded
 
 
@@ -148,8 +183,7 @@ def migrate_topic(
         return bytes(new_store.serialize_cdr(message, new_name))
 
     topic = replace(info, type_description_hash=target.type_hash(name, text))
-    rules_free = not planner.rules_run and not planner.dropped
-    bulk = BulkMigration.of(old_store, new_store, name) if rules_free else None
+    bulk = BulkMigration.of(old_store, new_store, name) if not planner.rules_run else None
     return TopicMigration(
         topic,
         text,

@@ -42,6 +42,7 @@ class PlayControls:
         self.generation = 0
         """Incremented by every change; the publishing loop waits for it to move."""
         self._frozen_bag_ns = 0  # bag time reached when paused
+        self._cued_ns: int | None = None  # where the first pass will start, until it does
         self._suspended = False
         self._steps_requested = 0
         self._steps_taken = 0
@@ -53,9 +54,19 @@ class PlayControls:
         self.on_rate_change: Callable[[float], None] | None = None
         """Called (outside the lock) with the new rate after each change."""
 
+    def cue(self, bag_ns: int) -> None:
+        """Before the first pass (while the player waits for subscribers): stand at ``bag_ns``.
+
+        A seek key pressed during that wait then steps from where the replay will start, not
+        from bag time 0.
+        """
+        with self._changed:
+            self._cued_ns = bag_ns
+
     def start(self, bag_start_ns: int, wall_ns: int) -> None:
         """Anchor a new pass: bag time ``bag_start_ns`` is due at ``wall_ns`` (if not paused)."""
         with self._changed:
+            self._cued_ns = None
             self.timeline = Timeline(bag_start_ns, wall_ns, self.rate)
             self._frozen_bag_ns = bag_start_ns
             self._notify()
@@ -75,6 +86,8 @@ class PlayControls:
         with self._changed:
             if self.seek_to is not None:
                 return self.seek_to
+            if self._cued_ns is not None:
+                return self._cued_ns
             if self.holding:
                 return self._frozen_bag_ns
             return self.timeline.bag_time(_now(now_ns))

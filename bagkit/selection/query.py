@@ -15,14 +15,16 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 from bagkit.selection.actions import action_part_topics
-from bagkit.selection.conditions import Condition, parse_condition
 from bagkit.selection.fields import FieldSelection
 from bagkit.selection.times import TimeLike
 from bagkit.selection.topics import require_topics
 from bagkit.selection.windows import TimeRange, Window, outside_warning
+
+if TYPE_CHECKING:
+    from bagkit.selection.conditions import Condition
 
 
 class TopicType(Protocol):
@@ -90,12 +92,14 @@ class Query:
         Raises:
             SelectionError: a time or the condition does not parse, or the range is empty.
         """
-        return cls(
-            _names(topics),
-            _names(fields),
-            TimeRange.parse(start, end, prefix=prefix),
-            parse_condition(where) if isinstance(where, str) else where,
-        )
+        topic_names, field_names = _names(topics), _names(fields)
+        span = TimeRange.parse(start, end, prefix=prefix)
+        if isinstance(where, str):
+            # The condition language is imported for a condition only: echo starts without.
+            from bagkit.selection.conditions import parse_condition
+
+            where = parse_condition(where)
+        return cls(topic_names, field_names, span, where)
 
     def with_topics(self, topics: str | Iterable[str] | None) -> Query:
         """This query for other topics (a command that takes its topic as an argument)."""

@@ -15,6 +15,7 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from bagkit.bag.mcapio.records import MESSAGE_PREFIX, MESSAGE_RECORD_HEADER, RECORD_HEADER, Opcode
+from bagkit.decode.bulk import gather
 from bagkit.surgery.options import TopicRewrite
 from bagkit.surgery.output import OutputBag
 from bagkit.surgery.select import PayloadFilter, Selection
@@ -139,8 +140,10 @@ def _rewritten(
             block[:, 1 : RECORD_HEADER.size] = np.frombuffer(
                 (width - RECORD_HEADER.size).to_bytes(8, "little"), np.uint8
             )
-            prefixes = sliding_window_view(buf, size - RECORD_HEADER.size)
-            block[:, RECORD_HEADER.size : size] = prefixes[starts[which] + RECORD_HEADER.size]
+            prefix = np.dtype((np.void, size - RECORD_HEADER.size))
+            block[:, RECORD_HEADER.size : size].view(prefix)[:, 0] = gather(
+                buf, starts[which] + RECORD_HEADER.size, prefix
+            )
             new_starts[which] = at + np.arange(count, dtype=np.int64) * width
             new_ends[which] = new_starts[which] + width
             rewritten[which] = True

@@ -20,6 +20,7 @@ from bagkit.bag.errors import ChunkError, CorruptBagError
 from bagkit.bag.mcapio.chunk_builder import LARGE_PAYLOAD, SAMPLED_CHUNK, ChunkBuilder
 from bagkit.bag.mcapio.chunks import decompress, payload_spans, walk_chunk
 from bagkit.bag.mcapio.file_writer import McapFileWriter
+from bagkit.bag.mcapio.message_index import ordered_offsets
 from bagkit.bag.mcapio.records import (
     MESSAGE_PREFIX,
     RECORD_HEADER,
@@ -246,3 +247,34 @@ def test_spans_outside_the_chunk_are_dropped_and_counted(
         assert any("4 messages of /imu/data indexed outside" in p for p in bag.problems)
     empty = payload_spans(b"", np.zeros(2, dtype=message_index_dtype()))
     assert empty[3] == 2 and len(empty[1]) == 0
+
+
+@pytest.mark.parametrize(
+    ("channels", "lower", "upper"),
+    [
+        (1, 0, 1 << 64),  # one channel in order: the bisection path
+        (1, 30, 70),
+        (3, 0, 1 << 64),  # interleaved channels: the sort
+        (3, 25, 61),
+        (3, 200, 300),  # nothing in range
+    ],
+)
+@pytest.mark.parametrize("shuffled", [False, True])
+def test_ordered_offsets_are_numpys_lexsort_of_the_entries(
+    channels: int, lower: int, upper: int, shuffled: bool
+) -> None:
+    # Entries with repeated log times, as several channels of one chunk hold them; shuffled,
+    # a channel's entries are not in log-time order (a recorder writing in batches).
+    rng = np.random.default_rng(channels + lower)
+    parts = []
+    for channel in range(channels):
+        times = np.sort(rng.integers(0, 100, 40))
+        offsets = np.arange(40) * 16 * channels + channel * 16
+        entries = np.zeros(40, dtype=message_index_dtype())
+        entries["log_time"], entries["offset"] = times, offsets
+        parts.append(rng.permutation(entries) if shuffled else entries)
+    both = np.concatenate(parts)
+    inside = both[(both["log_time"] >= lower) & (both["log_time"] < upper)]
+    expected = inside["offset"][np.lexsort((inside["offset"], inside["log_time"]))].tolist()
+    got = ordered_offsets([p.tobytes() for p in parts], lower, upper)
+    assert got == expected

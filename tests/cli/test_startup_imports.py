@@ -24,13 +24,17 @@ HEAVY = frozenset(
     {"pandas", "pyarrow", "dask", "distributed", "matplotlib", "rclpy", "sqlite3", "rich"}
     | {"pydantic", "scipy"}
 )
-# info reads summaries and indexes, and service events by their fixed header: no decoder.
+# info reads summaries and indexes, and service events by their fixed header (the message
+# index ordered without numpy): no decoder, no numpy.
 NO_DECODER = frozenset({"rosbags", "bagkit.decode"})
+# echo without --where or --fields decodes whole messages: no condition language, no bulk or
+# direct reader (numpy layouts of leaves).
+NO_LEAVES = frozenset({"bagkit.selection.conditions", "bagkit.decode.bulk", "bagkit.decode.direct"})
 
 CASES = {
     "info": (["info", str(PLAIN_BAG)], HEAVY | NO_DECODER | {"numpy"}),
-    "info with services": (["info", str(SERVICES_BAG)], HEAVY | NO_DECODER),
-    "echo": (["echo", str(SERVICES_BAG), "/imu/data", "-n", "1"], HEAVY),
+    "info with services": (["info", str(SERVICES_BAG)], HEAVY | NO_DECODER | {"numpy"}),
+    "echo": (["echo", str(SERVICES_BAG), "/imu/data", "-n", "1"], HEAVY | NO_LEAVES),
     "stats": (["stats", "summary", str(SERVICES_BAG)], HEAVY),
     "find": (["find", str(SERVICES_BAG), "--when", "/imu/data: linear_acceleration.z < 5"], HEAVY),
     "check": (["check", str(SERVICES_BAG), "--spec", str(CONTRACT)], HEAVY),

@@ -108,6 +108,18 @@ def test_suspension_holds_without_touching_the_users_pause() -> None:
     assert controls.paused  # still paused by the user
 
 
+def test_before_the_first_pass_the_position_is_where_the_pass_will_start() -> None:
+    # A seek key pressed while the player waits for subscribers steps from there (it stepped
+    # from bag time 0 and was clamped back to the window's start).
+    controls = PlayControls(1.0)
+    controls.cue(7000 * MS)
+    assert controls.position(now_ns=3000 * MS) == 7000 * MS
+    controls.seek(controls.position() + NS_PER_S)
+    controls.start(bag_start_ns=7000 * MS, wall_ns=0)
+    assert controls.take_seek() == 8000 * MS
+    assert controls.position(now_ns=500 * MS) == 7500 * MS  # the timeline runs from the start
+
+
 def test_keys_split_escape_sequences() -> None:
     assert split_keys(b" \x1b[C\x1b[Ax\x1b[B") == [SPACE, RIGHT, UP, b"x", DOWN]
 

@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+import fastdds_files
 import pytest
 from rclpy.duration import Duration
 from rclpy.node import Node
@@ -310,52 +311,22 @@ def test_existing_or_unwritable_output_exits_2(processes: object, tmp_path: Path
     assert (existing / "keep.txt").read_text() == "mine"
 
 
-def shared_memory_ports(pid: int) -> dict[int, int]:
-    """Sizes of the Fast DDS shared-memory ports in this process's domain that ``pid`` listens
-    on (it holds the port's ``_el`` lock file open).
-
-    Not every port it maps: it also maps the ports of the participants it sends to, and a port
-    is a file that outlives its process, sized by whoever created it (an earlier recorder with
-    participant id 0 leaves a large one that the next participant 0 reuses). The few outside
-    the domain's range (7000, 7001) are shared by every domain and may have been sized by anyone.
-    """
-    first = 7400 + 250 * int(os.environ["ROS_DOMAIN_ID"])
-    ports = {}
-    for fd in Path(f"/proc/{pid}/fd").iterdir():
-        try:
-            name = os.readlink(fd)
-        except OSError:  # closed meanwhile
-            continue
-        number = name.removeprefix("/dev/shm/fastrtps_port").removesuffix("_el")
-        if number.isdigit() and first <= int(number) < first + 250 and name.endswith("_el"):
-            ports[int(number)] = os.stat(f"/dev/shm/fastrtps_port{number}").st_size
-    return ports
-
-
 @pytest.mark.parametrize("user_profile", [False, True])
 def test_record_gives_itself_a_large_receive_queue_unless_the_user_has_a_profile(
     node: Node, processes: object, tmp_path: Path, user_profile: bool
 ) -> None:
     # Fast DDS sizes a port file by its descriptors: 52 KB for the default 512, 1.3 MB for
     # bagkit's 65536. This test's own process has the default; both map each other's port.
-    env = dict(os.environ)
-    if user_profile:
-        mine = tmp_path / "mine.xml"
-        mine.write_text(
-            '<?xml version="1.0" encoding="UTF-8"?>\n'
-            '<dds xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"><profiles>'
-            '<participant profile_name="mine" is_default_profile="true"><rtps/></participant>'
-            "</profiles></dds>\n"
-        )
-        env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(mine)
+    env = fastdds_files.environment(tmp_path, user_profile=user_profile)
     publisher = node.create_publisher(String, "/cli/queue", 100)
     bag = tmp_path / "queue"
+    fastdds_files.remove_stale_ports()
     proc = record(processes, "/cli/queue", "-o", str(bag), "--format", "json", env=env)
     wait_for(lambda: publisher.get_subscription_count() > 0, STARTUP_TIMEOUT_S)
     for i in range(20):
         publisher.publish(String(data=f"q{i}"))
     assert publisher.wait_for_all_acked(Duration(seconds=10))  # in the recorder
-    ports = shared_memory_ports(proc.pid)
+    ports = fastdds_files.listened_port_sizes(proc.pid)
     proc.send_signal(signal.SIGINT)
     stdout, stderr = proc.communicate(timeout=20)
     assert proc.returncode == 130, stderr.decode()

@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import fastdds_files
 import pytest
 from rclpy.serialization import deserialize_message
 from replay_harness import (
@@ -286,19 +287,9 @@ def test_cli_wait_for_a_topic_nobody_reads_times_out_naming_the_way_out(test_bag
 def test_replay_gives_itself_the_large_shared_memory_pool_unless_the_user_has_a_profile(
     test_bag: Path, listener_factory: type[Listener], tmp_path: Path, user_profile: bool
 ) -> None:
-    from test_record_cli import shared_memory_ports
-
-    env = dict(os.environ)
-    if user_profile:
-        mine = tmp_path / "mine.xml"
-        mine.write_text(
-            '<?xml version="1.0" encoding="UTF-8"?>\n'
-            '<dds xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"><profiles>'
-            '<participant profile_name="mine" is_default_profile="true"><rtps/></participant>'
-            "</profiles></dds>\n"
-        )
-        env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(mine)
+    env = fastdds_files.environment(tmp_path, user_profile=user_profile)
     listener = listener_factory(STRING_TOPICS)
+    fastdds_files.remove_stale_ports()
     proc = subprocess.Popen(
         [
             str(Path(sys.executable).with_name("bagkit")),
@@ -314,7 +305,9 @@ def test_replay_gives_itself_the_large_shared_memory_pool_unless_the_user_has_a_
     )
     try:
         listener.wait_for_count(1)
-        ports = shared_memory_ports(proc.pid)  # read while the replay runs (about 1 s)
+        ports = fastdds_files.listened_port_sizes(
+            proc.pid
+        )  # read while the replay runs (about 1 s)
         _, stderr = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:

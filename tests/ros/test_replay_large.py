@@ -18,6 +18,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+import fastdds_files
 import pytest
 import rclpy
 from rclpy.context import Context
@@ -101,16 +102,7 @@ def largest_segment(pid: int) -> int:
 def test_camera_frames_all_arrive_unless_the_users_profile_says_otherwise(
     camera_bag: Path, tmp_path: Path, user_profile: bool
 ) -> None:
-    env = dict(os.environ)
-    if user_profile:
-        mine = tmp_path / "mine.xml"
-        mine.write_text(
-            '<?xml version="1.0" encoding="UTF-8"?>\n'
-            '<dds xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"><profiles>'
-            '<participant profile_name="mine" is_default_profile="true"><rtps/></participant>'
-            "</profiles></dds>\n"
-        )
-        env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(mine)
+    env = fastdds_files.environment(tmp_path, user_profile=user_profile)
     with frames_received() as got:
         proc = subprocess.Popen(
             [

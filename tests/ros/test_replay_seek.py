@@ -37,6 +37,7 @@ from bagkit.playback.options import PlayOptions
 from bagkit.playback.report import PlayReport
 from bagkit.ros.qos import dump_offered_qos_profiles
 from bagkit.ros.replay.player import Player
+from bagkit.selection.times import NS_PER_S
 
 pytestmark = pytest.mark.ros
 
@@ -153,6 +154,28 @@ def test_seek_publishes_clock_and_latched_state_then_burst_and_stop(
     assert 5 < len(data) < 60 - first
     assert report.messages == len(data) + 1 and report.latched == 1
     assert not report.interrupted
+
+
+def test_a_seek_key_during_the_wait_for_subscribers_steps_from_the_start(
+    tmp_path: Path, listener_factory: type[Listener]
+) -> None:
+    # A user presses "." while the player still waits for its subscribers (as a loaded
+    # machine's discovery makes it do): the step is taken from where the replay will start.
+    bag = write_debug_bag(tmp_path / "bag")
+    with Player(PlayOptions(bag, start_paused=True, waits=known(DATA, STATE))) as player:
+        target = player.seek_by(NS_PER_S)  # before play(): nobody subscribed yet
+        assert target == START_NS + NS_PER_S
+        listener = listener_factory({DATA: String, STATE: String})
+        thread = threading.Thread(target=player.play, daemon=True)
+        thread.start()
+        try:
+            wait_for(lambda: listener.messages(STATE), 15.0, what="the latched state")
+        finally:
+            player.stop()
+            thread.join(timeout=20)
+    assert not thread.is_alive()
+    assert [text(r.data) for r in listener.messages(STATE)] == ["state#1"]
+    assert listener.messages(DATA) == []  # still paused
 
 
 def test_a_seek_back_while_playing_is_no_lateness_and_past_the_end_is_clamped(

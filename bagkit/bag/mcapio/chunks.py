@@ -13,7 +13,11 @@ start-up).
 
 from __future__ import annotations
 
+import sys
+from array import array
+from collections.abc import Mapping
 from dataclasses import dataclass
+from itertools import chain
 from typing import TYPE_CHECKING
 
 import lz4.frame
@@ -24,7 +28,7 @@ import zstandard
 from zlib_ng.zlib_ng import crc32
 
 from bagkit.bag.errors import ChunkError, CorruptBagError
-from bagkit.bag.mcapio.message_index import message_index_bytes, read_message_indexes
+from bagkit.bag.mcapio.message_index import index_arrays, message_index_bytes
 from bagkit.bag.mcapio.records import (
     MESSAGE_INDEX_ENTRY_SIZE,
     MESSAGE_PREFIX,
@@ -36,7 +40,6 @@ from bagkit.bag.mcapio.records import (
     Opcode,
     Schema,
     iter_records,
-    message_index_dtype,
     parse_channel,
     parse_chunk,
     parse_schema,
@@ -72,13 +75,20 @@ Block = ChunkIndex | MessageRun
 class ChunkContents:
     """The decompressed records of one chunk and where each channel's messages are in them.
 
-    ``message_index[channel_id]`` is a ``MESSAGE_INDEX_DTYPE`` array (``log_time``, ``offset``
-    of the Message record in ``records``) in the order the messages were written; offsets are
-    as stored (check them with :func:`payload_spans`).
+    ``entries[channel_id]`` holds the channel's Message Index entries as stored (16 bytes each,
+    ``log_time`` and ``offset`` of the Message record in ``records``, little-endian) in the
+    order the messages were written; offsets are as stored (check them with
+    :func:`payload_spans`). Kept as bytes: the message-by-message path orders them without
+    numpy (:func:`~bagkit.bag.mcapio.message_index.ordered_offsets`).
     """
 
     records: bytes
-    message_index: dict[int, np.ndarray]
+    entries: Mapping[int, bytes | memoryview]
+
+    @property
+    def message_index(self) -> dict[int, np.ndarray]:
+        """``entries`` as ``message_index_dtype`` arrays (views of the same bytes)."""
+        return index_arrays(self.entries)
 
 
 def extent(block: Block) -> tuple[int, int]:
@@ -193,12 +203,19 @@ class MessagePositions:
         """Messages per channel."""
         return {channel_id: len(found) for channel_id, found in self.by_channel.items()}
 
+    def entries(self) -> dict[int, bytes]:
+        """The positions as the entries of Message Index records (16 bytes each)."""
+        packed = {}
+        for channel_id, found in self.by_channel.items():
+            words = array("Q", chain.from_iterable(found))
+            if sys.byteorder == "big":  # MCAP is little-endian
+                words.byteswap()
+            packed[channel_id] = words.tobytes()
+        return packed
+
     def message_index(self) -> dict[int, np.ndarray]:
         """The positions as ``message_index_dtype`` arrays, like Message Index records."""
-        import numpy as np
-
-        dtype = message_index_dtype()
-        return {c: np.array(found, dtype=dtype) for c, found in self.by_channel.items()}
+        return index_arrays(self.entries())
 
 
 def walk_chunk(
@@ -260,10 +277,10 @@ def read_chunk(
     try:
         if agrees and isinstance(block, ChunkIndex) and block.message_index_offsets:
             try:
-                return ChunkContents(records, read_message_indexes(source, block))
+                return ChunkContents(records, message_index_bytes(source, block))
             except CorruptBagError:
                 pass  # the records themselves are intact: find the messages in them
-        return ChunkContents(records, walk_chunk(records).message_index())
+        return ChunkContents(records, walk_chunk(records).entries())
     except CorruptBagError as exc:
         raise ChunkError(str(exc)) from None
 

@@ -1,17 +1,20 @@
 """The Message Index records after a chunk: as bytes, as numpy arrays, times, message sizes.
 
-``bagkit info`` reads them as bytes (:func:`message_index_times`, :func:`channel_spans`) and
-starts without numpy (benchmarks/README.md, start-up), as does the player sizing its
-shared-memory segment before its participant exists (:func:`largest_messages`); numpy is
-imported by :func:`read_message_indexes` only.
+``bagkit info`` reads them as bytes (:func:`message_index_times`, :func:`channel_spans`,
+:func:`ordered_offsets` for the events of services) and starts without numpy
+(benchmarks/README.md, start-up), as does the player sizing its shared-memory segment before
+its participant exists (:func:`largest_messages`); numpy is imported by :func:`index_arrays`
+only.
 """
 
 from __future__ import annotations
 
+import itertools
+import operator
 import sys
 from array import array
-from collections.abc import Hashable, Iterable
-from itertools import pairwise
+from bisect import bisect_left
+from collections.abc import Callable, Hashable, Iterable, Mapping
 from typing import TYPE_CHECKING, TypeVar
 
 from bagkit.bag.errors import CorruptBagError
@@ -30,6 +33,7 @@ from bagkit.bag.mcapio.source import Source
 if TYPE_CHECKING:
     import numpy as np
 
+_OFFSET = operator.itemgetter(1)
 Span = tuple[int, int]
 """(first, last) log time in nanoseconds."""
 _Key = TypeVar("_Key", bound=Hashable)
@@ -71,22 +75,49 @@ def read_message_indexes(source: Source, chunk_index: ChunkIndex) -> dict[int, n
     Raises:
         CorruptBagError: the records are not where the chunk index says.
     """
+    return index_arrays(message_index_bytes(source, chunk_index))
+
+
+def index_arrays(entries: Mapping[int, bytes | memoryview]) -> dict[int, np.ndarray]:
+    """Message Index entries by channel as ``message_index_dtype`` arrays (views of them)."""
     import numpy as np
 
     dtype = message_index_dtype()
-    return {
-        channel_id: np.frombuffer(entries, dtype=dtype)
-        for channel_id, entries in message_index_bytes(source, chunk_index).items()
-    }
+    return {channel_id: np.frombuffer(found, dtype=dtype) for channel_id, found in entries.items()}
 
 
-def _words(entries: memoryview) -> array[int]:
+def _words(entries: bytes | memoryview) -> array[int]:
     """Message Index entries as (log_time, offset, log_time, offset, ...) integers."""
     words = array("Q")
     words.frombytes(entries)
     if sys.byteorder == "big":  # MCAP is little-endian
         words.byteswap()
     return words
+
+
+def ordered_offsets(entries: list[bytes | memoryview], lower: int, upper: int) -> list[int]:
+    """The offsets of the entries with ``lower <= log_time < upper``, in log-time order (ties
+    in storage order): the message-by-message path's order, without numpy."""
+    if len(entries) == 1:
+        words = _words(entries[0])
+        times, offsets = words[0::2], words[1::2]
+        # One channel written in order (the usual case): its entries are already in that
+        # order, and its time range is cut by bisection.
+        if _ascending(times, operator.le) and _ascending(offsets, operator.lt):
+            return offsets[bisect_left(times, lower) : bisect_left(times, upper)].tolist()
+    keyed: list[tuple[int, int]] = []
+    for found in entries:
+        words = _words(found)
+        keyed.extend(zip(words[0::2], words[1::2], strict=True))
+    keyed.sort()  # runs already in order (each channel's, mostly) merge in linear time
+    if keyed and (keyed[0][0] < lower or keyed[-1][0] >= upper):
+        keyed = keyed[bisect_left(keyed, (lower,)) : bisect_left(keyed, (upper,))]
+    return list(map(_OFFSET, keyed))
+
+
+def _ascending(values: array[int], order: Callable[[int, int], bool]) -> bool:
+    """Whether ``order(a, b)`` holds for each value and the next."""
+    return all(map(order, values, itertools.islice(values, 1, None)))
 
 
 def largest_messages(
@@ -116,7 +147,7 @@ def largest_messages(
     if bounds and bounds[-1] + MESSAGE_RECORD_HEADER.size > size:
         raise CorruptBagError("a message index names an offset past its chunk's end")
     bounds.append(size)
-    record_end = dict(pairwise(bounds))
+    record_end = dict(itertools.pairwise(bounds))
     return {
         channel: max(record_end[start] - start for start in found) - MESSAGE_RECORD_HEADER.size
         for channel, found in starts.items()

@@ -162,6 +162,7 @@ class Player:
         self._reader = reader
         self.window.bounds(reader.start_ns, reader.end_ns, Path(reader.name))  # raises past end
         self.selection = options.selection_in(reader, reader.name)  # raises on unknown names
+        self.controls.cue(self._span().start_ns)
         # The participant first: discovery, which the first message waits for, runs while the
         # topics are checked against the installed types and the publishers are made. Fast DDS
         # reads its profile when the participant is created; the player sends, so its
