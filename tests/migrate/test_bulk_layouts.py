@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
-from sensor_msgs.msg import Imu, Range
+from sensor_msgs.msg import Imu, Range, RegionOfInterest
 
 from bagkit.bag import BagReader, BagWriter, TopicInfo, message_definition
 from bagkit.decode.message_types import MessageTypes
@@ -141,6 +141,34 @@ def test_strings_the_decoder_may_refuse_go_message_by_message(frame_id: bytes, t
         return
     (found,) = [rows for indexes, rows in migration.payloads(buf, starts, lengths) if 3 in indexes]
     assert found.shape[1] == len(migration.payload(odd))
+
+
+def test_a_bool_past_1_goes_message_by_message() -> None:
+    """A bool stored as 2: the message-by-message path writes it as 1 (true), so the batch
+    goes that way; one of 0 and 1 only is taken in bulk."""
+    roi = "sensor_msgs/msg/RegionOfInterest"
+    old_text = "\n".join(
+        line
+        for line in message_definition(roi).splitlines()
+        if line.split("#")[0].strip() != "uint32 width"
+    )
+    messages = [RegionOfInterest(x_offset=7, height=i, do_rectify=bool(i % 2)) for i in range(5)]
+    old = _stored(roi, old_text, messages, {})
+    migration = migrate_topic(TopicInfo("/roi", roi), old_text, Target())
+    assert migration is not None
+    assert _bulk_payloads(migration, old) == [migration.payload(p) for p in old]
+    at = 4 + 3 * 4  # do_rectify: after the encapsulation header and three uint32
+    assert (old[0][at], old[1][at]) == (0, 1)
+    two = old[1][:at] + b"\x02" + old[1][at + 1 :]
+    assert _bulk_payloads(migration, [old[0], two]) is None
+    buf, starts, lengths = _batch([old[0], two])
+    rows = {
+        i: r
+        for indexes, group in migration.payloads(buf, starts, lengths)
+        for i, r in zip(indexes.tolist(), group, strict=True)
+    }
+    assert deserialize_message(rows[1].tobytes(), RegionOfInterest).do_rectify is True
+    assert rows[1].tobytes() == migration.payload(old[1])
 
 
 def test_a_bag_migrated_in_bulk_equals_one_by_one(tmp_path: Path) -> None:
