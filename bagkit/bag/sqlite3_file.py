@@ -200,34 +200,59 @@ class Sqlite3File(Sqlite3Reading):
 
     def _read_counts(self, db: sqlite3.Connection) -> None:
         """Counts and spans in one scan of the rows; the rows of wrong types are the rest of
-        ``COUNT(*)`` (read from the smallest index)."""
+        ``COUNT(*)`` (read from the smallest index).
+
+        A file of one topic id is scanned for its counts alone: when every row is valid and
+        of that id (rosbag2 writes nothing else), its span is the table's, two lookups in the
+        timestamp index; else the rows are scanned again for the spans of the valid ones.
+        """
+        (rows,) = db.execute("SELECT COUNT(*) FROM messages").fetchone()
+        if len(self._topic_ids) == 1 and self._counted(db, rows, spans=False):
+            return
+        self._counted(db, rows, spans=True)
+
+    def _counted(self, db: sqlite3.Connection, rows: int, *, spans: bool) -> bool:
+        """Fill the counts from one scan; False (nothing filled) when ``spans`` is False and
+        some row is invalid or of no known topic (their spans need a scan of their own)."""
+        grouped = self._grouped_counts(db, spans=spans)
+        valid = sum(count for _, count, _, _ in grouped)
+        orphans = valid - sum(count for topic_id, count, _, _ in grouped if self._known(topic_id))
+        self._clean = rows == valid and not orphans
+        if not spans:
+            if not self._clean:
+                return False
+            (first,) = db.execute("SELECT MIN(timestamp) FROM messages").fetchone()
+            (last,) = db.execute("SELECT MAX(timestamp) FROM messages").fetchone()
+            grouped = [(i, count, first, last) for i, count, _, _ in grouped]
         self.topic_counts = dict.fromkeys(self.topics, 0)
-        orphans = valid = 0
         starts: list[int] = []
         ends: list[int] = []
-        for topic_id, count, first, last in self._grouped_counts(db):
-            valid += count
+        for topic_id, count, first, last in grouped:
             starts.append(first)
             ends.append(last)
-            name = self._topic_ids.get(topic_id) if isinstance(topic_id, int) else None
-            if name is None:
-                orphans += count
-                continue
-            self.topic_counts[name] += count
-            widen(self._spans, name, first, last)
+            if self._known(topic_id):
+                name = self._topic_ids[topic_id]  # type: ignore[index]
+                self.topic_counts[name] += count
+                widen(self._spans, name, first, last)
         if orphans:
             self._problem(f"{orphans} messages of no known topic skipped")
-        (rows,) = db.execute("SELECT COUNT(*) FROM messages").fetchone()
-        self._clean = rows == valid and not orphans
         if rows > valid:
             self._problem(
                 f"{rows - valid} messages without an integer timestamp or blob data skipped"
             )
         self.start_ns, self.end_ns = min(starts, default=0), max(ends, default=0)
+        return True
 
-    def _grouped_counts(self, db: sqlite3.Connection) -> list[tuple[object, int, int, int]]:
+    def _known(self, topic_id: object) -> bool:
+        """True when ``topic_id`` is an integer of a topic row read."""
+        return isinstance(topic_id, int) and topic_id in self._topic_ids
+
+    def _grouped_counts(
+        self, db: sqlite3.Connection, *, spans: bool
+    ) -> list[tuple[object, int, int, int]]:
         """(topic id, count, first and last timestamp) of the valid rows of each topic id,
-        several tuples of one id where the rows were counted in parts.
+        several tuples of one id where the rows were counted in parts (``spans`` False: the
+        timestamps are 0, not read).
 
         A large table is counted in two halves of its row ids at once, the second on a
         connection of its own in a thread (SQLite steps rows without the GIL): the scan is
@@ -235,14 +260,14 @@ class Sqlite3File(Sqlite3Reading):
         """
         halves = _row_id_halves(db)
         if halves is None:
-            return self._counts_in(db, "")
+            return self._counts_in(db, "", spans)
         second: list[tuple[object, int, int, int]] | BaseException = []
 
         def count_second_half() -> None:
             nonlocal second
             other = connect(self.path)
             try:
-                second = self._counts_in(other, halves[1])
+                second = self._counts_in(other, halves[1], spans)
             except BaseException as exc:  # raised by the opening thread
                 second = exc
             finally:
@@ -251,14 +276,16 @@ class Sqlite3File(Sqlite3Reading):
         worker = threading.Thread(target=count_second_half, name="bagkit-db3-count")
         worker.start()
         try:
-            first = self._counts_in(db, halves[0])
+            first = self._counts_in(db, halves[0], spans)
         finally:
             worker.join()
         if isinstance(second, BaseException):
             raise second
         return first + second
 
-    def _counts_in(self, db: sqlite3.Connection, rows: str) -> list[tuple[object, int, int, int]]:
+    def _counts_in(
+        self, db: sqlite3.Connection, rows: str, spans: bool
+    ) -> list[tuple[object, int, int, int]]:
         """:meth:`_grouped_counts` of the rows that ``rows`` (an SQL condition after AND, or
         '') leaves in.
 
@@ -267,21 +294,24 @@ class Sqlite3File(Sqlite3Reading):
         rows of no known id come as one of id None.
         """
         ids = list(self._topic_ids)
+        times = "MIN(timestamp), MAX(timestamp)" if spans else "0, 0"
         if len(ids) > FILTERED_COUNT_TOPICS or sqlite3.sqlite_version_info < (3, 30):
             query = (
-                "SELECT topic_id, COUNT(*), MIN(timestamp), MAX(timestamp) FROM messages "
+                f"SELECT topic_id, COUNT(*), {times} FROM messages "
                 f"WHERE {VALID_ROW}{rows} GROUP BY topic_id"
             )
             return list(db.execute(query))
-        per_id = ", ".join(
-            f"COUNT(*) FILTER (WHERE topic_id = {i}), MIN(timestamp) FILTER (WHERE topic_id = "
-            f"{i}), MAX(timestamp) FILTER (WHERE topic_id = {i})"
+        per_id = "".join(
+            f", COUNT(*) FILTER (WHERE topic_id = {i})"
+            + (
+                f", MIN(timestamp) FILTER (WHERE topic_id = {i}), "
+                f"MAX(timestamp) FILTER (WHERE topic_id = {i})"
+                if spans
+                else ", 0, 0"
+            )
             for i in ids
         )
-        query = (
-            f"SELECT COUNT(*), MIN(timestamp), MAX(timestamp){', ' if ids else ''}{per_id} "
-            f"FROM messages WHERE {VALID_ROW}{rows}"
-        )
+        query = f"SELECT COUNT(*), {times}{per_id} FROM messages WHERE {VALID_ROW}{rows}"
         total, first, last, *found = db.execute(query).fetchone()
         grouped = [(i, *found[3 * k : 3 * k + 3]) for k, i in enumerate(ids)]
         grouped = [row for row in grouped if row[1]]

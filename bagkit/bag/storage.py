@@ -32,13 +32,17 @@ class BagChunk:
 
     ``message_index[topic]`` is a ``message_index_dtype`` array (``log_time``, ``offset`` of
     the Message record in ``records``, as stored); :meth:`payloads` gives the checked payload
-    spans.
+    spans. ``spans``: those of a chunk laid out here (:func:`chunk_of_payloads`), known as
+    they were laid out, not read back from the records.
     """
 
     file: Path
     records: bytes
     message_index: dict[str, np.ndarray]
     problems: list[str] = field(default_factory=list, repr=False, compare=False)
+    spans: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = field(
+        default=None, repr=False, compare=False
+    )
 
     def payloads(self, topic: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(log_times, starts, lengths)`` (int64) of each payload of ``topic`` in ``records``.
@@ -46,6 +50,8 @@ class BagChunk:
         A message whose index entry points outside the chunk, or at no whole Message record,
         is left out and counted in ``problems``.
         """
+        if self.spans is not None and topic in self.spans:
+            return self.spans[topic]
         entries = self.message_index.get(topic)
         if entries is None:
             import numpy as np
@@ -216,9 +222,12 @@ def chunk_of_payloads(
     np.cumsum(lengths[:-1] + size, out=offsets[1:])
     records = _laid_out(headers, payloads, lengths)
     index = {}
+    spans = {}
+    starts = offsets.astype(np.int64) + size
     if isinstance(topics, str):
         index[topics] = np.empty(count, message_index_dtype())
         index[topics]["log_time"], index[topics]["offset"] = log_times, offsets
+        spans[topics] = (np.asarray(log_times, np.int64), starts, lengths)
     else:
         assert topic_ids is not None
         ids, numbers = np.unique(topic_ids, return_inverse=True)
@@ -231,7 +240,8 @@ def chunk_of_payloads(
             entries["log_time"] = log_times[rows]
             entries["offset"] = offsets[rows]
             index[topic] = entries
-    return BagChunk(file, records, index)
+            spans[topic] = (entries["log_time"].astype(np.int64), starts[rows], lengths[rows])
+    return BagChunk(file, records, index, spans=spans)
 
 
 def _laid_out(headers: np.ndarray, payloads: bytes, lengths: np.ndarray) -> bytes:

@@ -136,6 +136,54 @@ def test_counts_at_open_by_either_query(
         ]
 
 
+@pytest.mark.parametrize("halves", [1, 200_000], ids=["halves", "whole"])
+@pytest.mark.parametrize(
+    "script",
+    [
+        "",
+        "UPDATE messages SET timestamp = timestamp + 50000000 WHERE id = 3",
+        "UPDATE messages SET topic_id = 7 WHERE id = 1",
+        "UPDATE messages SET timestamp = 'soon' WHERE id = 20",
+        "UPDATE messages SET timestamp = -5 WHERE id = 20; UPDATE messages SET data = 'text' "
+        "WHERE id = 20",
+    ],
+    ids=["clean", "out-of-order", "orphan", "text-timestamp", "text-data"],
+)
+def test_counts_at_open_of_one_topic(
+    tmp_path: Path, script: str, halves: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A file of one topic id is counted without spans, which then come from the timestamp
+    index where every row is valid, else from a second scan: the same counts, spans and
+    problems as the rows that sqlite3 lists say."""
+    monkeypatch.setattr(sqlite3_file, "PARALLEL_COUNT_ROWS", halves)
+    bag = _alter(
+        write_db3(tmp_path / "one.db3", n=21),
+        f"DELETE FROM topics WHERE id = 2; UPDATE messages SET topic_id = 1; {script}",
+    )
+    db = sqlite3.connect(bag)
+    rows = db.execute("SELECT topic_id, timestamp, typeof(data) FROM messages").fetchall()
+    db.close()
+    valid = [(i, t) for i, t, kind in rows if isinstance(t, int) and kind == "blob"]
+    times = [t for i, t in valid if i == 1]
+    expected = [
+        f"one.db3: {count} {what} skipped"
+        for count, what in (
+            (len(valid) - len(times), "messages of no known topic"),
+            (len(rows) - len(valid), "messages without an integer timestamp or blob data"),
+        )
+        if count
+    ]
+    with BagReader(bag) as reader:
+        assert reader.topic_counts == {"/a": len(times)}
+        assert reader.topic_spans() == {"/a": (min(times), max(times))}
+        assert (reader.start_ns, reader.end_ns) == (
+            min(t for _, t in valid),
+            max(t for _, t in valid),
+        )
+        assert reader.problems == expected
+        assert sorted(m.log_time for m in reader.messages()) == sorted(times)
+
+
 def test_a_blob_topic_name_skips_that_topic(tmp_path: Path) -> None:
     bag = _alter(write_db3(tmp_path / "blob.db3"), "UPDATE topics SET name = X'ff2f' WHERE id = 2")
     with BagReader(bag) as reader:

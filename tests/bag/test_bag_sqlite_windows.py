@@ -18,6 +18,7 @@ from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlu
 from rosbags.typesys import Stores, get_typestore
 
 from bagkit.bag import BagReader, sqlite3_windows
+from bagkit.bag.mcapio import payload_spans
 from bagkit.bag.sqlite3_file import Sqlite3File
 from bagkit.bag.zstd_frames import declared_sizes
 
@@ -64,6 +65,12 @@ def _from_chunks(bag: BagReader, topics: list[str] | None = None) -> list[Row]:
         records = []
         for topic in chunk.message_index:
             times, starts, lengths = chunk.payloads(topic)
+            # The spans kept from the layout are those read back from its records.
+            *read_back, dropped = payload_spans(chunk.records, chunk.message_index[topic])
+            assert dropped == 0
+            for kept, read in zip((times, starts, lengths), read_back, strict=True):
+                assert kept.dtype == np.int64
+                assert np.array_equal(kept, read)
             for time, start, length in zip(
                 times.tolist(), starts.tolist(), lengths.tolist(), strict=True
             ):
