@@ -23,7 +23,6 @@ from rosbags.interfaces import Nodetype
 
 from bagkit.bag.action_definitions import action_part_texts, split_action_part
 from bagkit.decode.errors import DefinitionError
-from bagkit.decode.idl import parse_idl_section
 from bagkit.decode.msgdef import TypeDef, parse_message, type_name
 
 _HEADER = re.compile(r"(MSG|IDL|SRV|ACTION):\s*(\S+)\s*\Z")
@@ -56,6 +55,8 @@ def parse_stored(text: str, name: str) -> dict[str, TypeDef]:
             typename = type_name(header)
             _add(types, {typename: parse_message(lines, typename)})
         elif kind == "IDL":
+            from bagkit.decode.idl import parse_idl_section  # ros2idl texts only: rare
+
             _add(types, parse_idl_section("\n".join(lines), header))
         elif kind == "SRV":
             _add(types, _service_types(type_name(header), lines))

@@ -9,7 +9,6 @@ with it.
 from __future__ import annotations
 
 import importlib.util
-import logging
 import os
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -81,6 +80,8 @@ def dashboard_available() -> bool:
 
 def local_cluster(n_workers: int) -> LocalCluster:
     """A started LocalCluster of ``n_workers`` single-threaded processes on 127.0.0.1."""
+    import logging  # here: a command that decides against a cluster starts without it
+
     import dask
     from distributed import LocalCluster
 

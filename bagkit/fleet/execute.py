@@ -14,7 +14,6 @@ import functools
 import itertools
 import math
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING, TypeVar
 
 from bagkit.fleet.errors import FleetError
@@ -61,6 +60,9 @@ def _mapped(func: Callable[[T], R], items: Sequence[T], threads: int) -> Iterato
     if threads <= 1 or len(items) <= 1:
         yield from map(func, items)
         return
+    # Threads for bags in storage only: a local bag's command starts without them (or logging).
+    from concurrent.futures import ThreadPoolExecutor
+
     pool = ThreadPoolExecutor(min(threads, len(items)))
     try:
         yield from pool.map(func, items)

@@ -13,13 +13,12 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from contextlib import closing
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from bagkit.bag import BagChunk, BagReader
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
 from bagkit.decode.layout import CdrLayout
-from bagkit.decode.matcher import PayloadMatcher
 from bagkit.prefetch import prefetch
-from bagkit.selection.conditions import Condition
 from bagkit.selection.errors import UnknownFieldError
 from bagkit.selection.fields import FieldSelection, unknown_field_message
 from bagkit.selection.query import Query, resolve_names
@@ -28,6 +27,10 @@ from bagkit.selection.windows import TimeRange, Window, outside_warning
 from bagkit.stats.accumulate import TopicAccumulator
 from bagkit.stats.errors import NothingToSummarizeError, StatsError
 from bagkit.stats.result import Summary
+
+if TYPE_CHECKING:
+    from bagkit.decode.matcher import PayloadMatcher
+    from bagkit.selection.conditions import Condition
 from bagkit.storage.urls import location, shown_as
 
 ProgressCallback = Callable[[int, int], None]
@@ -175,6 +178,9 @@ class SummaryRun:
     def _filtered(self, accumulator: TopicAccumulator, single: bool) -> TopicAccumulator | None:
         """``accumulator`` with the matcher of ``where`` for this bag, or None when the topic's
         type lacks the condition's fields (left out, unless it is the one topic asked for)."""
+        # The condition's matcher (and language) only with --where: a summary starts without.
+        from bagkit.decode.matcher import PayloadMatcher
+
         assert self.where is not None
         topic = accumulator.topic
         try:
