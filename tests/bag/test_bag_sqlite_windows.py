@@ -71,6 +71,12 @@ def _from_chunks(bag: BagReader, topics: list[str] | None = None) -> list[Row]:
             for kept, read in zip((times, starts, lengths), read_back, strict=True):
                 assert kept.dtype == np.int64
                 assert np.array_equal(kept, read)
+            # Statistics read the payloads where they were before the layout: the same bytes.
+            buffer, view_times, view_starts, view_lengths = chunk.payload_view(topic)
+            assert np.array_equal(view_times, times) and np.array_equal(view_lengths, lengths)
+            assert [buffer[s : s + n] for s, n in zip(view_starts, view_lengths, strict=True)] == [
+                chunk.records[s : s + n] for s, n in zip(starts, lengths, strict=True)
+            ]
             for time, start, length in zip(
                 times.tolist(), starts.tolist(), lengths.tolist(), strict=True
             ):
