@@ -4,6 +4,7 @@ console script, a heavy module named here fails the test (start-up time itself i
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -71,3 +72,35 @@ def test_a_quick_command_imports_no_heavy_module(case: str) -> None:
     assert "bagkit.bag.reader" in modules  # and the check sees what ran
     heavy = sorted(n for n in modules if any(n == f or n.startswith(f"{f}.") for f in forbidden))
     assert not heavy, f"bagkit {' '.join(args)} imports {heavy}"
+
+
+def _threads_after_numpy(environment: dict[str, str]) -> int:
+    """Threads of a process that ran the console script's entry (``--version``) and then
+    imported numpy (OpenBLAS starts its threads then)."""
+    probe = (
+        "import os, sys\n"
+        "from bagkit.cli import launch\n"
+        "sys.argv = ['bagkit', '--version']\n"
+        "try:\n    launch.run()\nexcept SystemExit:\n    pass\n"
+        "import numpy\n"
+        "print(len(os.listdir('/proc/self/task')))\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", probe],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=True,
+        env=environment,
+    )
+    return int(done.stdout.split()[-1])
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="threads counted in /proc")
+def test_the_command_runs_numpy_on_one_blas_thread() -> None:
+    environment = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    assert _threads_after_numpy(environment) == 1
+    # A user's own setting is kept: with two BLAS threads asked for, numpy starts a second
+    # one (on a machine of one core OpenBLAS starts none, whatever is asked).
+    if (os.cpu_count() or 1) > 1:
+        assert _threads_after_numpy({**environment, "OPENBLAS_NUM_THREADS": "2"}) == 2
