@@ -8,10 +8,10 @@ alike; the median wall time of each is compared (the best run is printed beside 
 for a bag with services either: their events are read by their fixed header, the message index
 ordered without it), ``echo`` decodes with it, and ``stats``, ``find`` and ``check`` decode in
 bulk with it; ``import numpy, typer`` is the floor of a command that decodes behind bagkit's
-command line. ``info BAG`` is a two-topic bag of our own;
-the others run on ``fixtures/fast`` (sensor topics and a service), as
-``tests/cli/test_startup_imports.py`` does; ``check`` with a contract of rate, gap, value and
-presence assertions (``fixtures/fast/health.yaml``).
+command line, printed also as bagkit runs it, with numpy's OpenBLAS on one thread. ``info
+BAG`` is a two-topic bag of our own; the others run on ``fixtures/fast`` (sensor topics and a
+service), as ``tests/cli/test_startup_imports.py`` does; ``check`` with a contract of rate,
+gap, value and presence assertions (``fixtures/fast/health.yaml``).
 
 Run: ``.venv/bin/python -m benchmarks startup``
 """
@@ -54,14 +54,18 @@ def cached_bytecode_env() -> dict[str, str]:
     return {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
 
 
+# bagkit's console script runs numpy's OpenBLAS on one thread (bagkit.cli.launch); this peer
+# shows what numpy and typer cost a process that does the same.
+ONE_BLAS_THREAD = "OPENBLAS_NUM_THREADS=1 "
+
+
 def _wall(command: list[str]) -> float:
+    env = cached_bytecode_env()
+    if command[0] == ONE_BLAS_THREAD:
+        command, env = command[1:], {**env, "OPENBLAS_NUM_THREADS": "1"}
     start = time.perf_counter()
     subprocess.run(
-        command,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-        check=True,
-        env=cached_bytecode_env(),
+        command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=True, env=env
     )
     return time.perf_counter() - start
 
@@ -75,6 +79,12 @@ def main() -> bool:
             "python -c pass": [sys.executable, "-c", "pass"],
             "python -c 'import numpy'": [sys.executable, "-c", "import numpy"],
             "python -c 'import numpy, typer'": [sys.executable, "-c", "import numpy, typer"],
+            "the same, one BLAS thread": [
+                ONE_BLAS_THREAD,
+                sys.executable,
+                "-c",
+                "import numpy, typer",
+            ],
             "bagkit --help": [bagkit, "--help"],
             "bagkit info BAG": [bagkit, "info", str(bag)],
             "bagkit info fast": [bagkit, "info", str(FAST_BAG)],

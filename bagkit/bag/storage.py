@@ -10,7 +10,7 @@ through rosbags, imported only when one is opened). The reader and ``bagkit info
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
@@ -26,23 +26,40 @@ SQLITE_MAGIC = b"SQLite format 3\x00"
 ROSBAG1_MAGIC = b"#ROSBAG V2.0\n"
 
 
-@dataclass(frozen=True, slots=True)
 class BagChunk:
     """One chunk, decompressed, with where each of its topics' messages are.
 
     ``message_index[topic]`` is a ``message_index_dtype`` array (``log_time``, ``offset`` of
     the Message record in ``records``, as stored); :meth:`payloads` gives the checked payload
-    spans. ``spans``: those of a chunk laid out here (:func:`chunk_of_payloads`), known as
-    they were laid out, not read back from the records.
+    spans. A chunk laid out here (:func:`chunk_of_payloads`: db3 rows, ROS 1 messages) lays
+    out its records when they are first asked for: :meth:`payload_view` reads the payloads
+    where they are, and its spans are known from the layout, not read back.
     """
 
-    file: Path
-    records: bytes
-    message_index: dict[str, np.ndarray]
-    problems: list[str] = field(default_factory=list, repr=False, compare=False)
-    spans: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = field(
-        default=None, repr=False, compare=False
-    )
+    __slots__ = ("_layout", "_records", "file", "message_index", "problems")
+
+    def __init__(
+        self,
+        file: Path,
+        records: bytes | None,
+        message_index: dict[str, np.ndarray],
+        problems: list[str] | None = None,
+        *,
+        layout: _Layout | None = None,
+    ) -> None:
+        self.file = file
+        self.message_index = message_index
+        self.problems: list[str] = [] if problems is None else problems
+        self._records = records
+        self._layout = layout
+
+    @property
+    def records(self) -> bytes:
+        """The Message records, back to back."""
+        if self._records is None:
+            assert self._layout is not None
+            self._records = self._layout.records()
+        return self._records
 
     def payloads(self, topic: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(log_times, starts, lengths)`` (int64) of each payload of ``topic`` in ``records``.
@@ -50,8 +67,9 @@ class BagChunk:
         A message whose index entry points outside the chunk, or at no whole Message record,
         is left out and counted in ``problems``.
         """
-        if self.spans is not None and topic in self.spans:
-            return self.spans[topic]
+        if self._layout is not None and topic in self._layout.spans:
+            log_times, in_records, _, lengths = self._layout.spans[topic]
+            return log_times, in_records, lengths
         entries = self.message_index.get(topic)
         if entries is None:
             import numpy as np
@@ -64,6 +82,35 @@ class BagChunk:
                 "(damaged message index): lost"
             )
         return log_times, starts, lengths
+
+    def payload_view(self, topic: str) -> tuple[bytes, np.ndarray, np.ndarray, np.ndarray]:
+        """``(buffer, log_times, starts, lengths)``: :meth:`payloads` in ``records``, or for a
+        chunk laid out here, in its payloads back to back (its records not laid out)."""
+        if self._layout is not None and topic in self._layout.spans:
+            log_times, _, starts, lengths = self._layout.spans[topic]
+            return self._layout.payloads, log_times, starts, lengths
+        return (self.records, *self.payloads(topic))
+
+
+@dataclass(frozen=True, slots=True)
+class _Layout:
+    """Messages to lay out as Message records (:func:`chunk_of_payloads`), and by topic
+    their ``(log_times, starts in the records, starts in payloads, lengths)``."""
+
+    log_times: np.ndarray
+    payloads: bytes
+    lengths: np.ndarray
+    spans: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]
+
+    def records(self) -> bytes:
+        import numpy as np
+
+        headers = np.zeros(len(self.lengths), _RECORD_HEADER_DTYPE)
+        headers["opcode"] = Opcode.MESSAGE
+        headers["length"] = self.lengths + MESSAGE_PREFIX.size
+        # Bit for bit: a hostile db3's negative timestamp stays the int64 its index entry holds.
+        headers["log_time"] = headers["publish_time"] = self.log_times.view(np.uint64)
+        return _laid_out(headers, self.payloads, self.lengths)
 
 
 class StorageFile(Protocol):
@@ -212,22 +259,19 @@ def chunk_of_payloads(
     from bagkit.bag.mcapio.records import message_index_dtype
 
     count = len(lengths)
-    headers = np.zeros(count, _RECORD_HEADER_DTYPE)
-    headers["opcode"] = Opcode.MESSAGE
-    headers["length"] = lengths + MESSAGE_PREFIX.size
-    # Bit for bit: a hostile db3's negative timestamp stays the int64 that its index entry holds.
-    headers["log_time"] = headers["publish_time"] = log_times.view(np.uint64)
     size = MESSAGE_RECORD_HEADER.size
     offsets = np.zeros(count, np.uint64)
     np.cumsum(lengths[:-1] + size, out=offsets[1:])
-    records = _laid_out(headers, payloads, lengths)
+    in_records = offsets.astype(np.int64) + size
+    in_payloads = np.zeros(count, np.int64)
+    np.cumsum(lengths[:-1], out=in_payloads[1:])
+    log_times = np.asarray(log_times, np.int64)
     index = {}
     spans = {}
-    starts = offsets.astype(np.int64) + size
     if isinstance(topics, str):
         index[topics] = np.empty(count, message_index_dtype())
         index[topics]["log_time"], index[topics]["offset"] = log_times, offsets
-        spans[topics] = (np.asarray(log_times, np.int64), starts, lengths)
+        spans[topics] = (log_times, in_records, in_payloads, lengths)
     else:
         assert topic_ids is not None
         ids, numbers = np.unique(topic_ids, return_inverse=True)
@@ -240,8 +284,8 @@ def chunk_of_payloads(
             entries["log_time"] = log_times[rows]
             entries["offset"] = offsets[rows]
             index[topic] = entries
-            spans[topic] = (entries["log_time"].astype(np.int64), starts[rows], lengths[rows])
-    return BagChunk(file, records, index, spans=spans)
+            spans[topic] = (log_times[rows], in_records[rows], in_payloads[rows], lengths[rows])
+    return BagChunk(file, None, index, layout=_Layout(log_times, payloads, lengths, spans))
 
 
 def _laid_out(headers: np.ndarray, payloads: bytes, lengths: np.ndarray) -> bytes:

@@ -84,11 +84,13 @@ def check(  # noqa: PLR0917 (typer maps parameters to options)
 ) -> None:
     from bagkit.fleet import expand_bags
     from bagkit.fleet.cluster import CHECK_RATE
-    from bagkit.health import HealthSpec, SpecError, check_bags, suggest_spec
+    from bagkit.health import HealthSpec, SpecError, check_bags
     from bagkit.health.check import restrict
 
     query = build_query(topics, start=start, end=end)  # a bad time: one error, first
     if suggest:
+        from bagkit.health.suggest import suggest_spec
+
         if spec is not None or len(inputs) != 1 or query.topics or query.span.bounded:
             raise SpecError("--suggest takes one bag and no --spec, --topics, --start or --end")
         common.console.print(suggest_spec(inputs[0]), end="", highlight=False, soft_wrap=True)

@@ -116,13 +116,15 @@ def echo(  # noqa: PLR0917 (typer maps parameters to options)
     try:
         with BagReader(bag, allow_empty=True) as reader:
             bag_start = reader.start_ns
-        if action_topics(bag, topic):
+            is_action = bool(action_topics(reader, topic))
+            is_service = not is_action and names_service(reader, topic)
+        if is_action:
             if fields or where:
                 raise SelectionError("--fields, --where: an action prints its topics' messages")
             records = echo_action(bag, query, limit=limit, on_failure=warn)
             _write(itertools.islice(records, count), output, bag_start)
             return
-        if names_service(bag, topic):
+        if is_service:
             if fields:
                 raise SelectionError("--fields: a service prints whole calls (use --where)")
             calls = echo_calls(bag, topic, limit=limit, query=query)

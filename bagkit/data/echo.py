@@ -123,13 +123,12 @@ def echo(
             on_failure(matcher.problem)
 
 
-def action_topics(bag: str | Path, name: str) -> list[str]:
-    """The recorded topics of action ``name`` of ``bag`` when ``name`` is an action and not one
-    of its topics (``echo``'s choice), else ``[]``."""
-    with BagReader(bag, allow_empty=True) as reader:
-        if absolute_topic_name(name) in {absolute_topic_name(t) for t in reader.topics}:
-            return []
-        return action_part_topics(name, ((t, i.type) for t, i in reader.topics.items()))
+def action_topics(reader: BagReader, name: str) -> list[str]:
+    """The recorded topics of action ``name`` of an open bag when ``name`` is an action and not
+    one of its topics (``echo``'s choice), else ``[]``."""
+    if absolute_topic_name(name) in {absolute_topic_name(t) for t in reader.topics}:
+        return []
+    return action_part_topics(name, ((t, i.type) for t, i in reader.topics.items()))
 
 
 def echo_action(
@@ -147,9 +146,9 @@ def echo_action(
         UnknownTopicError: the name is no action of ``bag``; as :func:`echo` otherwise.
     """
     (name,) = query.topics
-    topics = action_topics(bag, name)
-    if not topics:
-        with BagReader(bag, allow_empty=True) as reader:
+    with BagReader(bag, allow_empty=True) as reader:
+        topics = action_topics(reader, name)
+        if not topics:
             require_topics([name], reader.topics)  # raises: names the closest topics
     streams = [echo(bag, query.with_topics(t), limit=limit, on_failure=on_failure) for t in topics]
     yield from heapq.merge(*streams, key=lambda record: record["log_time"])

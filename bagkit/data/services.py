@@ -117,11 +117,11 @@ def echo_calls(
         }
 
 
-def names_service(bag: str | Path, name: str) -> bool:
-    """Whether ``name`` is a service of ``bag`` and not one of its topics (``echo``'s choice)."""
-    with BagReader(bag, allow_empty=True) as reader:
-        topics = {absolute_topic_name(t) for t in reader.topics}
-        return absolute_topic_name(name) not in topics and find_service(reader, name) is not None
+def names_service(reader: BagReader, name: str) -> bool:
+    """Whether ``name`` is a service of an open bag and not one of its topics (``echo``'s
+    choice)."""
+    topics = {absolute_topic_name(t) for t in reader.topics}
+    return absolute_topic_name(name) not in topics and find_service(reader, name) is not None
 
 
 def plain_message(message: Any, limit: int | None = None) -> Any:

@@ -6,6 +6,10 @@ over a window, the longest gap, value bounds, conditions that must never hold);
 language's evaluator over time; :func:`suggest_spec` writes a starting contract from a good bag.
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 from bagkit.health.check import (
     Assertion,
     CheckResult,
@@ -15,7 +19,9 @@ from bagkit.health.check import (
     check_bags,
 )
 from bagkit.health.spec import HealthSpec, SpecError, TopicContract
-from bagkit.health.suggest import suggest_spec
+
+if TYPE_CHECKING:
+    from bagkit.health.suggest import suggest_spec
 
 __all__ = [
     "Assertion",
@@ -29,3 +35,13 @@ __all__ = [
     "check_bags",
     "suggest_spec",
 ]
+
+
+# Imported on first use: checking a contract needs neither the suggestion nor the statistics
+# it is made from. An import statement, as bagkit.bag's: -X importtime sees it.
+def __getattr__(name: str) -> object:
+    if name == "suggest_spec":
+        from bagkit.health.suggest import suggest_spec
+
+        return suggest_spec
+    raise AttributeError(f"module 'bagkit.health' has no attribute {name!r}")

@@ -211,20 +211,21 @@ class SummaryRun:
             if accumulator is None:
                 continue
             seen += len(index)
-            log_times, starts, lengths = chunk.payloads(topic)
+            # A db3 or ROS 1 chunk's payloads where they are (its records are not laid out).
+            buffer, log_times, starts, lengths = chunk.payload_view(topic)
             if self.window.bounded:
                 keep = self.window.mask(log_times)
                 log_times, starts, lengths = log_times[keep], starts[keep], lengths[keep]
             matcher = self.matchers.get(topic)
             if matcher is not None:
                 failures = matcher.undecodable
-                keep = matcher.mask_records(chunk.records, starts, lengths)
+                keep = matcher.mask_records(buffer, starts, lengths)
                 _count_failures(matcher, accumulator, failures)
                 log_times, starts, lengths = log_times[keep], starts[keep], lengths[keep]
             accumulator.add_times(log_times)
             if not len(starts) or not accumulator.leaves:  # counted; no field to decode
                 continue
-            accumulator.add_spans(chunk.records, starts, lengths)
+            accumulator.add_spans(buffer, starts, lengths)
         return seen
 
 

@@ -7,7 +7,9 @@ from __future__ import annotations
 
 import sqlite3
 import sys
+import threading
 from collections.abc import Iterator
+from contextlib import closing
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +23,8 @@ from bagkit.bag import BagReader, sqlite3_windows
 from bagkit.bag.mcapio import payload_spans
 from bagkit.bag.sqlite3_file import Sqlite3File
 from bagkit.bag.zstd_frames import declared_sizes
+from bagkit.errors import BagkitError
+from bagkit.prefetch import prefetch
 
 STORE = get_typestore(Stores.ROS2_JAZZY)
 STRING = "std_msgs/msg/String"
@@ -71,6 +75,12 @@ def _from_chunks(bag: BagReader, topics: list[str] | None = None) -> list[Row]:
             for kept, read in zip((times, starts, lengths), read_back, strict=True):
                 assert kept.dtype == np.int64
                 assert np.array_equal(kept, read)
+            # Statistics read the payloads where they were before the layout: the same bytes.
+            buffer, view_times, view_starts, view_lengths = chunk.payload_view(topic)
+            assert np.array_equal(view_times, times) and np.array_equal(view_lengths, lengths)
+            assert [buffer[s : s + n] for s, n in zip(view_starts, view_lengths, strict=True)] == [
+                chunk.records[s : s + n] for s, n in zip(starts, lengths, strict=True)
+            ]
             for time, start, length in zip(
                 times.tolist(), starts.tolist(), lengths.tolist(), strict=True
             ):
@@ -254,3 +264,57 @@ def test_declared_sizes_agree_with_zstandard() -> None:
         except zstandard.ZstdError:
             expected = -1
         assert size == (expected if expected < 1 << 63 else -1), frame.hex()
+
+
+@pytest.mark.usefixtures("tiny_windows")
+def test_a_damaged_page_mid_read_through_the_read_ahead(tmp_path: Path) -> None:
+    """One topic, payloads in chains of overflow pages (touched only when the rows are read,
+    after the count at open): each page in turn filled with garbage, the chunks read as
+    ``stats`` reads them (``prefetch`` over ``chunks()``, which reads windows ahead in a thread
+    of its own). Open fails cleanly, or the chunks are the undamaged bag's first messages and
+    one problem says where the read stopped, or (garbage that SQLite cannot see) every message
+    is read; no read-ahead thread outlives the read."""
+    rows = [("/a", T0 + i * 1000, _text(f"{i}".ljust(10_000, "x"))) for i in range(40)]
+    writer = Writer(tmp_path / "clean", version=9, storage_plugin=StoragePlugin.SQLITE3)
+    with writer:
+        connection = writer.add_connection("/a", STRING, typestore=STORE)
+        for _, time, payload in rows:
+            writer.write(connection, time, payload)
+    (db3,) = (tmp_path / "clean").glob("*.db3")
+    pristine = db3.read_bytes()
+    page_size = 4096
+    outcomes = {"open": 0, "stopped": 0, "whole": 0}
+    for page in range(1, len(pristine) // page_size):
+        damaged = bytearray(pristine)
+        # The whole page: an overflow page's link to the next one too.
+        damaged[page * page_size : (page + 1) * page_size] = b"\xa5" * page_size
+        bag = tmp_path / f"page{page}.db3"
+        bag.write_bytes(damaged)
+        try:
+            with BagReader(bag) as reader:
+                with closing(prefetch(reader.chunks())) as ahead:
+                    found = [
+                        (topic, time, chunk.records[start : start + length])
+                        for chunk in ahead
+                        for topic in chunk.message_index
+                        for time, start, length in zip(
+                            *(a.tolist() for a in chunk.payloads(topic)), strict=True
+                        )
+                    ]
+                problems = list(reader.problems)
+        except BagkitError:
+            outcomes["open"] += 1
+            continue
+        assert not [t for t in threading.enumerate() if t.name.startswith("bagkit-")]
+        # Garbage in an overflow page's content is no damage SQLite can see: times only.
+        assert [(topic, time) for topic, time, _ in found] == [
+            (topic, time) for topic, time, _ in rows[: len(found)]
+        ]
+        stopped = [p for p in problems if "unreadable after" in p]
+        outcomes["stopped" if stopped else "whole"] += 1
+        if stopped:
+            assert stopped == [
+                f"page{page}.db3: unreadable after {len(found)} messages "
+                "(database disk image is malformed)"
+            ]
+    assert outcomes["open"] > 0 and outcomes["stopped"] > 0, outcomes

@@ -4,6 +4,7 @@ console script, a heavy module named here fails the test (start-up time itself i
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -20,10 +21,11 @@ CONTRACT = FIXTURES / "fast" / "health.yaml"
 
 # No quick command needs these: data frames, Dask, plots, ROS, .db3 bags, terminal styling for
 # piped output, option validation; on a local bag, threads and logging (a local cluster's, bags
-# in storage read on threads); ros2idl definitions (the fixtures store .msg texts).
+# in storage read on threads) and temporary files (copies of bags in storage or file-compressed);
+# lz4 and ros2idl definitions (the fixtures have zstd chunks and .msg texts).
 HEAVY = frozenset(
     {"pandas", "pyarrow", "dask", "distributed", "matplotlib", "rclpy", "sqlite3", "rich"}
-    | {"pydantic", "scipy", "logging", "concurrent", "bagkit.decode.idl"}
+    | {"pydantic", "scipy", "logging", "concurrent", "tempfile", "lz4", "bagkit.decode.idl"}
 )
 # info reads summaries and indexes, and service events by their fixed header (the message
 # index ordered without numpy): no decoder, no numpy.
@@ -40,7 +42,8 @@ CASES = {
     "echo": (["echo", str(SERVICES_BAG), "/imu/data", "-n", "1"], HEAVY | NO_CONDITION | NO_LEAVES),
     "stats": (["stats", "summary", str(SERVICES_BAG)], HEAVY | NO_CONDITION),
     "find": (["find", str(SERVICES_BAG), "--when", "/imu/data: linear_acceleration.z < 5"], HEAVY),
-    "check": (["check", str(SERVICES_BAG), "--spec", str(CONTRACT)], HEAVY),
+    # A contract is checked without the statistics that --suggest makes one from.
+    "check": (["check", str(SERVICES_BAG), "--spec", str(CONTRACT)], HEAVY | {"bagkit.stats"}),
 }
 
 
@@ -70,3 +73,35 @@ def test_a_quick_command_imports_no_heavy_module(case: str) -> None:
     assert "bagkit.bag.reader" in modules  # and the check sees what ran
     heavy = sorted(n for n in modules if any(n == f or n.startswith(f"{f}.") for f in forbidden))
     assert not heavy, f"bagkit {' '.join(args)} imports {heavy}"
+
+
+def _threads_after_numpy(environment: dict[str, str]) -> int:
+    """Threads of a process that ran the console script's entry (``--version``) and then
+    imported numpy (OpenBLAS starts its threads then)."""
+    probe = (
+        "import os, sys\n"
+        "from bagkit.cli import launch\n"
+        "sys.argv = ['bagkit', '--version']\n"
+        "try:\n    launch.run()\nexcept SystemExit:\n    pass\n"
+        "import numpy\n"
+        "print(len(os.listdir('/proc/self/task')))\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", probe],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=True,
+        env=environment,
+    )
+    return int(done.stdout.split()[-1])
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="threads counted in /proc")
+def test_the_command_runs_numpy_on_one_blas_thread() -> None:
+    environment = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    assert _threads_after_numpy(environment) == 1
+    # A user's own setting is kept: with two BLAS threads asked for, numpy starts a second
+    # one (on a machine of one core OpenBLAS starts none, whatever is asked).
+    if (os.cpu_count() or 1) > 1:
+        assert _threads_after_numpy({**environment, "OPENBLAS_NUM_THREADS": "2"}) == 2
