@@ -17,7 +17,6 @@ refused (a file) or counted lost (a payload), never allocated.
 from __future__ import annotations
 
 import shutil
-import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, BinaryIO
@@ -56,6 +55,8 @@ def decompressed_copy(path: Path, limit: int | None = None) -> Path:
     Raises:
         CorruptBagError: not a whole zstd stream, or it declares or yields more than ``limit``.
     """
+    import tempfile  # file-compressed bags only: a command on an MCAP bag starts without it
+
     directory = tempfile.gettempdir()
     if limit is None:
         limit = max(shutil.disk_usage(directory).free - DISK_RESERVE, 0)

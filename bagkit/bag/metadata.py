@@ -37,7 +37,11 @@ class FileInformation:
 
 @dataclass(slots=True)
 class BagMetadata:
-    """The content of ``metadata.yaml`` (``rosbag2_bagfile_information``)."""
+    """The content of ``metadata.yaml`` (``rosbag2_bagfile_information``).
+
+    ``compression_mode`` is in lower case (``file``, ``message`` or empty): rosbag2 writes
+    ``FILE``/``MESSAGE`` and reads it in any case, rosbags writes ``file``/``message``.
+    """
 
     storage_identifier: str
     relative_file_paths: list[str]
@@ -241,7 +245,7 @@ def _metadata(document: dict[Any, Any]) -> BagMetadata:
         ],
         files=[_file(f, f"files[{i}]") for i, f in enumerate(_sequence(files, "files"))],
         compression_format=_scalar_text(document.get("compression_format"), "compression_format"),
-        compression_mode=_scalar_text(document.get("compression_mode"), "compression_mode"),
+        compression_mode=_scalar_text(document.get("compression_mode"), "compression_mode").lower(),
         custom_data={
             _scalar_text(k, "custom_data key"): _scalar_text(v, f"custom_data[{k!r:.40}]")
             for k, v in custom.items()

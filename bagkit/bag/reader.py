@@ -179,17 +179,18 @@ def open_storage_file(
             and storage.storage_identifier == "sqlite3"
             and sniff_message_compression(storage)
         )
+        if payloads or (temporary is not None and not copied):
+            storage = Decompression(
+                storage,
+                path,
+                payloads=payloads,
+                limit=max_chunk_size,
+                temporary=None if copied else temporary,
+            )
+        # Outside the decompression: that sets its payload filter on the back-end itself.
         if copied and temporary is not None:
             storage = cast(StorageFile, LocalCopy(storage, path, temporary))
-        if (temporary is None or copied) and not payloads:
-            return storage
-        return Decompression(
-            storage,
-            path,
-            payloads=payloads,
-            limit=max_chunk_size,
-            temporary=None if copied else temporary,
-        )
+        return storage
     except BaseException as exc:
         if storage is not None:
             storage.close()

@@ -104,6 +104,10 @@ class UrlPath:
         return stem[stem.rfind(".") :] if "." in stem.lstrip(".") else ""
 
     @property
+    def stem(self) -> str:
+        return self.name.removesuffix(self.suffix)
+
+    @property
     def parent(self) -> UrlPath:
         return UrlPath(parent(self.url))
 

@@ -4,7 +4,6 @@ zstd-compressed files), uploads of outputs written locally, and listings of pref
 from __future__ import annotations
 
 import shutil
-import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -41,6 +40,8 @@ def local_copy(path: UrlPath, directory: Path) -> Path:
 
 def temporary_directory() -> Path:
     """A new private directory for local copies (the caller removes it)."""
+    import tempfile  # bags in storage only: a command on a local bag starts without it
+
     return Path(tempfile.mkdtemp(prefix="bagkit-storage-"))
 
 

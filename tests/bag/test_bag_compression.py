@@ -3,6 +3,7 @@ read back against rosbags' reader; with and without metadata.yaml; hostile compr
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -229,3 +230,25 @@ def test_db3_chunks_of_large_messages_stay_bounded(
         c.records[s : s + n] for c in chunks for s, n in zip(*c.payloads("/blob")[1:], strict=True)
     ]
     assert got == payloads
+
+
+@pytest.mark.parametrize("storage", STORAGES)
+@pytest.mark.parametrize("mode", MODES)
+def test_rosbag2s_upper_case_compression_mode(tmp_path: Path, storage: str, mode: str) -> None:
+    # rosbag2 writes compression_mode FILE or MESSAGE (compression_mode_to_string) and reads it
+    # in any case; rosbags writes it in lower case.
+    bag_dir = write_compressed(tmp_path / "bag", storage, mode)
+    metadata = bag_dir / "metadata.yaml"
+    written = metadata.read_text()
+    assert f"compression_mode: {mode}\n" in written
+    metadata.write_text(
+        written.replace(f"compression_mode: {mode}", f"compression_mode: {mode.upper()}")
+    )
+    expected = _rosbags_messages(bag_dir)
+    with BagReader(bag_dir) as bag:
+        got = [(m.topic, m.log_time, m.data) for m in bag.messages()]
+        assert bag.problems == []
+    assert got == expected
+    echo = bagkit_in_process(["echo", str(bag_dir), "/text", "-n", "1", "--format", "json"])
+    assert echo.returncode == 0, echo.stderr
+    assert json.loads(echo.stdout)["data"] == {"data": "message 0"}

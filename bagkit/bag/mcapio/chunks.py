@@ -20,7 +20,6 @@ from dataclasses import dataclass
 from itertools import chain
 from typing import TYPE_CHECKING
 
-import lz4.frame
 import zstandard
 
 # zlib-ng's CRC-32 (same polynomial as zlib's) is many times faster than zlib's (PCLMUL), and
@@ -124,6 +123,8 @@ def decompress(
                 raise ChunkError(f"zstd frame holds {declared} bytes, the chunk declares {size}")
             out = zstandard.ZstdDecompressor().decompress(data, max_output_size=size)
         elif compression == "lz4":
+            import lz4.frame  # lz4 chunks only: rosbag2 and bagkit write zstd by default
+
             out = lz4.frame.LZ4FrameDecompressor().decompress(data, max_length=size + 1)
         else:
             raise ChunkError(f"unsupported chunk compression {compression!r}")
