@@ -22,6 +22,7 @@ from __future__ import annotations
 import heapq
 import io
 import itertools
+import os
 import struct
 from collections.abc import Iterator
 from pathlib import Path
@@ -121,6 +122,12 @@ class Rosbag1File:
                 raise CorruptBagError(
                     f"{self.path}: the ROS 1 bag has no index (not closed cleanly: "
                     "`rosbag reindex` it)"
+                )
+            size = os.fstat(self._bio.fileno()).st_size
+            if index_pos >= size:  # the index is written last: a copy that stopped early
+                raise CorruptBagError(
+                    f"{self.path}: the ROS 1 bag is cut short at {size} bytes (its index "
+                    f"starts at byte {index_pos}: `rosbag reindex` it)"
                 )
             self._bio.seek(index_pos)
             connections = [self._reader.read_connection() for _ in range(conn_count)]
