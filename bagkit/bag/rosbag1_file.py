@@ -124,7 +124,8 @@ class Rosbag1File:
                     "`rosbag reindex` it)"
                 )
             size = os.fstat(self._bio.fileno()).st_size
-            if index_pos >= size:  # the index is written last: a copy that stopped early
+            # The index is written last (at the very end of a bag without connections).
+            if index_pos > size or (index_pos == size and conn_count + chunk_count):
                 raise CorruptBagError(
                     f"{self.path}: the ROS 1 bag is cut short at {size} bytes (its index "
                     f"starts at byte {index_pos}: `rosbag reindex` it)"
