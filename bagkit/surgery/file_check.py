@@ -33,7 +33,12 @@ from bagkit.bag.mcapio.records import (
     parse_schema,
 )
 from bagkit.bag.mcapio.source import Source
-from bagkit.bag.mcapio.summary import FileIndex, read_header, read_summary
+from bagkit.bag.mcapio.summary import (
+    FileIndex,
+    closed_without_summary,
+    read_header,
+    read_summary,
+)
 
 # Called with (channel id, log time, payload) for every message when decoding is checked.
 MessageCheck = Callable[[int, int, memoryview], None]
@@ -99,7 +104,12 @@ class FileCheck:
             self.facts.notes.append(
                 f"{self.out_of_order} messages are stored out of log-time order"
             )
-        if summary is None:
+        if summary is None and closed_without_summary(self.source):
+            self.facts.notes.append(
+                "no summary section (its writer wrote none): readers scan the whole file; "
+                "`bagkit recover` adds one"
+            )
+        elif summary is None:
             self._problem("no usable summary (not closed cleanly: `bagkit recover` rewrites it)")
         else:
             self.facts.problems.extend(p.removeprefix(f"{name}: ") for p in summary.problems)

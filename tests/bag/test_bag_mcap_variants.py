@@ -3,11 +3,13 @@ without indexes and statistics, any compression."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
 
 import pytest
 from bag_samples import IMU, STRING, deserialize, imu_cdr, string_cdr
+from bagkit_runs import bagkit_in_process
 from mcap.writer import CompressionType, IndexType, Writer
 
 from bagkit.bag import BagReader, message_definition
@@ -20,6 +22,14 @@ VARIANTS: dict[str, dict[str, Any]] = {
     "no_indexes": {"index_types": IndexType.NONE, "chunk_size": 4096},
     "no_statistics": {"use_statistics": False, "chunk_size": 4096},
     "no_summary_offsets_or_crcs": {"use_summary_offsets": False, "enable_crcs": False},
+    # Closed (Footer, closing magic) with no summary section at all: its summary_start is 0.
+    "no_summary": {
+        "use_statistics": False,
+        "index_types": IndexType.NONE,
+        "repeat_channels": False,
+        "repeat_schemas": False,
+        "use_summary_offsets": False,
+    },
 }
 
 
@@ -52,7 +62,8 @@ def test_reads_every_layout(tmp_path: Path, variant: str) -> None:
         messages = list(bag.messages())
         chunk_payloads = sum(len(c.message_index.get("/imu", [])) for c in bag.chunks())
         assert bag.problems == []
-        # Statistics, chunk and message indexes are optional: every variant was closed cleanly.
+        # Statistics, chunk and message indexes, the summary itself are optional: every
+        # variant was closed cleanly.
         assert bag.has_summary
     log_times = [m.log_time for m in messages]
     assert log_times == sorted(log_times)
@@ -87,3 +98,14 @@ def test_equal_log_times_keep_storage_order(tmp_path: Path, variant: str) -> Non
         assert bag.problems == []
     # Python's sort is stable: equal log times stay in the order they were written.
     assert read == sorted(written, key=lambda entry: entry[0])
+
+
+def test_doctor_of_a_closed_file_without_summary(tmp_path: Path) -> None:
+    # Valid MCAP (the summary section is optional): a note, not "not closed cleanly".
+    path = tmp_path / "bare.mcap"
+    _write(path, VARIANTS["no_summary"])
+    doctor = bagkit_in_process(["doctor", path, "--format", "json"])
+    assert doctor.returncode == 0, doctor.stdout
+    report = json.loads(doctor.stdout)
+    assert report["problems"] == []
+    assert any("no summary section" in n["note"] for n in report["notes"]), report

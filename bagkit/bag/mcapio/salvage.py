@@ -37,7 +37,12 @@ from bagkit.bag.mcapio.records import (
     parse_schema,
 )
 from bagkit.bag.mcapio.source import Source
-from bagkit.bag.mcapio.summary import FileIndex, read_header, read_summary
+from bagkit.bag.mcapio.summary import (
+    FileIndex,
+    closed_without_summary,
+    read_header,
+    read_summary,
+)
 
 # Loose messages are grouped into runs of at most this many bytes, read like chunks.
 MAX_RUN_BYTES = 1 << 20
@@ -75,8 +80,8 @@ def read_file_index(
         header = header or read_header(source)  # a scan starts after it
         summary = index  # one that does not index every message: scanned, and kept for topics
         index = _Scanner(source, header, check_crc, max_chunk_size).scan()
+        index.summary = summary is not None or closed_without_summary(source)
         if summary is not None:
-            index.summary = True
             for schema_id, schema in summary.schemas.items():
                 index.schemas.setdefault(schema_id, schema)
             for channel_id, channel in summary.channels.items():

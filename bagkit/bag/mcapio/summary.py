@@ -26,6 +26,7 @@ from bagkit.bag.mcapio.records import (
     MESSAGE_INDEX_ENTRY_SIZE,
     RECORD_HEADER,
     Channel,
+    Footer,
     Header,
     Metadata,
     MetadataIndex,
@@ -48,7 +49,8 @@ class FileIndex:
     """What one MCAP file holds, from its summary or, when it has none, from a salvage scan.
 
     Attributes:
-        summary: True when the file has a summary section (it was closed cleanly).
+        summary: True when the file was closed cleanly: it has a summary section, or its
+            Footer says it has none (:func:`closed_without_summary`, a writer's choice).
         complete: True when the summary indexes every message (counts from its Statistics
             record or from the Message Index records of its chunk indexes); a file whose summary
             does not is scanned (:mod:`bagkit.bag.mcapio.salvage`), ``summary`` still True.
@@ -123,21 +125,36 @@ def read_header(source: Source) -> Header:
     return parse_header(source.read(len(start), length))
 
 
-def _summary_bounds(source: Source) -> tuple[int, int] | None:
-    """(summary start, footer offset), or None when the file has no summary (not closed).
-
-    Raises:
-        CorruptBagError: the footer points outside the file.
-    """
+def _footer(source: Source) -> tuple[Footer, int] | None:
+    """The Footer record and its offset; None when the file does not end in one and the
+    closing magic (it was not closed)."""
     footer_offset = source.size - FOOTER_RECORD_SIZE - len(MAGIC)
     if footer_offset < 2 * len(MAGIC):
         return None
     end = source.read(footer_offset, FOOTER_RECORD_SIZE + len(MAGIC))
     if end[-len(MAGIC) :] != MAGIC or end[0] != Opcode.FOOTER:
         return None
-    footer = parse_footer(end[RECORD_HEADER.size : FOOTER_RECORD_SIZE])
-    if footer.summary_start == 0:
+    return parse_footer(end[RECORD_HEADER.size : FOOTER_RECORD_SIZE]), footer_offset
+
+
+def closed_without_summary(source: Source) -> bool:
+    """True for a file closed with no summary section (its Footer's ``summary_start`` is 0):
+    valid MCAP, the summary is optional (mcap's writer with every summary record off)."""
+    found = _footer(source)
+    return found is not None and found[0].summary_start == 0
+
+
+def _summary_bounds(source: Source) -> tuple[int, int] | None:
+    """(summary start, footer offset), or None when the file has no summary (not closed,
+    or closed without one).
+
+    Raises:
+        CorruptBagError: the footer points outside the file.
+    """
+    found = _footer(source)
+    if found is None or found[0].summary_start == 0:
         return None
+    footer, footer_offset = found
     if not len(MAGIC) < footer.summary_start <= footer_offset:
         raise CorruptBagError(
             f"the footer's summary start ({footer.summary_start}) is outside the file"
