@@ -22,6 +22,7 @@ from __future__ import annotations
 import heapq
 import io
 import itertools
+import os
 import struct
 from collections.abc import Iterator
 from pathlib import Path
@@ -121,6 +122,13 @@ class Rosbag1File:
                 raise CorruptBagError(
                     f"{self.path}: the ROS 1 bag has no index (not closed cleanly: "
                     "`rosbag reindex` it)"
+                )
+            size = os.fstat(self._bio.fileno()).st_size
+            # The index is written last (at the very end of a bag without connections).
+            if index_pos > size or (index_pos == size and conn_count + chunk_count):
+                raise CorruptBagError(
+                    f"{self.path}: the ROS 1 bag is cut short at {size} bytes (its index "
+                    f"starts at byte {index_pos}: `rosbag reindex` it)"
                 )
             self._bio.seek(index_pos)
             connections = [self._reader.read_connection() for _ in range(conn_count)]

@@ -188,7 +188,7 @@ class Sqlite3File(Sqlite3Reading):
         for type_name, encoding, text in db.execute(query):
             if not all(isinstance(v, str) for v in (type_name, encoding, text)):
                 self._problem(f"message_definitions row of {type_name!r:.60} unusable")
-            elif encoding in DEFINITION_ENCODINGS and text:
+            elif encoding in DEFINITION_ENCODINGS:  # "" too: a message without fields
                 self.definitions.setdefault(canonical_type_name(type_name), text)
         # rosbag2 stores a service's ``.srv`` text under ``pkg/srv/Name`` and an action's
         # ``ACTION:`` text under ``pkg/action/Name``, not under the types of their topics: those

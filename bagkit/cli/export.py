@@ -93,7 +93,10 @@ def export(  # noqa: PLR0917 (typer maps parameters to options)
     named = inputs[0] if len(inputs) == 1 else None
     with written_to(out, replace=True) as local:
         shown = partial(shown_path, local=local, output=out)
-        if named is not None and (named.suffix in BAG_FILE_SUFFIXES or is_bag_directory(named)):
+        one_bag = named is not None and (
+            named.name.endswith(BAG_FILE_SUFFIXES) or is_bag_directory(named)
+        )
+        if named is not None and one_bag:
             reports = [_export_one(named, local, options)]
             _print_report(reports[0], shown, where=where)
             failed = 0

@@ -1,6 +1,6 @@
-"""Many-bag inputs: bag directories, bare ``.mcap``/``.db3`` files, ROS 1 ``.bag`` files,
-globs, roots searched for bags, text files listing one path a line, and URLs of bags or of
-prefixes searched for bags (:mod:`bagkit.fleet.url_inputs`).
+"""Many-bag inputs: bag directories, bare ``.mcap``/``.db3`` files (``.zstd``-compressed too),
+ROS 1 ``.bag`` files, globs, roots searched for bags, text files listing one path a line, and
+URLs of bags or of prefixes searched for bags (:mod:`bagkit.fleet.url_inputs`).
 
 The result is a list of bags in a stable order (the order given; sorted within a directory or a
 glob), each bag once.
@@ -13,13 +13,15 @@ import os
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
+from bagkit.bag import reader
 from bagkit.bag.reader import bag_path
 from bagkit.fleet.errors import NoBagsError
 from bagkit.fleet.url_inputs import url_bags
 from bagkit.storage.paths import UrlPath
 from bagkit.storage.urls import is_url
 
-STORAGE_SUFFIXES = (".mcap", ".db3")
+# The reader's storage files, rosbag2's file-compressed ones too (.mcap.zstd, .db3.zstd).
+STORAGE_SUFFIXES = reader.STORAGE_SUFFIXES + reader.COMPRESSED_STORAGE_SUFFIXES
 # A file that is a whole bag by itself (ROS 1 bags: several in a directory are several bags).
 BAG_FILE_SUFFIXES = (*STORAGE_SUFFIXES, ".bag")
 LISTING_SUFFIXES = (".txt", ".list", ".lst")

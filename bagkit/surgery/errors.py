@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 from bagkit.errors import OptionError
 
 
@@ -17,3 +19,10 @@ class NothingToCutError(SurgeryError):
     input)."""
 
     exit_code = 1
+
+
+def holding_no_topic(inputs: Sequence[object]) -> SurgeryError:
+    """The error of a copy of ``inputs`` that list no topic at all (not "no topic is
+    selected": the selection is not at fault)."""
+    verb = "holds" if len(inputs) == 1 else "hold"
+    return SurgeryError(f"nothing to write: {', '.join(map(str, inputs))} {verb} no topic")

@@ -21,7 +21,7 @@ from bagkit.bag import BagMessage, BagReader
 from bagkit.bag.messages import TopicInfo, make_message
 from bagkit.surgery.carry import latched_messages, merged_custom_data, write_latched
 from bagkit.surgery.chunk_records import Progress, copy_chunk_records
-from bagkit.surgery.errors import SurgeryError
+from bagkit.surgery.errors import SurgeryError, holding_no_topic
 from bagkit.surgery.options import (
     OutputOptions,
     PayloadRewrites,
@@ -82,6 +82,8 @@ def rewrite_messages(
         selection = resolve(selection, bags, set(known), spans, report)
         latched = latched_messages(bags, known, selection)
         selected = [name for name in known if selection.topic_passes(name)]
+        if not known:
+            raise holding_no_topic(bags)
         if not selected:
             raise SurgeryError("no topic is selected")
         out = open_output(output, options)

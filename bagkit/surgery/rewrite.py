@@ -18,7 +18,7 @@ from bagkit.bag.metadata import METADATA_FILENAME
 from bagkit.surgery.carry import latched_messages, merged_custom_data, write_latched
 from bagkit.surgery.content import with_content
 from bagkit.surgery.copy import CopyOptions, InputFile, copy_files, topics_of
-from bagkit.surgery.errors import SurgeryError
+from bagkit.surgery.errors import SurgeryError, holding_no_topic
 from bagkit.surgery.options import OutputOptions, PayloadRewrites, RewriteReport, resolve
 from bagkit.surgery.output import OutputBag
 from bagkit.surgery.select import Selection
@@ -85,6 +85,8 @@ def _rewrite(
     inputs = _Inputs()
     with _opened_inputs(bags, report, inputs) as files:
         names = {name for f in files for name in f.known}
+        if not names:
+            raise holding_no_topic(bags)
         selection = resolve(selection, bags, names, inputs.spans, report)
         latched = latched_messages(
             bags, {n: t for f in files for n, t in f.known.items()}, selection

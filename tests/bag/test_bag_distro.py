@@ -9,10 +9,11 @@ import re
 import sqlite3
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import pytest
-from bagkit_runs import bagkit_in_process
+from bagkit_runs import bagkit_in_process, bagkit_subprocess
 from rosbags.rosbag2 import Writer
 from rosbags.typesys import Stores, get_typestore
 
@@ -125,3 +126,26 @@ def test_distro_option_overrides(tmp_path: Path, ros_distro: str | None) -> None
 def test_an_unknown_distro_is_a_usage_error(tmp_path: Path) -> None:
     proc = _echo(humble_bag(tmp_path / "bag", "humble"), "--distro", "ardent")
     assert proc.returncode == 2 and "ardent" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_a_stored_empty_definition_is_a_definition(tmp_path: Path) -> None:
+    # std_msgs/msg/Empty's text is empty: rosbag2 and rosbags store it so (encoding ros2msg),
+    # a stored definition, not a missing one.
+    jazzy = get_typestore(Stores.ROS2_JAZZY)
+    with Writer(tmp_path / "bag", version=9) as writer:
+        tick = writer.add_connection("/tick", "std_msgs/msg/Empty", typestore=jazzy)
+        empty = jazzy.serialize_cdr(jazzy.types["std_msgs/msg/Empty"](), "std_msgs/msg/Empty")
+        for i in range(3):
+            writer.write(tick, T0 + i, bytes(empty))
+    (db3,) = (tmp_path / "bag").glob("*.db3")
+    with sqlite3.connect(db3) as db:
+        rows = db.execute("SELECT encoding, encoded_message_definition FROM message_definitions")
+        assert rows.fetchall() == [("ros2msg", "")]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DistroDefinitionsWarning)
+        with BagReader(tmp_path / "bag") as bag:
+            assert bag.definitions == {"std_msgs/msg/Empty": ""}
+    echo = bagkit_subprocess(["echo", "bag", "/tick", "--format", "json"], tmp_path)
+    assert echo.returncode == 0, echo.stderr
+    assert echo.stderr == ""
+    assert [json.loads(line)["data"] for line in echo.stdout.splitlines()] == [{}] * 3

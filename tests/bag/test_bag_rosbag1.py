@@ -165,6 +165,10 @@ def test_a_broken_ros1_bag_is_one_error_line(tmp_path: Path, damage: str) -> Non
     assert len(lines) == 1 and lines[0].startswith("error:"), result.stderr
     assert "Traceback" not in result.stderr
     assert first_chunk > 0
+    if damage == "truncated":  # said as such, not as rosbags' "Header could not be read"
+        assert f"cut short at {len(data)} bytes" in lines[0]
+    if damage != "index_cut":
+        assert "`rosbag reindex` it" in lines[0]
 
 
 def test_a_damaged_chunk_loses_its_messages_not_the_bag(tmp_path: Path) -> None:

@@ -60,3 +60,17 @@ def test_bag_paths_are_the_strings_of_expand_bags(
     assert found == [str(path) for path in expand_bags([root])]
     assert found == [str(Path(path)) for path in found] and "fleet/day2/b" in found
     assert bag_paths([tmp_path / root]) == [str(p) for p in expand_bags([tmp_path / root])]
+
+
+def test_file_compressed_bags_without_metadata_are_bags(tmp_path: Path) -> None:
+    # rosbag2's file compression names its files .mcap.zstd / .db3.zstd: a directory of them
+    # without metadata.yaml is a bag, a loose one too, as the reader opens them.
+    split = tmp_path / "fleet" / "split"
+    split.mkdir(parents=True)
+    for name in ("split_0.db3.zstd", "split_1.db3.zstd"):
+        (split / name).write_bytes(b"x")
+    loose = tmp_path / "fleet" / "loose.mcap.zstd"
+    loose.write_bytes(b"x")
+    (tmp_path / "fleet" / "notes.zstd").write_bytes(b"not a bag")
+    assert expand_bags([tmp_path / "fleet"]) == [split, loose]
+    assert bag_paths([tmp_path / "fleet"]) == [str(split), str(loose)]

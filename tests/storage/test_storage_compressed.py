@@ -49,3 +49,16 @@ def test_compressed_bags_in_storage(
     echo = cli(["echo", url, "/text", "--format", "json", "-n", "1"], moto_store.env)
     assert echo.returncode == 0, echo.stderr
     assert json.loads(echo.stdout)["data"] == {"data": "message 0"}
+
+
+def test_info_of_a_compressed_file_over_http(
+    http_store: tuple[Store, object], tmp_path: Path
+) -> None:
+    # An HTTP server lists nothing: a .mcap.zstd URL is a bag by its name, as a .mcap's is.
+    store = http_store[0]
+    bag = write_strings(tmp_path / "bag", StoragePlugin.MCAP, CompressionMode.FILE)
+    (stored,) = bag.glob("*.mcap.zstd")
+    store.put(stored, "loose/strings.mcap.zstd")
+    info = cli(["info", f"{store.base}/loose/strings.mcap.zstd", "--format", "json"], {})
+    assert info.returncode == 0, info.stderr
+    assert json.loads(info.stdout)["message_count"] == 30

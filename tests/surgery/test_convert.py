@@ -245,3 +245,24 @@ def test_bad_requests_are_one_error_line(
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error:") and says in lines[0], result.stderr
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("storage", ["mcap", "sqlite3", "rosbag1"])
+@pytest.mark.parametrize("command", ["convert", "recover", "filter"])
+def test_a_bag_without_topics_is_said_so(tmp_path: Path, storage: str, command: str) -> None:
+    # Not "no topic is selected": the user selected nothing, the bag has nothing.
+    from rosbags.rosbag1 import Writer as Ros1Writer
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    bag = tmp_path / ("empty.bag" if storage == "rosbag1" else "empty")
+    if storage == "rosbag1":
+        with Ros1Writer(bag):
+            pass
+    else:
+        with Writer(bag, version=9, storage_plugin=StoragePlugin[storage.upper()]):
+            pass
+    result = run_here(command, str(bag), "-o", str(tmp_path / "out"))
+    assert result.returncode == 2, result.stdout
+    lines = result.stderr.strip().splitlines()
+    assert lines == [f"error: nothing to write: {bag} holds no topic"], result.stderr
+    assert not (tmp_path / "out").exists()
