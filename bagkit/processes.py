@@ -27,6 +27,7 @@ from types import TracebackType
 from typing import IO, Any
 
 from bagkit.errors import BagkitError
+from bagkit.own_environment import for_programs
 
 __all__ = ["Command", "ProcessError", "StopPolicy", "Supervised", "Supervisor"]
 
@@ -124,7 +125,7 @@ class Supervisor:
                 stdin=command.stdin,
                 stdout=log or (subprocess.PIPE if merged else command.stdout),
                 stderr=subprocess.STDOUT if merged else command.stderr,
-                env=None if command.env is None else dict(command.env),
+                env=for_programs(os.environ if command.env is None else command.env),
                 cwd=command.cwd,
                 text=command.text and not merged,
                 start_new_session=True,

@@ -126,3 +126,27 @@ def test_wait_ready_times_out() -> None:
 def test_a_program_that_does_not_exist_is_one_error(tmp_path: Path) -> None:
     with pytest.raises(ProcessError, match=r"cannot start ghost \(.*no-such-program\)"):
         Supervisor().start(Command("ghost", [str(tmp_path / "no-such-program")]))
+
+
+PRINT_BLAS = "import os; print(os.environ.get('OPENBLAS_NUM_THREADS', 'unset'), flush=True)"
+
+
+@pytest.mark.parametrize(("users", "programs"), [(None, "unset"), ("3", "3")])
+def test_a_started_program_gets_the_users_blas_threads_not_bagkits(
+    monkeypatch: pytest.MonkeyPatch, users: str | None, programs: str
+) -> None:
+    from bagkit import own_environment
+
+    monkeypatch.setattr(own_environment, "_SET_FOR_BAGKIT", set())
+    if users is None:
+        monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
+    else:
+        monkeypatch.setenv("OPENBLAS_NUM_THREADS", users)
+    own_environment.single_threaded_blas()  # what the console script does first
+    assert os.environ["OPENBLAS_NUM_THREADS"] == (users or "1")
+    lines: list[str] = []
+    with Supervisor() as group:
+        inherited = group.start(python("inherits", PRINT_BLAS, on_line=lines.append))
+        given = group.start(python("given", PRINT_BLAS, env=dict(os.environ), on_line=lines.append))
+        assert inherited.process.wait(20) == 0 and given.process.wait(20) == 0
+    assert lines == [programs, programs]  # the readers are joined when the group stops
