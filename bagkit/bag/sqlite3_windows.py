@@ -11,7 +11,7 @@ Order: chunks hand out rows in timestamp order, ties by row id; a window reads t
 order (a range of the table, not a walk of the timestamp index). A window whose times are not
 in order is sorted (stable: ties stay in row id order). Across windows, before one is handed
 out, the timestamp index tells whether any later row (a larger row id) is older than the
-newest row handed out so far: ``max(rowid)`` of the rows whose timestamps lie between the
+newest row handed out so far: whether a row beyond the window has a timestamp between the
 newest before this window and the newest now (each stretch of the index walked once). Then
 the bulk read stops (:attr:`RowWindows.resume_from`) and the caller reads the rest in
 timestamp order, row by row: those rows are all at least as new as every row handed out.
@@ -110,9 +110,10 @@ class RowWindows:
             f"group_concat(timestamp){ids} FROM messages WHERE rowid BETWEEN ? AND ?{where}"
         )
         self._next_query = f"SELECT min(rowid) FROM messages WHERE rowid >= ?{where}"
+        # Stops at the first row beyond the window; SQLite reads the row ids from the index.
         self._order_query = (
-            f"SELECT max(rowid) FROM messages INDEXED BY {order_index} "
-            "WHERE timestamp >= ? AND timestamp < ?"
+            f"SELECT 1 FROM messages INDEXED BY {order_index} "
+            "WHERE timestamp >= ? AND timestamp < ? AND rowid > ? LIMIT 1"
         )
         self.read = 0
         self.resume_from: int | None = None
@@ -203,10 +204,10 @@ class RowWindows:
         no row of the index's stretch from ``newest`` to there lies beyond ``last``."""
         if not len(rows.lengths) or rows.log_times[-1] <= newest:
             return True
-        (beyond,) = self._db.execute(
-            self._order_query, (newest, int(rows.log_times[-1]))
+        beyond = self._db.execute(
+            self._order_query, (newest, int(rows.log_times[-1]), last)
         ).fetchone()
-        return beyond is None or beyond <= last
+        return beyond is None
 
 
 class _WindowTooLargeError(Exception):
