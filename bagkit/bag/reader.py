@@ -94,7 +94,8 @@ def _resolve_files(path: Path) -> tuple[Path, list[Path], BagMetadata | None]:
                 f"{path}: rosbag2 {metadata.compression_mode or 'file'} compression "
                 f"{metadata.compression_format!r} is not supported"
             )
-        listed = [_listed_file(path, name) for name in metadata.relative_file_paths]
+        # Each file once: a list naming one twice would read its messages twice.
+        listed = list(dict.fromkeys(_listed_file(path, n) for n in metadata.relative_file_paths))
         existing = [p for p in listed if p.is_file()]
         if existing:
             return path, existing, metadata

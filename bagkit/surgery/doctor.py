@@ -305,7 +305,9 @@ def _metadata_problems(
 ) -> list[str]:
     problems = []
     listed = [Path(p).name for p in metadata.relative_file_paths]
-    for name in listed:
+    for name in dict.fromkeys(listed):
+        if listed.count(name) > 1:
+            problems.append(f"lists {name} {listed.count(name)} times")
         if name not in facts:
             problems.append(f"lists {name}, which is missing or unreadable")
     for name in facts:

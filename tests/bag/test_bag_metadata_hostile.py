@@ -102,6 +102,19 @@ def test_listed_paths_leaving_the_bag_are_refused(
         BagReader(bag).open()
 
 
+def test_a_file_listed_twice_is_read_once(write_sample_bag: Callable[..., Path]) -> None:
+    bag = write_sample_bag(n_imu=5)
+    _edit(bag, _set("relative_file_paths", ["sample_0.mcap", "./sample_0.mcap"]))
+    with BagReader(bag) as reader:
+        assert reader.topic_counts == {"/imu/data": 5, "/text": 1}
+        assert len(list(reader.messages())) == 6
+    doctor = subprocess.run(
+        [BAGKIT, "doctor", str(bag)], capture_output=True, text=True, timeout=60, check=False
+    )
+    assert doctor.returncode == 1, doctor.stdout
+    assert "lists sample_0.mcap 2 times" in doctor.stdout
+
+
 def test_a_listed_symlink_to_outside_is_refused(
     write_sample_bag: Callable[..., Path], tmp_path: Path
 ) -> None:
