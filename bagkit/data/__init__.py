@@ -11,13 +11,14 @@ from typing import TYPE_CHECKING
 
 from bagkit.data.errors import (
     DataError,
+    DataLossWarning,
     UndecodableTopicError,
     UnknownFieldError,
     UnknownTopicError,
 )
 
 if TYPE_CHECKING:
-    from bagkit.data.frames import DataLossWarning, read_arrow, read_dataframe
+    from bagkit.data.frames import read_arrow, read_dataframe
 
 __all__ = [
     "DataError",
@@ -31,7 +32,7 @@ __all__ = [
 
 
 def __getattr__(name: str) -> object:
-    if name in ("DataLossWarning", "read_arrow", "read_dataframe"):
+    if name in ("read_arrow", "read_dataframe"):
         from bagkit.data import frames
 
         return getattr(frames, name)

@@ -21,7 +21,7 @@ from rosbags.typesys.base import normalize_fieldname
 from rosbags.typesys.store import Typestore
 
 from bagkit.bag import BagReader
-from bagkit.data.errors import UndecodableTopicError
+from bagkit.data.errors import DataError, DataLossWarning, UndecodableTopicError
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
 from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER
 from bagkit.selection import intervals
@@ -60,8 +60,12 @@ def echo(
             a condition, messages it cannot decode are not matched and counted in one call at
             the end.
 
+    What could not be read (a damaged chunk) is a :class:`DataLossWarning` at the end; when
+    nothing else was read, a ``DataError``.
+
     Raises:
-        BagError, UnknownTopicError, UnknownFieldError, UndecodableTopicError, DecodeError;
+        BagError, UnknownTopicError, UnknownFieldError, UndecodableTopicError, DecodeError,
+        DataError (no message read, some lost);
         SelectionError for a condition that does not parse or compares text with a number.
     """
     condition, fields = query.where, query.fields
@@ -121,6 +125,10 @@ def echo(
             if on_failure is None:
                 raise DecodeError(matcher.problem)
             on_failure(matcher.problem)
+        if reader.problems and not done:  # nothing to show, and chunks were lost
+            raise DataError(f"no message of {topic} could be read ({'; '.join(reader.problems)})")
+        for problem in reader.problems:
+            warnings.warn(f"{bag}: {problem}", DataLossWarning, stacklevel=2)
 
 
 def action_topics(reader: BagReader, name: str) -> list[str]:

@@ -5,7 +5,17 @@ from __future__ import annotations
 from bagkit.errors import BagkitError
 from bagkit.selection.errors import UnknownFieldError, UnknownTopicError
 
-__all__ = ["DataError", "UndecodableTopicError", "UnknownFieldError", "UnknownTopicError"]
+__all__ = [
+    "DataError",
+    "DataLossWarning",
+    "UndecodableTopicError",
+    "UnknownFieldError",
+    "UnknownTopicError",
+]
+
+
+class DataLossWarning(UserWarning):
+    """Part of the bag could not be read (a salvaged file, messages that do not decode)."""
 
 
 class DataError(BagkitError):

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 import pyarrow as pa
 
 from bagkit.bag import BagReader
-from bagkit.data.errors import DataError, UndecodableTopicError
+from bagkit.data.errors import DataError, DataLossWarning, UndecodableTopicError
 from bagkit.data.scan import plan_scan
 from bagkit.data.table import ColumnTable
 from bagkit.selection.errors import EmptyWindowWarning
@@ -19,10 +19,6 @@ from bagkit.selection.times import TimeLike
 
 if TYPE_CHECKING:
     import pandas as pd
-
-
-class DataLossWarning(UserWarning):
-    """Part of the bag could not be read (a salvaged file, messages that do not decode)."""
 
 
 def read_arrow(

@@ -83,3 +83,32 @@ def test_info_accepts_no_crc(flipped: tuple[Path, Path, int]) -> None:
         run = _run("info", damaged, "--format", "json", *options)
         assert run.returncode == 0, run.stderr
         assert json.loads(run.stdout)["problems"] == []  # info reads no chunk
+
+
+def test_echo_warns_of_a_damaged_chunk(flipped: tuple[Path, Path, int]) -> None:
+    intact, damaged, lost = flipped
+    fewer = 0
+    for topic in ("/imu/data", "/text"):
+        whole, cut = (_run("echo", bag, topic, "--format", "json") for bag in (intact, damaged))
+        assert whole.returncode == cut.returncode == 0, cut.stderr
+        missing = len(whole.stdout.splitlines()) - len(cut.stdout.splitlines())
+        assert ("CRC mismatch" in cut.stderr) == (missing > 0), cut.stderr
+        assert whole.stderr == ""
+        fewer += missing
+    assert fewer == lost
+
+
+def test_echo_of_a_topic_whose_every_chunk_is_lost_fails(
+    write_sample_bag: Callable[..., Path],
+) -> None:
+    bag = write_sample_bag(n_imu=20, compression="none")
+    layout = Layout.of(bag / "sample_0.mcap")
+    (chunk,) = layout.chunks
+    layout.data[chunk.chunk_start_offset + chunk.chunk_length - 3] ^= 0x01
+    layout.save()
+    run = _run("echo", bag, "/imu/data")
+    assert run.returncode == 2, run.stdout
+    assert run.stdout == ""
+    (line,) = run.stderr.strip().splitlines()
+    assert line.startswith("error: no message of /imu/data could be read (")
+    assert "CRC mismatch" in line
