@@ -353,7 +353,8 @@ def finish_summary(run: SummaryRun, paths: list[str]) -> Summary:
             run.problems.append(f"no message satisfies {run.where.text!r} in {bags}")
         if run.span.bounded or run.where is not None:  # the window missed: said once per bag
             return Summary(tuple(paths), None, None, (), dict(run.skipped), tuple(run.problems))
-        raise NothingToSummarizeError(f"no messages to summarize in {bags}")
+        lost = f" ({'; '.join(run.problems)})" if run.problems else ""  # what was lost
+        raise NothingToSummarizeError(f"no messages to summarize in {bags}{lost}")
     if run.fields and not results:
         raise UnknownFieldError(_no_field_message(run))
     return Summary(

@@ -98,7 +98,7 @@ def test_echo_warns_of_a_damaged_chunk(flipped: tuple[Path, Path, int]) -> None:
     assert fewer == lost
 
 
-def test_echo_of_a_topic_whose_every_chunk_is_lost_fails(
+def test_echo_and_stats_of_a_bag_whose_every_chunk_is_lost_fail(
     write_sample_bag: Callable[..., Path],
 ) -> None:
     bag = write_sample_bag(n_imu=20, compression="none")
@@ -112,3 +112,7 @@ def test_echo_of_a_topic_whose_every_chunk_is_lost_fails(
     (line,) = run.stderr.strip().splitlines()
     assert line.startswith("error: no message of /imu/data could be read (")
     assert "CRC mismatch" in line
+    stats = _run("stats", "summary", bag)  # the cause, not only "no messages"
+    assert stats.returncode == 2, stats.stdout
+    (line,) = stats.stderr.strip().splitlines()
+    assert line.startswith(f"error: no messages to summarize in {bag} (") and "CRC" in line
