@@ -473,6 +473,11 @@ def run_app(app: typer.Typer | ClickCommand, args: list[str] | None = None) -> N
     sys.exit(result if isinstance(result, int) else 0)
 
 
+LOCAL_BAG_HELP = "Bag directory, .mcap/.db3 file (or .zstd), or ROS 1 .bag file."
+BAG_HELP = LOCAL_BAG_HELP.removesuffix(".") + ", or its URL (s3://, https:// ...)."
+"""A bag argument's help: every kind of bag the readers open (docs/bag-format.md)."""
+
+
 def bag_location(text: str) -> Path:
     """A bag argument (``parser=`` of a ``Path`` argument): a local path, or for a URL
     (``s3://``, ``https://`` ...) a :class:`~bagkit.storage.paths.UrlPath`, which the readers open

@@ -6,7 +6,14 @@ from pathlib import Path
 
 import typer
 
-from bagkit.cli.common import ReportFormat, console, err_console, handle_errors, print_json
+from bagkit.cli.common import (
+    LOCAL_BAG_HELP,
+    ReportFormat,
+    console,
+    err_console,
+    handle_errors,
+    print_json,
+)
 from bagkit.cli.surgery_options import Format
 from bagkit.surgery.doctor import DoctorReport, diagnose
 
@@ -26,7 +33,7 @@ Example: bagkit doctor fixtures/takeoff/golden --against-installed
 
 @handle_errors
 def doctor(
-    bag: Path = typer.Argument(..., help="Bag directory, its metadata.yaml, or a .mcap file."),
+    bag: Path = typer.Argument(..., help=LOCAL_BAG_HELP),
     deep: bool = typer.Option(False, "--deep", help="Also decode every message."),
     against_installed: bool = typer.Option(
         False,

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from bagkit.cli.common import EXIT_INTERRUPTED, bag_location, fail, handle_errors, warn
+from bagkit.cli.common import BAG_HELP, EXIT_INTERRUPTED, bag_location, fail, handle_errors, warn
 from bagkit.cli.selection_options import Distro, End, Start, Where, build_query
 from bagkit.compat import StrEnum
 
@@ -58,7 +58,7 @@ class EchoFormat(StrEnum):
 Bag = Annotated[
     Path,
     typer.Argument(
-        help="Bag directory, single .mcap/.db3 file, or its URL (s3://, https:// ...).",
+        help=BAG_HELP,
         show_default=False,
         metavar="BAG",
         parser=bag_location,

@@ -8,6 +8,7 @@ from pathlib import Path
 import typer
 
 from bagkit.cli.common import (
+    BAG_HELP,
     ReportFormat,
     bag_location,
     err_console,
@@ -77,9 +78,7 @@ COMMAND_CLASS = SelectionCommand
 
 @handle_errors
 def filter_command(
-    bag: Path = typer.Argument(
-        ..., help="The bag to read (directory, .mcap file or URL).", parser=bag_location
-    ),
+    bag: Path = typer.Argument(..., help=BAG_HELP, parser=bag_location),
     *,
     output: Output,
     topics: KeepTopics = None,

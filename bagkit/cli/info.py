@@ -16,6 +16,7 @@ from bagkit.bag import BagInfo, bag_info, safe_yaml
 from bagkit.bag.action_info import ActionSummary, action_summaries
 from bagkit.cli import common
 from bagkit.cli.common import (
+    BAG_HELP,
     ReportFormat,
     fail,
     format_rate,
@@ -43,9 +44,10 @@ if TYPE_CHECKING:
 HELP = """Show what a bag holds: files, size, storage, duration, start and end, message count,
 and per topic its type, count, rate, serialization format and offered QoS.
 
-BAG is a bag directory (split or not, with or without metadata.yaml), a single .mcap file or a
-single .db3 file. Only summaries and indexes are read, so this is instant on multi-GB bags; a
-crashed recording without a summary is salvaged and what could not be read is reported.
+BAG is a bag directory (split or not, with or without metadata.yaml), a single .mcap or .db3
+file (or rosbag2's .zstd of one), a ROS 1 .bag file, or a URL of one. Only summaries and
+indexes are read, so this is instant on multi-GB bags; a crashed recording without a summary
+is salvaged and what could not be read is reported.
 A folder of bags (a snapshot-mode output, a fleet folder) lists its bags, one line each, and
 their totals. A topic's rate is (count - 1) / (last - first log time), "-" below three
 messages or one second. A bag in storage (a URL) is read by range requests of its summary
@@ -270,9 +272,7 @@ def _reading(bag: str) -> contextlib.AbstractContextManager[object]:
 
 @handle_errors
 def info(  # noqa: PLR0917 (typer maps parameters to options)
-    bag: str = typer.Argument(
-        ..., help="Bag directory, .mcap file or .db3 file.", metavar="BAG", show_default=False
-    ),
+    bag: str = typer.Argument(..., help=BAG_HELP, metavar="BAG", show_default=False),
     topic_name: bool = typer.Option(
         False, "--topic-name", "-t", help="Only print the topic names, one per line."
     ),

@@ -8,6 +8,7 @@ import typer
 
 from bagkit.cli import common
 from bagkit.cli.common import (
+    BAG_HELP,
     bag_location,
     console,
     handle_errors,
@@ -40,7 +41,7 @@ Examples:
 def plot(  # noqa: PLR0917 (typer maps parameters to options)
     bag: Path = typer.Argument(
         ...,
-        help="Bag directory or single .mcap/.db3 file.",
+        help=BAG_HELP,
         metavar="BAG",
         show_default=False,
         parser=bag_location,

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from bagkit.cli.common import ReportFormat, err_console, handle_errors
+from bagkit.cli.common import LOCAL_BAG_HELP, ReportFormat, err_console, handle_errors
 from bagkit.cli.surgery_options import (
     CheckCrc,
     Force,
@@ -32,7 +32,7 @@ Example: bagkit recover crashed_drive -o drive_recovered
 
 @handle_errors
 def recover(
-    bag: Path = typer.Argument(..., help="The bag (directory or .mcap file) to recover."),
+    bag: Path = typer.Argument(..., help=LOCAL_BAG_HELP),
     *,
     output: Output,
     force: Force = False,

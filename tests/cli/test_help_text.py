@@ -85,3 +85,12 @@ def test_a_command_without_arguments_prints_its_help(command: str) -> None:
     )
     assert result.returncode == 2, result.stderr
     assert result.stderr.startswith(f"Usage: bagkit {command} ")
+
+
+@pytest.mark.parametrize("command", ["info", "echo", "plot", "filter", "doctor", "recover"])
+def test_a_bag_argument_names_every_kind_of_bag(command: str) -> None:
+    # A user with ROS 1 or compressed rosbag2 bags reads the argument's help first.
+    result = bagkit_in_process([command, "-h"], env={"COLUMNS": "200"})
+    assert result.returncode == 0, result.stderr
+    text = " ".join(result.stdout.split())
+    assert ".mcap/.db3 file (or .zstd), or ROS 1 .bag file" in text
