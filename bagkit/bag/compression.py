@@ -7,8 +7,9 @@ rosbag2 compresses with zstd in one of two modes (``metadata.yaml``'s ``compress
   temporary directory (and by what its frame declares), deleted when the file is closed.
 - ``message``: each payload is one zstd frame; :class:`MessageDecompression` wraps the
   back-end and decompresses payloads as they are read, in chunks too (the bulk decoders see
-  plain CDR). Without ``metadata.yaml`` the mode is found from the payloads themselves: a
-  CDR payload starts with a zero byte, a zstd frame with its magic number.
+  plain CDR). Without ``metadata.yaml`` the mode is found from a SQLite3 file's payloads
+  (a CDR payload starts with a zero byte, a zstd frame with its magic number) or an MCAP
+  file's own ``rosbag2`` Metadata record.
 
 The bytes are the bag's, untrusted: a frame that declares or yields more than the bound is
 refused (a file) or counted lost (a payload), never allocated.

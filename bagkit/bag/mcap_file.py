@@ -35,7 +35,13 @@ from bagkit.bag.mcapio.message_index import (
     read_message_indexes,
     widen,
 )
-from bagkit.bag.mcapio.records import MESSAGE_RECORD_HEADER, RECORD_HEADER, ChunkIndex, Opcode
+from bagkit.bag.mcapio.records import (
+    MESSAGE_RECORD_HEADER,
+    RECORD_HEADER,
+    ChunkIndex,
+    Opcode,
+    parse_metadata,
+)
 from bagkit.bag.mcapio.summary import read_header
 from bagkit.bag.messages import BagMessage, TopicInfo, make_message
 from bagkit.bag.storage import BagChunk
@@ -71,6 +77,9 @@ def _may_hold(block: Block, channel_ids: set[int]) -> bool:
     if _indexed(block):
         return not channel_ids.isdisjoint(block.message_index_offsets)
     return True
+
+
+ROSBAG2_METADATA = "rosbag2"  # the Metadata record rosbag2 writes its metadata.yaml into
 
 
 class McapFile:
@@ -175,6 +184,20 @@ class McapFile:
         """Close the file."""
         if self._handle is not None:
             self._handle.close()
+
+    def rosbag2_metadata(self) -> str | None:
+        """The ``metadata.yaml`` text the file carries (the ``serialized_metadata`` of its
+        ``rosbag2`` Metadata record, as rosbag2's MCAP plugin and rosbags write it); None
+        without one or when it cannot be read."""
+        records = [m for m in self.index.metadata if m.name == ROSBAG2_METADATA]
+        for entry in self.index.metadata_indexes:
+            if entry.name == ROSBAG2_METADATA and not records:
+                content = self._source.read(entry.offset, entry.length)[RECORD_HEADER.size :]
+                try:
+                    records.append(parse_metadata(content))
+                except (CorruptBagError, ValueError, UnicodeDecodeError):
+                    return None
+        return records[0].metadata.get("serialized_metadata") if records else None
 
     def topic_spans(self, *, message_indexes: bool = True) -> dict[str, Span]:
         """(first, last) log time of each topic with messages, from the Message Index records

@@ -31,7 +31,7 @@ from bagkit.bag.mcap_file import McapFile
 from bagkit.bag.mcapio import DEFAULT_MAX_CHUNK_SIZE, MAGIC
 from bagkit.bag.mcapio.message_index import Span, widen
 from bagkit.bag.messages import BagMessage, TopicInfo
-from bagkit.bag.metadata import METADATA_FILENAME, BagMetadata, read_metadata
+from bagkit.bag.metadata import METADATA_FILENAME, BagMetadata, parse_metadata, read_metadata
 from bagkit.bag.storage import ROSBAG1_MAGIC, SQLITE_MAGIC, BagChunk, StorageFile, chunk_of_rows
 from bagkit.storage.paths import UrlPath
 from bagkit.storage.transfer import local_copy, temporary_directory
@@ -173,12 +173,8 @@ def open_storage_file(
         else:
             raise NotABagError(f"{path}: neither an MCAP, a SQLite3 nor a ROS 1 bag file")
         storage.open()
-        # Sniffing reads a message per topic: cheap in SQLite3, a chunk per topic in MCAP,
-        # whose rosbag2 writer keeps the compression mode in the file's own metadata record.
         payloads = compression_mode == "message" or (
-            compression_mode is None
-            and storage.storage_identifier == "sqlite3"
-            and sniff_message_compression(storage)
+            compression_mode is None and _message_compressed(storage)
         )
         if payloads or (temporary is not None and not copied):
             storage = Decompression(
@@ -200,6 +196,22 @@ def open_storage_file(
             if isinstance(exc, BagError):  # name the bag's file, not the temporary copy
                 raise type(exc)(str(exc).replace(str(source), str(path))) from None
         raise
+
+
+def _message_compressed(storage: StorageFile) -> bool:
+    """Without metadata.yaml, whether payloads are zstd frames: an MCAP file's own rosbag2
+    metadata record says (sniffing would read a chunk per topic), a SQLite3 file's last
+    message of each topic shows (cheap)."""
+    if isinstance(storage, McapFile):
+        text = storage.rosbag2_metadata()
+        if text is None:
+            return False
+        try:
+            stored = parse_metadata(text, source=f"{storage.path}: its rosbag2 record")
+        except NotABagError:
+            return False
+        return stored.compression_mode == "message"
+    return storage.storage_identifier == "sqlite3" and sniff_message_compression(storage)
 
 
 class BagReader:

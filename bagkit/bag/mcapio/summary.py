@@ -58,10 +58,10 @@ class FileIndex:
             index comes from :func:`~bagkit.bag.mcapio.salvage.read_file_index`.
         message_runs: runs of loose messages (a scan's), in file order.
         channel_message_counts: messages per channel id.
-        metadata: the Metadata records a salvage scan met. A summary's Metadata Index
-            entries are only checked against the data section: nothing needs the records to
-            describe a bag (metadata.yaml is what rosbag2 reads), and from storage each would
-            be one more range request.
+        metadata: the Metadata records a salvage scan met.
+        metadata_indexes: a summary's Metadata Index entries that point inside the data
+            section; the records are read only when asked for (from storage each is one more
+            range request): metadata.yaml is what describes a bag.
         problems: what could not be read (empty for intact files).
         header: None when it was not read: a file in storage whose summary was enough
             (:func:`~bagkit.bag.mcapio.salvage.read_file_index`, ``header_first``).
@@ -76,6 +76,7 @@ class FileIndex:
     message_start_time: int = 0
     message_end_time: int = 0
     metadata: list[Metadata] = field(default_factory=list)
+    metadata_indexes: list[MetadataIndex] = field(default_factory=list)
     summary: bool = False
     complete: bool = False
     problems: list[str] = field(default_factory=list)
@@ -197,8 +198,11 @@ def read_summary(source: Source, header: Header | None) -> FileIndex | None:
             statistics = parse_statistics(content)
         elif opcode == Opcode.METADATA_INDEX:
             metadata_indexes.append(parse_metadata_index(content))
-    for entry in metadata_indexes:
-        _check_metadata_index(index, source, entry, summary_start)
+    index.metadata_indexes = [
+        entry
+        for entry in metadata_indexes
+        if _check_metadata_index(index, source, entry, summary_start)
+    ]
     if statistics is not None and statistics.message_count and not index.chunk_indexes:
         return index  # messages outside chunks, or no chunk indexes: the data must be read
     _keep_valid_chunk_indexes(index, source, summary_start)
@@ -271,11 +275,12 @@ def _keep_valid_chunk_indexes(index: FileIndex, source: Source, data_end: int) -
 
 def _check_metadata_index(
     index: FileIndex, source: Source, entry: MetadataIndex, data_end: int
-) -> None:
-    """A problem when ``entry`` points outside the data section."""
+) -> bool:
+    """True when ``entry`` points inside the data section, else a problem and False."""
     if RECORD_HEADER.size <= entry.length <= min(MAX_SECTION_SIZE, data_end - entry.offset):
-        return
+        return True
     index.problems.append(
         f"{source.name}: metadata {entry.name!r} unreadable ({entry.length} bytes at byte "
         f"{entry.offset} are outside the data)"
     )
+    return False
