@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from bagkit.bag import BagChunk, BagReader
+from bagkit.bag import BagChunk, BagError, BagReader
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
 from bagkit.decode.layout import CdrLayout
 from bagkit.prefetch import prefetch
@@ -253,7 +253,8 @@ def summarize(
         check_crc: check each chunk's CRC as it is read (a damaged chunk is a problem).
 
     Raises:
-        BagError: a bag cannot be opened (see ``bagkit.bag``).
+        BagError: the bag cannot be opened, or none of several (see ``bagkit.bag``); one of
+            several that cannot is in the summary's problems, the others summarized.
         UnknownTopicError: a topic of ``query`` is in none of the bags.
         UnknownFieldError: ``fields`` select no numeric field (with the closest ones).
         NothingToSummarizeError: no message in the selection, or no topic can be decoded.
@@ -266,9 +267,19 @@ def summarize(
     query = query or Query()
     run = SummaryRun.of(query, bulk=bulk, progress=progress)
     readers: list[BagReader] = []
+    read_names: list[str] = []  # of the bags opened
     try:
-        for path in paths:
-            readers.append(BagReader(path, allow_empty=True, check_crc=check_crc).open())
+        for path, name in zip(paths, names, strict=True):
+            try:
+                readers.append(BagReader(path, allow_empty=True, check_crc=check_crc).open())
+            except BagError as exc:
+                # Among others, a bag that cannot be read is reported and the rest summarized,
+                # as on a cluster (bagkit.fleet.stats); alone, or when none can be, it fails.
+                if len(paths) == 1 or (path == paths[-1] and not readers):
+                    raise
+                run.problems.append(f"{name}: not read: {exc}")
+                continue
+            read_names.append(name)
         known = {name: info.type for reader in readers for name, info in reader.topics.items()}
         topics = check_topics(known, list(query.topics) or None, len(paths))
         run.total = sum(
@@ -286,7 +297,7 @@ def summarize(
             from bagkit.native import keep_freed_memory
 
             keep_freed_memory()
-        for name, reader in zip(names, readers, strict=True):
+        for name, reader in zip(read_names, readers, strict=True):
             run.read(reader, topics, name)
     finally:
         for reader in readers:

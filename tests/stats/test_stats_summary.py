@@ -23,7 +23,7 @@ from rosbags_oracle import (
     write_bag,
 )
 
-from bagkit.bag import BagNotFoundError
+from bagkit.bag import BagError, BagNotFoundError
 from bagkit.selection.errors import UnknownFieldError
 from bagkit.selection.query import Query
 from bagkit.stats import (
@@ -146,6 +146,23 @@ def test_bad_input_raises_readable_errors(bag: Path, tmp_path: Path) -> None:
         summarize([bag], Query.create(fields=["no_such_field"]))
     with pytest.raises(UnknownFieldError, match=r"did you mean linear_acceleration.z,"):
         summarize([bag], Query.create("/imu/data", ["linear_acceleration.zz"]))
+
+
+def test_an_unreadable_bag_among_others_is_reported_the_rest_summarized(
+    bag: Path, tmp_path: Path
+) -> None:
+    # As the same command on a cluster does (docs/fleet.md): the choice of running in this
+    # process or on Dask is the command's, not a change of outcome.
+    broken = tmp_path / "broken.mcap"
+    broken.write_bytes(b"\x89MCAP0\r\n" + bytes(40))
+    alone = summarize([bag])
+    pooled = summarize([bag, broken])
+    assert pooled.topics == alone.topics
+    assert [p.split(": not read: ")[0] for p in pooled.problems] == [str(broken)]
+    with pytest.raises(BagError):
+        summarize([broken])
+    with pytest.raises(BagError):
+        summarize([broken, broken])
 
 
 def test_empty_bag_is_a_clear_error(tmp_path: Path) -> None:
