@@ -174,7 +174,7 @@ def open_storage_file(
             raise NotABagError(f"{path}: neither an MCAP, a SQLite3 nor a ROS 1 bag file")
         storage.open()
         payloads = compression_mode == "message" or (
-            compression_mode is None and _message_compressed(storage)
+            compression_mode is None and message_compressed(storage)
         )
         if payloads or (temporary is not None and not copied):
             storage = Decompression(
@@ -198,7 +198,7 @@ def open_storage_file(
         raise
 
 
-def _message_compressed(storage: StorageFile) -> bool:
+def message_compressed(storage: StorageFile) -> bool:
     """Without metadata.yaml, whether payloads are zstd frames: an MCAP file's own rosbag2
     metadata record says (sniffing would read a chunk per topic), a SQLite3 file's last
     message of each topic shows (cheap)."""

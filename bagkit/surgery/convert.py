@@ -27,8 +27,8 @@ from bagkit.surgery.message_copy import Progress, rewrite_messages
 from bagkit.surgery.rewrite import (
     OutputOptions,
     RewriteReport,
-    all_mcap,
     check_output,
+    chunks_copyable,
     filter_bag,
     merge_bags,
 )
@@ -103,7 +103,7 @@ def convert_bags(
     options = options or OutputOptions()
     check_output(bags, output)
     selection = with_content(bags, selection)
-    if options.storage == "mcap" and all_mcap(bags):
+    if options.storage == "mcap" and chunks_copyable(bags):
         if len(bags) == 1:
             return filter_bag(bags[0], output, selection, options)
         return merge_bags(bags, output, selection, options)

@@ -12,9 +12,11 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from bagkit.bag import BagReader
+from bagkit.bag import BagError, BagReader
+from bagkit.bag.mcap_file import McapFile
 from bagkit.bag.mcapio import MAGIC, Source, read_file_index
-from bagkit.bag.metadata import METADATA_FILENAME
+from bagkit.bag.metadata import METADATA_FILENAME, read_metadata
+from bagkit.bag.reader import message_compressed
 from bagkit.surgery.carry import latched_messages, merged_custom_data, write_latched
 from bagkit.surgery.content import with_content
 from bagkit.surgery.copy import CopyOptions, InputFile, copy_files, topics_of
@@ -77,7 +79,7 @@ def _rewrite(
     check_output(bags, output)
     selection = with_content(bags, selection)
     rewrites = rewrites or PayloadRewrites()
-    if options.storage != "mcap" or not all_mcap(bags):
+    if options.storage != "mcap" or not chunks_copyable(bags):
         from bagkit.surgery.message_copy import rewrite_messages
 
         return rewrite_messages(bags, output, selection, options, rewrites=rewrites)
@@ -170,21 +172,43 @@ def _opened_inputs(
             handle.close()
 
 
-def all_mcap(bags: Sequence[Path]) -> bool:
-    """Whether every storage file of ``bags`` is MCAP (chunks can then be copied as stored),
-    by the files' magic (nothing else is read: a SQLite3 bag counts its rows on opening).
-    A path that is no file or directory is left to the reader to report."""
+def chunks_copyable(bags: Sequence[Path]) -> bool:
+    """Whether the chunks of ``bags`` can be copied as stored: every storage file is MCAP, by
+    its magic (a SQLite3 bag counts its rows on opening), of plain CDR payloads, not rosbag2's
+    message-compressed ones (metadata.yaml says, else the file's own rosbag2 record). A path
+    that is no file or directory, or bad metadata.yaml, is left to the reader to report."""
     for bag in bags:
         folder = bag.parent if bag.name == METADATA_FILENAME else bag
+        metadata = None
         if folder.is_dir():
             files = [f for f in folder.iterdir() if f.is_file() and f.suffix != ".yaml"]
+            try:
+                metadata = read_metadata(folder)
+            except BagError:
+                return False
         else:
             files = [bag] if bag.is_file() else []
+        if metadata is not None and metadata.compression_mode == "message":
+            return False
         for file in files:
             with file.open("rb") as f:
                 if f.read(len(MAGIC)) != MAGIC:
                     return False
+            if metadata is None and _zstd_payloads(file):
+                return False
     return True
+
+
+def _zstd_payloads(file: Path) -> bool:
+    """Whether the MCAP ``file`` says (its rosbag2 record) it holds zstd-framed payloads."""
+    mcap = McapFile(file)
+    try:
+        mcap.open()
+        return message_compressed(mcap)
+    except BagError:
+        return False  # the reader reports it
+    finally:
+        mcap.close()
 
 
 def _add_topics(

@@ -266,3 +266,30 @@ def test_a_bag_without_topics_is_said_so(tmp_path: Path, storage: str, command: 
     lines = result.stderr.strip().splitlines()
     assert lines == [f"error: nothing to write: {bag} holds no topic"], result.stderr
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("command", ["convert", "filter", "recover"])
+@pytest.mark.parametrize("with_metadata", [True, False])
+def test_message_compressed_mcap_is_written_decompressed(
+    tmp_path: Path, command: str, with_metadata: bool
+) -> None:
+    # Its chunks hold zstd frames, not CDR: copied as stored, the output (which says it is
+    # not compressed) would not decode.
+    from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    string = store.types["std_msgs/msg/String"]
+    writer = Writer(tmp_path / "zipped", version=9, storage_plugin=StoragePlugin.MCAP)
+    writer.set_compression(CompressionMode.MESSAGE, CompressionFormat.ZSTD)
+    with writer:
+        text = writer.add_connection("/text", "std_msgs/msg/String", typestore=store)
+        for i in range(20):
+            data = store.serialize_cdr(string(data=f"m{i}"), "std_msgs/msg/String")
+            writer.write(text, 1_000 + i, bytes(data))
+    if not with_metadata:
+        (tmp_path / "zipped" / "metadata.yaml").unlink()
+    result = run_here(command, str(tmp_path / "zipped"), "-o", str(tmp_path / "out"))
+    assert result.returncode == 0, result.stderr
+    with AnyReader([tmp_path / "out"], default_typestore=store) as reader:
+        read = [reader.deserialize(d, c.msgtype).data for c, _, d in reader.messages()]
+    assert read == [f"m{i}" for i in range(20)]
