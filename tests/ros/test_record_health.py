@@ -168,9 +168,8 @@ def test_stop_on_health_ends_the_recording_when_a_check_stays_broken(
         stderr=subprocess.PIPE,
     )  # fmt: skip
     wait_matched(publisher, timeout=30)
-    for i in range(10):
+    for i in range(10):  # at once: a loaded machine may still stall between two of them
         publisher.publish(String(data=f"{i}"))
-        time.sleep(0.02)
     # Silent from here: the gap breaks after 300 ms, the guardrail stops 1 s later.
     stdout, stderr = recorder.communicate(timeout=60)
     assert recorder.returncode == 1, stderr.decode()
@@ -179,7 +178,9 @@ def test_stop_on_health_ends_the_recording_when_a_check_stays_broken(
     report = report_json(stdout)
     assert report["topics"][0]["messages"] == 10 and report["lost"] == 0
     (count,) = [c for c in report["health"] if c["assertion"] == "gap > 300ms"]
-    assert (count["breaks"], count["clears"], count["broken"]) == (1, 0, True)
+    # It ended broken; a stall of either process among the ten messages may have broken and
+    # cleared it once before (CI at load saw breaks 2, clears 1).
+    assert count["broken"] and count["breaks"] == count["clears"] + 1, count
     with BagReader(out) as reader:
         assert reader.message_count == 10
 
