@@ -135,15 +135,16 @@ def test_the_bag_carries_the_counts_in_its_metadata(node: Node, tmp_path: Path) 
     stored = metadata["rosbag2_bagfile_information"]["custom_data"][HEALTH_CUSTOM_DATA_KEY]
     with BagReader(tmp_path / "paused") as reader:
         times = [m.log_time for m in reader.messages([topic])]
+    # The pause; on a loaded machine a stall of either process may have made another.
     silences = [(a, b) for a, b in itertools.pairwise(times) if b - a > S // 2]
-    assert len(silences) == 1  # the pause, and nothing else of the test
+    assert silences, times
     counts = {c["assertion"]: c for c in json.loads(stored) if c["topic"] == topic}
     assert counts["gap > 500ms"] == {
-        "topic": topic, "assertion": "gap > 500ms", "breaks": 1, "clears": 1, "broken": False
+        "topic": topic, "assertion": "gap > 500ms",
+        "breaks": len(silences), "clears": len(silences), "broken": False,
     }  # fmt: skip
     assert [(e.broken, e.at_ns) for e in told if e.topic == topic] == [
-        (True, silences[0][0]),
-        (False, silences[0][1]),
+        event for start, end in silences for event in ((True, start), (False, end))
     ]
     never = [c for c in json.loads(stored) if c["topic"] == "/never"]
     assert never == [
