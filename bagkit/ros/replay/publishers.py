@@ -33,6 +33,11 @@ MATCH_GRACE_S = 0.1
 # goes on this long past the discovery time: on a loaded machine the participant's periodic
 # announcement, due within it, came after it, and the first message was lost.
 CENSUS_OVERTIME_S = 1.0
+# How long other publishers' node names are awaited once their endpoints are in the graph.
+NODE_NAME_WAIT_S = 1.0
+# The name rmw gives an endpoint whose node's name has not arrived, and how we print it.
+_RMW_UNKNOWN_NAME = "_NODE_NAME_UNKNOWN_"
+UNKNOWN_NODE = "a node whose name has not arrived"
 
 
 @dataclass(slots=True)
@@ -173,13 +178,27 @@ def _compatible_subscriptions(node: Node, output: TopicOutput) -> int:
 
 
 def other_publishers(node: Node, outputs: Sequence[TopicOutput]) -> dict[str, list[str]]:
-    """Published topic -> the other nodes publishing it (replaying it too would double it)."""
+    """Published topic -> the other nodes publishing it (replaying it too would double it).
+
+    A publisher's endpoint can be in the graph before its node's name is (the names travel on
+    their own topic): the names are awaited for up to ``NODE_NAME_WAIT_S``.
+    """
+    deadline = time.monotonic() + NODE_NAME_WAIT_S
+    while True:
+        found = _other_publishers_now(node, outputs)
+        named = all(UNKNOWN_NODE not in nodes for nodes in found.values())
+        if named or time.monotonic() >= deadline:
+            return found
+        time.sleep(0.02)
+
+
+def _other_publishers_now(node: Node, outputs: Sequence[TopicOutput]) -> dict[str, list[str]]:
     own = (node.get_name(), node.get_namespace())
     found = {}
     for output in outputs:
         others = sorted(
             {
-                f"{p.node_namespace.rstrip('/')}/{p.node_name}"
+                _node_path(p.node_namespace, p.node_name)
                 for p in node.get_publishers_info_by_topic(output.name)
                 if (p.node_name, p.node_namespace) != own
             }
@@ -187,3 +206,9 @@ def other_publishers(node: Node, outputs: Sequence[TopicOutput]) -> dict[str, li
         if others:
             found[output.name] = others
     return found
+
+
+def _node_path(namespace: str, name: str) -> str:
+    if name == _RMW_UNKNOWN_NAME:
+        return UNKNOWN_NODE
+    return f"{namespace.rstrip('/')}/{name}"
