@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from bagkit.cli.common import bag_location, console, handle_errors, none_decoded, warn
+from bagkit.cli.common import bag_location, console, fail, handle_errors, none_decoded, warn
 from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers
 from bagkit.cli.progress import DelayedProgress
 from bagkit.cli.selection_options import Distro, End, Start, Where, build_query
@@ -78,7 +78,8 @@ def export(  # noqa: PLR0917 (typer maps parameters to options)
     scheduler: Scheduler = None,
     distro: Distro = None,
 ) -> None:
-    from bagkit.data.export import none_decoded_topics
+    from bagkit.data.errors import nothing_read
+    from bagkit.data.export import none_decoded_topics, nothing_read_topics
     from bagkit.fleet.inputs import BAG_FILE_SUFFIXES, expand_bags, is_bag_directory
     from bagkit.storage.transfer import shown_path, written_to
 
@@ -105,9 +106,12 @@ def export(  # noqa: PLR0917 (typer maps parameters to options)
             reports, failed = _export_many(
                 bags, local, options, shown, where=where, workers=workers, scheduler=scheduler
             )
-    lost = none_decoded_topics(reports)
-    if lost:  # the topic's files hold no row: not an export of it (the rest is written)
-        raise none_decoded(lost, 1 if failed else 2)
+    undecoded = none_decoded_topics(reports)
+    if undecoded:  # the topic's files hold no row: not an export of it (the rest is written)
+        raise none_decoded(undecoded, 1 if failed else 2)
+    unread, lost = nothing_read_topics(reports)
+    if unread:  # empty files because chunks were lost, not because the topic is empty
+        raise fail(str(nothing_read(unread, lost)), 1 if failed else 2)
     if failed:
         raise typer.Exit(1)
 

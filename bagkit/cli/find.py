@@ -11,6 +11,7 @@ import typer
 from bagkit.cli import common
 from bagkit.cli.common import (
     bag_location,
+    fail,
     handle_errors,
     none_decoded,
     print_json,
@@ -83,7 +84,7 @@ def find(  # noqa: PLR0917 (typer maps parameters to options)
     scheduler: Scheduler = None,
     distro: Distro = None,
 ) -> None:
-    from bagkit.data.errors import DataError
+    from bagkit.data.errors import DataError, nothing_read
     from bagkit.fleet import expand_bags
     from bagkit.fleet.cluster import FIND_RATE
     from bagkit.fleet.find import find_fleet
@@ -123,6 +124,9 @@ def find(  # noqa: PLR0917 (typer maps parameters to options)
         _print_table(result)
     if result.none_decoded:  # "0 episodes" of a topic that could not be read is no answer
         raise none_decoded({result.topic: result.messages}, 1 if result.unread else 2)
+    if result.nothing_read:  # nor is "0 episodes" of a topic whose chunks were lost
+        error = nothing_read([result.topic], result.lost)
+        raise fail(str(error), 1 if result.unread else 2)
     if result.unread:
         raise typer.Exit(1)
 
