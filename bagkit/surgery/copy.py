@@ -11,42 +11,24 @@ overlapping in time), not the bag.
 Chunks copied as stored have their CRC checked (which means decompressing them) on a pool of
 threads, one per core, while the copy goes on: up to :data:`CHECK_WINDOW` of them wait for
 their check, in order, before anything else is written.
-
-Chunks that will be opened whatever the other inputs hold (another compression, a content
-filter, a migration: :func:`_opened_anyway`) are read and decompressed one ahead, in a thread
-per input file (:func:`~bagkit.prefetch.prefetch`; zstd and LZ4 release the GIL), while the
-calling thread works on the one before: with the output's compressing thread
-(:mod:`~bagkit.surgery.output`) a rewrite runs on three threads. A file's thread starts when
-its first block is taken and ends with its last; it holds at most :data:`READ_AHEAD` chunks
-read and not yet taken, so memory stays flat. A chunk that cannot be read is reported when its
-turn comes, as if it were read then.
 """
 
 from __future__ import annotations
 
 import os
 from collections import deque
-from collections.abc import Generator, Iterable, Iterator
+from collections.abc import Iterable
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from bagkit.bag.definitions import canonical_type_name
 from bagkit.bag.errors import ChunkError
-from bagkit.bag.mcapio import (
-    Block,
-    ChunkContents,
-    FileIndex,
-    Source,
-    count_messages,
-    extent,
-    read_chunk,
-)
+from bagkit.bag.mcapio import Block, FileIndex, Source, count_messages, extent, read_chunk
 from bagkit.bag.mcapio.chunk_builder import ClosedChunk
 from bagkit.bag.mcapio.raw_chunk import check_raw_chunk, read_raw_chunk, stored_in_log_time_order
 from bagkit.bag.mcapio.records import ChunkIndex
 from bagkit.bag.messages import TopicInfo
-from bagkit.prefetch import prefetch
 from bagkit.surgery.options import TopicRewrite
 from bagkit.surgery.output import OutputBag
 from bagkit.surgery.runs import Run, emit, open_run
@@ -55,13 +37,6 @@ from bagkit.surgery.select import PayloadFilter, Selection
 _END = 1 << 64
 # Chunks read and waiting for their CRC check: enough to keep every core busy.
 CHECK_WINDOW = 16
-# Chunks read ahead and waiting to be taken, per input file.
-READ_AHEAD = 1
-
-Read = ChunkContents | str | None
-"""A block as its file's thread read it ahead: its contents, why it could not be read (not
-raised: :func:`~bagkit.prefetch.prefetch` raises what it is handed), or None (not read ahead:
-the block may be copied as stored, or holds nothing selected)."""
 
 
 @dataclass
@@ -102,27 +77,24 @@ def topics_of(index: FileIndex, known: dict[str, TopicInfo]) -> list[tuple[int, 
 
 
 class _Stream:
-    """The blocks of one input file not yet taken (made one at a time, as they are reached),
-    and the same blocks as its thread reads them ahead (started when the first is taken)."""
+    """The blocks of one input file not yet read (made one at a time, as they are reached)."""
 
-    def __init__(self, file: InputFile, rank: int, reads: Generator[Read, None, None]) -> None:
+    def __init__(self, file: InputFile, rank: int) -> None:
         self.file = file
         self._blocks = file.index.blocks(with_empty=True)
         self.head: Block | None = next(self._blocks, None)
         self.order = rank << 96  # then block after block, by offset inside it
-        self.reads = reads
 
     def next_block_start(self) -> int:
         """Log time the next block starts at (2**64 when done)."""
         return self.head.message_start_time if self.head is not None else _END
 
-    def pop(self) -> tuple[Block, Read]:
-        """The next block (there is one: ``head``) and its read ahead; then the one after it
-        is ``head``."""
+    def pop(self) -> Block:
+        """The next block (there is one: ``head``), then the one after it is ``head``."""
         block = self.head
         assert block is not None
         self.head = next(self._blocks, None)
-        return block, next(self.reads)
+        return block
 
 
 class _CheckedCopies:
@@ -186,10 +158,7 @@ def copy_files(
     Problems (chunks that cannot be read) are appended to each file's ``problems``.
     """
     check_crc = options.check_crc
-    streams = [
-        _Stream(f, rank, prefetch(_reads_ahead(f, selection, out, check_crc), depth=READ_AHEAD))
-        for rank, f in enumerate(files)
-    ]
+    streams = [_Stream(f, rank) for rank, f in enumerate(files)]
     pending: list[Run] = []
     copies = _CheckedCopies(out, check_crc)
     try:
@@ -204,18 +173,16 @@ def copy_files(
                 copies.flush()
             # Messages before the block (equal times: those of earlier blocks or inputs) go first.
             emit(pending, stream.next_block_start(), stream.order, out)
-            block, read = stream.pop()
+            block = stream.pop()
             bound = min(s.next_block_start() for s in streams)
             if pending:
                 bound = min(bound, *(run.head() for run in pending))
             if block.message_end_time < bound and _may_copy(stream.file, block, selection, out):
                 _copy(stream, block, selection, copies, pending, options)
             else:
-                _open(stream, block, selection, check_crc, pending, read)
+                _open(stream, block, selection, check_crc, pending)
     finally:
         copies.close()
-        for stream in streams:  # each file's thread ends (after the chunk it is reading)
-            stream.reads.close()
 
 
 def _copy(  # noqa: PLR0917 (the loop's state, passed as it is)
@@ -262,57 +229,20 @@ def _identity(file: InputFile, channel_ids: Iterable[int]) -> bool:
     return all(mapping.get(c) == c and c not in content and c not in rewrites for c in channel_ids)
 
 
-def _reads_ahead(
-    file: InputFile, selection: Selection, out: OutputBag, check_crc: bool
-) -> Iterator[Read]:
-    """Each block of ``file`` in the order :class:`_Stream` takes them, read when it will be
-    opened whatever the other inputs hold (run in the file's thread)."""
-    for block in file.index.blocks(with_empty=True):
-        if not _opened_anyway(file, block, selection, out):
-            yield None
-            continue
-        try:
-            read: Read = read_chunk(file.source, block, check_crc=check_crc)
-        except ChunkError as exc:
-            read = str(exc)
-        yield read
-
-
-def _opened_anyway(file: InputFile, block: Block, selection: Selection, out: OutputBag) -> bool:
-    """Whether ``block`` is opened when its turn comes, as far as its index tells: it holds
-    selected messages and cannot be copied as stored."""
-    return _holds_selected(file, block) and not _may_copy(file, block, selection, out)
-
-
-def _holds_selected(file: InputFile, block: Block) -> bool:
-    """False when the block's index shows no selected channel in it."""
-    indexed = isinstance(block, ChunkIndex) and block.message_index_offsets
-    return not indexed or not file.channel_map.keys().isdisjoint(block.message_index_offsets)  # type: ignore[union-attr]
-
-
-def _open(  # noqa: PLR0917 (the loop's state, passed as it is)
-    stream: _Stream,
-    block: Block,
-    selection: Selection,
-    check_crc: bool,
-    pending: list[Run],
-    read: Read = None,
+def _open(
+    stream: _Stream, block: Block, selection: Selection, check_crc: bool, pending: list[Run]
 ) -> None:
-    """Read a block (unless it was read ahead) and add its selected messages to the pending
-    ones."""
+    """Read a block and add its selected messages to the pending ones."""
     file = stream.file
     mapping = file.channel_map
-    if not _holds_selected(file, block):
+    indexed = isinstance(block, ChunkIndex) and block.message_index_offsets
+    if indexed and mapping.keys().isdisjoint(block.message_index_offsets):  # type: ignore[union-attr]
         return  # nothing selected in it: not even read
-    if read is None:
-        try:
-            read = read_chunk(file.source, block, check_crc=check_crc)
-        except ChunkError as exc:
-            read = str(exc)
-    if isinstance(read, str):
-        _lost(file, block, read)
+    try:
+        contents = read_chunk(file.source, block, check_crc=check_crc)
+    except ChunkError as exc:
+        _lost(file, block, str(exc))
         return
-    contents = read
     run, bad = open_run(
         contents.records,
         contents.message_index,

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import threading
 from typing import BinaryIO
 
 from bagkit.bag.errors import CorruptBagError
@@ -11,22 +10,18 @@ from bagkit.bag.errors import CorruptBagError
 class Source:
     """A seekable binary file, its size and the name it has in messages.
 
-    Reads may come from several threads (a surgery reads the next chunks ahead in a thread
-    while the calling thread reads others): each seek and read is made under a lock.
-
     Args:
         f: the file, opened for binary reading.
         name: how the file is named in problems and errors.
     """
 
-    __slots__ = ("_lock", "f", "name", "size")
+    __slots__ = ("f", "name", "size")
 
     def __init__(self, f: BinaryIO, name: str) -> None:
         self.f = f
         self.name = name
         f.seek(0, 2)
         self.size = f.tell()
-        self._lock = threading.Lock()
 
     def holds(self, offset: int, length: int) -> bool:
         """True when ``length`` bytes from ``offset`` are inside the file."""
@@ -42,9 +37,8 @@ class Source:
             raise CorruptBagError(
                 f"{length} bytes at byte {offset} are past the end of the file ({self.size} bytes)"
             )
-        with self._lock:
-            self.f.seek(offset)
-            data = self.f.read(length)
+        self.f.seek(offset)
+        data = self.f.read(length)
         if len(data) != length:  # the file shrank while being read
             raise CorruptBagError(f"file ends inside the {length} bytes at byte {offset}")
         return data
