@@ -139,6 +139,17 @@ def action_topics(reader: BagReader, name: str) -> list[str]:
     return action_part_topics(name, ((t, i.type) for t, i in reader.topics.items()))
 
 
+def names_service(reader: BagReader, name: str) -> bool:
+    """Whether ``name`` is a service of an open bag and not one of its topics (``echo``'s
+    choice)."""
+    if absolute_topic_name(name) in {absolute_topic_name(t) for t in reader.topics}:
+        return False
+    # The service modules for a name that is no topic only: echo of a topic starts without.
+    from bagkit.data.services import find_service
+
+    return find_service(reader, name) is not None
+
+
 def echo_action(
     bag: str | Path,
     query: Query,

@@ -117,13 +117,6 @@ def echo_calls(
         }
 
 
-def names_service(reader: BagReader, name: str) -> bool:
-    """Whether ``name`` is a service of an open bag and not one of its topics (``echo``'s
-    choice)."""
-    topics = {absolute_topic_name(t) for t in reader.topics}
-    return absolute_topic_name(name) not in topics and find_service(reader, name) is not None
-
-
 def plain_message(message: Any, limit: int | None = None) -> Any:
     """A decoded message as nested dicts and lists (numbers as Python's); None stays None.
 

@@ -10,7 +10,7 @@ type is registered on its own so that one unparseable definition only costs its 
 Two gaps are filled: service-event topics (``pkg/srv/Name_Event``) store the raw ``.srv`` text,
 from which the event type is rebuilt as rosidl generates it; and older ``.db3`` bags store no
 definitions (or incomplete ones), for which rosbags' own Jazzy types are used where it has them.
-Types with wide strings, which rosbags' deserializers lack, are read by :mod:`bagkit.decode.cdr`.
+Messages are decoded into objects by :mod:`bagkit.decode.cdr`'s readers (wide strings too).
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from rosbags.typesys.base import normalize_fieldname
 from rosbags.typesys.store import Typestore
 
 from bagkit.bag.definitions import canonical_type_name
-from bagkit.decode.cdr import has_wide_strings, payload_reader
+from bagkit.decode.cdr import PayloadReader, payload_reader
 from bagkit.decode.errors import DecodeError, DefinitionError, SchemaError
 from bagkit.decode.flatten import FlatValue, field_getter
 from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER, TypeDef
@@ -42,7 +42,7 @@ if TYPE_CHECKING:
 class _MessageClasses(dict[str, type]):
     """Type name -> message class, each made on first lookup from the typestore's definitions.
 
-    Only decoding into objects needs the classes (rosbags' deserializers and converters look
+    Only decoding into objects needs the classes (bagkit's readers and rosbags' converters look
     them up here); the bulk and direct readers never do, and making one costs about 1 ms, more
     than a small bag's reading for a bag of twenty types.
     """
@@ -90,6 +90,8 @@ class MessageTypes:
     # Topics whose schema holds another text for their type: (type, text), parsed on first use.
     _topic_texts: dict[str, tuple[str, str]] = field(default_factory=dict)
     _topic_types: dict[str, MessageTypes] = field(default_factory=dict)
+    # (type, little endian) -> its reader, generated on first use.
+    _readers: dict[tuple[str, bool], PayloadReader] = field(default_factory=dict)
 
     @classmethod
     def from_definitions(cls, definitions: Mapping[str, str]) -> MessageTypes:
@@ -198,32 +200,21 @@ class MessageTypes:
     def decoder(self, name: str) -> Callable[[bytes | memoryview], object]:
         """``deserialize`` for one type, resolved once (for many messages of a topic).
 
-        Calls rosbags' generated deserializer directly (bagkit's for types with wide strings):
-        given a memoryview (of a chunk), the payload is not copied; arrays in the message may
-        then be views of that buffer.
+        Reads with bagkit's generated readers (:mod:`bagkit.decode.cdr`), not rosbags': they
+        build the same objects, and generating one type's costs a fraction of rosbags' 15
+        functions a type (benchmarks/README.md, start-up, sixth pass). Given a memoryview (of
+        a chunk), the payload is not copied; arrays in the message may then be views of it.
 
         Raises:
             SchemaError: the type cannot be decoded.
         """
         canonical = self.resolve(name)
-        store = self.typestore
-        if has_wide_strings(store, canonical):  # rosbags' deserializers have no wstring
-            little = payload_reader(store, canonical, little=True)
-            big = payload_reader(store, canonical, little=False)
-            cls: Any = None
-        else:
-            msgdef = store.get_msgdef(canonical)
-            little, big = msgdef.deserialize_cdr_le, msgdef.deserialize_cdr_be
-            cls = msgdef.cls
 
         def decode(data: bytes | memoryview) -> object:
             try:
                 if len(data) < 4 or data[0] != 0 or data[1] > 1:
                     raise ValueError("not a plain CDR encapsulation")
-                message, end = (little if data[1] else big)(data[4:], 0, cls, store)
-                # rosbags cuts a string that runs past the end short instead of failing.
-                if end + 4 > len(data):
-                    raise ValueError("the message ends past the payload")
+                message, end = self._reader(canonical, little=bool(data[1]))(data[4:])
                 # CDR writers pad to 4 bytes at most (rosbags' own check).
                 if end + 4 + 3 < len(data):
                     raise ValueError(f"{len(data) - 4 - end} bytes after the message")
@@ -232,6 +223,14 @@ class MessageTypes:
             return message
 
         return decode
+
+    def _reader(self, canonical: str, *, little: bool) -> PayloadReader:
+        """The reader of ``canonical`` in one byte order, generated on first use."""
+        reader = self._readers.get((canonical, little))
+        if reader is None:
+            reader = payload_reader(self.typestore, canonical, little=little)
+            self._readers[(canonical, little)] = reader
+        return reader
 
     def value_reader(self, name: str, paths: Sequence[str]) -> ValueReader:
         """A function returning the values of leaf ``paths`` of one payload of type ``name``.
