@@ -23,7 +23,8 @@ from typing import Any
 
 import numpy as np
 from rosbags.interfaces import Nodetype
-from rosbags.typesys.store import Typestore
+
+from bagkit.decode.msgdef import TypeDefinitions
 
 # (object, position after it, wide strings read) from (payload after the header, position).
 ObjectReader = Callable[[Any, int], tuple[object, int, int]]
@@ -70,7 +71,7 @@ def wide_string(data: Any, offset: int, count: int, order: str) -> str:
     return units.astype("<u2").tobytes().decode("utf-16-le")
 
 
-def has_wide_strings(typestore: Typestore, typename: str) -> bool:
+def has_wide_strings(typestore: TypeDefinitions, typename: str) -> bool:
     """Whether ``typename`` or a type it uses has a ``wstring``."""
     todo, seen = [typename], {typename}
     while todo:
@@ -84,7 +85,7 @@ def has_wide_strings(typestore: Typestore, typename: str) -> bool:
     return False
 
 
-def object_reader(typestore: Typestore, typename: str, *, little: bool) -> ObjectReader:
+def object_reader(typestore: TypeDefinitions, typename: str, *, little: bool) -> ObjectReader:
     """The reader of ``typename`` payloads (after the 4-byte header) in one byte order.
 
     A reader raises ValueError, IndexError or struct.error on bytes that do not match.
@@ -101,7 +102,7 @@ def object_reader(typestore: Typestore, typename: str, *, little: bool) -> Objec
     return build(typename)
 
 
-def payload_reader(typestore: Typestore, typename: str, *, little: bool) -> PayloadReader:
+def payload_reader(typestore: TypeDefinitions, typename: str, *, little: bool) -> PayloadReader:
     """:func:`object_reader` of a whole payload (after its 4-byte header), the end it returns
     moved past rclpy's 4 bytes per wide string when present: a caller checks trailing bytes as
     for any CDR payload."""
@@ -119,7 +120,7 @@ class _Codegen:
     wide strings read, ``v`` the field values."""
 
     def __init__(
-        self, typestore: Typestore, order: str, build: Callable[[str], ObjectReader]
+        self, typestore: TypeDefinitions, order: str, build: Callable[[str], ObjectReader]
     ) -> None:
         self.typestore = typestore
         self.order = order
