@@ -18,6 +18,7 @@ import numpy as np
 
 from bagkit.bag import BagError, BagReader
 from bagkit.data.episodes import NO_SPANS, find_episodes
+from bagkit.errors import not_read
 from bagkit.fleet.errors import FleetError
 from bagkit.fleet.execute import ItemDone, run_each
 from bagkit.selection.conditions import parse_topic_condition
@@ -249,7 +250,7 @@ def find_fleet(
     problems: list[str] = []
     for part in parts:
         if part.error is not None:
-            problems.append(f"{part.bag}: not read: {part.error}")
+            problems.append(not_read(part.bag, part.error))
         problems.extend(part.problems)
     found = [part for part in readable if len(part.spans)]
     return FindResult(
