@@ -22,7 +22,7 @@ from bagkit.cli.common import (
     print_json,
     warn,
 )
-from bagkit.cli.fleet_options import Scheduler, Workers
+from bagkit.cli.fleet_options import Scheduler, Workers, end_with_unread
 from bagkit.cli.progress import DelayedProgress
 from bagkit.cli.selection_options import Distro, End, Start, Where, build_query
 from bagkit.cli.stats_options import Bulk, Fields, Format, Inputs, Topics
@@ -95,6 +95,7 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
     lost = {t.topic: t.count for t in result.topics if t.undecodable and t.undecodable == t.count}
     if lost:  # a topic none of whose messages decode: not a summary of it
         raise none_decoded(lost)
+    end_with_unread(len(result.unread), len(bags))
 
 
 def _service_latencies(bags: list[Path], topics: set[str]) -> list[dict[str, Any]]:

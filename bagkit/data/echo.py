@@ -19,7 +19,7 @@ import yaml
 from rosbags.interfaces import Nodetype
 
 from bagkit.bag import BagReader
-from bagkit.data.errors import DataError, DataLossWarning, UndecodableTopicError
+from bagkit.data.errors import DataLossWarning, UndecodableTopicError, nothing_read
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
 from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER, TypeDefinitions, member_name
 from bagkit.selection import intervals
@@ -124,7 +124,7 @@ def echo(
                 raise DecodeError(matcher.problem)
             on_failure(matcher.problem)
         if reader.problems and not done:  # nothing to show, and chunks were lost
-            raise DataError(f"no message of {topic} could be read ({'; '.join(reader.problems)})")
+            raise nothing_read([topic], reader.problems)
         for problem in reader.problems:
             warnings.warn(f"{bag}: {problem}", DataLossWarning, stacklevel=2)
 
