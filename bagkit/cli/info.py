@@ -188,6 +188,18 @@ def _print_actions(actions: list[ActionSummary]) -> None:
     print_table(table)
 
 
+def _compression_rows(info: BagInfo) -> list[tuple[str, str]]:
+    """``Compression``: rosbag2's (``zstd, file mode``), or else the chunks'; then the chunks'
+    apart (``Chunk compression``) when rosbag2 compressed an MCAP or ROS 1 file as well."""
+    ratio = f" (ratio {info.compression_ratio:.2f})"
+    chunks = info.chunk_compression
+    if not info.compression_mode:
+        return [("Compression", chunks + ratio if chunks and chunks != "none" else "none")]
+    shown = f"{info.compression_format}, {info.compression_mode} mode"
+    rows = [("Compression", shown + (ratio if info.compression_mode == "file" else ""))]
+    return [*rows, ("Chunk compression", chunks)] if chunks else rows
+
+
 def _print_table(info: BagInfo, verbose: bool) -> None:
     directory = Path(info.path) if Path(info.path).is_dir() else None
     files = [str(Path(f).relative_to(directory)) if directory else f for f in info.files]
@@ -199,12 +211,7 @@ def _print_table(info: BagInfo, verbose: bool) -> None:
         ("Start", _time(info.start_ns)),
         ("End", _time(info.end_ns)),
         ("Messages", f"{info.message_count:,}"),
-        (
-            "Compression",
-            f"{info.compression} (ratio {info.compression_ratio:.2f})"
-            if info.compression and info.compression != "none"
-            else "none",
-        ),
+        *_compression_rows(info),
     ]
     if not info.summary:
         rows.append(("Summary", "missing: the recording did not finish, salvaged"))

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 from bagkit.errors import BagkitError
 from bagkit.selection.errors import UnknownFieldError, UnknownTopicError
 
@@ -11,6 +13,7 @@ __all__ = [
     "UndecodableTopicError",
     "UnknownFieldError",
     "UnknownTopicError",
+    "nothing_read",
 ]
 
 
@@ -24,3 +27,12 @@ class DataError(BagkitError):
 
 class UndecodableTopicError(DataError):
     """The topic's messages cannot be decoded (no or a broken definition, not CDR)."""
+
+
+def nothing_read(topics: Iterable[str], lost: Iterable[str]) -> DataError:
+    """The error of a read that got no message of ``topics`` while parts of the bag(s) were
+    lost (``lost``: the readers' problems): a result made of nothing (no line, an empty table,
+    no episode) would pass for "nothing there" (echo, export, find)."""
+    return DataError(
+        f"no message of {', '.join(topics)} could be read ({'; '.join(dict.fromkeys(lost))})"
+    )

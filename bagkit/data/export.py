@@ -49,6 +49,7 @@ class ExportReport:
         problems: what was lost (unreadable parts of the bag, messages that do not decode).
         messages: topic -> its messages read (in the window, before the condition kept some).
         undecodable: topic -> those of them that did not decode (not in the rows).
+        lost: the parts of the bag that could not be read (damaged chunks; in ``problems``).
     """
 
     files: dict[str, list[Path]] = field(default_factory=dict)
@@ -57,6 +58,7 @@ class ExportReport:
     problems: list[str] = field(default_factory=list)
     messages: dict[str, int] = field(default_factory=dict)
     undecodable: dict[str, int] = field(default_factory=dict)
+    lost: list[str] = field(default_factory=list)
 
 
 def none_decoded_topics(reports: Iterable[ExportReport]) -> dict[str, int]:
@@ -68,6 +70,18 @@ def none_decoded_topics(reports: Iterable[ExportReport]) -> dict[str, int]:
         messages.update(report.messages)
         undecodable.update(report.undecodable)
     return {t: n for t, n in messages.items() if 0 < n == undecodable[t]}
+
+
+def nothing_read_topics(reports: Iterable[ExportReport]) -> tuple[list[str], list[str]]:
+    """(topics, what was lost): the topics exported from ``reports`` (one bag's, or a fleet's)
+    no message of which was read in any, when parts of a bag were lost; none when nothing was
+    lost (an empty topic, a window without its messages: empty files are then the answer)."""
+    reports = list(reports)
+    lost = [problem for report in reports for problem in report.lost]
+    read: Counter[str] = Counter()
+    for report in reports:
+        read.update(report.messages)
+    return ([t for t, n in read.items() if not n] if lost else []), lost
 
 
 def topic_path(out: Path, topic: str, suffix: str) -> Path:
@@ -121,6 +135,7 @@ def export(
         total = sum(reader.topic_counts.get(topic, 0) for topic in scan.topics)
         _write(scan, sinks, total, progress)
         report.problems = scan.problems
+        report.lost = list(reader.problems)
     for topic, sink in sinks.items():
         report.files[topic] = sink.files
         report.rows[topic] = sink.rows

@@ -18,6 +18,7 @@ import numpy as np
 
 from bagkit.bag import BagError, BagReader
 from bagkit.data.episodes import NO_SPANS, find_episodes
+from bagkit.errors import not_read
 from bagkit.fleet.errors import FleetError
 from bagkit.fleet.execute import ItemDone, run_each
 from bagkit.selection.conditions import parse_topic_condition
@@ -89,6 +90,8 @@ class BagEpisodes:
     """The topic's messages looked at (in the window)."""
     undecodable: int = 0
     """Those of them that did not decode (never matched)."""
+    lost: list[str] = field(default_factory=list)
+    """The parts of the bag that could not be read (damaged chunks; in ``problems`` too)."""
 
 
 @dataclass(slots=True)
@@ -110,11 +113,19 @@ class FindResult:
     """The topic's messages looked at in every bag (in the window)."""
     undecodable: int = 0
     """Those of them that did not decode (never matched)."""
+    lost: list[str] = field(default_factory=list)
+    """The parts of the bags that could not be read (damaged chunks)."""
 
     @property
     def none_decoded(self) -> bool:
         """The topic had messages and none of them decoded, in any bag."""
         return 0 < self.messages == self.undecodable
+
+    @property
+    def nothing_read(self) -> bool:
+        """No message of the topic was read in any bag, and parts of a bag were lost: "0
+        episodes" would pass for "the condition never held"."""
+        return not self.messages and bool(self.lost)
 
     @property
     def count(self) -> int:
@@ -180,6 +191,7 @@ def episodes_in_bag(
                 found = find_episodes(reader, trigger, gap_ns, resolved.window, state_topics)
             except UnknownTopicError:
                 return BagEpisodes(bag, has_topic=False, topics=list(reader.topics))
+            lost = [p if p.startswith(bag) else f"{bag}: {p}" for p in reader.problems]
     except (BagError, StorageError) as exc:
         return BagEpisodes(bag, error=str(exc))
     problems = [p if p.startswith(bag) else f"{bag}: {p}" for p in found.problems]
@@ -192,6 +204,7 @@ def episodes_in_bag(
         start_ns=reader.start_ns,
         messages=found.messages,
         undecodable=found.undecodable,
+        lost=lost,
     )
 
 
@@ -237,7 +250,7 @@ def find_fleet(
     problems: list[str] = []
     for part in parts:
         if part.error is not None:
-            problems.append(f"{part.bag}: not read: {part.error}")
+            problems.append(not_read(part.bag, part.error))
         problems.extend(part.problems)
     found = [part for part in readable if len(part.spans)]
     return FindResult(
@@ -247,4 +260,5 @@ def find_fleet(
         len(parts) - len(readable),
         sum(part.messages for part in readable),
         sum(part.undecodable for part in readable),
+        [problem for part in readable for problem in part.lost],
     )

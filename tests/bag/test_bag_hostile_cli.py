@@ -116,3 +116,53 @@ def test_echo_and_stats_of_a_bag_whose_every_chunk_is_lost_fail(
     assert stats.returncode == 2, stats.stdout
     (line,) = stats.stderr.strip().splitlines()
     assert line.startswith(f"error: no messages to summarize in {bag} (") and "CRC" in line
+
+
+@pytest.fixture
+def every_chunk_lost(write_sample_bag: Callable[..., Path]) -> tuple[Path, Path, str]:
+    """(a bag whose only chunk is damaged, an intact one, the reader's line for the loss)."""
+    intact = write_sample_bag("intact", n_imu=20, compression="none")
+    bag = write_sample_bag(n_imu=20, compression="none")
+    layout = Layout.of(bag / "sample_0.mcap")
+    (chunk,) = layout.chunks
+    layout.data[chunk.chunk_start_offset + chunk.chunk_length - 3] ^= 0x01
+    layout.save()
+    return bag, intact, f"its {chunk_messages(layout, chunk)} messages are lost"
+
+
+_LOST_ALL = {
+    "export": ["export", "{bag}", "-t", "/imu/data", "-o", "{out}/imu.csv"],
+    "find": ["find", "{bag}", "--when", "/imu/data: linear_acceleration.z > -1e9"],
+}
+
+
+@pytest.mark.parametrize("command", sorted(_LOST_ALL))
+def test_a_topic_whose_every_chunk_is_lost_is_no_empty_result(
+    every_chunk_lost: tuple[Path, Path, str], tmp_path: Path, command: str
+) -> None:
+    """As echo: 0 rows or 0 episodes made of lost data is not "no matches"."""
+    bag, intact, loss = every_chunk_lost
+    args = [a.format(bag=bag, out=tmp_path) for a in _LOST_ALL[command]]
+    run = _run(*args)
+    assert run.returncode == 2, run.stdout + run.stderr
+    errors = [line for line in run.stderr.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and run.stderr.strip().splitlines()[-1] == errors[0]
+    assert errors[0].startswith("error: no message of /imu/data could be read (")
+    assert "CRC mismatch" in errors[0] and loss in errors[0]
+    whole = _run(*(str(intact) if a == str(bag) else a for a in args))
+    assert whole.returncode == 0, whole.stderr
+    assert whole.stderr == ""
+
+
+def test_a_fleet_with_the_topic_read_elsewhere_succeeds(
+    every_chunk_lost: tuple[Path, Path, str], tmp_path: Path
+) -> None:
+    """Over several bags, a topic read in one of them is a result (the loss a warning)."""
+    bag, intact, loss = every_chunk_lost
+    for args in (
+        ["export", "-t", "/imu/data", "-o", tmp_path / "out"],
+        ["find", "--when", "/imu/data: linear_acceleration.z > -1e9"],
+    ):
+        run = _run(*args, bag, intact, "--workers", "0")
+        assert run.returncode == 0, run.stderr
+        assert "error:" not in run.stderr and loss in run.stderr
