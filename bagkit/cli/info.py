@@ -208,8 +208,9 @@ def _print_table(info: BagInfo, verbose: bool) -> None:
         ("Bag size", _size(info.size_bytes)),
         ("Storage id", info.storage),
         ("Duration", f"{info.duration_s:.9f}s"),
-        ("Start", _time(info.start_ns)),
-        ("End", _time(info.end_ns)),
+        # No message, no time: a bag's 0 would show as 1970 (rosbag2's as 2262).
+        ("Start", _time(info.start_ns) if info.message_count else "-"),
+        ("End", _time(info.end_ns) if info.message_count else "-"),
         ("Messages", f"{info.message_count:,}"),
         *_compression_rows(info),
     ]
