@@ -14,11 +14,12 @@ Beyond rosidl, the spellings of ROS 1 definitions in converted bags are accepted
 
 from __future__ import annotations
 
+import keyword
 import re
-from typing import Any
+from collections.abc import Mapping
+from typing import Any, Protocol
 
 from rosbags.interfaces import Nodetype
-from rosbags.typesys.base import normalize_fieldname
 
 from bagkit.bag.definitions import PRIMITIVES
 from bagkit.decode.errors import DefinitionError
@@ -44,6 +45,25 @@ _INTEGER_RANGES = {
 
 TypeDef = tuple[list[tuple[str, str, Any]], list[tuple[str, Any]]]
 """rosbags' definition of one type: ``([(name, type, value)], [(name, field description)])``."""
+
+
+class TypeDefinitions(Protocol):
+    """Types by name as a typestore holds them: bagkit's (``MessageTypes.typestore``, no code
+    generation) or rosbags' own."""
+
+    @property
+    def fielddefs(self) -> Mapping[str, Any]:
+        """Type name -> its :data:`TypeDef`."""
+
+    @property
+    def types(self) -> Mapping[str, Any]:
+        """Type name -> its message class."""
+
+
+def member_name(name: str) -> str:
+    """The attribute of field or constant ``name`` in a message object: a Python keyword gets
+    an underscore (``class_``), as rosbags names it."""
+    return f"{name}_" if keyword.iskeyword(name) else name
 
 
 def parse_message(lines: list[str], typename: str) -> TypeDef:
@@ -80,9 +100,9 @@ def parse_message(lines: list[str], typename: str) -> TypeDef:
         except DefinitionError as exc:
             raise DefinitionError(f"{typename} line {number}: {exc}") from None
         # rosbags names a field ``class`` ``class_``: that must not be another member too.
-        if normalize_fieldname(name) in names:
+        if member_name(name) in names:
             raise DefinitionError(f"{typename} declares {name} twice")
-        names.add(normalize_fieldname(name))
+        names.add(member_name(name))
     return constants, fields or [EMPTY_STRUCT_MEMBER]
 
 
