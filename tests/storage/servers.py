@@ -208,7 +208,11 @@ def start_http(store: HttpStore) -> ThreadingHTTPServer:
             ranged = self.headers.get("Range")
             if ranged:
                 first, _, last = ranged.removeprefix("bytes=").partition("-")
-                start, end, status = int(first), min(len(data), int(last) + 1), 206
+                if first:
+                    start, end = int(first), min(len(data), int(last) + 1)
+                else:  # a suffix: the last bytes, all of them when the object is shorter
+                    start = max(0, len(data) - int(last))
+                status = 206
             part = memoryview(data)[start:end]  # no copy (a HEAD of a 256 MB object)
             self.send_response(status)
             self.send_header("Content-Length", str(len(part)))
