@@ -265,7 +265,8 @@ def found_by_suffix(url: str) -> dict[str, Any] | None:
     """What a listing would say of the object at ``url`` (size, ETag), from one suffix read
     as deep as its kind's tails go (:data:`FIRST_TAIL_BYTES` before any); the bytes are kept
     for its opening, which then reads its end without a request. None where the store is not
-    read so (``ranges.SUFFIX_SCHEMES``) or the object is empty: ask for its info instead.
+    read so (``ranges.SUFFIX_SCHEMES``), the object is empty or the server sends all of it
+    for a suffix: ask for its info instead.
 
     Raises:
         ObjectNotFoundError: no such object (nor bucket); other StorageErrors as any request.
