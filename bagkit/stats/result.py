@@ -76,6 +76,7 @@ class Summary:
         """The JSON document of ``bagkit stats summary --format json``."""
         return {
             "bags": list(self.bags),
+            "unread": list(self.unread),
             "start_ns": self.start_ns,
             "end_ns": self.end_ns,
             "duration_s": self.duration_s,

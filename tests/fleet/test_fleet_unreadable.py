@@ -78,6 +78,7 @@ def test_every_fleet_command_reports_the_unreadable_bag_and_exits_2(
     if command == "stats":  # Dask's means and stds are within 1e-12 (test_fleet_stats.py)
         here, dask = (json.loads(outcomes[where]) for where in ("here", "dask"))
         assert here["bags"] == dask["bags"] and len(here["bags"]) == 3
+        assert here["unread"] == dask["unread"] == [str(broken)]  # which of them, for scripts
         assert [t["count"] for t in here["topics"]] == [t["count"] for t in dask["topics"]]
     else:
         assert outcomes["here"] == outcomes["dask"]
