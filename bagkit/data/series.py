@@ -77,6 +77,16 @@ class SeriesReading:
     """(bag label, topic) -> its messages read (in the window, before the condition)."""
     undecodable: dict[tuple[str, str], int] = field(default_factory=dict)
     """(bag label, topic) -> those of them that did not decode (not in the series)."""
+    lost: list[str] = field(default_factory=list)
+    """The parts of the bags that could not be read (damaged chunks; in ``problems`` too)."""
+
+    def nothing_read(self) -> list[str]:
+        """The topics no message of which was read in any bag, when parts of a bag were lost
+        (:func:`~bagkit.data.errors.nothing_read`)."""
+        read: Counter[str] = Counter()
+        for (_, topic), count in self.messages.items():
+            read[topic] += count
+        return [t for t, n in read.items() if not n] if self.lost else []
 
     def none_decoded(self) -> dict[str, int]:
         """Topic -> its messages, for the topics that had messages in the bags and decoded
@@ -138,6 +148,7 @@ def read_series(
                         reading,
                     )
                 )
+            reading.lost.extend(f"{label}: {problem}" for problem in reader.problems)
     reading.series = [s for found in per_spec for s in found]
     reading.problems = list(dict.fromkeys(reading.problems))
     return reading

@@ -133,6 +133,16 @@ def every_chunk_lost(write_sample_bag: Callable[..., Path]) -> tuple[Path, Path,
 _LOST_ALL = {
     "export": ["export", "{bag}", "-t", "/imu/data", "-o", "{out}/imu.csv"],
     "find": ["find", "{bag}", "--when", "/imu/data: linear_acceleration.z > -1e9"],
+    "plot": ["plot", "{bag}", "/imu/data:linear_acceleration.z", "-o", "{out}/z.png"],
+    "plot in a window": [
+        "plot",
+        "{bag}",
+        "/imu/data:linear_acceleration.z",
+        "-o",
+        "{out}/z.png",
+        "--start",
+        "0.05",
+    ],
 }
 
 
