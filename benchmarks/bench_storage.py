@@ -184,10 +184,12 @@ def _named_part(moto: Moto, scratch: Path) -> None:
     downloading each (s3fs's ``get``) and reading it locally; requests a bag by operation."""
     from bagkit.bag.info import bag_info
     from bagkit.fleet.execute import REMOTE_READERS
+    from bagkit.storage.range_file import fetched
 
     fs = moto.fs
     local = scratch / "named"
     mcap = next(GOLDEN.glob("*.mcap"))
+    summary = summary_bytes(mcap)
     (local / "bare").mkdir(parents=True)
     for i in range(NAMED_BAGS):
         shutil.copytree(GOLDEN, local / "prefix" / f"bag_{i:03d}", copy_function=os.link)
@@ -197,12 +199,13 @@ def _named_part(moto: Moto, scratch: Path) -> None:
         ("bag prefixes", [f"prefix/bag_{i:03d}" for i in range(NAMED_BAGS)]),
         ("bare .mcap files", [f"bare/bag_{i:03d}.mcap" for i in range(NAMED_BAGS)]),
     ):
-        sent = Counter(moto.bagkit.counts)
+        sent, before = Counter(moto.bagkit.counts), fetched()[0]
         started = time.perf_counter()
         with ThreadPoolExecutor(REMOTE_READERS) as pool:
             list(pool.map(bag_info, [f"s3://bench/named/{n}" for n in names]))
         remote_s = time.perf_counter() - started
         remote_requests = moto.bagkit.counts - sent
+        spent = (fetched()[0] - before) / NAMED_BAGS
         target = scratch / "download" / "named"
 
         def download(name: str, target: Path = target) -> None:
@@ -219,7 +222,8 @@ def _named_part(moto: Moto, scratch: Path) -> None:
         print(
             f"  {NAMED_BAGS} {what} named one by one: info {remote_s:.2f} s, download + local "
             f"info {download_s:.2f} s: {download_s / remote_s:.1f}x\n"
-            f"    requests a bag: info {per_bag(remote_requests, NAMED_BAGS)}; download "
+            f"    info: {spent:,.0f} bytes a bag ({spent / summary:.2f}x the summary); "
+            f"requests a bag: info {per_bag(remote_requests, NAMED_BAGS)}; download "
             f"{per_bag(peer_requests, NAMED_BAGS)}"
         )
     shutil.rmtree(local)

@@ -8,10 +8,12 @@ read on so far, up to :data:`MAX_READ_AHEAD`. A first read of an object's end (a
 closing magic, its footer) fetches as deep into its tail as the reads of the last object of
 its kind went, and an eighth more (the same suffix, its bag beside this one's: its footer and
 summary), :data:`FIRST_TAIL_BYTES` before any, up to a quarter of the object: one request
-where two would be. The blocks fetched at an object's ends are kept for its next opening (the
-back-end is chosen by them, then opens the file again). Every range is asked for with the
-ETag seen at open (``If-Match``) where the store takes one, and its length is checked: an
-object that changes while it is read is an error, never a mix of two versions.
+where two would be. An object named by its URL on S3 or HTTP is found by such a read of its
+end (:func:`found_by_suffix`: a suffix range gives its size and ETag too, no HEAD). The blocks
+fetched at an object's ends are kept for its next opening (the back-end is chosen by them,
+then opens the file again). Every range is asked for with the ETag seen at open
+(``If-Match``) where the store takes one, and its length is checked: an object that changes
+while it is read is an error, never a mix of two versions.
 """
 
 from __future__ import annotations
@@ -115,7 +117,8 @@ class RangeFile:
 
     Args:
         url: the object.
-        info: its size and ETag where a listing already gave them (else one HEAD request).
+        info: its size and ETag where a listing or :func:`found_by_suffix` gave them (else
+            one HEAD request).
     """
 
     def __init__(self, url: str, info: dict[str, Any] | None = None) -> None:
@@ -262,7 +265,8 @@ def found_by_suffix(url: str) -> dict[str, Any] | None:
     """What a listing would say of the object at ``url`` (size, ETag), from one suffix read
     as deep as its kind's tails go (:data:`FIRST_TAIL_BYTES` before any); the bytes are kept
     for its opening, which then reads its end without a request. None where the store is not
-    read so (``ranges.SUFFIX_SCHEMES``) or the object is empty: ask for its info instead.
+    read so (``ranges.SUFFIX_SCHEMES``), the object is empty or the server sends all of it
+    for a suffix: ask for its info instead.
 
     Raises:
         ObjectNotFoundError: no such object (nor bucket); other StorageErrors as any request.

@@ -29,7 +29,8 @@ def span(fs: Any, url: str, path: str, start: int, end: int, *, etag: str | None
 def suffix(fs: Any, url: str, path: str, length: int) -> tuple[bytes, dict[str, Any]] | None:
     """The last ``length`` bytes of the object (all of it when shorter) and what a listing
     would say of it (``size``, ``ETag``, ``type``; S3: ``LastModified``); None where no
-    suffix is asked for (another scheme, an empty object).
+    suffix is read (another scheme, an empty object, an HTTP server that sends the whole
+    object instead).
 
     Raises:
         StorageError: the server sent the whole object for a range.
@@ -116,8 +117,9 @@ def _http_suffix(
             total = _total(response.headers.get("Content-Range"))
             announced = response.headers.get("Content-Length", "")
             if total is None and announced.isdigit() and int(announced) > length:
-                # The whole object for a range: not read (it may be GBs).
-                raise StorageError(f"{shown_url(url)}: the server does not answer range requests")
+                # The whole object for a suffix, not read (it may be GBs): a server may take
+                # ranges but no suffix, so the object is asked for its size instead.
+                return None
             data = await response.read()
             return data, total, {"ETag": response.headers.get("ETag")}
 

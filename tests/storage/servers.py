@@ -140,6 +140,7 @@ class Faults:
     stall_s: float = 0.0  # wait this long before answering (timeouts)
     truncate: bool = False  # send fewer bytes than announced
     change_after: int = -1  # after this many GETs, the object's ETag changes
+    no_suffix: bool = False  # answer a suffix range (``bytes=-N``) with the whole object
 
 
 @dataclass
@@ -206,7 +207,7 @@ def start_http(store: HttpStore) -> ThreadingHTTPServer:
                 return
             start, end, status = 0, len(data), 200
             ranged = self.headers.get("Range")
-            if ranged:
+            if ranged and not (faults.no_suffix and ranged.startswith("bytes=-")):
                 first, _, last = ranged.removeprefix("bytes=").partition("-")
                 if first:
                     start, end = int(first), min(len(data), int(last) + 1)

@@ -13,7 +13,7 @@ from mcap.writer import Writer
 from bagkit.bag import BagError, bag_info
 from bagkit.storage.range_file import FIRST_TAIL_BYTES, TAIL_SHARE, TAIL_SLACK, fetched
 from tests.storage.conftest import Store
-from tests.storage.servers import HttpStore
+from tests.storage.servers import Faults, HttpStore
 from tests.storage.test_storage_read import summary_bytes
 
 
@@ -213,3 +213,25 @@ def test_requests_of_info_are_what_it_must_read(
             bag_info(f"{http_store[0].base}/{url}")
             sent_http = {m: n - answered.get(m, 0) for m, n in objects.requests.items()}
             assert {"HEAD": 0, **sent_http} == {"HEAD": 0, "GET": http_gets}, url
+
+
+def test_a_server_without_suffix_ranges_is_asked_for_the_size(
+    http_store: tuple[Store, HttpStore], local_bags: Path
+) -> None:
+    """A server that sends the whole object for ``bytes=-N`` (but takes ``bytes=a-b``): the
+    object is not read whole, it is asked for its size (a HEAD) and read by ranges."""
+    store, objects = http_store
+    file = local_bags / "fleet" / "a" / "a_0.mcap"
+    assert file.stat().st_size > FIRST_TAIL_BYTES  # the whole object is more than the suffix
+    store.put(file, "nosuffix/n/a.mcap")
+    objects.faults["/nosuffix/n/a.mcap"] = Faults(no_suffix=True)
+    answered = dict(objects.requests)
+    try:
+        remote = bag_info(f"{store.base}/nosuffix/n/a.mcap")
+    finally:
+        del objects.faults["/nosuffix/n/a.mcap"]
+    sent = {m: n - answered.get(m, 0) for m, n in objects.requests.items()}
+    local = bag_info(file)
+    assert remote.message_count == local.message_count > 0
+    assert [t.count for t in remote.topics] == [t.count for t in local.topics]
+    assert sent["HEAD"] == 1 and sent["GET"] >= 2
