@@ -19,7 +19,12 @@ import yaml
 from rosbags.interfaces import Nodetype
 
 from bagkit.bag import BagReader
-from bagkit.data.errors import DataLossWarning, UndecodableTopicError, nothing_read
+from bagkit.data.errors import (
+    DataLossWarning,
+    UndecodableTopicError,
+    could_have_lost,
+    nothing_read,
+)
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
 from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER, TypeDefinitions, member_name
 from bagkit.selection import intervals
@@ -123,7 +128,7 @@ def echo(
             if on_failure is None:
                 raise DecodeError(matcher.problem)
             on_failure(matcher.problem)
-        if reader.problems and not done:  # nothing to show, and chunks were lost
+        if not done and could_have_lost(reader, topic):  # nothing to show, chunks were lost
             raise nothing_read([topic], reader.problems)
         for problem in reader.problems:
             warnings.warn(f"{bag}: {problem}", DataLossWarning, stacklevel=2)

@@ -133,6 +133,16 @@ def every_chunk_lost(write_sample_bag: Callable[..., Path]) -> tuple[Path, Path,
 _LOST_ALL = {
     "export": ["export", "{bag}", "-t", "/imu/data", "-o", "{out}/imu.csv"],
     "find": ["find", "{bag}", "--when", "/imu/data: linear_acceleration.z > -1e9"],
+    "plot": ["plot", "{bag}", "/imu/data:linear_acceleration.z", "-o", "{out}/z.png"],
+    "plot in a window": [
+        "plot",
+        "{bag}",
+        "/imu/data:linear_acceleration.z",
+        "-o",
+        "{out}/z.png",
+        "--start",
+        "0.05",
+    ],
 }
 
 
@@ -166,3 +176,51 @@ def test_a_fleet_with_the_topic_read_elsewhere_succeeds(
         run = _run(*args, bag, intact, "--workers", "0")
         assert run.returncode == 0, run.stderr
         assert "error:" not in run.stderr and loss in run.stderr
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["echo", "{bag}", "/quiet"],
+        ["export", "{bag}", "-o", "{out}/all"],
+        ["find", "{bag}", "--when", "/quiet: linear_acceleration.z > 0"],
+        [
+            "plot",
+            "{bag}",
+            "/quiet:linear_acceleration.z",
+            "/imu/data:linear_acceleration.z",
+            "-o",
+            "{out}/z.png",
+        ],
+    ],
+    ids=["echo", "export", "find", "plot"],
+)
+def test_a_topic_the_summary_counts_empty_lost_nothing(
+    flipped: tuple[Path, Path, int], tmp_path: Path, args: list[str]
+) -> None:
+    """A damaged chunk elsewhere: a topic the bag's summary counts no message of (rosbag2's
+    /parameter_events, often) is empty, not lost; the others are read (exit 0)."""
+    from bag_samples import IMU
+
+    from bagkit.bag import BagReader, BagWriter, TopicInfo
+
+    _, damaged, _ = flipped
+    quiet = tmp_path / "quiet"
+    with (
+        BagReader(damaged, check_crc=False) as reader,
+        BagWriter(quiet, compression="none", chunk_size=20_000) as out,
+    ):
+        for topic in reader.topics.values():
+            out.add_topic(topic, definition=reader.definitions[topic.type])
+        out.add_topic(TopicInfo("/quiet", IMU), definition=reader.definitions[IMU])
+        for message in reader.messages():
+            out.write(message.topic, message.data, log_time=message.log_time)
+    layout = Layout.of(quiet / "quiet_0.mcap")
+    chunk = layout.chunks[1]
+    layout.data[chunk.chunk_start_offset + chunk.chunk_length - 3] ^= 0x01
+    layout.save()
+    run = _run(*(a.format(bag=quiet, out=tmp_path) for a in args))
+    assert run.returncode == 0, run.stderr
+    assert "error:" not in run.stderr
+    # echo and find read no chunk: /quiet is in none; export and plot read the others.
+    assert ("CRC mismatch" in run.stderr) == (args[0] in ("export", "plot")), run.stderr
