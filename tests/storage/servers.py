@@ -209,8 +209,9 @@ def start_http(store: HttpStore) -> ThreadingHTTPServer:
             ranged = self.headers.get("Range")
             if ranged and not (faults.no_suffix and ranged.startswith("bytes=-")):
                 first, _, last = ranged.removeprefix("bytes=").partition("-")
-                if first:
-                    start, end = int(first), min(len(data), int(last) + 1)
+                if first:  # bytes=A-B, or bytes=A- (to the end)
+                    start = int(first)
+                    end = min(len(data), int(last) + 1) if last else len(data)
                 else:  # a suffix: the last bytes, all of them when the object is shorter
                     start = max(0, len(data) - int(last))
                 status = 206
