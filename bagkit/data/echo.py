@@ -16,7 +16,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import yaml
-from rosbags.interfaces import Nodetype
 
 from bagkit.bag import BagReader
 from bagkit.data.errors import (
@@ -26,7 +25,7 @@ from bagkit.data.errors import (
     nothing_read,
 )
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
-from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER, TypeDefinitions, member_name
+from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER, Nodetype, TypeDefinitions, member_name
 from bagkit.selection import intervals
 from bagkit.selection.actions import action_part_topics
 from bagkit.selection.errors import EmptyWindowWarning

@@ -10,9 +10,7 @@ from __future__ import annotations
 import re
 from collections.abc import Mapping
 
-from rosbags.interfaces import Nodetype
-
-from bagkit.decode.msgdef import TypeDefinitions
+from bagkit.decode.msgdef import Nodetype, TypeDefinitions
 
 # (type, field) -> unit, for the leaves under that field.
 TYPE_UNITS: dict[tuple[str, str], str] = {

@@ -22,9 +22,8 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-from rosbags.interfaces import Nodetype
 
-from bagkit.decode.msgdef import TypeDefinitions
+from bagkit.decode.msgdef import Nodetype, TypeDefinitions
 
 # (object, position after it, wide strings read) from (payload after the header, position).
 ObjectReader = Callable[[Any, int], tuple[object, int, int]]

@@ -20,13 +20,12 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
-from rosbags.interfaces import Nodetype
 
 from bagkit.decode.cdr import STRUCT_CODES, WIDE_UNIT, wide_string
 from bagkit.decode.errors import DecodeError
 from bagkit.decode.flatten import FlatValue
 from bagkit.decode.layout import PRIMITIVE_FORMATS, U32
-from bagkit.decode.msgdef import TypeDefinitions
+from bagkit.decode.msgdef import Nodetype, TypeDefinitions
 from bagkit.decode.typegraph import check_registered
 
 _DTYPES = {name: np.dtype(fmt) for name, fmt in PRIMITIVE_FORMATS.items()}

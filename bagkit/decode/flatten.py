@@ -15,9 +15,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from rosbags.interfaces import Nodetype
 
-from bagkit.decode.msgdef import TypeDefinitions, member_name
+from bagkit.decode.msgdef import Nodetype, TypeDefinitions, member_name
 from bagkit.decode.typegraph import check_registered
 
 STRING_TYPES = frozenset({"string", "wstring"})

@@ -14,10 +14,9 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
-from rosbags.interfaces import Nodetype
 
 from bagkit.decode.errors import DecodeError
-from bagkit.decode.msgdef import TypeDefinitions
+from bagkit.decode.msgdef import Nodetype, TypeDefinitions
 from bagkit.decode.typegraph import check_registered
 
 ENCAPSULATION_SIZE = 4

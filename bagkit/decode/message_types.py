@@ -21,13 +21,11 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from rosbags.interfaces import Nodetype
-
 from bagkit.bag.definitions import canonical_type_name
 from bagkit.decode.cdr import PayloadReader, payload_reader
 from bagkit.decode.errors import DecodeError, DefinitionError, SchemaError
 from bagkit.decode.flatten import FlatValue, field_getter
-from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER, TypeDef, member_name
+from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER, Nodetype, TypeDef, member_name
 from bagkit.decode.stored import COMMON_SERVICES, parse_stored
 from bagkit.decode.typegraph import check_type_graph
 

@@ -17,12 +17,24 @@ from __future__ import annotations
 import keyword
 import re
 from collections.abc import Mapping
+from enum import IntEnum
 from typing import Any, Protocol
-
-from rosbags.interfaces import Nodetype
 
 from bagkit.bag.definitions import PRIMITIVES
 from bagkit.decode.errors import DefinitionError
+
+
+class Nodetype(IntEnum):
+    """The kind of a field description, numbered as rosbags numbers it: definitions of rosbags'
+    (its Jazzy types, its IDL parser's) and bagkit's mix, and compare by number. bagkit's own, so
+    that decoding starts without importing rosbags (benchmarks/README.md, "Start-up, sixth
+    pass")."""
+
+    BASE = 1
+    NAME = 2
+    ARRAY = 3
+    SEQUENCE = 4
+
 
 STRINGS = frozenset({"string", "wstring"})
 # rosidl gives a message without fields this one member (CDR has no empty struct).

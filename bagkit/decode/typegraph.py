@@ -18,10 +18,8 @@ import weakref
 from collections.abc import Iterable, Iterator, Mapping
 from typing import Any
 
-from rosbags.interfaces import Nodetype
-
 from bagkit.decode.errors import SchemaError
-from bagkit.decode.msgdef import TypeDefinitions
+from bagkit.decode.msgdef import Nodetype, TypeDefinitions
 
 MAX_TYPE_DEPTH = 100
 MAX_LEAF_FIELDS = 100_000

@@ -19,12 +19,11 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from rosbags.interfaces import Nodetype
 
 from bagkit.decode.bulk import decode_bulk
 from bagkit.decode.errors import SchemaError
 from bagkit.decode.layout import CDR_LE, U32, CdrLayout, NeedLength
-from bagkit.decode.msgdef import TypeDefinitions
+from bagkit.decode.msgdef import Nodetype, TypeDefinitions
 
 _EMPTY_STRING = 1  # a CDR string's length counts its NUL
 

@@ -17,10 +17,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from rosbags.interfaces import Nodetype
-
 from bagkit.bag.definitions import canonical_type_name
-from bagkit.decode.msgdef import TypeDefinitions
+from bagkit.decode.msgdef import Nodetype, TypeDefinitions
 from bagkit.migrate.errors import DataLossError, MigrateError, RuleError
 from bagkit.migrate.rules import Rules, TypeRules, load_function
 from bagkit.migrate.values import (

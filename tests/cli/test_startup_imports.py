@@ -30,9 +30,9 @@ HEAVY = frozenset(
 # info reads summaries and indexes, and service events by their fixed header (the message
 # index ordered without numpy): no decoder, no numpy.
 NO_DECODER = frozenset({"rosbags", "bagkit.decode"})
-# Decoding needs rosbags' field descriptions only: not its type system (the typestore, its code
-# generation and serializers, OpenSSL's hashlib), which only encoding (migrate) needs.
-NO_ROSBAGS_TYPESYS = frozenset({"rosbags.typesys", "rosbags.serde", "hashlib", "_hashlib"})
+# Decoding needs nothing of rosbags (its type system, code generation and serializers, OpenSSL's
+# hashlib): only encoding (migrate) and other formats' files do.
+NO_ROSBAGS = frozenset({"rosbags", "hashlib", "_hashlib"})
 # A topic's messages or a bag without services: none of the service modules.
 NO_SERVICES = frozenset(
     {"bagkit.data.services", "bagkit.data.service_summaries", "bagkit.bag.service_calls"}
@@ -43,7 +43,7 @@ NO_CONDITION = frozenset({"bagkit.selection.conditions", "bagkit.decode.matcher"
 # leaves).
 NO_LEAVES = frozenset({"bagkit.decode.bulk", "bagkit.decode.direct"})
 
-DECODING = HEAVY | NO_ROSBAGS_TYPESYS
+DECODING = HEAVY | NO_ROSBAGS
 CASES = {
     "info": (["info", str(PLAIN_BAG)], HEAVY | NO_DECODER | {"numpy"}),
     "info with services": (["info", str(SERVICES_BAG)], HEAVY | NO_DECODER | {"numpy"}),

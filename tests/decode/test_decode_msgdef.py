@@ -14,13 +14,14 @@ import numpy as np
 import pytest
 from bagkit_runs import bagkit_in_process, bagkit_subprocess
 from random_messages import JAZZY, random_message
+from rosbags.interfaces import Nodetype as RosbagsNodetype
 from rosbags.typesys.base import normalize_fieldname
 
 from bagkit.bag import BagWriter, TopicInfo
 from bagkit.decode import MessageTypes, flatten_message
 from bagkit.decode.cdr import object_reader
 from bagkit.decode.layout import CdrLayout
-from bagkit.decode.msgdef import member_name
+from bagkit.decode.msgdef import Nodetype, member_name
 from bagkit.stats import summarize
 
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
@@ -137,6 +138,14 @@ def test_member_names_are_rosbags_attribute_names() -> None:
     names = [*keyword.kwlist, *keyword.softkwlist, "x", "class_", "data", "self", "type"]
     for name in names:
         assert member_name(name) == normalize_fieldname(name), name
+
+
+def test_node_kinds_are_numbered_as_rosbags_numbers_them() -> None:
+    """bagkit's definitions and rosbags' (its Jazzy types, its IDL parser's) mix."""
+    assert {k.name: int(k) for k in Nodetype} == {
+        k.name: int(k) for k in RosbagsNodetype if k.name in Nodetype.__members__
+    }
+    assert set(Nodetype.__members__) <= set(RosbagsNodetype.__members__)
 
 
 @pytest.mark.parametrize("little", [True, False])
