@@ -9,6 +9,13 @@ class BagkitError(Exception):
     exit_code: int = 2
 
 
+def not_read(bag: str, why: str, undone: str = "not read") -> str:
+    """``BAG: not read: why``, what every many-bag command says of a bag it cannot read
+    (docs/fleet.md; export: ``not exported``), the bag named once: a reader's error starts
+    with its path."""
+    return f"{bag}: {undone}: {why.removeprefix(f'{bag}: ')}"
+
+
 class OptionError(BagkitError):
     """A value of an options dataclass that cannot be: ``field`` names it as the library does
     (``snapshot.max_duration_ns``), so that the CLI can name its flag instead.

@@ -10,10 +10,13 @@
    operation (HEAD and listings included), and moto's CPU for each side. The same for
    BAGKIT_BENCH_STORAGE_MOTO_BAGS bags of BAGKIT_BENCH_STORAGE_MOTO_MB MB (default 16 of 32:
    camera images and an Imu, a realistic size at a count this machine holds).
-2. The same for BAGKIT_BENCH_STORAGE_LARGE_BAGS bags of BAGKIT_BENCH_STORAGE_LARGE_MB MB
+2. ``info`` of BAGKIT_BENCH_STORAGE_NAMED bags (default 100) named one by one by their URLs
+   (as ``bagkit info URL`` of each), as bag prefixes and as bare ``.mcap`` files: requests a
+   bag by operation, against downloading each and reading it locally.
+3. The same as 1. for BAGKIT_BENCH_STORAGE_LARGE_BAGS bags of BAGKIT_BENCH_STORAGE_LARGE_MB MB
    (default 9 of 256: the first opens the client, 8 are timed) on the tests' range-capable HTTP
    server (moto answers a range by reading the whole object), requests counted by the server.
-3. ``stats summary -t /gps/fix`` over 20 bags of Imu (100 Hz) + NavSatFix (1 Hz): bytes
+4. ``stats summary -t /gps/fix`` over 20 bags of Imu (100 Hz) + NavSatFix (1 Hz): bytes
    fetched against the chunks that hold /gps/fix (target <= 1.2x), values equal to the local
    read.
 
@@ -52,6 +55,7 @@ LARGE_MB = int(os.environ.get("BAGKIT_BENCH_STORAGE_LARGE_MB", "256"))
 STATS_BAGS = 20
 STATS_IMU_MESSAGES = int(os.environ.get("BAGKIT_BENCH_STORAGE_IMU", "50000"))
 FLOOR_REQUESTS = 400
+NAMED_BAGS = int(os.environ.get("BAGKIT_BENCH_STORAGE_NAMED", "100"))
 
 
 def summary_bytes(file: Path) -> int:
@@ -172,6 +176,57 @@ def _info_part(moto: Moto, scratch: Path) -> None:
         _info_against_download(moto, local, "moto_large", scratch, what)
         moto.fs.rm("bench/moto_large", recursive=True)
         shutil.rmtree(local)
+
+
+def _named_part(moto: Moto, scratch: Path) -> None:
+    """``info`` of bags named one by one by their URLs (as ``bagkit info URL`` of each): bag
+    prefixes and bare ``.mcap`` files (the nominal golden), REMOTE_READERS at a time, against
+    downloading each (s3fs's ``get``) and reading it locally; requests a bag by operation."""
+    from bagkit.bag.info import bag_info
+    from bagkit.fleet.execute import REMOTE_READERS
+    from bagkit.storage.range_file import fetched
+
+    fs = moto.fs
+    local = scratch / "named"
+    mcap = next(GOLDEN.glob("*.mcap"))
+    summary = summary_bytes(mcap)
+    (local / "bare").mkdir(parents=True)
+    for i in range(NAMED_BAGS):
+        shutil.copytree(GOLDEN, local / "prefix" / f"bag_{i:03d}", copy_function=os.link)
+        os.link(mcap, local / "bare" / f"bag_{i:03d}.mcap")
+    fs.put(str(local), "bench/", recursive=True)
+    for what, names in (
+        ("bag prefixes", [f"prefix/bag_{i:03d}" for i in range(NAMED_BAGS)]),
+        ("bare .mcap files", [f"bare/bag_{i:03d}.mcap" for i in range(NAMED_BAGS)]),
+    ):
+        sent, before = Counter(moto.bagkit.counts), fetched()[0]
+        started = time.perf_counter()
+        with ThreadPoolExecutor(REMOTE_READERS) as pool:
+            list(pool.map(bag_info, [f"s3://bench/named/{n}" for n in names]))
+        remote_s = time.perf_counter() - started
+        remote_requests = moto.bagkit.counts - sent
+        spent = (fetched()[0] - before) / NAMED_BAGS
+        target = scratch / "download" / "named"
+
+        def download(name: str, target: Path = target) -> None:
+            fs.get(f"bench/named/{name}", str(target / name), recursive=True)
+            bag_info(target / name)
+
+        sent = Counter(moto.peer.counts)
+        started = time.perf_counter()
+        with ThreadPoolExecutor(REMOTE_READERS) as pool:
+            list(pool.map(download, names))
+        download_s = time.perf_counter() - started
+        peer_requests = moto.peer.counts - sent
+        shutil.rmtree(target)
+        print(
+            f"  {NAMED_BAGS} {what} named one by one: info {remote_s:.2f} s, download + local "
+            f"info {download_s:.2f} s: {download_s / remote_s:.1f}x\n"
+            f"    info: {spent:,.0f} bytes a bag ({spent / summary:.2f}x the summary); "
+            f"requests a bag: info {per_bag(remote_requests, NAMED_BAGS)}; download "
+            f"{per_bag(peer_requests, NAMED_BAGS)}"
+        )
+    shutil.rmtree(local)
 
 
 def _large_part(scratch: Path) -> None:
@@ -331,6 +386,7 @@ def main() -> None:
         moto = Moto(server.pid, fs)
         _floor(moto)
         _info_part(moto, scratch)
+        _named_part(moto, scratch)
         _large_part(scratch)
         _stats_part(fs, scratch)
     finally:

@@ -258,6 +258,8 @@ class Decompression:
         self.problems = inner.problems
         self.has_summary = inner.has_summary
         self.compression = ",".join(k for k in ("zstd", inner.compression) if k)
+        self.mode = "message" if payloads else "file"
+        """rosbag2's compression mode (``metadata.yaml``'s ``compression_mode``)."""
         self.compressed_size = inner.compressed_size
         self.uncompressed_size = inner.uncompressed_size
         if temporary is not None:  # the file's own compression is the one said

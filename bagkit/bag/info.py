@@ -55,7 +55,10 @@ class BagInfo:
     """What ``bagkit info`` reports; ``to_dict()`` is its JSON.
 
     ``compression_ratio`` is uncompressed / compressed chunk bytes (1.0 without compression or
-    chunks); ``summary`` is False when a file had to be salvaged (no MCAP summary).
+    chunks; of the files in rosbag2's file compression); ``compression_format`` and
+    ``compression_mode`` are rosbag2's (``zstd``, ``file``/``message``; ``""`` when it did not
+    compress), ``chunk_compression`` the storage's own chunks' (``""`` for sqlite3);
+    ``summary`` is False when a file had to be salvaged (no MCAP summary).
     ``exact_rates`` is False when each topic's span came from the chunk indexes (a bag in
     storage, without ``exact_rates=True``): from the start of the first chunk holding the topic
     to the end of the last, which holds the true span, so each rate is a lower bound.
@@ -72,6 +75,9 @@ class BagInfo:
     topics: list[TopicSummary]
     compression: str
     compression_ratio: float
+    compression_format: str
+    compression_mode: str
+    chunk_compression: str
     summary: bool
     exact_rates: bool
     custom_data: dict[str, str]
@@ -123,6 +129,9 @@ def bag_info(
             topics=topics,
             compression=bag.compression,
             compression_ratio=uncompressed / compressed if compressed else 1.0,
+            compression_format="zstd" if bag.compression_mode else "",
+            compression_mode=bag.compression_mode,
+            chunk_compression=bag.chunk_compression,
             summary=bag.has_summary,
             exact_rates=exact or "mcap" not in bag.storage.split(","),
             custom_data=dict(bag.metadata.custom_data) if bag.metadata else {},

@@ -399,8 +399,26 @@ class BagReader:
 
     @property
     def compression(self) -> str:
-        """Chunk compressions used (``zstd``, ``lz4``, ``none``, comma-separated), or ``""``."""
+        """Chunk compressions used (``zstd``, ``lz4``, ``none``, comma-separated), or ``""``;
+        rosbag2's zstd of files or payloads among them (apart: :attr:`compression_mode`)."""
         kinds = {k for s in self._storage for k in s.compression.split(",") if k}
+        return ",".join(sorted(kinds))
+
+    @property
+    def compression_mode(self) -> str:
+        """rosbag2's own compression (zstd, ``--compression-mode``): ``file`` (``.zstd``
+        files), ``message`` (each payload), or ``""``."""
+        modes = {s.mode for s in self._storage if isinstance(s, Decompression)}
+        if any(f.name.endswith(COMPRESSED_STORAGE_SUFFIXES) for f in self.files):
+            modes.add("file")  # also a file in storage, decompressed while it was copied
+        return ",".join(sorted(modes))
+
+    @property
+    def chunk_compression(self) -> str:
+        """The compressions of the storage's own chunks (MCAP's, ROS 1's: ``zstd``, ``lz4``,
+        ``none``, comma-separated), or ``""`` (sqlite3), whatever rosbag2 compressed."""
+        stores = [s.inner if isinstance(s, Decompression) else s for s in self._storage]
+        kinds = {k for s in stores for k in s.compression.split(",") if k}
         return ",".join(sorted(kinds))
 
     @property

@@ -14,8 +14,9 @@ from bagkit.cli.common import (
     err_console,
     handle_errors,
     print_json,
+    warn,
 )
-from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers, fleet_run
+from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers, end_with_unread, fleet_run
 from bagkit.cli.selection_options import build_query
 from bagkit.cli.tables import Column, Table, print_table
 from bagkit.errors import BagkitError
@@ -76,7 +77,8 @@ def build(
     """Build or update a catalogue: bags unchanged since the last update are not reopened.
 
     With --events, the episodes of each named condition go to OUTPUT's .events.parquet
-    beside it (a bag is searched again when it changed or the condition did).
+    beside it (a bag is searched again when it changed or the condition did). A bag that
+    cannot be read gets a row saying why, a warning, and exit status 2.
 
     Example: bagkit catalog /data/flights -o flights.parquet
     --events gps_lost='/gps/fix: status.status < 0'
@@ -99,7 +101,8 @@ def _build(
     shown: Path,
 ) -> None:
     """Update the catalogue ``output`` (a local copy of ``shown`` when that is a URL)."""
-    from bagkit.fleet.catalog import complete_update, plan_update, write_catalog
+    from bagkit.errors import not_read
+    from bagkit.fleet.catalog import complete_update, plan_update, unreadable, write_catalog
     from bagkit.fleet.cluster import CATALOG_RATE
 
     plan = plan_update(roots, output)
@@ -120,6 +123,9 @@ def _build(
         frame = complete_update(plan, None)
     if changed:
         write_catalog(frame, output)
+    unread = unreadable(frame)  # described in the catalogue all the same (their problems)
+    for path, why in unread.items():
+        warn(not_read(path, why))
     err_console.print(
         f"{shown}: {len(plan.bags)} bags, {len(frame)} rows; {len(plan.to_open)} read, "
         f"{len(plan.bags) - len(plan.to_open)} unchanged, {plan.removed} removed",
@@ -127,6 +133,7 @@ def _build(
     )
     if named:
         _update_events(plan, named, output, workers, scheduler)
+    end_with_unread(len(unread), len(plan.bags))
 
 
 def _update_events(

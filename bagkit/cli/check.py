@@ -10,7 +10,7 @@ import typer
 
 from bagkit.cli import common
 from bagkit.cli.common import ReportFormat, bag_location, handle_errors, print_json, warn
-from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers, fleet_run
+from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers, end_with_unread, fleet_run
 from bagkit.cli.selection_options import End, Start, build_query
 from bagkit.cli.tables import Styled, print_line
 
@@ -115,6 +115,8 @@ def check(  # noqa: PLR0917 (typer maps parameters to options)
     else:
         for report in result.reports:
             _print(report)
+    unread = sum(report.error is not None for report in result.reports)
+    end_with_unread(unread, len(result.reports))  # each is in the report (docs/fleet.md)
     raise typer.Exit(result.exit_code)
 
 
@@ -132,7 +134,8 @@ def _write_files(result: CheckResult, junit: Path | None, html: Path | None) -> 
 def _print(report: HealthReport) -> None:
     # print_line: plain text into a pipe without importing rich, colours on a terminal.
     if report.error is not None:
-        print_line([f"{report.bag}: ", Styled("not read", "bold red"), f": {report.error}"])
+        why = report.error.removeprefix(f"{report.bag}: ")  # the bag named once
+        print_line([f"{report.bag}: ", Styled("not read", "bold red"), f": {why}"])
         return
     broken = report.broken
     verdict = (

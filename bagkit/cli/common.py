@@ -285,13 +285,12 @@ def fail(message: str, exit_code: int = 2) -> typer.Exit:
     return typer.Exit(exit_code)
 
 
-def none_decoded(counts: Mapping[str, int], exit_code: int = 2) -> typer.Exit:
+def none_decoded(counts: Mapping[str, int]) -> typer.Exit:
     """Say that the topics of ``counts`` (topic -> its messages) decoded none of them, in one
-    error line, and return the Exit to raise: a result without a requested topic is no
+    error line, and return the Exit (2) to raise: a result without a requested topic is no
     success (echo, stats, export, plot, find)."""
     return fail(
-        "; ".join(f"none of the {n} messages of {topic} decode" for topic, n in counts.items()),
-        exit_code,
+        "; ".join(f"none of the {n} messages of {topic} decode" for topic, n in counts.items())
     )
 
 

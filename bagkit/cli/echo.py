@@ -105,9 +105,8 @@ def echo(  # noqa: PLR0917 (typer maps parameters to options)
     distro: Distro = None,
 ) -> None:
     from bagkit.bag import BagReader
-    from bagkit.data.echo import action_topics, echo_action
+    from bagkit.data.echo import action_topics, echo_action, names_service
     from bagkit.data.echo import echo as read_messages
-    from bagkit.data.services import echo_calls, names_service
     from bagkit.selection.errors import SelectionError
 
     # Output is a stream: Ctrl-C ends it quietly, as a closed pipe (| head) does every command.
@@ -127,6 +126,8 @@ def echo(  # noqa: PLR0917 (typer maps parameters to options)
         if is_service:
             if fields:
                 raise SelectionError("--fields: a service prints whole calls (use --where)")
+            from bagkit.data.services import echo_calls  # services' modules: for a service only
+
             calls = echo_calls(bag, topic, limit=limit, query=query)
             if not _write(itertools.islice(calls, count), output, bag_start) and where:
                 warn(f"no call satisfies {where!r}")

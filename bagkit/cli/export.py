@@ -9,8 +9,8 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from bagkit.cli.common import bag_location, console, fail, handle_errors, none_decoded, warn
-from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers
+from bagkit.cli.common import bag_location, console, handle_errors, none_decoded, warn
+from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers, end_with_unread
 from bagkit.cli.progress import DelayedProgress
 from bagkit.cli.selection_options import Distro, End, Start, Where, build_query
 from bagkit.data.formats import ExportFormat
@@ -31,7 +31,8 @@ those whose type lacks its fields are left out).
 
 Several bags (several BAGs, a directory of bags, a glob, a listing file) run on a local Dask
 cluster (or --scheduler), each into OUT/<its path relative to the bags' common folder>; a bag
-that cannot be exported is reported and the exit status is 1. See docs/fleet.md.
+that cannot be exported is reported, and after the others the exit status is 2. See
+docs/fleet.md.
 
 Examples:
 
@@ -108,12 +109,11 @@ def export(  # noqa: PLR0917 (typer maps parameters to options)
             )
     undecoded = none_decoded_topics(reports)
     if undecoded:  # the topic's files hold no row: not an export of it (the rest is written)
-        raise none_decoded(undecoded, 1 if failed else 2)
+        raise none_decoded(undecoded)
     unread, lost = nothing_read_topics(reports)
     if unread:  # empty files because chunks were lost, not because the topic is empty
-        raise fail(str(nothing_read(unread, lost)), 1 if failed else 2)
-    if failed:
-        raise typer.Exit(1)
+        raise nothing_read(unread, lost)
+    end_with_unread(failed, len(reports) + failed, undone="exported")
 
 
 def _export_one(bag: Path, out: Path, options: dict[str, Any]) -> ExportReport:
@@ -139,6 +139,7 @@ def _export_many(
     """Export on a cluster and print each bag's report; return the reports and how many bags
     failed."""
     from bagkit.cli.fleet_options import fleet_run
+    from bagkit.errors import not_read
     from bagkit.fleet.cluster import EXPORT_RATE
     from bagkit.fleet.export import export_fleet
 
@@ -149,7 +150,7 @@ def _export_many(
     reports: list[ExportReport] = []
     for result in results:
         if result.report is None:
-            warn(f"{result.bag} not exported: {result.error}")
+            warn(not_read(result.bag, str(result.error), "not exported"))
             continue
         console.print(f"{result.bag} -> {shown(result.out)}", highlight=False, soft_wrap=True)
         _print_report(result.report, shown, indent="  ", where=where)

@@ -11,14 +11,13 @@ import typer
 from bagkit.cli import common
 from bagkit.cli.common import (
     bag_location,
-    fail,
     handle_errors,
     none_decoded,
     print_json,
     split_list,
     warn,
 )
-from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers, fleet_run
+from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers, end_with_unread, fleet_run
 from bagkit.cli.selection_options import Distro, End, Start, StateTopics, build_query
 from bagkit.compat import StrEnum
 
@@ -34,7 +33,8 @@ matched, and "from"/"to": seconds from the bag's start (ms, widened to hold the 
 condition is the --where language (docs/cli.md): fixed-layout topics are matched in bulk with
 numpy. Several bags run on a local Dask cluster (--workers, or --scheduler),
 each bag on one worker, with the same result as in one process. A bag without the topic has no
-episode; one that cannot be read is reported and the exit status is 1.
+episode; one that cannot be read is reported, and after the others' episodes, the exit
+status is 2 (docs/fleet.md).
 
 Examples:
 
@@ -123,12 +123,10 @@ def find(  # noqa: PLR0917 (typer maps parameters to options)
     else:
         _print_table(result)
     if result.none_decoded:  # "0 episodes" of a topic that could not be read is no answer
-        raise none_decoded({result.topic: result.messages}, 1 if result.unread else 2)
+        raise none_decoded({result.topic: result.messages})
     if result.nothing_read:  # nor is "0 episodes" of a topic whose chunks were lost
-        error = nothing_read([result.topic], result.lost)
-        raise fail(str(error), 1 if result.unread else 2)
-    if result.unread:
-        raise typer.Exit(1)
+        raise nothing_read([result.topic], result.lost)
+    end_with_unread(result.unread, len(bags))
 
 
 def _write_parquet(result: FindResult, out: Path | None) -> None:

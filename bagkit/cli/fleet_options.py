@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from bagkit.cli import common
-from bagkit.cli.common import note
+from bagkit.cli.common import fail, note
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -82,3 +82,12 @@ def fleet_run(
             return
         with BagProgress(bags, common.err_console, label=label, sizes=sizes) as done:
             yield client, done
+
+
+def end_with_unread(unread: int, of: int, what: str = "bags", undone: str = "read") -> None:
+    """The rule of every many-bag command (docs/fleet.md, "Bags that cannot be read"), once
+    the others' results are out: ``unread`` of ``of`` bags that could not be read (each
+    already a ``BAG: not read: why`` warning) end it with one error line and exit 2, as one
+    bag that cannot be read does."""
+    if unread:
+        raise fail(f"{unread} of {of} {what} could not be {undone}", 2)

@@ -17,6 +17,7 @@ from bagkit.cli.common import (
     handle_errors,
     note,
     option_flags,
+    warn,
 )
 from bagkit.cli.fleet_options import Scheduler, Workers
 from bagkit.cli.selection_options import End, Start, build_query
@@ -101,7 +102,8 @@ def _check(
     scheduler: str | None,
 ) -> None:
     """Check ``fixtures`` (local folders; None: every one under ./fixtures) and print."""
-    from bagkit.cli.fleet_options import fleet_run
+    from bagkit.cli.fleet_options import end_with_unread, fleet_run
+    from bagkit.errors import not_read
     from bagkit.fleet.cluster import LOCKSTEP_RATE
     from bagkit.regression.batch import check_fixtures
 
@@ -122,11 +124,16 @@ def _check(
             before_live=lambda job: note(f"{job[0].name}: live ..."),
         )
     for outcome in outcomes:
+        if outcome.error is not None:
+            warn(not_read(f"{outcome.fixture} ({outcome.mode})", outcome.error))
+            continue
         console.print(outcome.summary, highlight=False, markup=False, soft_wrap=True)
         if outcome.speedup is not None:
             console.print(f"  lockstep ({outcome.speedup:.0f}x real time)", highlight=False)
         if outcome.report is not None:
             console.print(f"  report: {outcome.report}", highlight=False, soft_wrap=True)
+    unread = {outcome.fixture for outcome in outcomes if outcome.error is not None}
+    end_with_unread(len(unread), len({outcome.fixture for outcome in outcomes}), "fixtures")
     if not all(outcome.passed for outcome in outcomes):
         raise typer.Exit(1)
 

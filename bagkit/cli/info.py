@@ -49,10 +49,11 @@ file (or rosbag2's .zstd of one), a ROS 1 .bag file, or a URL of one. Only summa
 indexes are read, so this is instant on multi-GB bags; a crashed recording without a summary
 is salvaged and what could not be read is reported.
 A folder of bags (a snapshot-mode output, a fleet folder) lists its bags, one line each, and
-their totals. A topic's rate is (count - 1) / (last - first log time), "-" below three
-messages or one second. A bag in storage (a URL) is read by range requests of its summary
-only: each topic's first and last time are then bounded by the chunks that hold them, and
-its rate, a lower bound, is marked "~" (--exact-rates reads the message indexes too).
+their totals (one that cannot be read is a warning, and exit status 2). A topic's rate is
+(count - 1) / (last - first log time), "-" below three messages or one second. A bag in
+storage (a URL) is read by range requests of its summary only: each topic's first and last
+time are then bounded by the chunks that hold them, and its rate, a lower bound, is marked
+"~" (--exact-rates reads the message indexes too).
 Services recorded from their introspection events (NAME/_service_event) are listed with their
 event, request and response counts and their latency (median, 99th percentile, maximum).
 Actions (NAME/_action/feedback and NAME/_action/status) are listed with the message counts of
@@ -188,6 +189,18 @@ def _print_actions(actions: list[ActionSummary]) -> None:
     print_table(table)
 
 
+def _compression_rows(info: BagInfo) -> list[tuple[str, str]]:
+    """``Compression``: rosbag2's (``zstd, file mode``), or else the chunks'; then the chunks'
+    apart (``Chunk compression``) when rosbag2 compressed an MCAP or ROS 1 file as well."""
+    ratio = f" (ratio {info.compression_ratio:.2f})"
+    chunks = info.chunk_compression
+    if not info.compression_mode:
+        return [("Compression", chunks + ratio if chunks and chunks != "none" else "none")]
+    shown = f"{info.compression_format}, {info.compression_mode} mode"
+    rows = [("Compression", shown + (ratio if info.compression_mode == "file" else ""))]
+    return [*rows, ("Chunk compression", chunks)] if chunks else rows
+
+
 def _print_table(info: BagInfo, verbose: bool) -> None:
     directory = Path(info.path) if Path(info.path).is_dir() else None
     files = [str(Path(f).relative_to(directory)) if directory else f for f in info.files]
@@ -196,15 +209,11 @@ def _print_table(info: BagInfo, verbose: bool) -> None:
         ("Bag size", _size(info.size_bytes)),
         ("Storage id", info.storage),
         ("Duration", f"{info.duration_s:.9f}s"),
-        ("Start", _time(info.start_ns)),
-        ("End", _time(info.end_ns)),
+        # No message, no time: a bag's 0 would show as 1970 (rosbag2's as 2262).
+        ("Start", _time(info.start_ns) if info.message_count else "-"),
+        ("End", _time(info.end_ns) if info.message_count else "-"),
         ("Messages", f"{info.message_count:,}"),
-        (
-            "Compression",
-            f"{info.compression} (ratio {info.compression_ratio:.2f})"
-            if info.compression and info.compression != "none"
-            else "none",
-        ),
+        *_compression_rows(info),
     ]
     if not info.summary:
         rows.append(("Summary", "missing: the recording did not finish, salvaged"))
@@ -234,7 +243,8 @@ def _print_table(info: BagInfo, verbose: bool) -> None:
 
 
 def _print_folder(folder: FolderInfo, output_format: ReportFormat) -> None:
-    """A folder of bags: one line per bag, then the totals; the unread as warnings."""
+    """A folder of bags: one line per bag, then the totals; the unread as the fleet rule
+    says (docs/fleet.md: a warning each, then one error line and exit 2)."""
     if output_format is ReportFormat.JSON:
         print_json(folder.to_dict())
     else:
@@ -258,8 +268,12 @@ def _print_folder(folder: FolderInfo, output_format: ReportFormat) -> None:
             _size(folder.size_bytes),
         )
         print_table(table)
+    from bagkit.cli.fleet_options import end_with_unread
+    from bagkit.errors import not_read
+
     for path, why in folder.unread.items():
-        warn(f"{path}: not read: {why}")
+        warn(not_read(path, why))
+    end_with_unread(len(folder.unread), len(folder.bags) + len(folder.unread))
 
 
 def _reading(bag: str) -> contextlib.AbstractContextManager[object]:

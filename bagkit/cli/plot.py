@@ -61,7 +61,7 @@ def plot(  # noqa: PLR0917 (typer maps parameters to options)
     where: Where = None,
     distro: Distro = None,
 ) -> None:
-    from bagkit.data.errors import DataError
+    from bagkit.data.errors import DataError, nothing_read
     from bagkit.data.series import read_series
 
     query = build_query(start=start, end=end, where=where)
@@ -73,9 +73,11 @@ def plot(  # noqa: PLR0917 (typer maps parameters to options)
         reading = read_series(bags, series, absolute=absolute, query=query)
     for problem in reading.problems:
         warn(problem)
-    found, lost = reading.series, reading.none_decoded()
+    found, lost, unread = reading.series, reading.none_decoded(), reading.nothing_read()
     if lost and not found:
         raise none_decoded(lost)
+    if unread and not found:  # "nothing in the window" made of lost chunks is no answer
+        raise nothing_read(unread, reading.lost)
     if not found and (start is not None or end is not None):
         console.print(f"0 series: nothing in the time window, {out} not written", highlight=False)
         return  # the window's warning said why: an empty result, as every command gives
@@ -96,3 +98,5 @@ def plot(  # noqa: PLR0917 (typer maps parameters to options)
     console.print(f"{len(found)} series -> {out}", highlight=False, soft_wrap=True)
     if lost:  # the other series are drawn; a requested one is not there
         raise none_decoded(lost)
+    if unread:
+        raise nothing_read(unread, reading.lost)

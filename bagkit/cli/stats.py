@@ -22,7 +22,7 @@ from bagkit.cli.common import (
     print_json,
     warn,
 )
-from bagkit.cli.fleet_options import Scheduler, Workers
+from bagkit.cli.fleet_options import Scheduler, Workers, end_with_unread
 from bagkit.cli.progress import DelayedProgress
 from bagkit.cli.selection_options import Distro, End, Start, Where, build_query
 from bagkit.cli.stats_options import Bulk, Fields, Format, Inputs, Topics
@@ -95,16 +95,18 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
     lost = {t.topic: t.count for t in result.topics if t.undecodable and t.undecodable == t.count}
     if lost:  # a topic none of whose messages decode: not a summary of it
         raise none_decoded(lost)
+    end_with_unread(len(result.unread), len(bags))
 
 
 def _service_latencies(bags: list[Path], topics: set[str]) -> list[dict[str, Any]]:
     """Per service whose event topic was summarized: its call latency (count, p50, p99, max
     in seconds), from the whole bag (calls are paired across the window's edges)."""
-    from bagkit.data.service_summaries import service_summaries
     from bagkit.selection.services import is_service_event_topic
 
     if not any(is_service_event_topic(t) for t in topics):
         return []
+    from bagkit.data.service_summaries import service_summaries  # a bag with services only
+
     found = []
     for bag in bags:
         for service in service_summaries(bag):
@@ -132,14 +134,15 @@ def _service_latencies(bags: list[Path], topics: set[str]) -> list[dict[str, Any
 def _latency_rows(bags: list[Path], topics: set[str]) -> dict[str, FieldStats]:
     """Per summarized event topic, CSV's ``latency_s`` row: the latency (s) of the service's
     answered calls, pooled over the bags (the table and JSON give p50/p99/max per bag)."""
-    import numpy as np
-
-    from bagkit.data.services import call_latencies
     from bagkit.selection.services import is_service_event_topic
-    from bagkit.stats import value_stats
 
     if not any(is_service_event_topic(t) for t in topics):
         return {}
+    import numpy as np
+
+    from bagkit.data.services import call_latencies  # a bag with services only
+    from bagkit.stats import value_stats
+
     pooled: dict[str, list[int]] = {}
     for bag in bags:
         for topic, latencies in call_latencies(bag).items():

@@ -16,14 +16,16 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import yaml
-from rosbags.interfaces import Nodetype
-from rosbags.typesys.base import normalize_fieldname
-from rosbags.typesys.store import Typestore
 
 from bagkit.bag import BagReader
-from bagkit.data.errors import DataLossWarning, UndecodableTopicError, nothing_read
+from bagkit.data.errors import (
+    DataLossWarning,
+    UndecodableTopicError,
+    could_have_lost,
+    nothing_read,
+)
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
-from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER
+from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER, Nodetype, TypeDefinitions, member_name
 from bagkit.selection import intervals
 from bagkit.selection.actions import action_part_topics
 from bagkit.selection.errors import EmptyWindowWarning
@@ -125,7 +127,7 @@ def echo(
             if on_failure is None:
                 raise DecodeError(matcher.problem)
             on_failure(matcher.problem)
-        if reader.problems and not done:  # nothing to show, and chunks were lost
+        if not done and could_have_lost(reader, topic):  # nothing to show, chunks were lost
             raise nothing_read([topic], reader.problems)
         for problem in reader.problems:
             warnings.warn(f"{bag}: {problem}", DataLossWarning, stacklevel=2)
@@ -137,6 +139,17 @@ def action_topics(reader: BagReader, name: str) -> list[str]:
     if absolute_topic_name(name) in {absolute_topic_name(t) for t in reader.topics}:
         return []
     return action_part_topics(name, ((t, i.type) for t, i in reader.topics.items()))
+
+
+def names_service(reader: BagReader, name: str) -> bool:
+    """Whether ``name`` is a service of an open bag and not one of its topics (``echo``'s
+    choice)."""
+    if absolute_topic_name(name) in {absolute_topic_name(t) for t in reader.topics}:
+        return False
+    # The service modules for a name that is no topic only: echo of a topic starts without.
+    from bagkit.data.service_summaries import find_service
+
+    return find_service(reader, name) is not None
 
 
 def echo_action(
@@ -180,15 +193,15 @@ def _converter(  # noqa: PLR0917 (private, called once)
     return lambda data: _message(decode(data), store, canonical, limit)
 
 
-def _message(msg: Any, store: Typestore, typename: str, limit: int | None) -> Plain:
+def _message(msg: Any, store: TypeDefinitions, typename: str, limit: int | None) -> Plain:
     return {
-        name: _field(getattr(msg, normalize_fieldname(name)), desc, store, limit)
+        name: _field(getattr(msg, member_name(name)), desc, store, limit)
         for name, desc in store.fielddefs[typename][1]
         if name != EMPTY_STRUCT_MEMBER[0]  # CDR's stand-in, not a field of the .msg
     }
 
 
-def _field(value: Any, desc: Any, store: Typestore, limit: int | None) -> Any:
+def _field(value: Any, desc: Any, store: TypeDefinitions, limit: int | None) -> Any:
     kind, rest = desc
     if kind == Nodetype.BASE:
         return _scalar(value, rest[0])

@@ -3,9 +3,13 @@
 from __future__ import annotations
 
 from collections.abc import Iterable
+from typing import TYPE_CHECKING
 
 from bagkit.errors import BagkitError
 from bagkit.selection.errors import UnknownFieldError, UnknownTopicError
+
+if TYPE_CHECKING:
+    from bagkit.bag import BagReader
 
 __all__ = [
     "DataError",
@@ -13,6 +17,7 @@ __all__ = [
     "UndecodableTopicError",
     "UnknownFieldError",
     "UnknownTopicError",
+    "could_have_lost",
     "nothing_read",
 ]
 
@@ -36,3 +41,11 @@ def nothing_read(topics: Iterable[str], lost: Iterable[str]) -> DataError:
     return DataError(
         f"no message of {', '.join(topics)} could be read ({'; '.join(dict.fromkeys(lost))})"
     )
+
+
+def could_have_lost(reader: BagReader, topic: str) -> bool:
+    """Whether messages of ``topic`` may be among what ``reader`` lost so far: parts of the bag
+    were lost and the bag does not say the topic has none (its summary counts none: rosbag2's
+    /parameter_events, often; a salvaged file's counts are only what could be read)."""
+    said_empty = reader.has_summary and not reader.topic_counts.get(topic, 0)
+    return bool(reader.problems) and not said_empty

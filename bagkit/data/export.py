@@ -22,7 +22,7 @@ import pyarrow.csv as pa_csv
 import pyarrow.parquet as pq
 
 from bagkit.bag import BagReader
-from bagkit.data.errors import DataError
+from bagkit.data.errors import DataError, could_have_lost
 from bagkit.data.formats import ExportFormat
 from bagkit.data.scan import Scan, plan_scan
 from bagkit.selection.errors import EmptyWindowWarning
@@ -50,6 +50,8 @@ class ExportReport:
         messages: topic -> its messages read (in the window, before the condition kept some).
         undecodable: topic -> those of them that did not decode (not in the rows).
         lost: the parts of the bag that could not be read (damaged chunks; in ``problems``).
+        losing: the topics whose messages may be among them
+            (:func:`~bagkit.data.errors.could_have_lost`).
     """
 
     files: dict[str, list[Path]] = field(default_factory=dict)
@@ -59,6 +61,7 @@ class ExportReport:
     messages: dict[str, int] = field(default_factory=dict)
     undecodable: dict[str, int] = field(default_factory=dict)
     lost: list[str] = field(default_factory=list)
+    losing: list[str] = field(default_factory=list)
 
 
 def none_decoded_topics(reports: Iterable[ExportReport]) -> dict[str, int]:
@@ -74,14 +77,16 @@ def none_decoded_topics(reports: Iterable[ExportReport]) -> dict[str, int]:
 
 def nothing_read_topics(reports: Iterable[ExportReport]) -> tuple[list[str], list[str]]:
     """(topics, what was lost): the topics exported from ``reports`` (one bag's, or a fleet's)
-    no message of which was read in any, when parts of a bag were lost; none when nothing was
-    lost (an empty topic, a window without its messages: empty files are then the answer)."""
+    no message of which was read in any, when a bag lost parts that could have held some;
+    none else (an empty topic, a window without its messages: empty files are the answer)."""
     reports = list(reports)
-    lost = [problem for report in reports for problem in report.lost]
     read: Counter[str] = Counter()
+    losing: set[str] = set()
     for report in reports:
         read.update(report.messages)
-    return ([t for t, n in read.items() if not n] if lost else []), lost
+        losing.update(report.losing)
+    lost = [problem for report in reports for problem in report.lost]
+    return [t for t, n in read.items() if not n and t in losing], lost
 
 
 def topic_path(out: Path, topic: str, suffix: str) -> Path:
@@ -136,6 +141,7 @@ def export(
         _write(scan, sinks, total, progress)
         report.problems = scan.problems
         report.lost = list(reader.problems)
+        report.losing = [t for t in scan.topics if could_have_lost(reader, t)]
     for topic, sink in sinks.items():
         report.files[topic] = sink.files
         report.rows[topic] = sink.rows

@@ -13,7 +13,7 @@ import numpy as np
 
 from bagkit.bag import BagReader
 from bagkit.bag.reader import bag_path
-from bagkit.data.errors import DataError, UndecodableTopicError
+from bagkit.data.errors import DataError, UndecodableTopicError, could_have_lost
 from bagkit.data.scan import plan_scan
 from bagkit.data.units import field_unit
 from bagkit.decode import MessageTypes
@@ -77,6 +77,18 @@ class SeriesReading:
     """(bag label, topic) -> its messages read (in the window, before the condition)."""
     undecodable: dict[tuple[str, str], int] = field(default_factory=dict)
     """(bag label, topic) -> those of them that did not decode (not in the series)."""
+    lost: list[str] = field(default_factory=list)
+    """The parts of the bags that could not be read (damaged chunks; in ``problems`` too)."""
+    losing: set[str] = field(default_factory=set)
+    """The topics whose messages may be among them (:func:`could_have_lost`)."""
+
+    def nothing_read(self) -> list[str]:
+        """The topics no message of which was read in any bag, when a bag lost parts that
+        could have held some (:func:`~bagkit.data.errors.nothing_read`)."""
+        read: Counter[str] = Counter()
+        for (_, topic), count in self.messages.items():
+            read[topic] += count
+        return [t for t, n in read.items() if not n and t in self.losing]
 
     def none_decoded(self) -> dict[str, int]:
         """Topic -> its messages, for the topics that had messages in the bags and decoded
@@ -138,6 +150,7 @@ def read_series(
                         reading,
                     )
                 )
+            reading.lost.extend(f"{label}: {problem}" for problem in reader.problems)
     reading.series = [s for found in per_spec for s in found]
     reading.problems = list(dict.fromkeys(reading.problems))
     return reading
@@ -166,6 +179,8 @@ def _topic_series(  # noqa: PLR0917 (private, called once)
             kind = "a variable-length sequence" if leaf.pooled else "a string"
             raise DataError(f"{topic}:{leaf.path} is {kind}, not a number over time")
     batches = [batch for _, batch in scan.batches() if batch.num_rows]
+    if could_have_lost(reader, topic):
+        reading.losing.add(topic)
     key = (label, topic)
     reading.messages[key] = columns.messages
     # Another spec of the topic read other fields: the topic decoded something if one did.

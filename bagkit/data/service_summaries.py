@@ -65,6 +65,15 @@ def service_topics(reader: BagReader) -> dict[str, str]:
     }
 
 
+def find_service(reader: BagReader, name: str) -> str | None:
+    """The event topic of service ``name`` (``/x`` or ``/x/_service_event``), None if absent."""
+    wanted = absolute_topic_name(name)
+    topics = service_topics(reader)
+    if wanted in topics:
+        return topics[wanted]
+    return next((t for t in topics.values() if absolute_topic_name(t) == wanted), None)
+
+
 def service_summaries(bag: str | Path) -> list[ServiceSummary]:
     """Every service of ``bag`` with its counts and latency; undecodable ones are left out."""
     summaries = []

@@ -24,21 +24,12 @@ from bagkit.bag.service_calls import (
 from bagkit.data.call_selection import call_filter
 from bagkit.data.echo import Plain
 from bagkit.data.errors import UndecodableTopicError
-from bagkit.data.service_summaries import read_events, service_topics
+from bagkit.data.service_summaries import find_service, read_events, service_topics
 from bagkit.decode import DecodeError, MessageTypes
 from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER
 from bagkit.selection.query import Query
 from bagkit.selection.services import service_name
 from bagkit.selection.topics import absolute_topic_name
-
-
-def find_service(reader: BagReader, name: str) -> str | None:
-    """The event topic of service ``name`` (``/x`` or ``/x/_service_event``), None if absent."""
-    wanted = absolute_topic_name(name)
-    topics = service_topics(reader)
-    if wanted in topics:
-        return topics[wanted]
-    return next((t for t in topics.values() if absolute_topic_name(t) == wanted), None)
 
 
 def call_latencies(bag: str | Path) -> dict[str, list[int]]:
@@ -115,13 +106,6 @@ def echo_calls(
             "latency_s": None if latency is None else latency / 1e9,
             "latency_side": call.latency_side,
         }
-
-
-def names_service(reader: BagReader, name: str) -> bool:
-    """Whether ``name`` is a service of an open bag and not one of its topics (``echo``'s
-    choice)."""
-    topics = {absolute_topic_name(t) for t in reader.topics}
-    return absolute_topic_name(name) not in topics and find_service(reader, name) is not None
 
 
 def plain_message(message: Any, limit: int | None = None) -> Any:

@@ -10,8 +10,7 @@ from __future__ import annotations
 import re
 from collections.abc import Mapping
 
-from rosbags.interfaces import Nodetype
-from rosbags.typesys.store import Typestore
+from bagkit.decode.msgdef import Nodetype, TypeDefinitions
 
 # (type, field) -> unit, for the leaves under that field.
 TYPE_UNITS: dict[tuple[str, str], str] = {
@@ -58,7 +57,7 @@ _FIELD_LINE = re.compile(r"^\s*[\w/]+(?:\[[^\]]*\])?\s+(\w+)\s*(?:=[^#]*)?#(.*)$
 
 
 def field_unit(
-    typestore: Typestore, typename: str, path: str, definitions: Mapping[str, str]
+    typestore: TypeDefinitions, typename: str, path: str, definitions: Mapping[str, str]
 ) -> str:
     """The unit of leaf ``path`` of ``typename``, or ``""`` when nothing says."""
     owners = _owners(typestore, typename, path)
@@ -72,7 +71,7 @@ def field_unit(
     return ""
 
 
-def _owners(typestore: Typestore, typename: str, path: str) -> list[tuple[str, str]]:
+def _owners(typestore: TypeDefinitions, typename: str, path: str) -> list[tuple[str, str]]:
     """(message type, field name) from the outermost to the leaf along ``path``."""
     owners: list[tuple[str, str]] = []
     current: str | None = typename

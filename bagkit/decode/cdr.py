@@ -1,15 +1,18 @@
-"""Message objects read from CDR for the types rosbags cannot decode: those with wide strings.
+"""Message objects read from CDR: bagkit's decoder of every type into objects.
 
-rosbags' generated (de)serializers have no ``wstring``. ROS 2 (rmw_fastrtps) writes one as a
-``uint32`` count of UTF-16 code units, then each unit widened to 4 bytes (``wchar_t``), with no
-terminator; its size estimate, which ``rclpy.serialization.serialize_message`` returns as the
-payload, counts 4 bytes more per wide string (a terminator it never writes), so a payload may
-end up to 4 bytes per wide string after the message.
+Generating one type's reader here costs a fraction of rosbags' code generation (15 functions
+a type, of which a decoder uses one) and reads faster too (benchmarks/README.md, "Start-up,
+sixth pass"); rosbags' (de)serializers also have no ``wstring``. ROS 2 (rmw_fastrtps) writes
+one as a ``uint32`` count of UTF-16 code units, then each unit widened to 4 bytes
+(``wchar_t``), with no terminator; its size estimate, which
+``rclpy.serialization.serialize_message`` returns as the payload, counts 4 bytes more per wide
+string (a terminator it never writes), so a payload may end up to 4 bytes per wide string
+after the message.
 
-:func:`object_reader` generates a reader per type (both byte orders) that builds the same
-objects as rosbags' would: the typestore's classes, numpy arrays for arrays and sequences of
-numbers, lists for the rest. The generated source holds no name from the definition: fields are
-passed to the class by position and nested types' readers are looked up in a table.
+:func:`object_reader` generates a reader per type and byte order that builds the same objects
+as rosbags' would: the typestore's classes, numpy arrays for arrays and sequences of numbers,
+lists for the rest. The generated source holds no name from the definition: fields are passed
+to the class by position and nested types' readers are looked up in a table.
 """
 
 from __future__ import annotations
@@ -19,11 +22,13 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-from rosbags.interfaces import Nodetype
-from rosbags.typesys.store import Typestore
+
+from bagkit.decode.msgdef import Nodetype, TypeDefinitions
 
 # (object, position after it, wide strings read) from (payload after the header, position).
 ObjectReader = Callable[[Any, int], tuple[object, int, int]]
+# (object, its end) from a payload after its header.
+PayloadReader = Callable[[Any], tuple[object, int]]
 
 # struct code of each primitive, one place for both decoders (direct reads ``byte`` as uint8).
 STRUCT_CODES: dict[str, str] = {
@@ -65,7 +70,7 @@ def wide_string(data: Any, offset: int, count: int, order: str) -> str:
     return units.astype("<u2").tobytes().decode("utf-16-le")
 
 
-def has_wide_strings(typestore: Typestore, typename: str) -> bool:
+def has_wide_strings(typestore: TypeDefinitions, typename: str) -> bool:
     """Whether ``typename`` or a type it uses has a ``wstring``."""
     todo, seen = [typename], {typename}
     while todo:
@@ -79,7 +84,7 @@ def has_wide_strings(typestore: Typestore, typename: str) -> bool:
     return False
 
 
-def object_reader(typestore: Typestore, typename: str, *, little: bool) -> ObjectReader:
+def object_reader(typestore: TypeDefinitions, typename: str, *, little: bool) -> ObjectReader:
     """The reader of ``typename`` payloads (after the 4-byte header) in one byte order.
 
     A reader raises ValueError, IndexError or struct.error on bytes that do not match.
@@ -96,16 +101,14 @@ def object_reader(typestore: Typestore, typename: str, *, little: bool) -> Objec
     return build(typename)
 
 
-def payload_reader(
-    typestore: Typestore, typename: str, *, little: bool
-) -> Callable[[Any, int, Any, Any], tuple[object, int]]:
-    """:func:`object_reader` called as rosbags' deserializers are (``cls`` and ``typestore``
-    ignored), the end it returns moved past rclpy's 4 bytes per wide string when present:
-    a caller checks trailing bytes as for any CDR payload."""
+def payload_reader(typestore: TypeDefinitions, typename: str, *, little: bool) -> PayloadReader:
+    """:func:`object_reader` of a whole payload (after its 4-byte header), the end it returns
+    moved past rclpy's 4 bytes per wide string when present: a caller checks trailing bytes as
+    for any CDR payload."""
     read = object_reader(typestore, typename, little=little)
 
-    def deserialize(data: Any, pos: int, _cls: Any, _store: Any) -> tuple[object, int]:
-        message, end, wide = read(data, pos)
+    def deserialize(data: Any) -> tuple[object, int]:
+        message, end, wide = read(data, 0)
         return message, end + min(WIDE_UNIT * wide, max(len(data) - end, 0))
 
     return deserialize
@@ -116,7 +119,7 @@ class _Codegen:
     wide strings read, ``v`` the field values."""
 
     def __init__(
-        self, typestore: Typestore, order: str, build: Callable[[str], ObjectReader]
+        self, typestore: TypeDefinitions, order: str, build: Callable[[str], ObjectReader]
     ) -> None:
         self.typestore = typestore
         self.order = order

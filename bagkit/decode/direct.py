@@ -20,13 +20,12 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
-from rosbags.interfaces import Nodetype
-from rosbags.typesys.store import Typestore
 
 from bagkit.decode.cdr import STRUCT_CODES, WIDE_UNIT, wide_string
 from bagkit.decode.errors import DecodeError
 from bagkit.decode.flatten import FlatValue
 from bagkit.decode.layout import PRIMITIVE_FORMATS, U32
+from bagkit.decode.msgdef import Nodetype, TypeDefinitions
 from bagkit.decode.typegraph import check_registered
 
 _DTYPES = {name: np.dtype(fmt) for name, fmt in PRIMITIVE_FORMATS.items()}
@@ -41,7 +40,7 @@ ValueReader = Callable[[bytes | memoryview], list[FlatValue]]
 
 
 def value_reader(
-    typestore: Typestore,
+    typestore: TypeDefinitions,
     typename: str,
     paths: Sequence[str],
     fallback: Callable[[bytes | memoryview], list[FlatValue]],
@@ -90,7 +89,7 @@ class _Codegen:
     """Emits the statements of one reader: ``p`` is the position after the 4-byte header, ``n``
     the size of what follows it."""
 
-    def __init__(self, typestore: Typestore, wanted: frozenset[str]) -> None:
+    def __init__(self, typestore: TypeDefinitions, wanted: frozenset[str]) -> None:
         self.typestore = typestore
         self.wanted = wanted
         self.lines: list[str] = []
@@ -267,7 +266,7 @@ class _Codegen:
 
 
 def _generate(
-    typestore: Typestore, typename: str, paths: tuple[str, ...]
+    typestore: TypeDefinitions, typename: str, paths: tuple[str, ...]
 ) -> Callable[[bytes | memoryview], tuple[list[FlatValue], int]]:
     gen = _Codegen(typestore, frozenset(paths))
     gen.struct(typename, "", 1, False)

@@ -15,13 +15,12 @@ from enum import Enum
 from pathlib import Path
 from typing import Any
 
-from rosbags.interfaces import Nodetype
-
 from bagkit.bag.definitions import canonical_type_name, message_definition, type_description_hash
 from bagkit.bag.errors import UnknownMessageTypeError
 from bagkit.bag.messages import TopicInfo
 from bagkit.bag.reader import BagReader
 from bagkit.decode.message_types import MessageTypes
+from bagkit.decode.msgdef import Nodetype
 
 # Nesting deeper than this is reported as one change rather than walked (hostile definitions).
 MAX_DEPTH = 32

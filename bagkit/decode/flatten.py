@@ -15,10 +15,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from rosbags.interfaces import Nodetype
-from rosbags.typesys.base import normalize_fieldname
-from rosbags.typesys.store import Typestore
 
+from bagkit.decode.msgdef import Nodetype, TypeDefinitions, member_name
 from bagkit.decode.typegraph import check_registered
 
 STRING_TYPES = frozenset({"string", "wstring"})
@@ -47,7 +45,7 @@ class LeafField:
         return self.base not in STRING_TYPES
 
 
-def leaf_fields(typestore: Typestore, typename: str) -> list[LeafField]:
+def leaf_fields(typestore: TypeDefinitions, typename: str) -> list[LeafField]:
     """Every leaf of ``typename`` in definition order, from the schema (no message needed).
 
     Raises:
@@ -60,12 +58,12 @@ def leaf_fields(typestore: Typestore, typename: str) -> list[LeafField]:
 
 # What is derived from a type is cached per typestore (a type's fields never change once
 # registered) and goes away with it: each summary or comparison builds its own typestore.
-_CACHE: weakref.WeakKeyDictionary[Typestore, dict[tuple[Any, ...], Any]] = (
+_CACHE: weakref.WeakKeyDictionary[TypeDefinitions, dict[tuple[Any, ...], Any]] = (
     weakref.WeakKeyDictionary()
 )
 
 
-def _cached(typestore: Typestore, key: tuple[Any, ...], make: Callable[[], Any]) -> Any:
+def _cached(typestore: TypeDefinitions, key: tuple[Any, ...], make: Callable[[], Any]) -> Any:
     per_store = _CACHE.get(typestore)
     if per_store is None:
         per_store = _CACHE[typestore] = {}
@@ -75,7 +73,7 @@ def _cached(typestore: Typestore, key: tuple[Any, ...], make: Callable[[], Any])
     return value
 
 
-def _leaf_fields(typestore: Typestore, typename: str) -> tuple[LeafField, ...]:
+def _leaf_fields(typestore: TypeDefinitions, typename: str) -> tuple[LeafField, ...]:
     def make() -> tuple[LeafField, ...]:
         leaves: list[LeafField] = []
         for name, desc in typestore.fielddefs[typename][1]:
@@ -87,7 +85,7 @@ def _leaf_fields(typestore: Typestore, typename: str) -> tuple[LeafField, ...]:
 
 
 def _walk_desc(
-    typestore: Typestore, path: str, desc: Any, *, pooled: bool, out: list[LeafField]
+    typestore: TypeDefinitions, path: str, desc: Any, *, pooled: bool, out: list[LeafField]
 ) -> None:
     kind, rest = desc
     if kind == Nodetype.BASE:
@@ -104,7 +102,7 @@ def _walk_desc(
 
 
 def flatten_message(
-    msg: object, typestore: Typestore, *, numeric_only: bool = False
+    msg: object, typestore: TypeDefinitions, *, numeric_only: bool = False
 ) -> dict[str, FlatValue]:
     """Flatten a rosbags message object into ``{path: value}``, in definition order.
 
@@ -130,7 +128,7 @@ def _as_list(value: Any) -> list[Any]:
 
 
 def field_getter(
-    typestore: Typestore, typename: str, paths: tuple[str, ...]
+    typestore: TypeDefinitions, typename: str, paths: tuple[str, ...]
 ) -> Callable[[object], list[FlatValue]]:
     """A function returning the values of ``paths`` of a ``typename`` message, in that order.
 
@@ -151,7 +149,7 @@ def field_getter(
 # Flattening walks the type once, here, and generates a function of attribute reads and list
 # comprehensions: a recursive walk per message costs several times rosbags' deserialization.
 def _generate(
-    typestore: Typestore, typename: str, paths: tuple[str, ...] | None, *, numeric_only: bool
+    typestore: TypeDefinitions, typename: str, paths: tuple[str, ...] | None, *, numeric_only: bool
 ) -> Any:
     """``flatten(m) -> dict`` (all leaves when ``paths`` is None) or ``get(m) -> list``."""
     check_registered(typestore, typename)
@@ -205,7 +203,7 @@ def _splat(expressions: list[str], every: list[str]) -> list[str]:
 class _Codegen:
     """Builds the body of a flattening function: prelude statements and (path, expression)."""
 
-    def __init__(self, typestore: Typestore, numeric_only: bool) -> None:
+    def __init__(self, typestore: TypeDefinitions, numeric_only: bool) -> None:
         self.typestore = typestore
         self.numeric_only = numeric_only
         self.prelude: list[str] = []
@@ -218,7 +216,7 @@ class _Codegen:
 
     def struct(self, expr: str, typename: str, prefix: str, loops: list[str]) -> None:
         for name, desc in self.typestore.fielddefs[typename][1]:
-            attr = f"{expr}.{normalize_fieldname(name)}"
+            attr = f"{expr}.{member_name(name)}"
             self.value(attr, desc, f"{prefix}{name}", loops)
 
     def _emit(self, path: str, expr: str, loops: list[str]) -> None:

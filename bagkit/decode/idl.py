@@ -14,12 +14,11 @@ import functools
 import re
 from typing import Any
 
-from rosbags.interfaces import Nodetype
 from rosbags.typesys import get_types_from_idl
 
 from bagkit.bag.definitions import PRIMITIVES
 from bagkit.decode.errors import DefinitionError
-from bagkit.decode.msgdef import TypeDef, check_identifier, type_name
+from bagkit.decode.msgdef import Nodetype, TypeDef, check_identifier, type_name
 
 # rosbags' parser takes time and stack in proportion to the text: a generated IDL file of a
 # large message is a few KiB, 256 KiB is far beyond any.

@@ -14,10 +14,9 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
-from rosbags.interfaces import Nodetype
-from rosbags.typesys.store import Typestore
 
 from bagkit.decode.errors import DecodeError
+from bagkit.decode.msgdef import Nodetype, TypeDefinitions
 from bagkit.decode.typegraph import check_registered
 
 ENCAPSULATION_SIZE = 4
@@ -131,7 +130,7 @@ class CdrLayout:
     )
 
     @classmethod
-    def of(cls, typestore: Typestore, typename: str) -> CdrLayout | None:
+    def of(cls, typestore: TypeDefinitions, typename: str) -> CdrLayout | None:
         """The layout of ``typename``, or None when it has parts bulk decoding cannot place.
 
         Sequences of messages, sequences of strings and wide strings vary too freely to be
@@ -292,7 +291,7 @@ def _align(pos: int, size: int) -> int:
     return (pos + size - 1) // size * size
 
 
-def _collect(typestore: Typestore, path: str, desc: tuple, slots: list[Slot]) -> bool:
+def _collect(typestore: TypeDefinitions, path: str, desc: tuple, slots: list[Slot]) -> bool:
     kind, rest = desc
     if kind == Nodetype.BASE:
         base = rest[0]

@@ -10,7 +10,7 @@ type is registered on its own so that one unparseable definition only costs its 
 Two gaps are filled: service-event topics (``pkg/srv/Name_Event``) store the raw ``.srv`` text,
 from which the event type is rebuilt as rosidl generates it; and older ``.db3`` bags store no
 definitions (or incomplete ones), for which rosbags' own Jazzy types are used where it has them.
-Types with wide strings, which rosbags' deserializers lack, are read by :mod:`bagkit.decode.cdr`.
+Messages are decoded into objects by :mod:`bagkit.decode.cdr`'s readers (wide strings too).
 """
 
 from __future__ import annotations
@@ -21,20 +21,17 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from rosbags.interfaces import Nodetype
-from rosbags.typesys import Stores, get_typestore
-from rosbags.typesys.base import normalize_fieldname
-from rosbags.typesys.store import Typestore
-
 from bagkit.bag.definitions import canonical_type_name
-from bagkit.decode.cdr import has_wide_strings, payload_reader
+from bagkit.decode.cdr import PayloadReader, payload_reader
 from bagkit.decode.errors import DecodeError, DefinitionError, SchemaError
 from bagkit.decode.flatten import FlatValue, field_getter
-from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER, TypeDef
+from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER, Nodetype, TypeDef, member_name
 from bagkit.decode.stored import COMMON_SERVICES, parse_stored
 from bagkit.decode.typegraph import check_type_graph
 
 if TYPE_CHECKING:
+    from rosbags.typesys.store import Typestore
+
     from bagkit.bag.reader import BagReader
     from bagkit.decode.direct import ValueReader
 
@@ -42,7 +39,7 @@ if TYPE_CHECKING:
 class _MessageClasses(dict[str, type]):
     """Type name -> message class, each made on first lookup from the typestore's definitions.
 
-    Only decoding into objects needs the classes (rosbags' deserializers and converters look
+    Only decoding into objects needs the classes (bagkit's readers and rosbags' converters look
     them up here); the bulk and direct readers never do, and making one costs about 1 ms, more
     than a small bag's reading for a bag of twenty types.
     """
@@ -65,11 +62,15 @@ class _MessageClasses(dict[str, type]):
         return self[typename] if typename in self._fielddefs else default
 
 
-def _typestore() -> Typestore:
-    """An empty typestore whose message classes are made on first use."""
-    store = Typestore()
-    store.types = _MessageClasses(store.fielddefs)
-    return store
+class DefinitionStore:
+    """What bagkit needs of a rosbags typestore: definitions by type name and their message
+    classes, made on first use. rosbags' own (:meth:`MessageTypes.rosbags_typestore`) is made
+    only to encode: importing it costs every command that decodes (benchmarks/README.md,
+    "Start-up, sixth pass")."""
+
+    def __init__(self) -> None:
+        self.fielddefs: dict[str, TypeDef] = {}
+        self.types = _MessageClasses(self.fielddefs)
 
 
 @dataclass(slots=True)
@@ -77,7 +78,7 @@ class MessageTypes:
     """The message types of one or more bags, decodable from their stored definitions.
 
     Attributes:
-        typestore: the rosbags typestore holding every type that parsed.
+        typestore: every type that parsed (see :meth:`rosbags_typestore` to encode).
         problems: bag type name -> why it cannot be decoded.
 
     Type names are looked up in one typestore; a topic whose schema holds another text for its
@@ -85,11 +86,14 @@ class MessageTypes:
     ``types.for_topic(topic)``.
     """
 
-    typestore: Typestore = field(default_factory=_typestore)
+    typestore: DefinitionStore = field(default_factory=DefinitionStore)
     problems: dict[str, str] = field(default_factory=dict)
     # Topics whose schema holds another text for their type: (type, text), parsed on first use.
     _topic_texts: dict[str, tuple[str, str]] = field(default_factory=dict)
     _topic_types: dict[str, MessageTypes] = field(default_factory=dict)
+    # (type, little endian) -> its reader, generated on first use.
+    _readers: dict[tuple[str, bool], PayloadReader] = field(default_factory=dict)
+    _rosbags: Typestore | None = None
 
     @classmethod
     def from_definitions(cls, definitions: Mapping[str, str]) -> MessageTypes:
@@ -144,8 +148,8 @@ class MessageTypes:
             for dep in _references(parsed)
             if dep not in self.typestore.fielddefs and dep not in parsed
         ]
-        if missing:  # rosbags' own Jazzy types load only then (a slow import: startup bench)
-            builtin: Mapping[str, Any] = get_typestore(Stores.ROS2_JAZZY).fielddefs
+        if missing:  # rosbags' own Jazzy types load only then
+            builtin: Mapping[str, Any] = _jazzy_definitions()
             for dep in missing:
                 if dep not in parsed:
                     if dep not in builtin:
@@ -175,7 +179,7 @@ class MessageTypes:
         if canonical in self.typestore.fielddefs:
             return canonical
         if name not in self.problems:
-            builtin: Mapping[str, Any] = get_typestore(Stores.ROS2_JAZZY).fielddefs
+            builtin: Mapping[str, Any] = _jazzy_definitions()
             if canonical in builtin:
                 self._register({canonical: builtin[canonical]})
                 return canonical
@@ -195,35 +199,35 @@ class MessageTypes:
         """
         return self.decoder(name)(data)
 
+    def rosbags_typestore(self) -> Typestore:
+        """rosbags' typestore of these types and classes, for its serializers (made once)."""
+        if self._rosbags is None:
+            from rosbags.typesys.store import Typestore  # its code generation: to encode only
+
+            store = Typestore()
+            store.fielddefs = self.typestore.fielddefs  # type: ignore[assignment]
+            store.types = self.typestore.types
+            self._rosbags = store
+        return self._rosbags
+
     def decoder(self, name: str) -> Callable[[bytes | memoryview], object]:
         """``deserialize`` for one type, resolved once (for many messages of a topic).
 
-        Calls rosbags' generated deserializer directly (bagkit's for types with wide strings):
-        given a memoryview (of a chunk), the payload is not copied; arrays in the message may
-        then be views of that buffer.
+        Reads with bagkit's generated readers (:mod:`bagkit.decode.cdr`), not rosbags': they
+        build the same objects, and generating one type's costs a fraction of rosbags' 15
+        functions a type (benchmarks/README.md, start-up, sixth pass). Given a memoryview (of
+        a chunk), the payload is not copied; arrays in the message may then be views of it.
 
         Raises:
             SchemaError: the type cannot be decoded.
         """
         canonical = self.resolve(name)
-        store = self.typestore
-        if has_wide_strings(store, canonical):  # rosbags' deserializers have no wstring
-            little = payload_reader(store, canonical, little=True)
-            big = payload_reader(store, canonical, little=False)
-            cls: Any = None
-        else:
-            msgdef = store.get_msgdef(canonical)
-            little, big = msgdef.deserialize_cdr_le, msgdef.deserialize_cdr_be
-            cls = msgdef.cls
 
         def decode(data: bytes | memoryview) -> object:
             try:
                 if len(data) < 4 or data[0] != 0 or data[1] > 1:
                     raise ValueError("not a plain CDR encapsulation")
-                message, end = (little if data[1] else big)(data[4:], 0, cls, store)
-                # rosbags cuts a string that runs past the end short instead of failing.
-                if end + 4 > len(data):
-                    raise ValueError("the message ends past the payload")
+                message, end = self._reader(canonical, little=bool(data[1]))(data[4:])
                 # CDR writers pad to 4 bytes at most (rosbags' own check).
                 if end + 4 + 3 < len(data):
                     raise ValueError(f"{len(data) - 4 - end} bytes after the message")
@@ -232,6 +236,14 @@ class MessageTypes:
             return message
 
         return decode
+
+    def _reader(self, canonical: str, *, little: bool) -> PayloadReader:
+        """The reader of ``canonical`` in one byte order, generated on first use."""
+        reader = self._readers.get((canonical, little))
+        if reader is None:
+            reader = payload_reader(self.typestore, canonical, little=little)
+            self._readers[(canonical, little)] = reader
+        return reader
 
     def value_reader(self, name: str, paths: Sequence[str]) -> ValueReader:
         """A function returning the values of leaf ``paths`` of one payload of type ``name``.
@@ -263,13 +275,11 @@ class MessageTypes:
 def _message_class(typename: str, definition: TypeDef) -> type:
     """The message class of a type, as rosbags would generate it: fields in order, the
     constants and ``__msgtype__`` as class attributes."""
-    constants: dict[str, Any] = {
-        normalize_fieldname(name): value for name, _, value in definition[0]
-    }
+    constants: dict[str, Any] = {member_name(name): value for name, _, value in definition[0]}
     # An explicit field() each: dataclasses would take a class attribute of the same name
     # (``mro``) as the member's default.
     members: list[Any] = [
-        (normalize_fieldname(name), Any, dataclasses.field()) for name, _ in definition[1]
+        (member_name(name), Any, dataclasses.field()) for name, _ in definition[1]
     ]
     if definition[1] == [EMPTY_STRUCT_MEMBER]:
         members = [(EMPTY_STRUCT_MEMBER[0], Any, dataclasses.field(default=0))]
@@ -295,3 +305,10 @@ def _references(parsed: Mapping[str, Any]) -> list[str]:
         for _, desc in fields:
             visit(desc)
     return list(dict.fromkeys(found))
+
+
+def _jazzy_definitions() -> Mapping[str, Any]:
+    """rosbags' own Jazzy types, for definitions a bag lacks."""
+    from rosbags.typesys import Stores, get_typestore  # a slow import: only when one is missing
+
+    return get_typestore(Stores.ROS2_JAZZY).fielddefs

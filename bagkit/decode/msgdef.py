@@ -14,14 +14,27 @@ Beyond rosidl, the spellings of ROS 1 definitions in converted bags are accepted
 
 from __future__ import annotations
 
+import keyword
 import re
-from typing import Any
-
-from rosbags.interfaces import Nodetype
-from rosbags.typesys.base import normalize_fieldname
+from collections.abc import Mapping
+from enum import IntEnum
+from typing import Any, Protocol
 
 from bagkit.bag.definitions import PRIMITIVES
 from bagkit.decode.errors import DefinitionError
+
+
+class Nodetype(IntEnum):
+    """The kind of a field description, numbered as rosbags numbers it: definitions of rosbags'
+    (its Jazzy types, its IDL parser's) and bagkit's mix, and compare by number. bagkit's own, so
+    that decoding starts without importing rosbags (benchmarks/README.md, "Start-up, sixth
+    pass")."""
+
+    BASE = 1
+    NAME = 2
+    ARRAY = 3
+    SEQUENCE = 4
+
 
 STRINGS = frozenset({"string", "wstring"})
 # rosidl gives a message without fields this one member (CDR has no empty struct).
@@ -44,6 +57,25 @@ _INTEGER_RANGES = {
 
 TypeDef = tuple[list[tuple[str, str, Any]], list[tuple[str, Any]]]
 """rosbags' definition of one type: ``([(name, type, value)], [(name, field description)])``."""
+
+
+class TypeDefinitions(Protocol):
+    """Types by name as a typestore holds them: bagkit's (``MessageTypes.typestore``, no code
+    generation) or rosbags' own."""
+
+    @property
+    def fielddefs(self) -> Mapping[str, Any]:
+        """Type name -> its :data:`TypeDef`."""
+
+    @property
+    def types(self) -> Mapping[str, Any]:
+        """Type name -> its message class."""
+
+
+def member_name(name: str) -> str:
+    """The attribute of field or constant ``name`` in a message object: a Python keyword gets
+    an underscore (``class_``), as rosbags names it."""
+    return f"{name}_" if keyword.iskeyword(name) else name
 
 
 def parse_message(lines: list[str], typename: str) -> TypeDef:
@@ -80,9 +112,9 @@ def parse_message(lines: list[str], typename: str) -> TypeDef:
         except DefinitionError as exc:
             raise DefinitionError(f"{typename} line {number}: {exc}") from None
         # rosbags names a field ``class`` ``class_``: that must not be another member too.
-        if normalize_fieldname(name) in names:
+        if member_name(name) in names:
             raise DefinitionError(f"{typename} declares {name} twice")
-        names.add(normalize_fieldname(name))
+        names.add(member_name(name))
     return constants, fields or [EMPTY_STRUCT_MEMBER]
 
 

@@ -19,11 +19,9 @@ from __future__ import annotations
 
 import re
 
-from rosbags.interfaces import Nodetype
-
 from bagkit.bag.action_definitions import action_part_texts, split_action_part
 from bagkit.decode.errors import DefinitionError
-from bagkit.decode.msgdef import TypeDef, parse_message, type_name
+from bagkit.decode.msgdef import Nodetype, TypeDef, parse_message, type_name
 
 _HEADER = re.compile(r"(MSG|IDL|SRV|ACTION):\s*(\S+)\s*\Z")
 _SERVICE_EVENT_INFO = "service_msgs/msg/ServiceEventInfo"

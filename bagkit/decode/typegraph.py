@@ -18,17 +18,15 @@ import weakref
 from collections.abc import Iterable, Iterator, Mapping
 from typing import Any
 
-from rosbags.interfaces import Nodetype
-from rosbags.typesys.store import Typestore
-
 from bagkit.decode.errors import SchemaError
+from bagkit.decode.msgdef import Nodetype, TypeDefinitions
 
 MAX_TYPE_DEPTH = 100
 MAX_LEAF_FIELDS = 100_000
 MAX_DECLARED_FIELDS = 2_000
 
 # Types already checked in a typestore (registered types never change).
-_CHECKED: weakref.WeakKeyDictionary[Typestore, set[str]] = weakref.WeakKeyDictionary()
+_CHECKED: weakref.WeakKeyDictionary[TypeDefinitions, set[str]] = weakref.WeakKeyDictionary()
 
 
 def check_type_graph(definitions: Mapping[str, Any], roots: Iterable[str]) -> None:
@@ -68,7 +66,7 @@ def check_type_graph(definitions: Mapping[str, Any], roots: Iterable[str]) -> No
             )
 
 
-def check_registered(typestore: Typestore, typename: str) -> None:
+def check_registered(typestore: TypeDefinitions, typename: str) -> None:
     """:func:`check_type_graph` for a type of ``typestore``, once per typestore and type.
 
     Raises:

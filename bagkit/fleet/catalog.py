@@ -142,6 +142,13 @@ def complete_update(
     return frame.reset_index(drop=True)
 
 
+def unreadable(frame: pd.DataFrame) -> dict[str, str]:
+    """Path -> why, for the bags of ``frame`` that could not be read: their one row has no
+    compression (a bag that was read has one, ``""`` when it holds no chunk)."""
+    rows = frame[frame["compression"].isna()]
+    return dict(zip(rows["path"].tolist(), rows["problems"].fillna("").tolist(), strict=True))
+
+
 def query(frame: pd.DataFrame, selection: Query | None = None) -> pd.DataFrame:
     """Rows of bags holding messages on ``selection``'s topics within its time range.
 

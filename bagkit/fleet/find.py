@@ -18,6 +18,8 @@ import numpy as np
 
 from bagkit.bag import BagError, BagReader
 from bagkit.data.episodes import NO_SPANS, find_episodes
+from bagkit.data.errors import could_have_lost
+from bagkit.errors import not_read
 from bagkit.fleet.errors import FleetError
 from bagkit.fleet.execute import ItemDone, run_each
 from bagkit.selection.conditions import parse_topic_condition
@@ -90,7 +92,8 @@ class BagEpisodes:
     undecodable: int = 0
     """Those of them that did not decode (never matched)."""
     lost: list[str] = field(default_factory=list)
-    """The parts of the bag that could not be read (damaged chunks; in ``problems`` too)."""
+    """The parts of the bag that could not be read and could have held messages of the
+    topic (:func:`~bagkit.data.errors.could_have_lost`; in ``problems`` too)."""
 
 
 @dataclass(slots=True)
@@ -190,7 +193,11 @@ def episodes_in_bag(
                 found = find_episodes(reader, trigger, gap_ns, resolved.window, state_topics)
             except UnknownTopicError:
                 return BagEpisodes(bag, has_topic=False, topics=list(reader.topics))
-            lost = [p if p.startswith(bag) else f"{bag}: {p}" for p in reader.problems]
+            lost = (
+                [p if p.startswith(bag) else f"{bag}: {p}" for p in reader.problems]
+                if could_have_lost(reader, trigger.topic)
+                else []
+            )
     except (BagError, StorageError) as exc:
         return BagEpisodes(bag, error=str(exc))
     problems = [p if p.startswith(bag) else f"{bag}: {p}" for p in found.problems]
@@ -249,7 +256,7 @@ def find_fleet(
     problems: list[str] = []
     for part in parts:
         if part.error is not None:
-            problems.append(f"{part.bag}: not read: {part.error}")
+            problems.append(not_read(part.bag, part.error))
         problems.extend(part.problems)
     found = [part for part in readable if len(part.spans)]
     return FindResult(

@@ -2,8 +2,9 @@
 ROS 1 ``.bag`` files, globs, roots searched for bags, text files listing one path a line, and
 URLs of bags or of prefixes searched for bags (:mod:`bagkit.fleet.url_inputs`).
 
-The result is a list of bags in a stable order (the order given; sorted within a directory or a
-glob), each bag once.
+The result is a list of bags in a stable order, each bag once: the order given; within a
+directory or a prefix, path order (:func:`~bagkit.fleet.url_inputs.in_path_order`); a glob's
+matches sorted.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from pathlib import Path
 from bagkit.bag import reader
 from bagkit.bag.reader import bag_path
 from bagkit.fleet.errors import NoBagsError
-from bagkit.fleet.url_inputs import url_bags
+from bagkit.fleet.url_inputs import in_path_order, url_bags
 from bagkit.storage.paths import UrlPath
 from bagkit.storage.urls import is_url
 
@@ -93,7 +94,7 @@ def _expand(item: Path, *, listed: bool = False) -> Iterator[str]:
         for match in sorted(glob.glob(text, recursive=True)):
             yield from _expand(Path(match), listed=listed)
     elif item.is_dir():
-        yield from find_bags(text)
+        yield from in_path_order(find_bags(text))
     elif item.suffix in LISTING_SUFFIXES and item.is_file() and not listed:
         # Listings are not followed from listings: no cycle to guard against.
         for entry in _listing(item):

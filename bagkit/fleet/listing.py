@@ -11,7 +11,7 @@ from typing import Any
 from bagkit.bag import BagError, BagInfo, bag_info
 from bagkit.fleet.execute import readers_for, run_each
 from bagkit.fleet.inputs import BAG_FILE_SUFFIXES, STORAGE_SUFFIXES, find_bags, is_bag_directory
-from bagkit.fleet.url_inputs import url_bags
+from bagkit.fleet.url_inputs import in_path_order, url_bags
 from bagkit.storage.errors import StorageError
 from bagkit.storage.urls import is_url
 
@@ -64,7 +64,7 @@ def folder_info(
     elif not Path(text).is_dir() or is_bag_directory(text):
         return None
     else:
-        paths = sorted(find_bags(text))
+        paths = in_path_order(find_bags(text))
     if not paths:
         return None
     found = FolderInfo(text)

@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from bagkit.bag import BagError, BagReader
+from bagkit.errors import not_read
 from bagkit.fleet.errors import FleetError
 from bagkit.fleet.execute import ItemDone, run_each
 from bagkit.selection.errors import UnknownTopicError
@@ -148,7 +149,8 @@ def merge_partials(parts: Sequence[BagPartial], query: Query | None = None) -> S
     run = SummaryRun.of(query, prefetch=False)
     for part in parts:
         if part.error is not None:
-            run.problems.append(f"{part.bag}: not read: {part.error}")
+            run.problems.append(not_read(part.bag, part.error))
+            run.unread.append(part.bag)
         else:
             _merge(run, part)
     return finish_summary(run, [part.bag for part in parts])

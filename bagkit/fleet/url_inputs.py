@@ -4,7 +4,7 @@ directory, from one listing of the prefix."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 
 from bagkit.fleet.errors import NoBagsError
 from bagkit.storage.paths import UrlPath
@@ -12,10 +12,17 @@ from bagkit.storage.transfer import objects_under
 from bagkit.storage.urls import joined, path_part, scheme
 
 
+def in_path_order(bags: Iterable[str]) -> list[str]:
+    """The bags found under one folder or prefix in path order (docs/fleet.md): by name at
+    each level, folders and files together, as ``ls -R`` shows a tree. A folder and a prefix
+    holding the same bags give the same order (pure)."""
+    return sorted(bags, key=lambda bag: bag.split("/"))
+
+
 def url_bags(
     url: str, storage_suffixes: tuple[str, ...], bag_suffixes: tuple[str, ...]
 ) -> list[str]:
-    """The bags ``url`` names, sorted within the prefix.
+    """The bags ``url`` names, in path order within the prefix (:func:`in_path_order`).
 
     Args:
         url: a storage file, a bag's prefix, or a prefix of bags.
@@ -43,7 +50,7 @@ def url_bags(
         raise NoBagsError(f"{prefix}: no such object or prefix")
     return [
         joined(prefix.url, bag) if bag else prefix.url
-        for bag in _bags(names, storage_suffixes, bag_suffixes)
+        for bag in in_path_order(_bags(names, storage_suffixes, bag_suffixes))
     ]
 
 

@@ -19,12 +19,11 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from rosbags.interfaces import Nodetype
-from rosbags.typesys.store import Typestore
 
 from bagkit.decode.bulk import decode_bulk
 from bagkit.decode.errors import SchemaError
 from bagkit.decode.layout import CDR_LE, U32, CdrLayout, NeedLength
+from bagkit.decode.msgdef import Nodetype, TypeDefinitions
 
 _EMPTY_STRING = 1  # a CDR string's length counts its NUL
 
@@ -48,7 +47,7 @@ class BulkMigration:
     sources: tuple[int | None, ...]
 
     @classmethod
-    def of(cls, old: Typestore, new: Typestore, name: str) -> BulkMigration | None:
+    def of(cls, old: TypeDefinitions, new: TypeDefinitions, name: str) -> BulkMigration | None:
         """The bulk migration of ``name`` between the two typestores, or None when the
         layouts do not allow one (see the module's docstring)."""
         try:
@@ -152,7 +151,7 @@ class BulkMigration:
         return [(at, source_at, length) for at, source_at, length in spans]
 
 
-def _bounded(typestore: Typestore, name: str) -> bool:
+def _bounded(typestore: TypeDefinitions, name: str) -> bool:
     """Whether ``name`` or a type it holds has a bounded string or sequence (the message-by-
     message path checks each value against its bound)."""
     seen, todo = set(), [name]

@@ -17,10 +17,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from rosbags.interfaces import Nodetype
-from rosbags.typesys.store import Typestore
-
 from bagkit.bag.definitions import canonical_type_name
+from bagkit.decode.msgdef import Nodetype, TypeDefinitions
 from bagkit.migrate.errors import DataLossError, MigrateError, RuleError
 from bagkit.migrate.rules import Rules, TypeRules, load_function
 from bagkit.migrate.values import (
@@ -53,8 +51,8 @@ class Planner:
         dropped: ``Type: field (type)`` of every old field whose values are not carried over.
     """
 
-    old: Typestore
-    new: Typestore
+    old: TypeDefinitions
+    new: TypeDefinitions
     rules: Rules = field(default_factory=Rules)
     allow_drop: bool = False
     rules_run: list[str] = field(default_factory=list)

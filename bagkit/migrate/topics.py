@@ -179,8 +179,10 @@ def migrate_topic(
     except MigrateError as exc:
         raise type(exc)(f"{info.name} ({name}): {exc.problem}", exc.field) from None
 
+    encoder = new_types.rosbags_typestore()
+
     def encode(message: Any) -> bytes:
-        return bytes(new_store.serialize_cdr(message, new_name))
+        return bytes(encoder.serialize_cdr(message, new_name))
 
     topic = replace(info, type_description_hash=target.type_hash(name, text))
     bulk = BulkMigration.of(old_store, new_store, name) if not planner.rules_run else None

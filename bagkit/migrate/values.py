@@ -15,9 +15,9 @@ import math
 from typing import Any
 
 import numpy as np
-from rosbags.interfaces import Nodetype
 
 from bagkit.decode.layout import PRIMITIVE_FORMATS
+from bagkit.decode.msgdef import Nodetype
 
 # numpy dtype of each primitive as the rosbags serializer packs it: CDR's formats, except that
 # bool is numpy's own and byte is signed there.

@@ -18,8 +18,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from bagkit.bag import BagError
 from bagkit.fleet.execute import ItemDone, run_each
 from bagkit.regression.spec import FixtureSpec, load_spec
+from bagkit.storage.errors import StorageError
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -39,6 +41,7 @@ class FixtureOutcome:
         summary: the failing topics and first divergences (:meth:`GoldenCheck.summary`).
         speedup: lockstep only, how many times faster than real time it ran.
         report: the failure report (``report.html``), when it failed.
+        error: why the fixture's golden bag could not be read (not checked).
     """
 
     fixture: str
@@ -47,6 +50,7 @@ class FixtureOutcome:
     summary: str
     speedup: float | None = None
     report: Path | None = None
+    error: str | None = None
 
 
 def check_fixture(job: tuple[Path, str], *, failures: Path, import_root: str) -> FixtureOutcome:
@@ -63,7 +67,10 @@ def check_fixture(job: tuple[Path, str], *, failures: Path, import_root: str) ->
     directory, mode = job
     spec = load_spec(directory)
     with tempfile.TemporaryDirectory(prefix="bagkit-golden-") as tmp:
-        result = run_check(spec, mode, Path(tmp))
+        try:
+            result = run_check(spec, mode, Path(tmp))
+        except (BagError, StorageError) as exc:  # reported among the others (docs/fleet.md)
+            return FixtureOutcome(spec.name, mode, False, "", error=str(exc))
         report = None
         if not result.passed:
             folder = failures / f"{spec.name}-{result.mode}"

@@ -75,8 +75,10 @@ def _canonicalizer(type_name: str, definition: str) -> Callable[[bytes], bytes]:
         # comparison decodes values, so only byte-identity of such outputs is not promised.
         return bytes
 
+    rosbags = codec.rosbags_typestore()
+
     def reencode(data: bytes) -> bytes:
-        return bytes(store.serialize_cdr(store.deserialize_cdr(data, name), name))
+        return bytes(rosbags.serialize_cdr(rosbags.deserialize_cdr(data, name), name))
 
     return reencode
 

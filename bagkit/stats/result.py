@@ -54,6 +54,7 @@ class Summary:
         topics: per topic, in name order.
         skipped: topic -> why it could not be decoded (not in ``topics``).
         problems: what could not be read (salvaged files, messages that do not decode).
+        unread: the bags that could not be read at all (among others: in ``problems`` too).
     """
 
     bags: tuple[str, ...]
@@ -62,6 +63,7 @@ class Summary:
     topics: tuple[TopicStats, ...]
     skipped: dict[str, str] = field(default_factory=dict)
     problems: tuple[str, ...] = ()
+    unread: tuple[str, ...] = ()
 
     @property
     def duration_s(self) -> float:
@@ -74,6 +76,7 @@ class Summary:
         """The JSON document of ``bagkit stats summary --format json``."""
         return {
             "bags": list(self.bags),
+            "unread": list(self.unread),
             "start_ns": self.start_ns,
             "end_ns": self.end_ns,
             "duration_s": self.duration_s,

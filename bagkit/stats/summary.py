@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING
 from bagkit.bag import BagChunk, BagError, BagReader
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
 from bagkit.decode.layout import CdrLayout
+from bagkit.errors import not_read
 from bagkit.prefetch import prefetch
 from bagkit.selection.errors import UnknownFieldError
 from bagkit.selection.fields import FieldSelection, unknown_field_message
@@ -87,6 +88,8 @@ class SummaryRun:
     accumulators: dict[str, TopicAccumulator] = field(default_factory=dict)
     skipped: dict[str, str] = field(default_factory=dict)
     problems: list[str] = field(default_factory=list)
+    unread: list[str] = field(default_factory=list)
+    """Bags that could not be read (the others are summarized)."""
 
     def accumulator(
         self, topic: str, type_name: str, encoding: str, bag: str
@@ -277,7 +280,8 @@ def summarize(
                 # as on a cluster (bagkit.fleet.stats); alone, or when none can be, it fails.
                 if len(paths) == 1 or (path == paths[-1] and not readers):
                     raise
-                run.problems.append(f"{name}: not read: {exc}")
+                run.problems.append(not_read(name, str(exc)))
+                run.unread.append(name)
                 continue
             read_names.append(name)
         known = {name: info.type for reader in readers for name, info in reader.topics.items()}
@@ -363,7 +367,15 @@ def finish_summary(run: SummaryRun, paths: list[str]) -> Summary:
         if run.where is not None:  # nothing matched: said once, an empty summary
             run.problems.append(f"no message satisfies {run.where.text!r} in {bags}")
         if run.span.bounded or run.where is not None:  # the window missed: said once per bag
-            return Summary(tuple(paths), None, None, (), dict(run.skipped), tuple(run.problems))
+            return Summary(
+                tuple(paths),
+                None,
+                None,
+                (),
+                dict(run.skipped),
+                tuple(run.problems),
+                tuple(run.unread),
+            )
         lost = f" ({'; '.join(run.problems)})" if run.problems else ""  # what was lost
         raise NothingToSummarizeError(f"no messages to summarize in {bags}{lost}")
     if run.fields and not results:
@@ -375,6 +387,7 @@ def finish_summary(run: SummaryRun, paths: list[str]) -> Summary:
         topics=tuple(results),
         skipped=dict(sorted(run.skipped.items())),
         problems=tuple(run.problems),
+        unread=tuple(run.unread),
     )
 
 

@@ -143,7 +143,7 @@ def call(url: str, what: Callable[[], T], *, retries: bool = True) -> T:
     raise AssertionError("unreachable")
 
 
-def _status(exc: BaseException) -> int | None:
+def status_of(exc: BaseException) -> int | None:
     """The HTTP status behind an exception of aiohttp, botocore, s3fs, gcsfs (``code``) or
     the Azure SDK (``status_code``), if any."""
     for error in (exc, exc.__cause__, exc.__context__):
@@ -169,7 +169,7 @@ def _kind(exc: BaseException) -> str:
 def translated(url: str, exc: BaseException) -> StorageError:
     """One :class:`StorageError` for what a client library raised, naming ``url`` safely."""
     shown = shown_url(url)
-    status = _status(exc)
+    status = status_of(exc)
     kind = _kind(exc)
     if status == 412 or "PreconditionFailed" in str(exc):
         return ObjectChangedError(f"{shown}: the object changed while read (its ETag moved)")

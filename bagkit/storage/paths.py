@@ -14,10 +14,12 @@ from typing import Any
 
 from bagkit.storage.errors import ObjectNotFoundError, StorageError
 from bagkit.storage.filesystems import call, filesystem
-from bagkit.storage.range_file import RangeFile
+from bagkit.storage.range_file import RangeFile, found_by_suffix
 from bagkit.storage.urls import joined, name, parent, scheme, shown_url
 
 _infos: dict[str, dict[str, Any]] = {}
+# The objects whose info comes from a read of their end (what info and catalog read first).
+SUFFIX_READ = (".mcap", ".yaml")
 # Listings remembered at most (a prefix of a million objects must not fill the memory).
 MAX_REMEMBERED = 200_000
 
@@ -125,14 +127,48 @@ class UrlPath:
         # An HTTP server lists no directories: a bag's prefix is known by its metadata.yaml,
         # asked for first where the name has no suffix (a bag's prefix, most likely: a URL
         # that is not there costs fsspec a HEAD and a GET).
-        http = scheme(self.url) in ("http", "https") and not self.url.endswith(".yaml")
+        protocol = scheme(self.url)
+        http = protocol in ("http", "https") and not self.url.endswith(".yaml")
         if http and not self.suffix and (prefix := self._bag_prefix()) is not None:
             return prefix
+        s3 = protocol in ("s3", "s3a")
+        if s3 and not self.suffix:
+            return self._listed()
+        try:
+            found = self._found()
+        except ObjectNotFoundError:
+            if s3 and self.suffix in SUFFIX_READ:  # no such object: a prefix named so?
+                return self._listed()
+            return self._bag_prefix() if http and self.suffix else None
+        remember(self.url, found)
+        return found
+
+    def _found(self) -> dict[str, Any]:
+        """The object's info: for an MCAP or a metadata.yaml on S3 or HTTP, from one read of
+        its end, kept for its opening (what a HEAD would say, and the bytes read first);
+        else from the store's info (a HEAD)."""
+        if self.suffix in SUFFIX_READ and (found := found_by_suffix(self.url)) is not None:
+            return found
+        fs, path = filesystem(self.url)
+        info: dict[str, Any] = call(self.url, lambda: fs.info(path))
+        return info
+
+    def _listed(self) -> dict[str, Any] | None:
+        """A name without a suffix on S3 is most likely a prefix (a bag's, a fleet's): one
+        listing says so and gives its objects' sizes and ETags (remembered: no HEAD for
+        them); a listing of the parent finds an object of that name."""
         fs, path = filesystem(self.url)
         try:
-            found: dict[str, Any] = call(self.url, lambda: fs.info(path))
+            entries: list[dict[str, Any]] = call(self.url, lambda: fs.ls(path, detail=True))
         except ObjectNotFoundError:
-            return self._bag_prefix() if http and self.suffix else None
+            return None
+        itself = [e for e in entries if e["name"].rstrip("/") == path and e["type"] != "directory"]
+        if itself:
+            remember(self.url, itself[0])
+            return itself[0]
+        for entry in entries:
+            remember(joined(self.url, entry["name"].rstrip("/").rsplit("/", 1)[-1]), entry)
+        found = {"type": "directory", "size": 0, "name": path}
         remember(self.url, found)
         return found
 

@@ -8,10 +8,12 @@ read on so far, up to :data:`MAX_READ_AHEAD`. A first read of an object's end (a
 closing magic, its footer) fetches as deep into its tail as the reads of the last object of
 its kind went, and an eighth more (the same suffix, its bag beside this one's: its footer and
 summary), :data:`FIRST_TAIL_BYTES` before any, up to a quarter of the object: one request
-where two would be. The blocks fetched at an object's ends are kept for its next opening (the
-back-end is chosen by them, then opens the file again). Every range is asked for with the
-ETag seen at open (``If-Match``) where the store takes one, and its length is checked: an
-object that changes while it is read is an error, never a mix of two versions.
+where two would be. An object named by its URL on S3 or HTTP is found by such a read of its
+end (:func:`found_by_suffix`: a suffix range gives its size and ETag too, no HEAD). The blocks
+fetched at an object's ends are kept for its next opening (the back-end is chosen by them,
+then opens the file again). Every range is asked for with the ETag seen at open
+(``If-Match``) where the store takes one, and its length is checked: an object that changes
+while it is read is an error, never a mix of two versions.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import threading
 from collections import OrderedDict
 from typing import Any
 
+from bagkit.storage import ranges
 from bagkit.storage.errors import ObjectChangedError, StorageError
 from bagkit.storage.filesystems import call, filesystem
 from bagkit.storage.urls import scheme, shown_url
@@ -43,6 +46,10 @@ _TAIL_DEPTHS: dict[tuple[str, str], int] = {}
 TAIL_SHARE = 4
 TAIL_SLACK = 8
 MIN_LEARNED_DEPTH = 64
+# A read ending this close below the tail read so far still extends it: rosbag2's Metadata
+# record (read for a bag without metadata.yaml) ends where a DataEnd record (13 bytes) starts,
+# right before the summary.
+TAIL_GAP = 64
 # The first guess, before any object of the kind was read: small bags' summaries (schemas,
 # channels, a few chunk indexes) are a few to a few tens of KiB; a deeper one costs a second
 # request on its kind's first object only.
@@ -110,7 +117,8 @@ class RangeFile:
 
     Args:
         url: the object.
-        info: its size and ETag where a listing already gave them (else one HEAD request).
+        info: its size and ETag where a listing or :func:`found_by_suffix` gave them (else
+            one HEAD request).
     """
 
     def __init__(self, url: str, info: dict[str, Any] | None = None) -> None:
@@ -124,7 +132,7 @@ class RangeFile:
         self.etag = info.get("ETag") or info.get("etag")
         self.fetched_bytes = 0
         self._key: _Key = (url, self.etag, self.size)
-        self._kind = (url.rsplit("/", 2)[0], url.rsplit("/", 1)[-1].rpartition(".")[2])
+        self._kind = _kind_of(url)
         self._tail_low = self.size  # the lowest offset read on contiguously to the end
         self._position = 0
         self._last_end = -1
@@ -159,7 +167,7 @@ class RangeFile:
         data = self._cached_span(start, end)
         if data is None:
             data = self._fetch_span(start, end)
-        if start < self._tail_low <= end:  # what the next object's footer read will fetch
+        if start < self._tail_low <= end + TAIL_GAP:  # what the next object's first read fetches
             self._tail_low = start
             if self.size - start >= MIN_LEARNED_DEPTH:
                 _TAIL_DEPTHS[self._kind] = self.size - start
@@ -244,27 +252,34 @@ class RangeFile:
         return data
 
     def _get(self, start: int, end: int) -> bytes:
-        protocol = scheme(self.url)
-        if self.etag and protocol in ("s3", "s3a"):
-            return _s3_range(self._fs, self._path, start, end, self.etag)
-        if self.etag and protocol in ("http", "https"):
-            return bytes(self._fs.cat_file(self._path, start, end, headers={"If-Match": self.etag}))
-        return bytes(self._fs.cat_file(self._path, start=start, end=end))
+        return ranges.span(self._fs, self.url, self._path, start, end, etag=self.etag)
 
 
-def _s3_range(fs: Any, path: str, start: int, end: int, etag: str) -> bytes:
-    """A GetObject of bytes ``[start, end)`` that the store refuses (412) if the ETag moved."""
-    from fsspec.asyn import sync
+def _kind_of(url: str) -> tuple[str, str]:
+    """The objects whose tails are alike: the prefix two levels up (the bags of one fleet)
+    and the suffix."""
+    return url.rsplit("/", 2)[0], url.rsplit("/", 1)[-1].rpartition(".")[2]
 
-    bucket, key, _ = fs.split_path(path)
 
-    async def get() -> bytes:
-        response = await fs._call_s3(
-            "get_object", Bucket=bucket, Key=key, Range=f"bytes={start}-{end - 1}", IfMatch=etag
-        )
-        try:
-            return bytes(await response["Body"].read())
-        finally:
-            response["Body"].close()
+def found_by_suffix(url: str) -> dict[str, Any] | None:
+    """What a listing would say of the object at ``url`` (size, ETag), from one suffix read
+    as deep as its kind's tails go (:data:`FIRST_TAIL_BYTES` before any); the bytes are kept
+    for its opening, which then reads its end without a request. None where the store is not
+    read so (``ranges.SUFFIX_SCHEMES``), the object is empty or the server sends all of it
+    for a suffix: ask for its info instead.
 
-    return sync(fs.loop, get)
+    Raises:
+        ObjectNotFoundError: no such object (nor bucket); other StorageErrors as any request.
+    """
+    if scheme(url) not in ranges.SUFFIX_SCHEMES:
+        return None
+    fs, path = filesystem(url)
+    depth = _TAIL_DEPTHS.get(_kind_of(url))
+    guess = FIRST_TAIL_BYTES if depth is None else depth + depth // TAIL_SLACK
+    answer = call(url, lambda: ranges.suffix(fs, url, path, min(guess, _Kept.MAX_BYTES // 4)))
+    if answer is None:
+        return None
+    data, info = answer
+    FETCHED.add(len(data))
+    _KEPT.add((url, info.get("ETag"), info["size"]), info["size"] - len(data), data)
+    return info

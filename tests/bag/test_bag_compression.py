@@ -250,3 +250,40 @@ def test_rosbag2s_upper_case_compression_mode(tmp_path: Path, storage: str, mode
     echo = bagkit_in_process(["echo", str(bag_dir), "/text", "-n", "1", "--format", "json"])
     assert echo.returncode == 0, echo.stderr
     assert json.loads(echo.stdout)["data"] == {"data": "message 0"}
+
+
+def _chunk_compressions(stored: Path) -> str:
+    """The MCAP chunk compressions of a storage file, by the mcap library ("" for sqlite3)."""
+    from mcap.reader import make_reader
+
+    data = stored.read_bytes()
+    if stored.name.endswith(".zstd"):
+        data = zstandard.ZstdDecompressor().stream_reader(data).read()
+    if not stored.name.removesuffix(".zstd").endswith(".mcap"):
+        return ""
+    import io
+
+    summary = make_reader(io.BytesIO(data)).get_summary()
+    assert summary is not None
+    return ",".join(sorted({c.compression or "none" for c in summary.chunk_indexes}))
+
+
+@pytest.mark.parametrize("storage", STORAGES)
+@pytest.mark.parametrize("mode", MODES)
+def test_info_says_the_file_compression_and_the_chunk_compression_apart(
+    tmp_path: Path, storage: str, mode: str
+) -> None:
+    """`info` of `ros2 bag record --compression-mode file` printed "Compression: none,zstd"."""
+    bag_dir = write_compressed(tmp_path / "bag", storage, mode)
+    (stored,) = [p for p in bag_dir.iterdir() if p.name != "metadata.yaml"]
+    chunks = _chunk_compressions(stored)
+    document = json.loads(bagkit_in_process(["info", bag_dir, "--format", "json"]).stdout)
+    assert (document["compression_format"], document["compression_mode"]) == ("zstd", mode)
+    assert document["chunk_compression"] == chunks
+    done = bagkit_in_process(["info", bag_dir])
+    assert done.returncode == 0, done.stderr
+    fields = dict(line.split(":", 1) for line in done.stdout.splitlines() if "ompression" in line)
+    assert fields.pop("Compression").strip().startswith(f"zstd, {mode} mode")
+    if chunks:
+        assert fields.pop("Chunk compression").strip().startswith(chunks)
+    assert not fields, fields

@@ -1,5 +1,6 @@
-"""Hostile bags through the CLI (subprocesses of ``bagkit``): one ``error:`` line and exit 2 for an
-unusable file; a damaged chunk is a warning and its messages are reported lost; ``--no-crc``."""
+"""Hostile bags through the CLI (subprocesses of ``bagkit``; in this process where a damaged
+chunk lost a topic's every message): one ``error:`` line and exit 2 for an unusable file; a
+damaged chunk is a warning and its messages are reported lost; ``--no-crc``."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from bagkit_runs import bagkit_in_process
 from hostile_files import Layout, chunk_messages
 
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
@@ -20,6 +22,11 @@ def _run(*args: str | Path) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
         [BAGKIT, *map(str, args)], capture_output=True, text=True, timeout=120, check=False
     )
+
+
+def _here(*args: str | Path) -> subprocess.CompletedProcess[str]:
+    """``bagkit ARGS`` in this process (tests/bagkit_runs.py): the output a process gives."""
+    return bagkit_in_process(list(args))
 
 
 @pytest.fixture
@@ -133,6 +140,16 @@ def every_chunk_lost(write_sample_bag: Callable[..., Path]) -> tuple[Path, Path,
 _LOST_ALL = {
     "export": ["export", "{bag}", "-t", "/imu/data", "-o", "{out}/imu.csv"],
     "find": ["find", "{bag}", "--when", "/imu/data: linear_acceleration.z > -1e9"],
+    "plot": ["plot", "{bag}", "/imu/data:linear_acceleration.z", "-o", "{out}/z.png"],
+    "plot in a window": [
+        "plot",
+        "{bag}",
+        "/imu/data:linear_acceleration.z",
+        "-o",
+        "{out}/z.png",
+        "--start",
+        "0.05",
+    ],
 }
 
 
@@ -143,13 +160,13 @@ def test_a_topic_whose_every_chunk_is_lost_is_no_empty_result(
     """As echo: 0 rows or 0 episodes made of lost data is not "no matches"."""
     bag, intact, loss = every_chunk_lost
     args = [a.format(bag=bag, out=tmp_path) for a in _LOST_ALL[command]]
-    run = _run(*args)
+    run = _here(*args)
     assert run.returncode == 2, run.stdout + run.stderr
     errors = [line for line in run.stderr.splitlines() if line.startswith("error:")]
     assert len(errors) == 1 and run.stderr.strip().splitlines()[-1] == errors[0]
     assert errors[0].startswith("error: no message of /imu/data could be read (")
     assert "CRC mismatch" in errors[0] and loss in errors[0]
-    whole = _run(*(str(intact) if a == str(bag) else a for a in args))
+    whole = _here(*(str(intact) if a == str(bag) else a for a in args))
     assert whole.returncode == 0, whole.stderr
     assert whole.stderr == ""
 
@@ -163,6 +180,54 @@ def test_a_fleet_with_the_topic_read_elsewhere_succeeds(
         ["export", "-t", "/imu/data", "-o", tmp_path / "out"],
         ["find", "--when", "/imu/data: linear_acceleration.z > -1e9"],
     ):
-        run = _run(*args, bag, intact, "--workers", "0")
+        run = _here(*args, bag, intact, "--workers", "0")
         assert run.returncode == 0, run.stderr
         assert "error:" not in run.stderr and loss in run.stderr
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["echo", "{bag}", "/quiet"],
+        ["export", "{bag}", "-o", "{out}/all"],
+        ["find", "{bag}", "--when", "/quiet: linear_acceleration.z > 0"],
+        [
+            "plot",
+            "{bag}",
+            "/quiet:linear_acceleration.z",
+            "/imu/data:linear_acceleration.z",
+            "-o",
+            "{out}/z.png",
+        ],
+    ],
+    ids=["echo", "export", "find", "plot"],
+)
+def test_a_topic_the_summary_counts_empty_lost_nothing(
+    flipped: tuple[Path, Path, int], tmp_path: Path, args: list[str]
+) -> None:
+    """A damaged chunk elsewhere: a topic the bag's summary counts no message of (rosbag2's
+    /parameter_events, often) is empty, not lost; the others are read (exit 0)."""
+    from bag_samples import IMU
+
+    from bagkit.bag import BagReader, BagWriter, TopicInfo
+
+    _, damaged, _ = flipped
+    quiet = tmp_path / "quiet"
+    with (
+        BagReader(damaged, check_crc=False) as reader,
+        BagWriter(quiet, compression="none", chunk_size=20_000) as out,
+    ):
+        for topic in reader.topics.values():
+            out.add_topic(topic, definition=reader.definitions[topic.type])
+        out.add_topic(TopicInfo("/quiet", IMU), definition=reader.definitions[IMU])
+        for message in reader.messages():
+            out.write(message.topic, message.data, log_time=message.log_time)
+    layout = Layout.of(quiet / "quiet_0.mcap")
+    chunk = layout.chunks[1]
+    layout.data[chunk.chunk_start_offset + chunk.chunk_length - 3] ^= 0x01
+    layout.save()
+    run = _here(*(a.format(bag=quiet, out=tmp_path) for a in args))
+    assert run.returncode == 0, run.stderr
+    assert "error:" not in run.stderr
+    # echo and find read no chunk: /quiet is in none; export and plot read the others.
+    assert ("CRC mismatch" in run.stderr) == (args[0] in ("export", "plot")), run.stderr

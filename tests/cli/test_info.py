@@ -299,3 +299,14 @@ def test_interop_bags(interop_dir: Path, relative: str) -> None:
             assert topic["rate_hz"] is None
     if "wrong_rmw" in relative:
         assert {t["serialization_format"] for t in info["topics"]} == {"wrong_format"}
+
+
+def test_an_empty_bag_has_no_start_or_end(tmp_path: Path) -> None:
+    """Topics and no message: no time to show (the epoch, 1970, would pass for a recording)."""
+    with BagWriter(tmp_path / "empty") as bag:
+        bag.add_topic(TopicInfo("/chatter", STRING))
+    result = _run(str(tmp_path / "empty"))
+    assert result.returncode == 0, result.stderr
+    fields = dict(line.split(":", 1) for line in result.stdout.splitlines()[:8] if ":" in line)
+    assert (fields["Start"].strip(), fields["End"].strip()) == ("-", "-")
+    assert fields["Messages"].strip() == "0" and "1970" not in result.stdout

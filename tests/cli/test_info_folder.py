@@ -77,3 +77,24 @@ def test_info_of_a_folder_without_bags_is_still_not_a_bag(tmp_path: Path) -> Non
     )
     assert result.returncode == 2
     assert result.stderr.startswith(f"error: {tmp_path}: not a bag")
+
+
+def test_a_bag_of_the_folder_that_cannot_be_read_is_the_fleet_rule(tmp_path: Path) -> None:
+    """As every many-bag command (docs/fleet.md, "Bags that cannot be read"): the others
+    listed, a warning naming the bag once, then one error line and exit 2."""
+    root, bags = _folder(tmp_path)
+    broken = root / "broken.mcap"
+    broken.write_bytes(b"\x89MCAP0\r\n" + b"\x00" * 64)
+    for output in ("table", "json"):
+        result = subprocess.run(
+            [BAGKIT, "info", str(root), "--format", output],
+            capture_output=True,
+            text=True,
+            check=False,
+        )
+        assert result.returncode == 2, result.stderr
+        lines = result.stderr.strip().splitlines()
+        assert len(lines) == 2 and lines[0].startswith(f"warning: {broken}: not read: ")
+        assert lines[0].count(str(broken)) == 1
+        assert lines[1] == f"error: 1 of {len(bags) + 1} bags could not be read"
+    assert list(json.loads(result.stdout)["unread"]) == [str(broken)]

@@ -30,20 +30,38 @@ HEAVY = frozenset(
 # info reads summaries and indexes, and service events by their fixed header (the message
 # index ordered without numpy): no decoder, no numpy.
 NO_DECODER = frozenset({"rosbags", "bagkit.decode"})
+# Decoding needs nothing of rosbags (its type system, code generation and serializers, OpenSSL's
+# hashlib): only encoding (migrate) and other formats' files do.
+NO_ROSBAGS = frozenset({"rosbags", "hashlib", "_hashlib"})
+# A topic's messages or a bag without services: none of the service modules.
+NO_SERVICES = frozenset(
+    {"bagkit.data.services", "bagkit.data.service_summaries", "bagkit.bag.service_calls"}
+)
 # Without --where, no condition language and no matcher of conditions.
 NO_CONDITION = frozenset({"bagkit.selection.conditions", "bagkit.decode.matcher"})
 # echo without --fields decodes whole messages: no bulk or direct reader (numpy layouts of
 # leaves).
 NO_LEAVES = frozenset({"bagkit.decode.bulk", "bagkit.decode.direct"})
 
+DECODING = HEAVY | NO_ROSBAGS
 CASES = {
     "info": (["info", str(PLAIN_BAG)], HEAVY | NO_DECODER | {"numpy"}),
     "info with services": (["info", str(SERVICES_BAG)], HEAVY | NO_DECODER | {"numpy"}),
-    "echo": (["echo", str(SERVICES_BAG), "/imu/data", "-n", "1"], HEAVY | NO_CONDITION | NO_LEAVES),
-    "stats": (["stats", "summary", str(SERVICES_BAG)], HEAVY | NO_CONDITION),
-    "find": (["find", str(SERVICES_BAG), "--when", "/imu/data: linear_acceleration.z < 5"], HEAVY),
+    "echo": (
+        ["echo", str(SERVICES_BAG), "/imu/data", "-n", "1"],
+        DECODING | NO_CONDITION | NO_LEAVES | NO_SERVICES,
+    ),
+    "stats": (["stats", "summary", str(SERVICES_BAG)], DECODING | NO_CONDITION),
+    "stats without services": (
+        ["stats", "summary", str(PLAIN_BAG), "--format", "json"],
+        DECODING | NO_CONDITION | NO_SERVICES,
+    ),
+    "find": (
+        ["find", str(SERVICES_BAG), "--when", "/imu/data: linear_acceleration.z < 5"],
+        DECODING,
+    ),
     # A contract is checked without the statistics that --suggest makes one from.
-    "check": (["check", str(SERVICES_BAG), "--spec", str(CONTRACT)], HEAVY | {"bagkit.stats"}),
+    "check": (["check", str(SERVICES_BAG), "--spec", str(CONTRACT)], DECODING | {"bagkit.stats"}),
 }
 
 

@@ -47,7 +47,7 @@ def _expected(bag: Path) -> tuple[dict[str, Rows], dict[str, int]]:
         if topic not in canonical or formats[topic] != "cdr":
             continue
         try:
-            msg = types.typestore.deserialize_cdr(data, canonical[topic])
+            msg = types.rosbags_typestore().deserialize_cdr(data, canonical[topic])
         except SerdeError:
             undecodable[topic] += 1
             continue

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import keyword
 import math
 import struct
 import subprocess
@@ -13,11 +14,14 @@ import numpy as np
 import pytest
 from bagkit_runs import bagkit_in_process, bagkit_subprocess
 from random_messages import JAZZY, random_message
+from rosbags.interfaces import Nodetype as RosbagsNodetype
+from rosbags.typesys.base import normalize_fieldname
 
 from bagkit.bag import BagWriter, TopicInfo
 from bagkit.decode import MessageTypes, flatten_message
 from bagkit.decode.cdr import object_reader
 from bagkit.decode.layout import CdrLayout
+from bagkit.decode.msgdef import Nodetype, member_name
 from bagkit.stats import summarize
 
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
@@ -128,9 +132,25 @@ def test_hostile_schemas_through_the_cli_are_one_line_each(tmp_path: Path) -> No
     assert not sentinel.exists()
 
 
+def test_member_names_are_rosbags_attribute_names() -> None:
+    """The classes are bagkit's, the objects go to rosbags' serializers (migrate): a field
+    named after a Python keyword must be the attribute rosbags reads."""
+    names = [*keyword.kwlist, *keyword.softkwlist, "x", "class_", "data", "self", "type"]
+    for name in names:
+        assert member_name(name) == normalize_fieldname(name), name
+
+
+def test_node_kinds_are_numbered_as_rosbags_numbers_them() -> None:
+    """bagkit's definitions and rosbags' (its Jazzy types, its IDL parser's) mix."""
+    assert {k.name: int(k) for k in Nodetype} == {
+        k.name: int(k) for k in RosbagsNodetype if k.name in Nodetype.__members__
+    }
+    assert set(Nodetype.__members__) <= set(RosbagsNodetype.__members__)
+
+
 @pytest.mark.parametrize("little", [True, False])
 def test_bagkit_reader_builds_rosbags_objects_for_every_jazzy_type(little: bool) -> None:
-    """The reader used for wide-string types, held to rosbags' on every other type."""
+    """bagkit's reader (every decoder's), held to rosbags' on every Jazzy type."""
     rng = np.random.default_rng(8)
     for typename in sorted(JAZZY.fielddefs):
         read = object_reader(JAZZY, typename, little=little)

@@ -77,7 +77,7 @@ def test_types_as_deep_as_the_limit_go_through_every_walk(sequence: bool) -> Non
         cls = store.types[f"deep/msg/T{i}"]
         inner = {} if message is None else {"next": [message] if sequence else message}
         message = cls(**inner, **{f"v{i}": float(i)})
-    data = bytes(store.serialize_cdr(message, name))
+    data = bytes(types.rosbags_typestore().serialize_cdr(message, name))
     flat = flatten_message(types.deserialize(data, name), store)
     direct = types.value_reader(name, paths)(data)
     # v<i> holds i; inside the sequences (one element each), pooled as a list.

@@ -65,3 +65,4 @@ def test_cli_workers_report_the_unreadable_bag_among_the_others(tmp_path: Path) 
     assert [r["passed"] for r in reports] == [True, False, True, False]  # faults; unread
     assert reports[3]["error"] and reports[1]["error"] is None
     assert "Traceback" not in done.stderr
+    assert done.stderr.strip().splitlines()[-1] == "error: 1 of 4 bags could not be read"

@@ -78,11 +78,12 @@ def test_cli_reports_an_unreadable_bag_and_exports_the_rest(
         timeout=180,
         check=False,
     )
-    assert done.returncode == 1, done.stderr
+    assert done.returncode == 2, done.stderr  # docs/fleet.md, "Bags that cannot be read"
     assert "Traceback" not in done.stderr
     assert "local Dask cluster of 2 workers" in done.stderr
     lost = [line for line in done.stderr.splitlines() if "not exported" in line]
-    assert len(lost) == 1 and lost[0].startswith(f"warning: {bad} not exported: "), lost
+    assert len(lost) == 1 and lost[0].startswith(f"warning: {bad}: not exported: "), lost
+    assert done.stderr.strip().splitlines()[-1] == "error: 1 of 3 bags could not be exported"
     exported = sorted(p.parent.parent.name for p in (tmp_path / "out").rglob("data.parquet"))
     assert exported == sorted(b.name for b in fleet_bags[:2])
 

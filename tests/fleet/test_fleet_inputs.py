@@ -23,7 +23,7 @@ def test_roots_globs_and_listings(tmp_path: Path) -> None:
     loose = tmp_path / "fleet" / "loose.mcap"
     loose.write_bytes(b"")
     (tmp_path / "fleet" / "notes.md").write_text("not a bag")
-    assert expand_bags([tmp_path / "fleet"]) == [a, loose, b]
+    assert expand_bags([tmp_path / "fleet"]) == [a, b, loose]  # path order: day2/b < loose
     assert expand_bags([a]) == [a]  # a bag directory is not searched for bags inside it
     assert expand_bags([str(tmp_path / "fleet" / "**" / "b")]) == [b]
     listing = tmp_path / "bags.txt"
@@ -72,5 +72,5 @@ def test_file_compressed_bags_without_metadata_are_bags(tmp_path: Path) -> None:
     loose = tmp_path / "fleet" / "loose.mcap.zstd"
     loose.write_bytes(b"x")
     (tmp_path / "fleet" / "notes.zstd").write_bytes(b"not a bag")
-    assert expand_bags([tmp_path / "fleet"]) == [split, loose]
-    assert bag_paths([tmp_path / "fleet"]) == [str(split), str(loose)]
+    assert expand_bags([tmp_path / "fleet"]) == [loose, split]
+    assert bag_paths([tmp_path / "fleet"]) == [str(loose), str(split)]

@@ -61,7 +61,7 @@ def _stored(name: str, old_text: str, messages: list, extra: dict[str, object]) 
     from ``extra``), by rosbags' serializer, as a recorder of that definition wrote them."""
     new_types = MessageTypes.from_definitions({name: message_definition(name)})
     old_types = MessageTypes.from_definitions({name: old_text})
-    store, old_name = old_types.typestore, old_types.resolve(name)
+    store, old_name = old_types.rosbags_typestore(), old_types.resolve(name)
     fields = [field for field, _ in store.fielddefs[old_name][1]]
     found = []
     for msg in messages:

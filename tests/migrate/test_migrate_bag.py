@@ -46,7 +46,7 @@ def old_values(i: int) -> dict[str, Any]:
 def _old_bag(path: Path) -> Path:
     """/temperature in the old layout (and an unchanged /range), COUNT messages each."""
     types = MessageTypes.from_definitions({"sensor_msgs/msg/Temperature": OLD_TEMPERATURE})
-    store = types.typestore
+    store = types.rosbags_typestore()
     name = "sensor_msgs/msg/Temperature"
     header = store.types["std_msgs/msg/Header"]
     stamp = store.types["builtin_interfaces/msg/Time"]

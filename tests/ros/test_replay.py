@@ -171,8 +171,12 @@ def test_clock_runs_in_bag_time_before_each_message(
     # Between messages the clock ticks at ~50 Hz of wall time, advancing by rate x wall time.
     ticks = [(r.received_ns, ns) for r, ns in clock if (ns - BAG_START_NS) % 50_000_000]
     assert len(ticks) >= 0.5 * 50 * (BAG_SPAN_NS / 1e9 / rate)
-    (w0, b0), (w1, b1) = ticks[0], ticks[-1]
-    assert (b1 - b0) / (w1 - w0) == pytest.approx(rate, rel=0.05)
+    # Reception is late by however long the listener was not scheduled (70 ms at load 6, in
+    # bursts): the median slope over pairs half the run apart ignores such stalls.
+    half = len(ticks) // 2
+    pairs = zip(ticks[: len(ticks) - half], ticks[half:], strict=True)
+    slopes = [(b1 - b0) / (w1 - w0) for (w0, b0), (w1, b1) in pairs]
+    assert statistics.median(slopes) == pytest.approx(rate, rel=0.05)
     assert report.messages == len(expected)
 
 

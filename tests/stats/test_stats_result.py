@@ -19,7 +19,8 @@ def test_dataframe_has_a_row_per_field(bag: Path) -> None:
 
 def test_json_document_has_the_documented_keys(bag: Path) -> None:
     document = summarize([bag]).to_dict()
-    assert list(document) == ["bags", "start_ns", "end_ns", "duration_s", "topics"]
+    assert list(document) == ["bags", "unread", "start_ns", "end_ns", "duration_s", "topics"]
+    assert document["unread"] == []
     topic = document["topics"][0]
     assert list(topic) == ["topic", "type", "count", "rate_hz", "undecodable", "fields"]
     assert list(topic["fields"][0]) == ["field", "count", "nan_count", "min", "max", "mean", "std"]

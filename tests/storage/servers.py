@@ -140,6 +140,7 @@ class Faults:
     stall_s: float = 0.0  # wait this long before answering (timeouts)
     truncate: bool = False  # send fewer bytes than announced
     change_after: int = -1  # after this many GETs, the object's ETag changes
+    no_suffix: bool = False  # answer a suffix range (``bytes=-N``) with the whole object
 
 
 @dataclass
@@ -206,9 +207,14 @@ def start_http(store: HttpStore) -> ThreadingHTTPServer:
                 return
             start, end, status = 0, len(data), 200
             ranged = self.headers.get("Range")
-            if ranged:
+            if ranged and not (faults.no_suffix and ranged.startswith("bytes=-")):
                 first, _, last = ranged.removeprefix("bytes=").partition("-")
-                start, end, status = int(first), min(len(data), int(last) + 1), 206
+                if first:  # bytes=A-B, or bytes=A- (to the end)
+                    start = int(first)
+                    end = min(len(data), int(last) + 1) if last else len(data)
+                else:  # a suffix: the last bytes, all of them when the object is shorter
+                    start = max(0, len(data) - int(last))
+                status = 206
             part = memoryview(data)[start:end]  # no copy (a HEAD of a 256 MB object)
             self.send_response(status)
             self.send_header("Content-Length", str(len(part)))

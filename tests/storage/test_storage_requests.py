@@ -4,15 +4,16 @@ files that are cut or not ROS 2 still read as they do on disk."""
 
 from __future__ import annotations
 
+from collections import Counter
 from pathlib import Path
 
 import pytest
 from mcap.writer import Writer
 
 from bagkit.bag import BagError, bag_info
-from bagkit.storage.range_file import fetched
+from bagkit.storage.range_file import FIRST_TAIL_BYTES, TAIL_SHARE, TAIL_SLACK, fetched
 from tests.storage.conftest import Store
-from tests.storage.servers import HttpStore
+from tests.storage.servers import Faults, HttpStore
 from tests.storage.test_storage_read import summary_bytes
 
 
@@ -134,14 +135,103 @@ def test_filter_around_writes_its_cuts_under_an_output_url(
     assert again.stderr.count("\n") == 1 and again.stderr.startswith("error: ")
 
 
-def test_an_http_bag_prefix_costs_no_probe_that_fails(
+def tail_depths(file: Path) -> tuple[int, int]:
+    """How far from its end ``info`` must read an MCAP: to its summary's start (a bag with
+    metadata.yaml), and to its ``rosbag2`` Metadata record's start (a bare file, whose
+    compression mode that record says), from the summary as the ``mcap`` package reads it."""
+    from mcap.reader import make_reader
+
+    size = file.stat().st_size
+    with open(file, "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    record = min(m.offset for m in summary.metadata_indexes if m.name == "rosbag2")
+    return summary_bytes(file), size - record
+
+
+def first_then_learned(depth: int, cap: int | None = None) -> tuple[int, int]:
+    """Requests for a tail of ``depth`` bytes: of the first object of its kind (read
+    FIRST_TAIL_BYTES deep, up to ``cap``: one request when that holds it, else one more) and
+    of the next (read as deep as the first went and an eighth more). A listed object's first
+    read of its end fetches at most a quarter of it (``cap``); a suffix read (an object named
+    by its URL) knows no size beforehand."""
+    cap = depth if cap is None else cap
+    first = 1 if depth <= min(FIRST_TAIL_BYTES, cap) else 2
+    learned = min(depth + depth // TAIL_SLACK, cap)
+    return first, 1 if depth <= learned else 2
+
+
+class S3Requests:
+    """Requests bagkit's S3 client sends, by operation (every attempt: botocore's
+    ``before-send`` event)."""
+
+    def __init__(self, url: str) -> None:
+        from fsspec.asyn import sync
+
+        from bagkit.storage.filesystems import filesystem
+
+        self.counts: Counter[str] = Counter()
+        fs = filesystem(url)[0]
+        sync(fs.loop, fs.set_session)
+        fs.s3.meta.events.register("before-send.s3", self._sent)
+
+    def _sent(self, event_name: str, **_: object) -> None:
+        self.counts[event_name.rsplit(".", 1)[-1]] += 1
+
+
+def test_requests_of_info_are_what_it_must_read(
+    moto_store: Store, http_store: tuple[Store, HttpStore]
+) -> None:
+    """``info`` of a bag named by its URL makes no HEAD: a suffix read gives an object's size
+    and ETag with its end. Requests per bag follow from what must be read: metadata.yaml
+    whole, each MCAP's tail from its summary (a bare file: from its rosbag2 record), one
+    request when the guess holds it; on S3 a bag's prefix is listed once (sizes and ETags:
+    its objects are then read by plain ranges, metadata.yaml in one)."""
+    golden = Path(__file__).resolve().parents[2] / "fixtures" / "nominal" / "golden"
+    mcap = next(golden.glob("*.mcap"))
+    yaml = (golden / "metadata.yaml").stat().st_size
+    summary, record = tail_depths(mcap)
+    bare_first = 1 + (summary > FIRST_TAIL_BYTES) + (record > FIRST_TAIL_BYTES)
+    bare = (bare_first, first_then_learned(record)[1])
+    listed_mcap = first_then_learned(summary, mcap.stat().st_size // TAIL_SHARE)
+    http_yaml, http_mcap = first_then_learned(yaml), first_then_learned(summary)
+    s3, objects = S3Requests(moto_store.base), http_store[1]
+    for store in (moto_store, http_store[0]):
+        for i in (1, 2):  # a fresh kind: nothing learned of it yet
+            store.put(golden, f"counted/g/g{i}")
+            store.put(mcap, f"counted/m/m{i}.mcap")
+    for i in (0, 1):
+        for url, s3_gets, listings, http_gets in (
+            (f"counted/g/g{i + 1}", 1 + listed_mcap[i], 1, http_yaml[i] + http_mcap[i]),
+            (f"counted/m/m{i + 1}.mcap", bare[i], 0, bare[i]),
+        ):
+            sent = Counter(s3.counts)
+            bag_info(f"{moto_store.base}/{url}")
+            want = {"GetObject": s3_gets, "ListObjectsV2": listings}
+            assert {**want, **(s3.counts - sent)} == want, url
+            answered = dict(objects.requests)
+            bag_info(f"{http_store[0].base}/{url}")
+            sent_http = {m: n - answered.get(m, 0) for m, n in objects.requests.items()}
+            assert {"HEAD": 0, **sent_http} == {"HEAD": 0, "GET": http_gets}, url
+
+
+def test_a_server_without_suffix_ranges_is_asked_for_the_size(
     http_store: tuple[Store, HttpStore], local_bags: Path
 ) -> None:
-    """A bag named by its prefix on an HTTP server (which lists nothing): its metadata.yaml
-    is asked for first, no request answered 404 (fsspec follows a failed HEAD with a GET)."""
+    """A server that sends the whole object for ``bytes=-N`` (but takes ``bytes=a-b``): the
+    object is not read whole, it is asked for its size (a HEAD) and read by ranges."""
     store, objects = http_store
-    store.put(local_bags / "fleet" / "b", "probe/b")
-    before = dict(objects.requests)
-    bag_info(f"{store.base}/probe/b")
-    sent = {m: n - before.get(m, 0) for m, n in objects.requests.items()}
-    assert sent == {"HEAD": 2, "GET": 2}  # metadata.yaml and the .mcap: a HEAD and a GET each
+    file = local_bags / "fleet" / "a" / "a_0.mcap"
+    assert file.stat().st_size > FIRST_TAIL_BYTES  # the whole object is more than the suffix
+    store.put(file, "nosuffix/n/a.mcap")
+    objects.faults["/nosuffix/n/a.mcap"] = Faults(no_suffix=True)
+    answered = dict(objects.requests)
+    try:
+        remote = bag_info(f"{store.base}/nosuffix/n/a.mcap")
+    finally:
+        del objects.faults["/nosuffix/n/a.mcap"]
+    sent = {m: n - answered.get(m, 0) for m, n in objects.requests.items()}
+    local = bag_info(file)
+    assert remote.message_count == local.message_count > 0
+    assert [t.count for t in remote.topics] == [t.count for t in local.topics]
+    assert sent["HEAD"] == 1 and sent["GET"] >= 2
