@@ -94,10 +94,15 @@ def test_cli_loop_until_ctrl_c(
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        env={**os.environ, "PYTHONFAULTHANDLER": "1"},  # SIGABRT prints every thread's stack
     )
     listener.wait_for_count(2 * per_pass + 1, timeout=20)
     os.killpg(proc.pid, signal.SIGINT)
-    stdout, stderr = proc.communicate(timeout=10)
+    try:
+        stdout, stderr = proc.communicate(timeout=10)
+    except subprocess.TimeoutExpired:  # seen once in CI: keep where it hung
+        proc.send_signal(signal.SIGABRT)
+        pytest.fail(f"still running 10 s after SIGINT:\n{proc.communicate(timeout=10)[1]}")
     assert proc.returncode == 130, stderr
     assert "Traceback" not in stderr
     received = len(listener.wait_for_count(10**9, timeout=0.5))
