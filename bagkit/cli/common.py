@@ -7,6 +7,7 @@ interrupted, 141 the reader of our output went away (broken pipe; quiet, as ``ye
 
 from __future__ import annotations
 
+import _thread
 import contextlib
 import errno
 import functools
@@ -345,18 +346,24 @@ def handle_errors(func: Callable[P, R]) -> Callable[P, R]:
     return wrapper
 
 
+# A Ctrl-C swallowed by a finalizer is raised again this long after (the finalizer is done).
+REINTERRUPT_S = 0.05
+
+
 class _InterruptLatch:
     """Remembers a Ctrl-C even when its KeyboardInterrupt is swallowed on the way.
 
-    Python ignores an exception raised in a gc callback or ``__del__`` (Dask's run there):
-    the command would then finish and exit 0 although the user interrupted it, and Python
-    would print the ignored KeyboardInterrupt's traceback; the latch keeps that quiet too.
+    Python ignores an exception raised in a gc callback or ``__del__`` (Dask's run there, and
+    the gc runs them amid any loop): the command would then go on, a looping replay forever,
+    and Python would print the ignored KeyboardInterrupt's traceback. The latch keeps that
+    quiet, raises the interrupt again in the main thread, and remembers it for the exit code.
     """
 
     def __init__(self) -> None:
         self.seen = False
         self._previous: Any = None
         self._previous_unraisable: Any = None
+        self._again: threading.Timer | None = None
 
     def __enter__(self) -> None:
         current = signal.getsignal(signal.SIGINT)
@@ -372,6 +379,8 @@ class _InterruptLatch:
             sys.unraisablehook = self._on_unraisable
 
     def __exit__(self, *_: object) -> None:
+        if self._again is not None:
+            self._again.cancel()
         if self._previous is not None:
             signal.signal(signal.SIGINT, self._previous)
             sys.unraisablehook = self._previous_unraisable
@@ -383,6 +392,11 @@ class _InterruptLatch:
     def _on_unraisable(self, unraisable: Any) -> None:
         if isinstance(unraisable.exc_value, KeyboardInterrupt):
             self.seen = True  # reported as "interrupted" when the command returns
+            if self._again is None or not self._again.is_alive():
+                # Raised again once the finalizer is left (here it would be swallowed again).
+                self._again = threading.Timer(REINTERRUPT_S, _thread.interrupt_main)
+                self._again.daemon = True
+                self._again.start()
         else:
             self._previous_unraisable(unraisable)
 

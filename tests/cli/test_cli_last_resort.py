@@ -6,6 +6,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -109,7 +110,22 @@ def _interrupt_in_a_finalizer() -> None:
     _InterruptedFinalizer()
 
 
-@pytest.mark.parametrize("action", [_swallowed_interrupt, _interrupt_in_a_finalizer])
+_LOOPED_ON: list[bool] = []
+
+
+def _a_loop_after_an_interrupted_finalizer() -> None:
+    """A looping replay whose Ctrl-C landed in a finalizer: it must stop, not loop on."""
+    _InterruptedFinalizer()
+    deadline = time.monotonic() + 5
+    while time.monotonic() < deadline:
+        time.sleep(0.01)
+    _LOOPED_ON.append(True)
+
+
+@pytest.mark.parametrize(
+    "action",
+    [_swallowed_interrupt, _interrupt_in_a_finalizer, _a_loop_after_an_interrupted_finalizer],
+)
 def test_a_swallowed_ctrl_c_still_ends_with_exit_130(
     capsys: pytest.CaptureFixture[str],
     monkeypatch: pytest.MonkeyPatch,
@@ -124,6 +140,7 @@ def test_a_swallowed_ctrl_c_still_ends_with_exit_130(
     finally:
         signal.signal(signal.SIGINT, previous)
     assert (exit_code, lines) == (EXIT_INTERRUPTED, ["error: interrupted"])
+    assert not _LOOPED_ON
     assert unraisable == []  # nothing printed the ignored KeyboardInterrupt
     assert signal.getsignal(signal.SIGINT) is previous
     assert sys.unraisablehook == unraisable.append
