@@ -7,7 +7,6 @@ interrupted, 141 the reader of our output went away (broken pipe; quiet, as ``ye
 
 from __future__ import annotations
 
-import _thread
 import contextlib
 import errno
 import functools
@@ -394,7 +393,7 @@ class _InterruptLatch:
             self.seen = True  # reported as "interrupted" when the command returns
             if self._again is None or not self._again.is_alive():
                 # Raised again once the finalizer is left (here it would be swallowed again).
-                self._again = threading.Timer(REINTERRUPT_S, _thread.interrupt_main)
+                self._again = threading.Timer(REINTERRUPT_S, os.kill, (os.getpid(), signal.SIGINT))
                 self._again.daemon = True
                 self._again.start()
         else:
