@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Collection, Iterable
 from typing import TYPE_CHECKING
 
 from bagkit.errors import BagkitError
@@ -19,6 +19,7 @@ __all__ = [
     "UnknownTopicError",
     "could_have_lost",
     "nothing_read",
+    "unread_topics",
 ]
 
 
@@ -41,6 +42,15 @@ def nothing_read(topics: Iterable[str], lost: Iterable[str]) -> DataError:
     return DataError(
         f"no message of {', '.join(topics)} could be read ({'; '.join(dict.fromkeys(lost))})"
     )
+
+
+def unread_topics(counts: Iterable[tuple[str, int]], losing: Collection[str]) -> list[str]:
+    """The topics of ``counts`` (topic, messages read: one pair per bag) no message of which
+    was read in any bag, among ``losing`` (those that :func:`could_have_lost` messages)."""
+    read: dict[str, int] = {}
+    for topic, count in counts:
+        read[topic] = read.get(topic, 0) + count
+    return [t for t, n in read.items() if not n and t in losing]
 
 
 def could_have_lost(reader: BagReader, topic: str) -> bool:

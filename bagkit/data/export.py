@@ -22,7 +22,7 @@ import pyarrow.csv as pa_csv
 import pyarrow.parquet as pq
 
 from bagkit.bag import BagReader
-from bagkit.data.errors import DataError, could_have_lost
+from bagkit.data.errors import DataError, could_have_lost, unread_topics
 from bagkit.data.formats import ExportFormat
 from bagkit.data.scan import Scan, plan_scan
 from bagkit.selection.errors import EmptyWindowWarning
@@ -80,13 +80,10 @@ def nothing_read_topics(reports: Iterable[ExportReport]) -> tuple[list[str], lis
     no message of which was read in any, when a bag lost parts that could have held some;
     none else (an empty topic, a window without its messages: empty files are the answer)."""
     reports = list(reports)
-    read: Counter[str] = Counter()
-    losing: set[str] = set()
-    for report in reports:
-        read.update(report.messages)
-        losing.update(report.losing)
+    losing = {topic for report in reports for topic in report.losing}
+    counts = (pair for report in reports for pair in report.messages.items())
     lost = [problem for report in reports for problem in report.lost]
-    return [t for t, n in read.items() if not n and t in losing], lost
+    return unread_topics(counts, losing), lost
 
 
 def topic_path(out: Path, topic: str, suffix: str) -> Path:

@@ -13,7 +13,12 @@ import numpy as np
 
 from bagkit.bag import BagReader
 from bagkit.bag.reader import bag_path
-from bagkit.data.errors import DataError, UndecodableTopicError, could_have_lost
+from bagkit.data.errors import (
+    DataError,
+    UndecodableTopicError,
+    could_have_lost,
+    unread_topics,
+)
 from bagkit.data.scan import plan_scan
 from bagkit.data.units import field_unit
 from bagkit.decode import MessageTypes
@@ -85,10 +90,8 @@ class SeriesReading:
     def nothing_read(self) -> list[str]:
         """The topics no message of which was read in any bag, when a bag lost parts that
         could have held some (:func:`~bagkit.data.errors.nothing_read`)."""
-        read: Counter[str] = Counter()
-        for (_, topic), count in self.messages.items():
-            read[topic] += count
-        return [t for t, n in read.items() if not n and t in self.losing]
+        counts = ((topic, count) for (_, topic), count in self.messages.items())
+        return unread_topics(counts, self.losing)
 
     def none_decoded(self) -> dict[str, int]:
         """Topic -> its messages, for the topics that had messages in the bags and decoded

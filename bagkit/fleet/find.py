@@ -193,14 +193,10 @@ def episodes_in_bag(
                 found = find_episodes(reader, trigger, gap_ns, resolved.window, state_topics)
             except UnknownTopicError:
                 return BagEpisodes(bag, has_topic=False, topics=list(reader.topics))
-            lost = (
-                [p if p.startswith(bag) else f"{bag}: {p}" for p in reader.problems]
-                if could_have_lost(reader, trigger.topic)
-                else []
-            )
+            lost = _labelled(bag, reader.problems) if could_have_lost(reader, trigger.topic) else []
     except (BagError, StorageError) as exc:
         return BagEpisodes(bag, error=str(exc))
-    problems = [p if p.startswith(bag) else f"{bag}: {p}" for p in found.problems]
+    problems = _labelled(bag, found.problems)
     if outside is not None:
         problems.insert(0, outside)
     return BagEpisodes(
@@ -212,6 +208,11 @@ def episodes_in_bag(
         undecodable=found.undecodable,
         lost=lost,
     )
+
+
+def _labelled(bag: str, problems: list[str]) -> list[str]:
+    """``problems`` each naming ``bag`` (once)."""
+    return [p if p.startswith(bag) else f"{bag}: {p}" for p in problems]
 
 
 def find_fleet(
