@@ -123,3 +123,22 @@ def test_the_command_runs_numpy_on_one_blas_thread() -> None:
     # one (on a machine of one core OpenBLAS starts none, whatever is asked).
     if (os.cpu_count() or 1) > 1:
         assert _threads_after_numpy({**environment, "OPENBLAS_NUM_THREADS": "2"}) == 2
+
+
+@pytest.mark.parametrize("args", [["--version"], ["stats", "summary", "no-such-bag"]])
+def test_the_command_leaves_the_collectors_last_pass_nothing(args: list[str]) -> None:
+    """Objects alive when a command ends (successful or not) are frozen: the interpreter's
+    collection at exit skips them."""
+    probe = (
+        "import atexit, gc, sys\n"
+        "from bagkit.cli import launch\n"
+        "atexit.register(lambda: print('frozen', gc.get_freeze_count()))\n"
+        f"sys.argv = ['bagkit', *{args!r}]\n"
+        "launch.run()\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, timeout=120, check=False
+    )
+    assert done.returncode == (0 if args == ["--version"] else 2), done.stderr
+    frozen = int(done.stdout.split("frozen")[-1])
+    assert frozen > 10_000  # numpy's, typer's and bagkit's modules, not a handful
