@@ -256,6 +256,7 @@ class BagReader:
         self.topics: dict[str, TopicInfo] = {}
         self.distro = distro
         self._definitions: dict[str, str] = {}
+        self._assumed: frozenset[str] = frozenset()
         self._completed = False
         self.topic_definitions: dict[str, str] = {}
         self.topic_counts: dict[str, int] = {}
@@ -349,8 +350,17 @@ class BagReader:
             self._completed = True
             missing = {t.type for t in self.topics.values()} - set(self._definitions)
             distro = self.metadata.ros_distro if self.metadata else ""
-            self._definitions.update(distro_definitions(missing, distro, self.distro))
+            found = distro_definitions(missing, distro, self.distro)
+            self._definitions.update(found)
+            self._assumed = frozenset(found)
         return self._definitions
+
+    @property
+    def assumed_types(self) -> frozenset[str]:
+        """The types of :attr:`definitions` that the bag stores no definition of: a
+        distribution's, which its payloads may not follow (a wrong guess of the distro)."""
+        _ = self.definitions  # completes them, and with them the types assumed
+        return self._assumed
 
     def __enter__(self) -> BagReader:
         return self.open()

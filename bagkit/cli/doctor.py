@@ -14,6 +14,7 @@ from bagkit.cli.common import (
     handle_errors,
     print_json,
 )
+from bagkit.cli.selection_options import Distro
 from bagkit.cli.surgery_options import Format
 from bagkit.surgery.doctor import DoctorReport, diagnose
 
@@ -41,6 +42,7 @@ def doctor(
         help="Compare each topic's stored definition with the installed one instead.",
     ),
     output_format: Format = ReportFormat.TABLE,
+    distro: Distro = None,
 ) -> None:
     """Check a bag; one line per problem."""
     if against_installed:

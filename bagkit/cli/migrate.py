@@ -8,6 +8,7 @@ from pathlib import Path
 import typer
 
 from bagkit.cli.common import ReportFormat, console, err_console, handle_errors, note, print_json
+from bagkit.cli.selection_options import Distro
 from bagkit.cli.surgery_options import Compression, Force, Format, Output, output_options
 
 HELP = """Rewrite BAG to other message definitions into a new bag OUT: by default those
@@ -54,6 +55,7 @@ def migrate(
     compression: Compression = "zstd",
     force: Force = False,
     output_format: Format = ReportFormat.TABLE,
+    distro: Distro = None,
 ) -> None:
     """Rewrite a bag to other message definitions."""
     from bagkit.migrate import Rules, Target, load_rules

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from bagkit.bag.definitions import DEFINITION_ENCODINGS, canonical_type_name
+from bagkit.bag.distro_definitions import distro_definitions
 from bagkit.bag.errors import BagError, BagNotFoundError, NotABagError
 from bagkit.bag.mcapio import MAGIC, Source, read_file_index
 from bagkit.bag.mcapio.records import Schema
@@ -85,7 +86,7 @@ def diagnose(path: Path, *, deep: bool = False) -> DoctorReport:
     report = DoctorReport(path=path, deep=deep)
     metadata = _metadata(bag_dir, path, report)
     facts: dict[str, FileFacts] = {}
-    decoders = _Decoders(deep)
+    decoders = _Decoders(deep, metadata.ros_distro if metadata is not None else "")
     compression_mode = metadata.compression_mode if metadata is not None else None
     for file in files:
         checked = _check_file(file, decoders, report, compression_mode)
@@ -158,8 +159,9 @@ def _metadata(bag_dir: Path | None, path: Path, report: DoctorReport) -> BagMeta
 class _Decoders:
     """Schemas of all files, and (deep) a decode of every message."""
 
-    def __init__(self, deep: bool) -> None:
+    def __init__(self, deep: bool, ros_distro: str) -> None:
         self.deep = deep
+        self.ros_distro = ros_distro  # what metadata.yaml names: the types of textless schemas
         # Per schema (type name, text): two schemas of one type name each decode with their own.
         self.types: dict[tuple[str, str], MessageTypes] = {}
         self.type_of: dict[str, tuple[str, str]] = {}  # topic -> its schema
@@ -212,9 +214,11 @@ class _Decoders:
         key = _key(schema)
         if key not in self.types:
             # A schema without a usable text (rosbag2's ``unknown``, a .db3 without the type's
-            # definition): the type as the read commands take it (rosbags' types).
+            # definition): the type as the read commands take it (the bag's distribution's).
             stored = schema.encoding in DEFINITION_ENCODINGS
-            self.types[key] = MessageTypes.from_definitions({key[0]: key[1]} if stored else {})
+            self.types[key] = MessageTypes.from_definitions(
+                {key[0]: key[1]} if stored else distro_definitions([key[0]], self.ros_distro)
+            )
             if not stored:
                 self._textless.add(key)
         return self.types[key]

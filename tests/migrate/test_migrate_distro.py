@@ -1,0 +1,94 @@
+"""Bags that store no definitions (Foxy to Humble .db3) in ``migrate`` and ``doctor``: the
+distribution's types, ``--distro`` when the bag names none, and no output whose stored
+definitions its payloads do not follow. Values checked against rosbags' Humble types."""
+
+from __future__ import annotations
+
+import re
+import sqlite3
+from pathlib import Path
+
+import pytest
+from bagkit_runs import bagkit_in_process
+from rosbags.highlevel import AnyReader
+from rosbags.rosbag2 import Writer
+from rosbags.typesys import Stores, get_typestore
+
+HUMBLE = get_typestore(Stores.ROS2_HUMBLE)
+RANGE = "sensor_msgs/msg/Range"
+T0 = 1_650_000_000_000_000_000
+
+
+def _humble_bag(path: Path, ros_distro: str | None) -> list[float]:
+    """A Humble-era .db3 of /sonar ranges (no message_definitions table, ``ros_distro`` as
+    given, None: no key); returns the ranges written."""
+    t = HUMBLE.types
+    ranges = [1.0 + i / 8 for i in range(6)]
+    with Writer(path, version=8) as writer:
+        sonar = writer.add_connection("/sonar", RANGE, typestore=HUMBLE)
+        for i, value in enumerate(ranges):
+            header = t["std_msgs/msg/Header"](
+                stamp=t["builtin_interfaces/msg/Time"](sec=i, nanosec=0), frame_id="sonar"
+            )
+            msg = t[RANGE](header=header, radiation_type=0, field_of_view=0.5, min_range=0.1,
+                           max_range=4.0, range=value)  # fmt: skip
+            writer.write(sonar, T0 + i * 10**8, bytes(HUMBLE.serialize_cdr(msg, RANGE)))
+    (db3,) = path.glob("*.db3")
+    db = sqlite3.connect(db3)
+    db.execute("DROP TABLE message_definitions")
+    db.commit()
+    db.close()
+    metadata = path / "metadata.yaml"
+    text = re.sub(r"\n *ros_distro: .*", "", metadata.read_text())
+    metadata.write_text(text + (f"  ros_distro: {ros_distro}\n" if ros_distro else ""))
+    return ranges
+
+
+@pytest.fixture(autouse=True)
+def _no_distro_set(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``--distro`` is handed on in BAGKIT_DISTRO: none from the environment or a test before."""
+    monkeypatch.delenv("BAGKIT_DISTRO", raising=False)
+
+
+def test_a_bag_without_distro_is_refused_not_written_with_a_wrong_definition(
+    tmp_path: Path,
+) -> None:
+    """Jazzy's Range is assumed and Humble's payloads do not follow it: before, the output
+    stored Jazzy's Range over them (copied "as it is") and no reader decoded it."""
+    _humble_bag(tmp_path / "old", None)
+    done = bagkit_in_process(["migrate", tmp_path / "old", "-o", tmp_path / "new"])
+    assert done.returncode == 2
+    errors = [line for line in done.stderr.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and "--distro" in errors[0] and "/sonar" in errors[0], done.stderr
+    assert not (tmp_path / "new").exists()
+
+
+def test_distro_names_what_the_bag_does_not(tmp_path: Path) -> None:
+    ranges = _humble_bag(tmp_path / "old", None)
+    done = bagkit_in_process(
+        ["migrate", tmp_path / "old", "-o", tmp_path / "new", "--distro", "humble"]
+    )
+    assert done.returncode == 0, done.stderr
+    assert "added: variance (float32)" in done.stdout
+    jazzy = get_typestore(Stores.ROS2_JAZZY)
+    with AnyReader([tmp_path / "new"], default_typestore=jazzy) as reader:
+        read = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages()]
+    assert [(m.range, m.variance) for m in read] == [  # type: ignore[attr-defined]
+        (pytest.approx(r), 0.0) for r in ranges
+    ]
+
+
+@pytest.mark.parametrize(
+    ("ros_distro", "options"), [("humble", []), (None, ["--distro", "humble"])]
+)
+def test_doctor_decodes_with_the_bag_s_distribution(
+    tmp_path: Path, ros_distro: str | None, options: list[str]
+) -> None:
+    """``doctor --deep`` decoded a textless .db3 with Jazzy's types whatever the bag named:
+    every Humble Range "did not decode" (exit 1) while echo read them."""
+    _humble_bag(tmp_path / "old", ros_distro)
+    done = bagkit_in_process(["doctor", tmp_path / "old", "--deep", *options])
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "all decoded" in done.stdout
+    drift = bagkit_in_process(["doctor", tmp_path / "old", "--against-installed", *options])
+    assert drift.returncode == 1 and "added: variance (float32)" in drift.stdout, drift.stderr
