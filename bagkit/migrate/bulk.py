@@ -79,12 +79,23 @@ class BulkMigration:
         for group in groups:
             if not self._decodable(group.values):
                 return None
-            old_lengths = _prefixes(self.old, buf, int(starts[group.indexes[0]]))
+            old_lengths = self.prefixes(buf, int(starts[group.indexes[0]]))
             made = self._records(group.values, old_lengths, room)
             if made is None:
                 return None
             found.append((group.indexes, made))
         return found
+
+    def prefixes(self, buf: np.ndarray, start: int) -> tuple[int, ...]:
+        """The length prefixes of the old payload at ``start`` of ``buf``, already decoded in
+        bulk (they fit): what fixes both layouts of its group, and the bytes copied."""
+        lengths: tuple[int, ...] = ()
+        while True:
+            step = self.old.resolve(lengths)
+            if not isinstance(step, NeedLength):
+                return lengths
+            at = start + step.offset
+            lengths += (int(buf[at : at + 4].view("<u4")[0]),)
 
     def _decodable(self, values: np.ndarray) -> bool:
         """Whether every string of ``values`` is ASCII and every bool 0 or 1: values that the
@@ -120,15 +131,21 @@ class BulkMigration:
         resolved = self.new.resolve(new_lengths)
         if isinstance(resolved, NeedLength):
             return None
-        count, size = len(values), resolved.dtype.itemsize
-        rows = np.zeros((count, room + size), np.uint8)
-        payloads = rows[:, room:]
-        payloads[:, : len(CDR_LE)] = np.frombuffer(CDR_LE, np.uint8)
+        size = resolved.dtype.itemsize
+        # What every row holds before the copied values: the room and padding zero, the CDR
+        # header, the length prefixes; repeated into all rows at once.
+        template = np.zeros(room + size, np.uint8)
+        template[room : room + len(CDR_LE)] = np.frombuffer(CDR_LE, np.uint8)
         for offset, length in zip(_prefix_offsets(self.new, new_lengths), new_lengths, strict=True):
-            payloads[:, offset : offset + 4] = np.frombuffer(U32.pack(length), np.uint8)
+            at = room + offset
+            template[at : at + 4] = np.frombuffer(U32.pack(length), np.uint8)
+        rows = np.tile(template, (len(values), 1))
         old_bytes = values[:, None].view(np.uint8)  # one row of bytes per payload (a view)
         for at, source_at, length in self._spans(values.dtype, resolved.dtype):
-            payloads[:, at : at + length] = old_bytes[:, source_at : source_at + length]
+            # Each row's span as one item of ``length`` bytes: a copy per row, not per byte.
+            span = np.dtype((np.void, length))
+            target = rows[:, room + at : room + at + length].view(span)
+            target[:, 0] = old_bytes[:, source_at : source_at + length].view(span)[:, 0]
         return rows
 
     def _spans(self, old: np.dtype, new: np.dtype) -> list[tuple[int, int, int]]:
@@ -171,17 +188,6 @@ def _bounded(typestore: TypeDefinitions, name: str) -> bool:
             if element[0] == Nodetype.NAME:
                 todo.append(element[1])
     return False
-
-
-def _prefixes(layout: CdrLayout, buf: np.ndarray, start: int) -> tuple[int, ...]:
-    """The length prefixes of the payload at ``start`` (already decoded in bulk: they fit)."""
-    lengths: tuple[int, ...] = ()
-    while True:
-        step = layout.resolve(lengths)
-        if not isinstance(step, NeedLength):
-            return lengths
-        at = start + step.offset
-        lengths += (int(buf[at : at + 4].view("<u4")[0]),)
 
 
 def _prefix_offsets(layout: CdrLayout, lengths: tuple[int, ...]) -> list[int]:

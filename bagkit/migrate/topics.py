@@ -13,6 +13,11 @@ encoded and decoded with the new definition), else the whole batch goes this pat
 every row: the rows of a group share every byte that is not a copied value (header, length
 prefixes, padding), and a copied value is a number or the bytes of a string, which decode
 whatever they hold, as they did in the old payload (decoded in bulk with the old layout).
+The operations a group's rows are built by depend on nothing but the old payloads' length
+prefixes (they fix both layouts, the spans copied and the constants): once a group of given
+prefixes agreed, a group of the same prefixes in a later batch is built exactly as it was and
+is not checked again (the values each batch copies are checked as before: strings ASCII,
+bools 0 or 1, :meth:`~bagkit.migrate.bulk.BulkMigration.payloads`).
 """
 
 from __future__ import annotations
@@ -34,6 +39,10 @@ from bagkit.migrate.errors import MigrateError
 from bagkit.migrate.plan import Planner
 from bagkit.migrate.rules import Rules
 from bagkit.migrate.targets import Target
+
+# Layouts (old length prefixes) remembered as agreed, at most: memory stays flat whatever the
+# strings' lengths; one forgotten is checked again.
+_AGREED_LAYOUTS = 1024
 
 
 @dataclass
@@ -61,6 +70,8 @@ class TopicMigration:
     check: Callable[[bytes | memoryview], object] = field(repr=False)
     bulk: BulkMigration | None = field(default=None, repr=False)
     migrated: int = 0
+    # Length prefixes of old payloads whose bulk group agreed (see the module's docstring).
+    _agreed: set[tuple[int, ...]] = field(default_factory=set, repr=False)
 
     def payloads(
         self, buf: np.ndarray, starts: np.ndarray, lengths: np.ndarray, room: int = 0
@@ -105,9 +116,14 @@ class TopicMigration:
         room: int,
     ) -> bool:
         """Whether the first and last row of each bulk group hold what :meth:`payload` gives
-        for their old payloads (see the module's docstring)."""
+        for their old payloads, or a group of the same old length prefixes did (see the
+        module's docstring)."""
+        assert self.bulk is not None
         view = memoryview(buf.data)
         for indexes, rows in groups:
+            prefixes = self.bulk.prefixes(buf, int(starts[indexes[0]]))
+            if prefixes in self._agreed:
+                continue
             for row in {0, len(indexes) - 1}:
                 start, length = int(starts[indexes[row]]), int(lengths[indexes[row]])
                 try:
@@ -116,6 +132,9 @@ class TopicMigration:
                     return False  # this path raises it, naming the message
                 if rows[row, room:].data != expected:
                     return False
+            if len(self._agreed) >= _AGREED_LAYOUTS:
+                self._agreed.clear()
+            self._agreed.add(prefixes)
         return True
 
     def _migrated(self, data: bytes | memoryview) -> bytes:

@@ -136,9 +136,8 @@ def _rewritten(
         for indexes, block in rewrite.payloads(buf, payload_at, ends[rows] - payload_at, size):
             which = rows[indexes]
             count, width = block.shape
-            block[:, 0] = Opcode.MESSAGE
-            block[:, 1 : RECORD_HEADER.size] = np.frombuffer(
-                (width - RECORD_HEADER.size).to_bytes(8, "little"), np.uint8
+            block[:, : RECORD_HEADER.size] = np.frombuffer(
+                RECORD_HEADER.pack(Opcode.MESSAGE, width - RECORD_HEADER.size), np.uint8
             )
             prefix = np.dtype((np.void, size - RECORD_HEADER.size))
             block[:, RECORD_HEADER.size : size].view(prefix)[:, 0] = gather(

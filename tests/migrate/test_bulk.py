@@ -85,6 +85,47 @@ def test_bulk_equals_one_by_one() -> None:
     assert migration.bulk.payloads(buf, starts, short, 0) is None
 
 
+def test_a_layout_is_checked_against_one_by_one_once() -> None:
+    """The first group of each old layout (its length prefixes) is checked against the
+    message-by-message path, its first and last rows decoded with the new definition; a later
+    batch of the same layouts is built the same way and not checked again, one of a new layout
+    is; every row still equals the one-by-one migration of its payload."""
+    migration = _migration()
+    checked: list[bytes] = []
+    check = migration.check
+
+    def counted(data: bytes | memoryview) -> object:
+        checked.append(bytes(data))
+        return check(data)
+
+    migration.check = counted
+
+    def batch(messages: list[Imu]) -> tuple[list[bytes], dict[int, bytes]]:
+        old = [_old(m) for m in messages]
+        buf = np.frombuffer(b"".join(old), np.uint8)
+        lengths = np.array([len(p) for p in old], np.int64)
+        starts = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
+        return old, _by_index(migration.payloads(buf, starts, lengths, 31), 31)
+
+    messages = _messages(12)  # three frame ids: three layouts
+    old, first = batch(messages[:6])
+    assert len(checked) == 6  # first and last row of each of three groups
+    checked.clear()
+    _, again = batch(messages[6:])
+    assert checked == []
+    longer = _messages(2)
+    for msg in longer:
+        msg.header.frame_id = "a_longer_frame"
+    _, new_layout = batch(longer)
+    assert len(checked) == 2
+    checked.clear()
+    expected = [migration.payload(p) for p in old + [_old(m) for m in messages[6:] + longer]]
+    found = (
+        [first[i] for i in range(6)] + [again[i] for i in range(6)] + [new_layout[0], new_layout[1]]
+    )
+    assert found == expected
+
+
 def test_one_by_one_comes_as_rows_too() -> None:
     """The message-by-message path (a rule-free migration without bulk) hands out the same
     groups of rows."""
