@@ -41,9 +41,18 @@ class BulkGroup:
         return self.layout.columns(self.values, paths)
 
 
+def read_at(buf: np.ndarray, positions: np.ndarray, dtype: str) -> np.ndarray:
+    """The number of ``dtype`` (``"<u4"``, ``"<u8"``) at each of ``positions`` in the contiguous
+    byte array ``buf``: one gather through a view of a number at every byte (unaligned), a
+    third of the time of gathering windows of bytes and viewing them."""
+    kind = np.dtype(dtype)
+    count = max(len(buf) - kind.itemsize + 1, 0)
+    return np.ndarray((count,), kind, buf, 0, (1,))[positions]
+
+
 def read_u32(buf: np.ndarray, positions: np.ndarray) -> np.ndarray:
     """Little-endian ``uint32`` at each of ``positions`` in the byte array ``buf``."""
-    return sliding_window_view(buf, 4)[positions].view("<u4").ravel()
+    return read_at(buf, positions, "<u4")
 
 
 def gather(buf: np.ndarray, starts: np.ndarray, dtype: np.dtype) -> np.ndarray:
@@ -82,7 +91,7 @@ def decode_bulk(
     indexes = np.arange(len(starts))
     plain = spans_inside(len(buf), starts, lengths) & (lengths >= 4)
     head = starts[plain]
-    plain[plain] = (buf[head] == CDR_LE[0]) & (buf[head + 1] == CDR_LE[1])
+    plain[plain] = read_at(buf, head, "<u2") == int.from_bytes(CDR_LE, "little")
     leftover = [indexes[~plain]]
     groups: list[BulkGroup] = []
     pending: list[tuple[np.ndarray, tuple[int, ...]]] = [(indexes[plain], ())]

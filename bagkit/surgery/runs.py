@@ -12,10 +12,9 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-from numpy.lib.stride_tricks import sliding_window_view
 
 from bagkit.bag.mcapio.records import MESSAGE_PREFIX, MESSAGE_RECORD_HEADER, RECORD_HEADER, Opcode
-from bagkit.decode.bulk import gather
+from bagkit.decode.bulk import gather, read_at
 from bagkit.surgery.options import TopicRewrite
 from bagkit.surgery.output import OutputBag
 from bagkit.surgery.select import PayloadFilter, Selection
@@ -72,11 +71,10 @@ def open_run(  # noqa: PLR0917 (the opened chunk and how it is selected)
     valid = offsets <= size - MESSAGE_RECORD_HEADER.size
     buf = np.frombuffer(records, np.uint8)
     if size >= MESSAGE_RECORD_HEADER.size:
-        words = sliding_window_view(buf, 8)
         safe = np.where(valid, offsets, 0)
-        lengths = words[safe + 1].view("<u8").ravel().astype(np.int64)
+        lengths = read_at(buf, safe + 1, "<u8").astype(np.int64)
         lengths = np.where(lengths < 0, size, lengths)  # lengths past 2**63: never whole
-        times = words[safe + _LOG_TIME_AT].view("<u8").ravel()
+        times = read_at(buf, safe + _LOG_TIME_AT, "<u8")
         ends = safe + RECORD_HEADER.size + np.minimum(lengths, size)
         valid &= (buf[safe] == Opcode.MESSAGE) & (lengths >= MESSAGE_PREFIX.size) & (ends <= size)
     else:

@@ -10,7 +10,7 @@ import pytest
 from random_messages import JAZZY, random_message, same
 
 from bagkit.decode import flatten_message, leaf_fields
-from bagkit.decode.bulk import MAX_GROUPS, decode_bulk
+from bagkit.decode.bulk import MAX_GROUPS, decode_bulk, read_at
 from bagkit.decode.layout import CdrLayout
 
 BULK_TYPES = [
@@ -178,3 +178,17 @@ def test_spans_outside_the_buffer_are_left_over() -> None:
     (group,), leftover = decode_bulk(buffer, starts, lengths, layout)
     assert group.indexes.tolist() == [0, 1] and leftover.tolist() == [2, 3, 4, 5]
     assert group.columns(["data"])["data"].tolist() == [1, 1]
+
+
+@pytest.mark.parametrize(("dtype", "code"), [("<u2", "<H"), ("<u4", "<I"), ("<u8", "<Q")])
+def test_numbers_read_at_any_byte(dtype: str, code: str) -> None:
+    """Unaligned positions, the last number that fits, a buffer that starts inside another."""
+    data = bytes(range(7, 250)) * 3
+    buf = np.frombuffer(data, np.uint8)[5:]
+    size = struct.calcsize(code)
+    positions = np.array([0, 1, 3, 7, 100, len(buf) - size], np.int64)
+    expected = [struct.unpack_from(code, data, 5 + p)[0] for p in positions.tolist()]
+    assert read_at(buf, positions, dtype).tolist() == expected
+    with pytest.raises(IndexError):
+        read_at(buf, np.array([len(buf) - size + 1]), dtype)
+    assert read_at(buf[: size - 1], np.array([], np.int64), dtype).tolist() == []
