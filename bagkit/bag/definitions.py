@@ -57,6 +57,10 @@ DEFINITION_ENCODINGS = ("ros2msg", "ros2idl")
 whose definition it did not find when recording (an action's status or cancel topic recorded
 before its other topics, Kilted to 2026)."""
 
+UNKNOWN_ENCODING = "unknown"
+"""rosbag2's encoding of a definition it does not have (written with no text): bagkit writes it
+too, where an input gives no definition for a type."""
+
 
 def canonical_type_name(type_name: str) -> str:
     """Return ``pkg/msg/Name`` for ``pkg/Name`` (older writers) and leave other names alone."""

@@ -22,7 +22,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from bagkit.bag.definitions import canonical_type_name
+from bagkit.bag.definitions import DEFINITION_ENCODINGS, canonical_type_name
 from bagkit.bag.errors import ChunkError
 from bagkit.bag.mcapio import Block, FileIndex, Source, count_messages, extent, read_chunk
 from bagkit.bag.mcapio.chunk_builder import ClosedChunk
@@ -53,8 +53,11 @@ class InputFile:
     problems: list[str] = field(default_factory=list)
 
 
-def topics_of(index: FileIndex, known: dict[str, TopicInfo]) -> list[tuple[int, TopicInfo, str]]:
-    """``(channel id, topic, definition)`` of each channel (QoS completed from ``known``)."""
+def topics_of(
+    index: FileIndex, known: dict[str, TopicInfo]
+) -> list[tuple[int, TopicInfo, str | None]]:
+    """``(channel id, topic, definition)`` of each channel (QoS completed from ``known``); the
+    definition None where the schema holds none (rosbag2's ``unknown`` encoding)."""
     found = []
     for channel in index.channels.values():
         schema = index.schemas.get(channel.schema_id)
@@ -71,7 +74,9 @@ def topics_of(index: FileIndex, known: dict[str, TopicInfo]) -> list[tuple[int, 
             type_description_hash=channel.metadata.get("topic_type_hash", "")
             or (recorded.type_description_hash if recorded else ""),
         )
-        definition = schema.data.decode("utf-8", errors="replace") if schema else ""
+        definition = None
+        if schema is not None and schema.encoding in DEFINITION_ENCODINGS:
+            definition = schema.data.decode("utf-8", errors="replace")
         found.append((channel.id, topic, definition))
     return found
 

@@ -101,7 +101,7 @@ def rewrite_messages(
                 if name in rewritten:
                     out.add_topic(rewritten[name].topic, rewritten[name].definition, 0)
                 else:
-                    out.add_topic(topic, definitions.get(topic.type, ""), 0)
+                    out.add_topic(topic, definitions.get(topic.type), 0)
             if latched and selection.window.start_ns is not None:
                 write_latched(out, latched, selection.window.start_ns)
             total = sum(r.topic_counts.get(n, 0) for r in readers for n in selected)

@@ -23,7 +23,7 @@ import numpy as np
 from mcap.well_known import Profile
 
 from bagkit.bag.bag_files import bag_metadata, compressor, file_information, finish_storage_file
-from bagkit.bag.definitions import definition_encoding
+from bagkit.bag.definitions import UNKNOWN_ENCODING, definition_encoding
 from bagkit.bag.mcapio.chunk_builder import ChunkBuilder, ClosedChunk
 from bagkit.bag.mcapio.file_writer import McapFileWriter
 from bagkit.bag.mcapio.records import (
@@ -90,8 +90,9 @@ class MessageOutput(Protocol):
     custom_data: dict[str, str]
     counts: dict[int, int]
 
-    def add_topic(self, topic: TopicInfo, definition: str, preferred_id: int) -> int:
-        """Add a topic (once per name); return its id in the output."""
+    def add_topic(self, topic: TopicInfo, definition: str | None, preferred_id: int) -> int:
+        """Add a topic (once per name) with its definition (None: not known); return its id
+        in the output."""
 
     def topic_id(self, topic: str) -> int:
         """The id of a topic added."""
@@ -156,7 +157,7 @@ class OutputBag:
         self._temp = path.parent / f".{path.name}.partial-{os.getpid()}"
         shutil.rmtree(self._temp, ignore_errors=True)
         self._temp.mkdir()
-        self.schemas: dict[tuple[str, str], Schema] = {}
+        self.schemas: dict[tuple[str, str | None], Schema] = {}
         self.channels: dict[str, Channel] = {}
         self.topics: dict[str, TopicInfo] = {}
         self.counts: dict[int, int] = {}
@@ -171,8 +172,9 @@ class OutputBag:
         self._compressor = ThreadPoolExecutor(1, "bagkit-compress") if threaded else None
         self._closing: deque[Future[ClosedChunk]] = deque()  # in the order they are written
 
-    def add_topic(self, topic: TopicInfo, definition: str, preferred_id: int) -> int:
-        """Add a topic (once per name); return its channel id (``preferred_id`` when free)."""
+    def add_topic(self, topic: TopicInfo, definition: str | None, preferred_id: int) -> int:
+        """Add a topic (once per name); return its channel id (``preferred_id`` when free). A
+        definition not known (None) is rosbag2's schema of encoding ``unknown``, without text."""
         channel = self.channels.get(topic.name)
         if channel is not None:
             return channel.id
@@ -182,8 +184,10 @@ class OutputBag:
             schema = Schema(
                 id=len(self.schemas) + 1,
                 name=topic.type,
-                encoding=definition_encoding(definition),
-                data=definition.encode("utf-8"),
+                encoding=UNKNOWN_ENCODING
+                if definition is None
+                else definition_encoding(definition),
+                data=b"" if definition is None else definition.encode("utf-8"),
             )
             self.schemas[topic.type, definition] = schema
         used = {c.id for c in self.channels.values()}

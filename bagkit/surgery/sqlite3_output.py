@@ -13,11 +13,12 @@ import os
 import shutil
 from pathlib import Path
 
-from rosbags.interfaces import Connection
+from rosbags.interfaces import Connection, Qos
 from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
 from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
 from rosbags.rosbag2.metadata import parse_qos
 
+from bagkit.bag.definitions import UNKNOWN_ENCODING
 from bagkit.bag.messages import BagMessage, TopicInfo
 from bagkit.surgery.errors import SurgeryError
 from bagkit.surgery.options import OutputOptions
@@ -72,8 +73,10 @@ class Sqlite3OutputBag:
         self.counts: dict[int, int] = {}
         self.custom_data: dict[str, str] = {}
 
-    def add_topic(self, topic: TopicInfo, definition: str, preferred_id: int) -> int:
-        """Add a topic (once per name) with its definition, QoS and type hash; return its id."""
+    def add_topic(self, topic: TopicInfo, definition: str | None, preferred_id: int) -> int:
+        """Add a topic (once per name) with its definition, QoS and type hash; return its id.
+        A definition not known (None) is written as rosbag2 writes it: encoding ``unknown``, no
+        text, no type hash made up."""
         known = self._connections.get(topic.name)
         if known is not None:
             return known.id
@@ -81,18 +84,48 @@ class Sqlite3OutputBag:
             qos = parse_qos(topic.offered_qos_profiles) if topic.offered_qos_profiles else []
         except Exception:
             qos = []
-        connection = self._writer.add_connection(
-            topic.name,
-            topic.type,
-            msgdef=definition,
-            rihs01=topic.type_description_hash or _type_hash(topic, definition),
-            serialization_format=topic.serialization_format or "cdr",
-            offered_qos_profiles=qos,
-        )
+        if definition is None:
+            connection = self._unknown_definition(topic, qos)
+        else:
+            connection = self._writer.add_connection(
+                topic.name,
+                topic.type,
+                msgdef=definition,
+                rihs01=topic.type_description_hash or _type_hash(topic, definition),
+                serialization_format=topic.serialization_format or "cdr",
+                offered_qos_profiles=qos,
+            )
         self._connections[topic.name] = connection
         self._by_id[connection.id] = connection
         self.counts[connection.id] = 0
         return connection.id
+
+    def _unknown_definition(self, topic: TopicInfo, qos: list[Qos]) -> Connection:
+        """A connection whose definition is not known: rosbags' writer takes a text and a hash
+        only, so its rows are set to rosbag2's ``unknown`` afterwards, and the connection (which
+        metadata.yaml is written from) keeps the topic's own hash, empty when it has none."""
+        added = self._writer.add_connection(
+            topic.name,
+            topic.type,
+            msgdef="",
+            rihs01=topic.type_description_hash or "unknown",
+            serialization_format=topic.serialization_format or "cdr",
+            offered_qos_profiles=qos,
+        )
+        connection = added._replace(digest=topic.type_description_hash)
+        connections = self._writer.connections
+        connections[connections.index(added)] = connection
+        conn = self._writer.storage.conn  # type: ignore[union-attr]
+        conn.execute(
+            "UPDATE message_definitions SET encoding = ?, type_description_hash = '' "
+            "WHERE topic_type = ? AND encoded_message_definition = ''",
+            (UNKNOWN_ENCODING, topic.type),
+        )
+        conn.execute(
+            "UPDATE topics SET type_description_hash = ? WHERE name = ?",
+            (topic.type_description_hash, topic.name),
+        )
+        return connection
 
     def topic_id(self, topic: str) -> int:
         """The id of a topic added."""
