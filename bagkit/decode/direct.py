@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from bagkit.decode.cdr import STRUCT_CODES, WIDE_UNIT, wide_string
-from bagkit.decode.errors import DecodeError
+from bagkit.decode.errors import DecodeError, undecodable
 from bagkit.decode.flatten import FlatValue
 from bagkit.decode.layout import PRIMITIVE_FORMATS, U32
 from bagkit.decode.msgdef import Nodetype, TypeDefinitions
@@ -73,7 +73,7 @@ def value_reader(
         try:
             values, end = direct(data)
         except (struct.error, ValueError, IndexError, OverflowError) as exc:
-            raise DecodeError(f"{typename} message does not decode: {exc!r}") from exc
+            raise undecodable(typename, exc) from exc
         # CDR writers pad to 4 bytes at most (a reader of wide strings allows for rclpy's 4
         # more bytes per wide string in the end it returns).
         size = len(data) - 4

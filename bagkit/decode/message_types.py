@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 from bagkit.bag.definitions import canonical_type_name
 from bagkit.decode.cdr import PayloadReader, payload_reader
-from bagkit.decode.errors import DecodeError, DefinitionError, SchemaError
+from bagkit.decode.errors import DefinitionError, SchemaError, undecodable
 from bagkit.decode.flatten import FlatValue, field_getter
 from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER, Nodetype, TypeDef, member_name
 from bagkit.decode.stored import COMMON_SERVICES, parse_stored
@@ -232,7 +232,7 @@ class MessageTypes:
                 if end + 4 + 3 < len(data):
                     raise ValueError(f"{len(data) - 4 - end} bytes after the message")
             except Exception as exc:  # readers raise struct/index/unicode errors on bad bytes
-                raise DecodeError(f"{name} message does not decode: {exc!r}") from exc
+                raise undecodable(name, exc) from exc
             return message
 
         return decode

@@ -79,7 +79,9 @@ def test_bytes_that_do_not_match_the_type_are_a_decode_error() -> None:
     payload = bytes(JAZZY.serialize_cdr(msg, typename))
     read = value_reader(JAZZY, typename, ["latitude"], _no_fallback)
     assert read(payload) == [msg.latitude]  # type: ignore[attr-defined]
-    with pytest.raises(DecodeError, match="NavSatFix"):
+    with pytest.raises(
+        DecodeError, match="NavSatFix message does not decode: it ends past the pay"
+    ):
         read(payload[:-12])
     with pytest.raises(DecodeError, match="bytes after"):
         read(payload + bytes(16))
@@ -121,3 +123,20 @@ def test_a_string_running_past_the_end_is_a_decode_error() -> None:
     types = MessageTypes.from_definitions({typename: "string data\n"})
     with pytest.raises(DecodeError, match="does not decode"):
         types.deserialize(b"\x00\x01\x00\x00\x09\x00\x00\x00ab\x00", typename)
+
+
+def test_a_payload_error_says_what_is_wrong_with_the_bytes() -> None:
+    """What the message-by-message decoder says of a short payload and of a string that is not
+    UTF-8, rather than its reader's exception (``error('unpack_from requires ...')``)."""
+    types = MessageTypes.from_definitions({})
+    decode = types.decoder("std_msgs/msg/String")
+    payload = bytes(
+        JAZZY.serialize_cdr(JAZZY.types["std_msgs/msg/String"](data="abc"), "std_msgs/msg/String")
+    )
+    assert decode(payload).data == "abc"  # type: ignore[attr-defined]
+    with pytest.raises(
+        DecodeError, match="String message does not decode: it ends past the payload"
+    ):
+        decode(payload[:6])
+    with pytest.raises(DecodeError, match="a string is not UTF-8"):
+        decode(payload.replace(b"abc", b"a\xffc"))
