@@ -139,18 +139,30 @@ class UrlPath:
         except ObjectNotFoundError:
             if s3 and self.suffix in SUFFIX_READ:  # no such object: a prefix named so?
                 return self._listed()
+            if protocol in ("gs", "gcs") and self.suffix in SUFFIX_READ:
+                return self._prefix_info()  # gcsfs's info tells a prefix (a listing)
             return self._bag_prefix() if http and self.suffix else None
         remember(self.url, found)
         return found
 
     def _found(self) -> dict[str, Any]:
-        """The object's info: for an MCAP or a metadata.yaml on S3 or HTTP, from one read of
+        """The object's info: for an MCAP or a metadata.yaml on S3, GCS or HTTP, from one read of
         its end, kept for its opening (what a HEAD would say, and the bytes read first);
         else from the store's info (a HEAD)."""
         if self.suffix in SUFFIX_READ and (found := found_by_suffix(self.url)) is not None:
             return found
         fs, path = filesystem(self.url)
         info: dict[str, Any] = call(self.url, lambda: fs.info(path))
+        return info
+
+    def _prefix_info(self) -> dict[str, Any] | None:
+        """The store's info of what is not an object at this URL (a prefix), None if none."""
+        fs, path = filesystem(self.url)
+        try:
+            info: dict[str, Any] = call(self.url, lambda: fs.info(path))
+        except ObjectNotFoundError:
+            return None
+        remember(self.url, info)
         return info
 
     def _listed(self) -> dict[str, Any] | None:
