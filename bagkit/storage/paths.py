@@ -12,7 +12,7 @@ import os
 from collections.abc import Iterator
 from typing import Any
 
-from bagkit.storage.errors import ObjectNotFoundError, StorageError
+from bagkit.storage.errors import BucketNotFoundError, ObjectNotFoundError, StorageError
 from bagkit.storage.filesystems import call, filesystem
 from bagkit.storage.range_file import RangeFile, found_by_suffix
 from bagkit.storage.urls import joined, name, parent, scheme, shown_url
@@ -136,9 +136,11 @@ class UrlPath:
             return self._listed()
         try:
             found = self._found()
-        except ObjectNotFoundError:
+        except ObjectNotFoundError as missing:
+            if isinstance(missing, BucketNotFoundError):  # nothing to list there
+                return None
             if s3 and self.suffix in SUFFIX_READ:  # no such object: a prefix named so?
-                return self._listed()
+                return self._listed(object_missing=True)
             if protocol in ("gs", "gcs") and self.suffix in SUFFIX_READ:
                 return self._prefix_info()  # gcsfs's info tells a prefix (a listing)
             return self._bag_prefix() if http and self.suffix else None
@@ -165,13 +167,27 @@ class UrlPath:
         remember(self.url, info)
         return info
 
-    def _listed(self) -> dict[str, Any] | None:
+    def _listed(self, *, object_missing: bool = False) -> dict[str, Any] | None:
         """A name without a suffix on S3 is most likely a prefix (a bag's, a fleet's): one
         listing says so and gives its objects' sizes and ETags (remembered: no HEAD for
-        them); a listing of the parent finds an object of that name."""
+        them); a listing of the parent finds an object of that name, unless a GET of it
+        already found none (``object_missing``: the prefix's listing only)."""
         fs, path = filesystem(self.url)
+
+        def listing() -> list[dict[str, Any]]:
+            if not object_missing:
+                entries: list[dict[str, Any]] = fs.ls(path, detail=True)
+                return entries
+            from fsspec.asyn import sync
+
+            # s3fs's ls lists the parent too where the prefix is empty (for the object).
+            entries = sync(fs.loop, fs._lsdir, path)
+            if not entries:
+                raise ObjectNotFoundError(f"{self}: no such object, prefix or bucket")
+            return entries
+
         try:
-            entries: list[dict[str, Any]] = call(self.url, lambda: fs.ls(path, detail=True))
+            entries = call(self.url, listing)
         except ObjectNotFoundError:
             return None
         itself = [e for e in entries if e["name"].rstrip("/") == path and e["type"] != "directory"]
