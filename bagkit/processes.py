@@ -15,6 +15,7 @@ use it alike::
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 import signal
 import subprocess
@@ -129,7 +130,7 @@ class Supervisor:
                 cwd=command.cwd,
                 text=command.text and not merged,
                 start_new_session=True,
-                preexec_fn=command.preexec,  # noqa: PLW1509 (the caller's: a limit, no locks)
+                preexec_fn=functools.partial(_in_child, command.preexec),  # noqa: PLW1509 (no locks)
             )
         except OSError as exc:
             if log is not None:
@@ -230,6 +231,19 @@ class Supervisor:
                 one.reader.join(timeout=1.0)
             if one.log is not None:
                 one.log.close()
+
+
+def _in_child(preexec: Callable[[], None] | None) -> None:
+    """Run in the child before it execs: SIGINT back to its default, then ``preexec``.
+
+    An ignored signal stays ignored across exec. A supervisor started with SIGINT ignored (a
+    shell script's ``bagkit ... &``: bash ignores SIGINT in background jobs) would pass that on,
+    and its children would ignore the SIGINT that stops them cleanly. In their own session, no
+    terminal's Ctrl-C reaches them: only the supervisor's.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    if preexec is not None:
+        preexec()
 
 
 def _signal_group(process: subprocess.Popen[Any], signum: int) -> None:

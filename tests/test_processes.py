@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import signal
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -64,6 +65,30 @@ def test_stop_goes_from_sigint_to_sigterm_to_sigkill(
     wait_for_line(lines, "ready")
     assert group.stop(child) == expected
     assert child.reader is not None and not child.reader.is_alive()
+
+
+# A supervisor started with SIGINT ignored (as bash starts a script's background job) stops
+# `sleep`, which sets no handler of its own, and prints how it ended.
+SUPERVISOR_IGNORING_SIGINT = """
+import signal, time
+from bagkit.processes import Command, StopPolicy, Supervisor
+signal.signal(signal.SIGINT, signal.SIG_IGN)
+group = Supervisor(StopPolicy(interrupt_s=5.0, terminate_s=5.0))
+child = group.start(Command("sleep", ["sleep", "60"]))
+time.sleep(0.2)
+print(group.stop(child))
+"""
+
+
+def test_a_child_stops_on_sigint_though_its_supervisor_ignores_it() -> None:
+    done = subprocess.run(
+        [sys.executable, "-c", SUPERVISOR_IGNORING_SIGINT],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=True,
+    )
+    assert int(done.stdout) == -signal.SIGINT  # not -SIGTERM, 5 s later
 
 
 def test_stop_reaches_the_whole_process_group() -> None:

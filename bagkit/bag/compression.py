@@ -332,16 +332,18 @@ class Decompression:
         self._report()
         return found
 
-    def chunks(self, topics: set[str] | None) -> Iterator[BagChunk]:
+    def chunks(
+        self, topics: set[str] | None, start_ns: int | None = None, end_ns: int | None = None
+    ) -> Iterator[BagChunk]:
         """The back-end's chunks with each Message record's payload decompressed."""
         if self._decompress is None:
             try:
-                yield from self.inner.chunks(topics)
+                yield from self.inner.chunks(topics, start_ns, end_ns)
             finally:
                 self._report()
             return
         try:
-            for chunk in self.inner.chunks(topics):
+            for chunk in self.inner.chunks(topics, start_ns, end_ns):
                 yield self._decompressed(chunk, topics)
         finally:
             self._report()

@@ -79,6 +79,13 @@ def _may_hold(block: Block, channel_ids: set[int]) -> bool:
     return True
 
 
+def _in_range(block: Block, start_ns: int | None, end_ns: int | None) -> bool:
+    """Whether a chunk (or run of loose messages) may hold messages logged in the range."""
+    if start_ns is not None and block.message_end_time < start_ns:
+        return False
+    return end_ns is None or block.message_start_time < end_ns
+
+
 ROSBAG2_METADATA = "rosbag2"  # the Metadata record rosbag2 writes its metadata.yaml into
 
 
@@ -262,11 +269,8 @@ class McapFile:
     def _blocks(self, start_ns: int | None, end_ns: int | None) -> Iterator[Block]:
         """Chunks (and runs of loose messages) that may hold messages in the time range."""
         for block in self.index.blocks():
-            if start_ns is not None and block.message_end_time < start_ns:
-                continue
-            if end_ns is not None and block.message_start_time >= end_ns:
-                continue
-            yield block
+            if _in_range(block, start_ns, end_ns):
+                yield block
 
     def _problem(self, block: Block, what: str) -> None:
         offset, length = extent(block)
@@ -462,13 +466,16 @@ class McapFile:
         with_messages = (chunks[row] for row in rows if starts[row] <= ends[row])
         return heapq.merge(with_messages, sorted(self.index.message_runs, key=extent), key=extent)
 
-    def chunks(self, topics: set[str] | None) -> Iterator[BagChunk]:
-        """Yield the chunks holding messages of ``topics`` (all when None), in file order."""
+    def chunks(
+        self, topics: set[str] | None, start_ns: int | None = None, end_ns: int | None = None
+    ) -> Iterator[BagChunk]:
+        """Yield the chunks holding messages of ``topics`` (all when None), in file order,
+        those wholly outside ``start_ns <= log_time < end_ns`` left unread."""
         import numpy as np
 
         wanted = self._channel_ids(topics)
         for block in self._in_file_order():
-            if not _may_hold(block, wanted):
+            if not _may_hold(block, wanted) or not _in_range(block, start_ns, end_ns):
                 continue
             data = self._read(block)
             if data is None:

@@ -497,24 +497,32 @@ class BagReader:
             largest = max(largest, *sizes.values(), 0)
         return largest
 
-    def chunks(self, topics: Iterable[str] | None = None) -> Iterator[BagChunk]:
+    def chunks(
+        self,
+        topics: Iterable[str] | None = None,
+        start_ns: int | None = None,
+        end_ns: int | None = None,
+    ) -> Iterator[BagChunk]:
         """Yield the decompressed chunks holding ``topics``, file by file, in file order.
 
         For bulk decoding: each :class:`BagChunk` carries the message-index entries per topic.
         SQLite3 files yield their rows laid out as chunks, in log-time order; a back-end that
         yields no chunk although it holds messages of ``topics`` has its messages laid out so.
+        Chunks wholly outside ``start_ns <= log_time < end_ns`` are not read (nor reported
+        lost); those read may hold messages outside it (see ``StorageFile.chunks``).
         """
         self._check_open()
         wanted = set(topics) if topics is not None else None
         for storage in self._storage:
             found = False
-            for chunk in storage.chunks(wanted):
+            for chunk in storage.chunks(wanted, start_ns, end_ns):
                 found = True
                 yield chunk
             if not found and any(
                 n for t, n in storage.topic_counts.items() if wanted is None or t in wanted
             ):
-                yield from _chunks_of_messages(storage.path, storage.messages(wanted, None, None))
+                messages = storage.messages(wanted, start_ns, end_ns)
+                yield from _chunks_of_messages(storage.path, messages)
 
     def topic_spans(self, *, message_indexes: bool | None = None) -> dict[str, Span]:
         """(first, last) log time of each topic with messages, from indexes (no message read).

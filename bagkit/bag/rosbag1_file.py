@@ -311,7 +311,7 @@ class Rosbag1File:
         low = start_ns if start_ns is not None else -1
         high = end_ns if end_ns is not None else 1 << 64
         for chunk in sorted(self._holding(ids), key=lambda c: (c.info.start_time, c.info.pos)):
-            if chunk.info.end_time <= low or chunk.info.start_time >= high:
+            if chunk.info.end_time < low or chunk.info.start_time >= high:
                 continue
             index = self._chunk_index(chunk)
             entries = sorted(
@@ -430,9 +430,12 @@ class Rosbag1File:
                     found[topic] = make_message(topic, payload, time, time, 0)
         return found
 
-    def chunks(self, topics: set[str] | None) -> Iterator[BagChunk]:
-        """Each ROS 1 chunk holding ``topics`` as MCAP Message records of CDR payloads."""
-        for chunk, entries in self._entries(topics, None, None):
+    def chunks(
+        self, topics: set[str] | None, start_ns: int | None = None, end_ns: int | None = None
+    ) -> Iterator[BagChunk]:
+        """Each ROS 1 chunk holding ``topics`` in the time range as MCAP Message records of CDR
+        payloads."""
+        for chunk, entries in self._entries(topics, start_ns, end_ns):
             built = mcap_records(self._payloads(chunk, entries), self._topic_of)
             if built is not None:
                 yield BagChunk(self.path, *built)

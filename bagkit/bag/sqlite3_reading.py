@@ -46,11 +46,14 @@ class Sqlite3Reading:
     def _problem(self, text: str) -> None:
         self.problems.append(f"{self.path.name}: {text}")
 
-    def chunks(self, topics: set[str] | None) -> Iterator[BagChunk]:
+    def chunks(
+        self, topics: set[str] | None, start_ns: int | None = None, end_ns: int | None = None
+    ) -> Iterator[BagChunk]:
         """The rows of ``topics`` in timestamp order (ties by row id), laid out as chunks of
         MCAP Message records: a window of rows each (:mod:`bagkit.bag.sqlite3_windows`), or
         :data:`ROWS_PER_CHUNK` rows read one by one, fewer where their payloads pass
-        :data:`MAX_CHUNK_BYTES` (large messages: memory stays bounded)."""
+        :data:`MAX_CHUNK_BYTES` (large messages: memory stays bounded). Every row, whatever
+        ``start_ns`` and ``end_ns``: a database has no chunk to leave unread."""
         from bagkit.bag.sqlite3_windows import RowWindows, timestamp_index
 
         wanted = self._wanted_ids(topics)

@@ -171,8 +171,15 @@ class StorageFile(Protocol):
         """The last message with ``log_time < before_ns`` of each of ``topics`` that has one
         (ties: the one stored last), found from indexes, not by reading from the start."""
 
-    def chunks(self, topics: set[str] | None) -> Iterator[BagChunk]:
-        """Yield the chunks holding messages of ``topics`` in file order (none: no chunks)."""
+    def chunks(
+        self, topics: set[str] | None, start_ns: int | None = None, end_ns: int | None = None
+    ) -> Iterator[BagChunk]:
+        """Yield the chunks holding messages of ``topics`` in file order (none: no chunks).
+
+        A chunk whose messages all lie outside ``start_ns <= log_time < end_ns`` (by its index)
+        is not read, so neither fetched nor reported lost; one that is read may hold messages
+        outside: the caller keeps its window.
+        """
 
     def topic_spans(self, *, message_indexes: bool = True) -> dict[str, Span]:
         """(first, last) log time of each topic with messages, from indexes (no message read).

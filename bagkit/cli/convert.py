@@ -10,7 +10,7 @@ import typer
 
 from bagkit.cli.common import ReportFormat, bag_location, handle_errors, split_list
 from bagkit.cli.progress import DelayedProgress
-from bagkit.cli.selection_options import End, Start, build_query
+from bagkit.cli.selection_options import Distro, End, Start, build_query
 from bagkit.cli.surgery_options import (
     CheckCrc,
     ExcludeRegex,
@@ -92,6 +92,7 @@ def convert(
     force: Force = False,
     check_crc: CheckCrc = True,
     output_format: Format = ReportFormat.TABLE,
+    distro: Distro = None,
 ) -> None:
     """Convert bags to a rosbag2 MCAP or SQLite3 bag."""
     query = build_query(topics, start=start, end=end, where=where)

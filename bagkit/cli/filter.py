@@ -16,7 +16,7 @@ from bagkit.cli.common import (
     option_flags,
     split_list,
 )
-from bagkit.cli.selection_options import End, Start, StateTopics, build_query
+from bagkit.cli.selection_options import Distro, End, Start, StateTopics, build_query
 from bagkit.cli.surgery_options import (
     AROUND_FLAGS,
     CheckCrc,
@@ -101,6 +101,7 @@ def filter_command(
     force: Force = False,
     check_crc: CheckCrc = True,
     output_format: Format = ReportFormat.TABLE,
+    distro: Distro = None,
 ) -> None:
     """Write the selected messages of a bag to a new bag."""
     query = build_query(topics, start=start, end=end, where=where)

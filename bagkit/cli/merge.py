@@ -8,7 +8,7 @@ from pathlib import Path
 import typer
 
 from bagkit.cli.common import ReportFormat, bag_location, err_console, handle_errors
-from bagkit.cli.selection_options import End, Start, build_query
+from bagkit.cli.selection_options import Distro, End, Start, build_query
 from bagkit.cli.surgery_options import (
     CheckCrc,
     Compression,
@@ -55,6 +55,7 @@ def merge(
     force: Force = False,
     check_crc: CheckCrc = True,
     output_format: Format = ReportFormat.TABLE,
+    distro: Distro = None,
 ) -> None:
     """Merge bags into one, in log-time order."""
     options = output_options(

@@ -65,7 +65,7 @@ def match_topic(
     times: list[np.ndarray] = []
     masks: list[np.ndarray] = []
     unindexed = 0  # index entries pointing outside their chunk
-    for chunk in reader.chunks([topic]):
+    for chunk in reader.chunks([topic], window.start_ns, window.end_ns):
         spans = payload_spans(
             chunk.records, chunk.message_index[topic], window.start_ns, window.end_ns
         )

@@ -55,7 +55,8 @@ class Scan:
         if not self.topics:
             return
         # closing(): the reading thread stops before the reader is closed, also on error.
-        with closing(prefetch(self.reader.chunks(self.topics))) as chunks:
+        read = self.reader.chunks(self.topics, self.window.start_ns, self.window.end_ns)
+        with closing(prefetch(read)) as chunks:
             for chunk in chunks:
                 for topic, index in chunk.message_index.items():
                     columns = self.topics.get(topic)

@@ -170,11 +170,21 @@ class _Reader:
             raise self.fail(f"{where}.values", "values must map fields to {min, max}")
         for path, given in values.items():
             bounds = self.keys(f"{where}.values.{path}", given, _BOUND_KEYS)
+            found = {
+                k: self.number(f"{where}.values.{path}", bounds[k])
+                for k in _BOUND_KEYS
+                if k in bounds
+            }
+            if len(found) == 2 and found["min"] > found["max"]:  # a contract nothing keeps
+                raise self.fail(
+                    f"{where}.values.{path}",
+                    f"{path}: min {found['min']} is above max {found['max']}",
+                )
             parts = []
-            if "min" in bounds:
-                parts.append(f"{path} < {self.number(f'{where}.values.{path}', bounds['min'])}")
-            if "max" in bounds:
-                parts.append(f"{path} > {self.number(f'{where}.values.{path}', bounds['max'])}")
+            if "min" in found:
+                parts.append(f"{path} < {found['min']}")
+            if "max" in found:
+                parts.append(f"{path} > {found['max']}")
             if parts:
                 never.append(self.condition(f"{where}.values.{path}", " or ".join(parts)))
         conditions = body.get("never") or []

@@ -195,7 +195,12 @@ class _Parser:
             if unit != "Hz":
                 self._unit_error("rate", value, unit, "a frequency (8 Hz)")
             self._expect("over")
-            return Rate(op, float(value), self._duration("'over'"))
+            window = self._duration("'over'")
+            if window <= 0:  # no window holds a message: the term could never hold
+                raise SelectionError(
+                    f"bad condition {self.text!r}: 'over' takes a window longer than 0 (1s)"
+                )
+            return Rate(op, float(value), window)
         if unit is not None:
             self._unit_error(
                 path_text(path),

@@ -370,4 +370,9 @@ def _column_compare(column: npt.NDArray[Any], comparison: Comparison) -> npt.NDA
             f"{comparison.text} {comparison.op} {comparison.value!r}: cannot compare "
             f"{'text' if text_column else 'a number'} with {type(comparison.value).__name__}"
         )
+    if column.dtype.kind == "f" and column.dtype.itemsize < 8:
+        # Each float32 as its exact float64, as decoded messages hold it (the match message by
+        # message, rosbags, rclpy): numpy would round the value written to float32 instead,
+        # and 'range <= 1.6' would hold for the float32 just above 1.6.
+        column = column.astype(np.float64)
     return np.asarray(_OPERATORS[comparison.op](column, comparison.value), dtype=bool)

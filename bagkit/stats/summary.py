@@ -170,7 +170,8 @@ class SummaryRun:
                 self.total -= reader.topic_counts.get(name, 0)
         if wanted:
             # closing(): the reading thread stops before the reader is closed, also on error.
-            ahead = prefetch(reader.chunks(wanted), depth=2 if self.prefetch else 0)
+            chunks = reader.chunks(wanted, self.window.start_ns, self.window.end_ns)
+            ahead = prefetch(chunks, depth=2 if self.prefetch else 0)
             with closing(ahead) as chunks:
                 for chunk in chunks:
                     self.advance(self.add_chunk(chunk, wanted))

@@ -43,7 +43,9 @@ def copy_chunk_records(
     done = unindexed = 0
     # The next chunk is read (SQLite3 steps, decompression: the GIL released) while one is
     # written; closing(): the reading thread stops before the reader is closed, also on error.
-    with contextlib.closing(prefetch(reader.chunks(selected))) as chunks:
+    window = selection.window
+    read = reader.chunks(selected, window.start_ns, window.end_ns)
+    with contextlib.closing(prefetch(read)) as chunks:
         for chunk in chunks:
             written, dropped = _write_chunk(chunk, ids, selection, out)
             done += written

@@ -243,6 +243,8 @@ def _open(
     indexed = isinstance(block, ChunkIndex) and block.message_index_offsets
     if indexed and mapping.keys().isdisjoint(block.message_index_offsets):  # type: ignore[union-attr]
         return  # nothing selected in it: not even read
+    if not selection.window.overlaps(block.message_start_time, block.message_end_time):
+        return  # wholly outside the window: not read, nor lost if it cannot be
     try:
         contents = read_chunk(file.source, block, check_crc=check_crc)
     except ChunkError as exc:

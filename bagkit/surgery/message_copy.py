@@ -19,6 +19,7 @@ import numpy as np
 
 from bagkit.bag import BagMessage, BagReader
 from bagkit.bag.messages import TopicInfo, make_message
+from bagkit.surgery.assumed import check_assumed_definitions
 from bagkit.surgery.carry import latched_messages, merged_custom_data, write_latched
 from bagkit.surgery.chunk_records import Progress, copy_chunk_records
 from bagkit.surgery.errors import SurgeryError, holding_no_topic
@@ -86,6 +87,8 @@ def rewrite_messages(
             raise holding_no_topic(bags)
         if not selected:
             raise SurgeryError("no topic is selected")
+        for reader in readers:
+            check_assumed_definitions(reader, selected)
         out = open_output(output, options)
         try:
             out.custom_data = merged_custom_data(

@@ -19,11 +19,9 @@ from pathlib import Path
 from typing import Any
 
 from bagkit.bag import BagReader
-from bagkit.decode import MessageTypes
-from bagkit.decode.errors import DecodeError
 from bagkit.migrate import Rules, Target, TopicMigration, migrate_topic
-from bagkit.migrate.errors import MigrateError
 from bagkit.native import keep_freed_memory
+from bagkit.surgery.assumed import check_assumed_definitions
 from bagkit.surgery.message_copy import Progress
 from bagkit.surgery.options import OutputOptions, PayloadRewrites, RewriteReport
 from bagkit.surgery.rewrite import check_output, rewrite_topics
@@ -77,6 +75,7 @@ def plan_migrations(bag: Path, options: MigrateOptions) -> tuple[list[TopicMigra
 
     Raises:
         BagError: the bag cannot be opened. MigrateError: a topic cannot be migrated.
+        SurgeryError: a topic's assumed definition does not decode its messages.
     """
     with BagReader(bag, allow_empty=True) as reader:
         return _plan(reader, options)
@@ -84,7 +83,7 @@ def plan_migrations(bag: Path, options: MigrateOptions) -> tuple[list[TopicMigra
 
 def _plan(reader: BagReader, options: MigrateOptions) -> tuple[list[TopicMigration], list[str]]:
     """:func:`plan_migrations` of an open reader."""
-    _check_assumed(reader)
+    check_assumed_definitions(reader)
     migrated: list[TopicMigration] = []
     unchanged: list[str] = []
     for name, info in sorted(reader.topics.items()):
@@ -97,34 +96,6 @@ def _plan(reader: BagReader, options: MigrateOptions) -> tuple[list[TopicMigrati
         else:
             migrated.append(plan)
     return migrated, unchanged
-
-
-def _check_assumed(reader: BagReader) -> None:
-    """Each topic of a type the bag stores no definition of (Foxy to Humble ``.db3``) has its
-    first message decoded with the distribution's definition assumed for it: the output stores
-    that definition, so payloads that do not follow it would be a bag no reader decodes.
-
-    Raises:
-        MigrateError: a first message does not decode; the message says ``--distro``.
-    """
-    assumed = reader.assumed_types
-    if not assumed:
-        return
-    types = MessageTypes.for_bag(reader)
-    for name, info in sorted(reader.topics.items()):
-        if info.type not in assumed:
-            continue
-        first = next(reader.messages([name]), None)
-        if first is None:
-            continue
-        try:
-            types.for_topic(name).deserialize(first.data, info.type)
-        except DecodeError as exc:
-            raise MigrateError(
-                f"{name}: the bag stores no definition of {info.type} and its messages do not "
-                f"decode with the one assumed ({exc}); name the ROS 2 distribution that "
-                "recorded it with --distro"
-            ) from exc
 
 
 def migrate_bag(

@@ -231,3 +231,45 @@ def test_a_topic_the_summary_counts_empty_lost_nothing(
     assert "error:" not in run.stderr
     # echo and find read no chunk: /quiet is in none; export and plot read the others.
     assert ("CRC mismatch" in run.stderr) == (args[0] in ("export", "plot")), run.stderr
+
+
+def _logged_from(bag: Path, start_ns: int, topics: list[str] | None = None) -> int:
+    """Messages (of ``topics``) of ``bag`` logged at or after ``start_ns``, by the mcap
+    package's reader."""
+    from mcap.reader import make_reader
+
+    with (bag / f"{bag.name}_0.mcap").open("rb") as stream:
+        messages = make_reader(stream).iter_messages(topics=topics, log_time_order=False)
+        return sum(m.log_time >= start_ns for _, _, m in messages)
+
+
+@pytest.mark.parametrize("command", ["stats", "export", "filter"])
+@pytest.mark.parametrize("inside", [False, True], ids=["outside", "inside"])
+def test_a_damaged_chunk_outside_the_window_is_not_read(
+    flipped: tuple[Path, Path, int], tmp_path: Path, command: str, inside: bool
+) -> None:
+    """A window that starts after the damaged chunk reads none of it and reports no loss; one
+    that holds its last message reports it."""
+    intact, damaged, _ = flipped
+    layout = Layout.of(damaged / "sample_0.mcap")
+    bad, after = layout.chunks[1], layout.chunks[2]
+    assert bad.message_end_time < after.message_start_time
+    start_ns = bad.message_end_time if inside else after.message_start_time
+    window = ["--start", f"{start_ns}ns"]
+    out = tmp_path / "out"
+    if command == "stats":
+        run = _here("stats", "summary", damaged, *window, "--format", "json")
+        read = sum(t["count"] for t in json.loads(run.stdout)["topics"]) if run.stdout else 0
+    elif command == "export":
+        run = _here("export", damaged, "-t", "/imu/data", *window, "-o", out.with_suffix(".csv"))
+        read = len(out.with_suffix(".csv").read_text().splitlines()) - 1  # the header line
+    else:
+        run = _here("filter", damaged, "-o", out, *window)
+        read = _logged_from(out, start_ns)
+    assert run.returncode == 0, run.stderr
+    assert ("CRC mismatch" in run.stderr) == inside, run.stderr
+    expected = _logged_from(intact, start_ns, ["/imu/data"] if command == "export" else None)
+    if not inside:
+        assert read == expected
+    else:  # the damaged chunk's messages in the window are lost, no more
+        assert 0 < expected - read <= chunk_messages(layout, bad)

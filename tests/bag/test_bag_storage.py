@@ -65,7 +65,9 @@ def test_a_back_end_without_chunks_has_its_messages_laid_out_as_chunks(
     db3 = write_db3(tmp_path / "rows.db3", n=30)
     with BagReader(db3) as bag:
         expected = [(m.topic, m.log_time, m.data) for m in bag.messages()]
-    monkeypatch.setattr(Sqlite3File, "chunks", lambda self, topics: iter(()))
+    monkeypatch.setattr(
+        Sqlite3File, "chunks", lambda self, topics, start_ns=None, end_ns=None: iter(())
+    )
     with BagReader(db3) as bag:
         chunks = list(bag.chunks())
     got = [

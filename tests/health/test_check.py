@@ -85,6 +85,14 @@ def test_a_missing_topic_breaks_the_contract(tmp_path: Path) -> None:
         ("topics:\n  /imu/data:\n    never: [frozen(x) for 1s]\n", 3, "unknown function"),
         ("topics:\n  /imu/data:\n    rate: {min: fast}\n", 3, "not a number"),
         ("topics: [a\n", 2, "not YAML"),  # where the parser saw the list unclosed
+        # Contracts nothing breaks or nothing keeps: a rate over no window, bounds crossed.
+        ("topics:\n  /imu/data:\n    rate: {min: 90, over: 0s}\n", 3, "longer than 0"),
+        ("topics:\n  /imu/data:\n    never: ['rate < 5 Hz over 0ms']\n", 3, "longer than 0"),
+        (
+            "topics:\n  /imu/data:\n    values:\n      linear_acceleration.z: {min: 20, max: 1}\n",
+            4,
+            "min 20 is above max 1",
+        ),
     ],
 )
 def test_a_bad_spec_is_one_error_naming_its_line(

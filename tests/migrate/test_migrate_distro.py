@@ -92,3 +92,21 @@ def test_doctor_decodes_with_the_bag_s_distribution(
     assert "all decoded" in done.stdout
     drift = bagkit_in_process(["doctor", tmp_path / "old", "--against-installed", *options])
     assert drift.returncode == 1 and "added: variance (float32)" in drift.stdout, drift.stderr
+
+
+def test_convert_refuses_a_wrong_guess_and_takes_distro(tmp_path: Path) -> None:
+    """convert stored Jazzy's Range over the Humble payloads it guessed it for (exit 0, and
+    doctor --deep then found every message undecodable); filter keeps the other topics."""
+    ranges = _humble_bag(tmp_path / "old", None)
+    done = bagkit_in_process(["convert", tmp_path / "old", "-o", tmp_path / "guessed"])
+    assert done.returncode == 2 and not (tmp_path / "guessed").exists()
+    errors = [line for line in done.stderr.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and "--distro" in errors[0], done.stderr
+    done = bagkit_in_process(
+        ["convert", tmp_path / "old", "-o", tmp_path / "new", "-s", "sqlite3", "--distro", "humble"]
+    )
+    assert done.returncode == 0, done.stderr
+    with AnyReader([tmp_path / "new"]) as reader:  # the definitions stored in it
+        read = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages()]
+    assert [m.range for m in read] == [pytest.approx(r) for r in ranges]  # type: ignore[attr-defined]
+    assert not hasattr(read[0], "variance")
