@@ -432,6 +432,17 @@ class BagReader:
         return ",".join(sorted(kinds))
 
     @property
+    def compression_label(self) -> str:
+        """How the bag is compressed, in one line: rosbag2's zstd first (``zstd, file mode``),
+        with the chunks' apart (``zstd, file mode; chunks none``); else the chunks' (``zstd``,
+        ``lz4,zstd``, ``none``), or ``""`` (sqlite3 without rosbag2's compression)."""
+        mode, chunks = self.compression_mode, self.chunk_compression
+        if not mode:
+            return chunks
+        rosbag2 = f"zstd, {mode} mode"
+        return f"{rosbag2}; chunks {chunks}" if chunks else rosbag2
+
+    @property
     def compressed_size(self) -> int:
         """Bytes of chunk data as stored."""
         return sum(s.compressed_size for s in self._storage)

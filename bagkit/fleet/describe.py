@@ -61,7 +61,7 @@ def describe_bag(path: str) -> list[dict[str, Any]]:
                 "start": reader.start_ns,
                 "end": reader.end_ns,
                 "duration": (reader.end_ns - reader.start_ns) / 1e9,
-                "compression": reader.compression,
+                "compression": reader.compression_label,
                 "problems": "; ".join(reader.problems),
             }
             topics = sorted(reader.topics.items())

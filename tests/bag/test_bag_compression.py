@@ -287,3 +287,8 @@ def test_info_says_the_file_compression_and_the_chunk_compression_apart(
     if chunks:
         assert fields.pop("Chunk compression").strip().startswith(chunks)
     assert not fields, fields
+    # The catalogue's one column says both, as info's two lines do (it said "none,zstd").
+    from bagkit.fleet.describe import describe_bag
+
+    (row,) = {r["compression"] for r in describe_bag(str(bag_dir))}
+    assert row == f"zstd, {mode} mode" + (f"; chunks {chunks}" if chunks else "")
