@@ -61,7 +61,9 @@ def check(  # noqa: PLR0917 (typer maps parameters to options)
     start: Start = None,
     end: End = None,
     suggest: bool = typer.Option(
-        False, "--suggest", help="Print a starting contract from one good bag (YAML)."
+        False,
+        "--suggest",
+        help="Print a starting contract from one good bag (YAML; --format json: JSON).",
     ),
     output_format: ReportFormat = typer.Option(
         ReportFormat.TABLE, "--format", help="table or json (one object per bag in a list)."
@@ -89,11 +91,14 @@ def check(  # noqa: PLR0917 (typer maps parameters to options)
 
     query = build_query(topics, start=start, end=end)  # a bad time: one error, first
     if suggest:
-        from bagkit.health.suggest import suggest_spec
+        from bagkit.health.suggest import suggest_spec, suggested_contract
 
         if spec is not None or len(inputs) != 1 or query.topics or query.span.bounded:
             raise SpecError("--suggest takes one bag and no --spec, --topics, --start or --end")
-        common.console.print(suggest_spec(inputs[0]), end="", highlight=False, soft_wrap=True)
+        if output_format is ReportFormat.JSON:
+            print_json(suggested_contract(inputs[0]))
+        else:
+            common.console.print(suggest_spec(inputs[0]), end="", highlight=False, soft_wrap=True)
         return
     if spec is None:
         raise SpecError("give the contract: --spec health.yaml (or --suggest to write one)")

@@ -287,7 +287,11 @@ def _field_error(
             lines = contract.lines
             line = lines[index] if index < len(lines) and lines[index] else None
             where = f"{spec.source}:{line}" if line else spec.source
-            return SpecError(f"{where}: {contract.topic}: {text}: {exc}")
+            # The error names the comparison that failed; the whole condition only when it is
+            # more than that one comparison.
+            failed = str(exc)
+            named = failed if failed.startswith(text) else f"{text}: {failed}"
+            return SpecError(f"{where}: {contract.topic}: {named}")
     return SpecError(f"{spec.source}: {contract.topic}: {error}")
 
 

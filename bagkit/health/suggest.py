@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import yaml
@@ -69,6 +70,21 @@ def suggest_spec(bag: str | Path) -> str:
     Raises:
         BagError: the bag cannot be read; NothingToSummarizeError: it holds no message.
     """
+    header = (
+        f"# Suggested by `bagkit check {bag_path(bag).name} --suggest` from what this bag shows:\n"
+        "# rate lower bounds at half the lowest seen, gaps at twice the longest, value bounds\n"
+        "# widened by their span on each side. Edit it: drop what does not matter, tighten\n"
+        "# what does.\n"
+    )
+    return header + yaml.safe_dump(suggested_contract(bag), sort_keys=False, width=100)
+
+
+def suggested_contract(bag: str | Path) -> dict[str, Any]:
+    """The contract of :func:`suggest_spec` as the document its YAML holds.
+
+    Raises:
+        BagError: the bag cannot be read; NothingToSummarizeError: it holds no message.
+    """
     from bagkit.stats.summary import summarize
 
     summary = summarize([bag])
@@ -87,14 +103,7 @@ def suggest_spec(bag: str | Path) -> str:
             if name in stats:
                 _ranges(suggested, stats[name])
             topics.append(suggested)
-    header = (
-        f"# Suggested by `bagkit check {bag_path(bag).name} --suggest` from what this bag shows:\n"
-        "# rate lower bounds at half the lowest seen, gaps at twice the longest, value bounds\n"
-        "# widened by their span on each side. Edit it: drop what does not matter, tighten\n"
-        "# what does.\n"
-    )
-    body = {"topics": {t.topic: t.body() for t in topics}}
-    return header + yaml.safe_dump(body, sort_keys=False, width=100)
+    return {"topics": {t.topic: t.body() for t in topics}}
 
 
 def _timing(topic: SuggestedTopic, times: np.ndarray, start: int, end: int) -> None:

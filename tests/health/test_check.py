@@ -115,3 +115,22 @@ def test_a_field_the_type_lacks_is_a_bad_spec(tmp_path: Path) -> None:
     result = bagkit("check", FIXTURES / "nominal" / "golden", "--spec", spec)
     assert result.returncode == 2
     assert result.stderr.startswith("error:") and "linear_acceleration" in result.stderr
+
+
+@pytest.mark.parametrize(
+    "condition", ["status[*].name < 0", "status[*].level > 9 or status[*].name < 0"]
+)
+def test_a_comparison_the_values_do_not_take_names_its_condition_once(
+    tmp_path: Path, condition: str
+) -> None:
+    """A text field compared with a number: the failing comparison named once, after the
+    whole condition when that holds more."""
+    spec = tmp_path / "health.yaml"
+    spec.write_text(f'topics:\n  /alerts:\n    never: ["{condition}"]\n')
+    result = bagkit("check", FIXTURES / "nominal" / "golden", "--spec", spec)
+    assert result.returncode == 2
+    (line,) = result.stderr.strip().splitlines()
+    assert line.startswith("error:") and "health.yaml:3: /alerts: " in line
+    failed = "status[*].name < 0: cannot compare str with int"
+    said = failed if condition.startswith("status[*].name") else f"{condition}: {failed}"
+    assert line.endswith(f"health.yaml:3: /alerts: {said} (/alerts)"), line

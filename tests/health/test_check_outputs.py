@@ -75,6 +75,8 @@ def test_a_nominal_flight_keeps_the_contract_suggested_from_another(
     suggested = bagkit_cli("check", first, "--suggest")
     assert suggested.returncode == 0, suggested.stderr
     spec = yaml.safe_load(suggested.stdout)
+    as_json = bagkit_cli("check", first, "--suggest", "--format", "json")
+    assert json.loads(as_json.stdout) == spec  # the same contract, for scripts
     imu = spec["topics"]["/imu/data"]
     # What the flight shows, read back independently: 10 Hz, so a 1 s window, and no NaN.
     assert imu["type"] == "sensor_msgs/msg/Imu" and imu["never"] == ["isnan(*)"]
