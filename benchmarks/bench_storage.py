@@ -180,10 +180,11 @@ def _info_part(moto: Moto, scratch: Path) -> None:
 
 def _named_part(moto: Moto, scratch: Path) -> None:
     """``info`` of bags named one by one by their URLs (as ``bagkit info URL`` of each): bag
-    prefixes and bare ``.mcap`` files (the nominal golden), REMOTE_READERS at a time, against
+    prefixes and bare ``.mcap`` files (the nominal golden), REMOTE_READERS at a time as bagkit
+    reads a list of bags in storage (``run_each``: the first alone), against
     downloading each (s3fs's ``get``) and reading it locally; requests a bag by operation."""
     from bagkit.bag.info import bag_info
-    from bagkit.fleet.execute import REMOTE_READERS
+    from bagkit.fleet.execute import REMOTE_READERS, readers_for, run_each
     from bagkit.storage.range_file import fetched
 
     fs = moto.fs
@@ -201,8 +202,8 @@ def _named_part(moto: Moto, scratch: Path) -> None:
     ):
         sent, before = Counter(moto.bagkit.counts), fetched()[0]
         started = time.perf_counter()
-        with ThreadPoolExecutor(REMOTE_READERS) as pool:
-            list(pool.map(bag_info, [f"s3://bench/named/{n}" for n in names]))
+        urls = [f"s3://bench/named/{n}" for n in names]
+        run_each(bag_info, urls, None, threads=readers_for(urls))
         remote_s = time.perf_counter() - started
         remote_requests = moto.bagkit.counts - sent
         spent = (fetched()[0] - before) / NAMED_BAGS

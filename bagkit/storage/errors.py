@@ -26,6 +26,10 @@ class ObjectNotFoundError(StorageError):
     """No such object, prefix or bucket."""
 
 
+class BucketNotFoundError(ObjectNotFoundError):
+    """No such bucket (S3 says so: nothing under it needs listing)."""
+
+
 class AccessDeniedError(StorageError):
     """No credentials found, or the store refused them (403)."""
 

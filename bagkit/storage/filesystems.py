@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 from bagkit.storage.errors import (
     AccessDeniedError,
+    BucketNotFoundError,
     ObjectChangedError,
     ObjectNotFoundError,
     StorageError,
@@ -161,6 +162,17 @@ def status_of(exc: BaseException) -> int | None:
     return None
 
 
+def _error_code(exc: BaseException) -> str | None:
+    """S3's error code behind an exception of botocore or s3fs (``NoSuchBucket``), if any."""
+    for error in (exc, exc.__cause__, exc.__context__):
+        response = getattr(error, "response", None)
+        if isinstance(response, dict):
+            code = response.get("Error", {}).get("Code")
+            if isinstance(code, str):
+                return code
+    return None
+
+
 def _kind(exc: BaseException) -> str:
     names = {type(e).__name__ for e in (exc, exc.__cause__, exc.__context__) if e is not None}
     return " ".join(sorted(names))
@@ -183,6 +195,8 @@ def translated(url: str, exc: BaseException) -> StorageError:
     # behind it decides.
     if status in (401, 403) or (status is None and isinstance(exc, PermissionError)):
         return AccessDeniedError(f"{shown}: access denied ({status or 403})")
+    if _error_code(exc) == "NoSuchBucket":
+        return BucketNotFoundError(f"{shown}: no such bucket")
     if status == 404 or (status is None and isinstance(exc, FileNotFoundError)):
         return ObjectNotFoundError(f"{shown}: no such object, prefix or bucket")
     if (status is not None and (status >= 500 or status == 429)) or _transient(exc, kind):

@@ -12,7 +12,7 @@ import os
 from collections.abc import Iterator
 from typing import Any
 
-from bagkit.storage.errors import ObjectNotFoundError, StorageError
+from bagkit.storage.errors import BucketNotFoundError, ObjectNotFoundError, StorageError
 from bagkit.storage.filesystems import call, filesystem
 from bagkit.storage.range_file import RangeFile, found_by_suffix
 from bagkit.storage.urls import joined, name, parent, scheme, shown_url
@@ -136,15 +136,19 @@ class UrlPath:
             return self._listed()
         try:
             found = self._found()
-        except ObjectNotFoundError:
+        except ObjectNotFoundError as missing:
+            if isinstance(missing, BucketNotFoundError):  # nothing to list there
+                return None
             if s3 and self.suffix in SUFFIX_READ:  # no such object: a prefix named so?
-                return self._listed()
+                return self._listed(object_missing=True)
+            if protocol in ("gs", "gcs") and self.suffix in SUFFIX_READ:
+                return self._prefix_info()  # gcsfs's info tells a prefix (a listing)
             return self._bag_prefix() if http and self.suffix else None
         remember(self.url, found)
         return found
 
     def _found(self) -> dict[str, Any]:
-        """The object's info: for an MCAP or a metadata.yaml on S3 or HTTP, from one read of
+        """The object's info: for an MCAP or a metadata.yaml on S3, GCS or HTTP, from one read of
         its end, kept for its opening (what a HEAD would say, and the bytes read first);
         else from the store's info (a HEAD)."""
         if self.suffix in SUFFIX_READ and (found := found_by_suffix(self.url)) is not None:
@@ -153,13 +157,37 @@ class UrlPath:
         info: dict[str, Any] = call(self.url, lambda: fs.info(path))
         return info
 
-    def _listed(self) -> dict[str, Any] | None:
-        """A name without a suffix on S3 is most likely a prefix (a bag's, a fleet's): one
-        listing says so and gives its objects' sizes and ETags (remembered: no HEAD for
-        them); a listing of the parent finds an object of that name."""
+    def _prefix_info(self) -> dict[str, Any] | None:
+        """The store's info of what is not an object at this URL (a prefix), None if none."""
         fs, path = filesystem(self.url)
         try:
-            entries: list[dict[str, Any]] = call(self.url, lambda: fs.ls(path, detail=True))
+            info: dict[str, Any] = call(self.url, lambda: fs.info(path))
+        except ObjectNotFoundError:
+            return None
+        remember(self.url, info)
+        return info
+
+    def _listed(self, *, object_missing: bool = False) -> dict[str, Any] | None:
+        """A name without a suffix on S3 is most likely a prefix (a bag's, a fleet's): one
+        listing says so and gives its objects' sizes and ETags (remembered: no HEAD for
+        them); a listing of the parent finds an object of that name, unless a GET of it
+        already found none (``object_missing``: the prefix's listing only)."""
+        fs, path = filesystem(self.url)
+
+        def listing() -> list[dict[str, Any]]:
+            if not object_missing:
+                entries: list[dict[str, Any]] = fs.ls(path, detail=True)
+                return entries
+            from fsspec.asyn import sync
+
+            # s3fs's ls lists the parent too where the prefix is empty (for the object).
+            entries = sync(fs.loop, fs._lsdir, path)
+            if not entries:
+                raise ObjectNotFoundError(f"{self}: no such object, prefix or bucket")
+            return entries
+
+        try:
+            entries = call(self.url, listing)
         except ObjectNotFoundError:
             return None
         itself = [e for e in entries if e["name"].rstrip("/") == path and e["type"] != "directory"]

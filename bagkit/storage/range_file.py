@@ -8,7 +8,7 @@ read on so far, up to :data:`MAX_READ_AHEAD`. A first read of an object's end (a
 closing magic, its footer) fetches as deep into its tail as the reads of the last object of
 its kind went, and an eighth more (the same suffix, its bag beside this one's: its footer and
 summary), :data:`FIRST_TAIL_BYTES` before any, up to a quarter of the object: one request
-where two would be. An object named by its URL on S3 or HTTP is found by such a read of its
+where two would be. An object named by its URL on S3, GCS or HTTP is found by such a read of its
 end (:func:`found_by_suffix`: a suffix range gives its size and ETag too, no HEAD). The blocks
 fetched at an object's ends are kept for its next opening (the back-end is chosen by them,
 then opens the file again). Every range is asked for with the ETag seen at open

@@ -1,7 +1,8 @@
-"""The range requests bagkit issues itself on S3 and HTTP: a span asked for with the ETag seen
-at open (``If-Match``), and a suffix (``Range: bytes=-N``), whose answer gives the object's
-size (``Content-Range``) and ETag with its last bytes: an object is found and its end read in
-one request, where a HEAD and a range GET would be two.
+"""The range requests bagkit issues itself on S3, GCS and HTTP: a span asked for with the ETag
+seen at open (``If-Match``), and a suffix (``Range: bytes=-N``), whose answer gives the
+object's size (``Content-Range``) and ETag with its last bytes: an object is found and its end
+read in one request, where a HEAD and a range GET would be two. Azure's Blob service takes no
+suffix range (only ``bytes=a-`` and ``bytes=a-b``), so its objects are found by a HEAD.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from bagkit.storage.filesystems import status_of
 from bagkit.storage.urls import scheme, shown_url
 
 # The schemes whose objects are opened by a suffix read (other stores: a HEAD, through fsspec).
-SUFFIX_SCHEMES = ("s3", "s3a", "http", "https")
+SUFFIX_SCHEMES = ("s3", "s3a", "gs", "gcs", "http", "https")
 
 
 def span(fs: Any, url: str, path: str, start: int, end: int, *, etag: str | None) -> bytes:
@@ -39,6 +40,8 @@ def suffix(fs: Any, url: str, path: str, length: int) -> tuple[bytes, dict[str, 
     protocol = scheme(url)
     if protocol in ("s3", "s3a"):
         answer = _s3_suffix(fs, path, length)
+    elif protocol in ("gs", "gcs"):
+        answer = _gcs_suffix(fs, path, length)
     elif protocol in ("http", "https"):
         answer = _http_suffix(fs, url, path, length)
     else:
@@ -97,6 +100,28 @@ def _s3_get(fs: Any, path: str, byte_range: str, **conditions: str) -> tuple[byt
             response["Body"].close()
 
     return sync(fs.loop, get)
+
+
+def _gcs_suffix(fs: Any, path: str, length: int) -> tuple[bytes, int | None, dict[str, Any]] | None:
+    """A media GET of the JSON API with ``Range: bytes=-length`` through gcsfs's own request
+    (its session, credentials and retries); its generation is what a listing gives too."""
+    from fsspec.asyn import sync
+
+    try:
+        headers, data = sync(
+            fs.loop, fs._call, "GET", fs.url(path), headers={"Range": f"bytes=-{length}"}
+        )
+    except Exception as exc:
+        if status_of(exc) == 416:  # an empty object has no last bytes
+            return None
+        raise
+    total = _total(headers.get("Content-Range"))
+    if total is None and len(data) > length:
+        # The whole object for a suffix (gcp-storage-emulator; Cloud Storage takes suffixes):
+        # its size is asked for instead, as from an HTTP server that takes no suffix.
+        return None
+    info = {"ETag": headers.get("ETag"), "generation": headers.get("x-goog-generation")}
+    return bytes(data), total, info
 
 
 def _http_suffix(

@@ -50,21 +50,28 @@ def test_a_failing_item_raises_its_error(client: Client) -> None:
 
 
 def test_threads_in_this_process_keep_the_order_and_run_at_once() -> None:
-    """Items in storage (waiting on requests) run several at a time: all 8 are in flight
+    """Items in storage (waiting on requests) run several at a time after the first, read
+    alone (what it learns of its fleet's tails, the others use): the other 8 are in flight
     together, results still in item order, each reported."""
     import threading
 
     barrier = threading.Barrier(8, timeout=30)
+    first_done = threading.Event()
 
-    def wait_for_all(i: int) -> tuple[int, int]:
+    def wait_for_all(i: int) -> tuple[int, int, bool]:
+        if i == 0:
+            first_done.set()
+            return 0, threading.get_ident(), True
+        after_first = first_done.is_set()
         barrier.wait()  # breaks (an error) unless 8 items run at once
-        return i * i, threading.get_ident()
+        return i * i, threading.get_ident(), after_first
 
     reported: list[int] = []
-    got = run_each(wait_for_all, list(range(8)), None, reported.append, threads=8)
-    assert [square for square, _ in got] == [i * i for i in range(8)]
-    assert reported == list(range(8))
-    assert len({thread for _, thread in got}) == 8
+    got = run_each(wait_for_all, list(range(9)), None, reported.append, threads=8)
+    assert [square for square, _, _ in got] == [i * i for i in range(9)]
+    assert reported == list(range(9))
+    assert all(after_first for _, _, after_first in got)
+    assert len({thread for _, thread, _ in got[1:]}) == 8
 
 
 def test_an_error_in_a_thread_stops_what_has_not_started() -> None:

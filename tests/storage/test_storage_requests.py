@@ -235,3 +235,28 @@ def test_a_server_without_suffix_ranges_is_asked_for_the_size(
     assert remote.message_count == local.message_count > 0
     assert [t.count for t in remote.topics] == [t.count for t in local.topics]
     assert sent["HEAD"] == 1 and sent["GET"] >= 2
+
+
+def test_a_missing_object_costs_its_get_and_a_listing_a_missing_bucket_its_get(
+    moto_store: Store,
+) -> None:
+    """A ``.mcap`` URL with nothing there: its suffix GET (404), then one listing (a prefix
+    named so would be a bag); where S3 says the bucket does not exist, nothing is listed.
+    Either way the command's error is one line naming the URL (tests/storage/
+    test_storage_faults.py)."""
+    from bagkit.storage.paths import UrlPath
+
+    s3 = S3Requests(moto_store.base)
+    for url, want in (
+        (f"{moto_store.base}/missing/m/none.mcap", {"GetObject": 1, "ListObjectsV2": 1}),
+        ("s3://no-such-bucket-counted/m/none.mcap", {"GetObject": 1}),
+    ):
+        sent = Counter(s3.counts)
+        assert not UrlPath(url).exists()
+        assert dict(s3.counts - sent) == want, url
+    # What that listing is for: a bag's prefix named like a file.
+    golden = Path(__file__).resolve().parents[2] / "fixtures" / "nominal" / "golden"
+    moto_store.put(golden, "missing/d/bag.mcap")
+    sent = Counter(s3.counts)
+    assert UrlPath(f"{moto_store.base}/missing/d/bag.mcap").is_dir()
+    assert dict(s3.counts - sent) == {"GetObject": 1, "ListObjectsV2": 1}
