@@ -145,8 +145,11 @@ def test_last_messages_and_spans_from_the_index(ros1_bag: Path) -> None:
     assert spans["/status"] == (expected[0][0], expected[-1][0])
 
 
+@pytest.mark.parametrize("command", ["info", "recover"])
 @pytest.mark.parametrize("damage", ["truncated", "no_index", "index_cut"])
-def test_a_broken_ros1_bag_is_one_error_line(tmp_path: Path, damage: str) -> None:
+def test_a_broken_ros1_bag_is_one_error_line(tmp_path: Path, damage: str, command: str) -> None:
+    """info, and recover (which rewrites MCAP and sqlite3 bags, not ROS 1), fail in one line
+    that names what is wrong and, when the index is missing, what rebuilds it."""
     path = write_ros1_bag(tmp_path / "drive.bag", 100, chunk_threshold=4096)
     data = path.read_bytes()
     with Reader(path) as reader:
@@ -159,11 +162,13 @@ def test_a_broken_ros1_bag_is_one_error_line(tmp_path: Path, damage: str) -> Non
     else:
         data = data[:-20]
     path.write_bytes(data)
-    result = _run("info", path)
+    output = ("-o", tmp_path / "recovered") if command == "recover" else ()
+    result = _run(command, path, *output)
     assert result.returncode == 2, result.stdout
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error:"), result.stderr
     assert "Traceback" not in result.stderr
+    assert not (tmp_path / "recovered").exists()  # recover leaves no half-written bag
     assert first_chunk > 0
     if damage == "truncated":  # said as such, not as rosbags' "Header could not be read"
         assert f"cut short at {len(data)} bytes" in lines[0]
