@@ -38,6 +38,7 @@ from bagkit.bag.mcapio.message_index import (
 from bagkit.bag.mcapio.records import (
     MESSAGE_RECORD_HEADER,
     RECORD_HEADER,
+    ROSBAG2_METADATA,
     ChunkIndex,
     Opcode,
     parse_metadata,
@@ -84,9 +85,6 @@ def _in_range(block: Block, start_ns: int | None, end_ns: int | None) -> bool:
     if start_ns is not None and block.message_end_time < start_ns:
         return False
     return end_ns is None or block.message_start_time < end_ns
-
-
-ROSBAG2_METADATA = "rosbag2"  # the Metadata record rosbag2 writes its metadata.yaml into
 
 
 class McapFile:

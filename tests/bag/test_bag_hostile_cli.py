@@ -273,3 +273,47 @@ def test_a_damaged_chunk_outside_the_window_is_not_read(
         assert read == expected
     else:  # the damaged chunk's messages in the window are lost, no more
         assert 0 < expected - read <= chunk_messages(layout, bad)
+
+
+@pytest.mark.parametrize("cut", ["metadata", "data_end"])
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["export", "{bag}", "-o", "{out}/all"],
+        ["find", "{bag}", "--when", "/quiet: linear_acceleration.z > 0"],
+    ],
+    ids=["export", "find"],
+)
+def test_a_file_cut_after_its_last_message_lost_nothing(
+    write_sample_bag: Callable[..., Path], tmp_path: Path, args: list[str], cut: str
+) -> None:
+    """Cut in rosbag2's Metadata record or in Data End (written as the file closes, after every
+    message): a topic without messages is empty, not lost (it failed with 'no message of /quiet
+    could be read'); every written message is read."""
+    import pyarrow.parquet as pq
+    from bag_samples import IMU
+    from ros2_messages import imu_cdr
+
+    from bagkit.bag import BagWriter, TopicInfo
+
+    bag = tmp_path / "cut"
+    with BagWriter(bag, chunk_size=4_000) as out:
+        out.add_topic(TopicInfo("/imu/data", IMU))
+        out.add_topic(TopicInfo("/quiet", IMU))
+        for i in range(300):
+            out.write("/imu/data", imu_cdr(i), log_time=1_700_000_000_000_000_000 + i * 10**7)
+    file = bag / "cut_0.mcap"
+    data = file.read_bytes()
+    # The first "rosbag2" name is the Metadata record's (the summary's index repeats it later).
+    metadata_at = data.index(b"\x07\x00\x00\x00rosbag2") - 9
+    assert data[metadata_at] == 0x0C
+    metadata_end = (
+        metadata_at + 9 + int.from_bytes(data[metadata_at + 1 : metadata_at + 9], "little")
+    )
+    assert data[metadata_end] == 0x0F  # Data End follows it
+    file.write_bytes(data[: metadata_at + 30] if cut == "metadata" else data[: metadata_end + 5])
+    run = _here(*(a.format(bag=bag, out=tmp_path) for a in args))
+    assert run.returncode == 0, run.stderr
+    assert "error:" not in run.stderr and "lost" not in run.stderr, run.stderr
+    if args[0] == "export":
+        assert pq.read_table(tmp_path / "all" / "imu" / "data.parquet").num_rows == 300

@@ -14,24 +14,26 @@ class DataSection:
 
     The closing record (Data End or Footer) is yielded like any other: the caller stops there.
     After the iteration, ``cut_at`` is where the file is cut (None: it is not), at a header that
-    does not fit or at a record whose declared length (``cut_length``) runs past the end.
+    does not fit or at a record (``cut_opcode``) whose declared length (``cut_length``) runs past
+    the end.
     """
 
     def __init__(self, source: Source) -> None:
         self.source = source
         self.cut_at: int | None = None
         self.cut_length: int | None = None
+        self.cut_opcode: int | None = None
 
     def __iter__(self) -> Iterator[tuple[int, int, int]]:
         source = self.source
         pos, size = len(MAGIC), source.size
         while pos < size:
             if pos + RECORD_HEADER.size > size:
-                self.cut_at = pos
+                self.cut_at, self.cut_opcode = pos, source.read(pos, 1)[0]
                 return
             opcode, length = RECORD_HEADER.unpack(source.read(pos, RECORD_HEADER.size))
             if length > size - pos - RECORD_HEADER.size:
-                self.cut_at, self.cut_length = pos, length
+                self.cut_at, self.cut_length, self.cut_opcode = pos, length, opcode
                 return
             yield pos, opcode, length
             pos += RECORD_HEADER.size + length

@@ -58,6 +58,8 @@ CHUNK_PREFIX = struct.Struct("<QQQI")
 # The most bytes read whole for a summary section, the Message Index records of one chunk, or a
 # Schema, Channel or Metadata record: about 1M chunk indexes, far beyond any real file.
 MAX_SECTION_SIZE = 256 << 20
+# The Metadata record rosbag2 writes its metadata.yaml into, as it closes a file.
+ROSBAG2_METADATA = "rosbag2"
 FOOTER = struct.Struct("<QQI")
 FOOTER_RECORD_SIZE = RECORD_HEADER.size + FOOTER.size
 _STATISTICS_PREFIX = struct.Struct("<QHIIIIQQ")
@@ -66,6 +68,7 @@ _U32 = struct.Struct("<I")
 _U64 = struct.Struct("<Q")
 
 __all__ = [
+    "ROSBAG2_METADATA",
     "Channel",
     "Chunk",
     "ChunkIndex",

@@ -10,6 +10,7 @@ in benchmarks/README.md, "bagkit.bag.mcapio").
 
 from __future__ import annotations
 
+import struct
 from array import array
 from itertools import chain
 
@@ -27,6 +28,7 @@ from bagkit.bag.mcapio.records import (
     MESSAGE_INDEX_ENTRY_SIZE,
     MESSAGE_PREFIX,
     RECORD_HEADER,
+    ROSBAG2_METADATA,
     ChunkIndex,
     Cursor,
     Header,
@@ -145,7 +147,7 @@ class _Scanner:
         # After a cut, the last chunk's indexes may be incomplete: count it from its records.
         self._settle(trust_indexes=closed)
         self._end_run()
-        if records.cut_at is not None:
+        if records.cut_at is not None and not self._cut_after_messages(records):
             self.index.problems.append(
                 f"{self.source.name}: truncated at byte {records.cut_at}: "
                 f"{self.source.size - records.cut_at} bytes could not be read"
@@ -153,6 +155,20 @@ class _Scanner:
         self._find_channels_in_chunks()
         self._set_times()
         return self.index
+
+    def _cut_after_messages(self, records: DataSection) -> bool:
+        """Whether the file is cut in a record written after its last message: Data End, or
+        rosbag2's Metadata record (written as the file is closed). What is lost then held no
+        message, and a topic none of whose messages were read had none."""
+        if records.cut_opcode == Opcode.DATA_END:
+            return True
+        if records.cut_opcode != Opcode.METADATA or records.cut_at is None:
+            return False
+        name = ROSBAG2_METADATA.encode()
+        head = struct.pack("<I", len(name)) + name
+        start = records.cut_at + RECORD_HEADER.size
+        # A name cut short is no name: what the record was is not known.
+        return start + len(head) <= self.source.size and self.source.read(start, len(head)) == head
 
     def _record(self, pos: int, opcode: int, length: int) -> None:
         if opcode == Opcode.MESSAGE_INDEX:
