@@ -4,44 +4,19 @@ definitions its payloads do not follow. Values checked against rosbags' Humble t
 
 from __future__ import annotations
 
-import re
-import sqlite3
 from pathlib import Path
 
 import pytest
 from bagkit_runs import bagkit_in_process
+from humble_bags import humble_bag, humble_ranges
 from rosbags.highlevel import AnyReader
-from rosbags.rosbag2 import Writer
 from rosbags.typesys import Stores, get_typestore
-
-HUMBLE = get_typestore(Stores.ROS2_HUMBLE)
-RANGE = "sensor_msgs/msg/Range"
-T0 = 1_650_000_000_000_000_000
 
 
 def _humble_bag(path: Path, ros_distro: str | None) -> list[float]:
-    """A Humble-era .db3 of /sonar ranges (no message_definitions table, ``ros_distro`` as
-    given, None: no key); returns the ranges written."""
-    t = HUMBLE.types
-    ranges = [1.0 + i / 8 for i in range(6)]
-    with Writer(path, version=8) as writer:
-        sonar = writer.add_connection("/sonar", RANGE, typestore=HUMBLE)
-        for i, value in enumerate(ranges):
-            header = t["std_msgs/msg/Header"](
-                stamp=t["builtin_interfaces/msg/Time"](sec=i, nanosec=0), frame_id="sonar"
-            )
-            msg = t[RANGE](header=header, radiation_type=0, field_of_view=0.5, min_range=0.1,
-                           max_range=4.0, range=value)  # fmt: skip
-            writer.write(sonar, T0 + i * 10**8, bytes(HUMBLE.serialize_cdr(msg, RANGE)))
-    (db3,) = path.glob("*.db3")
-    db = sqlite3.connect(db3)
-    db.execute("DROP TABLE message_definitions")
-    db.commit()
-    db.close()
-    metadata = path / "metadata.yaml"
-    text = re.sub(r"\n *ros_distro: .*", "", metadata.read_text())
-    metadata.write_text(text + (f"  ros_distro: {ros_distro}\n" if ros_distro else ""))
-    return ranges
+    """:func:`humble_bag` at ``path``; returns the ranges written."""
+    humble_bag(path, ros_distro)
+    return [m.range for m in humble_ranges()]  # type: ignore[attr-defined]
 
 
 @pytest.fixture(autouse=True)
