@@ -81,7 +81,10 @@ def _may_hold(block: Block, channel_ids: set[int]) -> bool:
 
 
 def _in_range(block: Block, start_ns: int | None, end_ns: int | None) -> bool:
-    """Whether a chunk (or run of loose messages) may hold messages logged in the range."""
+    """Whether a chunk (or run of loose messages) may hold messages logged in the range.
+
+    ``Window.overlaps`` of the block's times; not imported from ``bagkit.selection.windows``,
+    whose time parsing ``bagkit info`` would then load at start."""
     if start_ns is not None and block.message_end_time < start_ns:
         return False
     return end_ns is None or block.message_start_time < end_ns
