@@ -39,9 +39,11 @@ Examples:
 
   bagkit echo flight1 /imu/data -n 3
 
-  bagkit echo flight1 /gps/fix --format json --start 10 --end 20 | jq .data.latitude
+  bagkit echo flight1 /gps/fix --format json --start 10 --end 20 \\
+    | jq .data.latitude
 
-  bagkit echo flight1 /imu/data --fields 'linear_acceleration.*' --fields header.stamp
+  bagkit echo flight1 /imu/data --fields 'linear_acceleration.*' \\
+    --fields header.stamp
 """
 
 # ros2 topic echo cuts arrays and strings after this many elements by default.

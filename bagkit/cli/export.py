@@ -40,11 +40,14 @@ Examples:
 
   bagkit export flight1 -t /imu/data -o imu.csv --start 10 --end 70
 
-  bagkit export flight1 -o out --topics /gps/fix --topics /imu/data --fields 'header.stamp.*'
+  bagkit export flight1 -o out --topics /gps/fix --topics /imu/data \\
+    --fields 'header.stamp.*'
 
-  bagkit export flight1 -t /imu/data -o low.parquet --where 'linear_acceleration.z < 0'
+  bagkit export flight1 -t /imu/data -o low.parquet \\
+    --where 'linear_acceleration.z < 0'
 
-  bagkit export 'flights/2026-11-*' -o flights_parquet -t /imu/data --workers 4
+  bagkit export 'flights/2026-11-*' -o flights_parquet -t /imu/data \\
+    --workers 4
 """
 
 

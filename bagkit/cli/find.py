@@ -40,9 +40,11 @@ Examples:
 
   bagkit find flight1 --when '/alerts: status[*].level >= 2'
 
-  bagkit find flights/ --when '/imu/data: linear_acceleration.z < 5' --gap 2 --format json
+  bagkit find flights/ --when '/imu/data: linear_acceleration.z < 5' \\
+    --gap 2 --format json
 
-  bagkit find 'flights/2026-11-*' --when '/gps/fix: status.status < 0' -o gps.parquet --workers 4
+  bagkit find 'flights/2026-11-*' --when '/gps/fix: status.status < 0' \\
+    -o gps.parquet --workers 4
 """
 
 

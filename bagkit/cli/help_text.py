@@ -3,7 +3,7 @@ option names whole at any width.
 
 typer (0.29) keeps a docstring's line breaks inside a paragraph; lines cut at 100 columns in
 the source then wrap again on an 80-column terminal, every other line a stub. Paragraphs with
-an indented line (example commands) keep their breaks.
+an indented line (example commands) are printed as written: keep them within 76 columns.
 """
 
 from __future__ import annotations
@@ -14,12 +14,16 @@ from typer.core import TyperGroup
 
 from bagkit.cli.common import ClickCommand
 
+# click's mark for a paragraph it must not wrap: a wrapped example command cannot be pasted.
+VERBATIM = "\b"
+
 
 def reflow(text: str) -> str:
-    """``text`` with the lines of each paragraph joined, but for paragraphs with indented lines."""
+    """``text`` with the lines of each paragraph joined, but for paragraphs with indented lines,
+    which click then prints as they are."""
     paragraphs = inspect.cleandoc(text).split("\n\n")
     return "\n\n".join(
-        paragraph
+        f"{VERBATIM}\n{paragraph}"
         if any(line.startswith(" ") for line in paragraph.splitlines())
         else " ".join(line.strip() for line in paragraph.splitlines())
         for paragraph in paragraphs

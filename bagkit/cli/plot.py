@@ -29,11 +29,14 @@ satisfying a condition (each series' topic must have its fields).
 
 Examples:
 
-  bagkit plot flight1 /imu/data:linear_acceleration.z /barometer/pressure:fluid_pressure -o p.png
+  bagkit plot flight1 /imu/data:linear_acceleration.z \\
+    /barometer/pressure:fluid_pressure -o p.png
 
-  bagkit plot golden /fusion/odometry:pose.pose.position.z --bag candidate -o altitude.html
+  bagkit plot golden /fusion/odometry:pose.pose.position.z \\
+    --bag candidate -o altitude.html
 
-  bagkit plot flight1 /imu/data:linear_acceleration.z --where 'angular_velocity.z > 0.1' -o t.png
+  bagkit plot flight1 /imu/data:linear_acceleration.z \\
+    --where 'angular_velocity.z > 0.1' -o t.png
 """
 
 

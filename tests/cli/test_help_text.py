@@ -27,7 +27,7 @@ def test_paragraph_lines_are_joined_and_indented_paragraphs_kept() -> None:
     """
     assert reflow(text) == (
         "First line.\n\nSecond paragraph, cut at the source's width.\n\nExamples:\n\n"
-        "  bagkit echo bag /imu -n 3\n  bagkit echo bag /gps"
+        "\b\n  bagkit echo bag /imu -n 3\n  bagkit echo bag /gps"
     )
 
 
@@ -74,6 +74,34 @@ def test_help_at_80_columns_shows_every_option_name_whole(
     words = set(re.split(r"[\s,/=\[\]()]+", result.stdout))
     assert [o for o in [*options, "-h", "--help"] if o not in words] == []
     assert max(len(line) for line in result.stdout.splitlines()) <= 80
+
+
+def _examples(help_text: str) -> list[str]:
+    """The lines of the ``Examples:`` section of a command's help."""
+    lines = help_text.splitlines()
+    if "  Examples:" not in lines:
+        return []
+    section = lines[lines.index("  Examples:") + 1 :]
+    return section[: next((i for i, line in enumerate(section) if line[:1].strip()), None)]
+
+
+@pytest.mark.parametrize(
+    ("path", "options"), COMMANDS, ids=[" ".join(["bagkit", *p]) for p, _ in COMMANDS]
+)
+def test_example_commands_are_printed_as_written_at_any_width(
+    path: list[str], options: list[str], tmp_path: Path
+) -> None:
+    # A wrapped example cannot be pasted: click must not refill it on a narrow terminal.
+    wide, narrow = (
+        bagkit_in_process([*path, "-h"], tmp_path, env={"COLUMNS": columns}).stdout
+        for columns in ("200", "80")
+    )
+    assert _examples(narrow) == _examples(wide)
+    commands = [line.strip() for line in _examples(narrow) if line.strip()]
+    assert all(
+        line.startswith(("bagkit ", "|", "-")) or previous.endswith("\\")
+        for previous, line in zip(["", *commands], commands, strict=False)
+    ), commands
 
 
 @pytest.mark.parametrize("command", ["replay", "play", "stats", "info"])
