@@ -253,6 +253,7 @@ SHARED_FLAGS = {
     "output.compression": "--compression {}",
     "output.max_bag_size": "--max-bag-size",
     "output.max_bag_duration_s": "--max-bag-duration",
+    "output.storage": "--storage",
     "allow_drop": "{}, or pass --allow-drop",
     "regex": "--regex {}",
     "exclude_regex": "--exclude-regex {}",

@@ -41,12 +41,14 @@ with every topic's definition, QoS and type hash and each bag's custom_data. ROS
 become their ROS 2 form (as rosbags-convert maps them), payloads CDR. --compression sets
 OUT's: MCAP chunks zstd (default), lz4 or none; sqlite3 none (default) or zstd per message.
 Topics, times, --where and the latched state are selected as in bagkit filter. MCAP chunks
-already in OUT's compression are copied as stored.
+already in OUT's compression are copied as stored. An OUT ending in .mcap is one MCAP file,
+not a directory.
 
 --output-options FILE reads ros2 bag convert's options file instead of -o (output_bags: a
 list of uri, storage_id, topics, regex, exclude_topics, compression_format, ...; one bag each).
 
 Example: bagkit convert old_drive.bag -o drive
+Example: bagkit convert field_db3_bag -o field.mcap
 Example: bagkit convert field_db3_bag -o field_mcap --compression zstd
 Example: bagkit convert drive -o drive_db3 --storage sqlite3 --topics /imu/data
 """
@@ -70,7 +72,8 @@ def convert(
         None,
         "--output",
         "-o",
-        help="The bag directory to write (must not exist unless --force); a URL uploads it.",
+        help="The bag directory to write, or one MCAP file if it ends in .mcap (must not "
+        "exist unless --force); a URL uploads it.",
         parser=bag_location,
     ),
     output_options_file: Path | None = typer.Option(

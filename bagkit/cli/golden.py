@@ -6,10 +6,12 @@ import os
 import sys
 import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import typer
 
 from bagkit.cli.common import (
+    ReportFormat,
     bag_location,
     console,
     err_console,
@@ -17,11 +19,15 @@ from bagkit.cli.common import (
     handle_errors,
     note,
     option_flags,
+    print_json,
     warn,
 )
 from bagkit.cli.fleet_options import Scheduler, Workers
 from bagkit.cli.selection_options import End, Start, build_query
 from bagkit.regression.spec import FixtureSpec, find_fixtures, load_spec
+
+if TYPE_CHECKING:
+    from bagkit.regression.batch import FixtureOutcome
 
 app = typer.Typer(
     name="golden",
@@ -74,13 +80,20 @@ def check(
     ),
     workers: Workers = None,
     scheduler: Scheduler = None,
+    output_format: ReportFormat = typer.Option(
+        ReportFormat.TABLE,
+        "--format",
+        help="table or json (one object per fixture and mode in a list).",
+    ),
 ) -> None:
     """Run each fixture's inputs through today's code and compare with its expected outputs.
 
     Exit status 0 when every fixture matches, 1 when one differs (its report is in
     FAILURES/<fixture>-<mode>/report.html), 2 for unusable input. Several lockstep checks run
     on a local Dask cluster (or --scheduler); live checks run one after
-    another in this process (they share DDS and the wall clock).
+    another in this process (they share DDS and the wall clock). --format json prints a
+    list of one object per fixture and mode: fixture, mode, passed, summary, speedup (lockstep),
+    report (when it failed) and error (when its bags could not be read).
 
     Example: bagkit golden check fixtures/takeoff --mode all
     """
@@ -91,15 +104,24 @@ def check(
         raise fail(f"--mode must be lockstep, live or all, not {mode!r}")
     # Fixtures in storage are copied whole into a temporary folder (spec, inputs, golden).
     with local_folders(fixtures or []) as local:
-        _check(local or None, mode, failures, workers, scheduler)
+        _check(
+            local or None,
+            mode=mode,
+            failures=failures,
+            workers=workers,
+            scheduler=scheduler,
+            output_format=output_format,
+        )
 
 
 def _check(
     fixtures: list[Path] | None,
+    *,
     mode: str,
     failures: Path,
     workers: int | None,
     scheduler: str | None,
+    output_format: ReportFormat,
 ) -> None:
     """Check ``fixtures`` (local folders; None: every one under ./fixtures) and print."""
     from bagkit.cli.fleet_options import end_with_unread, fleet_run
@@ -126,16 +148,24 @@ def _check(
     for outcome in outcomes:
         if outcome.error is not None:
             warn(not_read(f"{outcome.fixture} ({outcome.mode})", outcome.error))
-            continue
-        console.print(outcome.summary, highlight=False, markup=False, soft_wrap=True)
-        if outcome.speedup is not None:
-            console.print(f"  lockstep ({outcome.speedup:.0f}x real time)", highlight=False)
-        if outcome.report is not None:
-            console.print(f"  report: {outcome.report}", highlight=False, soft_wrap=True)
+    if output_format is ReportFormat.JSON:
+        print_json([outcome.to_dict() for outcome in outcomes])
+    else:
+        for outcome in outcomes:
+            if outcome.error is None:
+                _print(outcome)
     unread = {outcome.fixture for outcome in outcomes if outcome.error is not None}
     end_with_unread(len(unread), len({outcome.fixture for outcome in outcomes}), "fixtures")
     if not all(outcome.passed for outcome in outcomes):
         raise typer.Exit(1)
+
+
+def _print(outcome: FixtureOutcome) -> None:
+    console.print(outcome.summary, highlight=False, markup=False, soft_wrap=True)
+    if outcome.speedup is not None:
+        console.print(f"  lockstep ({outcome.speedup:.0f}x real time)", highlight=False)
+    if outcome.report is not None:
+        console.print(f"  report: {outcome.report}", highlight=False, soft_wrap=True)
 
 
 @app.command()

@@ -35,7 +35,8 @@ Output = Annotated[
     typer.Option(
         "--output",
         "-o",
-        help="The bag directory to write (must not exist unless --force); a URL uploads it.",
+        help="The bag directory to write, or one MCAP file if it ends in .mcap (must not "
+        "exist unless --force); a URL uploads it.",
         parser=bag_location,
     ),
 ]

@@ -42,17 +42,25 @@ class BagStream:
         UnknownTopicError, UnknownFieldError, UndecodableTopicError.
     """
 
-    def __init__(self, reader: BagReader, topic: str, condition: Condition, window: Window) -> None:
+    def __init__(
+        self, reader: BagReader, topic: str, conditions: Sequence[Condition], window: Window
+    ) -> None:
         self.reader = reader
         self.topic = topic
         self.window = window
         self.types = MessageTypes.for_bag(reader)
+        condition = Condition(
+            " or ".join(f"({c.text})" for c in conditions),
+            Node("or", tuple(c.tree for c in conditions)),
+        )
         self.condition = condition
-        self._subtrees = _stateless_parts(condition.tree)
+        # Each condition is evaluated on its own: the columns are those its own stateless parts
+        # read in bulk (all of them together may need a sequence, and so none).
+        parts = [part for c in conditions for part in _stateless_parts(c.tree)]
         paths = self._leaf_paths(topic)
         condition.check_fields(topic, paths)
         wanted: list[str] = []
-        for subtree in self._subtrees:
+        for subtree in parts:
             reads = Condition(condition.text, subtree).bulk_columns(paths)
             if reads is not None:
                 wanted.extend(name for names in reads.values() for name in names)
@@ -217,11 +225,7 @@ def _evaluate(
 ) -> tuple[list[np.ndarray], BagStream]:
     """The intervals of each condition, and the stream they were evaluated over."""
     (topic,) = require_topics([topic], reader.topics)
-    every = Condition(
-        " or ".join(f"({c.text})" for c in conditions),
-        Node("or", tuple(c.tree for c in conditions)),
-    )
-    stream = BagStream(reader, topic, every, window)
+    stream = BagStream(reader, topic, conditions, window)
     start = max(window.start_ns or reader.start_ns, reader.start_ns)
     end = min(window.end_ns - 1 if window.end_ns is not None else reader.end_ns, reader.end_ns)
     scope = Scope(topic, start, max(start, end), state)

@@ -52,6 +52,18 @@ class FixtureOutcome:
     report: Path | None = None
     error: str | None = None
 
+    def to_dict(self) -> dict[str, object]:
+        """The outcome as JSON values (``golden check --format json``)."""
+        return {
+            "fixture": self.fixture,
+            "mode": self.mode,
+            "passed": self.passed,
+            "summary": self.summary,
+            "speedup": self.speedup,
+            "report": None if self.report is None else str(self.report),
+            "error": self.error,
+        }
+
 
 def check_fixture(job: tuple[Path, str], *, failures: Path, import_root: str) -> FixtureOutcome:
     """Check one fixture directory in one mode; on failure write its report under ``failures``.

@@ -101,7 +101,7 @@ def convert_bags(
         raise SurgeryError("no input bag")
     selection = selection or Selection()
     options = options or OutputOptions()
-    check_output(bags, output)
+    check_output(bags, output, options)
     selection = with_content(bags, selection)
     if options.storage == "mcap" and chunks_copyable(bags):
         if len(bags) == 1:

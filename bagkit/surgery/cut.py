@@ -9,6 +9,7 @@ from pathlib import Path
 
 from bagkit.selection.windows import TimeRange, Window
 from bagkit.surgery.errors import SurgeryError
+from bagkit.surgery.output import single_file
 from bagkit.surgery.rewrite import OutputOptions, RewriteReport, check_output, filter_bag
 from bagkit.surgery.select import Selection
 
@@ -38,11 +39,15 @@ def cut_windows(
 
     Raises:
         SurgeryError: a window without both sides, ``output`` not a directory, or a bag that
-            exists without ``force``; what :func:`filter_bag` raises.
+            exists without ``force``, ``output`` ending in ``.mcap`` (one file); what
+            :func:`filter_bag` raises.
     """
     if any(w.start_ns is None or w.end_ns is None for w in windows):
         raise SurgeryError("a window to cut needs a start and an end")
-    check_output([bag], output)
+    options = options or OutputOptions()
+    if single_file(output, options):
+        raise SurgeryError(f"{output}: --around writes a directory of bags: name it without .mcap")
+    check_output([bag], output, options)
     if output.exists() and not output.is_dir():
         raise SurgeryError(f"{output} is not a directory")
     if not output.parent.is_dir():

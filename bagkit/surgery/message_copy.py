@@ -50,13 +50,7 @@ def open_output(output: Path, options: OutputOptions) -> MessageOutput:
         return Sqlite3OutputBag(output, options)
     if options.storage != "mcap":
         raise SurgeryError(f"storage {options.storage!r}: bagkit writes mcap or sqlite3")
-    return OutputBag(
-        output,
-        compression=options.compression,
-        max_bag_size=options.max_bag_size,
-        max_bag_duration_s=options.max_bag_duration_s,
-        force=options.force,
-    )
+    return OutputBag.create(output, options)
 
 
 def rewrite_messages(

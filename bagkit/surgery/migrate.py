@@ -107,7 +107,7 @@ def migrate_bag(
         BagError: the bag cannot be opened. MigrateError (RuleError, DataLossError): the
         migration cannot be made; nothing is written. SurgeryError: the output cannot be.
     """
-    check_output([bag], output)
+    check_output([bag], output, options.output)
     with BagReader(bag, allow_empty=True) as reader:
         migrated, unchanged = _plan(reader, options)
         previous = reader.metadata.custom_data.get(CUSTOM_DATA_KEY, "") if reader.metadata else ""

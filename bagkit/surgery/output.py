@@ -1,5 +1,8 @@
 """The bag a surgery writes: a temp directory renamed at the end, split files, raw chunk copies.
 
+An output named ``*.mcap`` is one MCAP file, not a bag directory (as ``mcap convert`` and
+pymcap-cli write it): its rosbag2 record carries the metadata, no ``metadata.yaml`` is written.
+
 Nothing appears under the output name before :meth:`OutputBag.commit`: files are written to a
 hidden sibling directory that is renamed into place, so an error never leaves a half-written
 bag, and an existing output is replaced only with ``force``.
@@ -40,6 +43,7 @@ from bagkit.bag.sizes import split_size_problem
 from bagkit.bag.writer import DEFAULT_CHUNK_SIZE, LIBRARY
 from bagkit.selection.times import seconds_to_ns
 from bagkit.surgery.errors import SurgeryError
+from bagkit.surgery.options import OutputOptions
 
 # A Message record up to its payload, as MESSAGE_RECORD_HEADER packs it.
 _RECORD_HEADER = np.dtype(
@@ -60,6 +64,29 @@ _MIN_CHUNK_SIZE = 4096
 # input chunk often closes two output chunks in a row; with one in flight the calling thread
 # waits for the first one's compression before it goes on (benchmarks/README.md, sixth pass).
 COMPRESSING = 2
+
+
+def single_file(path: Path, options: OutputOptions) -> bool:
+    """Whether ``path`` names one MCAP file (it ends in ``.mcap``) rather than a bag directory.
+
+    Raises:
+        SurgeryError: ``options`` ask what one MCAP file cannot carry: another storage, or a
+            split.
+    """
+    if path.suffix.lower() != ".mcap":
+        return False
+    if options.storage != "mcap":
+        raise SurgeryError(
+            f"{options.storage} writes a bag directory and {path} names one MCAP file "
+            "(name it without .mcap)",
+            "output.storage",
+        )
+    if options.max_bag_size or options.max_bag_duration_s:
+        raise SurgeryError(
+            f"{path} names one MCAP file, which is not split (name it without .mcap)",
+            "output.max_bag_size, output.max_bag_duration_s",
+        )
+    return True
 
 
 def check_replaceable(path: Path) -> None:
@@ -119,6 +146,8 @@ class OutputBag:
         max_bag_size: split when a file reaches this many bytes (0: never).
         max_bag_duration_s: split when a file spans this much log time (0: never).
         force: replace ``path`` if it exists.
+        single_file: ``path`` is the one MCAP file to write, without metadata.yaml (it is
+            not split).
 
     Raises:
         SurgeryError: ``path`` exists without ``force``, or its parent does not.
@@ -132,6 +161,7 @@ class OutputBag:
         max_bag_size: int = 0,
         max_bag_duration_s: float = 0,
         force: bool = False,
+        single_file: bool = False,
     ) -> None:
         if not path.name or path.name == "..":
             raise SurgeryError(f"{str(path)!r} names no bag directory to write")
@@ -142,6 +172,7 @@ class OutputBag:
         if not path.parent.is_dir():
             raise SurgeryError(f"{path.parent}: no such directory")
         self.path = path
+        self._single_file = single_file
         self.compression, self._compress = compressor(compression)
         too_small = split_size_problem(max_bag_size, 4 * _MIN_CHUNK_SIZE)
         if too_small is not None:
@@ -171,6 +202,22 @@ class OutputBag:
         threaded = self.compression and not (max_bag_size or max_bag_duration_s)
         self._compressor = ThreadPoolExecutor(1, "bagkit-compress") if threaded else None
         self._closing: deque[Future[ClosedChunk]] = deque()  # in the order they are written
+
+    @classmethod
+    def create(cls, path: Path, options: OutputOptions) -> OutputBag:
+        """The MCAP output ``options`` describe: a bag directory, or one file (:func:`single_file`).
+
+        Raises:
+            SurgeryError: see :func:`single_file` and the class.
+        """
+        return cls(
+            path,
+            compression=options.compression,
+            max_bag_size=options.max_bag_size,
+            max_bag_duration_s=options.max_bag_duration_s,
+            force=options.force,
+            single_file=single_file(path, options),
+        )
 
     def add_topic(self, topic: TopicInfo, definition: str | None, preferred_id: int) -> int:
         """Add a topic (once per name); return its channel id (``preferred_id`` when free). A
@@ -292,12 +339,17 @@ class OutputBag:
         if self._file is None and not self._files:
             self._current_file()
         self._finish_file()
-        write_metadata(self._temp, self._metadata())
+        if not self._single_file:
+            write_metadata(self._temp, self._metadata())
         if self.path.exists() or self.path.is_symlink():
             if self.path.is_dir() and not self.path.is_symlink():
                 shutil.rmtree(self.path)
             else:
                 self.path.unlink()
+        if self._single_file:
+            (self._temp / self.path.name).rename(self.path)
+            self._temp.rmdir()
+            return [self.path]
         self._temp.rename(self.path)
         return [self.path / f.path for f in self._files]
 
@@ -314,7 +366,9 @@ class OutputBag:
 
     def _current_file(self) -> McapFileWriter:
         if self._file is None:
-            name = f"{self.path.name}_{len(self._files)}.mcap"
+            name = (
+                self.path.name if self._single_file else f"{self.path.name}_{len(self._files)}.mcap"
+            )
             self._file = McapFileWriter.create(
                 self._temp / name,
                 Header(profile=Profile.ROS2, library=LIBRARY),

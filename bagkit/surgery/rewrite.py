@@ -22,7 +22,7 @@ from bagkit.surgery.content import with_content
 from bagkit.surgery.copy import CopyOptions, InputFile, copy_files, topics_of
 from bagkit.surgery.errors import SurgeryError, holding_no_topic
 from bagkit.surgery.options import OutputOptions, PayloadRewrites, RewriteReport, resolve
-from bagkit.surgery.output import OutputBag
+from bagkit.surgery.output import OutputBag, single_file
 from bagkit.surgery.select import Selection
 
 
@@ -76,7 +76,7 @@ def _rewrite(
     stored_order: bool = False,
     rewrites: PayloadRewrites | None = None,
 ) -> RewriteReport:
-    check_output(bags, output)
+    check_output(bags, output, options)
     selection = with_content(bags, selection)
     rewrites = rewrites or PayloadRewrites()
     if options.storage != "mcap" or not chunks_copyable(bags):
@@ -93,13 +93,7 @@ def _rewrite(
         latched = latched_messages(
             bags, {n: t for f in files for n, t in f.known.items()}, selection
         )
-        out = OutputBag(
-            output,
-            compression=options.compression,
-            max_bag_size=options.max_bag_size,
-            max_bag_duration_s=options.max_bag_duration_s,
-            force=options.force,
-        )
+        out = OutputBag.create(output, options)
         out.custom_data = merged_custom_data(inputs.custom_data)
         out.custom_data.update(rewrites.custom_data)
         try:
@@ -130,8 +124,10 @@ class _Inputs:
     custom_data: list[tuple[str, dict[str, str]]] = field(default_factory=list)
 
 
-def check_output(bags: Sequence[Path], output: Path) -> None:
-    """Raise SurgeryError when ``output`` is, holds or is inside one of ``bags``."""
+def check_output(bags: Sequence[Path], output: Path, options: OutputOptions) -> None:
+    """Raise SurgeryError when ``output`` is, holds or is inside one of ``bags``, or names one
+    MCAP file that ``options`` cannot be written to (:func:`~bagkit.surgery.output.single_file`)."""
+    single_file(output, options)
     target = output.resolve()
     for bag in bags:
         if not isinstance(bag, Path):  # a bag in storage (UrlPath): never under a local output

@@ -18,6 +18,7 @@ from bagkit.regression.golden import check_lockstep, update_golden
 from bagkit.regression.spec import load_spec
 
 REPO = Path(__file__).resolve().parents[2]
+JSON = ["--format", "json"]
 OUTPUTS = ["/alerts", "/logger/summary", "/fusion/odometry", "/fusion/baro_altitude"]
 
 
@@ -105,14 +106,17 @@ def test_cli_check_exit_codes_and_failure_folder(fixture_dir: Path, tmp_path: Pa
     spec_data["processor_args"]["nodes"]["data_logger"] = {"summary_period": 4.0}
     spec_file.write_text(yaml.safe_dump(spec_data))
     changed = subprocess.run(
-        [bagkit, "golden", "check", str(fixture_dir), "--failures", str(failures)],
+        [bagkit, "golden", "check", str(fixture_dir), "--failures", str(failures), *JSON],
         capture_output=True,
         text=True,
         timeout=120,
         check=False,
     )
     assert changed.returncode == 1, changed.stdout + changed.stderr
-    assert "/logger/summary" in changed.stdout
+    (outcome,) = json.loads(changed.stdout)
+    assert (outcome["fixture"], outcome["mode"], outcome["passed"]) == ("sim", "lockstep", False)
+    assert "/logger/summary" in outcome["summary"] and outcome["error"] is None
+    assert Path(outcome["report"]) == failures / "sim-lockstep" / "report.html"
     report = json.loads((failures / "sim-lockstep" / "report.json").read_text())
     (summary,) = [t for t in report["topics"] if t["topic"] == "/logger/summary"]
     assert summary["missing"] > 0 and summary["extra"] > 0

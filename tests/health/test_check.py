@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 from bagkit_runs import bagkit_in_process
 
+from bagkit.bag import BagReader
 from bagkit.health import HealthSpec, SpecError, check_bag
 
 FIXTURES = Path(__file__).parents[2] / "fixtures"
@@ -134,3 +135,21 @@ def test_a_comparison_the_values_do_not_take_names_its_condition_once(
     failed = "status[*].name < 0: cannot compare str with int"
     said = failed if condition.startswith("status[*].name") else f"{condition}: {failed}"
     assert line.endswith(f"health.yaml:3: /alerts: {said} (/alerts)"), line
+
+
+def test_a_bulk_condition_beside_one_that_reads_sequences(tmp_path: Path) -> None:
+    # /alerts' isnan(*) reads status[] (no bulk columns); its value bound reads one column in
+    # bulk. Each is evaluated on its own, so the columns read must serve each on its own.
+    spec = tmp_path / "health.yaml"
+    spec.write_text(
+        "topics:\n  /alerts:\n    values: {header.stamp.sec: {max: 1}}\n    never: [isnan(*)]\n"
+    )
+    bag = FIXTURES / "nominal" / "golden"
+    report = check_bag(bag, HealthSpec.load(spec))
+    outcome = {a.what: a for a in report.assertions}
+    assert outcome["isnan(*)"].passed
+    (spans,) = [a.spans for what, a in outcome.items() if what.startswith("header.stamp.sec")]
+    with BagReader(bag) as reader:  # every alert is stamped after 1970-01-01T00:00:01
+        times = [record.log_time for record in reader.messages(topics=["/alerts"])]
+        end = reader.end_ns  # /alerts is latched: its last status holds to the end
+    assert spans.tolist() == [[times[0], end, len(times)]]
