@@ -28,6 +28,7 @@ from bagkit.cli.surgery_options import (
     latched_options,
     output_options,
     print_report,
+    topic_of_where,
 )
 from bagkit.storage.transfer import written_to
 from bagkit.surgery.convert import convert_bags, read_output_options
@@ -98,13 +99,16 @@ def convert(
     distro: Distro = None,
 ) -> None:
     """Convert bags to a rosbag2 MCAP or SQLite3 bag."""
+    where_topic, where = topic_of_where(where)
     query = build_query(topics, start=start, end=end, where=where)
     latched = latched_options(latched_topics, no_latched)
     if output_options_file is not None:
         if output is not None:
             raise SurgeryError("give -o or --output-options, not both")
         for spec in read_output_options(output_options_file, force=force):
-            selection = replace(spec.selection, latched=latched, where=query.where)
+            selection = replace(
+                spec.selection, latched=latched, where=query.where, where_topic=where_topic
+            )
             _convert(bags, spec.uri, selection, spec.options, output_format)
         return
     if output is None:
@@ -122,7 +126,7 @@ def convert(
         ),
         storage=storage,
     )
-    selection = replace(selection, latched=latched)
+    selection = replace(selection, latched=latched, where_topic=where_topic)
     _convert(bags, output, selection, options, output_format)
 
 

@@ -38,6 +38,7 @@ from bagkit.cli.surgery_options import (
     output_options,
     print_cuts,
     print_report,
+    topic_of_where,
 )
 from bagkit.selection.times import parse_duration
 from bagkit.selection.topics import absolute_topic_name
@@ -104,12 +105,14 @@ def filter_command(
     distro: Distro = None,
 ) -> None:
     """Write the selected messages of a bag to a new bag."""
+    where_topic, where = topic_of_where(where)
     query = build_query(topics, start=start, end=end, where=where)
     selection = Selection.of(
         query, regex=regex, exclude_topics=split_list(exclude_topics), exclude_regex=exclude_regex
     )
     selection = replace(
         selection,
+        where_topic=where_topic,
         latched=latched_options(latched_topics, no_latched),
         state_topics=frozenset(absolute_topic_name(t) for t in split_list(state_topics)),
     )

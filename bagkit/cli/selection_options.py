@@ -89,7 +89,34 @@ def build_query(
         SelectionError: a time or the condition does not parse.
     """
     from bagkit.cli.common import split_list
+    from bagkit.selection.errors import SelectionError
     from bagkit.selection.query import Query
 
     names = [topics] if isinstance(topics, str) else split_list(topics)
-    return Query.create(names, split_list(fields), start, end, where)
+    try:
+        return Query.create(names, split_list(fields), start, end, where)
+    except SelectionError:
+        if where is not None:
+            _check_no_topic(where)
+        raise
+
+
+def _check_no_topic(where: str) -> None:
+    """A user who learnt ``'TOPIC: CONDITION'`` from ``--when`` and ``--around`` is told how
+    ``--where`` says it, not where its parser stopped.
+
+    Raises:
+        SelectionError: ``where`` is a topic and a condition.
+    """
+    from bagkit.selection.conditions import parse_topic_condition
+    from bagkit.selection.errors import SelectionError
+
+    try:
+        named = parse_topic_condition(where)
+    except SelectionError:
+        return
+    raise SelectionError(
+        f"--where {where!r}: this command's --where takes the condition alone (--where "
+        f"{named.condition.text!r}), for the topics it reads ({named.topic}: --topics, -t "
+        "or its TOPIC argument)"
+    )

@@ -101,10 +101,27 @@ KeepWhere = Annotated[
     typer.Option(
         "--where",
         help="Keep only the messages satisfying CONDITION (e.g. 'linear_acceleration.z < 0') "
-        "of the selected topics that have its fields; the others are kept whole.",
+        "of the selected topics that have its fields, or of one topic ('/alerts: "
+        "status[*].level >= 2'); the others are kept whole.",
         metavar="CONDITION",
     ),
 ]
+
+
+def topic_of_where(where: str | None) -> tuple[str | None, str | None]:
+    """``--where``'s topic, if it names one (``'TOPIC: CONDITION'``), and its condition."""
+    from bagkit.selection.conditions import parse_topic_condition
+    from bagkit.selection.errors import SelectionError
+
+    if where is None:
+        return None, None
+    try:
+        named = parse_topic_condition(where)
+    except SelectionError:  # a condition alone (or a bad one: its own error, from the query)
+        return None, where
+    return named.topic, named.condition.text
+
+
 # The fields an --around error names (surgery.around, regression.add) as the flags that set them.
 AROUND_FLAGS = {
     "selection.span": "--start/--end with --around",

@@ -56,6 +56,8 @@ class Selection:
         where: the condition the messages of the topics that have its fields must satisfy
             (``--where``), compiled against the inputs into ``content`` by
             :func:`bagkit.surgery.content.with_content`.
+        where_topic: the one topic ``where`` applies to (``--where 'TOPIC: CONDITION'``);
+            None: every selected topic that has its fields.
         state_topics: topics whose messages hold until the next one, for a condition over
             time (as transient-local topics do).
         content: topics whose messages pass only when their filter says so.
@@ -66,6 +68,7 @@ class Selection:
     window: Window = field(default_factory=Window)
     latched: LatchedOptions = field(default_factory=LatchedOptions)
     where: Condition | None = None
+    where_topic: str | None = None
     state_topics: frozenset[str] = frozenset()
     content: Mapping[str, PayloadFilter] = field(default_factory=dict)
 

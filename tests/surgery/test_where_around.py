@@ -98,6 +98,25 @@ def test_where_keeps_matching_messages_of_the_topics_with_the_fields(
     assert [d for _, _, d in rosbags_messages(only_text)] == [string_cdr("text 50")]
 
 
+def test_where_naming_a_topic_filters_that_topic_alone(flight: Flight, tmp_path: Path) -> None:
+    # /text and /map are both strings: the condition alone would filter both.
+    out = tmp_path / "out"
+    where = "/text: data == 'text 50'"
+    result = run_here("filter", str(flight.path), "-o", str(out), "--where", where)
+    assert result.returncode == 0, result.stderr
+    expected = [w for w in flight.written if w[0] != "/text" or w[2] == string_cdr("text 50")]
+    assert len(expected) == len(flight.written) - len(flight.z) // 25 + 1
+    assert rosbags_messages(out) == expected
+    converted = tmp_path / "converted"
+    result = run_here("convert", str(flight.path), "-o", str(converted), "--where", where)
+    assert result.returncode == 0, result.stderr
+    assert rosbags_messages(converted) == expected
+    # Commands whose --where is the condition alone say how to name the topic.
+    echo = run_here("echo", str(flight.path), "/text", "--where", where)
+    assert echo.returncode == 2
+    assert "(--where \"data == 'text 50'\")" in echo.stderr, echo.stderr
+
+
 @pytest.mark.parametrize("gap", ["0", "2"])
 def test_around_writes_one_bag_per_episode_with_its_latched_state(
     flight: Flight, tmp_path: Path, gap: str
@@ -142,6 +161,8 @@ def test_around_and_where_bad_input(flight: Flight, tmp_path: Path) -> None:
         (["--where", "nothing.here > 1"], 2, "nothing.here"),
         (["--where", "__import__('os').system('true')"], 2, "bad condition"),
         (["--where", "linear_acceleration.z == 'up'"], 2, "cannot compare"),
+        (["--where", "/nothing: linear_acceleration.z < 0"], 2, "/nothing"),
+        (["--where", "/text: linear_acceleration.z < 0"], 2, "linear_acceleration.z"),
     ]
     for args, code, text in cases:
         result = run_here("filter", str(flight.path), "-o", str(tmp_path / "x"), *args)
