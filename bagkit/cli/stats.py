@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import csv
 import math
 import sys
 from datetime import datetime, timezone
@@ -270,6 +269,8 @@ FIELD_COLUMNS = ("field", "count", "nan", "min", "max", "mean", "std")
 
 
 def _print_csv(result: Summary, latencies: dict[str, FieldStats]) -> None:
+    import csv  # here: the table and JSON start without it
+
     writer = csv.writer(sys.stdout, lineterminator="\n")
     writer.writerow(
         [

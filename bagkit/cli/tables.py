@@ -18,7 +18,7 @@ import textwrap
 import unicodedata
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -28,8 +28,9 @@ INDENT = "  "  # a record's first line; its figures are indented three times thi
 DEFAULT_WIDTH = 80  # rich's width of a console that is no terminal
 
 
-@dataclass(frozen=True)
-class Styled:
+# A NamedTuple, not a frozen dataclass: a printed table makes one per cell and piece of a
+# line, and a tuple is made several times faster (so is its class, at every start).
+class Styled(NamedTuple):
     """Text in a rich style (``"red"``, ``"bold green"``): coloured on a terminal only."""
 
     text: str
@@ -83,25 +84,26 @@ class Table:
 
 def print_table(table: Table) -> None:
     """Print ``table`` in aligned columns if it fits the console, else one record per row."""
+    console = _rich_console()  # once a table: each lookup asks whether stdout is a terminal
     if table.title is not None:
-        print_line([Styled(table.title, "bold")])
-    if table.fits(console_width()):
-        _print_columns(table)
+        _write_line([Styled(table.title, "bold")], console)
+    if table.fits(_width(console)):
+        _print_columns(table, console)
     else:
-        _print_records(table)
+        _print_records(table, console)
 
 
-def _print_columns(table: Table) -> None:
+def _print_columns(table: Table, console: Console | None) -> None:
     widths = table.widths()
     rule = [Styled(INDENT + GAP.join("─" * w for w in widths), "dim")]
-    print_line(_row(table.columns, [c.header for c in table.columns], widths, "bold"))
-    print_line(rule)
+    _write_line(_row(table.columns, [c.header for c in table.columns], widths, "bold"), console)
+    _write_line(rule, console)
     for row in table.rows:
-        print_line(_row(table.columns, row, widths))
+        _write_line(_row(table.columns, row, widths), console)
     if table.footer:
-        print_line(rule)
+        _write_line(rule, console)
         for row in table.footer:
-            print_line(_row(table.columns, row, widths))
+            _write_line(_row(table.columns, row, widths), console)
 
 
 def _row(
@@ -118,18 +120,19 @@ def _row(
     return line
 
 
-def _print_records(table: Table) -> None:
+def _print_records(table: Table, console: Console | None) -> None:
     """Each row as its first cell, then ``header value`` of the others, as many to a line
     as fit (one alone when even that does not)."""
     first = table.columns[0]
+    labels = [Styled(f"{column.header.lower()} ") for column in table.columns[1:]]
     for row in [*table.rows, *table.footer]:
-        print_line([Styled(INDENT), _styled(row[0], first.style or "bold")])
+        _write_line([Styled(INDENT), _styled(row[0], first.style or "bold")], console)
         figures = [
-            [Styled(f"{column.header.lower()} "), _styled(cell, column.style)]
-            for column, cell in zip(table.columns[1:], row[1:], strict=True)
+            [label, _styled(cell, column.style)]
+            for label, column, cell in zip(labels, table.columns[1:], row[1:], strict=True)
             if _plain(cell)
         ]
-        _print_packed(figures, sep=", ", lead=INDENT * 3, indent=INDENT * 3)
+        _print_packed(figures, sep=", ", lead=INDENT * 3, indent=INDENT * 3, console=console)
 
 
 def print_wrapped(
@@ -138,16 +141,19 @@ def print_wrapped(
     """Print ``pieces`` joined by ``sep`` after ``lead``, as many to a line as fit the
     console's width, the following lines after ``indent``; a piece (a name, ``10 msgs``) is
     never split."""
-    _print_packed([[_styled(piece, "")] for piece in pieces], sep=sep, lead=lead, indent=indent)
+    pieces_alone = [[_styled(piece, "")] for piece in pieces]
+    _print_packed(pieces_alone, sep=sep, lead=lead, indent=indent, console=_rich_console())
 
 
-def _print_packed(pieces: list[Line], *, sep: str, lead: str, indent: str) -> None:
-    width = console_width()
+def _print_packed(
+    pieces: list[Line], *, sep: str, lead: str, indent: str, console: Console | None
+) -> None:
+    width = _width(console)
     line, used, empty = [Styled(lead)], cell_len(lead), True
     for piece in pieces:
         size = sum(cell_len(part.text) for part in piece)
         if not empty and used + len(sep) + size > width:
-            print_line(line)
+            _write_line(line, console)
             line, used, empty = [Styled(indent)], cell_len(indent), True
         if not empty:
             line.append(Styled(sep))
@@ -156,7 +162,7 @@ def _print_packed(pieces: list[Line], *, sep: str, lead: str, indent: str) -> No
         used += size
         empty = False
     if not empty:
-        print_line(line)
+        _write_line(line, console)
 
 
 def print_fields(rows: Sequence[tuple[str, str]], *, names: frozenset[str] = frozenset()) -> None:
@@ -165,13 +171,14 @@ def print_fields(rows: Sequence[tuple[str, str]], *, names: frozenset[str] = fro
     A value under a key of ``names`` (file names) is never cut; other long values (free text,
     JSON documents) wrap at spaces within the console's width.
     """
+    console = _rich_console()
     key_width = max((len(key) for key, _ in rows), default=0) + 1
-    room = max(console_width() - key_width - len(GAP), 20)
+    room = max(_width(console) - key_width - len(GAP), 20)
     for key, value in rows:
         lines = value.split("\n") if key in names else _wrapped(value, room)
         for index, text in enumerate(lines):
             label = f"{key}:" if index == 0 else ""
-            print_line([Styled(label.ljust(key_width), "bold"), Styled(GAP + text)])
+            _write_line([Styled(label.ljust(key_width), "bold"), Styled(GAP + text)], console)
 
 
 def _wrapped(value: str, width: int) -> list[str]:
@@ -185,15 +192,18 @@ def _wrapped(value: str, width: int) -> list[str]:
 def print_line(parts: Sequence[Cell]) -> None:
     """Write one line of literal text to stdout: styled through rich on a terminal, plain
     (and without importing rich) otherwise."""
-    styled = [_styled(part, "") for part in parts]
-    console = _rich_console()
+    _write_line(parts, _rich_console())
+
+
+def _write_line(parts: Sequence[Cell], console: Console | None) -> None:
+    """:func:`print_line` on ``console`` (:func:`_rich_console`'s answer)."""
     if console is None:
-        sys.stdout.write("".join(part.text for part in styled).rstrip() + "\n")
+        sys.stdout.write("".join(_plain(part) for part in parts).rstrip() + "\n")
         return
     from rich.text import Text
 
     text = Text()
-    for part in styled:
+    for part in (_styled(part, "") for part in parts):
         text.append(part.text, style=part.style or None)
     text.rstrip()
     console.print(text, soft_wrap=True)
@@ -208,10 +218,9 @@ def _rich_console() -> Console | None:
     return common.console
 
 
-def console_width() -> int:
-    """The width lines are laid out for: rich's console width (``COLUMNS``, the terminal's,
-    or 80 when stdout is no terminal)."""
-    console = _rich_console()
+def _width(console: Console | None) -> int:
+    """The width lines are laid out for on ``console`` (:func:`_rich_console`'s answer):
+    rich's console width (``COLUMNS``, the terminal's, or 80 when stdout is no terminal)."""
     if console is not None:
         return console.width
     columns = os.environ.get("COLUMNS", "")

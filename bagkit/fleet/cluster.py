@@ -133,10 +133,11 @@ def fleet_client(
         FleetError: more local workers than MAX_WORKERS_PER_CORE per core (field ``workers``).
     """
     # In this process, without importing distributed (slow to import); also by default where
-    # the fleet extra is not installed.
+    # the fleet extra is not installed (looked for only when a cluster would pay: one bag
+    # starts without searching the path for Dask).
     local = workers == 0 or (
         workers is None
-        and not (installed(FLEET) and cluster_pays(rate, bags, size_bytes, default_workers()))
+        and not (cluster_pays(rate, bags, size_bytes, default_workers()) and installed(FLEET))
     )
     if scheduler is None and local:
         yield None

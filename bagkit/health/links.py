@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import datetime as dt
 import os
-import shlex
 from pathlib import Path
 from urllib.parse import quote, urlencode
 
@@ -22,12 +21,16 @@ FOXGLOVE_APP = "https://app.foxglove.dev/~/view"
 
 def play_command(bag: str, start_ns: int, bag_start_ns: int) -> str:
     """``bagkit play`` from CONTEXT_S before ``start_ns``."""
+    import shlex  # here: a healthy bag's check starts without it
+
     offset = max(start_ns - bag_start_ns - CONTEXT_S * 1_000_000_000, 0) / 1e9
     return f"bagkit play {shlex.quote(bag)} --start-offset {offset:.3f}"
 
 
 def filter_command(bag: str, topic: str, condition: str) -> str:
     """``bagkit filter --around`` the episodes of ``TOPIC: CONDITION``, with context."""
+    import shlex  # here: a healthy bag's check starts without it
+
     around = shlex.quote(f"{topic}: {condition}")
     out = shlex.quote(f"{Path(bag).name}_cuts")
     return (

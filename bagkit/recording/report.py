@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from bagkit.bag.info import message_rate
+from bagkit.bag.rates import message_rate
 from bagkit.recording.health_watch import HealthCount
 
 

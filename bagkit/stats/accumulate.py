@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from bagkit.bag.definitions import INTEGER_TYPES
-from bagkit.bag.info import pooled_rate
+from bagkit.bag.rates import pooled_rate
 from bagkit.decode import DecodeError, LeafField, MessageTypes
 from bagkit.decode.bulk import decode_bulk, spans_inside
 from bagkit.decode.direct import ValueReader

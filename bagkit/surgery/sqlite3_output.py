@@ -84,30 +84,35 @@ class Sqlite3OutputBag:
             qos = parse_qos(topic.offered_qos_profiles) if topic.offered_qos_profiles else []
         except Exception:
             qos = []
-        if definition is None:
-            connection = self._unknown_definition(topic, qos)
-        else:
+        type_hash = topic.type_description_hash
+        if definition is not None and not type_hash:
+            type_hash = _type_hash(topic, definition)
+        if definition is not None and type_hash:
             connection = self._writer.add_connection(
                 topic.name,
                 topic.type,
                 msgdef=definition,
-                rihs01=topic.type_description_hash or _type_hash(topic, definition),
+                rihs01=type_hash,
                 serialization_format=topic.serialization_format or "cdr",
                 offered_qos_profiles=qos,
             )
+        else:
+            connection = self._without_hash(topic, qos, definition)
         self._connections[topic.name] = connection
         self._by_id[connection.id] = connection
         self.counts[connection.id] = 0
         return connection.id
 
-    def _unknown_definition(self, topic: TopicInfo, qos: list[Qos]) -> Connection:
-        """A connection whose definition is not known: rosbags' writer takes a text and a hash
-        only, so its rows are set to rosbag2's ``unknown`` afterwards, and the connection (which
+    def _without_hash(self, topic: TopicInfo, qos: list[Qos], definition: str | None) -> Connection:
+        """A connection without a type hash: its definition is not known (None), or names types
+        it does not define (rosbag2's test bags store such stubs). rosbags' writer takes a text
+        and a hash only, so its rows are set afterwards as rosbag2 writes them (no hash; an
+        unknown definition's encoding ``unknown``, without text), and the connection (which
         metadata.yaml is written from) keeps the topic's own hash, empty when it has none."""
         added = self._writer.add_connection(
             topic.name,
             topic.type,
-            msgdef="",
+            msgdef=definition or "",
             rihs01=topic.type_description_hash or "unknown",
             serialization_format=topic.serialization_format or "cdr",
             offered_qos_profiles=qos,
@@ -116,11 +121,18 @@ class Sqlite3OutputBag:
         connections = self._writer.connections
         connections[connections.index(added)] = connection
         conn = self._writer.storage.conn  # type: ignore[union-attr]
-        conn.execute(
-            "UPDATE message_definitions SET encoding = ?, type_description_hash = '' "
-            "WHERE topic_type = ? AND encoded_message_definition = ''",
-            (UNKNOWN_ENCODING, topic.type),
-        )
+        if definition is None:
+            conn.execute(
+                "UPDATE message_definitions SET encoding = ?, type_description_hash = '' "
+                "WHERE topic_type = ? AND encoded_message_definition = ''",
+                (UNKNOWN_ENCODING, topic.type),
+            )
+        else:
+            conn.execute(
+                "UPDATE message_definitions SET type_description_hash = '' "
+                "WHERE topic_type = ? AND encoded_message_definition = ?",
+                (topic.type, definition),
+            )
         conn.execute(
             "UPDATE topics SET type_description_hash = ? WHERE name = ?",
             (topic.type_description_hash, topic.name),
@@ -167,19 +179,13 @@ class Sqlite3OutputBag:
 
 
 def _type_hash(topic: TopicInfo, definition: str) -> str:
-    """The RIHS01 hash of a topic's type from its definition (rosbags' writer needs one; older
-    bags store none).
-
-    Raises:
-        SurgeryError: the definition does not give one.
-    """
+    """The RIHS01 hash of a topic's type from its definition (older bags store none); empty
+    when the definition does not give one (it names a type it does not define)."""
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
     try:
         store = get_typestore(Stores.EMPTY)
         store.register(get_types_from_msg(definition, topic.type))
         return store.hash_rihs01(topic.type)
-    except Exception as exc:
-        raise SurgeryError(
-            f"{topic.name}: no type hash stored and none from its definition ({exc})"
-        ) from None
+    except Exception:
+        return ""

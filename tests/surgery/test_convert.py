@@ -293,3 +293,42 @@ def test_message_compressed_mcap_is_written_decompressed(
     with AnyReader([tmp_path / "out"], default_typestore=store) as reader:
         read = [reader.deserialize(d, c.msgtype).data for c, _, d in reader.messages()]
     assert read == [f"m{i}" for i in range(20)]
+
+
+def test_a_stored_definition_naming_types_it_lacks_converts_without_a_type_hash(
+    tmp_path: Path,
+) -> None:
+    """rosbag2's own test bags (talker.db3) store stub definitions that name types they do not
+    define (``Parameter[] new_parameters``) and no topic hash: no RIHS01 can be computed. Both
+    storages write the definition as stored, without a type hash (sqlite3 was refused)."""
+    from rosbags.rosbag2 import Writer
+
+    bag, stub = tmp_path / "stub", "Parameter[] new_parameters"
+    payloads = [b"\x00\x01\x00\x00" + i.to_bytes(4, "little") for i in range(3)]
+    with Writer(bag, version=9) as writer:
+        events = writer.add_connection("/events", "pkg/msg/Event", msgdef=stub, rihs01="hash3")
+        for i, data in enumerate(payloads):
+            writer.write(events, 1_000 + i, data)
+    (database,) = bag.glob("*.db3")
+    with sqlite3.connect(database) as db:
+        db.execute("UPDATE topics SET type_description_hash = ''")
+    db.close()
+    metadata = bag / "metadata.yaml"
+    metadata.write_text(metadata.read_text().replace("hash3", "''"))
+    _convert(bag, "-o", tmp_path / "as_db3", "--storage", "sqlite3")
+    (written,) = (tmp_path / "as_db3").glob("*.db3")
+    with sqlite3.connect(written) as db:
+        definitions = list(db.execute("SELECT * FROM message_definitions"))
+        hashes = list(db.execute("SELECT type_description_hash FROM topics"))
+        stored = [bytes(d) for (d,) in db.execute("SELECT data FROM messages ORDER BY timestamp")]
+    db.close()
+    assert [row[1:] for row in definitions] == [("pkg/msg/Event", "ros2msg", stub, "")]
+    assert hashes == [("",)]
+    assert stored == payloads
+    _convert(bag, "-o", tmp_path / "as_mcap")
+    (file,) = _mcap_files(tmp_path / "as_mcap")
+    assert _schemas(file) == {"pkg/msg/Event": stub}
+    with open(file, "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    assert [set(c.metadata) for c in summary.channels.values()] == [{"offered_qos_profiles"}]
