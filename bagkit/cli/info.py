@@ -60,7 +60,9 @@ event, request and response counts and their latency (median, 99th percentile, m
 Actions (NAME/_action/feedback and NAME/_action/status) are listed with the message counts of
 their parts.
 
-Example: bagkit info my_bag -v
+Example:
+
+  bagkit info my_bag -v
 """
 
 # rosbag2 metadata versions < 9 store QoS policies as rmw enum integers.
