@@ -17,6 +17,7 @@ from bagkit.bag.compression import (
     is_zstd,
     sniff_message_compression,
 )
+from bagkit.bag.compression_words import CompressionWords
 from bagkit.bag.distro_definitions import distro_definitions
 from bagkit.bag.errors import (
     BagError,
@@ -433,14 +434,8 @@ class BagReader:
 
     @property
     def compression_label(self) -> str:
-        """How the bag is compressed, in one line: rosbag2's zstd first (``zstd, file mode``),
-        with the chunks' apart (``zstd, file mode; chunks none``); else the chunks' (``zstd``,
-        ``lz4,zstd``, ``none``), or ``""`` (sqlite3 without rosbag2's compression)."""
-        mode, chunks = self.compression_mode, self.chunk_compression
-        if not mode:
-            return chunks
-        rosbag2 = f"zstd, {mode} mode"
-        return f"{rosbag2}; chunks {chunks}" if chunks else rosbag2
+        """How the bag is compressed, in one line (:attr:`CompressionWords.label`)."""
+        return CompressionWords.of(self.compression_mode, self.chunk_compression).label
 
     @property
     def compressed_size(self) -> int:

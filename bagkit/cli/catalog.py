@@ -80,7 +80,9 @@ def build(
     beside it (a bag is searched again when it changed or the condition did). A bag that
     cannot be read gets a row saying why, a warning, and exit status 2.
 
-    Example: bagkit catalog /data/flights -o flights.parquet
+    Example:
+
+      bagkit catalog /data/flights -o flights.parquet
     --events gps_lost='/gps/fix: status.status < 0'
     """
     from bagkit.fleet.events import parse_events
@@ -192,9 +194,12 @@ def query(  # noqa: PLR0917 (typer maps parameters to options)
     """Rows of the catalogue with messages on a topic within a time range; with --event, the
     episodes of a named event (which bags had it, when).
 
-    Example: bagkit catalog query flights.parquet -t /gps/fix --start 2026-11-01 --end 2026-11-08
+    Examples:
 
-    Example: bagkit catalog query flights.parquet --event gps_lost --start 2026-11-18
+      bagkit catalog query flights.parquet -t /gps/fix \\
+        --start 2026-11-01 --end 2026-11-08
+
+      bagkit catalog query flights.parquet --event gps_lost --start 2026-11-18
     """
     from bagkit.fleet.catalog import query as select
     from bagkit.fleet.catalog import read_catalog

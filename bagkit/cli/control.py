@@ -22,9 +22,13 @@ list' shows what each offers. Prints the node's answer; exit 0 done, 1 the node 
 rate of 0, play_next while playing; is_paused: not paused), 2 no such control or no node
 offering it. A negative value follows '--': bagkit control seek -- -5.
 
-Example: bagkit control pause
-Example: bagkit control rate 0.5 --node /bagkit_player
-Example: bagkit control snapshot
+Examples:
+
+  bagkit control pause
+
+  bagkit control rate 0.5 --node /bagkit_player
+
+  bagkit control snapshot
 """
 
 

@@ -48,10 +48,15 @@ not a directory.
 --output-options FILE reads ros2 bag convert's options file instead of -o (output_bags: a
 list of uri, storage_id, topics, regex, exclude_topics, compression_format, ...; one bag each).
 
-Example: bagkit convert old_drive.bag -o drive
-Example: bagkit convert field_db3_bag -o field.mcap
-Example: bagkit convert field_db3_bag -o field_mcap --compression zstd
-Example: bagkit convert drive -o drive_db3 --storage sqlite3 --topics /imu/data
+Examples:
+
+  bagkit convert old_drive.bag -o drive
+
+  bagkit convert field_db3_bag -o field.mcap
+
+  bagkit convert field_db3_bag -o field_mcap --compression zstd
+
+  bagkit convert drive -o drive_db3 --storage sqlite3 --topics /imu/data
 """
 STORAGE_HELP = "OUT's storage: mcap (default) or sqlite3."
 COMPRESSION_HELP = (

@@ -27,8 +27,11 @@ With --against-installed, each topic's stored message definition is compared ins
 one installed today (the ROS packages this Python or AMENT_PREFIX_PATH sees): every field added,
 removed, retyped or moved is named; exit 1 when a topic drifted.
 
-Example: bagkit doctor drive --deep
-Example: bagkit doctor fixtures/takeoff/golden --against-installed
+Examples:
+
+  bagkit doctor drive --deep
+
+  bagkit doctor fixtures/takeoff/golden --against-installed
 """
 
 

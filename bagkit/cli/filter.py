@@ -62,8 +62,13 @@ only the messages satisfying it of the topics that have its fields (others are k
 OUT/<bag>_<n>/, from --before before its first match to --after after its last, each with
 its latched state.
 
-Example: bagkit filter drive -o imu_only --topics /imu/data /gps/fix --start 1763850000
-Example: bagkit filter flight -o cuts --around '/alerts: status[*].level >= 2' --before 10 --after 5
+Examples:
+
+  bagkit filter drive -o imu_only --topics /imu/data /gps/fix \\
+    --start 1763850000
+
+  bagkit filter flight -o cuts --around '/alerts: status[*].level >= 2' \\
+    --before 10 --after 5
 """
 AROUND_HELP = (
     "'TOPIC: CONDITION': write one bag per episode where it holds, OUT/<bag>_<n>/, "

@@ -95,7 +95,9 @@ def check(
     list of one object per fixture and mode: fixture, mode, passed, summary, speedup (lockstep),
     report (when it failed) and error (when its bags could not be read).
 
-    Example: bagkit golden check fixtures/takeoff --mode all
+    Example:
+
+      bagkit golden check fixtures/takeoff --mode all
     """
     from bagkit.storage.transfer import local_folders
 
@@ -176,7 +178,9 @@ def update(fixtures: list[Path] | None = FIXTURES_ARG) -> None:
     Outputs within the spec's lockstep tolerance of the golden's are kept: accepting unchanged
     behaviour rewrites no file.
 
-    Example: bagkit golden update fixtures/takeoff && git diff --stat fixtures/
+    Example:
+
+      bagkit golden update fixtures/takeoff && git diff --stat fixtures/
     """
     from bagkit.regression.golden import update_golden
 
@@ -209,7 +213,9 @@ def migrate(
     lockstep check runs. Exit status 0 when every check passes, 1 when one fails, 2 when a
     golden cannot be migrated (it is left as it was).
 
-    Example: bagkit golden migrate fixtures/pack --rules battery_v2.yaml
+    Example:
+
+      bagkit golden migrate fixtures/pack --rules battery_v2.yaml
     """
     from bagkit.migrate import Rules, load_rules
     from bagkit.regression.artefacts import write_failure_artefacts
@@ -253,7 +259,9 @@ def record(fixtures: list[Path] | None = FIXTURES_ARG) -> None:
     with a processor factory, the expected outputs are then computed from the recorded inputs
     by lockstep. Run it with ROS_DOMAIN_ID set to a domain of your own.
 
-    Example: bagkit golden record fixtures/takeoff
+    Example:
+
+      bagkit golden record fixtures/takeoff
     """
     from bagkit.regression.live import record_golden
 
@@ -305,8 +313,11 @@ def add(  # noqa: PLR0917 (typer maps parameters to options)
     and pytest runs the fixture at once. Without it, the golden is the window as recorded and
     spec.yaml a commented template naming its topics.
 
-    Example: bagkit golden add fixtures/gps_outage --from flight1 --around
-    '/alerts: status[*].level >= 2' --before 5 --after 5 --like fixtures/faults
+    Example:
+
+      bagkit golden add fixtures/gps_outage --from flight1 \\
+        --around '/alerts: status[*].level >= 2' --before 5 --after 5 \\
+        --like fixtures/faults
     """
     from bagkit.cli.surgery_options import AROUND_FLAGS
     from bagkit.regression.add import AddOptions, add_fixture

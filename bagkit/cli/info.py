@@ -14,6 +14,7 @@ import yaml
 
 from bagkit.bag import BagInfo, bag_info, safe_yaml
 from bagkit.bag.action_info import ActionSummary, action_summaries
+from bagkit.bag.compression_words import CompressionWords
 from bagkit.cli import common
 from bagkit.cli.common import (
     BAG_HELP,
@@ -59,7 +60,9 @@ event, request and response counts and their latency (median, 99th percentile, m
 Actions (NAME/_action/feedback and NAME/_action/status) are listed with the message counts of
 their parts.
 
-Example: bagkit info my_bag -v
+Example:
+
+  bagkit info my_bag -v
 """
 
 # rosbag2 metadata versions < 9 store QoS policies as rmw enum integers.
@@ -192,13 +195,13 @@ def _print_actions(actions: list[ActionSummary]) -> None:
 def _compression_rows(info: BagInfo) -> list[tuple[str, str]]:
     """``Compression``: rosbag2's (``zstd, file mode``), or else the chunks'; then the chunks'
     apart (``Chunk compression``) when rosbag2 compressed an MCAP or ROS 1 file as well."""
+    words = CompressionWords.of(info.compression_mode, info.chunk_compression)
     ratio = f" (ratio {info.compression_ratio:.2f})"
-    chunks = info.chunk_compression
-    if not info.compression_mode:
+    if not words.rosbag2:
+        chunks = words.chunks
         return [("Compression", chunks + ratio if chunks and chunks != "none" else "none")]
-    shown = f"{info.compression_format}, {info.compression_mode} mode"
-    rows = [("Compression", shown + (ratio if info.compression_mode == "file" else ""))]
-    return [*rows, ("Chunk compression", chunks)] if chunks else rows
+    rows = [("Compression", words.rosbag2 + (ratio if info.compression_mode == "file" else ""))]
+    return [*rows, ("Chunk compression", words.chunks)] if words.chunks else rows
 
 
 def _print_table(info: BagInfo, verbose: bool) -> None:

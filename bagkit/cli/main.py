@@ -128,8 +128,8 @@ class _LazyGroup(TyperGroup):
 app = typer.Typer(
     name="bagkit",
     cls=_LazyGroup,
-    help="Record, replay, inspect and compare ROS 2 MCAP bags.\n\n"
-    "Example: bagkit info my_bag; bagkit COMMAND -h for a command's options.",
+    help="Record, replay, inspect and compare ROS 2 MCAP bags. bagkit COMMAND -h gives a "
+    "command's options.\n\nExample:\n\n  bagkit info my_bag",
     no_args_is_help=True,
     pretty_exceptions_enable=False,
     rich_markup_mode=None,

@@ -34,7 +34,9 @@ and are stored in order are copied as stored. --start/--end keep a time range (r
 the first and last message of all BAGs); with --start the latched state comes first (the
 last message before it of each transient-local topic, as filter does).
 
-Example: bagkit merge drive_part1 drive_part2 -o drive
+Example:
+
+  bagkit merge drive_part1 drive_part2 -o drive
 """
 
 

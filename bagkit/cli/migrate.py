@@ -24,8 +24,11 @@ whose definition did not change are copied as they are. OUT keeps the QoS and cu
 BAG and gains custom_data bagkit.migrate, which names the rules that ran. On any error
 nothing is written (exit 2). docs/regression.md, "When a message changes", walks through it.
 
-Example: bagkit migrate old_drive -o drive_v2 --rules battery_v2.yaml
-Example: bagkit migrate humble_bag -o jazzy_bag
+Examples:
+
+  bagkit migrate old_drive -o drive_v2 --rules battery_v2.yaml
+
+  bagkit migrate humble_bag -o jazzy_bag
 """
 
 

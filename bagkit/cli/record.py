@@ -117,10 +117,10 @@ HELP = (
     "Health: --health SPEC checks bagkit check's contract on what is recorded and prints a "
     "line when a check breaks or clears; --trigger-on-health makes a broken check a snapshot "
     "trigger, --stop-on-health DURATION a guardrail.\n\n"
-    "Example: bagkit record --topics /imu/data /gps/fix -o run1 --duration 60\n\n"
     "Exit status: 0 after --duration, 130 after Ctrl-C, 143 after SIGTERM (the bag is complete "
     "in all three), 1 when recording failed (disk full: the bag keeps what was written), "
-    "2 for bad options or an existing output."
+    "2 for bad options or an existing output.\n\n"
+    "Example:\n\n  bagkit record --topics /imu/data /gps/fix -o run1 --duration 60"
 )
 
 

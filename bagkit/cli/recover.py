@@ -26,8 +26,11 @@ printed.
 Exit status: 0 when everything was read, 3 when messages were recovered but something was lost
 (printed as 'lost: ...'), 1 when no message could be recovered, 2 for bad input.
 
-Example: bagkit recover crashed_drive -o drive_recovered
-Example: bagkit recover crashed_drive/crashed_drive_0.mcap -o drive.mcap
+Examples:
+
+  bagkit recover crashed_drive -o drive_recovered
+
+  bagkit recover crashed_drive/crashed_drive_0.mcap -o drive.mcap
 """
 
 

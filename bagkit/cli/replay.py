@@ -123,7 +123,9 @@ and the parameters `rate`, `seek` and `burst`.
 
 Progress goes to stderr (on a terminal); per-topic counts and the timing error go to stdout.
 
-Example: bagkit play drive/ --clock -r 2 --topics /imu/data /gps/fix
+Example:
+
+  bagkit play drive/ --clock -r 2 --topics /imu/data /gps/fix
 """
 
 app = typer.Typer()

@@ -70,7 +70,9 @@ def summary(  # noqa: PLR0917 (typer maps parameters to options)
     --where keeps the messages satisfying a condition (topics whose type lacks its fields are
     left out): bagkit stats summary flight1 -t /imu/data --where 'linear_acceleration.z < 0'
 
-    Example: bagkit stats summary 'flights/2026-11-*' -t /imu/data --workers 4
+    Example:
+
+      bagkit stats summary 'flights/2026-11-*' -t /imu/data --workers 4
     """
     from bagkit.fleet import expand_bags
 

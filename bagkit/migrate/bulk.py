@@ -16,7 +16,7 @@ payload bulk decoding leaves over) goes message by message.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -27,10 +27,25 @@ from bagkit.decode.msgdef import Nodetype, TypeDefinitions
 
 _EMPTY_STRING = 1  # a CDR string's length counts its NUL
 
-# Payloads handed out as groups ``(indexes, rows)``: ``rows[i]`` (a row of a 2-D uint8 array,
-# one size per group) holds the payload at ``indexes[i]`` of the batch, after the room the
-# caller asked for; None: not taken in bulk.
-PayloadRows = list[tuple[np.ndarray, np.ndarray]] | None
+
+class BulkGroup(NamedTuple):
+    """Payloads of one old layout migrated at once.
+
+    Attributes:
+        indexes: the payloads' indexes in the batch.
+        rows: a 2-D uint8 array, one size per group: ``rows[i]`` holds the payload at
+            ``indexes[i]``, after the room the caller asked for.
+        prefixes: the old payloads' length prefixes (:meth:`BulkMigration.prefixes`), which
+            fix both layouts.
+    """
+
+    indexes: np.ndarray
+    rows: np.ndarray
+    prefixes: tuple[int, ...]
+
+
+# None: not taken in bulk.
+PayloadRows = list[BulkGroup] | None
 
 
 @dataclass(frozen=True)
@@ -68,8 +83,8 @@ class BulkMigration:
     def payloads(
         self, buf: np.ndarray, starts: np.ndarray, lengths: np.ndarray, room: int = 0
     ) -> PayloadRows:
-        """The migrated payloads at ``starts``/``lengths`` of ``buf`` (uint8) as rows of equal
-        size (see :data:`PayloadRows`), each payload after ``room`` zero bytes left for the
+        """The migrated payloads at ``starts``/``lengths`` of ``buf`` (uint8) as groups of
+        rows of equal size (:class:`BulkGroup`), each payload after ``room`` zero bytes left for the
         caller; None when one of them does not decode in bulk (the caller goes message by
         message)."""
         groups, leftover = decode_bulk(buf, starts, lengths, self.old)
@@ -83,7 +98,7 @@ class BulkMigration:
             made = self._records(group.values, old_lengths, room)
             if made is None:
                 return None
-            found.append((group.indexes, made))
+            found.append(BulkGroup(group.indexes, made, old_lengths))
         return found
 
     def prefixes(self, buf: np.ndarray, start: int) -> tuple[int, ...]:

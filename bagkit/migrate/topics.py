@@ -34,7 +34,7 @@ from bagkit.decode.cdr import has_wide_strings
 from bagkit.decode.drift import definition_changes
 from bagkit.decode.errors import DecodeError, SchemaError
 from bagkit.decode.message_types import MessageTypes
-from bagkit.migrate.bulk import BulkMigration
+from bagkit.migrate.bulk import BulkGroup, BulkMigration
 from bagkit.migrate.errors import MigrateError
 from bagkit.migrate.plan import Planner
 from bagkit.migrate.rules import Rules
@@ -88,7 +88,7 @@ class TopicMigration:
             found = self.bulk.payloads(buf, starts, lengths, room)
             if found is not None and self._agrees(found, buf, starts, lengths, room):
                 self.migrated += len(starts)
-                return found
+                return [(group.indexes, group.rows) for group in found]
         view = memoryview(buf.data)
         made = [
             self.payload(view[start : start + length])
@@ -109,7 +109,7 @@ class TopicMigration:
 
     def _agrees(
         self,
-        groups: list[tuple[np.ndarray, np.ndarray]],
+        groups: list[BulkGroup],
         buf: np.ndarray,
         starts: np.ndarray,
         lengths: np.ndarray,
@@ -118,10 +118,8 @@ class TopicMigration:
         """Whether the first and last row of each bulk group hold what :meth:`payload` gives
         for their old payloads, or a group of the same old length prefixes did (see the
         module's docstring)."""
-        assert self.bulk is not None
         view = memoryview(buf.data)
-        for indexes, rows in groups:
-            prefixes = self.bulk.prefixes(buf, int(starts[indexes[0]]))
+        for indexes, rows, prefixes in groups:
             if prefixes in self._agreed:
                 continue
             for row in {0, len(indexes) - 1}:

@@ -76,12 +76,16 @@ def test_help_at_80_columns_shows_every_option_name_whole(
     assert max(len(line) for line in result.stdout.splitlines()) <= 80
 
 
+EXAMPLES_HEADINGS = ("  Example:", "  Examples:")
+
+
 def _examples(help_text: str) -> list[str]:
-    """The lines of the ``Examples:`` section of a command's help."""
+    """The lines of the ``Examples:`` (or ``Example:``) section of a command's help."""
     lines = help_text.splitlines()
-    if "  Examples:" not in lines:
+    heading = next((i for i, line in enumerate(lines) if line in EXAMPLES_HEADINGS), None)
+    if heading is None:
         return []
-    section = lines[lines.index("  Examples:") + 1 :]
+    section = lines[heading + 1 :]
     return section[: next((i for i, line in enumerate(section) if line[:1].strip()), None)]
 
 
@@ -98,6 +102,7 @@ def test_example_commands_are_printed_as_written_at_any_width(
     )
     assert _examples(narrow) == _examples(wide)
     commands = [line.strip() for line in _examples(narrow) if line.strip()]
+    assert "Example:" not in narrow.replace("\n  Example:\n", ""), "one Examples: section"
     assert all(
         line.startswith(("bagkit ", "|", "-")) or previous.endswith("\\")
         for previous, line in zip(["", *commands], commands, strict=False)

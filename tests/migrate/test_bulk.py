@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import itertools
 import threading
+from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -52,10 +54,11 @@ def _migration() -> TopicMigration:
     return migration
 
 
-def _by_index(groups: list[tuple[np.ndarray, np.ndarray]], room: int) -> dict[int, bytes]:
-    """Payload per batch index; asserts each index comes once and the room is zeros."""
+def _by_index(groups: Sequence[Sequence[Any]], room: int) -> dict[int, bytes]:
+    """Payload per batch index (groups ``(indexes, rows, ...)``); asserts each index comes
+    once and the room is zeros."""
     found: dict[int, bytes] = {}
-    for indexes, rows in groups:
+    for indexes, rows, *_ in groups:
         assert not rows[:, :room].any()
         for index, row in zip(indexes.tolist(), rows, strict=True):
             assert index not in found

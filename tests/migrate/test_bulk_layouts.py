@@ -86,7 +86,7 @@ def _bulk_payloads(migration: TopicMigration, payloads: list[bytes]) -> list[byt
     if groups is None:
         return None
     found: dict[int, bytes] = {}
-    for indexes, rows in groups:
+    for indexes, rows, _ in groups:
         assert not rows[:, :5].any()
         found.update(zip(indexes.tolist(), (r[5:].tobytes() for r in rows), strict=True))
     assert sorted(found) == list(range(len(payloads)))

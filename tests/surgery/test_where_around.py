@@ -163,6 +163,7 @@ def test_around_and_where_bad_input(flight: Flight, tmp_path: Path) -> None:
         (["--where", "linear_acceleration.z == 'up'"], 2, "cannot compare"),
         (["--where", "/nothing: linear_acceleration.z < 0"], 2, "/nothing"),
         (["--where", "/text: linear_acceleration.z < 0"], 2, "linear_acceleration.z"),
+        (["--where", "/text: data =="], 2, "expected a value"),  # the condition's own error
     ]
     for args, code, text in cases:
         result = run_here("filter", str(flight.path), "-o", str(tmp_path / "x"), *args)
