@@ -49,7 +49,10 @@ NO_LEAVES = frozenset({"bagkit.decode.bulk", "bagkit.decode.direct"})
 # no csv (stats --format csv only), no shlex (the commands printed for a failed check only).
 NOT_PRINTED = frozenset({"bagkit.bag.info", "csv", "shlex"})
 
-DECODING = HEAVY | NO_ROSBAGS | NOT_PRINTED
+# One local bag runs in this process: the optional extras (Dask's) are not looked for.
+NO_EXTRAS = frozenset({"bagkit.extras"})
+
+DECODING = HEAVY | NO_ROSBAGS | NOT_PRINTED | NO_EXTRAS
 CASES = {
     "info": (["info", str(PLAIN_BAG)], HEAVY | NO_DECODER | {"numpy"}),
     "info with services": (["info", str(SERVICES_BAG)], HEAVY | NO_DECODER | {"numpy"}),
