@@ -156,6 +156,14 @@ def require_topics(
     return [name for name in names if name is not None]
 
 
+def meant_by(name: str) -> tuple[str, str, str]:
+    """The topic names (or globs) a name given for a topic stands for: itself, its event topic
+    if it names a service, its topics if it names an action (as :func:`require_topics` and
+    ``echo`` read them)."""
+    base = absolute_topic_name(name).rstrip("/")
+    return absolute_topic_name(name), base + SERVICE_EVENT_SUFFIX, base + ACTION_INFIX + "*"
+
+
 def missing_on_graph(missing: Sequence[str], graph: Iterable[str]) -> str:
     """``record --topics``: the named topics that never appeared, and the closest ones that did.
 
