@@ -118,8 +118,14 @@ class BagStream:
 
     def values(self, path: Path | None) -> np.ndarray:
         """The numeric leaves at or below ``path`` as float64 (messages, leaves)."""
-        names = _numeric(self._numeric_paths(self.topic), subtree_leaves(path, self._paths))
+        below = subtree_leaves(path, self._paths)
+        names = _numeric(self._numeric_paths(self.topic), below)
         if not names:
+            if any("[]" in name for name in below):  # a message's values, not one per message
+                raise SelectionError(
+                    f"{path_text(path)} of {self.topic} is in a sequence: delta, unchanged and "
+                    "age compare fields that each message has once"
+                )
             raise SelectionError(f"{path_text(path)} of {self.topic} holds no number")
         return np.stack([self._columns[n].astype(np.float64) for n in names], axis=1)
 

@@ -194,6 +194,15 @@ def test_bad_temporal_conditions_are_one_error(bag: Path, when: str, words: str)
     assert len(lines) == 1 and lines[0].startswith("error:") and words in lines[0], lines
 
 
+def test_a_term_over_time_on_a_sequence_is_one_error_saying_so() -> None:
+    # status[] of /alerts (diagnostic_msgs/msg/DiagnosticArray) may change length.
+    golden = Path(__file__).parents[2] / "fixtures" / "nominal" / "golden"
+    result = bagkit("find", str(golden), "--when", "/alerts: delta(status[*].level) > 0")
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "status[*].level of /alerts is in a sequence" in lines[0], lines
+
+
 def test_echo_where_over_time_prints_the_messages_of_the_episodes(bag: Path) -> None:
     result = bagkit("echo", str(bag), "/imu", "--where", "gap > 500ms", "--format", "json")
     assert result.returncode == 0, result.stderr
