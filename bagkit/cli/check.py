@@ -1,7 +1,9 @@
 """``bagkit check``: whether bags keep a health contract (``--spec health.yaml``), or a
 starting contract from a good bag (``--suggest``)."""
 
-from __future__ import annotations
+# Annotations are objects here, not strings (no `from __future__ import annotations`): typer
+# reads the command's parameters at every start and compiles each annotation written as a
+# string, twice.
 
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -125,7 +127,7 @@ def check(  # noqa: PLR0917 (typer maps parameters to options)
     raise typer.Exit(result.exit_code)
 
 
-def _write_files(result: CheckResult, junit: Path | None, html: Path | None) -> None:
+def _write_files(result: "CheckResult", junit: Path | None, html: Path | None) -> None:
     if junit is not None:
         from bagkit.health.junit import write_junit
 
@@ -136,7 +138,7 @@ def _write_files(result: CheckResult, junit: Path | None, html: Path | None) -> 
         write_report(result, html)
 
 
-def _print(report: HealthReport) -> None:
+def _print(report: "HealthReport") -> None:
     # print_line: plain text into a pipe without importing rich, colours on a terminal.
     if report.error is not None:
         why = report.error.removeprefix(f"{report.bag}: ")  # the bag named once

@@ -1,7 +1,9 @@
 """``bagkit echo``: the messages of a topic of a bag, like ``ros2 topic echo`` (YAML) or
 ``mcap cat --json`` (one JSON object per line). Streams; needs no ROS install."""
 
-from __future__ import annotations
+# Annotations are objects here, not strings (no `from __future__ import annotations`): typer
+# reads the command's parameters at every start and compiles each annotation written as a
+# string, twice.
 
 import itertools
 import os
@@ -168,7 +170,7 @@ class _Failures:
         self.first = self.first or problem
 
 
-def _write(records: Iterable[Plain], output: EchoFormat, bag_start: int) -> int:
+def _write(records: "Iterable[Plain]", output: EchoFormat, bag_start: int) -> int:
     """Print each record as it comes (flushed: a reader sees the first one at once); return
     how many."""
     from bagkit.data.echo import to_json, to_yaml

@@ -1,6 +1,8 @@
 """``bagkit find``: the episodes where a condition on a topic's messages holds, over bags."""
 
-from __future__ import annotations
+# Annotations are objects here, not strings (no `from __future__ import annotations`): typer
+# reads the command's parameters at every start and compiles each annotation written as a
+# string, twice.
 
 import datetime as dt
 from pathlib import Path
@@ -131,7 +133,7 @@ def find(  # noqa: PLR0917 (typer maps parameters to options)
     end_with_unread(result.unread, len(bags))
 
 
-def _write_parquet(result: FindResult, out: Path | None) -> None:
+def _write_parquet(result: "FindResult", out: Path | None) -> None:
     import pyarrow.parquet as pq
 
     assert out is not None
@@ -145,7 +147,7 @@ def _utc(ns: int) -> str:
     return stamp.strftime("%Y-%m-%dT%H:%M:%S") + f".{ns % 1_000_000_000 // 1_000_000:03d}Z"
 
 
-def _print_table(result: FindResult) -> None:
+def _print_table(result: "FindResult") -> None:
     from bagkit.cli.tables import Column, Table, print_table
 
     if not result.count:

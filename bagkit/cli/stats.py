@@ -1,6 +1,8 @@
 """``bagkit stats summary``: per-topic counts and rates, exact statistics of every numeric field."""
 
-from __future__ import annotations
+# Annotations are objects here, not strings (no `from __future__ import annotations`): typer
+# reads the command's parameters at every start and compiles each annotation written as a
+# string, twice.
 
 import math
 import sys
@@ -132,7 +134,7 @@ def _service_latencies(bags: list[Path], topics: set[str]) -> list[dict[str, Any
     return found
 
 
-def _latency_rows(bags: list[Path], topics: set[str]) -> dict[str, FieldStats]:
+def _latency_rows(bags: list[Path], topics: set[str]) -> "dict[str, FieldStats]":
     """Per summarized event topic, CSV's ``latency_s`` row: the latency (s) of the service's
     answered calls, pooled over the bags (the table and JSON give p50/p99/max per bag)."""
     from bagkit.selection.services import is_service_event_topic
@@ -178,7 +180,7 @@ def _print_services(services: list[dict[str, Any]]) -> None:
 
 def _summarize(
     bags: list[Path], options: dict[str, Any], *, workers: int | None, scheduler: str | None
-) -> Summary:
+) -> "Summary":
     """Summarize in this process (a progress bar over messages) or on Dask (over bags)."""
     from bagkit.fleet import fleet_client
     from bagkit.fleet.cluster import SUMMARY_RATE
@@ -232,7 +234,7 @@ def _number(value: float | int | None) -> str:
     return f"{value:.{min(15, max(6, integer_digits + 3))}g}"
 
 
-def _print_tables(result: Summary) -> None:
+def _print_tables(result: "Summary") -> None:
     bags = [f"{bag}," for bag in result.bags[:-1]] + [f"{result.bags[-1]}:"]
     span = (
         [f"{_utc(result.start_ns)} ..", f"{_utc(result.end_ns)},"]
@@ -268,7 +270,7 @@ def _print_tables(result: Summary) -> None:
 FIELD_COLUMNS = ("field", "count", "nan", "min", "max", "mean", "std")
 
 
-def _print_csv(result: Summary, latencies: dict[str, FieldStats]) -> None:
+def _print_csv(result: "Summary", latencies: "dict[str, FieldStats]") -> None:
     import csv  # here: the table and JSON start without it
 
     writer = csv.writer(sys.stdout, lineterminator="\n")

@@ -4,6 +4,8 @@ console script, a heavy module named here fails the test (start-up time itself i
 
 from __future__ import annotations
 
+import importlib
+import inspect
 import os
 import subprocess
 import sys
@@ -146,3 +148,15 @@ def test_the_command_leaves_the_collectors_last_pass_nothing(args: list[str]) ->
     assert done.returncode == (0 if args == ["--version"] else 2), done.stderr
     frozen = int(done.stdout.split("frozen")[-1])
     assert frozen > 10_000  # numpy's, typer's and bagkit's modules, not a handful
+
+
+@pytest.mark.parametrize(
+    ("module", "command"),
+    [("echo", "echo"), ("stats", "summary"), ("find", "find"), ("check", "check")],
+)
+def test_a_quick_command_has_its_annotations_as_objects(module: str, command: str) -> None:
+    """typer reads a command's parameters at every start and compiles each annotation written
+    as a string (``from __future__ import annotations``) twice."""
+    function = getattr(importlib.import_module(f"bagkit.cli.{module}"), command)
+    strings = [n for n, a in inspect.get_annotations(function).items() if isinstance(a, str)]
+    assert not strings, f"bagkit.cli.{module}.{command}: annotations as strings: {strings}"
