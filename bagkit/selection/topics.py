@@ -141,13 +141,14 @@ def require_topics(
     """
     known = sorted(set(known))
     stored = {absolute_topic_name(name): name for name in known}
-    names = [
-        name
-        if name in known
-        else stored.get(absolute_topic_name(name))
-        or stored.get(absolute_topic_name(name).rstrip("/") + SERVICE_EVENT_SUFFIX)
-        for name in wanted
-    ]
+
+    def stored_name(name: str) -> str | None:
+        if name in known:
+            return name
+        topic, service_events, _ = meant_by(name)
+        return stored.get(topic) or stored.get(service_events)
+
+    names = [stored_name(name) for name in wanted]
     missing = [absolute_topic_name(w) for w, n in zip(wanted, names, strict=True) if n is None]
     if missing:
         raise UnknownTopicError(
