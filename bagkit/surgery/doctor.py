@@ -11,7 +11,7 @@ times, topics), every schema decodable (:class:`bagkit.decode.MessageTypes`) and
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -167,6 +167,9 @@ class _Decoders:
         self.type_of: dict[str, tuple[str, str]] = {}  # topic -> its schema
         self.failures: dict[str, tuple[int, int, str]] = {}  # topic -> (count, first time, why)
         self._textless: set[tuple[str, str]] = set()  # schemas without a usable text
+        # The distribution's definitions of textless schemas' types, by type (those asked).
+        self._assumed: dict[str, str] = {}
+        self._asked: set[str] = set()
 
     def for_file(self, facts: FileFacts) -> Callable[[int, int, memoryview], None] | None:
         """The per-message check of one file (None unless deep)."""
@@ -203,12 +206,23 @@ class _Decoders:
             return channel.topic, None
 
     def add_schemas(self, facts: FileFacts) -> None:
-        for channel in facts.channels.values():
-            schema = facts.schemas.get(channel.schema_id)
-            if schema is None:
-                continue
+        schemas = {
+            channel.topic: schema
+            for channel in facts.channels.values()
+            if (schema := facts.schemas.get(channel.schema_id)) is not None
+        }
+        self._assume(s.name for s in schemas.values() if s.encoding not in DEFINITION_ENCODINGS)
+        for topic, schema in schemas.items():
             self._types(schema)
-            self.type_of[channel.topic] = _key(schema)
+            self.type_of[topic] = _key(schema)
+
+    def _assume(self, type_names: Iterable[str]) -> None:
+        """Ask the bag's distribution for the definitions of ``type_names`` not asked yet, all
+        at once: one warning names every type assumed."""
+        wanted = set(type_names) - self._asked
+        if wanted:
+            self._assumed.update(distro_definitions(wanted, self.ros_distro))
+            self._asked |= wanted
 
     def _types(self, schema: Schema) -> MessageTypes:
         key = _key(schema)
@@ -216,11 +230,13 @@ class _Decoders:
             # A schema without a usable text (rosbag2's ``unknown``, a .db3 without the type's
             # definition): the type as the read commands take it (the bag's distribution's).
             stored = schema.encoding in DEFINITION_ENCODINGS
-            self.types[key] = MessageTypes.from_definitions(
-                {key[0]: key[1]} if stored else distro_definitions([key[0]], self.ros_distro)
-            )
-            if not stored:
+            if stored:
+                definitions = {key[0]: key[1]}
+            else:
+                self._assume([key[0]])
+                definitions = {key[0]: self._assumed[key[0]]} if key[0] in self._assumed else {}
                 self._textless.add(key)
+            self.types[key] = MessageTypes.from_definitions(definitions)
         return self.types[key]
 
     def problems(self) -> list[str]:

@@ -89,3 +89,32 @@ def test_a_damaged_database(tmp_path: Path) -> None:
     result = run("doctor", str(bag))
     assert result.returncode in (1, 2) and "Traceback" not in result.stderr
     assert "SQLite3" in result.stdout + result.stderr
+
+
+def test_types_assumed_for_a_bag_without_definitions_are_one_warning(tmp_path: Path) -> None:
+    """A .db3 that stores no definitions and names no distribution: one warning names every
+    type decoded with Jazzy's (it was one warning per type)."""
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    types = ["std_msgs/msg/String", "std_msgs/msg/UInt32"]
+    bag = tmp_path / "old"
+    with Writer(bag, version=8) as writer:
+        for n, name in enumerate(types):
+            connection = writer.add_connection(f"/t{n}", name, typestore=store)
+            message = store.types[name](data="x" if n == 0 else 7)
+            writer.write(connection, 1_000 + n, bytes(store.serialize_cdr(message, name)))
+    (db3,) = bag.glob("*.db3")
+    with sqlite3.connect(db3) as db:
+        db.execute("DROP TABLE message_definitions")
+    db.close()
+    metadata = bag / "metadata.yaml"
+    metadata.write_text(
+        "\n".join(line for line in metadata.read_text().splitlines() if "ros_distro" not in line)
+    )
+    result = run("doctor", str(bag), "--deep")
+    assert result.returncode == 0, result.stdout + result.stderr
+    warnings = [line for line in result.stderr.splitlines() if line.startswith("warning:")]
+    assert len(warnings) == 1, result.stderr
+    assert all(name in warnings[0] for name in types)
