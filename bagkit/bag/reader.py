@@ -17,7 +17,6 @@ from bagkit.bag.compression import (
     is_zstd,
     sniff_message_compression,
 )
-from bagkit.bag.compression_words import CompressionWords
 from bagkit.bag.distro_definitions import distro_definitions
 from bagkit.bag.errors import (
     BagError,
@@ -435,6 +434,8 @@ class BagReader:
     @property
     def compression_label(self) -> str:
         """How the bag is compressed, in one line (:attr:`CompressionWords.label`)."""
+        from bagkit.bag.compression_words import CompressionWords  # the catalogue's, not at start
+
         return CompressionWords.of(self.compression_mode, self.chunk_compression).label
 
     @property
