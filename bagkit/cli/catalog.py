@@ -202,7 +202,7 @@ def query(  # noqa: PLR0917 (typer maps parameters to options)
       bagkit catalog query flights.parquet --event gps_lost --start 2026-11-18
     """
     from bagkit.fleet.catalog import query as select
-    from bagkit.fleet.catalog import read_catalog
+    from bagkit.fleet.catalog import read_catalog, unknown_topics
     from bagkit.fleet.events import events_path, query_events, read_events
     from bagkit.storage.transfer import read_from
 
@@ -215,7 +215,10 @@ def query(  # noqa: PLR0917 (typer maps parameters to options)
             rows = query_events(read_events(events_path(local)), event, selection)
             columns = ["path", "event", "topic", "start", "end", "count"]
         else:
-            rows = select(read_catalog(local), selection)
+            frame = read_catalog(local)
+            rows = select(frame, selection)
+            for unknown in unknown_topics(frame, selection) if rows.empty else ():
+                warn(unknown)
             columns = ["path", "topic", "type", "count", "start", "end", "duration"]
     if output is OutputFormat.JSON:
         records = rows[columns].astype({"start": "string", "end": "string"})

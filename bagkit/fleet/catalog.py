@@ -29,7 +29,7 @@ from bagkit.fleet.inputs import bag_paths
 from bagkit.selection.errors import SelectionError
 from bagkit.selection.fields import name_matches
 from bagkit.selection.query import Query
-from bagkit.selection.topics import absolute_topic_name
+from bagkit.selection.topics import absolute_topic_name, closest_names, meant_by
 from bagkit.selection.windows import TimeRange
 
 if TYPE_CHECKING:
@@ -152,9 +152,9 @@ def unreadable(frame: pd.DataFrame) -> dict[str, str]:
 def query(frame: pd.DataFrame, selection: Query | None = None) -> pd.DataFrame:
     """Rows of bags holding messages on ``selection``'s topics within its time range.
 
-    A topic is a name (``imu/data`` is ``/imu/data``) or a glob (``/gps/*``, as in
-    :mod:`bagkit.selection.fields`); the times are absolute (a catalogue spans many bags: no
-    bag start to count from).
+    A topic is a name (``imu/data`` is ``/imu/data``; a service's or an action's name stands
+    for its topics) or a glob (``/gps/*``, as in :mod:`bagkit.selection.fields`); the times
+    are absolute (a catalogue spans many bags: no bag start to count from).
 
     Raises:
         SelectionError: a time that is not absolute.
@@ -162,15 +162,31 @@ def query(frame: pd.DataFrame, selection: Query | None = None) -> pd.DataFrame:
     selection = selection or Query()
     keep = frame["count"].fillna(0) > 0
     if selection.topics:
-        patterns = [absolute_topic_name(topic) for topic in selection.topics]
-        names = frame["topic"].fillna("").map(absolute_topic_name)
-        keep &= names.map(lambda name: any(name_matches(name, p) for p in patterns))
+        keep &= _named(frame, selection.topics)
     low, high = absolute_window(selection.span)
     if low is not None:
         keep &= frame["end"] >= low
     if high is not None:
         keep &= frame["start"] <= high
     return frame[keep].reset_index(drop=True)
+
+
+def unknown_topics(frame: pd.DataFrame, selection: Query) -> list[str]:
+    """``selection``'s topics that no bag of the catalogue has, each with the closest names."""
+    known = sorted(set(frame["topic"].dropna()))
+    return [
+        f"no bag of the catalogue has {topic} ({closest_names(topic, known)})"
+        for topic in selection.topics
+        if not _named(frame, [topic]).any()
+    ]
+
+
+def _named(frame: pd.DataFrame, topics: Iterable[str]) -> pd.Series:
+    """Rows on one of ``topics`` (globs; a service's or an action's name stands for its
+    topics)."""
+    patterns = [pattern for topic in topics for pattern in meant_by(topic)]
+    names = frame["topic"].fillna("").map(absolute_topic_name)
+    return names.map(lambda name: any(name_matches(name, p) for p in patterns))
 
 
 def absolute_window(span: TimeRange) -> tuple[pd.Timestamp | None, pd.Timestamp | None]:

@@ -141,19 +141,28 @@ def require_topics(
     """
     known = sorted(set(known))
     stored = {absolute_topic_name(name): name for name in known}
-    names = [
-        name
-        if name in known
-        else stored.get(absolute_topic_name(name))
-        or stored.get(absolute_topic_name(name).rstrip("/") + SERVICE_EVENT_SUFFIX)
-        for name in wanted
-    ]
+
+    def stored_name(name: str) -> str | None:
+        if name in known:
+            return name
+        topic, service_events, _ = meant_by(name)
+        return stored.get(topic) or stored.get(service_events)
+
+    names = [stored_name(name) for name in wanted]
     missing = [absolute_topic_name(w) for w, n in zip(wanted, names, strict=True) if n is None]
     if missing:
         raise UnknownTopicError(
             f"topic {', '.join(missing)} not in {where} ({closest_names(missing[0], known)})"
         )
     return [name for name in names if name is not None]
+
+
+def meant_by(name: str) -> tuple[str, str, str]:
+    """The topic names (or globs) a name given for a topic stands for: itself, its event topic
+    if it names a service, its topics if it names an action (as :func:`require_topics` and
+    ``echo`` read them)."""
+    base = absolute_topic_name(name).rstrip("/")
+    return absolute_topic_name(name), base + SERVICE_EVENT_SUFFIX, base + ACTION_INFIX + "*"
 
 
 def missing_on_graph(missing: Sequence[str], graph: Iterable[str]) -> str:

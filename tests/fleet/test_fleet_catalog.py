@@ -16,7 +16,14 @@ from fleet_bags import T0, write_bag
 from mcap.reader import make_reader
 
 from bagkit.fleet import describe as describe_module
-from bagkit.fleet.catalog import complete_update, plan_update, query, read_catalog, write_catalog
+from bagkit.fleet.catalog import (
+    complete_update,
+    plan_update,
+    query,
+    read_catalog,
+    unknown_topics,
+    write_catalog,
+)
 from bagkit.selection.query import Query
 
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
@@ -109,6 +116,19 @@ def test_query_by_topic_and_time(fleet_dir: Path, tmp_path: Path) -> None:
     assert set(got["topic"]) == {"/temperature"}
     assert len(query(frame, Query.create("/nothing"))) == 0
     assert len(query(frame)) == 12
+
+
+def test_query_by_a_service_or_an_action_name_and_unknown_names() -> None:
+    topics = ["/reset/_service_event", "/fib/_action/feedback", "/fib/_action/status"]
+    topics += ["/imu/data", "/reset_more", "/fibonacci/_action/status"]
+    t0 = pd.Timestamp(T0, unit="ns", tz="UTC")
+    frame = pd.DataFrame({"path": "bag", "topic": topics, "count": 1, "start": t0, "end": t0})
+    assert query(frame, Query.create("/reset"))["topic"].tolist() == [topics[0]]
+    assert query(frame, Query.create("fib"))["topic"].tolist() == topics[1:3]
+    assert unknown_topics(frame, Query.create(["/fib", "/imu/dta"])) == [
+        f"no bag of the catalogue has /imu/dta (did you mean /imu/data? it has "
+        f"{', '.join(sorted(topics))})"
+    ]
 
 
 def test_cli_builds_updates_and_queries(client: Client, fleet_dir: Path, tmp_path: Path) -> None:
