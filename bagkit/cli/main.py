@@ -9,8 +9,7 @@ top-level help is printed without importing any of them.
 from __future__ import annotations
 
 import importlib
-from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import typer
 from typer.core import TyperCommand, TyperGroup
@@ -21,8 +20,8 @@ from bagkit.cli.plain_params import use_plain_coercion, use_plain_params
 from bagkit.version import __version__
 
 
-@dataclass(frozen=True, slots=True)
-class _Lazy:
+# A NamedTuple, not a dataclass: this table is made at every start, --help and info included.
+class _Lazy(NamedTuple):
     """A command whose module is imported on first use.
 
     ``attribute`` is a command function (with ``HELP`` beside it in its module) or a

@@ -15,7 +15,6 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from bagkit.extras import FLEET, installed, require
 from bagkit.fleet.errors import FleetError, SchedulerError
 
 if TYPE_CHECKING:
@@ -107,6 +106,13 @@ def local_cluster(n_workers: int) -> LocalCluster:
         )
 
 
+def _fleet_installed() -> bool:
+    """Whether the fleet extra (Dask) is installed; bagkit.extras is imported only then."""
+    from bagkit.extras import FLEET, installed
+
+    return installed(FLEET)
+
+
 @contextmanager
 def fleet_client(
     *,
@@ -137,11 +143,13 @@ def fleet_client(
     # starts without searching the path for Dask).
     local = workers == 0 or (
         workers is None
-        and not (cluster_pays(rate, bags, size_bytes, default_workers()) and installed(FLEET))
+        and not (cluster_pays(rate, bags, size_bytes, default_workers()) and _fleet_installed())
     )
     if scheduler is None and local:
         yield None
         return
+    from bagkit.extras import FLEET, require
+
     require(FLEET, "running on Dask (--workers, --scheduler)")
     from distributed import Client
 

@@ -18,7 +18,7 @@ from bagkit.bag.writer import DEFAULT_CHUNK_SIZE
 from bagkit.recording.errors import RecorderOptionsError
 from bagkit.selection.conditions import TopicCondition, parse_topic_condition
 from bagkit.selection.errors import SelectionError
-from bagkit.selection.services import RecordSelection
+from bagkit.selection.record_selection import RecordSelection
 from bagkit.selection.times import NS_PER_S
 from bagkit.selection.topics import TopicSelection
 

@@ -49,10 +49,19 @@ NO_LEAVES = frozenset({"bagkit.decode.bulk", "bagkit.decode.direct"})
 # no csv (stats --format csv only), no shlex (the commands printed for a failed check only).
 NOT_PRINTED = frozenset({"bagkit.bag.info", "csv", "shlex"})
 
-DECODING = HEAVY | NO_ROSBAGS | NOT_PRINTED
+# One local bag runs in this process: the optional extras (Dask's) are not looked for.
+NO_EXTRAS = frozenset({"bagkit.extras"})
+
+# What `bagkit record` selects (services and actions asked for) is no reader's business.
+NOT_RECORDING = frozenset({"bagkit.selection.record_selection"})
+
+DECODING = HEAVY | NO_ROSBAGS | NOT_PRINTED | NO_EXTRAS | NOT_RECORDING
 CASES = {
-    "info": (["info", str(PLAIN_BAG)], HEAVY | NO_DECODER | {"numpy"}),
-    "info with services": (["info", str(SERVICES_BAG)], HEAVY | NO_DECODER | {"numpy"}),
+    "info": (["info", str(PLAIN_BAG)], HEAVY | NO_DECODER | NOT_RECORDING | {"numpy"}),
+    "info with services": (
+        ["info", str(SERVICES_BAG)],
+        HEAVY | NO_DECODER | NOT_RECORDING | {"numpy"},
+    ),
     "echo": (
         ["echo", str(SERVICES_BAG), "/imu/data", "-n", "1"],
         DECODING | NO_CONDITION | NO_LEAVES | NO_SERVICES,
