@@ -63,6 +63,11 @@ __all__ = [
 ]
 
 
+def __dir__() -> list[str]:
+    # The lazy names too: what tab completion in IPython or Jupyter offers after `bagkit.`.
+    return sorted({*globals(), *__all__})
+
+
 def __getattr__(name: str) -> object:
     module = _LAZY.get(name)
     if module is None:
