@@ -49,11 +49,11 @@ class Sqlite3Reading:
     def chunks(
         self, topics: set[str] | None, start_ns: int | None = None, end_ns: int | None = None
     ) -> Iterator[BagChunk]:
-        """The rows of ``topics`` in timestamp order (ties by row id), laid out as chunks of
-        MCAP Message records: a window of rows each (:mod:`bagkit.bag.sqlite3_windows`), or
-        :data:`ROWS_PER_CHUNK` rows read one by one, fewer where their payloads pass
-        :data:`MAX_CHUNK_BYTES` (large messages: memory stays bounded). Every row, whatever
-        ``start_ns`` and ``end_ns``: a database has no chunk to leave unread."""
+        """The rows of ``topics`` with ``start_ns <= timestamp < end_ns`` in timestamp order
+        (ties by row id), laid out as chunks of MCAP Message records: a window of rows each
+        (:mod:`bagkit.bag.sqlite3_windows`), or :data:`ROWS_PER_CHUNK` rows read one by one,
+        fewer where their payloads pass :data:`MAX_CHUNK_BYTES` (large messages: memory stays
+        bounded)."""
         from bagkit.bag.sqlite3_windows import RowWindows, timestamp_index
 
         wanted = self._wanted_ids(topics)
@@ -69,13 +69,16 @@ class Sqlite3Reading:
             # timestamp order without reading them twice (SQLite sorts them instead); a
             # UTF-16 database's payloads would not survive group_concat. rosbag2 writes
             # neither.
-            yield from self._row_chunks(topics, one, None, 0)
+            yield from self._row_chunks(topics, one, None, 0, (start_ns, end_ns))
             return
         conditions, values = self._conditions(wanted)
+        # ``+timestamp``: a window is a range of row ids, which the timestamp index must not
+        # replace (each window would walk the whole time range of the index).
+        in_time, bounds = _time_conditions(start_ns, end_ns, "+timestamp")
         windows = RowWindows(
             self._db,
-            conditions,
-            values,
+            conditions + in_time,
+            values + bounds,
             several_topics=one is None,
             order_index=order_index,
             row_bytes=self.path.stat().st_size // max(sum(self.topic_counts.values()), 1),
@@ -86,7 +89,9 @@ class Sqlite3Reading:
             for rows in ahead:
                 yield from self._window_chunks(rows, one)
         if windows.resume_from is not None:  # out of order, or damage: by rows from there
-            yield from self._row_chunks(topics, one, windows.resume_from, windows.read)
+            yield from self._row_chunks(
+                topics, one, windows.resume_from, windows.read, (start_ns, end_ns)
+            )
 
     def _window_chunks(self, rows: StoredRows, one: str | None) -> Iterator[BagChunk]:
         """The chunks of one window's rows, their payloads passed through ``payload_filter``."""
@@ -114,13 +119,19 @@ class Sqlite3Reading:
             )
 
     def _row_chunks(
-        self, topics: set[str] | None, one: str | None, from_row_id: int | None, read: int
+        self,
+        topics: set[str] | None,
+        one: str | None,
+        from_row_id: int | None,
+        read: int,
+        span: tuple[int | None, int | None],
     ) -> Iterator[BagChunk]:
-        """:meth:`chunks` by rows (from row id ``from_row_id``, ``read`` rows read before)."""
+        """:meth:`chunks` by rows (from row id ``from_row_id``, ``read`` rows read before; of
+        the time ``span``)."""
         held: tuple[list[int], list[int], list[bytes | None]] = ([], [], [])
         size = 0
         for ids, log_times, stored in self._batches(
-            topics, None, None, from_row_id=from_row_id, read=read
+            topics, *span, from_row_id=from_row_id, read=read
         ):
             payloads = self._filtered(ids, one, stored)
             if one is None:
@@ -237,12 +248,9 @@ class Sqlite3Reading:
         if not wanted or self._db is None:
             return
         conditions, values = self._conditions(wanted)
-        if start_ns is not None or end_ns is not None:
-            conditions.append("timestamp >= ? AND timestamp < ?")
-            values += [
-                max(start_ns if start_ns is not None else INT64_MIN, INT64_MIN),
-                min(end_ns if end_ns is not None else INT64_MAX, INT64_MAX),
-            ]
+        in_time, bounds = _time_conditions(start_ns, end_ns, "timestamp")
+        conditions += in_time
+        values += bounds
         if from_row_id is not None:
             conditions.append("rowid >= ?")
             values.append(from_row_id)
@@ -270,3 +278,18 @@ class Sqlite3Reading:
             problem = f"{self.path.name}: unreadable after {read} messages ({exc})"
             if problem not in self.problems:  # each read of a damaged file meets it again
                 self.problems.append(problem)
+
+
+def _time_conditions(
+    start_ns: int | None, end_ns: int | None, column: str
+) -> tuple[list[str], list[int]]:
+    """The SQL condition ``start_ns <= column < end_ns`` (half-open, as every storage's
+    window) and its values; none without bounds."""
+    if start_ns is None and end_ns is None:
+        return [], []
+    low = INT64_MIN if start_ns is None else start_ns
+    high = INT64_MAX if end_ns is None else end_ns
+    return [f"{column} >= ? AND {column} < ?"], [
+        min(max(low, INT64_MIN), INT64_MAX),
+        min(max(high, INT64_MIN), INT64_MAX),
+    ]

@@ -74,7 +74,9 @@ def _print_table(report: CompareReport, limit: int) -> None:
                 f"{topic.topic}: {worst.path} |err| {worst.max_abs_error:.3g} "
                 f"(rel {worst.max_rel_error:.3g}; atol {worst.atol:g} rtol {worst.rtol:g})"
             )
-        if not topic.passed:
+        if topic.absent:  # its divergences are its golden messages: why it fails is below
+            verdict = Styled("absent", "red")
+        elif not topic.passed:
             verdict = Styled(f"{topic.divergence_count} diff", "red")
         elif topic.failed_messages:
             verdict = Styled(f"ok ({topic.failed_messages} msgs out, allowed)", "green")

@@ -19,7 +19,7 @@ from rosbags.rosbag2 import Reader, Writer
 from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlugin
 from rosbags.typesys import Stores, get_typestore
 
-from bagkit.bag import BagReader, sqlite3_windows
+from bagkit.bag import BagReader, BagWriter, TopicInfo, sqlite3_windows
 from bagkit.bag.mcapio import payload_spans
 from bagkit.bag.sqlite3_file import Sqlite3File
 from bagkit.bag.zstd_frames import declared_sizes
@@ -62,10 +62,15 @@ def _interleaved(n: int, seed: int = 0) -> list[Row]:
     ]
 
 
-def _from_chunks(bag: BagReader, topics: list[str] | None = None) -> list[Row]:
+def _from_chunks(
+    bag: BagReader,
+    topics: list[str] | None = None,
+    start_ns: int | None = None,
+    end_ns: int | None = None,
+) -> list[Row]:
     """The messages of ``bag.chunks()`` in the order their records are laid out."""
     found: list[Row] = []
-    for chunk in bag.chunks(topics):
+    for chunk in bag.chunks(topics, start_ns, end_ns):
         records = []
         for topic in chunk.message_index:
             times, starts, lengths = chunk.payloads(topic)
@@ -143,6 +148,43 @@ def test_windows_match_the_rows_and_rosbags(
 ) -> None:
     path = _write(tmp_path / "bag", _interleaved(101), zstd=zstd)
     assert _check(path, topics) == []
+    assert by_rows == []  # in order: the bulk read alone
+
+
+@pytest.mark.usefixtures("tiny_windows")
+@pytest.mark.parametrize("topics", [None, ["/b", "/c"]])
+def test_a_time_window_reads_what_the_same_bag_as_mcap_holds(
+    tmp_path: Path, by_rows: list[int | None], topics: list[str] | None
+) -> None:
+    """Chunks of a time window hold the rows of ``[start, end)`` only (the window is in the
+    query: rows outside it were all read), the messages that the MCAP chunks of the same bag
+    hold in that window (McapFile's chunks may hold more: the caller keeps its window)."""
+    rows = _interleaved(240)
+    db3 = _write(tmp_path / "db3", rows)
+    with BagWriter(tmp_path / "mcap", chunk_size=256) as writer:
+        for topic in ("/a", "/b", "/c", "/empty"):
+            writer.add_topic(TopicInfo(topic, STRING))
+        for topic, time, payload in rows:
+            writer.write(topic, payload, log_time=time)
+    times = [time for _, time, _ in rows]
+    windows = [
+        (times[40], times[90]),
+        (None, times[10]),
+        (times[200], None),
+        (times[7] + 1, times[30]),
+    ]
+    for start, end in windows:
+        low, high = start if start is not None else times[0], end if end is not None else 1 << 62
+        with BagReader(db3) as bag:
+            from_db3 = _from_chunks(bag, topics, start, end)
+            assert from_db3 == [
+                (m.topic, m.log_time, bytes(m.data)) for m in bag.messages(topics, start, end)
+            ]
+        assert all(low <= time < high for _, time, _ in from_db3), (start, end)
+        with BagReader(tmp_path / "mcap") as bag:
+            from_mcap = [m for m in _from_chunks(bag, topics, start, end) if low <= m[1] < high]
+        assert from_db3 == from_mcap, (start, end)
+        assert from_db3
     assert by_rows == []  # in order: the bulk read alone
 
 

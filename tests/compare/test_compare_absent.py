@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -62,9 +63,13 @@ def test_a_golden_topic_the_candidate_lacks_fails(
         capture_output=True,
         text=True,
         timeout=60,
+        env={**os.environ, "COLUMNS": "200"},
     )
     assert done.returncode == 1, done.stderr
     assert f"/gps/fix: {reason}" in done.stdout
+    rows = [line for line in done.stdout.splitlines() if line.startswith("  /gps/fix ")]
+    (row,) = [line for line in rows if " msgs " in line]  # its row of the table
+    assert row.split()[-1] == "absent", row
     assert "FAIL" in done.stdout and "/gps/fix" in done.stdout.split("FAIL")[-1]
     as_json = subprocess.run(
         [BAGKIT, "compare", str(golden), str(candidate), "--format", "json"],
