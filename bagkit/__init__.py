@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 from bagkit.version import __version__
 
 if TYPE_CHECKING:
+    from bagkit.data.call_frames import read_calls
     from bagkit.data.frames import read_arrow, read_dataframe
     from bagkit.health import (
         Assertion,
@@ -30,6 +31,7 @@ if TYPE_CHECKING:
 _LAZY = {
     "read_arrow": "bagkit.data.frames",
     "read_dataframe": "bagkit.data.frames",
+    "read_calls": "bagkit.data.call_frames",
     "check": "bagkit.health",
     "suggest_spec": "bagkit.health",
     "HealthSpec": "bagkit.health",
@@ -58,6 +60,7 @@ __all__ = [
     "parse_condition",
     "parse_topic_condition",
     "read_arrow",
+    "read_calls",
     "read_dataframe",
     "suggest_spec",
 ]
