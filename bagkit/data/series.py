@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from bagkit.bag import BagReader
-from bagkit.bag.reader import bag_path
+from bagkit.bag.storage_files import bag_path
 from bagkit.data.errors import (
     DataError,
     UndecodableTopicError,

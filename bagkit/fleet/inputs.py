@@ -14,15 +14,15 @@ import os
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
-from bagkit.bag import reader
-from bagkit.bag.reader import bag_path
+from bagkit.bag import storage_files
+from bagkit.bag.storage_files import bag_path
 from bagkit.fleet.errors import NoBagsError
 from bagkit.fleet.url_inputs import in_path_order, url_bags
 from bagkit.storage.paths import UrlPath
 from bagkit.storage.urls import is_url
 
 # The reader's storage files, rosbag2's file-compressed ones too (.mcap.zstd, .db3.zstd).
-STORAGE_SUFFIXES = reader.STORAGE_SUFFIXES + reader.COMPRESSED_STORAGE_SUFFIXES
+STORAGE_SUFFIXES = storage_files.STORAGE_SUFFIXES + storage_files.COMPRESSED_STORAGE_SUFFIXES
 # A file that is a whole bag by itself (ROS 1 bags: several in a directory are several bags).
 BAG_FILE_SUFFIXES = (*STORAGE_SUFFIXES, ".bag")
 LISTING_SUFFIXES = (".txt", ".list", ".lst")

@@ -21,7 +21,7 @@ import numpy as np
 import yaml
 
 from bagkit.bag import BagReader
-from bagkit.bag.reader import bag_path
+from bagkit.bag.storage_files import bag_path
 from bagkit.selection.temporal import window_counts
 from bagkit.stats.result import FieldStats, TopicStats
 

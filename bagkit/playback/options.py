@@ -12,7 +12,7 @@ from functools import cached_property
 from pathlib import Path
 
 from bagkit.bag.latched import LatchedOptions
-from bagkit.bag.reader import bag_path
+from bagkit.bag.storage_files import bag_path
 from bagkit.compat import StrEnum
 from bagkit.playback.errors import PlayerError
 from bagkit.playback.source import MessageOrder

@@ -21,7 +21,7 @@ from bagkit.bag.errors import BagError, BagNotFoundError, NotABagError
 from bagkit.bag.mcapio import MAGIC, Source, read_file_index
 from bagkit.bag.mcapio.records import Schema
 from bagkit.bag.metadata import METADATA_FILENAME, BagMetadata, read_metadata
-from bagkit.bag.reader import is_storage_name
+from bagkit.bag.storage_files import is_storage_name
 from bagkit.decode import DecodeError, MessageTypes, SchemaError
 from bagkit.recording.loss_causes import large_message_cause
 from bagkit.recording.report import LOSS_CUSTOM_DATA_KEY

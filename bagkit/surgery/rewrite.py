@@ -16,7 +16,7 @@ from bagkit.bag import BagError, BagReader
 from bagkit.bag.mcap_file import McapFile
 from bagkit.bag.mcapio import MAGIC, Source, read_file_index
 from bagkit.bag.metadata import METADATA_FILENAME, read_metadata
-from bagkit.bag.reader import message_compressed
+from bagkit.bag.storage_files import message_compressed
 from bagkit.surgery.carry import latched_messages, merged_custom_data, write_latched
 from bagkit.surgery.content import with_content
 from bagkit.surgery.copy import CopyOptions, InputFile, copy_files, topics_of

@@ -1,7 +1,7 @@
 """``doctor``'s check of a storage file that is not a plain MCAP file: a SQLite3 ``.db3``, a
 ROS 1 ``.bag``, or a zstd-compressed ``.db3.zstd``/``.mcap.zstd`` (rosbag2's compression).
 
-Read through the bag back-ends (:func:`bagkit.bag.reader.open_storage_file`, compression
+Read through the bag back-ends (:func:`bagkit.bag.storage_files.open_storage_file`, compression
 included), described as the MCAP walk describes a file (:class:`FileFacts`: one schema per
 type, one channel per topic), so that the bag-level checks (metadata.yaml, decodability) are
 the same. A SQLite3 database is also checked whole (``PRAGMA quick_check``), a ROS 1 bag's
@@ -17,9 +17,9 @@ from pathlib import Path
 from bagkit.bag.compression import Decompression
 from bagkit.bag.definitions import definition_encoding
 from bagkit.bag.mcapio.records import Channel, Schema
-from bagkit.bag.reader import open_storage_file
 from bagkit.bag.sqlite3_file import connect
 from bagkit.bag.storage import StorageFile
+from bagkit.bag.storage_files import open_storage_file
 from bagkit.surgery.file_check import FileFacts, MessageCheck
 
 # At most this many lines of SQLite3's own report.

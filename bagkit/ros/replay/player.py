@@ -28,7 +28,7 @@ from rclpy.signals import SignalHandlerOptions
 from bagkit.bag import BagMessage, TopicInfo
 from bagkit.bag.latched import latched_topics
 from bagkit.bag.messages import make_message
-from bagkit.bag.reader import bag_path
+from bagkit.bag.storage_files import bag_path
 from bagkit.native import precise_timers
 from bagkit.playback.controls import PlayControls
 from bagkit.playback.options import PlayOptions
