@@ -26,7 +26,6 @@ from bagkit.bag.mcapio import (
     read_chunk,
     read_file_index,
 )
-from bagkit.bag.mcapio.latest import Latest, latest_before
 from bagkit.bag.mcapio.message_index import (
     Span,
     channel_spans,
@@ -50,6 +49,8 @@ from bagkit.storage.urls import is_url
 
 if TYPE_CHECKING:
     import numpy as np
+
+    from bagkit.bag.mcapio.latest import Latest
 
 _LOG_TIME = operator.attrgetter("log_time")
 _OFFSET = operator.itemgetter(0)
@@ -383,6 +384,8 @@ class McapFile:
         Found from the Message Index records of the chunks near ``before_ns`` (see
         :mod:`bagkit.bag.mcapio.latest`); only the chunks holding the messages are read.
         """
+        from bagkit.bag.mcapio.latest import latest_before  # a late start's only: not at start
+
         found: dict[str, tuple[tuple[int, int, int], BagMessage]] = {}
         latest = latest_before(
             self.index.blocks(), self._channel_ids(topics), before_ns, self._block_index

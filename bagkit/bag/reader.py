@@ -10,7 +10,6 @@ from types import TracebackType
 from typing import TYPE_CHECKING
 
 from bagkit.bag.compression import Decompression
-from bagkit.bag.compression_words import CompressionWords
 from bagkit.bag.distro_definitions import distro_definitions
 from bagkit.bag.errors import BagError, CorruptBagError, EmptyBagError, NotABagError
 from bagkit.bag.mcap_file import McapFile
@@ -255,6 +254,8 @@ class BagReader:
     @property
     def compression_label(self) -> str:
         """How the bag is compressed, in one line (:attr:`CompressionWords.label`)."""
+        from bagkit.bag.compression_words import CompressionWords  # the catalogue's, not at start
+
         return CompressionWords.of(self.compression_mode, self.chunk_compression).label
 
     @property

@@ -46,8 +46,9 @@ NO_CONDITION = frozenset({"bagkit.selection.conditions", "bagkit.decode.matcher"
 NO_LEAVES = frozenset({"bagkit.decode.bulk", "bagkit.decode.direct"})
 
 # The decoding commands print tables: no `bagkit info` records (rates are bagkit.bag.rates'),
-# no csv (stats --format csv only), no shlex (the commands printed for a failed check only).
-NOT_PRINTED = frozenset({"bagkit.bag.info", "csv", "shlex"})
+# nor its compression in words, no csv (stats --format csv only), no shlex (the commands
+# printed for a failed check only).
+NOT_PRINTED = frozenset({"bagkit.bag.info", "bagkit.bag.compression_words", "csv", "shlex"})
 
 # One local bag runs in this process: the optional extras (Dask's) are not looked for.
 NO_EXTRAS = frozenset({"bagkit.extras"})
@@ -55,12 +56,18 @@ NO_EXTRAS = frozenset({"bagkit.extras"})
 # What `bagkit record` selects (services and actions asked for) is no reader's business.
 NOT_RECORDING = frozenset({"bagkit.selection.record_selection"})
 
-DECODING = HEAVY | NO_ROSBAGS | NOT_PRINTED | NO_EXTRAS | NOT_RECORDING
+# The latched state at a late start (play --start-offset, filter --start) is found then.
+NO_LATE_START = frozenset({"bagkit.bag.mcapio.latest"})
+
+DECODING = HEAVY | NO_ROSBAGS | NOT_PRINTED | NO_EXTRAS | NOT_RECORDING | NO_LATE_START
 CASES = {
-    "info": (["info", str(PLAIN_BAG)], HEAVY | NO_DECODER | NOT_RECORDING | {"numpy"}),
+    "info": (
+        ["info", str(PLAIN_BAG)],
+        HEAVY | NO_DECODER | NOT_RECORDING | NO_LATE_START | {"numpy"},
+    ),
     "info with services": (
         ["info", str(SERVICES_BAG)],
-        HEAVY | NO_DECODER | NOT_RECORDING | {"numpy"},
+        HEAVY | NO_DECODER | NOT_RECORDING | NO_LATE_START | {"numpy"},
     ),
     "echo": (
         ["echo", str(SERVICES_BAG), "/imu/data", "-n", "1"],
