@@ -42,6 +42,7 @@ ROS_ADAPTERS = {
     "bagkit/ros/record/take_loop.py": "rclpy",
     "bagkit/ros/record/triggers.py": "rclpy",
     "bagkit/ros/replay/__init__.py": "package",
+    "bagkit/ros/replay/endpoints.py": "rclpy",
     "bagkit/ros/replay/player.py": "rclpy",
     "bagkit/ros/replay/publishers.py": "rclpy",
     "bagkit/ros/replay/seek_services.py": "rclpy",

@@ -2,7 +2,7 @@
 
 ``Player(options).run()`` does it all; as a context manager, constructing it only checks the
 options; entering opens the bag and creates one publisher per replayed topic
-(:mod:`~bagkit.ros.replay.publishers`); ``play()`` waits for the subscribers the graph knows
+(:mod:`~bagkit.ros.replay.endpoints`); ``play()`` waits for the subscribers the graph knows
 about, then runs the passes (:mod:`~bagkit.playback.publish_loop`) and returns a
 :class:`~bagkit.playback.report.PlayReport`.
 """
@@ -12,21 +12,17 @@ from __future__ import annotations
 import functools
 import itertools
 import logging
-import math
 import os
 import time
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import ExitStack, nullcontext
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
-import rclpy
 from rclpy.context import Context
 from rclpy.node import Node
-from rclpy.signals import SignalHandlerOptions
 
-from bagkit.bag import BagMessage, TopicInfo
-from bagkit.bag.latched import latched_topics
+from bagkit.bag import BagMessage
 from bagkit.bag.messages import make_message
 from bagkit.bag.storage_files import bag_path
 from bagkit.native import precise_timers
@@ -36,22 +32,17 @@ from bagkit.playback.report import PlayProgress, PlayReport, SubscriberWait, Top
 from bagkit.playback.seeking import WindowSpan
 from bagkit.playback.source import PlaySource
 from bagkit.ros.errors import PlayerError
-from bagkit.ros.fastdds import segment_size_for
 from bagkit.ros.participants import all_discovered
-from bagkit.ros.qos import load_qos_overrides, replay_publisher_qos
+from bagkit.ros.replay.endpoints import open_endpoints, sends_requests
 from bagkit.ros.replay.publishers import (
     TopicOutput,
-    create_clock_output,
-    create_output,
     other_publishers,
     wait_until_acknowledged,
     wait_until_matched,
 )
 from bagkit.ros.replay.seek_services import serve_seek
 from bagkit.ros.replay.services import serve_controls
-from bagkit.ros.replay.topics import PublishableTopics, publishable_topics
-from bagkit.ros.tuning import process_tuning
-from bagkit.selection.services import is_service_event_topic
+from bagkit.ros.replay.topics import PublishableTopics
 from bagkit.selection.times import NS_PER_S, TimeLike, parse_time
 
 if TYPE_CHECKING:
@@ -157,108 +148,29 @@ class Player:
 
     def _open(self) -> None:
         options = self.options
-        overrides = load_qos_overrides(options.qos_overrides) if options.qos_overrides else {}
         reader = PlaySource.open(options.bags, options.message_order, self._stack)
         self._reader = reader
         self.window.bounds(reader.start_ns, reader.end_ns, Path(reader.name))  # raises past end
         self.selection = options.selection_in(reader, reader.name)  # raises on unknown names
         self.controls.cue(self._span().start_ns)
-        # The participant first: discovery, which the first message waits for, runs while the
-        # topics are checked against the installed types and the publishers are made. Fast DDS
-        # reads its profile when the participant is created; the player sends, so its
-        # shared-memory segment is sized for the largest messages of the selected topics
-        # (issue 27, item 5).
-        largest = reader.largest_message(
-            name for name in reader.topics if self.selection.matches(name)
-        )
-        with process_tuning(options.tune_process, segment_size=segment_size_for(largest)):
-            node = self._create_node()
-        selected = self._select_topics(reader.topics)
-        self._latched = latched_topics(
-            reader.topics, options.latched, [info.name for info, _ in selected]
-        )
-        mean_size = reader.uncompressed_size // max(reader.message_count, 1) or 1024
-        bag_duration_s = (reader.end_ns - reader.start_ns) / 1e9
-        for info, message_class in selected:
-            name = options.remap.get(info.name, info.name)
-            count = reader.topic_counts.get(info.name, 0)
-            qos = overrides.get(name) or overrides.get(info.name)
-            if qos is None:
-                qos = replay_publisher_qos(
-                    info,
-                    count=count,
-                    mean_size=mean_size,
-                    messages_per_s=self._replay_rate_hz(count, bag_duration_s),
-                )
-            self._outputs[info.name] = create_output(node, info, message_class, name, qos)
-            if options.service_requests is not None and _sends_requests(info):
-                self._outputs[info.name] = self._requests(node).output(
-                    info, self._outputs[info.name]
-                )
-        if options.clock_hz is not None:
-            self._clock = create_clock_output(node)
-        if options.services:
-            self._stack.enter_context(serve_seek(node, self))  # before the executor spins
-            self._stack.enter_context(serve_controls(node, self.controls))
-
-    def _requests(self, node: Node) -> ServiceRequests:
-        """The sender of recorded service requests (``options.service_requests``)."""
-        from bagkit.ros.replay.service_requests import ServiceRequests
-
-        replay = self.options.service_requests
-        if self._service_requests is None:
-            assert self._reader is not None and replay is not None
-            self._service_requests = self._stack.enter_context(
-                ServiceRequests(
-                    node,
-                    self._reader,
-                    source=replay.source,
-                    timeout_s=replay.timeout_ns / NS_PER_S,
-                    on_warning=self.on_warning,
-                )
-            )
-        return self._service_requests
-
-    def _create_node(self) -> Node:
-        context = self._context
-        if context is None:
-            context = Context()
-            # No signal handlers: Ctrl-C must reach play() as KeyboardInterrupt so that it can
-            # stop between two messages and still report.
-            # args=[]: not sys.argv, whose --remap is bagkit's (applied to the publishers'
-            # names), not a ROS remap rule for rcl to parse and warn about.
-            rclpy.init(args=[], context=context, signal_handler_options=SignalHandlerOptions.NO)
-            self._stack.callback(context.try_shutdown)
-        node = Node(
-            self.options.node_name,
-            context=context,
-            start_parameter_services=self.options.services,
-            enable_rosout=False,
-        )
-        self._stack.callback(node.destroy_node)
-        self._node = node
-        self._node_created = time.monotonic()
-        return node
-
-    def _replay_rate_hz(self, count: int, bag_duration_s: float) -> float:
-        """Messages per second of wall time of a topic with ``count`` messages, at ``rate``."""
-        if bag_duration_s <= 0:
-            return math.inf
-        return count / bag_duration_s * self.options.rate
-
-    def _select_topics(self, topics: Mapping[str, TopicInfo]) -> list[tuple[TopicInfo, Any]]:
-        from bagkit.migrate import load_rules
-
-        self.publishable = publishable_topics(
-            topics,
+        endpoints = open_endpoints(
+            options,
             self.selection,
-            clock_published=self.options.clock_hz is not None,
-            bag_path=bag_path(self._reader.name) if self._reader else self.bag_path,
-            definition=self._reader.definition if self._reader else lambda _: None,
-            on_drift=self.options.on_drift,
-            rules=load_rules(self.options.drift_rules) if self.options.drift_rules else None,
+            reader,
+            self._stack,
+            context=self._context,
+            on_warning=self.on_warning,
         )
-        return self.publishable.selected
+        self._node = endpoints.node
+        self._node_created = endpoints.node_created
+        self._outputs = endpoints.outputs
+        self._clock = endpoints.clock
+        self._latched = endpoints.latched
+        self._service_requests = endpoints.service_requests
+        self.publishable = endpoints.publishable
+        if options.services:
+            self._stack.enter_context(serve_seek(endpoints.node, self))  # before the executor spins
+            self._stack.enter_context(serve_controls(endpoints.node, self.controls))
 
     def play(self) -> PlayReport:
         """Replay the bag (``options.loops`` passes); Ctrl-C stops between two messages.
@@ -301,7 +213,7 @@ class Player:
                 output
                 for output in self._outputs.values()
                 # Their events are not published: the requests are sent instead.
-                if not (options.service_requests and _sends_requests(output.info))
+                if not (options.service_requests and sends_requests(output.info))
             ]
             self.live_publishers = other_publishers(self.node, published)
             if self.live_publishers and self.on_live_publishers is not None:
@@ -501,12 +413,6 @@ class Player:
             timeout=self.waits.timeout_ns / NS_PER_S,
             all_discovered=all_discovered(self.node, os.environ),
         )
-
-
-def _sends_requests(info: TopicInfo) -> bool:
-    """Whether ``info`` is a service-event topic (``service_requests`` sends its
-    requests instead of publishing it)."""
-    return is_service_event_topic(info.name, [info.type])
 
 
 def _migrated(migrations: Mapping[str, TopicMigration], message: BagMessage) -> BagMessage:
