@@ -6,7 +6,9 @@ that only other commands use. The list below carries each command's one-line hel
 top-level help is printed without importing any of them.
 """
 
-from __future__ import annotations
+# Annotations are objects here, not strings (no `from __future__ import annotations`): typer
+# reads the callbacks' parameters at every start and compiles each annotation written as a
+# string, twice.
 
 import importlib
 from typing import Any, NamedTuple

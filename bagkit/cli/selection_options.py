@@ -4,7 +4,9 @@
 One declaration, one help text, one grammar (bagkit.selection.times; docs/cli.md's table).
 """
 
-from __future__ import annotations
+# Annotations are objects here, not strings (no `from __future__ import annotations`): typer
+# reads the callbacks' parameters at every start and compiles each annotation written as a
+# string, twice.
 
 from typing import TYPE_CHECKING, Annotated
 
@@ -81,7 +83,7 @@ def build_query(
     start: str | None = None,
     end: str | None = None,
     where: str | None = None,
-) -> Query:
+) -> "Query":
     """The one place the CLI turns its selection options into a query (parsed once: a bad time
     or condition is one error, before any bag is read).
 

@@ -168,11 +168,15 @@ def test_the_command_leaves_the_collectors_last_pass_nothing(args: list[str]) ->
 
 @pytest.mark.parametrize(
     ("module", "command"),
-    [("echo", "echo"), ("stats", "summary"), ("find", "find"), ("check", "check")],
+    [
+        *(("echo", "echo"), ("stats", "summary"), ("find", "find"), ("check", "check")),
+        # The callbacks every command or several run: the top level's, --distro's.
+        *(("main", "main"), ("main", "_version_callback"), ("selection_options", "_use_distro")),
+    ],
 )
 def test_a_quick_command_has_its_annotations_as_objects(module: str, command: str) -> None:
-    """typer reads a command's parameters at every start and compiles each annotation written
-    as a string (``from __future__ import annotations``) twice."""
+    """typer reads a command's (and a callback's) parameters at every start and compiles each
+    annotation written as a string (``from __future__ import annotations``) twice."""
     function = getattr(importlib.import_module(f"bagkit.cli.{module}"), command)
     strings = [n for n, a in inspect.get_annotations(function).items() if isinstance(a, str)]
     assert not strings, f"bagkit.cli.{module}.{command}: annotations as strings: {strings}"
