@@ -12,6 +12,7 @@ from __future__ import annotations
 import struct
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -165,7 +166,7 @@ class CdrLayout:
             return placed
         dtype = np.dtype(
             {
-                "names": [str(p.index) for p in placed.slots],
+                "names": [str(p.slot) for p in placed.slots],
                 "formats": [p.fmt for p in placed.slots],
                 "offsets": [p.offset for p in placed.slots],
                 "itemsize": placed.size,
@@ -173,13 +174,13 @@ class CdrLayout:
         )
         leaves: list[LeafColumn] = []
         for p in placed.slots:
-            slot = self.slots[p.index]
+            slot = self.slots[p.slot]
             if slot.array and slot.count is not None:
                 leaves.extend(
-                    LeafColumn(f"{slot.path}[{i}]", str(p.index), i) for i in range(slot.count)
+                    LeafColumn(f"{slot.path}[{i}]", str(p.slot), i) for i in range(slot.count)
                 )
             else:
-                leaves.append(LeafColumn(slot.path, str(p.index), None))
+                leaves.append(LeafColumn(slot.path, str(p.slot), None))
         return ResolvedLayout(dtype, tuple(leaves))
 
     def data_mask(self, lengths: tuple[int, ...]) -> int | NeedLength:
@@ -230,17 +231,18 @@ class CdrLayout:
         return _Placement(tuple(slots), tuple(data), ENCAPSULATION_SIZE + pos)
 
 
-@dataclass(frozen=True, slots=True)
-class _PlacedSlot:
-    """A numeric slot at its byte offset in the payload."""
+# NamedTuples, not dataclasses: private records made per slot, whose classes every decoding
+# command would otherwise build at start.
+class _PlacedSlot(NamedTuple):
+    """A numeric slot (``slot``: its index in ``CdrLayout.slots``) at its byte offset in the
+    payload."""
 
-    index: int
+    slot: int
     offset: int
     fmt: str | tuple[str, tuple[int, ...]]
 
 
-@dataclass(frozen=True, slots=True)
-class _Placement:
+class _Placement(NamedTuple):
     """Where everything of a message with known length prefixes is."""
 
     slots: tuple[_PlacedSlot, ...]
