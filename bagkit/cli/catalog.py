@@ -8,15 +8,9 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from bagkit.cli.common import (
-    OutputFormat,
-    bag_location,
-    err_console,
-    handle_errors,
-    print_json,
-    warn,
-)
+from bagkit.cli.common import OutputFormat, err_console, handle_errors, print_json, warn
 from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers, end_with_unread, fleet_run
+from bagkit.cli.option_parsing import bag_location
 from bagkit.cli.selection_options import build_query
 from bagkit.cli.tables import Column, Table, print_table
 from bagkit.errors import BagkitError

@@ -11,8 +11,9 @@ from typing import TYPE_CHECKING
 import typer
 
 from bagkit.cli import common
-from bagkit.cli.common import ReportFormat, bag_location, handle_errors, print_json, warn
+from bagkit.cli.common import ReportFormat, handle_errors, print_json, warn
 from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers, end_with_unread, fleet_run
+from bagkit.cli.option_parsing import bag_location
 from bagkit.cli.selection_options import End, Start, build_query
 from bagkit.cli.tables import Styled, print_line
 

@@ -14,7 +14,6 @@ from bagkit.cli.common import (
     err_console,
     handle_errors,
     print_json,
-    split_list,
     warn,
 )
 from bagkit.cli.compare_options import (
@@ -35,6 +34,7 @@ from bagkit.cli.compare_options import (
     Spec,
     Topics,
 )
+from bagkit.cli.option_parsing import split_list
 from bagkit.cli.tables import INDENT, Column, Styled, Table, print_table, print_wrapped
 from bagkit.compare import (
     CompareOptions,

@@ -7,7 +7,8 @@ from typing import Annotated
 
 import typer
 
-from bagkit.cli.common import ReportFormat, bag_location
+from bagkit.cli.common import ReportFormat
+from bagkit.cli.option_parsing import bag_location
 
 Golden = Annotated[
     Path, typer.Argument(help="The reference bag (directory, .mcap or URL).", parser=bag_location)

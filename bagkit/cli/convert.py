@@ -8,7 +8,8 @@ from pathlib import Path
 
 import typer
 
-from bagkit.cli.common import ReportFormat, bag_location, handle_errors, split_list
+from bagkit.cli.common import ReportFormat, handle_errors
+from bagkit.cli.option_parsing import bag_location, split_list
 from bagkit.cli.progress import DelayedProgress
 from bagkit.cli.selection_options import Distro, End, Start, build_query
 from bagkit.cli.surgery_options import (

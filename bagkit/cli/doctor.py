@@ -6,14 +6,8 @@ from pathlib import Path
 
 import typer
 
-from bagkit.cli.common import (
-    LOCAL_BAG_HELP,
-    ReportFormat,
-    console,
-    err_console,
-    handle_errors,
-    print_json,
-)
+from bagkit.cli.common import ReportFormat, console, err_console, handle_errors, print_json
+from bagkit.cli.option_parsing import LOCAL_BAG_HELP
 from bagkit.cli.selection_options import Distro
 from bagkit.cli.surgery_options import Format
 from bagkit.surgery.doctor import DoctorReport, diagnose

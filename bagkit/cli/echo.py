@@ -14,7 +14,8 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from bagkit.cli.common import BAG_HELP, EXIT_INTERRUPTED, bag_location, fail, handle_errors, warn
+from bagkit.cli.common import EXIT_INTERRUPTED, fail, handle_errors, warn
+from bagkit.cli.option_parsing import BAG_HELP, bag_location
 from bagkit.cli.selection_options import Distro, End, Start, Where, build_query
 from bagkit.compat import StrEnum
 

@@ -9,8 +9,9 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from bagkit.cli.common import bag_location, console, handle_errors, none_decoded, warn
+from bagkit.cli.common import console, handle_errors, none_decoded, warn
 from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers, end_with_unread
+from bagkit.cli.option_parsing import bag_location
 from bagkit.cli.progress import DelayedProgress
 from bagkit.cli.selection_options import Distro, End, Start, Where, build_query
 from bagkit.data.formats import ExportFormat

@@ -7,15 +7,8 @@ from pathlib import Path
 
 import typer
 
-from bagkit.cli.common import (
-    BAG_HELP,
-    ReportFormat,
-    bag_location,
-    err_console,
-    handle_errors,
-    option_flags,
-    split_list,
-)
+from bagkit.cli.common import ReportFormat, err_console, handle_errors, option_flags
+from bagkit.cli.option_parsing import BAG_HELP, bag_location, split_list
 from bagkit.cli.selection_options import Distro, End, Start, StateTopics, build_query
 from bagkit.cli.surgery_options import (
     AROUND_FLAGS,

@@ -11,15 +11,9 @@ from typing import TYPE_CHECKING
 import typer
 
 from bagkit.cli import common
-from bagkit.cli.common import (
-    bag_location,
-    handle_errors,
-    none_decoded,
-    print_json,
-    split_list,
-    warn,
-)
+from bagkit.cli.common import handle_errors, none_decoded, print_json, warn
 from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers, end_with_unread, fleet_run
+from bagkit.cli.option_parsing import bag_location, split_list
 from bagkit.cli.selection_options import Distro, End, Start, StateTopics, build_query
 from bagkit.compat import StrEnum
 

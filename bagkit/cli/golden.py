@@ -12,7 +12,6 @@ import typer
 
 from bagkit.cli.common import (
     ReportFormat,
-    bag_location,
     console,
     err_console,
     fail,
@@ -23,6 +22,7 @@ from bagkit.cli.common import (
     warn,
 )
 from bagkit.cli.fleet_options import Scheduler, Workers
+from bagkit.cli.option_parsing import bag_location
 from bagkit.cli.selection_options import End, Start, build_query
 from bagkit.regression.spec import FixtureSpec, find_fixtures, load_spec
 

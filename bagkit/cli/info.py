@@ -16,15 +16,8 @@ from bagkit.bag import BagInfo, bag_info, safe_yaml
 from bagkit.bag.action_info import ActionSummary, action_summaries
 from bagkit.bag.compression_words import CompressionWords
 from bagkit.cli import common
-from bagkit.cli.common import (
-    BAG_HELP,
-    ReportFormat,
-    fail,
-    format_rate,
-    handle_errors,
-    print_json,
-    warn,
-)
+from bagkit.cli.common import ReportFormat, fail, format_rate, handle_errors, print_json, warn
+from bagkit.cli.option_parsing import BAG_HELP
 from bagkit.cli.selection_options import Distro
 from bagkit.cli.tables import (
     INDENT,

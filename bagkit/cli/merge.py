@@ -7,7 +7,8 @@ from pathlib import Path
 
 import typer
 
-from bagkit.cli.common import ReportFormat, bag_location, err_console, handle_errors
+from bagkit.cli.common import ReportFormat, err_console, handle_errors
+from bagkit.cli.option_parsing import bag_location
 from bagkit.cli.selection_options import Distro, End, Start, build_query
 from bagkit.cli.surgery_options import (
     CheckCrc,

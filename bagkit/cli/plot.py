@@ -7,15 +7,8 @@ from pathlib import Path
 import typer
 
 from bagkit.cli import common
-from bagkit.cli.common import (
-    BAG_HELP,
-    bag_location,
-    console,
-    handle_errors,
-    none_decoded,
-    split_list,
-    warn,
-)
+from bagkit.cli.common import console, handle_errors, none_decoded, warn
+from bagkit.cli.option_parsing import BAG_HELP, bag_location, split_list
 from bagkit.cli.selection_options import Distro, End, Start, Where, build_query
 
 HELP = """Plot fields of BAG over time into OUT: .png (matplotlib) or .html (an interactive page

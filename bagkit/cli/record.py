@@ -15,16 +15,15 @@ import typer
 
 from bagkit.cli.common import (
     EXIT_INTERRUPTED,
-    MultiValueCommand,
     ReportFormat,
     err_console,
     fail,
     handle_errors,
     option_flags,
     print_json,
-    split_list,
     warn,
 )
+from bagkit.cli.option_parsing import MultiValueCommand, split_list
 from bagkit.cli.record_options import (
     RECORD_FLAGS,
     Actions,

@@ -12,7 +12,8 @@ from typing import Annotated
 import typer
 
 from bagkit.bag.file_rotation import FreeSpace
-from bagkit.cli.common import ReportFormat, byte_size, duration_ns, free_space
+from bagkit.cli.common import ReportFormat
+from bagkit.cli.option_parsing import byte_size, duration_ns, free_space
 from bagkit.compat import StrEnum
 
 

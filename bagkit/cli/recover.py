@@ -6,7 +6,8 @@ from pathlib import Path
 
 import typer
 
-from bagkit.cli.common import LOCAL_BAG_HELP, ReportFormat, err_console, handle_errors
+from bagkit.cli.common import ReportFormat, err_console, handle_errors
+from bagkit.cli.option_parsing import LOCAL_BAG_HELP
 from bagkit.cli.surgery_options import (
     CheckCrc,
     Force,

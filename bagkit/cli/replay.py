@@ -14,15 +14,14 @@ from bagkit.cli import common
 from bagkit.cli.common import (
     CONTEXT_SETTINGS,
     EXIT_INTERRUPTED,
-    MultiValueCommand,
     ReportFormat,
     fail,
     handle_errors,
     option_flags,
     print_json,
-    split_list,
     warn,
 )
+from bagkit.cli.option_parsing import MultiValueCommand, split_list
 from bagkit.cli.replay_options import (
     PLAY_FLAGS,
     Bags,
@@ -91,7 +90,7 @@ class ReplayCommand(MultiValueCommand):
     """Parses ``ros2 bag play``'s option forms that typer lacks.
 
     A bare ``--clock`` (followed by nothing, an option or the bag path) becomes ``--clock=40``;
-    ``--topics a b c`` takes several values (:class:`~bagkit.cli.common.MultiValueCommand`).
+    ``--topics a b c`` takes several values (:class:`~bagkit.cli.option_parsing.MultiValueCommand`).
     """
 
     multi_value = _MULTI_VALUE

@@ -10,7 +10,8 @@ from typing import Annotated
 
 import typer
 
-from bagkit.cli.common import ReportFormat, bag_location, duration_ns
+from bagkit.cli.common import ReportFormat
+from bagkit.cli.option_parsing import bag_location, duration_ns
 from bagkit.playback.options import OnDrift, ServiceRequestSource
 from bagkit.playback.source import MessageOrder
 from bagkit.playback.timing import DEFAULT_CLOCK_HZ

@@ -90,7 +90,7 @@ def build_query(
     Raises:
         SelectionError: a time or the condition does not parse.
     """
-    from bagkit.cli.common import split_list
+    from bagkit.cli.option_parsing import split_list
     from bagkit.selection.errors import SelectionError
     from bagkit.selection.query import Query
 

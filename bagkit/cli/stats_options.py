@@ -8,8 +8,9 @@ from typing import Annotated
 
 import typer
 
-from bagkit.cli.common import OutputFormat, bag_location
+from bagkit.cli.common import OutputFormat
 from bagkit.cli.fleet_options import BAGS_HELP
+from bagkit.cli.option_parsing import bag_location
 
 Inputs = Annotated[
     list[Path],

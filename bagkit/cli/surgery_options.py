@@ -14,16 +14,8 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from bagkit.bag.latched import LatchedOptions
-from bagkit.cli.common import (
-    MultiValueCommand,
-    ReportFormat,
-    bag_location,
-    byte_size,
-    console,
-    print_json,
-    split_list,
-    warn,
-)
+from bagkit.cli.common import ReportFormat, console, print_json, warn
+from bagkit.cli.option_parsing import MultiValueCommand, bag_location, byte_size, split_list
 from bagkit.selection.times import format_ns
 from bagkit.surgery.rewrite import OutputOptions, RewriteReport
 

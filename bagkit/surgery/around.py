@@ -18,7 +18,7 @@ from bagkit.selection.conditions import TopicCondition, parse_topic_condition
 from bagkit.selection.topics import absolute_topic_name
 from bagkit.selection.windows import Window
 from bagkit.surgery.content import with_content
-from bagkit.surgery.cut import cut_windows
+from bagkit.surgery.cut import check_windows_output, cut_windows
 from bagkit.surgery.errors import NothingToCutError, SurgeryError
 from bagkit.surgery.options import OutputOptions, RewriteReport
 from bagkit.surgery.select import Selection
@@ -107,6 +107,7 @@ def cut_around(
     """
     if selection.span.bounded:
         raise OptionError(SPAN_SET_BY_EPISODES, "selection.span")
+    check_windows_output(bag, output, options or OutputOptions())  # before the search
     with BagReader(bag) as reader:
         found = find_around(reader, around, around.merge_ns, str(bag))
     windows = episode_windows(found.episodes, around.before_ns, around.after_ns)

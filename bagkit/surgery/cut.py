@@ -20,6 +20,18 @@ def window_bag_name(bag: Path, n: int) -> str:
     return f"{name}_{n}"
 
 
+def check_windows_output(bag: Path, output: Path, options: OutputOptions) -> None:
+    """Raise SurgeryError unless ``output`` can be the directory of ``bag``'s window bags: it
+    is a directory or can be created, outside the input, and not named as one MCAP file."""
+    if single_file(output, options):
+        raise SurgeryError(f"{output}: --around writes a directory of bags: name it without .mcap")
+    check_output([bag], output, options)
+    if output.exists() and not output.is_dir():
+        raise SurgeryError(f"{output} is not a directory")
+    if not output.parent.is_dir():
+        raise SurgeryError(f"{output.parent}: no such directory")
+
+
 def cut_windows(
     bag: Path,
     output: Path,
@@ -45,13 +57,7 @@ def cut_windows(
     if any(w.start_ns is None or w.end_ns is None for w in windows):
         raise SurgeryError("a window to cut needs a start and an end")
     options = options or OutputOptions()
-    if single_file(output, options):
-        raise SurgeryError(f"{output}: --around writes a directory of bags: name it without .mcap")
-    check_output([bag], output, options)
-    if output.exists() and not output.is_dir():
-        raise SurgeryError(f"{output} is not a directory")
-    if not output.parent.is_dir():
-        raise SurgeryError(f"{output.parent}: no such directory")
+    check_windows_output(bag, output, options)
     output.mkdir(exist_ok=True)
     reports = []
     for n, window in enumerate(windows):

@@ -16,8 +16,8 @@ import pytest
 from bagkit_runs import bagkit_in_process, bagkit_subprocess
 
 from bagkit.bag import BagWriter, TopicInfo
-from bagkit.cli.common import expand_multi_value_options, split_list
 from bagkit.cli.main import _COMMANDS
+from bagkit.cli.option_parsing import expand_multi_value_options, split_list
 
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 FLOAT64 = "std_msgs/msg/Float64"
