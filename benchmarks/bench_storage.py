@@ -10,12 +10,19 @@
    operation (HEAD and listings included), and moto's CPU for each side. The same for
    BAGKIT_BENCH_STORAGE_MOTO_BAGS bags of BAGKIT_BENCH_STORAGE_MOTO_MB MB (default 16 of 32:
    camera images and an Imu, a realistic size at a count this machine holds).
+   Bags of test-drive size: for each Imu message count of BAGKIT_BENCH_STORAGE_DRIVE_IMU
+   (default 100,000, 300,000, 1,000,000: 31, 93, 310 MB, the bags of bench_stats, cached under
+   benchmarks/results/), BAGKIT_BENCH_STORAGE_DRIVE_BAGS copies (default 16, fewer where they
+   would pass BAGKIT_BENCH_STORAGE_DRIVE_GB in moto, default 6), one uploaded and the rest
+   copied inside moto; the same figures, then the bag size at which the time ratio crosses 20x
+   (or what it tends to). ``BAGKIT_BENCH_STORAGE_DRIVE_BAGS=0`` leaves them out.
 2. ``info`` of BAGKIT_BENCH_STORAGE_NAMED bags (default 100) named one by one by their URLs
    (as ``bagkit info URL`` of each), as bag prefixes and as bare ``.mcap`` files: requests a
    bag by operation, against downloading each and reading it locally.
 3. The same as 1. for BAGKIT_BENCH_STORAGE_LARGE_BAGS bags of BAGKIT_BENCH_STORAGE_LARGE_MB MB
    (default 9 of 256: the first opens the client, 8 are timed) on the tests' range-capable HTTP
-   server (moto answers a range by reading the whole object), requests counted by the server.
+   server (moto answers a range by reading the whole object), requests counted by the server;
+   then the sizes of BAGKIT_BENCH_STORAGE_DRIVE_IMU there, and where the ratio crosses 20x.
 4. ``stats summary -t /gps/fix`` over 20 bags of Imu (100 Hz) + NavSatFix (1 Hz): bytes
    fetched against the chunks that hold /gps/fix (target <= 1.2x), values equal to the local
    read.
@@ -26,6 +33,7 @@ Run: ``.venv/bin/python -m benchmarks storage``
 
 from __future__ import annotations
 
+import itertools
 import os
 import shutil
 import struct
@@ -33,6 +41,7 @@ import tempfile
 import time
 from collections import Counter
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -40,6 +49,7 @@ from benchmarks.storage_stores import (
     HttpServer,
     S3Requests,
     cpu_s,
+    peak_rss_mb,
     per_bag,
     start_moto,
     write_images,
@@ -54,8 +64,24 @@ LARGE_BAGS = int(os.environ.get("BAGKIT_BENCH_STORAGE_LARGE_BAGS", "9"))
 LARGE_MB = int(os.environ.get("BAGKIT_BENCH_STORAGE_LARGE_MB", "256"))
 STATS_BAGS = 20
 STATS_IMU_MESSAGES = int(os.environ.get("BAGKIT_BENCH_STORAGE_IMU", "50000"))
+DRIVE_BAGS = int(os.environ.get("BAGKIT_BENCH_STORAGE_DRIVE_BAGS", "16"))
+DRIVE_IMU = os.environ.get("BAGKIT_BENCH_STORAGE_DRIVE_IMU", "100000,300000,1000000")
+DRIVE_BYTES = float(os.environ.get("BAGKIT_BENCH_STORAGE_DRIVE_GB", "6")) * 1e9
 FLOOR_REQUESTS = 400
 NAMED_BAGS = int(os.environ.get("BAGKIT_BENCH_STORAGE_NAMED", "100"))
+
+
+@dataclass(frozen=True)
+class Timing:
+    """One leg's bag size (bytes) and seconds a bag: ``info`` by range, download + local."""
+
+    size: int
+    info_s: float
+    download_s: float
+
+    @property
+    def ratio(self) -> float:
+        return self.download_s / self.info_s
 
 
 def summary_bytes(file: Path) -> int:
@@ -104,19 +130,25 @@ def _floor(moto: Moto) -> None:
 def _info_against_download(moto: Moto, local: Path, key: str, scratch: Path, what: str) -> None:
     """``info`` of the bags under ``local``, uploaded to ``bench/key``: by range, against
     downloading the prefix (s3fs's concurrent ``get``) and reading it locally."""
+    bags = sorted(p for p in local.iterdir() if p.is_dir())
+    started = time.perf_counter()
+    moto.fs.put(str(local), f"bench/{key}", recursive=True)
+    print(f"  {what}: {len(bags)} bags uploaded in {time.perf_counter() - started:.1f} s")
+    _measure_info(moto, bags[0], len(bags), key, scratch)
+
+
+def _measure_info(moto: Moto, template: Path, count: int, key: str, scratch: Path) -> Timing:
+    """``info`` of the ``count`` copies of the bag ``template`` under ``bench/key``: by range,
+    against downloading the prefix (s3fs's concurrent ``get``) and reading it locally."""
     from bagkit.bag.info import bag_info
     from bagkit.fleet.listing import folder_info
     from bagkit.storage.range_file import fetched
 
     fs = moto.fs
-    bags = sorted(p for p in local.iterdir() if p.is_dir())
-    started = time.perf_counter()
-    fs.put(str(local), f"bench/{key}", recursive=True)
-    print(f"  {what}: {len(bags)} bags uploaded in {time.perf_counter() - started:.1f} s")
-    file = next(bags[0].glob("*.mcap"))
+    file = next(template.glob("*.mcap"))
     summary = summary_bytes(file)
-    size = sum(f.stat().st_size for f in bags[0].iterdir())
-    exact = bag_info(bags[0])  # the modules imported for both sides
+    size = sum(f.stat().st_size for f in template.iterdir())
+    exact = bag_info(template)  # the modules imported for both sides
 
     before, sent, cpu = fetched(), Counter(moto.bagkit.counts), cpu_s(moto.pid)
     started = time.perf_counter()
@@ -125,7 +157,7 @@ def _info_against_download(moto: Moto, local: Path, key: str, scratch: Path, wha
     remote_cpu = cpu_s(moto.pid) - cpu
     spent = fetched()[0] - before[0]
     remote_requests = moto.bagkit.counts - sent
-    assert remote is not None and len(remote.bags) == len(bags) and not remote.unread
+    assert remote is not None and len(remote.bags) == count and not remote.unread
     bounded = {t.topic: t.rate_hz for t in remote.bags[0].topics}
     worst = max(
         (
@@ -144,9 +176,8 @@ def _info_against_download(moto: Moto, local: Path, key: str, scratch: Path, wha
     download_s = time.perf_counter() - started
     download_cpu = cpu_s(moto.pid) - cpu
     peer_requests = moto.peer.counts - sent
-    assert downloaded is not None and len(downloaded.bags) == len(bags)
+    assert downloaded is not None and len(downloaded.bags) == count
     shutil.rmtree(target)
-    count = len(bags)
     requests_ratio = peer_requests.total() / remote_requests.total()
     print(
         f"  info by range: {remote_s:.2f} s; {spent / count:,.0f} bytes per bag (summary "
@@ -156,8 +187,10 @@ def _info_against_download(moto: Moto, local: Path, key: str, scratch: Path, wha
         f"  download + local info: {download_s:.2f} s\n"
         f"    requests a bag: {per_bag(peer_requests, count)}; moto CPU {download_cpu:.2f} s\n"
         f"  range reads {download_s / remote_s:.1f}x faster (target >= 20); the download "
-        f"makes {requests_ratio:.2f}x their requests"
+        f"makes {requests_ratio:.2f}x their requests; moto's peak RSS {peak_rss_mb(moto.pid):,} "
+        "MB"
     )
+    return Timing(size, remote_s / count, download_s / count)
 
 
 def _info_part(moto: Moto, scratch: Path) -> None:
@@ -176,6 +209,68 @@ def _info_part(moto: Moto, scratch: Path) -> None:
         _info_against_download(moto, local, "moto_large", scratch, what)
         moto.fs.rm("bench/moto_large", recursive=True)
         shutil.rmtree(local)
+
+
+def _drive_part(moto: Moto, scratch: Path) -> None:
+    """``info`` of bags of test-drive size in moto: for each size of DRIVE_IMU (Imu messages at
+    100 Hz, 310 bytes each: the 1M bag is 310 MB), DRIVE_BAGS copies, fewer where they would
+    pass DRIVE_BYTES in moto (which answers every request by reading the whole object into
+    memory); one uploaded, the rest copied inside moto (CopyObject). Then the size at which
+    the ratio crosses 20x."""
+    from benchmarks.bench_stats import imu_bag
+
+    timings = []
+    for messages in sorted(int(n) for n in DRIVE_IMU.split(",") if n):
+        template = imu_bag(messages)
+        size = sum(f.stat().st_size for f in template.iterdir())
+        count = max(2, min(DRIVE_BAGS, int(DRIVE_BYTES // size)))
+        key = f"drive_{messages}"
+        started = time.perf_counter()
+        moto.fs.put(str(template), f"bench/{key}/bag_00", recursive=True)
+        uploaded = time.perf_counter() - started
+        source = f"bench/{key}/bag_00"
+        copies = [f"bench/{key}/bag_{i:02d}" for i in range(1, count)]
+        with ThreadPoolExecutor(4) as pool:  # moto hashes and writes each copy: 2 cores
+            list(pool.map(lambda to, src=source: moto.fs.copy(src, to, recursive=True), copies))
+        print(
+            f"  {count} bags of {messages:,} Imu ({size / 1e6:,.0f} MB): one uploaded in "
+            f"{uploaded:.1f} s, {count - 1} copied in moto in "
+            f"{time.perf_counter() - started - uploaded:.1f} s"
+        )
+        try:
+            timings.append(_measure_info(moto, template, count, key, scratch))
+        finally:
+            moto.fs.rm(f"bench/{key}", recursive=True)
+    print(f"  {_crossing(timings)}")
+
+
+def _crossing(timings: list[Timing], store: str = "moto") -> str:
+    """Where the time ratio crosses 20x: between two sizes measured, or from the line through
+    the two largest (each side's seconds a bag = a fixed cost + a cost a byte)."""
+    timings = sorted(timings, key=lambda t: t.size)
+    ratios = ", ".join(f"{t.size / 1e6:,.0f} MB {t.ratio:.1f}x" for t in timings)
+    for low, high in itertools.pairwise(timings):
+        if low.ratio < 20 <= high.ratio:
+            share = (20 - low.ratio) / (high.ratio - low.ratio)
+            crossed = low.size + share * (high.size - low.size)
+            return f"ratios {ratios}: 20x crossed at about {crossed / 1e6:,.0f} MB"
+    if timings and timings[0].ratio >= 20:
+        return f"ratios {ratios}: 20x at every size measured"
+    if len(timings) < 2:
+        return f"ratios {ratios}"
+    low, high = timings[-2:]
+    info_per_byte = (high.info_s - low.info_s) / (high.size - low.size)
+    download_per_byte = (high.download_s - low.download_s) / (high.size - low.size)
+    if info_per_byte <= 0 or download_per_byte / info_per_byte >= 20:
+        fixed_info = high.info_s - info_per_byte * high.size
+        fixed_download = high.download_s - download_per_byte * high.size
+        bytes_at = (fixed_download - 20 * fixed_info) / (20 * info_per_byte - download_per_byte)
+        return f"ratios {ratios}: 20x reached at about {bytes_at / 1e6:,.0f} MB (extrapolated)"
+    return (
+        f"ratios {ratios}: 20x not reached in {store} at any size; the ratio tends to "
+        f"{download_per_byte / info_per_byte:.1f}x (each side's cost a byte; moto reads the "
+        "whole object for a range request too)"
+    )
 
 
 def _named_part(moto: Moto, scratch: Path) -> None:
@@ -231,9 +326,24 @@ def _named_part(moto: Moto, scratch: Path) -> None:
 
 
 def _large_part(scratch: Path) -> None:
-    """``info`` of LARGE_BAGS bags of LARGE_MB MB on the tests' range-capable HTTP server
-    (moto answers a range by reading the whole object: a 64 MB read per request), against
-    fetching each bag (fsspec's concurrent ``get``) and reading it locally."""
+    """``info`` of LARGE_BAGS bags of LARGE_MB MB (camera + Imu) on the tests' range-capable
+    HTTP server, then the same for the sizes of DRIVE_IMU and where the ratio crosses 20x."""
+    from benchmarks.bench_stats import imu_bag
+
+    template = scratch / "large" / "bag_00"
+    write_images(template, LARGE_MB)
+    os.sync()  # its write-back would slow whichever side runs first
+    _http_info(template, scratch, "camera + Imu")
+    if DRIVE_BAGS:
+        sizes = sorted(int(n) for n in DRIVE_IMU.split(",") if n)
+        timings = [_http_info(imu_bag(n), scratch, f"{n:,} Imu") for n in sizes]
+        print(f"  on the HTTP range server: {_crossing(timings, 'the HTTP range server')}")
+
+
+def _http_info(template: Path, scratch: Path, what: str) -> Timing:
+    """``info`` of LARGE_BAGS copies of ``template`` on the tests' range-capable HTTP server
+    (moto answers a range by reading the whole object), against fetching each bag (fsspec's
+    concurrent ``get``) and reading it locally."""
     import fsspec
 
     from bagkit.bag.info import bag_info
@@ -241,9 +351,6 @@ def _large_part(scratch: Path) -> None:
     from bagkit.fleet.listing import folder_info
     from bagkit.storage.range_file import fetched
 
-    template = scratch / "large" / "bag_00"
-    write_images(template, LARGE_MB)
-    os.sync()  # its write-back would slow whichever side runs first
     files = sorted(p.name for p in template.iterdir())
     server = HttpServer(template, LARGE_BAGS)
     try:
@@ -269,6 +376,7 @@ def _large_part(scratch: Path) -> None:
         download_s = time.perf_counter() - started
         peer_requests = server.requests() - answered
         assert downloaded is not None and len(downloaded.bags) == len(remote)
+        shutil.rmtree(target)
     finally:
         server.stop()
     count = len(remote)
@@ -282,7 +390,7 @@ def _large_part(scratch: Path) -> None:
         default=0.0,
     )
     print(
-        f"  {count} bags of {size / 1e6:.0f} MB (camera + Imu) on an HTTP range server: info "
+        f"  {count} bags of {size / 1e6:.0f} MB ({what}) on an HTTP range server: info "
         f"{remote_s:.2f} s ({spent / count:,.0f} bytes per bag, {spent / count / summary:.2f}x "
         f"the summary of {summary:,} B; rates worst {worst:.1%} below exact); fetch + local "
         f"info {download_s:.2f} s: range reads {download_s / remote_s:.1f}x faster (target "
@@ -290,6 +398,7 @@ def _large_part(scratch: Path) -> None:
         f"    requests a bag: info {per_bag(remote_requests, count)}; fetch "
         f"{per_bag(peer_requests, count)}"
     )
+    return Timing(size, remote_s / count, download_s / count)
 
 
 def _stats_part(fs: Any, scratch: Path) -> None:
@@ -387,6 +496,8 @@ def main() -> None:
         moto = Moto(server.pid, fs)
         _floor(moto)
         _info_part(moto, scratch)
+        if DRIVE_BAGS:
+            _drive_part(moto, scratch)
         _named_part(moto, scratch)
         _large_part(scratch)
         _stats_part(fs, scratch)

@@ -44,6 +44,14 @@ def cpu_s(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
+def peak_rss_mb(pid: int) -> int:
+    """The largest resident memory the process ``pid`` has had so far, in MB."""
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1]) * 1024 // 10**6
+    return 0
+
+
 class S3Requests:
     """Requests an s3fs filesystem sent, by operation (``GetObject``, ``HeadObject``,
     ``ListObjectsV2``...): every attempt, from botocore's ``before-send`` event."""
