@@ -65,7 +65,7 @@ class GoldenCheck:
         for topic in self.report.topics:
             if topic.passed:
                 continue
-            fields = [f"{f.path} (max |err| {f.max_abs_error:.3g})" for f in topic.failed_fields]
+            fields = [f.describe() for f in topic.failed_fields]
             differ = (
                 f"{topic.failed_messages} of {topic.golden_count} {topic.counted} differ"
                 f" ({topic.allowed_failed_messages} allowed)"
