@@ -363,7 +363,7 @@ def verdict(check: GoldenCheck, most: int = 3) -> str:
 
 
 def _topic_verdict(topic: TopicResult) -> str:
-    parts = [f"{f.path} (max |err| {f.max_abs_error:.3g})" for f in topic.failed_fields]
+    parts = [f.describe() for f in topic.failed_fields]
     parts += topic.shape_fields
     parts += [
         f"{n} {what}" for n, what in ((topic.missing, "missing"), (topic.extra, "extra")) if n

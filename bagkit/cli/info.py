@@ -213,9 +213,15 @@ def _print_table(info: BagInfo, verbose: bool) -> None:
     ]
     if not info.summary:
         rows.append(("Summary", "missing: the recording did not finish, salvaged"))
-    for key, value in info.custom_data.items():
-        rows.append((f"custom_data {key}", _custom_data_value(value, verbose)))
     print_fields(rows, names=frozenset({"Files"}))
+    if info.custom_data:  # keys of their own width: a long one would push every value right
+        print_line([Styled("custom_data", "bold")])
+        print_fields(
+            [
+                (f"  {key}", _custom_data_value(value, verbose))
+                for key, value in info.custom_data.items()
+            ]
+        )
     columns = [Column("Topic", style="cyan"), Column("Type")]
     topics = Table(
         [*columns, Column("Count", numeric=True), Column("Rate", numeric=True)], "Topics"

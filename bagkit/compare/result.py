@@ -57,6 +57,12 @@ class FieldResult:
         """Whether every compared value was within tolerance."""
         return self.failed == 0
 
+    def describe(self) -> str:
+        """``path (max |err| 0.04)``; a text has no error: ``path (3 of 6 differ)``."""
+        if self.numeric:
+            return f"{self.path} (max |err| {self.max_abs_error:.3g})"
+        return f"{self.path} ({self.failed} of {self.compared} differ)"
+
 
 # Divergences no pass rate excuses: the messages do not have the same shape.
 SHAPE_KINDS = frozenset({"missing_field", "extra_field", "length", "type"})

@@ -86,7 +86,7 @@ class _Topic:
     read_values: ValueReader | None = None
     columns: list[str] = field(default_factory=list)
     state: bool = False
-    seen: bool = False
+    last_ns: int | None = None  # the log time of its last message
     # Latency checks whose source this topic is, with the stamp path they read.
     sources: list[tuple[_Check, Path]] = field(default_factory=list)
 
@@ -213,7 +213,7 @@ class LiveHealth:
         entry = self._topics.get(topic)
         if entry is None or not log_times:
             return self._tell(events)
-        entry.seen = True
+        entry.last_ns = log_times[-1]
         try:
             self._push_columns(entry, payloads, log_times)
             self._push_messages(entry, payloads, log_times)
@@ -276,7 +276,7 @@ class LiveHealth:
         """The recording ended: topics never seen break ``present``; what is broken stays so."""
         events: list[HealthEvent] = []
         for entry in self._topics.values():
-            if entry.present is not None and not entry.seen:
+            if entry.present is not None and entry.last_ns is None:
                 events.append(self._break(entry.present, end_ns))
             for check in entry.checks:
                 if check.stream is None:
@@ -285,7 +285,9 @@ class LiveHealth:
                 for start, stop in check.stream.episodes:
                     if start != check.open:  # an episode only the end showed (a final gap)
                         events.append(self._break(check.count, start))
-                    if stop < end_ns:  # over before the end, known only now (a rate window)
+                    # Over before the end, known only now (a rate window); a run of bad
+                    # messages that ends at the topic's last message is going on still.
+                    if stop < end_ns and stop != entry.last_ns:
                         events.append(self._clear(check.count, stop))
                     check.open = None
                 check.stream.episodes.clear()

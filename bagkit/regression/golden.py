@@ -65,17 +65,34 @@ class GoldenCheck:
         for topic in self.report.topics:
             if topic.passed:
                 continue
-            fields = ", ".join(
-                [f"{f.path} (max |err| {f.max_abs_error:.3g})" for f in topic.failed_fields]
-                + topic.shape_fields
+            fields = [f.describe() for f in topic.failed_fields]
+            differ = (
+                f"{topic.failed_messages} of {topic.golden_count} {topic.counted} differ"
+                f" ({topic.allowed_failed_messages} allowed)"
             )
-            counts = f"missing {topic.missing}, extra {topic.extra}"
-            lines.append(f"  {topic.topic}: {counts}; fields: {fields or '-'}")
+            counts = [differ, f"missing {topic.missing}", f"extra {topic.extra}"]
+            lines += _packed(counts, lead=f"  {topic.topic}: ", indent="      ")
+            lines += _packed([*fields, *topic.shape_fields] or ["-"], lead="      fields: ")
         lines += [f"  {d.describe()}" for d in self.report.first_divergences(limit)]
         for where, health in (("golden", self.golden_health), ("candidate", self.health)):
             if health is not None:
                 lines += broken_lines(health, where)
         return "\n".join(lines)
+
+
+def _packed(pieces: list[str], *, lead: str, indent: str | None = None) -> list[str]:
+    """``pieces`` joined by ``, `` after ``lead``, as many to a line as fit 80 columns (a
+    field and its error are never split), the following lines after ``indent`` (as far as
+    ``lead`` by default)."""
+    indent = " " * len(lead) if indent is None else indent
+    lines = [lead + pieces[0]]
+    for piece in pieces[1:]:
+        if len(lines[-1]) + 2 + len(piece) > 80:
+            lines[-1] += ","
+            lines.append(indent + piece)
+        else:
+            lines[-1] += ", " + piece
+    return lines
 
 
 def _processors(spec: FixtureSpec) -> list[Processor]:

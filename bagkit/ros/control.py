@@ -36,6 +36,16 @@ SERVICES = tuple(dict.fromkeys(PLAYER_SERVICES + RECORDER_SERVICES))
 PARAMETERS: dict[str, Callable[[str], Any]] = {"rate": float, "seek": str, "burst": int}
 # The player offers this service and nothing else does: a node with it holds the parameters.
 _PLAYER_MARK = "get_rate"
+# Who offers a control that a running recorder or player may lack.
+_OFFERED_BY = {
+    "snapshot": "bagkit record --snapshot-mode offers it",
+    "split_bagfile": "bagkit record offers it",
+    **{
+        c: "bagkit play offers it"
+        for c in (*PLAYER_SERVICES, *PARAMETERS)
+        if c not in RECORDER_SERVICES
+    },
+}
 # rosbag2's names that bagkit serves under another: ``split`` for ``split_bagfile``.
 ALIASES = {"split": "split_bagfile", "set_rate": "rate"}
 
@@ -164,9 +174,17 @@ class Controller:
         if not found:
             where = f"node {wanted}" if wanted else "no recorder or player"
             domain = os.environ.get("ROS_DOMAIN_ID", "0")
+            others = {o: c for o, c in self.offers().items() if wanted in (None, o)}
+            if not others:
+                raise ControlError(
+                    f"{where} offers {control!r} on ROS_DOMAIN_ID {domain} "
+                    f"(waited {self.timeout_s:g} s; is it running, on this domain?)"
+                )
+            # Running, but not offering it: say what they offer and who would.
+            offered = "; ".join(f"{o} offers {', '.join(c)}" for o, c in sorted(others.items()))
             raise ControlError(
-                f"{where} offers {control!r} on ROS_DOMAIN_ID {domain} "
-                f"(waited {self.timeout_s:g} s; is it running, on this domain?)"
+                f"{where} offers {control!r} on ROS_DOMAIN_ID {domain}: {offered}"
+                f" ({_OFFERED_BY.get(control, 'a recorder or a player offers it')})"
             )
         return found
 

@@ -173,6 +173,9 @@ def test_table_fits_80_columns_with_topic_names_whole(tmp_path: Path) -> None:
             assert any(name in line.split() for line in lines), (name, out)
         loss_lines = [line for line in lines if "bagkit.record.loss" in line]
         assert len(loss_lines) == 1
+        # The long custom_data key does not push the other values into two lines each.
+        (start,) = [line for line in lines if line.startswith("Start:")]
+        assert start.endswith(f"({START // 10**9}.{START % 10**9:09d})"), out
     assert "JSON, 30 entries" in _run(str(path)).stdout
 
 

@@ -124,6 +124,8 @@ def test_changed_string_fails_exactly_whatever_the_tolerance() -> None:
     assert [(d.field, d.golden, d.candidate) for d in result.divergences] == [
         ("status[0].message", "ok", "ok ")
     ]
+    # No "max |err| 0" for a text that differs: how many values differ.
+    assert [f.describe() for f in result.failed_fields] == ["status[0].message (1 of 1 differ)"]
 
 
 def test_missing_field_and_type_change_are_divergences() -> None:

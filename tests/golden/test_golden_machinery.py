@@ -78,6 +78,19 @@ def test_changed_constant_fails_with_report_and_plots(fixture_dir: Path, tmp_pat
     failing = {t.topic for t in check.report.topics if not t.passed}
     assert "/fusion/baro_altitude" in failing
     assert "pose.pose.position.z" in check.summary()
+    # How many messages differ against what the pass rate allows, at 80 columns.
+    altitude = next(t for t in check.report.topics if t.topic == "/fusion/baro_altitude")
+    failed = altitude.failed_messages
+    assert 0 < failed <= altitude.golden_count
+    assert (
+        f"/fusion/baro_altitude: {failed} of {altitude.golden_count} messages differ (0 allowed)"
+        in check.summary()
+    )
+    # The counts and the fields at 80 columns (the divergences below them are one line each).
+    topic_lines = [
+        line for line in check.summary().splitlines() if ": " in line and " t=" not in line
+    ]
+    assert all(len(line) <= 80 for line in topic_lines), topic_lines
 
     written = write_failure_artefacts(check, tmp_path / "failure")
     names = {p.name for p in written}

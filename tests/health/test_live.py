@@ -140,3 +140,21 @@ def test_a_field_the_type_lacks_is_a_spec_error() -> None:
         info: TopicInfo = reader.topics["/imu/data"]
         with pytest.raises(SpecError, match="linear_accel"):
             health.add_topic(info, reader.definitions[info.type])
+
+
+def test_a_value_out_of_bounds_to_the_last_message_is_broken_at_the_end(tmp_path: Path) -> None:
+    """The recording ends (later than the last message) while every GPS stamp is out of
+    bounds: the check stays broken, it is not told as cleared."""
+    spec = HealthSpec.parse("topics:\n  /gps/fix:\n    values:\n      header.stamp.sec: {max: 0}\n")
+    told: list[HealthEvent] = []
+    health = LiveHealth(spec, on_event=told.append)
+    with BagReader(FAULTS) as reader:
+        info = reader.topics["/gps/fix"]
+        health.add_topic(info, reader.definitions[info.type])
+        gps = [m for m in reader.messages() if m.topic == "/gps/fix"]
+        end = reader.end_ns + 2_000_000_000  # Ctrl-C two seconds after the bag's last message
+    health.observe("/gps/fix", [m.data for m in gps], [m.log_time for m in gps])
+    health.finish(end)
+    assert [(e.broken, e.at_ns) for e in told] == [(True, gps[0].log_time)]
+    (count,) = [c for c in health.counts if c.assertion.startswith("header")]
+    assert (count.breaks, count.clears, count.broken_since_ns) == (1, 0, gps[0].log_time)

@@ -101,6 +101,19 @@ def test_controls_of_a_recorder(tmp_path: Path, processes: Any, node: Node) -> N
     publish(1.0)
     assert _control("pause").returncode == 0
     assert _control("is_paused").stdout.strip() == "/bagkit_recorder is_paused: yes (paused)"
+    # A recorder without --snapshot-mode: not "is it running?", but what it offers instead.
+    snapshot = subprocess.run(
+        [BAGKIT, "control", "snapshot", "--timeout", "1"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert snapshot.returncode == 2, snapshot
+    (line,) = snapshot.stderr.splitlines()
+    assert line.startswith("error: no recorder or player offers 'snapshot' on ROS_DOMAIN_ID")
+    assert "/bagkit_recorder offers " in line and "split_bagfile" in line
+    assert "is it running" not in line and "--snapshot-mode" in line
     recorder.send_signal(2)
     recorder.communicate(timeout=30)
     files = sorted((tmp_path / "rec").glob("*.mcap"))
