@@ -31,6 +31,16 @@ $(AZURITE):
 			azurite@$(AZURITE_VERSION) && touch $@; \
 	else echo "note: no npm: Azurite not installed, the az:// tests will skip" >&2; fi
 
+# s3rver, an S3-compatible server of npm that keeps each object as a file, for the storage
+# benchmark of 1,000 bags of test-drive size (benchmarks/bench_storage_fleet.py): in .s3rver/.
+S3RVER_VERSION := 3.7.1
+S3RVER := .s3rver/.installed-$(S3RVER_VERSION)
+$(S3RVER):
+	@if command -v npm >/dev/null 2>&1; then \
+		rm -rf .s3rver && npm install --prefix .s3rver --no-fund --no-audit --loglevel=error \
+			s3rver@$(S3RVER_VERSION) && touch $@; \
+	else echo "note: no npm: s3rver not installed, the storage_fleet benchmark will say so" >&2; fi
+
 # uv (pinned in the lock) installs the lock: pip would take minutes longer. Unlike pip, uv
 # writes no bytecode unless asked; where PYTHONDONTWRITEBYTECODE is set (as in CI) every process
 # would then compile numpy, pandas and rclpy from source at each start (benchmarks/README.md).
@@ -73,7 +83,7 @@ format: $(STAMP)
 	$(VENV)/bin/ruff format .
 	$(VENV)/bin/ruff check --fix .
 
-bench: $(STAMP)
+bench: $(STAMP) $(S3RVER)
 	$(PY) -m benchmarks
 
 # Re-record the golden fixtures from the live system (about 2 minutes), outputs from lockstep.
@@ -123,4 +133,4 @@ dist: $(STAMP)
 	@ls -1 dist
 
 clean:
-	rm -rf $(VENV) .venv-* .azurite .pytest_cache .mypy_cache .ruff_cache dist
+	rm -rf $(VENV) .venv-* .azurite .s3rver .pytest_cache .mypy_cache .ruff_cache dist

@@ -38,6 +38,35 @@ def start_moto() -> tuple[subprocess.Popen[bytes], str]:
     return server, f"http://127.0.0.1:{port}"
 
 
+S3RVER = REPO / ".s3rver" / "node_modules" / ".bin" / "s3rver"
+
+
+def start_s3rver(directory: Path, bucket: str) -> tuple[subprocess.Popen[bytes], str]:
+    """s3rver (an S3-compatible server of npm that keeps each object as a file under
+    ``directory``, ``make bench`` installs it) on a free port of 127.0.0.1 with ``bucket``,
+    and its endpoint."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    command = [str(S3RVER), "-d", str(directory), "-a", "127.0.0.1", "-p", str(port)]
+    # Its listings' continuation tokens are DES-encrypted: Node's OpenSSL 3 keeps DES in the
+    # legacy provider (without it a listing of more than 1,000 keys is HTTP 500).
+    env = {**os.environ, "NODE_OPTIONS": "--openssl-legacy-provider"}
+    server = subprocess.Popen(
+        [*command, "--configure-bucket", bucket, "--silent"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        env=env,
+    )
+    for _ in range(300):
+        try:
+            socket.create_connection(("127.0.0.1", port), timeout=0.2).close()
+            break
+        except OSError:
+            time.sleep(0.1)
+    return server, f"http://127.0.0.1:{port}"
+
+
 def cpu_s(pid: int) -> float:
     """CPU seconds (user + system) the process ``pid`` has used."""
     fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
