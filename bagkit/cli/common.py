@@ -18,7 +18,7 @@ import traceback
 import warnings
 from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, NoReturn, ParamSpec, TypeVar, cast
+from typing import TYPE_CHECKING, Annotated, Any, NoReturn, ParamSpec, TypeVar, cast, overload
 
 import typer
 
@@ -194,16 +194,33 @@ def print_json(data: Any) -> None:
     sys.stdout.write(json.dumps(data, indent=2, allow_nan=True) + "\n")
 
 
-def handle_errors(func: Callable[P, R]) -> Callable[P, R]:
+@overload
+def handle_errors(func: Callable[P, R], /) -> Callable[P, R]: ...
+
+
+@overload
+def handle_errors(*, take_sigint: bool) -> Callable[[Callable[P, R]], Callable[P, R]]: ...
+
+
+def handle_errors(
+    func: Callable[P, R] | None = None, /, *, take_sigint: bool = False
+) -> Callable[P, R] | Callable[[Callable[P, R]], Callable[P, R]]:
     """Turn bagkit errors into one stderr line and their exit code; Ctrl-C into exit 130.
 
-    Anything else is a bug and goes on to :func:`run_app`.
+    Anything else is a bug and goes on to :func:`run_app`. ``take_sigint``: a command that
+    runs until stopped (play) stops on SIGINT even when its process started with SIGINT
+    ignored, as a shell script's ``bagkit play ... &`` does (``ros2 bag play`` stops too).
     """
+    if func is None:
+        return functools.partial(_handling_errors, take_sigint=take_sigint)
+    return _handling_errors(func, take_sigint=take_sigint)
 
+
+def _handling_errors(func: Callable[P, R], *, take_sigint: bool) -> Callable[P, R]:
     @functools.wraps(func)
     def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
         warnings.showwarning = _warning_line
-        interrupted = _InterruptLatch()
+        interrupted = _InterruptLatch(take_ignored=take_sigint)
         try:
             with interrupted:
                 result = func(*args, **kwargs)
@@ -239,20 +256,21 @@ class _InterruptLatch:
     quiet, raises the interrupt again in the main thread, and remembers it for the exit code.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, *, take_ignored: bool = False) -> None:
         self.seen = False
+        self._take_ignored = take_ignored
         self._previous: Any = None
         self._previous_unraisable: Any = None
         self._again: threading.Timer | None = None
 
     def __enter__(self) -> None:
         current = signal.getsignal(signal.SIGINT)
-        # Only the default handler is wrapped: an ignored SIGINT stays ignored, and signal
-        # handlers can only be set from the main thread.
-        if (
-            current is signal.default_int_handler
-            and threading.current_thread() is threading.main_thread()
-        ):
+        # Only the default handler is wrapped (an ignored SIGINT stays ignored unless taken),
+        # and signal handlers can only be set from the main thread.
+        taken = current is signal.default_int_handler or (
+            self._take_ignored and current == signal.SIG_IGN
+        )
+        if taken and threading.current_thread() is threading.main_thread():
             self._previous = current
             signal.signal(signal.SIGINT, self._on_sigint)
             self._previous_unraisable = sys.unraisablehook

@@ -134,7 +134,7 @@ HELP_OPTIONS = CONTEXT_SETTINGS
 @app.command(
     "replay", cls=ReplayCommand, no_args_is_help=True, help=HELP, context_settings=HELP_OPTIONS
 )
-@handle_errors
+@handle_errors(take_sigint=True)
 def replay(  # noqa: PLR0917 (typer maps parameters to options)
     bags: Bags = None,
     rate: Rate = 1.0,

@@ -72,8 +72,15 @@ def test_cli_replays_a_rosbag2_recording(
     ]
 
 
+def _ignore_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+# "ignored": started as a shell script's `bagkit play ... &` (bash ignores SIGINT in its
+# background jobs); `kill -INT` must stop it all the same, as it stops `ros2 bag play`.
+@pytest.mark.parametrize("sigint", ["default", "ignored"])
 def test_cli_loop_until_ctrl_c(
-    test_bag: Path, listener_factory: type[Listener], processes: Any
+    test_bag: Path, listener_factory: type[Listener], processes: Any, sigint: str
 ) -> None:
     per_pass = len(recorded(test_bag))
     listener = listener_factory(STRING_TOPICS)
@@ -95,6 +102,7 @@ def test_cli_loop_until_ctrl_c(
         stderr=subprocess.PIPE,
         text=True,
         env={**os.environ, "PYTHONFAULTHANDLER": "1"},  # SIGABRT prints every thread's stack
+        preexec_fn=_ignore_sigint if sigint == "ignored" else None,
     )
     listener.wait_for_count(2 * per_pass + 1, timeout=20)
     os.killpg(proc.pid, signal.SIGINT)
