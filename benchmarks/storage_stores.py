@@ -19,15 +19,19 @@ from typing import Any
 REPO = Path(__file__).resolve().parents[1]
 
 
-def start_moto() -> tuple[subprocess.Popen[bytes], str]:
-    """moto's S3 server on a free port of 127.0.0.1, and its endpoint."""
+def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
+        return int(s.getsockname()[1])
+
+
+def _serving(
+    command: list[str], port: int, env: dict[str, str] | None = None
+) -> tuple[subprocess.Popen[bytes], str]:
+    """Start a server's ``command`` and wait (up to 30 s) until ``port`` of 127.0.0.1 takes
+    connections; the process and its endpoint."""
     server = subprocess.Popen(
-        [str(Path(sys.executable).with_name("moto_server")), "-H", "127.0.0.1", "-p", str(port)],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
+        command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env
     )
     for _ in range(300):
         try:
@@ -36,6 +40,13 @@ def start_moto() -> tuple[subprocess.Popen[bytes], str]:
         except OSError:
             time.sleep(0.1)
     return server, f"http://127.0.0.1:{port}"
+
+
+def start_moto() -> tuple[subprocess.Popen[bytes], str]:
+    """moto's S3 server on a free port of 127.0.0.1, and its endpoint."""
+    port = _free_port()
+    moto = str(Path(sys.executable).with_name("moto_server"))
+    return _serving([moto, "-H", "127.0.0.1", "-p", str(port)], port)
 
 
 S3RVER = REPO / ".s3rver" / "node_modules" / ".bin" / "s3rver"
@@ -45,26 +56,12 @@ def start_s3rver(directory: Path, bucket: str) -> tuple[subprocess.Popen[bytes],
     """s3rver (an S3-compatible server of npm that keeps each object as a file under
     ``directory``, ``make bench`` installs it) on a free port of 127.0.0.1 with ``bucket``,
     and its endpoint."""
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
+    port = _free_port()
     command = [str(S3RVER), "-d", str(directory), "-a", "127.0.0.1", "-p", str(port)]
     # Its listings' continuation tokens are DES-encrypted: Node's OpenSSL 3 keeps DES in the
     # legacy provider (without it a listing of more than 1,000 keys is HTTP 500).
     env = {**os.environ, "NODE_OPTIONS": "--openssl-legacy-provider"}
-    server = subprocess.Popen(
-        [*command, "--configure-bucket", bucket, "--silent"],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-        env=env,
-    )
-    for _ in range(300):
-        try:
-            socket.create_connection(("127.0.0.1", port), timeout=0.2).close()
-            break
-        except OSError:
-            time.sleep(0.1)
-    return server, f"http://127.0.0.1:{port}"
+    return _serving([*command, "--configure-bucket", bucket, "--silent"], port, env)
 
 
 def cpu_s(pid: int) -> float:
