@@ -110,12 +110,14 @@ def _check_no_topic(where: str) -> None:
     Raises:
         SelectionError: ``where`` is a topic and a condition.
     """
-    from bagkit.selection.conditions import parse_topic_condition
+    from bagkit.selection.conditions import topic_of
     from bagkit.selection.errors import SelectionError
 
     try:
-        named = parse_topic_condition(where)
-    except SelectionError:
+        named = topic_of(where)
+    except SelectionError:  # a topic and a bad condition: the condition's own error, below
+        return
+    if named is None:
         return
     raise SelectionError(
         f"--where {where!r}: this command's --where takes the condition alone (--where "

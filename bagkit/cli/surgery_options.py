@@ -103,21 +103,13 @@ KeepWhere = Annotated[
 def topic_of_where(where: str | None) -> tuple[str | None, str | None]:
     """``--where``'s topic, if it names one (``'TOPIC: CONDITION'``), and its condition.
 
-    A condition holds a colon only inside a quoted text, after a blank or a quote: what comes
-    before the first colon of ``where`` is then no topic name.
-
     Raises:
         SelectionError: a topic and a condition that does not parse.
     """
-    from bagkit.selection.conditions import parse_topic_condition
+    from bagkit.selection.conditions import topic_of
 
-    if where is None:
-        return None, None
-    name, colon, _ = where.partition(":")
-    if not colon or not name.strip() or any(c.isspace() or c in "'\"" for c in name.strip()):
-        return None, where
-    named = parse_topic_condition(where)
-    return named.topic, named.condition.text
+    named = None if where is None else topic_of(where)
+    return (None, where) if named is None else (named.topic, named.condition.text)
 
 
 # The fields an --around error names (surgery.around, regression.add) as the flags that set them.

@@ -201,6 +201,22 @@ def parse_topic_condition(text: str) -> TopicCondition:
     return TopicCondition(absolute_topic_name(name), condition)
 
 
+def topic_of(text: str) -> TopicCondition | None:
+    """``text`` as a topic and its condition when it names a topic (``'TOPIC: CONDITION'``),
+    None when it is a condition alone (``--where`` takes either).
+
+    A condition holds a colon only inside a quoted text, after a blank or a quote: what comes
+    before the first colon is then no topic name.
+
+    Raises:
+        SelectionError: a topic and a condition that does not parse.
+    """
+    name, colon, _ = text.partition(":")
+    if not colon or not name.strip() or any(c.isspace() or c in "'\"" for c in name.strip()):
+        return None
+    return parse_topic_condition(text)
+
+
 def leaves_read(node: Comparison | Check, leaf_paths: Sequence[str]) -> list[str]:
     """The leaf paths a comparison reads; isnan/isinf read every leaf below their path (or
     every leaf with ``*``)."""

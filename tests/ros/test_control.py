@@ -24,9 +24,9 @@ START_NS = 1_700_000_000_000_000_000
 pytestmark = pytest.mark.ros  # every test starts participants, in bagkit subprocesses too
 
 
-def _control(*args: str) -> subprocess.CompletedProcess[str]:
+def _control(*args: str, wait: str = "15") -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [BAGKIT, "control", *args, "--timeout", "15"],
+        [BAGKIT, "control", *args, "--timeout", wait],
         capture_output=True,
         text=True,
         timeout=60,
@@ -102,13 +102,7 @@ def test_controls_of_a_recorder(tmp_path: Path, processes: Any, node: Node) -> N
     assert _control("pause").returncode == 0
     assert _control("is_paused").stdout.strip() == "/bagkit_recorder is_paused: yes (paused)"
     # A recorder without --snapshot-mode: not "is it running?", but what it offers instead.
-    snapshot = subprocess.run(
-        [BAGKIT, "control", "snapshot", "--timeout", "1"],
-        capture_output=True,
-        text=True,
-        timeout=60,
-        check=False,
-    )
+    snapshot = _control("snapshot", wait="1")
     assert snapshot.returncode == 2, snapshot
     (line,) = snapshot.stderr.splitlines()
     assert line.startswith("error: no recorder or player offers 'snapshot' on ROS_DOMAIN_ID")
@@ -123,12 +117,6 @@ def test_controls_of_a_recorder(tmp_path: Path, processes: Any, node: Node) -> N
 
 
 def test_no_node_offers_the_control() -> None:
-    done = subprocess.run(
-        [BAGKIT, "control", "pause", "--timeout", "0.5"],
-        capture_output=True,
-        text=True,
-        timeout=60,
-        check=False,
-    )
+    done = _control("pause", wait="0.5")
     assert done.returncode == 2
     assert done.stderr.startswith("error: no recorder or player offers 'pause' on ROS_DOMAIN_ID")
