@@ -18,6 +18,7 @@ from bagkit.cli.common import ReportFormat, console, print_json, warn
 from bagkit.cli.option_parsing import MultiValueCommand, bag_location, byte_size, split_list
 from bagkit.selection.times import format_ns
 from bagkit.surgery.rewrite import OutputOptions, RewriteReport
+from bagkit.words import counted
 
 if TYPE_CHECKING:
     from bagkit.data.episodes import Episodes
@@ -171,9 +172,10 @@ def print_report(report: RewriteReport, output_format: ReportFormat) -> None:
         print_json(report.to_dict())
     else:
         console.print(
-            f"wrote {report.output}: {report.message_count:,} messages "
-            f"({len(report.topic_counts)} topics, {len(report.files)} files, "
-            f"{report.chunks_copied} chunks copied as stored"
+            f"wrote {report.output}: {counted(report.message_count, 'message')} "
+            f"({counted(len(report.topic_counts), 'topic')}, "
+            f"{counted(len(report.files), 'file')}, "
+            f"{counted(report.chunks_copied, 'chunk')} copied as stored"
             + (f", {report.latched_messages} latched" if report.latched_messages else "")
             + ")",
             highlight=False,
