@@ -19,6 +19,7 @@ from bagkit.cli.option_parsing import MultiValueCommand, bag_location, byte_size
 from bagkit.cli.tables import print_line
 from bagkit.selection.times import format_ns
 from bagkit.surgery.rewrite import OutputOptions, RewriteReport
+from bagkit.words import counted
 
 if TYPE_CHECKING:
     from bagkit.data.episodes import Episodes
@@ -173,9 +174,10 @@ def print_report(report: RewriteReport, output_format: ReportFormat, prefix: str
     else:
         print_line(
             [
-                f"{prefix}wrote {report.output}: {report.message_count:,} messages "
-                f"({len(report.topic_counts)} topics, {len(report.files)} files, "
-                f"{report.chunks_copied} chunks copied as stored"
+                f"{prefix}wrote {report.output}: {counted(report.message_count, 'message')} "
+                f"({counted(len(report.topic_counts), 'topic')}, "
+                f"{counted(len(report.files), 'file')}, "
+                f"{counted(report.chunks_copied, 'chunk')} copied as stored"
                 + (f", {report.latched_messages} latched" if report.latched_messages else "")
                 + ")"
             ]
