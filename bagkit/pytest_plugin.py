@@ -30,6 +30,8 @@ from typing import TYPE_CHECKING, Any
 
 import pytest
 
+from bagkit.words import counted
+
 if TYPE_CHECKING:
     from bagkit.compare.result import TopicResult
     from bagkit.health import HealthReport
@@ -352,13 +354,13 @@ def verdict(check: GoldenCheck, most: int = 3) -> str:
     topics = check.report.topics
     if check.drift:
         drifted = [f"{d.topic}: drifted ({'; '.join(d.changes)})" for d in check.drift]
-        more = f"; and {len(drifted) - most} more topic(s)" if len(drifted) > most else ""
+        more = f"; and {counted(len(drifted) - most, 'more topic')}" if len(drifted) > most else ""
         return "; ".join(drifted[:most]) + more
     if check.passed:
         matched = sum(t.matched for t in topics)
-        return f"{len(topics)} topic(s), {matched} messages match the golden"
+        return f"{counted(len(topics), 'topic')}, {counted(matched, 'message')} match the golden"
     failing = [_topic_verdict(t) for t in topics if not t.passed]
-    more = f"; and {len(failing) - most} more topic(s)" if len(failing) > most else ""
+    more = f"; and {counted(len(failing) - most, 'more topic')}" if len(failing) > most else ""
     return "; ".join(failing[:most]) + more
 
 

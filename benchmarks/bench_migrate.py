@@ -1,13 +1,16 @@
 """``bagkit migrate`` of a 1M-message Imu bag whose stored Imu lacks one field of today's
 (``linear_acceleration_covariance``), against two ``bagkit filter`` runs of the same bag
-measured in the same run: of every topic (chunks copied as stored: no decompression beyond the
-CRC check, no recompression; the target's figure), and with a ``--where`` that every message
-passes (every chunk opened, one field of every message decoded, the records written into new
-chunks and compressed: the read-and-write work, so that what migrate adds is the decode and
-encode of every field). And the peak memory of migrate, in a child process of its own, against
-the bag's size (flat: it must not grow with the bag). And the floor no migration gets under:
-the CPU of decompressing the input's chunks and of compressing the migrated records as the
-output stores them (bagkit's zstd), chunk by chunk on this thread.
+measured in the same run. The target (issue 39: ">= 0.5 of ``bagkit filter`` on the same bag,
+the decode and encode are the extra work") is taken against the filter that reads and writes
+what migrate reads and writes: a ``--where`` that every message passes, so that every chunk is
+opened, one field of every message decoded, the records written into new chunks and
+compressed; what migrate adds is the decode and encode of every field. The filter of every
+topic is printed beside it: it copies chunks as stored (no decompression beyond the CRC check,
+no recompression), so against it migrate also pays the recompression of every byte, and the
+floor printed last (the CPU of decompressing the input's chunks and of compressing the
+migrated records as the output stores them, bagkit's zstd, chunk by chunk on this thread)
+bounds that ratio. And the peak memory of migrate, in a child process of its own, against the
+bag's size (flat: it must not grow with the bag).
 
 Run: ``.venv/bin/python -m benchmarks migrate``
 """
@@ -141,7 +144,8 @@ def main() -> bool:
         unpack, pack = _floor(bag, Path(tmp) / "migrate")
         _, rss_small, _ = _run("migrate", small, Path(tmp) / "small_out")
         rss = min(r for _, r, _ in runs["migrate"])
-    ratio = wall["filter"] / wall["migrate"]
+    ratio = wall["rewrite"] / wall["migrate"]
+    copy_ratio = wall["filter"] / wall["migrate"]
     print(f"  bag: {MESSAGES:,} Imu messages, {size / 1e6:.0f} MB, one field added by migrate")
     # CPU: all threads, the interpreter's start-up included. On a loaded machine each process
     # gets a share of the cores: the CPU ratio is what the time ratio tends to there, the time
@@ -153,13 +157,12 @@ def main() -> bool:
     ):
         print(f"  {what}: {wall[command]:.2f} s, {cpu[command]:.2f} s CPU")
     print(
-        f"  migrate / filter (chunks copied) throughput: {ratio:.2f} (target >= "
-        f"{RATIO_TARGET}), CPU {cpu['filter'] / cpu['migrate']:.2f}"
+        "  migrate / filter --where (chunks rewritten, the target's peer) throughput: "
+        f"{ratio:.2f} (target >= {RATIO_TARGET}), CPU {cpu['rewrite'] / cpu['migrate']:.2f}"
     )
     print(
-        "  migrate / filter --where (rewritten) throughput: "
-        f"{wall['rewrite'] / wall['migrate']:.2f}, CPU {cpu['rewrite'] / cpu['migrate']:.2f}"
-        " (the peer the target's wording describes: 'the decode and encode are the extra work')"
+        f"  migrate / filter (chunks copied as stored) throughput: {copy_ratio:.2f}, "
+        f"CPU {cpu['filter'] / cpu['migrate']:.2f}"
     )
     floor = (unpack + pack) / 2
     print(

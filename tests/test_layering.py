@@ -85,7 +85,7 @@ def test_no_private_module_of_another_package(path: Path) -> None:
 
 # bagkit's packages and top-level modules from the bottom up: each imports only lower layers.
 LAYERS: tuple[frozenset[str], ...] = (
-    frozenset({"errors", "version", "compat", "own_environment"}),
+    frozenset({"errors", "version", "compat", "own_environment", "words"}),
     frozenset({"processes", "prefetch", "extras", "native", "storage"}),
     frozenset({"selection"}),
     frozenset({"bag"}),

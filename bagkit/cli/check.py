@@ -16,6 +16,7 @@ from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers, end_with_unr
 from bagkit.cli.option_parsing import bag_location
 from bagkit.cli.selection_options import End, Start, build_query
 from bagkit.cli.tables import Styled, print_line
+from bagkit.words import counted
 
 if TYPE_CHECKING:
     from bagkit.health import CheckResult, HealthReport
@@ -152,7 +153,7 @@ def _print(report: "HealthReport") -> None:
         else Styled(f"{len(broken)} broken", "bold red")
     )
     count = len(report.assertions)
-    print_line([f"{report.bag}: {count} assertion{'' if count == 1 else 's'}, ", verdict])
+    print_line([f"{report.bag}: {counted(count, 'assertion')}, ", verdict])
     for assertion in broken:
         # The assertion and where it broke fit 80 columns; commands and links stay whole.
         lines = [assertion.where(report.start_ns)]

@@ -6,11 +6,12 @@ from pathlib import Path
 
 import typer
 
-from bagkit.cli.common import ReportFormat, console, err_console, handle_errors, print_json
+from bagkit.cli.common import ReportFormat, console, err_console, handle_errors, print_json, status
 from bagkit.cli.option_parsing import LOCAL_BAG_HELP
 from bagkit.cli.selection_options import Distro
 from bagkit.cli.surgery_options import Format
 from bagkit.surgery.doctor import DoctorReport, diagnose
+from bagkit.words import counted
 
 HELP = """Check a bag like mcap doctor, for whole rosbag2 bags: chunk CRCs, message and chunk
 indexes against the records, the summary against the content, metadata.yaml against the files
@@ -44,7 +45,7 @@ def doctor(
     """Check a bag; one line per problem."""
     if against_installed:
         _drift(bag, output_format)
-    with err_console.status(f"checking {bag}"):
+    with status(f"checking {bag}"):
         report = diagnose(bag, deep=deep)
     if output_format == ReportFormat.JSON:
         print_json(report.to_dict())
@@ -53,8 +54,8 @@ def doctor(
             console.print(finding.line, highlight=False, soft_wrap=True, markup=False)
         if report.healthy:
             console.print(
-                f"{bag}: healthy ({report.message_count:,} messages in "
-                f"{len(report.files)} files{_decoded(report) if deep else ''})",
+                f"{bag}: healthy ({counted(report.message_count, 'message')} in "
+                f"{counted(len(report.files), 'file')}{_decoded(report) if deep else ''})",
                 highlight=False,
                 soft_wrap=True,
                 markup=False,
@@ -65,7 +66,7 @@ def doctor(
 def _decoded(report: DoctorReport) -> str:
     """What of the messages was decoded (``--deep``)."""
     if report.undecoded:
-        return f", {len(report.undecoded)} topics not decoded: no definition"
+        return f", {counted(len(report.undecoded), 'topic')} not decoded: no definition"
     return ", all decoded"
 
 

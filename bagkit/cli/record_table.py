@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 from bagkit.cli.common import format_rate
 from bagkit.cli.tables import INDENT, Column, Styled, Table, print_line, print_table, print_wrapped
 from bagkit.recording.loss_causes import large_message_cause
+from bagkit.words import counted
 
 if TYPE_CHECKING:
     from bagkit.recording.report import RecordProgress, RecordReport
@@ -81,7 +82,8 @@ def _print_snapshots(report: RecordReport) -> None:
     assert report.snapshots is not None
     evicted = sum(report.evicted.values())
     print_wrapped(
-        f"snapshot mode: {len(report.snapshots)} snapshot(s); {evicted} messages evicted from "
+        f"snapshot mode: {counted(len(report.snapshots), 'snapshot')}; "
+        f"{counted(evicted, 'message')} evicted from "
         "the buffer by its bound (not lost: not kept by design)".split(" ")
     )
     for snapshot in report.snapshots:
@@ -92,7 +94,7 @@ def _print_snapshots(report: RecordReport) -> None:
             f"{snapshot.path.name}: {span:.1f} s ({before:.1f} s before the trigger), "
             f"trigger {snapshot.trigger}"
             + (f" (x{snapshot.triggers})" if snapshot.triggers > 1 else "")
-            + f", {sum(snapshot.messages.values())} messages ({held or 'none'})"
+            + f", {counted(sum(snapshot.messages.values()), 'message')} ({held or 'none'})"
             + f", {snapshot.latched} latched at its start"
             + (f", FAILED: {snapshot.error}" if snapshot.error else "")
         )
@@ -103,7 +105,7 @@ def _print_health(report: RecordReport) -> None:
     """--health: per assertion that broke, how often it broke and cleared."""
     assert report.health is not None
     broke = [count for count in report.health if count.breaks]
-    print_wrapped(f"health: {len(report.health)} checks, {len(broke)} broke".split(" "))
+    print_wrapped(f"health: {counted(len(report.health), 'check')}, {len(broke)} broke".split(" "))
     for count in broke:
         still = ", broken at the end" if count.broken_since_ns is not None else ""
         line = (
@@ -122,8 +124,10 @@ def progress_line(progress: RecordProgress, *, subscribed: bool) -> str:
     if progress.paused:
         lost += f", {progress.paused} while paused"
     if progress.is_paused:
-        return f"paused (space or ~/resume to resume): {progress.messages} messages{lost}"
+        return (
+            f"paused (space or ~/resume to resume): {counted(progress.messages, 'message')}{lost}"
+        )
     return (
-        f"recording {progress.topics} topics: {progress.messages} messages, "
+        f"recording {counted(progress.topics, 'topic')}: {counted(progress.messages, 'message')}, "
         f"{_human_bytes(progress.bytes)}{lost} ({progress.elapsed_s:.0f} s)"
     )

@@ -28,6 +28,7 @@ from bagkit.cli.progress import DelayedProgress
 from bagkit.cli.selection_options import Distro, End, Start, Where, build_query
 from bagkit.cli.stats_options import Bulk, Fields, Format, Inputs, Topics
 from bagkit.cli.tables import Cell, Column, Styled, Table, print_line, print_table, print_wrapped
+from bagkit.words import counted
 
 if TYPE_CHECKING:
     from bagkit.stats import FieldStats, Summary
@@ -171,7 +172,7 @@ def _print_services(services: list[dict[str, Any]]) -> None:
             [
                 *where,
                 Styled(service["service"], "bold"),
-                f"latency: {service['count']} calls,",
+                f"latency: {counted(service['count'], 'call')},",
                 *figures,
             ],
             sep="  ",
@@ -246,7 +247,7 @@ def _print_tables(result: "Summary") -> None:
             *(Styled(bag, "bold") for bag in bags),
             f"{result.duration_s:.3f} s,",
             *span,
-            f"{len(result.topics)} topics",
+            counted(len(result.topics), "topic"),
         ]
     )
     for topic in result.topics:

@@ -34,6 +34,7 @@ from bagkit.selection.topics import did_you_mean, require_topics
 from bagkit.selection.windows import Window, outside_warning
 from bagkit.storage.errors import StorageError
 from bagkit.storage.urls import location, shown_as
+from bagkit.words import counted
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -79,9 +80,8 @@ class Assertion:
         if not len(self.spans):
             return ""
         start, end, _ = self.spans[0].tolist()
-        times = "1 time" if len(self.spans) == 1 else f"{len(self.spans)} times"
         return (
-            f"{times}, first at {(start - bag_start_ns) / 1e9:.3f}"
+            f"{counted(len(self.spans), 'time')}, first at {(start - bag_start_ns) / 1e9:.3f}"
             f"-{(end - bag_start_ns) / 1e9:.3f} s"
         )
 

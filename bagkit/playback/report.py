@@ -7,6 +7,7 @@ from typing import Any
 
 from bagkit.playback.service_responses import ServiceReplaySummary
 from bagkit.playback.timing import LatenessSummary
+from bagkit.words import counted
 
 
 @dataclass(frozen=True, slots=True)
@@ -58,11 +59,9 @@ class SubscriberWait:
 
     def line(self) -> str:
         """``waited 0.4 s for 2 subscriptions on 1 topic``."""
-        subscriptions = "subscription" if self.subscriptions == 1 else "subscriptions"
-        topics = "topic" if self.topics == 1 else "topics"
         return (
-            f"waited {self.seconds:.1f} s for {self.subscriptions} {subscriptions} on "
-            f"{self.topics} {topics}"
+            f"waited {self.seconds:.1f} s for {counted(self.subscriptions, 'subscription')} "
+            f"on {counted(self.topics, 'topic')}"
         )
 
 

@@ -33,6 +33,7 @@ if TYPE_CHECKING:
     from bagkit.decode.matcher import PayloadMatcher
     from bagkit.selection.conditions import Condition
 from bagkit.storage.urls import location, shown_as
+from bagkit.words import counted
 
 ProgressCallback = Callable[[int, int], None]
 """Called with (messages done, messages in total) as the summary advances."""
@@ -342,7 +343,7 @@ def _no_field_message(run: SummaryRun) -> str:
     qualified = [f"{topic}:{path}" for topic, paths in numeric.items() for path in paths]
     bare = [path for paths in numeric.values() for path in paths]
     guess = did_you_mean(patterns[0], qualified if ":" in patterns[0] else bare).rstrip()
-    listing = f"{len(numeric)} topics, {len(bare)} numeric fields"
+    listing = f"{counted(len(numeric), 'topic')}, {counted(len(bare), 'numeric field')}"
     return f"no topic has a numeric field {', '.join(patterns)} ({guess or listing})"
 
 

@@ -21,6 +21,7 @@ from collections.abc import Iterable
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from bagkit.bag.definitions import DEFINITION_ENCODINGS, canonical_type_name
 from bagkit.bag.errors import ChunkError
@@ -31,8 +32,10 @@ from bagkit.bag.mcapio.records import ChunkIndex
 from bagkit.bag.messages import TopicInfo
 from bagkit.surgery.options import TopicRewrite
 from bagkit.surgery.output import OutputBag
-from bagkit.surgery.runs import Run, emit, open_run
 from bagkit.surgery.select import PayloadFilter, Selection
+
+if TYPE_CHECKING:
+    from bagkit.surgery.runs import Run
 
 _END = 1 << 64
 # Chunks read and waiting for their CRC check: enough to keep every core busy.
@@ -171,13 +174,13 @@ def copy_files(
             waiting = [s for s in streams if s.head is not None]
             if not waiting:
                 copies.flush()
-                emit(pending, _END, 0, out)
+                _emit(pending, _END, 0, out)
                 return
             stream = min(waiting, key=_Stream.next_block_start)
             if pending:
                 copies.flush()
             # Messages before the block (equal times: those of earlier blocks or inputs) go first.
-            emit(pending, stream.next_block_start(), stream.order, out)
+            _emit(pending, stream.next_block_start(), stream.order, out)
             block = stream.pop()
             bound = min(s.next_block_start() for s in streams)
             if pending:
@@ -250,6 +253,8 @@ def _open(
     except ChunkError as exc:
         _lost(file, block, str(exc))
         return
+    from bagkit.surgery.runs import open_run  # numpy: not imported while chunks are copied
+
     run, bad = open_run(
         contents.records,
         contents.message_index,
@@ -267,6 +272,14 @@ def _open(
             f"{file.path.name}: chunk at byte {extent(block)[0]}: {bad} message index entries "
             "point at no message: those messages are lost"
         )
+
+
+def _emit(pending: list[Run], before_time: int, before_rank: int, out: OutputBag) -> None:
+    """Write the pending messages before ``(before_time, before_rank)``, if any."""
+    if pending:
+        from bagkit.surgery.runs import emit
+
+        emit(pending, before_time, before_rank, out)
 
 
 def _lost(file: InputFile, block: Block, what: str) -> None:

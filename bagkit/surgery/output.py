@@ -19,10 +19,10 @@ import os
 import shutil
 from collections import deque
 from concurrent.futures import Future, ThreadPoolExecutor
+from functools import cache
 from pathlib import Path
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
-import numpy as np
 from mcap.well_known import Profile
 
 from bagkit.bag.bag_files import bag_metadata, compressor, file_information, finish_storage_file
@@ -45,17 +45,9 @@ from bagkit.selection.times import seconds_to_ns
 from bagkit.surgery.errors import SurgeryError
 from bagkit.surgery.options import OutputOptions
 
-# A Message record up to its payload, as MESSAGE_RECORD_HEADER packs it.
-_RECORD_HEADER = np.dtype(
-    [
-        ("opcode", "u1"),
-        ("length", "<u8"),
-        ("channel", "<u2"),
-        ("sequence", "<u4"),
-        ("log_time", "<u8"),
-        ("publish_time", "<u8"),
-    ]
-)
+if TYPE_CHECKING:
+    import numpy as np
+
 # What --force may replace: a bag directory holds these files only (rosbag2 writes no folders).
 _BAG_SUFFIXES = (".mcap", ".db3", ".yaml", ".zstd", ".lz4")
 # The smallest chunk a split output gets: a split size holds four at least.
@@ -268,6 +260,8 @@ class OutputBag:
         times: np.ndarray,
     ) -> None:
         """Append whole Message records (channel ids already this bag's), chunk by chunk."""
+        import numpy as np  # not imported where every chunk is copied as stored
+
         view = memoryview(data)  # slices without copies: the chunk copies what it takes
         ends = offsets + lengths
         i, n = 0, len(offsets)
@@ -299,11 +293,13 @@ class OutputBag:
         records packed at once (the message-by-message copy's bulk write)."""
         if not messages:
             return
+        import numpy as np  # not imported where every chunk is copied as stored
+
         count = len(messages)
         lengths = np.fromiter((len(m.data) for m in messages), np.int64, count)
         times = np.fromiter((m.log_time for m in messages), np.uint64, count)
         channels = np.array(channel_ids, np.uint16)
-        headers = np.empty(count, _RECORD_HEADER)
+        headers = np.empty(count, _record_header())
         headers["opcode"] = Opcode.MESSAGE
         headers["length"] = lengths + MESSAGE_PREFIX.size
         headers["channel"] = channels
@@ -441,3 +437,20 @@ class OutputBag:
         counts = self.counts if counts is None else counts
         topics = [(t, counts[self.channels[n].id]) for n, t in self.topics.items()]
         return bag_metadata(self._files if files is None else files, topics, self.custom_data)
+
+
+@cache
+def _record_header() -> np.dtype:
+    """A Message record up to its payload, as MESSAGE_RECORD_HEADER packs it."""
+    import numpy as np
+
+    return np.dtype(
+        [
+            ("opcode", "u1"),
+            ("length", "<u8"),
+            ("channel", "<u2"),
+            ("sequence", "<u4"),
+            ("log_time", "<u8"),
+            ("publish_time", "<u8"),
+        ]
+    )

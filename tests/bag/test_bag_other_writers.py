@@ -248,7 +248,7 @@ def test_rolling_bag_actions_idl_and_schemas_per_topic(tmp_path: Path) -> None:
     fields = {f["field"]: f for f in stats["topics"][0]["fields"]}
     assert fields["count"]["mean"] == pytest.approx(12.0)
     total = sum(len(messages) for messages in written.values())
-    assert f"healthy ({total} messages in 1 files, all decoded)" in ok("doctor", "--deep", path)
+    assert f"healthy ({total} messages in 1 file, all decoded)" in ok("doctor", "--deep", path)
     out = tmp_path / "filtered"
     ok("filter", path, "-o", out, "--topics", "/reading_v1", "/reading_v2", "/idl_header")
     for topic in ("/reading_v1", "/reading_v2", "/idl_header"):

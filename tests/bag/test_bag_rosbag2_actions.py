@@ -120,7 +120,7 @@ def test_action_topics_decode_as_rosbag2_stores_them(tmp_path: Path, variant: st
     total = sum(len(m) for m in written.values())
     done = _run("doctor", "--deep", bag)
     assert done.returncode == 0, done.stdout + done.stderr
-    assert f"healthy ({total} messages in 1 files, all decoded)" in done.stdout
+    assert f"healthy ({total} messages in 1 file, all decoded)" in done.stdout
 
 
 def test_doctor_names_topics_without_a_definition(tmp_path: Path) -> None:

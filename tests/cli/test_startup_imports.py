@@ -6,12 +6,14 @@ from __future__ import annotations
 
 import importlib
 import inspect
+import json
 import os
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from bagkit_runs import bagkit_in_process
 
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 FIXTURES = Path(__file__).resolve().parents[2] / "fixtures"
@@ -87,7 +89,7 @@ CASES = {
 }
 
 
-def imported_at_start(args: list[str]) -> tuple[set[str], str]:
+def imported_at_start(args: list[str], exit_code: int = 0) -> tuple[set[str], str]:
     """The modules ``bagkit ARGS`` imports (by ``-X importtime``), and its stdout."""
     done = subprocess.run(
         [sys.executable, "-X", "importtime", BAGKIT, *args],
@@ -96,7 +98,7 @@ def imported_at_start(args: list[str]) -> tuple[set[str], str]:
         timeout=120,
         check=False,
     )
-    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.returncode == exit_code, done.stderr[-2000:]
     modules = {
         line.rsplit("|", 1)[1].strip()
         for line in done.stderr.splitlines()
@@ -113,6 +115,26 @@ def test_a_quick_command_imports_no_heavy_module(case: str) -> None:
     assert "bagkit.bag.reader" in modules  # and the check sees what ran
     heavy = sorted(n for n in modules if any(n == f or n.startswith(f"{f}.") for f in forbidden))
     assert not heavy, f"bagkit {' '.join(args)} imports {heavy}"
+
+
+def test_recover_copying_every_chunk_imports_no_numpy(tmp_path: Path) -> None:
+    # A bag cut short: every whole chunk is copied as stored, its CRC checked, its Message
+    # Index records taken as stored; numpy is for the chunks that must be opened, rich for a
+    # terminal.
+    (stored,) = PLAIN_BAG.glob("*.mcap")
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(stored.read_bytes()[: stored.stat().st_size * 3 // 4])
+    out = tmp_path / "recovered"
+    modules, stdout = imported_at_start(["recover", str(cut), "-o", str(out)], exit_code=3)
+    assert "copied as stored" in stdout
+    assert "bagkit.surgery.copy" in modules
+    assert not {"numpy", "bagkit.surgery.runs", "bagkit.decode", "rich"} & modules
+    # The fixture's one chunk lies before the cut: every message is recovered.
+    counts = [
+        json.loads(bagkit_in_process(["info", str(bag), "--format", "json"]).stdout)
+        for bag in (out, PLAIN_BAG)
+    ]
+    assert counts[0]["message_count"] == counts[1]["message_count"] > 0
 
 
 def _threads_after_numpy(environment: dict[str, str]) -> int:

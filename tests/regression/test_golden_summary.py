@@ -70,7 +70,7 @@ def test_a_pass_then_a_mutation_that_fails_lockstep(project: Path) -> None:
     head, rows = table((project / SUMMARY).read_text())
     assert head == "## Golden fixtures: pass (1)"
     topics, messages = golden_output_counts(project)
-    matched = f"{topics} topic(s), {messages} messages match the golden"
+    matched = f"{topics} topics, {messages:,} messages match the golden"
     assert rows == [["office", "lockstep", "passed", matched, ""]]
 
     core = project / "thermostat" / "core.py"

@@ -92,6 +92,16 @@ def test_mcap_to_db3_and_back_keeps_messages_definitions_and_qos(
         assert "transient_local" in channel.metadata["offered_qos_profiles"]
 
 
+def test_the_summary_line_agrees_count_and_noun(mixed: Path, tmp_path: Path) -> None:
+    out = tmp_path / "one"
+    result = run_here("convert", str(mixed), "-o", str(out))
+    assert result.returncode == 0, result.stderr
+    assert len(_mcap_files(out)) == 1
+    count = len(mcap_messages(_mcap_files(out)))
+    assert result.stdout.strip().startswith(f"wrote {out}: {count:,} messages ("), result.stdout
+    assert ", 1 file, " in result.stdout, result.stdout
+
+
 @pytest.mark.parametrize(("compression", "stored"), [("lz4", "lz4"), ("none", "")])
 def test_recompression(mixed: Path, tmp_path: Path, compression: str, stored: str) -> None:
     out = tmp_path / "recompressed"

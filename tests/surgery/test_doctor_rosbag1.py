@@ -43,7 +43,7 @@ def test_rosbags_bags_are_healthy_and_decode(tmp_path: Path, compression: str) -
         count = reader.message_count
     done = _doctor("--deep", bag)
     assert done.returncode == 0, done.stdout + done.stderr
-    assert done.stdout.strip().endswith(f"healthy ({count} messages in 1 files, all decoded)")
+    assert done.stdout.strip().endswith(f"healthy ({count} messages in 1 file, all decoded)")
 
 
 def test_an_index_entry_at_no_message_is_a_problem(tmp_path: Path) -> None:

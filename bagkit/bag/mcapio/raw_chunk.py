@@ -7,15 +7,14 @@ Chunk record's bytes go out unchanged, its Message Index records are re-encoded 
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 from zlib_ng.zlib_ng import crc32
 
 from bagkit.bag.errors import ChunkError, CorruptBagError
 from bagkit.bag.mcapio.chunk_builder import ClosedChunk
 from bagkit.bag.mcapio.chunks import DEFAULT_MAX_CHUNK_SIZE, decompress, walk_chunk
-from bagkit.bag.mcapio.message_index import read_message_indexes
+from bagkit.bag.mcapio.message_index import message_index_bytes
 from bagkit.bag.mcapio.records import (
+    MESSAGE_INDEX_ENTRY_SIZE,
     RECORD_HEADER,
     Chunk,
     ChunkIndex,
@@ -26,9 +25,6 @@ from bagkit.bag.mcapio.records import (
     parse_message_index,
 )
 from bagkit.bag.mcapio.source import Source
-
-if TYPE_CHECKING:
-    import numpy as np
 
 _MAX_COMPRESSED_RATIO = 2
 
@@ -73,7 +69,7 @@ def read_raw_chunk(
     offsets: dict[int, int] = {}
     position = 0
     for channel_id, entries in sorted(indexes.items()):
-        part = encode_message_index(channel_id, entries.tobytes())
+        part = encode_message_index(channel_id, bytes(entries))
         offsets[channel_id] = position
         position += len(part)
         parts.append(part)
@@ -86,20 +82,18 @@ def read_raw_chunk(
         message_end_time=chunk.message_end_time,
         compression=chunk.compression,
         uncompressed_size=chunk.uncompressed_size,
-        message_counts={c: len(e) for c, e in indexes.items()},
+        message_counts={c: len(e) // MESSAGE_INDEX_ENTRY_SIZE for c, e in indexes.items()},
         uncompressed_crc=chunk.uncompressed_crc,
     )
 
 
 def _message_indexes(
     source: Source, chunk_index: ChunkIndex, chunk: Chunk, records: bytes | None, max_size: int
-) -> dict[int, np.ndarray]:
-    """The chunk's Message Index entries: from its records after it when they are where the
-    index says, otherwise from walking its (decompressed) records."""
+) -> dict[int, bytes | memoryview]:
+    """The chunk's Message Index entries as stored, by channel: from its records after it
+    when they are where the index says, otherwise from walking its (decompressed) records."""
     try:
-        indexes = (
-            read_message_indexes(source, chunk_index) if chunk_index.message_index_offsets else {}
-        )
+        indexes: dict[int, bytes | memoryview] = dict(message_index_bytes(source, chunk_index))
     except CorruptBagError:
         indexes = {}
     if indexes:
@@ -107,7 +101,7 @@ def _message_indexes(
     try:
         if records is None:
             records = decompress(chunk.compression, chunk.data, chunk.uncompressed_size, max_size)
-        return walk_chunk(records).message_index()
+        return dict(walk_chunk(records).entries())
     except CorruptBagError as exc:
         raise ChunkError(str(exc)) from None
 
