@@ -211,28 +211,3 @@ def test_scanned_file_changed_is_read_again(source: Path, tmp_path: Path) -> Non
         index = scanned.index(Source(f, cut.name))
     assert index is not mcap.index
     assert index.message_count > mcap.index.message_count
-
-
-def test_recover_imports_no_decoder(source: Path, tmp_path: Path) -> None:
-    """Every chunk copied as stored: recover imports no decoding module (nothing is opened)."""
-    import subprocess
-    import sys
-
-    bagkit = str(Path(sys.executable).with_name("bagkit"))
-    out = tmp_path / "recovered"
-    done = subprocess.run(
-        [sys.executable, "-X", "importtime", bagkit, "recover", str(source.parent), "-o", str(out)],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-    )
-    assert done.returncode == 0, done.stderr[-2000:]
-    modules = {
-        line.rsplit("|", 1)[1].strip()
-        for line in done.stderr.splitlines()
-        if line.startswith("import time:") and "|" in line
-    }
-    assert "bagkit.surgery.runs" in modules  # the copy's modules were imported
-    assert not [m for m in modules if m == "bagkit.decode" or m.startswith("bagkit.decode.")]
-    assert len(salvaged(out)) == len(salvaged(source.parent))
