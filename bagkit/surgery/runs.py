@@ -14,6 +14,7 @@ from typing import Literal
 import numpy as np
 
 from bagkit.bag.mcapio.records import MESSAGE_PREFIX, MESSAGE_RECORD_HEADER, RECORD_HEADER, Opcode
+from bagkit.decode.bulk import gather, read_at
 from bagkit.surgery.options import TopicRewrite
 from bagkit.surgery.output import OutputBag
 from bagkit.surgery.select import PayloadFilter, Selection
@@ -66,9 +67,6 @@ def open_run(  # noqa: PLR0917 (the opened chunk and how it is selected)
     offsets = np.concatenate([e["offset"] for _, e in parts]).astype(np.int64)
     inputs = np.concatenate([np.full(len(e), c, np.uint16) for c, e in parts])
     channels = np.concatenate([np.full(len(e), mapping[c], np.uint16) for c, e in parts])
-    # Imported when a chunk is opened: recover copies a cut bag's chunks as stored, none opened.
-    from bagkit.decode.bulk import read_at
-
     size = len(records)
     valid = offsets <= size - MESSAGE_RECORD_HEADER.size
     buf = np.frombuffer(records, np.uint8)
@@ -139,8 +137,6 @@ def _rewritten(
             block[:, : RECORD_HEADER.size] = np.frombuffer(
                 RECORD_HEADER.pack(Opcode.MESSAGE, width - RECORD_HEADER.size), np.uint8
             )
-            from bagkit.decode.bulk import gather  # see open_run
-
             prefix = np.dtype((np.void, size - RECORD_HEADER.size))
             block[:, RECORD_HEADER.size : size].view(prefix)[:, 0] = gather(
                 buf, starts[which] + RECORD_HEADER.size, prefix
