@@ -119,15 +119,16 @@ def test_a_quick_command_imports_no_heavy_module(case: str) -> None:
 
 def test_recover_copying_every_chunk_imports_no_numpy(tmp_path: Path) -> None:
     # A bag cut short: every whole chunk is copied as stored, its CRC checked, its Message
-    # Index records taken as stored; numpy is for the chunks that must be opened.
+    # Index records taken as stored; numpy is for the chunks that must be opened, rich for a
+    # terminal.
     (stored,) = PLAIN_BAG.glob("*.mcap")
     cut = tmp_path / "cut.mcap"
     cut.write_bytes(stored.read_bytes()[: stored.stat().st_size * 3 // 4])
     out = tmp_path / "recovered"
     modules, stdout = imported_at_start(["recover", str(cut), "-o", str(out)], exit_code=3)
-    assert "chunks copied as stored" in stdout
+    assert "copied as stored" in stdout
     assert "bagkit.surgery.copy" in modules
-    assert not {"numpy", "bagkit.surgery.runs", "bagkit.decode"} & modules
+    assert not {"numpy", "bagkit.surgery.runs", "bagkit.decode", "rich"} & modules
     # The fixture's one chunk lies before the cut: every message is recovered.
     counts = [
         json.loads(bagkit_in_process(["info", str(bag), "--format", "json"]).stdout)
