@@ -202,3 +202,35 @@ def test_a_quick_command_has_its_annotations_as_objects(module: str, command: st
     function = getattr(importlib.import_module(f"bagkit.cli.{module}"), command)
     strings = [n for n, a in inspect.get_annotations(function).items() if isinstance(a, str)]
     assert not strings, f"bagkit.cli.{module}.{command}: annotations as strings: {strings}"
+
+
+# Records made at every start of a command that reads conditions, as NamedTuples: a frozen
+# dataclass costs far more to create (benchmarks/README.md, start-up, ninth pass).
+NO_DATACLASSES = frozenset({"bagkit.selection.condition_terms"})
+
+
+@pytest.mark.parametrize("case", ["find", "check"])
+def test_a_quick_command_makes_no_dataclass_of_its_records(case: str) -> None:
+    args = CASES[case][0]
+    probe = (
+        "import dataclasses, sys\n"
+        "from bagkit.cli import launch\n"
+        "made = []\n"
+        "process = dataclasses._process_class\n"
+        "def counted(cls, *args, **kwargs):\n"
+        "    made.append(cls.__module__)\n"
+        "    return process(cls, *args, **kwargs)\n"
+        "dataclasses._process_class = counted\n"
+        f"sys.argv = ['bagkit', *{args!r}]\n"
+        "try:\n"
+        "    launch.run()\n"
+        "finally:\n"
+        "    print('made', *made, file=sys.stderr)\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, timeout=120, check=False
+    )
+    made = done.stderr.rsplit("made", 1)[-1].split()
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "bagkit.bag.metadata" in made  # the probe sees the classes made
+    assert not NO_DATACLASSES & set(made), f"bagkit {' '.join(args)} makes dataclasses in {made}"
