@@ -70,7 +70,9 @@ class BagMetadata:
                         "name": topic.name,
                         "type": topic.type,
                         "serialization_format": topic.serialization_format,
-                        "offered_qos_profiles": topic.offered_qos_profiles,
+                        "offered_qos_profiles": _qos_for_version(
+                            topic.offered_qos_profiles, self.version
+                        ),
                         "type_description_hash": topic.type_description_hash,
                     },
                     "message_count": count,
@@ -173,6 +175,25 @@ def _qos_text(value: Any, where: str) -> str:
     if isinstance(value, (list, dict)):
         return yaml.safe_dump(value, sort_keys=False, default_flow_style=False)
     return _scalar_text(value, where)
+
+
+def _qos_for_version(text: str, version: int) -> Any:
+    """Offered QoS profiles as rosbag2 stores them in metadata of ``version``.
+
+    rosbag2 (Jazzy on) writes and reads version 9 profiles as a YAML sequence and rejects a
+    string there (``ros2 bag info`` fails, as does its MCAP plugin on the ``rosbag2`` record);
+    versions 4 to 8 hold the YAML string. Text that is not a list of profiles (carried from
+    an untrusted bag) stays a string, not lost.
+    """
+    if version < 9:
+        return text
+    if not text.strip():
+        return []
+    try:
+        profiles = safe_yaml.load(text)
+    except yaml.YAMLError:
+        return text
+    return profiles if isinstance(profiles, list) else text
 
 
 def _relative_path(value: Any, where: str) -> str:

@@ -218,6 +218,11 @@ class BagReader:
         return isinstance(self.path, UrlPath)
 
     @property
+    def storage_files(self) -> tuple[StorageFile, ...]:
+        """The storage files opened (their indexes, for surgery not to read them again)."""
+        return tuple(self._storage)
+
+    @property
     def has_summary(self) -> bool:
         """True when no file had to be salvaged (every MCAP file's summary was used)."""
         return all(s.has_summary for s in self._storage)

@@ -17,6 +17,7 @@ from bagkit.bag.compression import (
 from bagkit.bag.errors import (
     BagError,
     BagNotFoundError,
+    CorruptBagError,
     NotABagError,
     UnsupportedStorageError,
 )
@@ -157,6 +158,8 @@ def open_storage_file(
             from bagkit.bag.rosbag1_file import Rosbag1File  # rosbags: only for ROS 1 bags
 
             storage = Rosbag1File(source, max_chunk_size=max_chunk_size)
+        elif path.name.endswith(".zstd"):  # rosbag2's name for a file-compressed storage file
+            raise CorruptBagError(f"{path}: not a zstd stream (no zstd frame at its start)")
         else:
             raise NotABagError(f"{path}: neither an MCAP, a SQLite3 nor a ROS 1 bag file")
         storage.open()

@@ -82,14 +82,17 @@ class OutputFormat(StrEnum):
     CSV = "csv"
 
 
-def _one_line(message: str) -> str:
+def _one_line(message: str, *, markup: bool = True) -> str:
     """A message as one line of literal text, at most ``MAX_LINE`` characters: names and values
-    from a bag may be huge, hold newlines and what rich would take for markup (``[/]``)."""
-    from rich.markup import escape
-
+    from a bag may be huge, hold newlines and (``markup``: escaped for rich) what rich would
+    take for markup (``[/]``)."""
     line = " ".join(message.splitlines())
     if len(line) > MAX_LINE:
         line = f"{line[:MAX_LINE]}... ({len(line) - MAX_LINE} characters cut)"
+    if not markup:
+        return line
+    from rich.markup import escape
+
     return escape(line)
 
 
@@ -160,9 +163,12 @@ def format_rate(rate_hz: float | None, digits: int = 2) -> str:
 
 def fail(message: str, exit_code: int = 2) -> typer.Exit:
     """Print ``error: message`` on stderr (one line) and return the Exit to raise."""
-    _made("err_console").print(
-        f"[bold red]error:[/] {_one_line(message)}", highlight=False, soft_wrap=True
-    )
+    if not _stderr_styled():
+        sys.stderr.write(f"error: {_one_line(message, markup=False)}\n")
+    else:
+        _made("err_console").print(
+            f"[bold red]error:[/] {_one_line(message)}", highlight=False, soft_wrap=True
+        )
     return typer.Exit(exit_code)
 
 
@@ -175,11 +181,28 @@ def none_decoded(counts: Mapping[str, int]) -> typer.Exit:
     )
 
 
+def _stderr_styled() -> bool:
+    """Whether stderr shows rich's styles and spinners (a terminal, or FORCE_COLOR): else its
+    lines are written plain, without importing rich."""
+    return sys.stderr.isatty() or bool(os.environ.get("FORCE_COLOR"))
+
+
 def warn(message: str) -> None:
     """Print ``warning: message`` on stderr (one line)."""
+    if not _stderr_styled():
+        sys.stderr.write(f"warning: {_one_line(message, markup=False)}\n")
+        return
     _made("err_console").print(
         f"[yellow]warning:[/] {_one_line(message)}", highlight=False, soft_wrap=True
     )
+
+
+def status(text: str) -> contextlib.AbstractContextManager[object]:
+    """A spinner saying ``text`` on stderr while the block runs, on a terminal only (rich's
+    live display costs more to import than many commands' work)."""
+    if not sys.stderr.isatty():
+        return contextlib.nullcontext()
+    return _made("err_console").status(text)
 
 
 def note(message: str) -> None:

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from bagkit.cli.common import ReportFormat, console, err_console, handle_errors, print_json
+from bagkit.cli.common import ReportFormat, console, err_console, handle_errors, print_json, status
 from bagkit.cli.option_parsing import LOCAL_BAG_HELP
 from bagkit.cli.selection_options import Distro
 from bagkit.cli.surgery_options import Format
@@ -45,7 +45,7 @@ def doctor(
     """Check a bag; one line per problem."""
     if against_installed:
         _drift(bag, output_format)
-    with err_console.status(f"checking {bag}"):
+    with status(f"checking {bag}"):
         report = diagnose(bag, deep=deep)
     if output_format == ReportFormat.JSON:
         print_json(report.to_dict())

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from bagkit.cli.common import ReportFormat, err_console, handle_errors, option_flags
+from bagkit.cli.common import ReportFormat, handle_errors, option_flags, status
 from bagkit.cli.option_parsing import BAG_HELP, bag_location, split_list
 from bagkit.cli.selection_options import Distro, End, Start, StateTopics, build_query
 from bagkit.cli.surgery_options import (
@@ -118,7 +118,7 @@ def filter_command(
         compression, max_bag_size, max_bag_duration, force=force, check_crc=check_crc
     )
     if around is None:
-        with err_console.status(f"filtering {bag}"), written_to(output, replace=force) as local:
+        with status(f"filtering {bag}"), written_to(output, replace=force) as local:
             report = filter_bag(bag, local, selection, options)
         report.output = output
         print_report(report, output_format)
@@ -132,7 +132,7 @@ def filter_command(
             selection.state_topics,
         )
         with (
-            err_console.status(f"cutting around the episodes in {bag}"),
+            status(f"cutting around the episodes in {bag}"),
             written_to(output, replace=force) as local,
         ):
             found, reports = cut_around(bag, local, trigger, selection, options)

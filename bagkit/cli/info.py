@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import datetime
 import json
 import sys
@@ -278,14 +277,6 @@ def _print_folder(folder: FolderInfo, output_format: ReportFormat) -> None:
     end_with_unread(len(folder.unread), len(folder.bags) + len(folder.unread))
 
 
-def _reading(bag: str) -> contextlib.AbstractContextManager[object]:
-    """A spinner while a salvage scan runs, on a terminal only (rich's live display costs
-    more to import than a summary costs to read)."""
-    if not sys.stderr.isatty():
-        return contextlib.nullcontext()
-    return common.err_console.status(f"reading {bag}")
-
-
 @handle_errors
 def info(  # noqa: PLR0917 (typer maps parameters to options)
     bag: str = typer.Argument(..., help=BAG_HELP, metavar="BAG", show_default=False),
@@ -325,7 +316,7 @@ def info(  # noqa: PLR0917 (typer maps parameters to options)
         if folder is not None:
             _print_folder(folder, output_format)
             return
-    with _reading(bag):
+    with common.status(f"reading {bag}"):
         result = bag_info(bag, check_crc=check_crc, exact_rates=exact_rates or None)
         services = [] if topic_name else _services(bag, result)
     if storage is not None and result.storage != storage:

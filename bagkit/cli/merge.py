@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from bagkit.cli.common import ReportFormat, err_console, handle_errors
+from bagkit.cli.common import ReportFormat, handle_errors, status
 from bagkit.cli.option_parsing import bag_location
 from bagkit.cli.selection_options import Distro, End, Start, build_query
 from bagkit.cli.surgery_options import (
@@ -67,7 +67,7 @@ def merge(
     selection = Selection.of(build_query(start=start, end=end))
     selection = replace(selection, latched=latched_options(latched_topics, no_latched))
     with (
-        err_console.status(f"merging {len(bags)} bags"),
+        status(f"merging {len(bags)} bags"),
         written_to(output, replace=force) as local,
     ):
         report = merge_bags(bags, local, selection, options)

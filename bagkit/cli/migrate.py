@@ -7,7 +7,15 @@ from pathlib import Path
 
 import typer
 
-from bagkit.cli.common import ReportFormat, console, err_console, handle_errors, note, print_json
+from bagkit.cli.common import (
+    ReportFormat,
+    console,
+    err_console,
+    handle_errors,
+    note,
+    print_json,
+    status,
+)
 from bagkit.cli.selection_options import Distro
 from bagkit.cli.surgery_options import Compression, Force, Format, Output, output_options
 
@@ -80,7 +88,7 @@ def migrate(
         allow_drop=allow_drop,
         output=output_options(compression, force=force, check_crc=True),
     )
-    with err_console.status(f"migrating {bag}"):
+    with status(f"migrating {bag}"):
         report = migrate_bag(bag, output, options)
     if output_format == ReportFormat.JSON:
         print_json(report.to_dict())

@@ -65,7 +65,7 @@ def plot(  # noqa: PLR0917 (typer maps parameters to options)
     if suffix not in (".png", ".html"):
         raise DataError(f"{out}: the output must end in .png or .html")
     bags = [bag, *(bag_location(b) for b in split_list(more_bags))]
-    with common.err_console.status("reading ..."):
+    with common.status("reading ..."):
         reading = read_series(bags, series, absolute=absolute, query=query)
     for problem in reading.problems:
         warn(problem)

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from bagkit.cli.common import ReportFormat, err_console, handle_errors
+from bagkit.cli.common import ReportFormat, fail, handle_errors, status
 from bagkit.cli.option_parsing import LOCAL_BAG_HELP
 from bagkit.cli.surgery_options import (
     CheckCrc,
@@ -46,9 +46,9 @@ def recover(
 ) -> None:
     """Rewrite a crashed or truncated bag as a complete one."""
     options = output_options(force=force, check_crc=check_crc)
-    with err_console.status(f"recovering {bag}"):
+    with status(f"recovering {bag}"):
         report = recover_bag(bag, output, options)
     print_report(report, output_format)
     if not report.message_count:
-        err_console.print(f"error: no message of {bag} could be recovered", highlight=False)
+        raise fail(f"no message of {bag} could be recovered", report.recover_exit_code)
     raise typer.Exit(report.recover_exit_code)

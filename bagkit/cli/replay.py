@@ -368,8 +368,9 @@ def _print_report(report: PlayReport) -> None:
     print_table(table)
     lateness = report.lateness
     common.console.print(
-        f"{report.messages} messages in {report.wall_duration_s:.3f} s "
-        f"({report.bag_duration_s:.3f} s of bag time, rate {report.rate:g}"
+        f"{report.messages} messages in {report.played_s:.3f} s "
+        + (f"played, {report.paused_s:.3f} s paused " if report.paused_s else "")
+        + f"({report.bag_duration_s:.3f} s of bag time, rate {report.rate:g}"
         + (f", {report.loops} passes" if report.loops > 1 else "")
         + (f", {report.latched} of them latched state" if report.latched else "")
         + ")",

@@ -14,8 +14,9 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from bagkit.bag.latched import LatchedOptions
-from bagkit.cli.common import ReportFormat, console, print_json, warn
+from bagkit.cli.common import ReportFormat, print_json, warn
 from bagkit.cli.option_parsing import MultiValueCommand, bag_location, byte_size, split_list
+from bagkit.cli.tables import print_line
 from bagkit.selection.times import format_ns
 from bagkit.surgery.rewrite import OutputOptions, RewriteReport
 from bagkit.words import counted
@@ -166,20 +167,20 @@ def latched_options(latched_topics: list[str] | None, no_latched: bool) -> Latch
     return LatchedOptions(enabled=not no_latched, extra_topics=tuple(split_list(latched_topics)))
 
 
-def print_report(report: RewriteReport, output_format: ReportFormat) -> None:
-    """What a rewrite wrote (stdout) and lost (stderr warnings)."""
+def print_report(report: RewriteReport, output_format: ReportFormat, prefix: str = "") -> None:
+    """What a rewrite wrote (stdout, after ``prefix``) and lost (stderr warnings)."""
     if output_format == ReportFormat.JSON:
         print_json(report.to_dict())
     else:
-        console.print(
-            f"wrote {report.output}: {counted(report.message_count, 'message')} "
-            f"({counted(len(report.topic_counts), 'topic')}, "
-            f"{counted(len(report.files), 'file')}, "
-            f"{counted(report.chunks_copied, 'chunk')} copied as stored"
-            + (f", {report.latched_messages} latched" if report.latched_messages else "")
-            + ")",
-            highlight=False,
-            soft_wrap=True,
+        print_line(
+            [
+                f"{prefix}wrote {report.output}: {counted(report.message_count, 'message')} "
+                f"({counted(len(report.topic_counts), 'topic')}, "
+                f"{counted(len(report.files), 'file')}, "
+                f"{counted(report.chunks_copied, 'chunk')} copied as stored"
+                + (f", {report.latched_messages} latched" if report.latched_messages else "")
+                + ")"
+            ]
         )
     for warning in report.warnings:
         warn(warning)
@@ -198,14 +199,12 @@ def print_cuts(found: Episodes, reports: list[RewriteReport], output_format: Rep
         )
     else:
         for episode, report in zip(found.episodes, reports, strict=True):
-            console.print(
+            print_report(
+                report,
+                ReportFormat.TABLE,
                 f"{found.topic} from {format_ns(episode.start_ns)} to "
                 f"{format_ns(episode.end_ns)} ({episode.count} matches): ",
-                end="",
-                highlight=False,
-                soft_wrap=True,
             )
-            print_report(report, ReportFormat.TABLE)
     for problem in found.problems:
         warn(problem)
 

@@ -44,6 +44,10 @@ class PlayControls:
         self._frozen_bag_ns = 0  # bag time reached when paused
         self._cued_ns: int | None = None  # where the first pass will start, until it does
         self._suspended = False
+        # Wall time held (paused or suspended): the closing report's time paused, apart from
+        # the time played.
+        self._held_ns = 0
+        self._held_since: int | None = _now(None) if paused else None
         self._steps_requested = 0
         self._steps_taken = 0
         self._passes_ended = 0
@@ -80,6 +84,13 @@ class PlayControls:
     def interrupting(self) -> bool:
         """Whether the publishing loop must leave its wait: a seek to take, or a stop."""
         return self.seek_to is not None or self.stopped
+
+    def held_ns(self, now_ns: int | None = None) -> int:
+        """Wall time spent held (paused by a user or suspended) since the controls were made,
+        up to ``now_ns``; the player takes the difference over its passes."""
+        with self._changed:
+            since = self._held_since
+            return self._held_ns + (0 if since is None else _now(now_ns) - since)
 
     def position(self, now_ns: int | None = None) -> int:
         """The bag time reached (frozen while held; a pending seek's target)."""
@@ -129,6 +140,8 @@ class PlayControls:
             if self.paused:
                 return False
             self._freeze(now_ns)
+            if not self._suspended:
+                self._hold(now_ns)
             self.paused = True
             self._notify()
             return True
@@ -139,6 +152,8 @@ class PlayControls:
             if not self.paused:
                 return False
             self.paused = False
+            if not self._suspended:
+                self._release(now_ns)
             self._thaw(now_ns)
             self._notify()
             return True
@@ -175,6 +190,7 @@ class PlayControls:
         with self._changed:
             if not self.holding:
                 self._freeze(now_ns)
+                self._hold(now_ns)
             self._suspended = True
 
     def unsuspend(self, now_ns: int | None = None) -> None:
@@ -182,6 +198,7 @@ class PlayControls:
         with self._changed:
             self._suspended = False
             if not self.paused:
+                self._release(now_ns)
                 self._thaw(now_ns)
             self._notify()
 
@@ -238,6 +255,16 @@ class PlayControls:
 
     def _freeze(self, now_ns: int | None) -> None:
         self._frozen_bag_ns = max(self._frozen_bag_ns, self.timeline.bag_time(_now(now_ns)))
+
+    def _hold(self, now_ns: int | None) -> None:
+        """Playback was not held and is now: count held time from ``now_ns``."""
+        self._held_since = _now(now_ns)
+
+    def _release(self, now_ns: int | None) -> None:
+        """Playback is held no more: add the time since it was held."""
+        if self._held_since is not None:
+            self._held_ns += _now(now_ns) - self._held_since
+            self._held_since = None
 
     def _thaw(self, now_ns: int | None) -> None:
         self.timeline = Timeline(self._frozen_bag_ns, _now(now_ns), self.rate)

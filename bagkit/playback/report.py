@@ -76,7 +76,8 @@ class PlayReport:
     bag_duration_s: float
     """Bag time covered by the replayed messages, summed over passes."""
     wall_duration_s: float
-    """Wall time from the start of the first pass (its delay included) to the last message."""
+    """Wall time from the start of the first pass (its delay included) to the last message,
+    time paused included."""
     rate: float
     """The rate in force at the end (the controls may have changed the one asked for)."""
     lateness: LatenessSummary
@@ -98,6 +99,14 @@ class PlayReport:
     """With ``publish_service_requests``: requests sent and how the live responses compared."""
     waited: SubscriberWait | None = None
     """The wait for subscribers before the first message (None: no wait)."""
+    paused_s: float = 0.0
+    """Of ``wall_duration_s``, the time playback was held: paused (keys, services, a start
+    paused) or the process stopped (Ctrl+Z)."""
+
+    @property
+    def played_s(self) -> float:
+        """Of ``wall_duration_s``, the time playback ran: the wall time less the time paused."""
+        return self.wall_duration_s - self.paused_s
 
     @property
     def unreadable(self) -> int:
@@ -108,6 +117,7 @@ class PlayReport:
         """The report as plain JSON-ready data."""
         data = asdict(self)
         data["unreadable"] = self.unreadable
+        data["played_s"] = self.played_s
         if self.service_requests is not None:
             data["service_requests"] = self.service_requests.to_dict()
         return data

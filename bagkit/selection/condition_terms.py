@@ -8,7 +8,7 @@ log time (:mod:`bagkit.selection.temporal`); the parser is :mod:`~.condition_syn
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import NamedTuple
 
 ANY = -1
 """A path step meaning "any element" (``[*]``, ``[]``)."""
@@ -16,6 +16,13 @@ ANY = -1
 Step = str | int
 Value = float | int | str | bool
 Path = tuple[Step, ...]
+
+
+# The terms are NamedTuples, not frozen dataclasses: `find`, `check` and every `--where` import
+# this module at start, where a dataclass costs far more to create than a NamedTuple. Being
+# tuples, two terms of different kinds with equal fields compare equal; no code mixes kinds in
+# one set or dict (the columns a term reads are keyed by comparisons and checks only, tuples of
+# different lengths).
 
 
 def path_text(path: Path | None) -> str:
@@ -31,8 +38,7 @@ def path_text(path: Path | None) -> str:
     return out
 
 
-@dataclass(frozen=True, slots=True)
-class Comparison:
+class Comparison(NamedTuple):
     """``path OP value``."""
 
     path: Path
@@ -45,8 +51,7 @@ class Comparison:
         return path_text(self.path)
 
 
-@dataclass(frozen=True, slots=True)
-class Delta:
+class Delta(NamedTuple):
     """``delta(path) OP value``: the size of the change since the topic's previous message."""
 
     path: Path
@@ -54,16 +59,14 @@ class Delta:
     value: float
 
 
-@dataclass(frozen=True, slots=True)
-class Check:
+class Check(NamedTuple):
     """``isnan(path)``/``isinf(path)`` (``kind``); path None (``*``): any numeric leaf."""
 
     kind: str
     path: Path | None
 
 
-@dataclass(frozen=True, slots=True)
-class Age:
+class Age(NamedTuple):
     """``age(path) OP duration``: log time minus the stamp at ``path`` (a Time message)."""
 
     path: Path
@@ -71,8 +74,7 @@ class Age:
     ns: int
 
 
-@dataclass(frozen=True, slots=True)
-class Latency:
+class Latency(NamedTuple):
     """``latency(SOURCE -> TARGET, path) OP duration``: a TARGET message's log time minus
     that of the SOURCE message with the same value at ``path`` (a stamp carried through)."""
 
@@ -83,16 +85,14 @@ class Latency:
     ns: int
 
 
-@dataclass(frozen=True, slots=True)
-class Gap:
+class Gap(NamedTuple):
     """``gap OP duration``: a silence between consecutive messages (and after the last)."""
 
     op: str
     ns: int
 
 
-@dataclass(frozen=True, slots=True)
-class Rate:
+class Rate(NamedTuple):
     """``rate OP HZ Hz over duration``: messages in a sliding window of ``window_ns``."""
 
     op: str
@@ -100,24 +100,21 @@ class Rate:
     window_ns: int
 
 
-@dataclass(frozen=True, slots=True)
-class Unchanged:
+class Unchanged(NamedTuple):
     """``unchanged(path)``: runs of two or more consecutive messages with equal values (path
     None: every numeric leaf)."""
 
     path: Path | None
 
 
-@dataclass(frozen=True, slots=True)
-class For:
+class For(NamedTuple):
     """``CONDITION for duration``: its intervals lasting at least ``ns``."""
 
     item: Expression
     ns: int
 
 
-@dataclass(frozen=True, slots=True)
-class Node:
+class Node(NamedTuple):
     """``and``/``or`` of its items, or ``not`` of its one item."""
 
     kind: str

@@ -8,13 +8,14 @@ other input (SQLite3, ROS 1) or output (SQLite3) message by message
 from __future__ import annotations
 
 import contextlib
+import os
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from bagkit.bag import BagError, BagReader
 from bagkit.bag.mcap_file import McapFile
-from bagkit.bag.mcapio import MAGIC, Source, read_file_index
+from bagkit.bag.mcapio import MAGIC, FileIndex, Source, read_file_index
 from bagkit.bag.metadata import METADATA_FILENAME, read_metadata
 from bagkit.bag.storage_files import message_compressed
 from bagkit.surgery.carry import latched_messages, merged_custom_data, write_latched
@@ -79,13 +80,14 @@ def _rewrite(
     check_output(bags, output, options)
     selection = with_content(bags, selection)
     rewrites = rewrites or PayloadRewrites()
-    if options.storage != "mcap" or not chunks_copyable(bags):
+    scanned = ScannedFiles()
+    if options.storage != "mcap" or not chunks_copyable(bags, scanned):
         from bagkit.surgery.message_copy import rewrite_messages
 
         return rewrite_messages(bags, output, selection, options, rewrites=rewrites)
     report = RewriteReport(output=output)
     inputs = _Inputs()
-    with _opened_inputs(bags, report, inputs) as files:
+    with _opened_inputs(bags, report, inputs, scanned) as files:
         names = {name for f in files for name in f.known}
         if not names:
             raise holding_no_topic(bags)
@@ -137,18 +139,44 @@ def check_output(bags: Sequence[Path], output: Path, options: OutputOptions) -> 
             raise SurgeryError(f"the output {output} would overlap the input {bag}")
 
 
+class ScannedFiles:
+    """The indexes of the MCAP files read so far in one rewrite, by the file's identity (device,
+    inode, size, modification time): a file without a summary is scanned whole to index it,
+    and the copyability check, the bag's reader and the copy would each scan it again."""
+
+    def __init__(self) -> None:
+        self._indexes: dict[tuple[int, int, int, int], FileIndex] = {}
+
+    def add(self, mcap: McapFile) -> None:
+        """Keep the index of ``mcap`` (opened, on disk)."""
+        if isinstance(mcap.path, Path):  # a bag in storage (UrlPath) has no inode
+            self._indexes[_identity(os.stat(mcap.path))] = mcap.index
+
+    def index(self, source: Source) -> FileIndex:
+        """The index of the open file ``source``: kept, or read now."""
+        known = self._indexes.get(_identity(os.fstat(source.f.fileno())))
+        return known if known is not None else read_file_index(source)
+
+
+def _identity(stat: os.stat_result) -> tuple[int, int, int, int]:
+    return stat.st_dev, stat.st_ino, stat.st_size, stat.st_mtime_ns
+
+
 @contextlib.contextmanager
 def _opened_inputs(
-    bags: list[Path], report: RewriteReport, inputs: _Inputs
+    bags: list[Path], report: RewriteReport, inputs: _Inputs, scanned: ScannedFiles
 ) -> Iterator[list[InputFile]]:
-    """Every MCAP file of ``bags`` in order, with its index (summary or salvage); what each
-    bag's reader tells is appended to ``inputs``."""
+    """Every MCAP file of ``bags`` in order, with its index (summary or salvage: ``scanned``'s
+    when it holds it); what each bag's reader tells is appended to ``inputs``."""
     files: list[InputFile] = []
     handles = []
     try:
         for bag in bags:
             with BagReader(bag, allow_empty=True) as reader:
                 paths, known, missing = list(reader.files), dict(reader.topics), reader.problems
+                for storage in reader.storage_files:
+                    if isinstance(storage, McapFile):
+                        scanned.add(storage)
                 if reader.message_count:
                     inputs.spans.append((reader.start_ns, reader.end_ns))
                 custom_data = dict(reader.metadata.custom_data) if reader.metadata else {}
@@ -160,7 +188,7 @@ def _opened_inputs(
                 if handle.read(len(MAGIC)) != MAGIC:
                     raise SurgeryError(f"{path}: only MCAP storage can be rewritten")
                 source = Source(handle, path.name)
-                index = read_file_index(source)
+                index = scanned.index(source)
                 files.append(InputFile(path, source, index, known, problems=list(index.problems)))
         yield files
     finally:
@@ -168,11 +196,12 @@ def _opened_inputs(
             handle.close()
 
 
-def chunks_copyable(bags: Sequence[Path]) -> bool:
+def chunks_copyable(bags: Sequence[Path], scanned: ScannedFiles | None = None) -> bool:
     """Whether the chunks of ``bags`` can be copied as stored: every storage file is MCAP, by
     its magic (a SQLite3 bag counts its rows on opening), of plain CDR payloads, not rosbag2's
     message-compressed ones (metadata.yaml says, else the file's own rosbag2 record). A path
-    that is no file or directory, or bad metadata.yaml, is left to the reader to report."""
+    that is no file or directory, or bad metadata.yaml, is left to the reader to report. The
+    files indexed to read their rosbag2 record are added to ``scanned``."""
     for bag in bags:
         folder = bag.parent if bag.name == METADATA_FILENAME else bag
         metadata = None
@@ -190,16 +219,18 @@ def chunks_copyable(bags: Sequence[Path]) -> bool:
             with file.open("rb") as f:
                 if f.read(len(MAGIC)) != MAGIC:
                     return False
-            if metadata is None and _zstd_payloads(file):
+            if metadata is None and _zstd_payloads(file, scanned):
                 return False
     return True
 
 
-def _zstd_payloads(file: Path) -> bool:
+def _zstd_payloads(file: Path, scanned: ScannedFiles | None) -> bool:
     """Whether the MCAP ``file`` says (its rosbag2 record) it holds zstd-framed payloads."""
     mcap = McapFile(file)
     try:
         mcap.open()
+        if scanned is not None:
+            scanned.add(mcap)
         return message_compressed(mcap)
     except BagError:
         return False  # the reader reports it

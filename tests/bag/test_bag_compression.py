@@ -143,6 +143,8 @@ def test_a_zstd_file_that_does_not_decompress(tmp_path: Path) -> None:
     _one_error_line(bagkit_subprocess(["info", bag_dir], Path.cwd()), "zstd")
     stored.write_bytes(data[:8] + bytes(len(data) - 8))  # a valid header, then zeros
     _one_error_line(_run("info", bag_dir), stored.name)
+    stored.write_bytes(b"garbage" + data)  # no zstd frame at its start: not "not a bag file"
+    _one_error_line(_run("info", bag_dir), stored.name, "not a zstd stream")
 
 
 def test_a_zstd_bomb_is_bounded(tmp_path: Path) -> None:

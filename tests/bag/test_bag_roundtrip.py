@@ -127,7 +127,9 @@ def test_metadata_yaml_is_rosbag2_version_9(write_sample_bag: Callable[..., Path
         "name": "/imu/data",
         "type": IMU,
         "serialization_format": "cdr",
-        "offered_qos_profiles": QOS_YAML,
+        # rosbag2 Jazzy writes and reads version 9 profiles as a YAML sequence (a string there
+        # fails its metadata decoding), as rosbags' version 9 writer does.
+        "offered_qos_profiles": yaml.safe_load(QOS_YAML),
         "type_description_hash": type_description_hash(IMU),
     }
     assert info["relative_file_paths"] == ["sample_0.mcap"]
@@ -149,6 +151,7 @@ def test_metadata_yaml_is_rosbag2_version_9(write_sample_bag: Callable[..., Path
     assert [r.name for r in records] == ["rosbag2"]
     embedded = yaml.safe_load(records[0].metadata["serialized_metadata"])
     assert embedded["message_count"] == 55
+    assert embedded["topics_with_message_count"] == info["topics_with_message_count"]
 
 
 def test_definition_has_dependencies_as_rosbag2_writes_them() -> None:

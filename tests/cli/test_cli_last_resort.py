@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -13,7 +14,7 @@ from pathlib import Path
 import pytest
 import typer
 
-from bagkit.cli import progress
+from bagkit.cli import common, progress
 from bagkit.cli.common import (
     EXIT_BROKEN_PIPE,
     EXIT_INTERNAL,
@@ -219,3 +220,23 @@ def test_the_progress_bar_stays_off_a_stderr_that_is_no_terminal(
     bar(10, 10)
     bar.close()
     assert capfd.readouterr().err == ""
+
+
+@pytest.mark.parametrize("styled", [False, True], ids=["pipe", "FORCE_COLOR"])
+def test_warning_and_error_lines_say_the_same_plain_or_styled(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], styled: bool
+) -> None:
+    # Into a pipe they are written without rich; with colours, through it: the same text.
+    if styled:
+        monkeypatch.setenv("FORCE_COLOR", "1")
+    else:
+        monkeypatch.delenv("FORCE_COLOR", raising=False)
+    common.warn("topic [/]x[bold]\nsecond line")
+    message = "bad [red]value[/] " + "y" * 2000
+    exit_ = common.fail(message, 3)
+    assert exit_.exit_code == 3
+    err = re.sub(r"\x1b\[[0-9;]*m", "", capsys.readouterr().err)
+    assert err.splitlines() == [
+        "warning: topic [/]x[bold] second line",
+        f"error: {message[:1000]}... ({len(message) - 1000} characters cut)",
+    ]

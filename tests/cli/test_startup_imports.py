@@ -119,15 +119,16 @@ def test_a_quick_command_imports_no_heavy_module(case: str) -> None:
 
 def test_recover_copying_every_chunk_imports_no_numpy(tmp_path: Path) -> None:
     # A bag cut short: every whole chunk is copied as stored, its CRC checked, its Message
-    # Index records taken as stored; numpy is for the chunks that must be opened.
+    # Index records taken as stored; numpy is for the chunks that must be opened, rich for a
+    # terminal.
     (stored,) = PLAIN_BAG.glob("*.mcap")
     cut = tmp_path / "cut.mcap"
     cut.write_bytes(stored.read_bytes()[: stored.stat().st_size * 3 // 4])
     out = tmp_path / "recovered"
     modules, stdout = imported_at_start(["recover", str(cut), "-o", str(out)], exit_code=3)
-    assert "chunks copied as stored" in stdout
+    assert "copied as stored" in stdout
     assert "bagkit.surgery.copy" in modules
-    assert not {"numpy", "bagkit.surgery.runs", "bagkit.decode"} & modules
+    assert not {"numpy", "bagkit.surgery.runs", "bagkit.decode", "rich"} & modules
     # The fixture's one chunk lies before the cut: every message is recovered.
     counts = [
         json.loads(bagkit_in_process(["info", str(bag), "--format", "json"]).stdout)
@@ -201,3 +202,35 @@ def test_a_quick_command_has_its_annotations_as_objects(module: str, command: st
     function = getattr(importlib.import_module(f"bagkit.cli.{module}"), command)
     strings = [n for n, a in inspect.get_annotations(function).items() if isinstance(a, str)]
     assert not strings, f"bagkit.cli.{module}.{command}: annotations as strings: {strings}"
+
+
+# Records made at every start of a command that reads conditions, as NamedTuples: a frozen
+# dataclass costs far more to create (benchmarks/README.md, start-up, ninth pass).
+NO_DATACLASSES = frozenset({"bagkit.selection.condition_terms"})
+
+
+@pytest.mark.parametrize("case", ["find", "check"])
+def test_a_quick_command_makes_no_dataclass_of_its_records(case: str) -> None:
+    args = CASES[case][0]
+    probe = (
+        "import dataclasses, sys\n"
+        "from bagkit.cli import launch\n"
+        "made = []\n"
+        "process = dataclasses._process_class\n"
+        "def counted(cls, *args, **kwargs):\n"
+        "    made.append(cls.__module__)\n"
+        "    return process(cls, *args, **kwargs)\n"
+        "dataclasses._process_class = counted\n"
+        f"sys.argv = ['bagkit', *{args!r}]\n"
+        "try:\n"
+        "    launch.run()\n"
+        "finally:\n"
+        "    print('made', *made, file=sys.stderr)\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, timeout=120, check=False
+    )
+    made = done.stderr.rsplit("made", 1)[-1].split()
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "bagkit.bag.metadata" in made  # the probe sees the classes made
+    assert not NO_DATACLASSES & set(made), f"bagkit {' '.join(args)} makes dataclasses in {made}"

@@ -3,18 +3,21 @@
 from __future__ import annotations
 
 import threading
+import time
 
 import pytest
 from typer.testing import CliRunner
 
 from bagkit.bag.latched import LatchedOptions
 from bagkit.cli.main import app
+from bagkit.cli.replay import _print_report
 from bagkit.playback.controls import RATE_STEP, PlayControls
 from bagkit.playback.errors import PlayerError
 from bagkit.playback.keyboard import DOWN, RIGHT, SPACE, UP, key_actions, split_keys
 from bagkit.playback.options import PlayOptions
+from bagkit.playback.report import PlayReport
 from bagkit.playback.source import MessageOrder
-from bagkit.playback.timing import Timeline, effective_rate
+from bagkit.playback.timing import LatenessSummary, Timeline, effective_rate
 from bagkit.selection.times import NS_PER_S
 
 MS = 1_000_000
@@ -106,6 +109,57 @@ def test_suspension_holds_without_touching_the_users_pause() -> None:
     controls.suspend(now_ns=3300 * MS)
     controls.unsuspend(now_ns=9000 * MS)
     assert controls.paused  # still paused by the user
+
+
+def test_time_held_counts_pauses_and_suspensions_once_each() -> None:
+    controls = PlayControls(1.0)
+    controls.start(bag_start_ns=0, wall_ns=0)
+    assert controls.held_ns(now_ns=500 * MS) == 0
+    controls.pause(now_ns=1000 * MS)
+    assert controls.held_ns(now_ns=1500 * MS) == 500 * MS  # paused now: counted up to now
+    controls.toggle_paused(now_ns=3000 * MS)  # 2 s paused
+    controls.suspend(now_ns=4000 * MS)
+    controls.unsuspend(now_ns=5000 * MS)  # 1 s stopped
+    controls.pause(now_ns=6000 * MS)
+    controls.suspend(now_ns=6500 * MS)  # stopped while paused: held once, not twice
+    controls.resume(now_ns=7000 * MS)  # resumed while stopped: still held
+    controls.unsuspend(now_ns=8000 * MS)  # 2 s from the pause
+    controls.resume(now_ns=9000 * MS)  # not paused: nothing changes
+    assert controls.held_ns(now_ns=10_000 * MS) == 5000 * MS
+
+
+def test_a_replay_started_paused_is_held_from_the_start() -> None:
+    before = time.monotonic_ns()
+    controls = PlayControls(1.0, paused=True)
+    after = time.monotonic_ns()
+    controls.resume(now_ns=after + 4000 * MS)
+    # Held from when the controls were made, somewhere between before and after.
+    assert 4000 * MS <= controls.held_ns() <= after - before + 4000 * MS
+
+
+@pytest.mark.parametrize(
+    ("paused_s", "line"),
+    [
+        (0.0, "150 messages in 4.957 s (9.903 s of bag time, rate 2)"),
+        (12.5, "150 messages in 4.957 s played, 12.500 s paused (9.903 s of bag time, rate 2)"),
+    ],
+)
+def test_the_closing_report_says_time_played_apart_from_time_paused(
+    paused_s: float, line: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    report = PlayReport(
+        topics=[],
+        messages=150,
+        loops=1,
+        bag_duration_s=9.903,
+        wall_duration_s=4.957 + paused_s,
+        rate=2.0,
+        lateness=LatenessSummary(0.0, 0.0, 0.0, 0),
+        paused_s=paused_s,
+    )
+    assert report.to_dict()["played_s"] == pytest.approx(4.957)
+    _print_report(report)
+    assert line in capsys.readouterr().out.splitlines()
 
 
 def test_before_the_first_pass_the_position_is_where_the_pass_will_start() -> None:

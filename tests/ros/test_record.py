@@ -155,7 +155,8 @@ def test_metadata_and_channel_qos(node: Node, tmp_path: Path) -> None:
         "cdr",
     )
     assert meta["type_description_hash"].startswith("RIHS01_")
-    (offered,) = parse_offered_qos_profiles(meta["offered_qos_profiles"])
+    # Version 9 stores the profiles as a YAML sequence (rosbag2 Jazzy's form).
+    (offered,) = parse_offered_qos_profiles(yaml.safe_dump(meta["offered_qos_profiles"]))
     assert offered.durability == DurabilityPolicy.TRANSIENT_LOCAL
     assert offered.reliability == ReliabilityPolicy.RELIABLE
     assert info["custom_data"]["bagkit.record.lost"] == "0"
@@ -171,7 +172,8 @@ def test_metadata_and_channel_qos(node: Node, tmp_path: Path) -> None:
     }
     with BagReader(bag) as reader:
         (message,) = reader.messages()
-        assert reader.topics["/meta/latched"].offered_qos_profiles == meta["offered_qos_profiles"]
+        stored = reader.topics["/meta/latched"].offered_qos_profiles
+        assert yaml.safe_load(stored) == meta["offered_qos_profiles"]
         assert info["starting_time"]["nanoseconds_since_epoch"] == message.log_time
 
 

@@ -212,7 +212,11 @@ def test_services_pause_step_resume_and_set_the_rate(
     stdout, stderr = proc.communicate(timeout=30)
     assert proc.returncode == 0, stderr
     assert indices(listener.messages()) == list(range(200))
-    assert json.loads(stdout)["rate"] == 2.0  # the rate in force, not the one started with
+    report = json.loads(stdout)
+    assert report["rate"] == 2.0  # the rate in force, not the one started with
+    # The pauses are told apart from the time played.
+    assert report["paused_s"] > 0
+    assert report["played_s"] == report["wall_duration_s"] - report["paused_s"]
 
 
 def _stopped(pid: int) -> bool:

@@ -342,3 +342,22 @@ def test_a_stored_definition_naming_types_it_lacks_converts_without_a_type_hash(
         summary = make_reader(f).get_summary()
     assert summary is not None
     assert [set(c.metadata) for c in summary.channels.values()] == [{"offered_qos_profiles"}]
+
+
+def test_split_by_duration_within_a_chunk(tmp_path: Path) -> None:
+    """A bag whose messages fit in one chunk, rewritten (not copied as stored: another
+    compression), is split by -d as ros2 bag splits it: no file spans the duration (found
+    converting a small rosbags bag with -d 1: one file of 1.9 s)."""
+    bag = tmp_path / "in"
+    write_mixed_bag(bag, 300, compression="none", chunk_size=1 << 20)
+    before = rosbags_messages(bag)
+    span = max(t for _, t, _ in before) - min(t for _, t, _ in before)
+    out = tmp_path / "out"
+    result = run_here("convert", str(bag), "-o", str(out), "-d", str(span / 3e9))
+    assert result.returncode == 0, result.stderr
+    files = _mcap_files(out)
+    assert len(files) >= 3
+    for file in files:
+        times = [t for _, t, _ in mcap_messages([file])]
+        assert max(times) - min(times) < span / 3
+    assert rosbags_messages(out) == before

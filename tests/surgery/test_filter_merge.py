@@ -158,7 +158,7 @@ def test_definitions_and_qos_carried_over(mixed: Path, tmp_path: Path) -> None:
         t["topic_metadata"]["name"]: t["topic_metadata"]["offered_qos_profiles"]
         for t in metadata["topics_with_message_count"]
     }
-    assert qos == {"/text": QOS, "/imu/data": QOS}
+    assert qos == {"/text": yaml.safe_load(QOS), "/imu/data": yaml.safe_load(QOS)}
 
 
 def test_chunk_copied_as_stored(tmp_path: Path) -> None:

@@ -161,3 +161,53 @@ def test_bad_input(tmp_path: Path) -> None:
     assert sorted(p.name for p in tmp_path.iterdir()) == ["text.mcap"]
     bag = write_mixed_bag(tmp_path / "bag", 10)
     assert run_here("recover", str(bag), "-o", str(bag)).returncode == 2
+
+
+def test_cut_file_scanned_once_less(
+    source: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A summary-less file is scanned to index it: the copy takes the index that the check for
+    message-compressed payloads read (2 scans, not 3), and the output is the same."""
+    from bagkit.bag import mcap_file
+    from bagkit.surgery import rewrite
+    from bagkit.surgery.rewrite import recover_bag
+
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(source.read_bytes()[: source.stat().st_size // 2])
+    scans: list[str] = []
+
+    def counted(source, **kwargs):  # type: ignore[no-untyped-def]
+        scans.append(source.name)
+        return real(source, **kwargs)
+
+    real = rewrite.read_file_index
+    monkeypatch.setattr(rewrite, "read_file_index", counted)
+    monkeypatch.setattr(mcap_file, "read_file_index", counted)
+    report = recover_bag(cut, tmp_path / "recovered")
+    assert scans == ["cut.mcap", "cut.mcap"]
+    expected = salvaged(cut)
+    assert report.message_count == len(expected)
+    check_recovered(tmp_path / "recovered", expected)
+
+
+def test_scanned_file_changed_is_read_again(source: Path, tmp_path: Path) -> None:
+    """An index is reused only for the same file, unchanged (size, modification time)."""
+    from bagkit.bag.mcap_file import McapFile
+    from bagkit.bag.mcapio import Source
+    from bagkit.surgery.rewrite import ScannedFiles
+
+    cut = tmp_path / "cut.mcap"
+    data = source.read_bytes()
+    cut.write_bytes(data[: len(data) // 2])
+    mcap = McapFile(cut)
+    mcap.open()
+    mcap.close()
+    scanned = ScannedFiles()
+    scanned.add(mcap)
+    with cut.open("rb") as f:
+        assert scanned.index(Source(f, cut.name)) is mcap.index
+    cut.write_bytes(data[: len(data) * 3 // 4])
+    with cut.open("rb") as f:
+        index = scanned.index(Source(f, cut.name))
+    assert index is not mcap.index
+    assert index.message_count > mcap.index.message_count

@@ -75,7 +75,7 @@ def read_raw_chunk(
         parts.append(part)
     return ClosedChunk(
         header=record[:header_length],
-        pieces=(record[header_length:],),
+        pieces=(memoryview(record)[header_length:],),  # the data as read: not copied again
         message_indexes=b"".join(parts),
         index_offsets=offsets,
         message_start_time=chunk.message_start_time,

@@ -203,6 +203,7 @@ class Player:
         passes = 0
         interrupted = False
         wall_start = time.monotonic_ns()
+        held_at_start = self.controls.held_ns(wall_start)
         waited = None
         try:
             if self.waits.before_start or self.waits.topics:
@@ -219,6 +220,7 @@ class Player:
             if self.live_publishers and self.on_live_publishers is not None:
                 self.on_live_publishers(self.live_publishers)
             wall_start = time.monotonic_ns()
+            held_at_start = self.controls.held_ns(wall_start)
             while options.loops == 0 or passes < options.loops:
                 if options.delay_ns > 0:
                     time.sleep(options.delay_ns / NS_PER_S)
@@ -229,13 +231,13 @@ class Player:
                 passes += 1
                 if lateness.count == before or self.controls.stopped:
                     break  # an empty window: looping would only spin
-            wall_ns = time.monotonic_ns() - wall_start
+            wall_end = time.monotonic_ns()
             unacknowledged = self.wait_until_acknowledged()
             requests = self._service_requests
             service_requests = requests.finish() if requests is not None else None
         except KeyboardInterrupt:
             interrupted = True
-            wall_ns = time.monotonic_ns() - wall_start
+            wall_end = time.monotonic_ns()
             unacknowledged = []
             if self._pass is not None:  # the interrupted pass counts for what it published
                 bag_ns += self._pass.covered_ns
@@ -247,7 +249,8 @@ class Player:
             messages=sum(output.count for output in self._outputs.values()),
             loops=passes,
             bag_duration_s=bag_ns / 1e9,
-            wall_duration_s=wall_ns / 1e9,
+            wall_duration_s=(wall_end - wall_start) / 1e9,
+            paused_s=(self.controls.held_ns(wall_end) - held_at_start) / 1e9,
             rate=self.controls.rate,
             lateness=lateness.summary(),
             skipped_types=dict(self.publishable.skipped_types),
