@@ -216,6 +216,5 @@ def test_numbers_read_at_evenly_spaced_positions(dtype: str, code: str) -> None:
         read_at(buf, last + 1, dtype)
     behind = np.array([-3, -3 + step, -3 + 2 * step], np.int64)
     assert read_at(buf, behind, dtype).tolist() == [
-        struct.unpack_from(code, data, 5 + (p % (len(buf) - size + 1)))[0]
-        for p in behind.tolist()
+        struct.unpack_from(code, data, 5 + (p % (len(buf) - size + 1)))[0] for p in behind.tolist()
     ]
