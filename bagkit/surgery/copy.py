@@ -106,54 +106,39 @@ class _Stream:
 
 
 class _CheckedCopies:
-    """Chunks to copy as stored, written in order once their CRC check (on a thread) passed.
-
-    The writes go on a thread of their own, in order: the calling thread reads the next chunks
-    meanwhile (a write copies the chunk into the page cache: as long as reading it). A chunk
-    that fails its check is reported by the calling thread (counting its messages reads the
-    input, which only that thread reads).
-    """
+    """Chunks to copy as stored, written in order once their CRC check (on a thread) passed."""
 
     def __init__(self, out: OutputBag, check_crc: bool) -> None:
         self._out = out
         self._pool = ThreadPoolExecutor(os.cpu_count() or 1) if check_crc else None
-        self._writer = ThreadPoolExecutor(1)
-        # Each chunk's write: None once written, else why its check failed (it is not written).
-        self._waiting: deque[tuple[InputFile, Block, Future[str | None]]] = deque()
+        self._waiting: deque[tuple[InputFile, Block, ClosedChunk, Future[None] | None]] = deque()
 
     def add(self, file: InputFile, block: Block, chunk: ClosedChunk, *, checked: bool) -> None:
         """Queue ``chunk`` for writing; its CRC is checked first unless it was (``checked``)."""
         pool = None if checked else self._pool
         check = pool.submit(check_raw_chunk, chunk) if pool is not None else None
-        self._waiting.append((file, block, self._writer.submit(self._write, chunk, check)))
+        self._waiting.append((file, block, chunk, check))
         while len(self._waiting) > CHECK_WINDOW:
-            self._written_next()
+            self._write_next()
 
     def flush(self) -> None:
-        """Wait until every chunk queued is written (before anything else goes out)."""
+        """Write every chunk waiting (before anything else goes out)."""
         while self._waiting:
-            self._written_next()
+            self._write_next()
 
     def close(self) -> None:
-        """Stop the threads; a write under way ends first (the output may be removed next)."""
         if self._pool is not None:
             self._pool.shutdown(cancel_futures=True)
-        self._writer.shutdown(cancel_futures=True)
 
-    def _write(self, chunk: ClosedChunk, check: Future[None] | None) -> str | None:
+    def _write_next(self) -> None:
+        file, block, chunk, check = self._waiting.popleft()
         try:
             if check is not None:
                 check.result()
         except ChunkError as exc:
-            return str(exc)
+            _lost(file, block, str(exc))
+            return
         self._out.copy_chunk(chunk)
-        return None
-
-    def _written_next(self) -> None:
-        file, block, write = self._waiting.popleft()
-        failed = write.result()  # raises what the write raised (BagWriteError)
-        if failed is not None:
-            _lost(file, block, failed)
 
 
 @dataclass(frozen=True)

@@ -361,3 +361,30 @@ def test_split_by_duration_within_a_chunk(tmp_path: Path) -> None:
         times = [t for _, t, _ in mcap_messages([file])]
         assert max(times) - min(times) < span / 3
     assert rosbags_messages(out) == before
+
+
+@pytest.mark.parametrize("source", ["mcap", "sqlite3"])
+def test_custom_data_is_kept_into_each_storage(tmp_path: Path, source: str) -> None:
+    """metadata.yaml's custom_data of a bag rosbags wrote, in both outputs' metadata.yaml and
+    in the MCAP output's rosbag2 record."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    jazzy = get_typestore(Stores.ROS2_JAZZY)
+    bag = tmp_path / "in"
+    writer = Writer(bag, version=9, storage_plugin=StoragePlugin[source.upper()])
+    writer.set_custom_data("site", "lab-3")
+    with writer:
+        text = writer.add_connection("/s", "std_msgs/msg/String", typestore=jazzy)
+        message = jazzy.types["std_msgs/msg/String"]("hi")
+        writer.write(text, 10**9, jazzy.serialize_cdr(message, "std_msgs/msg/String"))
+    for storage in ("mcap", "sqlite3"):
+        out = tmp_path / storage
+        _convert(bag, "-o", out, "--storage", storage)
+        metadata = yaml.safe_load((out / "metadata.yaml").read_text())
+        assert metadata["rosbag2_bagfile_information"]["custom_data"] == {"site": "lab-3"}
+    (file,) = _mcap_files(tmp_path / "mcap")
+    with open(file, "rb") as f:
+        (record,) = make_reader(f).iter_metadata()
+    assert yaml.safe_load(record.metadata["serialized_metadata"])["custom_data"] == {
+        "site": "lab-3"
+    }
