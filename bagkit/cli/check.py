@@ -15,7 +15,7 @@ from bagkit.cli.common import ReportFormat, handle_errors, print_json, warn
 from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers, end_with_unread, fleet_run
 from bagkit.cli.option_parsing import bag_location
 from bagkit.cli.selection_options import End, Start, build_query
-from bagkit.cli.tables import Styled, print_line
+from bagkit.cli.tables import Styled, print_command, print_line
 from bagkit.words import counted
 
 if TYPE_CHECKING:
@@ -154,11 +154,14 @@ def _print(report: "HealthReport") -> None:
     )
     count = len(report.assertions)
     print_line([f"{report.bag}: {counted(count, 'assertion')}, ", verdict])
+    lead = " " * 7
     for assertion in broken:
-        # The assertion and where it broke fit 80 columns; commands and links stay whole.
-        lines = [assertion.where(report.start_ns)]
-        lines += assertion.commands(report.bag, report.start_ns)
-        lines.append(report.link(assertion) or "")
+        # The assertion and where it broke fit 80 columns, a command goes on over lines; a
+        # link stays whole.
         print_line([f"  FAIL {assertion.headline}"])
-        for line in filter(None, lines):
-            print_line([f"       {line}"])
+        if where := assertion.where(report.start_ns):
+            print_line([lead + where])
+        for command in assertion.commands(report.bag, report.start_ns):
+            print_command(command, lead=lead)
+        if link := report.link(assertion):
+            print_line([lead + link])

@@ -35,6 +35,7 @@ from bagkit.cli.compare_options import (
     Topics,
 )
 from bagkit.cli.option_parsing import split_list
+from bagkit.cli.selection_options import Distro
 from bagkit.cli.tables import INDENT, Column, Styled, Table, print_table, print_wrapped
 from bagkit.compare import (
     CompareOptions,
@@ -127,6 +128,7 @@ def compare(
     output_format: Format = ReportFormat.TABLE,
     show: Show = 10,
     check_crc: CheckCrcOnRead = True,
+    distro: Distro = None,
 ) -> None:
     """Compare CANDIDATE with GOLDEN within tolerances (exit 0 same, 1 different, 2 bad input)."""
     base = _spec_options(spec, live)

@@ -25,7 +25,8 @@ Intact chunks are copied as they are stored (not recompressed); what could not b
 printed.
 
 Exit status: 0 when everything was read, 3 when messages were recovered but something was lost
-(printed as 'lost: ...'), 1 when no message could be recovered, 2 for bad input.
+(printed as 'lost: ...'), 1 when no message could be recovered of a damaged bag (an intact bag
+without messages is recovered as one: 0), 2 for bad input.
 
 Examples:
 
@@ -49,6 +50,6 @@ def recover(
     with status(f"recovering {bag}"):
         report = recover_bag(bag, output, options)
     print_report(report, output_format)
-    if not report.message_count:
+    if report.recover_exit_code == 1:
         raise fail(f"no message of {bag} could be recovered", report.recover_exit_code)
     raise typer.Exit(report.recover_exit_code)

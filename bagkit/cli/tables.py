@@ -165,6 +165,36 @@ def _print_packed(
         _write_line(line, console)
 
 
+def print_command(command: str, *, lead: str) -> None:
+    """Print the shell ``command`` after ``lead`` within the console's width: a long one goes
+    on over lines ending in `` \\`` (pasted into a shell, it is the one command), an option
+    kept with its value, no word broken (a line is then as long as its word)."""
+    console = _rich_console()
+    lines = shell_lines(command, _width(console) - cell_len(lead))
+    for line in lines:
+        _write_line([Styled(lead + line)], console)
+
+
+def shell_lines(command: str, width: int) -> list[str]:
+    """``command`` (words quoted as :func:`shlex.quote` quotes them) over lines of at most
+    ``width`` cells, each but the last ending in `` \\``, the following indented by two."""
+    import shlex  # here: most commands print no shell command
+
+    pieces: list[str] = []
+    for word in map(shlex.quote, shlex.split(command)):
+        if pieces and pieces[-1].startswith("-") and " " not in pieces[-1] and word[0] != "-":
+            pieces[-1] += " " + word  # an option and its value
+        else:
+            pieces.append(word)
+    lines = [pieces[0]]
+    for piece in pieces[1:]:
+        if cell_len(lines[-1]) + 1 + cell_len(piece) + len(" \\") > width:
+            lines.append("  " + piece)
+        else:
+            lines[-1] += " " + piece
+    return [line + " \\" for line in lines[:-1]] + lines[-1:]
+
+
 def print_fields(rows: Sequence[tuple[str, str]], *, names: frozenset[str] = frozenset()) -> None:
     """``key: value`` lines with the values aligned; a value on several lines keeps the column.
 

@@ -57,9 +57,11 @@ def describe_bag(path: str) -> list[dict[str, Any]]:
     stamp = bag_stamp(path)
     try:
         with BagReader(path, allow_empty=True) as reader:
+            # A bag without messages has no times (its 0 would read 1970-01-01 in a query).
+            timed = any(reader.topic_counts.values())
             common = {
-                "start": reader.start_ns,
-                "end": reader.end_ns,
+                "start": reader.start_ns if timed else None,
+                "end": reader.end_ns if timed else None,
                 "duration": (reader.end_ns - reader.start_ns) / 1e9,
                 "compression": reader.compression_label,
                 "problems": "; ".join(reader.problems),

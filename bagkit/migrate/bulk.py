@@ -154,13 +154,17 @@ class BulkMigration:
         for offset, length in zip(_prefix_offsets(self.new, new_lengths), new_lengths, strict=True):
             at = room + offset
             template[at : at + 4] = np.frombuffer(U32.pack(length), np.uint8)
-        rows = np.tile(template, (len(values), 1))
+        rows = np.empty((len(values), room + size), np.uint8)
         old_bytes = values[:, None].view(np.uint8)  # one row of bytes per payload (a view)
-        for at, source_at, length in self._spans(values.dtype, resolved.dtype):
+        filled = 0  # the template is broadcast only where no span is copied: each byte once
+        for at, source_at, length in sorted(self._spans(values.dtype, resolved.dtype)):
+            _fill(rows, template, filled, room + at)
             # Each row's span as one item of ``length`` bytes: a copy per row, not per byte.
             span = np.dtype((np.void, length))
             target = rows[:, room + at : room + at + length].view(span)
             target[:, 0] = old_bytes[:, source_at : source_at + length].view(span)[:, 0]
+            filled = room + at + length
+        _fill(rows, template, filled, room + size)
         return rows
 
     def _spans(self, old: np.dtype, new: np.dtype) -> list[tuple[int, int, int]]:
@@ -203,6 +207,13 @@ def _bounded(typestore: TypeDefinitions, name: str) -> bool:
             if element[0] == Nodetype.NAME:
                 todo.append(element[1])
     return False
+
+
+def _fill(rows: np.ndarray, template: np.ndarray, start: int, stop: int) -> None:
+    """``template[start:stop]`` into every row of ``rows`` at the same place."""
+    if stop > start:
+        span = np.dtype((np.void, stop - start))
+        rows[:, start:stop].view(span)[:, 0] = template[start:stop].view(span)[0]
 
 
 def _prefix_offsets(layout: CdrLayout, lengths: tuple[int, ...]) -> list[int]:

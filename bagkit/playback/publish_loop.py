@@ -12,13 +12,13 @@ from __future__ import annotations
 import itertools
 import time
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass
 from typing import Protocol
 
 from bagkit.bag import BagMessage
 from bagkit.bag.clock import clock_message
 from bagkit.playback.controls import PlayControls
 from bagkit.playback.lateness import LatenessSamples
+from bagkit.playback.pass_reader import PassReader
 from bagkit.playback.report import PlayProgress
 from bagkit.playback.timing import (
     LATE_THRESHOLD_NS,
@@ -49,18 +49,6 @@ class Output(Protocol):
     @property
     def publish(self) -> Callable[[bytes], None]:
         """Publish one serialized message."""
-
-
-@dataclass(frozen=True, slots=True)
-class PassReader:
-    """Where a pass reads: the window's messages from a bag time, the latched state at one."""
-
-    messages_from: Callable[[int], Iterator[BagMessage]]
-    """Messages of the replayed topics from this log time to the window's end, in order."""
-    latched_before: Callable[[int], list[BagMessage]]
-    """The last message before this log time of each latched topic (issue 27, item 1)."""
-    end_ns: int
-    """The window's last log time (for the progress line's percentage)."""
 
 
 class PassPublisher:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import tempfile
+import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -61,7 +62,7 @@ class GoldenCheck:
         """A few lines naming the failing topics and fields and the first divergences."""
         lines = [f"{self.spec.name} ({self.mode}): {'pass' if self.passed else 'FAIL'}"]
         if self.drift:
-            return "\n".join([*lines, *drift_lines(self.spec, list(self.drift))])
+            return _fitted([*lines, *drift_lines(self.spec, list(self.drift))])
         for topic in self.report.topics:
             if topic.passed:
                 continue
@@ -77,17 +78,38 @@ class GoldenCheck:
         for where, health in (("golden", self.golden_health), ("candidate", self.health)):
             if health is not None:
                 lines += broken_lines(health, where)
-        return "\n".join(lines)
+        return _fitted(lines)
+
+
+WIDTH = 80
+"""The summary's width: a terminal's, a CI log's, a pytest failure's."""
+
+
+def _fitted(lines: list[str]) -> str:
+    """``lines`` joined, each longer than WIDTH broken at spaces (never inside a name or a
+    value without one), its following lines indented under it."""
+    return "\n".join(
+        part
+        for line in lines
+        for part in textwrap.wrap(
+            line,
+            WIDTH,
+            subsequent_indent=" " * (len(line) - len(line.lstrip()) + 4),
+            break_long_words=False,
+            break_on_hyphens=False,
+        )
+        or [""]
+    )
 
 
 def _packed(pieces: list[str], *, lead: str, indent: str | None = None) -> list[str]:
-    """``pieces`` joined by ``, `` after ``lead``, as many to a line as fit 80 columns (a
+    """``pieces`` joined by ``, `` after ``lead``, as many to a line as fit WIDTH (a
     field and its error are never split), the following lines after ``indent`` (as far as
     ``lead`` by default)."""
     indent = " " * len(lead) if indent is None else indent
     lines = [lead + pieces[0]]
     for piece in pieces[1:]:
-        if len(lines[-1]) + 2 + len(piece) > 80:
+        if len(lines[-1]) + 2 + len(piece) > WIDTH:
             lines[-1] += ","
             lines.append(indent + piece)
         else:

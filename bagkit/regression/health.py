@@ -12,6 +12,7 @@ from collections.abc import Collection
 from dataclasses import replace
 
 from bagkit.health import Assertion, HealthReport, HealthSpec
+from bagkit.words import counted
 
 
 def outputs_contract(health: HealthSpec, outputs: Collection[str]) -> HealthSpec:
@@ -62,4 +63,4 @@ def describe(assertion: Assertion, start_ns: int) -> str:
     if not len(assertion.spans):
         return f"{name}: broken ({assertion.reason or 'no message'})"
     first = (int(assertion.spans[0][0]) - start_ns) / 1e9
-    return f"{name}: broken {len(assertion.spans)} time(s), first at {first:.3f} s"
+    return f"{name}: broken {counted(len(assertion.spans), 'time')}, first at {first:.3f} s"

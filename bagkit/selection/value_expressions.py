@@ -33,6 +33,7 @@ from bagkit.selection.condition_syntax import _Parser
 from bagkit.selection.condition_terms import ANY, Path, Value, path_text
 from bagkit.selection.conditions import message_values
 from bagkit.selection.errors import SelectionError
+from bagkit.words import counted
 
 _TOKEN = re.compile(
     r"""\s*(?:
@@ -200,8 +201,9 @@ class _ValueParser(_Parser):
         fewest, most = _FUNCTIONS[name]
         if not fewest <= len(arguments) <= most:
             raise SelectionError(
-                f"bad expression {self.text!r}: {name}() takes {fewest}"
-                f"{'' if fewest == most else f' to {most}'} argument(s), not {len(arguments)}"
+                f"bad expression {self.text!r}: {name}() takes "
+                f"{'' if fewest == most else f'{fewest} to '}{counted(most, 'argument')}, "
+                f"not {len(arguments)}"
             )
         return Operation(name, tuple(arguments))
 

@@ -50,9 +50,9 @@ class RewriteReport:
 
     @property
     def recover_exit_code(self) -> int:
-        """``bagkit recover``'s status: 0 all read, 3 recovered with a loss (``problems``),
-        1 nothing recovered (no message written)."""
-        if not self.message_count:
+        """``bagkit recover``'s status: 0 all read (an intact bag without messages too), 3
+        recovered with a loss (``problems``), 1 nothing recovered of what was lost."""
+        if not self.message_count and self.problems:
             return 1
         return 3 if self.problems else 0
 

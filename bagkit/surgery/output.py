@@ -270,6 +270,8 @@ class OutputBag:
             chunk = self._chunk
             room = self._chunk_size - chunk.size
             j = max(i + 1, int(np.searchsorted(ends, offsets[i] + room, side="right")))
+            if self._max_duration:
+                j = self._within_duration(times, i, j)
             chunk.add_records(
                 view[offsets[i] : ends[j - 1]],
                 channels[i:j],
@@ -373,16 +375,29 @@ class OutputBag:
             )
         return self._file
 
-    def _split_if_due(self, log_time: int, size: int) -> None:
+    def _within_duration(self, times: np.ndarray, i: int, j: int) -> int:
+        """Where ``times[i:j]`` leaves the open file's duration (``j`` if it does not): the split
+        comes before that message, not at the end of a chunk that holds the whole bag."""
+        import numpy as np
+
         file = self._file
-        if file is None or not (self._max_size or self._max_duration):
+        starts = [int(times[i]), self._chunk.start]
+        if file is not None and file.start_time is not None and file.message_count:
+            starts.append(file.start_time)
+        late = np.flatnonzero(times[i + 1 : j] >= min(starts) + self._max_duration)
+        return i + 1 + int(late[0]) if len(late) else j
+
+    def _split_if_due(self, log_time: int, size: int) -> None:
+        if not (self._max_size or self._max_duration):
             return
-        chunk = self._chunk
-        if file.message_count + chunk.count == 0:
+        # The file opens when its first chunk closes: until then the open chunk is all of it.
+        file, chunk = self._file, self._chunk
+        if (file.message_count if file else 0) + chunk.count == 0:
             return
-        due = bool(self._max_size) and file.offset + chunk.size + size >= self._max_size
+        offset = file.offset if file else 0
+        due = bool(self._max_size) and offset + chunk.size + size >= self._max_size
         if self._max_duration:
-            start = min(file.start_time or chunk.start, chunk.start)
+            start = min(file.start_time or chunk.start, chunk.start) if file else chunk.start
             due = due or log_time - start >= self._max_duration
         if due:
             self._close_chunk()

@@ -22,6 +22,7 @@ from bagkit.surgery.select import PayloadFilter, Selection
 _LOG_TIME_AT = RECORD_HEADER.size + 2 + 4  # channel id (u16), sequence (u32), then log time
 _CHANNEL_AT = RECORD_HEADER.size
 _MAX_TIME = (1 << 64) - 1
+_MESSAGE = int(Opcode.MESSAGE)  # an enum member read per chunk costs a lookup in enum code
 
 
 @dataclass
@@ -76,7 +77,7 @@ def open_run(  # noqa: PLR0917 (the opened chunk and how it is selected)
         lengths = np.where(lengths < 0, size, lengths)  # lengths past 2**63: never whole
         times = read_at(buf, safe + _LOG_TIME_AT, "<u8")
         ends = safe + RECORD_HEADER.size + np.minimum(lengths, size)
-        valid &= (buf[safe] == Opcode.MESSAGE) & (lengths >= MESSAGE_PREFIX.size) & (ends <= size)
+        valid &= (buf[safe] == _MESSAGE) & (lengths >= MESSAGE_PREFIX.size) & (ends <= size)
     else:
         times = ends = np.zeros(len(offsets), np.int64)
     bad = int(len(offsets) - valid.sum())
@@ -135,7 +136,7 @@ def _rewritten(
             which = rows[indexes]
             count, width = block.shape
             block[:, : RECORD_HEADER.size] = np.frombuffer(
-                RECORD_HEADER.pack(Opcode.MESSAGE, width - RECORD_HEADER.size), np.uint8
+                RECORD_HEADER.pack(_MESSAGE, width - RECORD_HEADER.size), np.uint8
             )
             prefix = np.dtype((np.void, size - RECORD_HEADER.size))
             block[:, RECORD_HEADER.size : size].view(prefix)[:, 0] = gather(

@@ -84,6 +84,15 @@ def test_distro_option_overrides(tmp_path: Path, ros_distro: str | None) -> None
     assert fields["range"]["max"] == max(m.range for m in humble_ranges())  # type: ignore[attr-defined]
 
 
+def test_compare_takes_the_distro_option(tmp_path: Path) -> None:
+    # compare decodes both bags as every reading command does: --distro is its choice too.
+    bag = humble_bag(tmp_path / "bag", None)
+    # Jazzy's Range does not decode the Humble payloads: compared byte for byte, said so.
+    assert "compared byte for byte" in bagkit_in_process(["compare", bag, bag]).stderr
+    proc = bagkit_in_process(["compare", bag, bag, "--distro", "humble"])
+    assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+
+
 def test_an_unknown_distro_is_a_usage_error(tmp_path: Path) -> None:
     proc = _echo(humble_bag(tmp_path / "bag", "humble"), "--distro", "ardent")
     assert proc.returncode == 2 and "ardent" in proc.stderr and "Traceback" not in proc.stderr

@@ -138,6 +138,12 @@ def test_empty_rosbags_mcap_bag_is_valid(tmp_path: Path) -> None:
         assert reader.topic_counts == {"/imu": 0, "/temperature": 0}
         assert reader.problems == [] and reader.has_summary
         assert (reader.start_ns, reader.end_ns) == (0, 0)
+    # Nothing lost: recover writes it whole, without 'no message could be recovered' (exit 1).
+    done = bagkit("recover", bag, "-o", tmp_path / "recovered")
+    assert done.returncode == 0 and "error" not in done.stderr, done.stderr
+    assert "0 messages (2 topics" in done.stdout
+    info = json.loads(ok("info", tmp_path / "recovered", "--format", "json"))
+    assert {t["topic"]: t["count"] for t in info["topics"]} == {"/imu": 0, "/temperature": 0}
 
 
 @pytest.mark.parametrize(

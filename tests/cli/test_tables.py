@@ -4,6 +4,7 @@ no name is ever cut."""
 from __future__ import annotations
 
 import re
+import shlex
 import struct
 from pathlib import Path
 
@@ -11,6 +12,7 @@ import pytest
 from bagkit_runs import bagkit_in_process
 
 from bagkit.bag import BagWriter, TopicInfo
+from bagkit.cli.tables import shell_lines
 
 START = 1_763_850_000_000_000_000
 LONG_TOPIC = "/a/very/long/namespace/for/the/battery/management/system/of_the_robot/report"
@@ -117,3 +119,22 @@ def test_record_report(
     _assert_names_whole(out, (*NAMES, str(path)), columns)
     assert out.splitlines()[:2] == [str(path), "(3.0 s, topics subscribed after 1.9 s)"]
     assert f"{LONG_TOPIC}: 2 lost in the middleware" in out.replace("\n    ", " ")
+
+
+def test_a_long_command_goes_on_over_lines_a_shell_joins() -> None:
+    command = "bagkit filter 'my bag' -o out --around '/a: x > 1' --before 5 --after 5"
+    lines = shell_lines(command, 30)
+    assert lines == [
+        "bagkit filter 'my bag' \\",
+        "  -o out \\",
+        "  --around '/a: x > 1' \\",
+        "  --before 5 --after 5",
+    ]
+    assert shlex.split(" ".join(line.removesuffix("\\") for line in lines)) == shlex.split(command)
+    # A word longer than the width stays whole, on its own line.
+    assert shell_lines("bagkit play /a/very/long/path/to/a/bag", 12) == [
+        "bagkit \\",
+        "  play \\",
+        "  /a/very/long/path/to/a/bag",
+    ]
+    assert shell_lines(command, 80) == [command]

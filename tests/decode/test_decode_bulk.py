@@ -192,3 +192,29 @@ def test_numbers_read_at_any_byte(dtype: str, code: str) -> None:
     with pytest.raises(IndexError):
         read_at(buf, np.array([len(buf) - size + 1]), dtype)
     assert read_at(buf[: size - 1], np.array([], np.int64), dtype).tolist() == []
+
+
+@pytest.mark.parametrize(("dtype", "code"), [("<u2", "<H"), ("<u4", "<I"), ("<u8", "<Q")])
+def test_numbers_read_at_evenly_spaced_positions(dtype: str, code: str) -> None:
+    """Evenly spaced positions (one strided copy) read what any positions read, up to the last
+    number that fits; a run that reaches past the buffer or starts before it is refused or
+    wraps as numpy's indexing does, and the numbers read stay when the buffer changes."""
+    data = bytearray(bytes(range(3, 251)) * 4)
+    buf = np.frombuffer(data, np.uint8)[5:]
+    size = struct.calcsize(code)
+    step = 37
+    positions = np.arange(3, len(buf) - size + 1, step, dtype=np.int64)
+    last = np.array([len(buf) - size - 2 * step, len(buf) - size - step, len(buf) - size])
+    for wanted in (positions, last):
+        expected = [struct.unpack_from(code, data, 5 + p)[0] for p in wanted.tolist()]
+        read = read_at(buf, wanted, dtype)
+        assert read.tolist() == expected
+        data[5 + int(wanted[0])] ^= 0xFF
+        assert read.tolist() == expected  # a copy, not a view of the buffer
+        data[5 + int(wanted[0])] ^= 0xFF
+    with pytest.raises(IndexError):
+        read_at(buf, last + 1, dtype)
+    behind = np.array([-3, -3 + step, -3 + 2 * step], np.int64)
+    assert read_at(buf, behind, dtype).tolist() == [
+        struct.unpack_from(code, data, 5 + (p % (len(buf) - size + 1)))[0] for p in behind.tolist()
+    ]

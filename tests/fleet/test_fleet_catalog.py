@@ -21,6 +21,7 @@ from bagkit.fleet.catalog import (
     plan_update,
     query,
     read_catalog,
+    to_frame,
     unknown_topics,
     write_catalog,
 )
@@ -160,3 +161,18 @@ def test_cli_builds_updates_and_queries(client: Client, fleet_dir: Path, tmp_pat
             check=False,
         )
         assert bad.returncode == 2 and bad.stderr.startswith(f"error: bad --start {when!r}"), when
+
+
+def test_an_empty_bag_has_no_times(tmp_path: Path) -> None:
+    """rosbags' empty bag (topics, no messages): its rows count 0 and have no start or end
+    (not 1970-01-01, which a time query would match)."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    with Writer(tmp_path / "empty", version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        writer.add_connection(
+            "/imu", "sensor_msgs/msg/Imu", typestore=get_typestore(Stores.ROS2_JAZZY)
+        )
+    (row,) = to_frame(describe_module.describe_bag(str(tmp_path / "empty"))).to_dict("records")
+    assert (row["topic"], row["count"], row["problems"]) == ("/imu", 0, "")
+    assert pd.isna(row["start"]) and pd.isna(row["end"])

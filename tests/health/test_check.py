@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shlex
 import subprocess
 from pathlib import Path
 
@@ -68,6 +69,22 @@ def test_cli_exit_codes_and_json(spec: Path) -> None:
     (episode,) = gps[0]["episodes"]
     assert episode["count"] == 3  # gps_loss@12+4 at 1 Hz (see test_fusion_fault_conditions)
     assert gps[0]["commands"][1].startswith("bagkit filter ")
+
+
+def test_hints_fit_80_columns_and_paste_back_as_the_commands_meant(spec: Path) -> None:
+    faults = FIXTURES / "faults" / "golden"
+    text = bagkit_in_process(["check", faults, "--spec", spec], env={"COLUMNS": "80"})
+    assert text.returncode == 1, text.stderr
+    lines = text.stdout.splitlines()
+    assert max(map(len, lines)) <= 80, text.stdout
+    as_json = bagkit("check", faults, "--spec", spec, "--format", "json")
+    (report,) = json.loads(as_json.stdout)
+    meant = [a["commands"] for a in report["assertions"] if not a["passed"]]
+    # What a shell reads: a backslash before a line break joins the lines.
+    shell = "\n".join(line.strip() for line in lines).replace("\\\n", "")
+    printed = [shlex.split(line) for line in shell.splitlines() if line.startswith("bagkit ")]
+    assert printed == [shlex.split(command) for commands in meant for command in commands]
+    assert any(line.endswith(" \\") for line in lines)  # a filter command went on
 
 
 def test_a_missing_topic_breaks_the_contract(tmp_path: Path) -> None:

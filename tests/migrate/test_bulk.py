@@ -20,6 +20,7 @@ from bagkit.bag import BagReader, BagWriter, TopicInfo, message_definition
 from bagkit.bag.mcapio.records import MESSAGE_RECORD_HEADER
 from bagkit.bag.writer import DEFAULT_CHUNK_SIZE
 from bagkit.migrate import Target, TopicMigration, migrate_topic
+from bagkit.migrate import bulk as bulk_module
 from bagkit.migrate.errors import MigrateError
 from bagkit.surgery.migrate import MigrateOptions, migrate_bag
 
@@ -234,3 +235,24 @@ def test_a_failure_after_chunks_were_written_leaves_nothing(tmp_path: Path) -> N
         migrate_bag(tmp_path / "old", tmp_path / "new", MigrateOptions())
     assert sorted(p.name for p in tmp_path.iterdir()) == ["old"]
     assert not [t for t in threading.enumerate() if t.name.startswith("bagkit-compress")]
+
+
+def test_a_field_added_at_the_end_is_zeros_whatever_the_memory_held(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The rows are built in memory full of other bytes: the room, the new last field and the
+    padding come out zero, the rest as the serializer writes it."""
+    monkeypatch.setattr(
+        bulk_module.np, "empty", lambda shape, dtype=float, **_: np.full(shape, 0xAB, dtype)
+    )
+    migration = _migration()
+    assert migration.bulk is not None
+    old = [_old(m) for m in _messages(12)]
+    buf = np.frombuffer(b"".join(old), np.uint8)
+    lengths = np.array([len(p) for p in old], np.int64)
+    starts = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
+    groups = migration.bulk.payloads(buf, starts, lengths, 5)
+    assert groups is not None
+    bulk = _by_index(groups, 5)
+    assert [bulk[i] for i in range(len(old))] == [migration.payload(p) for p in old]
+    assert {bulk[i][-LAST_BYTES:] for i in bulk} == {bytes(LAST_BYTES)}

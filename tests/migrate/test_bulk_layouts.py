@@ -14,6 +14,7 @@ from sensor_msgs.msg import Imu, Range, RegionOfInterest
 from bagkit.bag import BagReader, BagWriter, TopicInfo, message_definition
 from bagkit.decode.message_types import MessageTypes
 from bagkit.migrate import Target, TopicMigration, migrate_topic
+from bagkit.migrate import bulk as bulk_module
 from bagkit.migrate.errors import MigrateError
 from bagkit.surgery.migrate import MigrateOptions, migrate_bag
 
@@ -193,3 +194,16 @@ def test_a_bag_migrated_in_bulk_equals_one_by_one(tmp_path: Path) -> None:
     assert [deserialize_message(d, Range).range for *_, d in stored] == [
         pytest.approx(m.range) for m in messages
     ]
+
+
+def test_rows_keep_nothing_of_the_memory_they_are_built_in(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every byte of a row is written (the spans copied, the template elsewhere: padding, new
+    fields, prefixes): rows built in memory full of other bytes equal the serializer's."""
+    messages = _ranges(24)
+    old = _stored(RANGE, OLD_RANGE, messages, {})
+    migration = migrate_topic(TopicInfo("/range", RANGE), OLD_RANGE, Target())
+    assert migration is not None and migration.bulk is not None
+    monkeypatch.setattr(
+        bulk_module.np, "empty", lambda shape, dtype=float, **_: np.full(shape, 0xAB, dtype)
+    )
+    assert _bulk_payloads(migration, old) == [migration.payload(p) for p in old]

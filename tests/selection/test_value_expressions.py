@@ -77,7 +77,7 @@ def test_paths_read() -> None:
         ("status +", "expected a value"),
         ("status $ 2", "unexpected '$'"),
         ("exec(status)", "unknown function 'exec'"),
-        ("if(status, 1)", "if() takes 3 argument(s), not 2"),
+        ("if(status, 1)", "if() takes 3 arguments, not 2"),
         ("status 2", "expected an operator or the end"),
         ("__class__", "unexpected '_'"),
     ],

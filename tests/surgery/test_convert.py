@@ -342,3 +342,49 @@ def test_a_stored_definition_naming_types_it_lacks_converts_without_a_type_hash(
         summary = make_reader(f).get_summary()
     assert summary is not None
     assert [set(c.metadata) for c in summary.channels.values()] == [{"offered_qos_profiles"}]
+
+
+def test_split_by_duration_within_a_chunk(tmp_path: Path) -> None:
+    """A bag whose messages fit in one chunk, rewritten (not copied as stored: another
+    compression), is split by -d as ros2 bag splits it: no file spans the duration (found
+    converting a small rosbags bag with -d 1: one file of 1.9 s)."""
+    bag = tmp_path / "in"
+    write_mixed_bag(bag, 300, compression="none", chunk_size=1 << 20)
+    before = rosbags_messages(bag)
+    span = max(t for _, t, _ in before) - min(t for _, t, _ in before)
+    out = tmp_path / "out"
+    result = run_here("convert", str(bag), "-o", str(out), "-d", str(span / 3e9))
+    assert result.returncode == 0, result.stderr
+    files = _mcap_files(out)
+    assert len(files) >= 3
+    for file in files:
+        times = [t for _, t, _ in mcap_messages([file])]
+        assert max(times) - min(times) < span / 3
+    assert rosbags_messages(out) == before
+
+
+@pytest.mark.parametrize("source", ["mcap", "sqlite3"])
+def test_custom_data_is_kept_into_each_storage(tmp_path: Path, source: str) -> None:
+    """metadata.yaml's custom_data of a bag rosbags wrote, in both outputs' metadata.yaml and
+    in the MCAP output's rosbag2 record."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    jazzy = get_typestore(Stores.ROS2_JAZZY)
+    bag = tmp_path / "in"
+    writer = Writer(bag, version=9, storage_plugin=StoragePlugin[source.upper()])
+    writer.set_custom_data("site", "lab-3")
+    with writer:
+        text = writer.add_connection("/s", "std_msgs/msg/String", typestore=jazzy)
+        message = jazzy.types["std_msgs/msg/String"]("hi")
+        writer.write(text, 10**9, jazzy.serialize_cdr(message, "std_msgs/msg/String"))
+    for storage in ("mcap", "sqlite3"):
+        out = tmp_path / storage
+        _convert(bag, "-o", out, "--storage", storage)
+        metadata = yaml.safe_load((out / "metadata.yaml").read_text())
+        assert metadata["rosbag2_bagfile_information"]["custom_data"] == {"site": "lab-3"}
+    (file,) = _mcap_files(tmp_path / "mcap")
+    with open(file, "rb") as f:
+        (record,) = make_reader(f).iter_metadata()
+    assert yaml.safe_load(record.metadata["serialized_metadata"])["custom_data"] == {
+        "site": "lab-3"
+    }

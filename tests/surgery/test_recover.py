@@ -211,3 +211,38 @@ def test_scanned_file_changed_is_read_again(source: Path, tmp_path: Path) -> Non
         index = scanned.index(Source(f, cut.name))
     assert index is not mcap.index
     assert index.message_count > mcap.index.message_count
+
+
+def test_chunks_failing_their_check_are_lost_the_rest_copied_in_order(
+    source: Path, tmp_path: Path
+) -> None:
+    """Chunks copied as stored are checked on threads and written on another: two damaged
+    chunks (a byte of their compressed data flipped) are reported in file order, every other
+    chunk is copied as stored, in order."""
+    with open(source, "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    chunks = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
+    assert len(chunks) > 20
+    damaged = [chunks[3], chunks[17]]
+    data = bytearray(source.read_bytes())
+    for chunk in damaged:
+        data[chunk.chunk_start_offset + chunk.chunk_length - 40] ^= 0xFF
+    bag = tmp_path / "damaged.mcap"
+    bag.write_bytes(bytes(data[: data_end(source)]))  # no summary: recover scans it
+    expected = salvaged(bag)
+    everything = rosbags_messages(source.parent)
+    assert 0 < len(expected) < len(everything)
+    out = tmp_path / "recovered"
+    result = run_here("recover", str(bag), "-o", str(out))
+    assert result.returncode == 3, result.stderr
+    lost = [line for line in result.stderr.splitlines() if "unreadable" in line]
+    assert [line.split("chunk at byte ")[1].split(" ")[0] for line in lost] == [
+        str(c.chunk_start_offset) for c in damaged
+    ]
+    assert all("messages are lost" in line for line in lost)
+    check_recovered(out, expected)
+    stored = chunk_records(source)
+    assert chunk_records(next(out.glob("*.mcap"))) == [
+        record for i, record in enumerate(stored) if i not in (3, 17)
+    ]

@@ -26,6 +26,7 @@ from bagkit.recording.options import RecordOptions
 from bagkit.recording.report import SnapshotRecord
 from bagkit.ros.trigger_service import Action, trigger_callback
 from bagkit.selection.times import format_ns
+from bagkit.words import counted
 
 
 class Controlled(Protocol):
@@ -63,7 +64,7 @@ def describe_snapshot(snapshot: SnapshotRecord) -> str:
     """The ``~/snapshot`` service's answer: which snapshot, and its window."""
     return (
         f"{snapshot.path}: {format_ns(snapshot.start_ns)} - {format_ns(snapshot.end_ns)} "
-        f"({snapshot.triggers} trigger(s))"
+        f"({counted(snapshot.triggers, 'trigger')})"
     )
 
 

@@ -9,12 +9,11 @@ about, then runs the passes (:mod:`~bagkit.playback.publish_loop`) and returns a
 
 from __future__ import annotations
 
-import functools
 import itertools
 import logging
 import os
 import time
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable
 from contextlib import ExitStack, nullcontext
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -22,8 +21,6 @@ from typing import TYPE_CHECKING
 from rclpy.context import Context
 from rclpy.node import Node
 
-from bagkit.bag import BagMessage
-from bagkit.bag.messages import make_message
 from bagkit.bag.storage_files import bag_path
 from bagkit.native import precise_timers
 from bagkit.playback.controls import PlayControls
@@ -49,9 +46,9 @@ if TYPE_CHECKING:
     # Imported once the node exists (numpy, the decoder, rosbags, the migrator; topics.py
     # imports the decoder when called): their import overlaps discovery instead of delaying
     # the participant that discovery waits for.
-    from bagkit.migrate import TopicMigration
     from bagkit.playback.lateness import LatenessSamples
-    from bagkit.playback.publish_loop import PassPublisher, PassReader
+    from bagkit.playback.pass_reader import PassReader
+    from bagkit.playback.publish_loop import PassPublisher
     from bagkit.ros.replay.service_requests import ServiceRequests
 
 _log = logging.getLogger(__name__)
@@ -308,24 +305,16 @@ class Player:
             self._latched_published += publisher.latched
 
     def _pass_reader(self) -> PassReader:
-        from bagkit.playback.publish_loop import PassReader
+        from bagkit.playback.pass_reader import pass_reader
 
         assert self._reader is not None
-        source = self._reader
-        topics = list(self._outputs)
-        span = self._span()
-
-        migrations = self.publishable.migrations
-
-        def messages_from(bag_ns: int) -> Iterator[BagMessage]:
-            found = iter(source.messages(topics, bag_ns, span.end_ns))
-            return map(functools.partial(_migrated, migrations), found) if migrations else found
-
-        def latched_before(bag_ns: int) -> list[BagMessage]:
-            found = source.latched_before(bag_ns, self._latched) if self._latched else []
-            return [_migrated(migrations, m) for m in found]
-
-        return PassReader(messages_from, latched_before, span.last_ns)
+        return pass_reader(
+            self._reader,
+            list(self._outputs),
+            self._span(),
+            latched=self._latched,
+            migrations=self.publishable.migrations,
+        )
 
     def _span(self) -> WindowSpan:
         if self._reader is None:
@@ -416,14 +405,3 @@ class Player:
             timeout=self.waits.timeout_ns / NS_PER_S,
             all_discovered=all_discovered(self.node, os.environ),
         )
-
-
-def _migrated(migrations: Mapping[str, TopicMigration], message: BagMessage) -> BagMessage:
-    """``message`` with its payload migrated when its topic is one of ``migrations``."""
-    migration = migrations.get(message.topic)
-    if migration is None:
-        return message
-    data = migration.payload(message.data)
-    return make_message(
-        message.topic, data, message.log_time, message.publish_time, message.sequence
-    )
