@@ -152,9 +152,12 @@ class ScannedFiles:
         if isinstance(mcap.path, Path):  # a bag in storage (UrlPath) has no inode
             self._indexes[_identity(os.stat(mcap.path))] = mcap.index
 
-    def index(self, source: Source) -> FileIndex:
-        """The index of the open file ``source``: kept, or read now."""
-        known = self._indexes.get(_identity(os.fstat(source.f.fileno())))
+    def index(self, path: Path, source: Source) -> FileIndex:
+        """The index of ``source`` (``path``, opened): kept, or read now (a bag in storage's
+        always: its handle reads by range, it has no file descriptor)."""
+        known = None
+        if isinstance(path, Path):
+            known = self._indexes.get(_identity(os.fstat(source.f.fileno())))
         return known if known is not None else read_file_index(source)
 
 
@@ -188,7 +191,7 @@ def _opened_inputs(
                 if handle.read(len(MAGIC)) != MAGIC:
                     raise SurgeryError(f"{path}: only MCAP storage can be rewritten")
                 source = Source(handle, path.name)
-                index = scanned.index(source)
+                index = scanned.index(path, source)
                 files.append(InputFile(path, source, index, known, problems=list(index.problems)))
         yield files
     finally:

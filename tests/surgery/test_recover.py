@@ -205,10 +205,10 @@ def test_scanned_file_changed_is_read_again(source: Path, tmp_path: Path) -> Non
     scanned = ScannedFiles()
     scanned.add(mcap)
     with cut.open("rb") as f:
-        assert scanned.index(Source(f, cut.name)) is mcap.index
+        assert scanned.index(cut, Source(f, cut.name)) is mcap.index
     cut.write_bytes(data[: len(data) * 3 // 4])
     with cut.open("rb") as f:
-        index = scanned.index(Source(f, cut.name))
+        index = scanned.index(cut, Source(f, cut.name))
     assert index is not mcap.index
     assert index.message_count > mcap.index.message_count
 
