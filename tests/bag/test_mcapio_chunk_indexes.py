@@ -8,12 +8,11 @@ import struct
 import tracemalloc
 
 import pytest
-from mcap.records import ChunkIndex, Header
 
 from bagkit.bag.errors import CorruptBagError
 from bagkit.bag.mcapio.chunk_indexes import ChunkIndexes
 from bagkit.bag.mcapio.chunks import MessageRun
-from bagkit.bag.mcapio.records import RECORD_HEADER, encode
+from bagkit.bag.mcapio.records import RECORD_HEADER, ChunkIndex, Header, encode
 from bagkit.bag.mcapio.summary import FileIndex
 
 
@@ -70,7 +69,8 @@ def test_appended_rows_equal_parsed_ones() -> None:
 
 def test_rows_by_and_take_sort_and_leave_out() -> None:
     chunks = _chunk_indexes(40, seed=3)
-    chunks[5].message_start_time = chunks[9].message_start_time  # a tie: offset decides
+    # A tie: offset decides.
+    chunks[5] = chunks[5]._replace(message_start_time=chunks[9].message_start_time)
     table = _table(chunks)
     rows = table.rows_by(table.start_times, table.chunk_offsets)
     expected = sorted(chunks, key=lambda c: (c.message_start_time, c.chunk_start_offset))
@@ -82,8 +82,7 @@ def test_rows_by_and_take_sort_and_leave_out() -> None:
 
 def test_a_record_cut_anywhere_is_a_corrupt_bag_error() -> None:
     (chunk,) = _chunk_indexes(1, seed=4)
-    chunk.message_index_offsets = {1: 10, 2: 20}
-    chunk.compression = "zstd"
+    chunk = chunk._replace(message_index_offsets={1: 10, 2: 20}, compression="zstd")
     content = encode(chunk)[RECORD_HEADER.size :]
     for cut in range(len(content)):
         table = ChunkIndexes()
@@ -94,8 +93,7 @@ def test_a_record_cut_anywhere_is_a_corrupt_bag_error() -> None:
 
 def test_hostile_lengths_are_corrupt_bag_errors() -> None:
     (chunk,) = _chunk_indexes(1, seed=5)
-    chunk.message_index_offsets = {7: 70}
-    chunk.compression = "lz4"
+    chunk = chunk._replace(message_index_offsets={7: 70}, compression="lz4")
     content = bytearray(encode(chunk)[RECORD_HEADER.size :])
     map_at, name_at = 32, 32 + 4 + 10 + 8
     for at, value, match in [
@@ -137,10 +135,12 @@ def test_a_chunk_costs_columns_not_an_object() -> None:
 def test_file_index_blocks_merge_chunks_and_runs_by_start_then_offset() -> None:
     chunks = _chunk_indexes(30, seed=7)
     for n, chunk in enumerate(chunks):  # small times, so that runs fall among them
-        chunk.message_start_time = n % 7 * 10 + 1
-        chunk.message_end_time = chunk.message_start_time + (5 if n % 5 else -1)  # some empty
-        if n % 5 == 0:
-            chunk.message_index_offsets = {}
+        start = n % 7 * 10 + 1
+        chunks[n] = chunk._replace(
+            message_start_time=start,
+            message_end_time=start + (5 if n % 5 else -1),  # some empty
+            message_index_offsets={} if n % 5 == 0 else chunk.message_index_offsets,
+        )
     in_order = sorted(chunks, key=lambda c: (c.message_start_time, c.chunk_start_offset))
     runs = [MessageRun(offset, 10, start, start + 3) for offset, start in [(90, 25), (5, 0)]]
     index = FileIndex(header=Header(profile="ros2", library="test"))

@@ -26,10 +26,12 @@ CONTRACT = FIXTURES / "fast" / "health.yaml"
 # No quick command needs these: data frames, Dask, plots, ROS, .db3 bags, terminal styling for
 # piped output, option validation; on a local bag, threads and logging (a local cluster's, bags
 # in storage read on threads) and temporary files (copies of bags in storage or file-compressed);
-# lz4 and ros2idl definitions (the fixtures have zstd chunks and .msg texts).
+# lz4 and ros2idl definitions (the fixtures have zstd chunks and .msg texts); the mcap
+# package's record dataclasses (bagkit reads into its own records; the package's encode).
 HEAVY = frozenset(
     {"pandas", "pyarrow", "dask", "distributed", "matplotlib", "rclpy", "sqlite3", "rich"}
     | {"pydantic", "scipy", "logging", "concurrent", "tempfile", "lz4", "bagkit.decode.idl"}
+    | {"mcap.records"}
 )
 # info reads summaries and indexes, and service events by their fixed header (the message
 # index ordered without numpy): no decoder, no numpy.

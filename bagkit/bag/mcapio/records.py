@@ -2,8 +2,9 @@
 
 Opcodes are ``mcap.opcode.Opcode``; the summary-level record types (``Header``, ``Footer``,
 ``Schema``, ``Channel``, ``Chunk``, ``ChunkIndex``, ``Statistics``, ``Metadata``,
-``MetadataIndex``, ``SummaryOffset``, ``DataEnd``) are the ``mcap`` package's dataclasses and are
-encoded by their own ``write()``. Parsing is bagkit's: the package's ``read()`` takes lengths
+``MetadataIndex``, ``SummaryOffset``, ``DataEnd``) are bagkit's NamedTuples
+(:mod:`~bagkit.bag.mcapio.record_types`) with the ``mcap`` package's fields, and are encoded by
+that package's ``write()``. Parsing is bagkit's: the package's ``read()`` takes lengths
 from the file as they are (a short read silently truncates a string, a length of 2**62 is read
 as asked), while every length parsed here is checked against its record first and a bad one is a
 :class:`CorruptBagError`. Message Index records are parsed into numpy arrays (one
@@ -21,27 +22,27 @@ import struct
 from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
-from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
-from mcap.records import (
+
+from bagkit.bag.errors import CorruptBagError
+from bagkit.bag.mcapio.record_types import (
     Channel,
     Chunk,
     ChunkIndex,
     DataEnd,
     Footer,
     Header,
-    McapRecord,
     Metadata,
     MetadataIndex,
+    Record,
     Schema,
     Statistics,
     SummaryOffset,
 )
 
-from bagkit.bag.errors import CorruptBagError
-
 if TYPE_CHECKING:
     import numpy as np
+    from mcap.records import McapRecord
 
 MAGIC = b"\x89MCAP0\r\n"
 # Every record: opcode (u8), content length (u64), content.
@@ -278,10 +279,18 @@ def iter_records(buf: bytes | memoryview, start: int = 0) -> Iterator[tuple[int,
         raise CorruptBagError(f"the record at byte {pos} runs past the end of its {end}-byte block")
 
 
-def encode(record: McapRecord) -> bytes:
-    """Serialize a record of the ``mcap`` package with its opcode and length."""
+def encode(record: Record | McapRecord) -> bytes:
+    """Serialize a record (bagkit's or the ``mcap`` package's) with its opcode and length, as
+    the package writes it."""
+    # Imported here: reading a bag needs none of the package's record classes.
+    from mcap import records
+    from mcap.data_stream import RecordBuilder
+
     builder = RecordBuilder()
-    record.write(builder)
+    if isinstance(record, records.McapRecord):
+        record.write(builder)
+    else:
+        getattr(records, type(record).__name__)(**record._asdict()).write(builder)
     return bytes(builder.end())
 
 

@@ -175,7 +175,11 @@ class _Scanner:
             if self.pending is not None:
                 channel_id, entries = message_index_entries(self._content(pos, length))
                 self.pending.message_index_offsets[channel_id] = pos
-                self.pending.message_index_length += RECORD_HEADER.size + length
+                self.pending = self.pending._replace(
+                    message_index_length=self.pending.message_index_length
+                    + RECORD_HEADER.size
+                    + length
+                )
                 self.pending_counts[channel_id] = len(entries) // MESSAGE_INDEX_ENTRY_SIZE
             return
         self._settle(trust_indexes=True)
@@ -228,8 +232,7 @@ class _Scanner:
         if trust_indexes and self.pending_counts:
             counts = dict(self.pending_counts)
         else:
-            chunk_index.message_index_offsets = {}
-            chunk_index.message_index_length = 0
+            chunk_index = chunk_index._replace(message_index_offsets={}, message_index_length=0)
             try:
                 counts = self._open_chunk(chunk_index)
             except CorruptBagError as exc:
