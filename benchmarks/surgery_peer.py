@@ -3,10 +3,12 @@
 pymcap-cli is installed by ``uv`` in a venv of its own under ``benchmarks/results/peers/``
 (made once, reused). Each command runs as a process from the shell, as a user runs it, both
 tools on the same 1M-Imu bag (``bench_surgery._write``), interleaved, best of ``RUNS`` wall
-times; their CPU times (user + sys of the child) are printed beside. Every output is checked
-by a doctor-equivalent read before its time counts: ``bagkit doctor --deep`` on both (chunk
-CRCs, indexes against records, every message decoded), pymcap-cli's own ``doctor`` on
-bagkit's, and equal message counts.
+times; their CPU times (user + sys of the child) are printed beside. Both load their modules
+from cached bytecode, as installed packages do (where ``PYTHONDONTWRITEBYTECODE`` is set, a
+module changed since the tree was compiled would be compiled again at every run). Every
+output is checked by a doctor-equivalent read before its time counts: ``bagkit doctor
+--deep`` on both (chunk CRCs, indexes against records, every message decoded), pymcap-cli's
+own ``doctor`` on bagkit's, and equal message counts.
 """
 
 from __future__ import annotations
@@ -20,6 +22,8 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
+
+from benchmarks.bench_startup import cached_bytecode_env
 
 PEER = "pymcap-cli"
 PEER_DIR = Path(__file__).resolve().parent / "results" / "peers" / PEER
@@ -53,7 +57,7 @@ def _timed(command: list[str], ok_codes: tuple[int, ...]) -> tuple[float, float]
     """Wall and CPU seconds of one run of ``command`` (its exit code must be in ``ok_codes``)."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
-    done = subprocess.run(command, capture_output=True, check=False)
+    done = subprocess.run(command, capture_output=True, check=False, env=cached_bytecode_env())
     wall = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if done.returncode not in ok_codes:
