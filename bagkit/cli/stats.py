@@ -256,8 +256,8 @@ def _print_tables(result: "Summary") -> None:
         heading: list[Cell] = [Styled(topic.topic, "bold"), topic.type]
         heading += [f"{topic.count} msgs", rate]
         print_wrapped(heading, sep="  ")
-        if not topic.fields:
-            continue
+        if not topic.fields or topic.undecodable == topic.count:
+            continue  # none decoded: the error line at the end says so, no table of zeros
         table = Table(
             [Column(FIELD_COLUMNS[0]), *(Column(c, numeric=True) for c in FIELD_COLUMNS[1:])]
         )

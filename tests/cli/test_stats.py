@@ -240,3 +240,10 @@ def test_a_topic_none_of_whose_messages_decode_is_an_error(tmp_path: Path) -> No
     assert done.stderr.strip().splitlines()[-1] == "error: none of the 5 messages of /r decode"
     (ok,) = [t for t in json.loads(done.stdout)["topics"] if t["topic"] == "/ok"]
     assert ok["fields"][0]["mean"] == 2.5
+    # The table: /r's heading, no field table of zero counts under it (nothing to summarize).
+    table = _run(tmp_path / "bag").stdout.splitlines()
+    heading = next(i for i, line in enumerate(table) if line.startswith("/r "))
+    assert "5 msgs" in table[heading]
+    block = table[heading : table.index("", heading) if "" in table[heading:] else None]
+    assert block == [table[heading]]
+    assert sum(line.lstrip().startswith("field") for line in table) == 1  # /ok's
