@@ -9,7 +9,7 @@ from pathlib import Path
 
 from bagkit.selection.windows import TimeRange, Window
 from bagkit.surgery.errors import SurgeryError
-from bagkit.surgery.output import single_file
+from bagkit.surgery.output_paths import single_file
 from bagkit.surgery.rewrite import OutputOptions, RewriteReport, check_output, filter_bag
 from bagkit.surgery.select import Selection
 

@@ -44,62 +44,17 @@ from bagkit.bag.writer import DEFAULT_CHUNK_SIZE, LIBRARY
 from bagkit.selection.times import seconds_to_ns
 from bagkit.surgery.errors import SurgeryError
 from bagkit.surgery.options import OutputOptions
+from bagkit.surgery.output_paths import check_replaceable, single_file
 
 if TYPE_CHECKING:
     import numpy as np
 
-# What --force may replace: a bag directory holds these files only (rosbag2 writes no folders).
-_BAG_SUFFIXES = (".mcap", ".db3", ".yaml", ".zstd", ".lz4")
 # The smallest chunk a split output gets: a split size holds four at least.
 _MIN_CHUNK_SIZE = 4096
 # Chunks closed and not yet written: one being compressed, one waiting its turn. A rewritten
 # input chunk often closes two output chunks in a row; with one in flight the calling thread
 # waits for the first one's compression before it goes on (benchmarks/README.md, sixth pass).
 COMPRESSING = 2
-
-
-def single_file(path: Path, options: OutputOptions) -> bool:
-    """Whether ``path`` names one MCAP file (it ends in ``.mcap``) rather than a bag directory.
-
-    Raises:
-        SurgeryError: ``options`` ask what one MCAP file cannot carry: another storage, or a
-            split.
-    """
-    if path.suffix.lower() != ".mcap":
-        return False
-    if options.storage != "mcap":
-        raise SurgeryError(
-            f"{options.storage} writes a bag directory and {path} names one MCAP file "
-            "(name it without .mcap)",
-            "output.storage",
-        )
-    if options.max_bag_size or options.max_bag_duration_s:
-        raise SurgeryError(
-            f"{path} names one MCAP file, which is not split (name it without .mcap)",
-            "output.max_bag_size, output.max_bag_duration_s",
-        )
-    return True
-
-
-def check_replaceable(path: Path) -> None:
-    """Raise SurgeryError unless ``path`` is something ``--force`` may replace: a bag or file.
-
-    A directory that holds folders or other files, or holds the working directory, is not
-    replaced: ``-o .`` or a mistyped name must not delete what was never a bag.
-    """
-    if path.is_symlink() or path.is_file():
-        return
-    resolved = path.resolve()
-    if Path.cwd().resolve().is_relative_to(resolved):
-        raise SurgeryError(f"{path} holds the working directory: not replaced")
-    others = [
-        c.name for c in resolved.iterdir() if c.is_dir() or not c.name.endswith(_BAG_SUFFIXES)
-    ]
-    if others:
-        raise SurgeryError(
-            f"{path} is not a bag directory (it holds {', '.join(sorted(others)[:3])}): "
-            "not replaced, remove it yourself or choose another name"
-        )
 
 
 class MessageOutput(Protocol):
@@ -197,10 +152,11 @@ class OutputBag:
 
     @classmethod
     def create(cls, path: Path, options: OutputOptions) -> OutputBag:
-        """The MCAP output ``options`` describe: a bag directory, or one file (:func:`single_file`).
+        """The MCAP output ``options`` describe: a bag directory, or one file
+        (:func:`~bagkit.surgery.output_paths.single_file`).
 
         Raises:
-            SurgeryError: see :func:`single_file` and the class.
+            SurgeryError: see :func:`~bagkit.surgery.output_paths.single_file` and the class.
         """
         return cls(
             path,

@@ -23,7 +23,8 @@ from bagkit.surgery.content import with_content
 from bagkit.surgery.copy import CopyOptions, InputFile, copy_files, topics_of
 from bagkit.surgery.errors import SurgeryError, holding_no_topic
 from bagkit.surgery.options import OutputOptions, PayloadRewrites, RewriteReport, resolve
-from bagkit.surgery.output import OutputBag, single_file
+from bagkit.surgery.output import OutputBag
+from bagkit.surgery.output_paths import single_file
 from bagkit.surgery.select import Selection
 
 
@@ -128,7 +129,8 @@ class _Inputs:
 
 def check_output(bags: Sequence[Path], output: Path, options: OutputOptions) -> None:
     """Raise SurgeryError when ``output`` is, holds or is inside one of ``bags``, or names one
-    MCAP file that ``options`` cannot be written to (:func:`~bagkit.surgery.output.single_file`)."""
+    MCAP file that ``options`` cannot be written to
+    (:func:`~bagkit.surgery.output_paths.single_file`)."""
     single_file(output, options)
     target = output.resolve()
     for bag in bags:

@@ -22,7 +22,7 @@ from bagkit.bag.definitions import UNKNOWN_ENCODING
 from bagkit.bag.messages import BagMessage, TopicInfo
 from bagkit.surgery.errors import SurgeryError
 from bagkit.surgery.options import OutputOptions
-from bagkit.surgery.output import check_replaceable
+from bagkit.surgery.output_paths import check_replaceable
 
 _MODES = {"message": CompressionMode.MESSAGE, "file": CompressionMode.FILE}
 
