@@ -27,6 +27,7 @@ from bagkit.errors import BagkitError, OptionError, SettingWarning
 
 if TYPE_CHECKING:
     from rich.console import Console
+    from rich.status import Status
 
 
 P = ParamSpec("P")
@@ -197,9 +198,10 @@ def warn(message: str) -> None:
     )
 
 
-def status(text: str) -> contextlib.AbstractContextManager[object]:
-    """A spinner saying ``text`` on stderr while the block runs, on a terminal only (rich's
-    live display costs more to import than many commands' work)."""
+def status(text: str) -> contextlib.AbstractContextManager[Status | None]:
+    """A spinner saying ``text`` on stderr while the block runs (its ``update`` changes the
+    text), on a terminal only: None otherwise (rich's live display costs more to import than
+    many commands' work, and older rich writes cursor codes into a pipe)."""
     if not sys.stderr.isatty():
         return contextlib.nullcontext()
     return _made("err_console").status(text)

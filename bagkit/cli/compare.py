@@ -11,9 +11,9 @@ from bagkit.cli.common import (
     CheckCrcOnRead,
     ReportFormat,
     console,
-    err_console,
     handle_errors,
     print_json,
+    status,
     warn,
 )
 from bagkit.cli.compare_options import (
@@ -144,12 +144,12 @@ def compare(
         skip_ns=_ns(skip, "--skip"),
         max_divergences=show,
     )
-    with err_console.status("comparing ...") as status:
+    with status("comparing ...") as shown:
         result = compare_bags(
             golden,
             candidate,
             options,
-            progress=lambda t: status.update(f"comparing {t}"),
+            progress=None if shown is None else lambda t: shown.update(f"comparing {t}"),
             check_crc=check_crc,
         )
     for warning in result.warnings:
