@@ -18,6 +18,7 @@ from bagkit.bag.mcapio.chunks import payload_spans
 from bagkit.bag.mcapio.message_index import Span
 from bagkit.bag.mcapio.records import MESSAGE_PREFIX, MESSAGE_RECORD_HEADER, Opcode
 from bagkit.bag.messages import BagMessage, TopicInfo
+from bagkit.words import counted
 
 if TYPE_CHECKING:
     import numpy as np
@@ -78,8 +79,8 @@ class BagChunk:
         log_times, starts, lengths, dropped = payload_spans(self.records, entries)
         if dropped:
             self.problems.append(
-                f"{self.file.name}: {dropped} messages of {topic} indexed outside their chunk "
-                "(damaged message index): lost"
+                f"{self.file.name}: {counted(dropped, 'message')} of {topic} indexed outside "
+                "their chunk (damaged message index): lost"
             )
         return log_times, starts, lengths
 

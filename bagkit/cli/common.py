@@ -24,6 +24,7 @@ import typer
 
 from bagkit.compat import StrEnum
 from bagkit.errors import BagkitError, OptionError, SettingWarning
+from bagkit.words import counted
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -89,7 +90,7 @@ def _one_line(message: str, *, markup: bool = True) -> str:
     take for markup (``[/]``)."""
     line = " ".join(message.splitlines())
     if len(line) > MAX_LINE:
-        line = f"{line[:MAX_LINE]}... ({len(line) - MAX_LINE} characters cut)"
+        line = f"{line[:MAX_LINE]}... ({counted(len(line) - MAX_LINE, 'character')} cut)"
     if not markup:
         return line
     from rich.markup import escape
@@ -178,7 +179,9 @@ def none_decoded(counts: Mapping[str, int]) -> typer.Exit:
     error line, and return the Exit (2) to raise: a result without a requested topic is no
     success (echo, stats, export, plot, find)."""
     return fail(
-        "; ".join(f"none of the {n} messages of {topic} decode" for topic, n in counts.items())
+        "; ".join(
+            f"none of the {counted(n, 'message')} of {topic} decode" for topic, n in counts.items()
+        )
     )
 
 
