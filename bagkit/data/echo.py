@@ -11,10 +11,10 @@ import heapq
 import json
 import warnings
 from collections.abc import Callable, Iterator, Sequence
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
 import yaml
 
 from bagkit.bag import BagReader
@@ -26,7 +26,6 @@ from bagkit.data.errors import (
 )
 from bagkit.decode import DecodeError, MessageTypes, leaf_fields
 from bagkit.decode.msgdef import EMPTY_STRUCT_MEMBER, Nodetype, TypeDefinitions, member_name
-from bagkit.selection import intervals
 from bagkit.selection.actions import action_part_topics
 from bagkit.selection.errors import EmptyWindowWarning
 from bagkit.selection.fields import select_fields
@@ -84,14 +83,16 @@ def echo(
         convert = _converter(types, info.type, canonical, fields, topic, limit)
         window = query.span.resolve(reader.start_ns, reader.end_ns)
         matcher: PayloadMatcher | None = None
-        inside = None  # a condition over time: the messages inside its intervals
+        inside: Callable[[int], bool] | None = None  # a condition over time: inside its intervals
         if condition is not None and condition.temporal:
             # The columns' scan (pyarrow) only for a condition over time: echo starts light.
             from bagkit.bag.latched import is_state_topic
             from bagkit.data.streams import temporal_intervals
+            from bagkit.selection.intervals import holds_at
 
             state = is_state_topic(reader, topic)
-            inside = temporal_intervals(reader, topic, condition, window, state)[0]
+            spans = temporal_intervals(reader, topic, condition, window, state)[0]
+            inside = partial(holds_at, spans)
         elif condition is not None:
             # The condition's bulk decoder only with a condition: echo starts light.
             from bagkit.decode.matcher import PayloadMatcher
@@ -107,7 +108,7 @@ def echo(
                 return
             if matcher is not None and not matcher.matches(message.data):
                 continue
-            if inside is not None and not intervals.holds_at(inside, message.log_time):
+            if inside is not None and not inside(message.log_time):
                 continue
             try:
                 data = convert(message.data)
@@ -188,7 +189,7 @@ def _converter(  # noqa: PLR0917 (private, called once)
         paths = [leaf.path for leaf in leaves]
         read = types.value_reader(type_name, paths)
         return lambda data: {p: _plain(v, limit) for p, v in zip(paths, read(data), strict=True)}
-    decode = types.decoder(type_name)
+    decode = types.decoder(type_name, lists=True)
     store = types.typestore
     return lambda data: _message(decode(data), store, canonical, limit)
 
@@ -218,14 +219,12 @@ def _scalar(value: Any, base: str | None) -> Any:
         return bool(value)
     if base in ("byte", "char"):
         return int(value) & 0xFF  # an octet, whatever sign the decoder gave it
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
+    return value.item() if hasattr(value, "item") else value  # a numpy number as Python's
 
 
 def _plain(value: Any, limit: int | None, base: str | None = None) -> Any:
     """Numpy values as Python ones; long sequences cut to ``limit`` elements."""
-    if isinstance(value, np.ndarray):
+    if hasattr(value, "tolist"):  # numpy's (fields read straight from the bytes): no import
         value = value.tolist()
     if isinstance(value, list):
         # Octets and booleans need converting; other numbers are Python's after tolist().

@@ -11,8 +11,9 @@ after the message.
 
 :func:`object_reader` generates a reader per type and byte order that builds the same objects
 as rosbags' would: the typestore's classes, numpy arrays for arrays and sequences of numbers,
-lists for the rest. The generated source holds no name from the definition: fields are passed
-to the class by position and nested types' readers are looked up in a table.
+lists for the rest; or, for a caller that prints (``echo``), lists of Python numbers, so that
+reading a message imports no numpy. The generated source holds no name from the definition:
+fields are passed to the class by position and nested types' readers are looked up in a table.
 """
 
 from __future__ import annotations
@@ -20,8 +21,6 @@ from __future__ import annotations
 import struct
 from collections.abc import Callable
 from typing import Any
-
-import numpy as np
 
 from bagkit.decode.msgdef import Nodetype, TypeDefinitions
 
@@ -64,10 +63,11 @@ def wide_string(data: Any, offset: int, count: int, order: str) -> str:
     Raises:
         ValueError: the units are not UTF-16 (too large, a lone surrogate, past the end).
     """
-    units = np.frombuffer(data, f"{order}u4", count, offset)
-    if count and int(units.max()) > 0xFFFF:
-        raise ValueError("a wide string unit is not a UTF-16 code unit")
-    return units.astype("<u2").tobytes().decode("utf-16-le")
+    try:
+        units = struct.unpack_from(f"{order}{count}I", data, offset)
+        return struct.pack(f"<{count}H", *units).decode("utf-16-le")
+    except struct.error as exc:  # a unit over 0xFFFF, or past the end
+        raise ValueError(f"a wide string that is not UTF-16: {exc}") from None
 
 
 def has_wide_strings(typestore: TypeDefinitions, typename: str) -> bool:
@@ -84,8 +84,11 @@ def has_wide_strings(typestore: TypeDefinitions, typename: str) -> bool:
     return False
 
 
-def object_reader(typestore: TypeDefinitions, typename: str, *, little: bool) -> ObjectReader:
-    """The reader of ``typename`` payloads (after the 4-byte header) in one byte order.
+def object_reader(
+    typestore: TypeDefinitions, typename: str, *, little: bool, lists: bool = False
+) -> ObjectReader:
+    """The reader of ``typename`` payloads (after the 4-byte header) in one byte order;
+    ``lists``: arrays of numbers as lists of Python numbers, not numpy arrays.
 
     A reader raises ValueError, IndexError or struct.error on bytes that do not match.
     The type graph must have been checked (:func:`bagkit.decode.typegraph.check_type_graph`).
@@ -95,17 +98,19 @@ def object_reader(typestore: TypeDefinitions, typename: str, *, little: bool) ->
 
     def build(name: str) -> ObjectReader:
         if name not in readers:
-            readers[name] = _Codegen(typestore, order, build).generate(name)
+            readers[name] = _Codegen(typestore, order, build, lists=lists).generate(name)
         return readers[name]
 
     return build(typename)
 
 
-def payload_reader(typestore: TypeDefinitions, typename: str, *, little: bool) -> PayloadReader:
+def payload_reader(
+    typestore: TypeDefinitions, typename: str, *, little: bool, lists: bool = False
+) -> PayloadReader:
     """:func:`object_reader` of a whole payload (after its 4-byte header), the end it returns
     moved past rclpy's 4 bytes per wide string when present: a caller checks trailing bytes as
     for any CDR payload."""
-    read = object_reader(typestore, typename, little=little)
+    read = object_reader(typestore, typename, little=little, lists=lists)
 
     def deserialize(data: Any) -> tuple[object, int]:
         message, end, wide = read(data, 0)
@@ -119,16 +124,22 @@ class _Codegen:
     wide strings read, ``v`` the field values."""
 
     def __init__(
-        self, typestore: TypeDefinitions, order: str, build: Callable[[str], ObjectReader]
+        self,
+        typestore: TypeDefinitions,
+        order: str,
+        build: Callable[[str], ObjectReader],
+        *,
+        lists: bool,
     ) -> None:
         self.typestore = typestore
         self.order = order
         self.build = build
+        self.lists = lists
         self.lines: list[str] = []
         self.namespace: dict[str, Any] = {
             "_u32": struct.Struct(f"{order}I").unpack_from,
+            "_unpack": struct.unpack_from,
             "_wide": wide_string,
-            "_np": np,
             "_order": order,
         }
 
@@ -211,6 +222,11 @@ class _Codegen:
         return count
 
     def numbers(self, base: str, count: str, depth: int) -> str:
+        if self.lists:
+            return self.number_list(base, count, depth)
+        import numpy as np  # here: a reader of lists (echo's) needs no numpy
+
+        self.namespace["_np"] = np
         code = _NUMPY[base]
         dtype = np.dtype(code if code[-1] in "?1" else self.order + code)
         native = self.constant(dtype.newbyteorder("="))
@@ -223,4 +239,15 @@ class _Codegen:
         if not dtype.isnative:
             self.emit(f"{item} = {item}.astype({native})", depth)
         self.emit(f"p += {count} * {dtype.itemsize}", depth)
+        return item
+
+    def number_list(self, base: str, count: str, depth: int) -> str:
+        code = _CODES[base]
+        size = struct.calcsize(code)
+        item = f"a{len(self.lines)}"
+        if size > 1:  # writers align the first element only when there is one
+            self.emit(f"if {count}:", depth)
+            self.emit(f"p = (p + {size - 1}) & -{size}", depth + 1)
+        self.emit(f"{item} = list(_unpack(f'{self.order}{{{count}}}{code}', b, p))", depth)
+        self.emit(f"p += {count} * {size}", depth)
         return item

@@ -12,17 +12,19 @@ import re
 import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any, Union
 
 from bagkit.decode.msgdef import Nodetype, TypeDefinitions, member_name
 from bagkit.decode.typegraph import check_registered
 
+if TYPE_CHECKING:
+    import numpy as np
+
 STRING_TYPES = frozenset({"string", "wstring"})
 
 # Value of one leaf: a scalar, or for a pooled leaf the list (or array) of every element's value.
-FlatValue = int | float | str | list[Any] | np.ndarray
+# numpy is named, not imported: reading a message to print it (echo) needs no numpy.
+FlatValue = Union[int, float, str, list[Any], "np.ndarray"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -124,7 +126,7 @@ def flatten_message(
 
 
 def _as_list(value: Any) -> list[Any]:
-    return value.tolist() if isinstance(value, np.ndarray) else list(value)
+    return value.tolist() if hasattr(value, "tolist") else list(value)  # numpy's, or a list
 
 
 def field_getter(
@@ -168,6 +170,8 @@ def _generate(
             "    ]",
         ]
     body = "\n".join(["def generated(m):", *(f"    {line}" for line in gen.prelude), *result])
+    import numpy as np
+
     namespace: dict[str, Any] = {"_as_list": _as_list, "_ndarray": np.ndarray, "np": np}
     exec(compile(body, f"<bagkit flatten {typename}>", "exec"), namespace)
     return namespace["generated"]

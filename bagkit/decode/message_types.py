@@ -92,7 +92,7 @@ class MessageTypes:
     _topic_texts: dict[str, tuple[str, str]] = field(default_factory=dict)
     _topic_types: dict[str, MessageTypes] = field(default_factory=dict)
     # (type, little endian) -> its reader, generated on first use.
-    _readers: dict[tuple[str, bool], PayloadReader] = field(default_factory=dict)
+    _readers: dict[tuple[str, bool, bool], PayloadReader] = field(default_factory=dict)
     _rosbags: Typestore | None = None
 
     @classmethod
@@ -210,8 +210,9 @@ class MessageTypes:
             self._rosbags = store
         return self._rosbags
 
-    def decoder(self, name: str) -> Callable[[bytes | memoryview], object]:
-        """``deserialize`` for one type, resolved once (for many messages of a topic).
+    def decoder(self, name: str, *, lists: bool = False) -> Callable[[bytes | memoryview], object]:
+        """``deserialize`` for one type, resolved once (for many messages of a topic); ``lists``:
+        arrays of numbers as lists of Python numbers, not numpy arrays (for printing).
 
         Reads with bagkit's generated readers (:mod:`bagkit.decode.cdr`), not rosbags': they
         build the same objects, and generating one type's costs a fraction of rosbags' 15
@@ -227,7 +228,7 @@ class MessageTypes:
             try:
                 if len(data) < 4 or data[0] != 0 or data[1] > 1:
                     raise ValueError("not a plain CDR encapsulation")
-                message, end = self._reader(canonical, little=bool(data[1]))(data[4:])
+                message, end = self._reader(canonical, bool(data[1]), lists)(data[4:])
                 # CDR writers pad to 4 bytes at most (rosbags' own check).
                 if end + 4 + 3 < len(data):
                     raise ValueError(f"{len(data) - 4 - end} bytes after the message")
@@ -237,12 +238,12 @@ class MessageTypes:
 
         return decode
 
-    def _reader(self, canonical: str, *, little: bool) -> PayloadReader:
+    def _reader(self, canonical: str, little: bool, lists: bool) -> PayloadReader:
         """The reader of ``canonical`` in one byte order, generated on first use."""
-        reader = self._readers.get((canonical, little))
+        reader = self._readers.get((canonical, little, lists))
         if reader is None:
-            reader = payload_reader(self.typestore, canonical, little=little)
-            self._readers[(canonical, little)] = reader
+            reader = payload_reader(self.typestore, canonical, little=little, lists=lists)
+            self._readers[(canonical, little, lists)] = reader
         return reader
 
     def value_reader(self, name: str, paths: Sequence[str]) -> ValueReader:

@@ -48,6 +48,9 @@ NO_CONDITION = frozenset({"bagkit.selection.conditions", "bagkit.decode.matcher"
 # echo without --fields decodes whole messages: no bulk or direct reader (numpy layouts of
 # leaves).
 NO_LEAVES = frozenset({"bagkit.decode.bulk", "bagkit.decode.direct"})
+# A whole message printed is read into Python's numbers: no numpy (nor the interval algebra of
+# a condition over time).
+NO_ARRAYS = frozenset({"numpy", "bagkit.selection.intervals"})
 
 # The decoding commands print tables: no `bagkit info` records (rates are bagkit.bag.rates'),
 # nor its compression in words, no csv (stats --format csv only), no shlex (the commands
@@ -75,7 +78,7 @@ CASES = {
     ),
     "echo": (
         ["echo", str(SERVICES_BAG), "/imu/data", "-n", "1"],
-        DECODING | NO_CONDITION | NO_LEAVES | NO_SERVICES,
+        DECODING | NO_CONDITION | NO_LEAVES | NO_SERVICES | NO_ARRAYS,
     ),
     "stats": (["stats", "summary", str(SERVICES_BAG)], DECODING | NO_CONDITION),
     "stats without services": (

@@ -9,6 +9,7 @@ import struct
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -21,7 +22,7 @@ from bagkit.bag import BagWriter, TopicInfo
 from bagkit.decode import MessageTypes, flatten_message
 from bagkit.decode.cdr import object_reader
 from bagkit.decode.layout import CdrLayout
-from bagkit.decode.msgdef import Nodetype, member_name
+from bagkit.decode.msgdef import Nodetype, TypeDefinitions, member_name
 from bagkit.stats import summarize
 
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
@@ -154,6 +155,7 @@ def test_bagkit_reader_builds_rosbags_objects_for_every_jazzy_type(little: bool)
     rng = np.random.default_rng(8)
     for typename in sorted(JAZZY.fielddefs):
         read = object_reader(JAZZY, typename, little=little)
+        read_lists = object_reader(JAZZY, typename, little=little, lists=True)
         for _ in range(2):
             msg = random_message(JAZZY, typename, rng)
             try:
@@ -167,6 +169,28 @@ def test_bagkit_reader_builds_rosbags_objects_for_every_jazzy_type(little: bool)
             assert repr(flatten_message(decoded, JAZZY)) == repr(
                 flatten_message(expected, JAZZY)
             ), typename
+            # The reader of lists (echo's): the same numbers, as Python's.
+            listed, list_end, _ = read_lists(memoryview(payload)[4:], 0)
+            assert list_end == end
+            assert repr(_as_lists(listed, JAZZY, arrays=False)) == repr(
+                _as_lists(decoded, JAZZY, arrays=True)
+            ), typename
+
+
+def _as_lists(value: Any, store: TypeDefinitions, *, arrays: bool) -> Any:
+    """A message object as nested dicts of Python values; numpy arrays through ``tolist``
+    where ``arrays``, else refused."""
+    if isinstance(value, np.ndarray):
+        assert arrays, "a numpy array from the reader of lists"
+        return value.tolist()
+    if isinstance(value, list):
+        return [_as_lists(v, store, arrays=arrays) for v in value]
+    if hasattr(value, "__msgtype__"):
+        return {
+            name: _as_lists(getattr(value, member_name(name)), store, arrays=arrays)
+            for name, _ in store.fielddefs[value.__msgtype__][1]
+        }
+    return value
 
 
 def test_wide_strings_as_rclpy_writes_them() -> None:
