@@ -227,6 +227,8 @@ def _may_copy(file: InputFile, block: Block, selection: Selection, out: OutputBa
         return False
     if not selection.covers(block.message_start_time, block.message_end_time):
         return False
+    if not out.takes_whole(block.message_start_time, block.message_end_time, block.chunk_length):
+        return False
     return _identity(file, block.message_index_offsets)
 
 

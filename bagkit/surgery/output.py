@@ -269,6 +269,14 @@ class OutputBag:
         np.cumsum(record_lengths[:-1], out=offsets[1:])
         self.write_records(b"".join(pieces), offsets, record_lengths, channels, times)
 
+    def takes_whole(self, start_ns: int, end_ns: int, length: int) -> bool:
+        """Whether a chunk of these log times and record length fits one file of the split
+        (a chunk copied as stored cannot be split): spans less than the duration, holds at most
+        a quarter of the size, as the chunks built here do."""
+        if self._max_duration and end_ns - start_ns >= self._max_duration:
+            return False
+        return not self._max_size or length <= self._max_size // 4
+
     def copy_chunk(self, chunk: ClosedChunk) -> None:
         """Append a chunk as it is stored (its channel ids must be this bag's)."""
         self._close_chunk()
