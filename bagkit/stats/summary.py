@@ -354,14 +354,14 @@ def finish_summary(run: SummaryRun, paths: list[str]) -> Summary:
         accumulator = run.accumulators[topic]
         if accumulator.failures:
             run.problems.append(
-                f"{topic}: {accumulator.failures} messages could not be decoded "
+                f"{topic}: {counted(accumulator.failures, 'message')} could not be decoded "
                 f"({accumulator.first_failure})"
             )
         if run.fields and not accumulator.leaves:
             continue
         results.append(accumulator.result())
-    counted = [a for a in run.accumulators.values() if a.first_ns is not None]
-    if not counted:
+    seen = [a for a in run.accumulators.values() if a.first_ns is not None]
+    if not seen:
         bags = ", ".join(paths)
         if run.skipped and not run.accumulators:
             reasons = "; ".join(f"{t}: {why}" for t, why in sorted(run.skipped.items()))
@@ -384,8 +384,8 @@ def finish_summary(run: SummaryRun, paths: list[str]) -> Summary:
         raise UnknownFieldError(_no_field_message(run))
     return Summary(
         bags=tuple(paths),
-        start_ns=min(a.first_ns for a in counted if a.first_ns is not None),
-        end_ns=max(a.last_ns for a in counted if a.last_ns is not None),
+        start_ns=min(a.first_ns for a in seen if a.first_ns is not None),
+        end_ns=max(a.last_ns for a in seen if a.last_ns is not None),
         topics=tuple(results),
         skipped=dict(sorted(run.skipped.items())),
         problems=tuple(run.problems),

@@ -47,6 +47,7 @@ from bagkit.ros.record.triggers import DataTriggers, start_trigger_checks
 from bagkit.ros.tuning import process_tuning
 from bagkit.selection.times import NS_PER_S
 from bagkit.selection.topics import absolute_topic_name, missing_on_graph
+from bagkit.words import counted
 
 
 class Recorder:
@@ -385,7 +386,7 @@ class Recorder:
             graph = (name for name, _ in self._node.get_topic_names_and_types())
             report.never_appeared = missing_on_graph(missing, graph)
         if report.error is not None and report.lost:
-            report.error += f" ({report.lost} messages lost)"
+            report.error += f" ({counted(report.lost, 'message')} lost)"
         self._stopped.set()
 
     def _shutdown_node(self) -> None:
