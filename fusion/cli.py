@@ -18,6 +18,7 @@ from bagkit.cli import (
     print_json,
     run_app,
 )
+from bagkit.words import counted
 from fusion.launch import Launcher, validate_parameter_file
 from fusion.processors import NODE_NAMES
 
@@ -145,7 +146,7 @@ def _print_check(result: LiveCheck) -> None:
     console.print(
         f"altitude RMS error vs truth: fused {result.fused_rms_m:.2f} m, GPS "
         f"{result.gps_rms_m:.2f} m (fused/GPS {result.fused_rms_m / result.gps_rms_m:.2f}, "
-        f"{result.altitude_samples} samples)"
+        f"{counted(result.altitude_samples, 'sample')})"
     )
     for alert in result.alerts:
         console.print(f"alert: {alert}", highlight=False)

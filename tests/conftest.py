@@ -66,6 +66,18 @@ SERIAL_DDS_TESTS = (
     "tests/regression/test_stranger_package.py::test_record_a_golden_pass_then_fail",
 )
 
+# Under this mark expression (make test's last step) only the files that hold a serial test are
+# collected: the others would be imported, and their assertions rewritten, only to be deselected.
+SERIAL_ONLY = "ros and serial"
+
+
+def pytest_ignore_collect(collection_path: Path, config: pytest.Config) -> bool | None:
+    """Only ``SERIAL_DDS_TESTS``' files under ``-m "ros and serial"``."""
+    if " ".join(config.getoption("markexpr").split()) != SERIAL_ONLY or collection_path.is_dir():
+        return None
+    relative = collection_path.relative_to(config.rootpath).as_posix()
+    return relative not in {prefix.partition("::")[0] for prefix in SERIAL_DDS_TESTS}
+
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     """Mark every test that starts DDS `ros`, from the fixtures it uses or its module's imports,
@@ -79,11 +91,22 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
             item.add_marker(pytest.mark.serial)
 
 
+def _golden_run(nodeid: str) -> str | None:
+    """The run a golden fixture's item uses (``fixtures/faults/spec.yaml::live``) for its own
+    (``::live``) and its health items (``::live-health[...]``); None for any other item."""
+    path, sep, name = nodeid.partition("/spec.yaml::")
+    if not sep:
+        return None
+    return f"{path}/spec.yaml::{name.split('-health[', 1)[0]}"
+
+
 def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
-    """``--dist loadgroup`` that also groups by ``SHARED_FIXTURE_GROUPS``.
+    """``--dist loadgroup`` that also groups by ``SHARED_FIXTURE_GROUPS``, and a golden
+    fixture's items by the run they share (the plugin's ``run_once``: one per worker).
 
     Named here by path, not by an ``xdist_group`` mark: xdist 3.8 sends a mark's group to the
-    scheduler in the node id, and pytest 9.2 no longer lets it change one (pytest-xdist#1386).
+    scheduler in the node id, and pytest 9.2 no longer lets it change one (pytest-xdist#1386);
+    so the marks bagkit's plugin puts on its items do not group them either.
     """
     if config.getvalue("dist") != "loadgroup":
         return None
@@ -94,7 +117,7 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
             for prefix, group in SHARED_FIXTURE_GROUPS.items():
                 if nodeid.startswith(prefix):
                     return group
-            return str(super()._split_scope(nodeid))
+            return _golden_run(nodeid) or str(super()._split_scope(nodeid))
 
     return SharedFixtureScheduling(config, log)
 

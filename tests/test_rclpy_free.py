@@ -48,6 +48,7 @@ ROS_ADAPTERS = {
     "bagkit/ros/replay/seek_services.py": "rclpy",
     "bagkit/ros/replay/service_requests.py": "rclpy",
     "bagkit/ros/replay/services.py": "rclpy",
+    "bagkit/ros/replay/subscriber_waits.py": "rclpy",
     "bagkit/ros/replay/topics.py": "finds the installed message class of each replayed topic",
     "bagkit/ros/serialization.py": "rclpy",
     "bagkit/ros/trigger_service.py": "serves std_srvs/srv/Trigger (a ROS message package)",

@@ -29,6 +29,7 @@ from bagkit.bag.mcapio.message_index import Span
 from bagkit.bag.mcapio.records import MESSAGE_PREFIX, MESSAGE_RECORD_HEADER
 from bagkit.bag.messages import BagMessage, make_message
 from bagkit.bag.storage import BagChunk, FiltersPayloads, StorageFile
+from bagkit.words import counted
 
 if TYPE_CHECKING:
     import numpy as np
@@ -215,7 +216,8 @@ class PayloadDecompressor:
     def problems(self, file: Path) -> list[str]:
         """One line per topic with payloads that did not decompress."""
         return [
-            f"{file.name}: {count} messages of {topic} do not decompress ({first}): lost"
+            f"{file.name}: {counted(count, 'message')} of {topic} did not decompress "
+            f"({first}): lost"
             for topic, (count, first) in self.failures.items()
         ]
 

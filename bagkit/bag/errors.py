@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from bagkit.errors import BagkitError
+from bagkit.words import counted
 
 
 class BagError(BagkitError):
@@ -55,7 +56,7 @@ class BagWriteError(BagError):
     def __str__(self) -> str:
         """The reason, with the count of ``lost_by_topic`` (one count, always the current one)."""
         lost = self.messages_lost
-        return f"{self.reason} ({lost} messages lost)" if lost else self.reason
+        return f"{self.reason} ({counted(lost, 'message')} lost)" if lost else self.reason
 
     @property
     def messages_lost(self) -> int:

@@ -21,10 +21,10 @@ from bagkit.bag.mcapio import (
     Block,
     ChunkContents,
     Source,
-    count_messages,
     extent,
     read_chunk,
     read_file_index,
+    unreadable_chunk,
 )
 from bagkit.bag.mcapio.message_index import (
     Span,
@@ -275,12 +275,7 @@ class McapFile:
                 yield block
 
     def _problem(self, block: Block, what: str) -> None:
-        offset, length = extent(block)
-        lost = count_messages(self._source, block)
-        message = (
-            f"{self.path.name}: chunk at byte {offset} ({length} bytes) unreadable: {what}; "
-            + (f"its {lost} messages are lost" if lost is not None else "its messages are lost")
-        )
+        message = unreadable_chunk(self.path.name, self._source, block, what)
         if message not in self.problems:
             self.problems.append(message)
 

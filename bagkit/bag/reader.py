@@ -9,6 +9,7 @@ from pathlib import Path
 from types import TracebackType
 from typing import TYPE_CHECKING
 
+from bagkit.bag.bag_contents import BagContents
 from bagkit.bag.compression import Decompression
 from bagkit.bag.distro_definitions import distro_definitions
 from bagkit.bag.errors import BagError, CorruptBagError, EmptyBagError, NotABagError
@@ -138,28 +139,11 @@ class BagReader:
 
     def _describe(self) -> None:
         """Topics, definitions, counts and times of all storage files together."""
-        self.storage = ",".join(dict.fromkeys(s.storage_identifier for s in self._storage))
-        recorded = {t.name: t for t, _ in self.metadata.topics} if self.metadata else {}
-        for storage in self._storage:
-            for name, topic in storage.topics.items():
-                if name not in self.topics:
-                    self.topics[name] = _complete(topic, recorded.get(name))
-                self.topic_counts[name] = (
-                    self.topic_counts.get(name, 0) + storage.topic_counts[name]
-                )
-            for type_name, text in storage.definitions.items():
-                self._definitions.setdefault(type_name, text)
-            for name, topic in storage.topics.items():
-                own = storage.topic_definitions.get(name, storage.definitions.get(topic.type))
-                if own is not None and self._definitions.get(topic.type) != own:
-                    self.topic_definitions.setdefault(name, own)
-        for name, topic in recorded.items():
-            if name not in self.topics:
-                self.topics[name] = topic
-                self.topic_counts[name] = 0
-        with_messages = [s for s in self._storage if any(s.topic_counts.values())]
-        self.start_ns = min((s.start_ns for s in with_messages), default=0)
-        self.end_ns = max((s.end_ns for s in with_messages), default=0)
+        contents = BagContents.of(self._storage, self.metadata)
+        self.storage = contents.storage
+        self.topics, self.topic_counts = contents.topics, contents.topic_counts
+        self._definitions, self.topic_definitions = contents.definitions, contents.topic_definitions
+        self.start_ns, self.end_ns = contents.start_ns, contents.end_ns
 
     @property
     def definitions(self) -> dict[str, str]:
@@ -403,16 +387,3 @@ def _chunks_of_messages(file: Path, messages: Iterator[BagMessage]) -> Iterator[
         yield chunk_of_rows(
             file, [m.topic for m in batch], [m.log_time for m in batch], [m.data for m in batch]
         )
-
-
-def _complete(topic: TopicInfo, recorded: TopicInfo | None) -> TopicInfo:
-    """Fill the QoS and type hash that the storage lacks from ``metadata.yaml``."""
-    if recorded is None:
-        return topic
-    return TopicInfo(
-        name=topic.name,
-        type=topic.type or recorded.type,
-        serialization_format=topic.serialization_format or recorded.serialization_format,
-        offered_qos_profiles=topic.offered_qos_profiles or recorded.offered_qos_profiles,
-        type_description_hash=topic.type_description_hash or recorded.type_description_hash,
-    )

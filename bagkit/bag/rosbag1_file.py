@@ -52,6 +52,7 @@ from bagkit.bag.rosbag1_records import (
     message_at,
 )
 from bagkit.bag.storage import ROSBAG1_MAGIC, BagChunk
+from bagkit.words import counted
 
 # What rosbags' record readers raise on bytes that are not what they expect (some checks are
 # asserts).
@@ -238,12 +239,12 @@ class Rosbag1File:
                 name = self._topic_of.get(conn, f"connection {conn}")
                 stored = sorted(held.get(conn, ()))
                 indexed = sorted((e.time, e.offset) for e in index.get(conn, ()))
-                counted = chunk.info.connection_counts.get(conn, 0)
-                if stored != indexed or len(stored) != counted:
+                info_count = chunk.info.connection_counts.get(conn, 0)
+                if stored != indexed or len(stored) != info_count:
                     found.append(
-                        f"{where}: holds {len(stored)} messages of {name}, its index data "
-                        f"lists {len(indexed)} ({len(set(indexed) - set(stored))} at no "
-                        f"message), its chunk info counts {counted}"
+                        f"{where}: holds {counted(len(stored), 'message')} of {name}, its index "
+                        f"data lists {len(indexed)} ({len(set(indexed) - set(stored))} at no "
+                        f"message), its chunk info counts {info_count}"
                     )
                 times = [t for t, _ in stored]
                 info = chunk.info  # its end time is one past the last message's (rosbags)

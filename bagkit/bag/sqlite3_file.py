@@ -24,6 +24,7 @@ from bagkit.bag.mcapio.message_index import Span, widen
 from bagkit.bag.messages import TopicInfo
 from bagkit.bag.sqlite3_reading import VALID_ROW, Sqlite3Reading
 from bagkit.bag.storage import PayloadFilter
+from bagkit.words import counted
 
 if TYPE_CHECKING:
     import numpy as np
@@ -235,10 +236,11 @@ class Sqlite3File(Sqlite3Reading):
                 self.topic_counts[name] += count
                 widen(self._spans, name, first, last)
         if orphans:
-            self._problem(f"{orphans} messages of no known topic skipped")
+            self._problem(f"{counted(orphans, 'message')} of no known topic skipped")
         if rows > valid:
             self._problem(
-                f"{rows - valid} messages without an integer timestamp or blob data skipped"
+                f"{counted(rows - valid, 'message')} without an integer timestamp or blob data "
+                "skipped"
             )
         self.start_ns, self.end_ns = min(starts, default=0), max(ends, default=0)
         return True

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 from bagkit.bag.messages import BagMessage, make_message
 from bagkit.bag.storage import BagChunk, PayloadFilter, chunk_of_payloads, chunk_of_rows
 from bagkit.prefetch import prefetch
+from bagkit.words import counted
 
 if TYPE_CHECKING:
     from bagkit.bag.sqlite3_windows import StoredRows
@@ -275,7 +276,7 @@ class Sqlite3Reading:
                 )
                 yield ids, log_times, stored
         except sqlite3.Error as exc:
-            problem = f"{self.path.name}: unreadable after {read} messages ({exc})"
+            problem = f"{self.path.name}: unreadable after {counted(read, 'message')} ({exc})"
             if problem not in self.problems:  # each read of a damaged file meets it again
                 self.problems.append(problem)
 

@@ -16,8 +16,14 @@ from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 from bagkit.bag.mcapio.chunks import payload_spans
 from bagkit.bag.mcapio.message_index import Span
-from bagkit.bag.mcapio.records import MESSAGE_PREFIX, MESSAGE_RECORD_HEADER, Opcode
+from bagkit.bag.mcapio.records import (
+    MESSAGE_PREFIX,
+    MESSAGE_RECORD_HEADER,
+    Opcode,
+    message_record_dtype,
+)
 from bagkit.bag.messages import BagMessage, TopicInfo
+from bagkit.words import counted
 
 if TYPE_CHECKING:
     import numpy as np
@@ -78,8 +84,8 @@ class BagChunk:
         log_times, starts, lengths, dropped = payload_spans(self.records, entries)
         if dropped:
             self.problems.append(
-                f"{self.file.name}: {dropped} messages of {topic} indexed outside their chunk "
-                "(damaged message index): lost"
+                f"{self.file.name}: {counted(dropped, 'message')} of {topic} indexed outside "
+                "their chunk (damaged message index): lost"
             )
         return log_times, starts, lengths
 
@@ -105,7 +111,7 @@ class _Layout:
     def records(self) -> bytes:
         import numpy as np
 
-        headers = np.zeros(len(self.lengths), _RECORD_HEADER_DTYPE)
+        headers = np.zeros(len(self.lengths), message_record_dtype())
         headers["opcode"] = Opcode.MESSAGE
         headers["length"] = self.lengths + MESSAGE_PREFIX.size
         # Bit for bit: a hostile db3's negative timestamp stays the int64 its index entry holds.
@@ -313,14 +319,3 @@ def _laid_out(headers: np.ndarray, payloads: bytes, lengths: np.ndarray) -> byte
     parts[0::2] = headers.view(f"V{size}").tolist()  # one bytes object each, made in C
     parts[1::2] = [view[end - n : end] for end, n in zip(ends, lengths.tolist(), strict=True)]
     return b"".join(parts)  # type: ignore[arg-type]
-
-
-# A Message record's header (opcode, length, then the Message prefix), as numpy lays it out.
-_RECORD_HEADER_DTYPE = [
-    ("opcode", "u1"),
-    ("length", "<u8"),
-    ("channel_id", "<u2"),
-    ("sequence", "<u4"),
-    ("log_time", "<u8"),
-    ("publish_time", "<u8"),
-]

@@ -14,6 +14,7 @@ from bagkit.cli.option_parsing import bag_location
 from bagkit.cli.selection_options import build_query
 from bagkit.cli.tables import Column, Table, print_table
 from bagkit.errors import BagkitError
+from bagkit.words import counted
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -123,7 +124,8 @@ def _build(
     for path, why in unread.items():
         warn(not_read(path, why))
     err_console.print(
-        f"{shown}: {len(plan.bags)} bags, {len(frame)} rows; {len(plan.to_open)} read, "
+        f"{shown}: {counted(len(plan.bags), 'bag')}, {counted(len(frame), 'row')}; "
+        f"{len(plan.to_open)} read, "
         f"{len(plan.bags) - len(plan.to_open)} unchanged, {plan.removed} removed",
         highlight=False,
     )
@@ -154,7 +156,9 @@ def _update_events(
         bags = found[found["event"] == name]["path"].nunique()
         episodes = int((found["event"] == name).sum())
         err_console.print(
-            f"{events_path(output)}: {name}: {episodes} episodes in {bags} bags", highlight=False
+            f"{events_path(output)}: {name}: {counted(episodes, 'episode')} in "
+            f"{counted(bags, 'bag')}",
+            highlight=False,
         )
 
 
@@ -228,7 +232,7 @@ def _print_table(rows: pd.DataFrame) -> None:
     for record in rows.itertuples(index=False):
         table.add_row(*(_cell(value) for value in record))
     print_table(table)
-    err_console.print(f"{len(rows)} rows", highlight=False)
+    err_console.print(counted(len(rows), "row"), highlight=False)
 
 
 def _cell(value: object) -> str:

@@ -11,9 +11,7 @@ import contextlib
 import errno
 import functools
 import os
-import signal
 import sys
-import threading
 import traceback
 import warnings
 from collections.abc import Callable, Iterator, Mapping
@@ -22,8 +20,10 @@ from typing import TYPE_CHECKING, Annotated, Any, NoReturn, ParamSpec, TypeVar, 
 
 import typer
 
+from bagkit.cli.interrupts import InterruptLatch
 from bagkit.compat import StrEnum
 from bagkit.errors import BagkitError, OptionError, SettingWarning
+from bagkit.words import counted
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -89,7 +89,7 @@ def _one_line(message: str, *, markup: bool = True) -> str:
     take for markup (``[/]``)."""
     line = " ".join(message.splitlines())
     if len(line) > MAX_LINE:
-        line = f"{line[:MAX_LINE]}... ({len(line) - MAX_LINE} characters cut)"
+        line = f"{line[:MAX_LINE]}... ({counted(len(line) - MAX_LINE, 'character')} cut)"
     if not markup:
         return line
     from rich.markup import escape
@@ -178,7 +178,9 @@ def none_decoded(counts: Mapping[str, int]) -> typer.Exit:
     error line, and return the Exit (2) to raise: a result without a requested topic is no
     success (echo, stats, export, plot, find)."""
     return fail(
-        "; ".join(f"none of the {n} messages of {topic} decode" for topic, n in counts.items())
+        "; ".join(
+            f"none of the {counted(n, 'message')} of {topic} decode" for topic, n in counts.items()
+        )
     )
 
 
@@ -245,7 +247,7 @@ def _handling_errors(func: Callable[P, R], *, take_sigint: bool) -> Callable[P, 
     @functools.wraps(func)
     def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
         warnings.showwarning = _warning_line
-        interrupted = _InterruptLatch(take_ignored=take_sigint)
+        interrupted = InterruptLatch(take_ignored=take_sigint)
         try:
             with interrupted:
                 result = func(*args, **kwargs)
@@ -266,62 +268,6 @@ def _handling_errors(func: Callable[P, R], *, take_sigint: bool) -> Callable[P, 
             raise fail(f"{exc.strerror or exc}: {exc.filename or ''}".rstrip(": "), 2) from None
 
     return wrapper
-
-
-# A Ctrl-C swallowed by a finalizer is raised again this long after (the finalizer is done).
-REINTERRUPT_S = 0.05
-
-
-class _InterruptLatch:
-    """Remembers a Ctrl-C even when its KeyboardInterrupt is swallowed on the way.
-
-    Python ignores an exception raised in a gc callback or ``__del__`` (Dask's run there, and
-    the gc runs them amid any loop): the command would then go on, a looping replay forever,
-    and Python would print the ignored KeyboardInterrupt's traceback. The latch keeps that
-    quiet, raises the interrupt again in the main thread, and remembers it for the exit code.
-    """
-
-    def __init__(self, *, take_ignored: bool = False) -> None:
-        self.seen = False
-        self._take_ignored = take_ignored
-        self._previous: Any = None
-        self._previous_unraisable: Any = None
-        self._again: threading.Timer | None = None
-
-    def __enter__(self) -> None:
-        current = signal.getsignal(signal.SIGINT)
-        # Only the default handler is wrapped (an ignored SIGINT stays ignored unless taken),
-        # and signal handlers can only be set from the main thread.
-        taken = current is signal.default_int_handler or (
-            self._take_ignored and current == signal.SIG_IGN
-        )
-        if taken and threading.current_thread() is threading.main_thread():
-            self._previous = current
-            signal.signal(signal.SIGINT, self._on_sigint)
-            self._previous_unraisable = sys.unraisablehook
-            sys.unraisablehook = self._on_unraisable
-
-    def __exit__(self, *_: object) -> None:
-        if self._again is not None:
-            self._again.cancel()
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
-            sys.unraisablehook = self._previous_unraisable
-
-    def _on_sigint(self, signum: int, frame: Any) -> None:
-        self.seen = True
-        signal.default_int_handler(signum, frame)
-
-    def _on_unraisable(self, unraisable: Any) -> None:
-        if isinstance(unraisable.exc_value, KeyboardInterrupt):
-            self.seen = True  # reported as "interrupted" when the command returns
-            if self._again is None or not self._again.is_alive():
-                # Raised again once the finalizer is left (here it would be swallowed again).
-                self._again = threading.Timer(REINTERRUPT_S, os.kill, (os.getpid(), signal.SIGINT))
-                self._again.daemon = True
-                self._again.start()
-        else:
-            self._previous_unraisable(unraisable)
 
 
 def _warning_line(message: Warning | str, *_: object, **__: object) -> None:

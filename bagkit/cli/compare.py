@@ -44,6 +44,7 @@ from bagkit.compare import (
     compare_bags,
     replace_options,
 )
+from bagkit.words import counted
 
 HELP = (
     "Compare CANDIDATE with GOLDEN, topic by topic, field by field.\n\n"
@@ -80,7 +81,7 @@ def _print_table(report: CompareReport, limit: int) -> None:
         elif not topic.passed:
             verdict = Styled(f"{topic.divergence_count} diff", "red")
         elif topic.failed_messages:
-            verdict = Styled(f"ok ({topic.failed_messages} msgs out, allowed)", "green")
+            verdict = Styled(f"ok ({counted(topic.failed_messages, 'msg')} out, allowed)", "green")
         else:
             verdict = Styled("ok", "green")
         counts = (topic.golden_count, topic.candidate_count, topic.missing, topic.extra)

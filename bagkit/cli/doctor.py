@@ -90,7 +90,7 @@ def _drift(bag: Path, output_format: ReportFormat) -> None:
     drifted = [d.topic for d in drifts if d.status == DriftStatus.DRIFTED]
     if drifted:
         err_console.print(
-            f"{bag}: {len(drifted)} of {len(drifts)} topics drifted from the installed "
+            f"{bag}: {len(drifted)} of {counted(len(drifts), 'topic')} drifted from the installed "
             f"definitions: {', '.join(drifted)}",
             highlight=False,
             soft_wrap=True,

@@ -18,6 +18,7 @@ from bagkit.cli.common import EXIT_INTERRUPTED, fail, handle_errors, warn
 from bagkit.cli.option_parsing import BAG_HELP, bag_location
 from bagkit.cli.selection_options import Distro, End, Start, Where, build_query
 from bagkit.compat import StrEnum
+from bagkit.words import counted
 
 if TYPE_CHECKING:
     from bagkit.data.echo import Plain
@@ -148,10 +149,14 @@ def echo(  # noqa: PLR0917 (typer maps parameters to options)
         written = _write(records, output, bag_start)
         if failures.count and not written:  # a topic this bag cannot give: not a success
             raise fail(
-                f"none of the {failures.count} messages of {topic} decode ({failures.first})"
+                f"none of the {counted(failures.count, 'message')} of {topic} decode "
+                f"({failures.first})"
             )
         if failures.count:
-            warn(f"{failures.count} messages of {topic} do not decode, skipped ({failures.first})")
+            warn(
+                f"{counted(failures.count, 'message')} of {topic} did not decode, skipped "
+                f"({failures.first})"
+            )
         if not written and where is not None:
             warn(f"no message satisfies {where!r}")
     except KeyboardInterrupt:

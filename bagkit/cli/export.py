@@ -15,6 +15,7 @@ from bagkit.cli.option_parsing import bag_location
 from bagkit.cli.progress import DelayedProgress
 from bagkit.cli.selection_options import Distro, End, Start, Where, build_query
 from bagkit.data.formats import ExportFormat
+from bagkit.words import counted
 
 if TYPE_CHECKING:
     from bagkit.data.export import ExportReport
@@ -179,7 +180,7 @@ def _print_report(
     for topic, files in report.files.items():
         written = files[0].parent if len(files) > 1 else files[0]
         console.print(
-            f"{indent}{topic}: {report.rows[topic]:,} rows -> {shown(written)}",
+            f"{indent}{topic}: {counted(report.rows[topic], 'row')} -> {shown(written)}",
             highlight=False,
             soft_wrap=True,
         )

@@ -16,6 +16,7 @@ from bagkit.cli.fleet_options import BAGS_HELP, Scheduler, Workers, end_with_unr
 from bagkit.cli.option_parsing import bag_location, split_list
 from bagkit.cli.selection_options import Distro, End, Start, StateTopics, build_query
 from bagkit.compat import StrEnum
+from bagkit.words import counted
 
 if TYPE_CHECKING:
     from bagkit.fleet.find import FindResult
@@ -133,7 +134,9 @@ def _write_parquet(result: "FindResult", out: Path | None) -> None:
     assert out is not None
     out.parent.mkdir(parents=True, exist_ok=True)
     pq.write_table(result.to_arrow(), out, compression="zstd")
-    common.console.print(f"{result.count} episodes -> {out}", highlight=False, soft_wrap=True)
+    common.console.print(
+        f"{counted(result.count, 'episode')} -> {out}", highlight=False, soft_wrap=True
+    )
 
 
 def _utc(ns: int) -> str:
@@ -157,7 +160,7 @@ def _print_table(result: "FindResult") -> None:
             Column("seconds", numeric=True),
             Column("count", numeric=True),
         ],
-        title=f"{result.count} episodes of {result.topic}",
+        title=f"{counted(result.count, 'episode')} of {result.topic}",
     )
     for e in result.episodes:
         seconds = f"{(e.end_ns - e.start_ns) / 1e9:.3f}"

@@ -25,6 +25,7 @@ from bagkit.cli.fleet_options import Scheduler, Workers
 from bagkit.cli.option_parsing import bag_location
 from bagkit.cli.selection_options import End, Start, build_query
 from bagkit.regression.spec import FixtureSpec, find_fixtures, load_spec
+from bagkit.words import counted
 
 if TYPE_CHECKING:
     from bagkit.regression.batch import FixtureOutcome
@@ -251,7 +252,8 @@ def migrate(
         for topic in done.migration.migrated:
             changes = "; ".join(topic.changes)
             console.print(
-                f"{spec.name}: {topic.topic.name} migrated ({topic.migrated} messages: {changes})",
+                f"{spec.name}: {topic.topic.name} migrated "
+                f"({counted(topic.migrated, 'message')}: {changes})",
                 highlight=False,
                 soft_wrap=True,
             )
@@ -354,8 +356,8 @@ def add(  # noqa: PLR0917 (typer maps parameters to options)
         added = add_fixture(fixture, options)
     if added.episodes > 1:
         note(
-            f"{added.episodes} episodes of {around!r}: episode {episode} made the fixture "
-            "(--episode N for another)"
+            f"{counted(added.episodes, 'episode')} of {around!r}: episode {episode} made the "
+            "fixture (--episode N for another)"
         )
     listed = ", ".join(f"{t} {n}" for t, n in added.counts.items())
     if added.lockstep is not None:

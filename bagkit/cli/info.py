@@ -29,6 +29,7 @@ from bagkit.cli.tables import (
     print_wrapped,
 )
 from bagkit.storage.urls import is_url
+from bagkit.words import counted
 
 if TYPE_CHECKING:
     from bagkit.data.service_summaries import ServiceSummary
@@ -118,7 +119,8 @@ def _custom_data_value(value: str, verbose: bool) -> str:
     except ValueError:
         return value
     if isinstance(document, dict):
-        return f"JSON, {len(document)} entries (-v or --format json to see them)"
+        entries = counted(len(document), "entry", "entries")
+        return f"JSON, {entries} (-v or --format json to see them)"
     return value
 
 
@@ -250,7 +252,7 @@ def _print_folder(folder: FolderInfo, output_format: ReportFormat) -> None:
         print_json(folder.to_dict())
     else:
         # The folder's path on a line of its own: as long as the user made it, never cut.
-        print_line([Styled(folder.root, "bold"), f": {len(folder.bags)} bags"])
+        print_line([Styled(folder.root, "bold"), f": {counted(len(folder.bags), 'bag')}"])
         table = Table(
             [Column("bag"), *(Column(c, numeric=True) for c in ("messages", "duration", "size"))]
         )

@@ -27,6 +27,7 @@ from bagkit.cli.surgery_options import (
 from bagkit.storage.transfer import written_to
 from bagkit.surgery.rewrite import merge_bags
 from bagkit.surgery.select import Selection
+from bagkit.words import counted
 
 HELP = """Merge BAGs into one new bag OUT stored in log-time order (equal times: in the
 order the bags are given), with every topic's definition and QoS and each bag's custom_data.
@@ -67,7 +68,7 @@ def merge(
     selection = Selection.of(build_query(start=start, end=end))
     selection = replace(selection, latched=latched_options(latched_topics, no_latched))
     with (
-        status(f"merging {len(bags)} bags"),
+        status(f"merging {counted(len(bags), 'bag')}"),
         written_to(output, replace=force) as local,
     ):
         report = merge_bags(bags, local, selection, options)

@@ -18,6 +18,7 @@ from bagkit.cli.common import (
 )
 from bagkit.cli.selection_options import Distro
 from bagkit.cli.surgery_options import Compression, Force, Format, Output, output_options
+from bagkit.words import counted
 
 HELP = """Rewrite BAG to other message definitions into a new bag OUT: by default those
 installed today, or those stored in another bag (--to-bag), or those of an interface
@@ -110,8 +111,9 @@ def migrate(
         note(f"{bag}: no topic differs from {target.describe()}: copied as it is")
     written = report.rewrite
     console.print(
-        f"wrote {written.output}: {written.message_count:,} messages ({len(written.topic_counts)}"
-        f" topics, {len(report.migrated)} migrated, {len(report.unchanged)} unchanged)",
+        f"wrote {written.output}: {counted(written.message_count, 'message')} "
+        f"({counted(len(written.topic_counts), 'topic')}, {len(report.migrated)} migrated, "
+        f"{len(report.unchanged)} unchanged)",
         highlight=False,
         soft_wrap=True,
     )

@@ -10,6 +10,7 @@ from bagkit.cli import common
 from bagkit.cli.common import console, handle_errors, none_decoded, warn
 from bagkit.cli.option_parsing import BAG_HELP, bag_location, split_list
 from bagkit.cli.selection_options import Distro, End, Start, Where, build_query
+from bagkit.words import counted
 
 HELP = """Plot fields of BAG over time into OUT: .png (matplotlib) or .html (an interactive page
 with zoom, hover and series toggled in the legend, that opens with no network access).
@@ -91,7 +92,9 @@ def plot(  # noqa: PLR0917 (typer maps parameters to options)
 
         title = " vs ".join(dict.fromkeys(s.bag for s in found))
         write_html(found, out, title=title, absolute=absolute)
-    console.print(f"{len(found)} series -> {out}", highlight=False, soft_wrap=True)
+    console.print(
+        f"{counted(len(found), 'series', 'series')} -> {out}", highlight=False, soft_wrap=True
+    )
     if lost:  # the other series are drawn; a requested one is not there
         raise none_decoded(lost)
     if unread:

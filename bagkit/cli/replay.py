@@ -74,6 +74,7 @@ from bagkit.playback.progress import ProgressLine
 from bagkit.playback.source import MessageOrder
 from bagkit.playback.timing import DEFAULT_CLOCK_HZ, DEFAULT_DISCOVERY_TIME_NS, LATE_THRESHOLD_NS
 from bagkit.selection.times import NS_PER_S, parse_duration, seconds_to_ns
+from bagkit.words import counted
 
 if TYPE_CHECKING:
     # The player imports rclpy: only `bagkit replay` itself pays for that import.
@@ -337,8 +338,8 @@ def _finish(report: PlayReport, bag: str, output_format: ReportFormat) -> None:
     if report.problems:
         unreadable = f", {report.unreadable} could not be read" if report.unreadable else ""
         warn(
-            f"the bag is damaged: replayed the {report.messages} messages that could be read"
-            f"{unreadable}; {damage}"
+            f"the bag is damaged: replayed the {counted(report.messages, 'message')} that could "
+            f"be read{unreadable}; {damage}"
         )
     if report.unacknowledged:
         warn(
@@ -368,10 +369,10 @@ def _print_report(report: PlayReport) -> None:
     print_table(table)
     lateness = report.lateness
     common.console.print(
-        f"{report.messages} messages in {report.played_s:.3f} s "
+        f"{counted(report.messages, 'message')} in {report.played_s:.3f} s "
         + (f"played, {report.paused_s:.3f} s paused " if report.paused_s else "")
         + f"({report.bag_duration_s:.3f} s of bag time, rate {report.rate:g}"
-        + (f", {report.loops} passes" if report.loops > 1 else "")
+        + (f", {counted(report.loops, 'pass', 'passes')}" if report.loops > 1 else "")
         + (f", {report.latched} of them latched state" if report.latched else "")
         + ")",
         highlight=False,
@@ -379,7 +380,7 @@ def _print_report(report: PlayReport) -> None:
     )
     timing = (
         f"p50 {lateness.p50_ms:.3f} ms, p99 {lateness.p99_ms:.3f} ms, "
-        f"max {lateness.max_ms:.3f} ms, {lateness.late} messages late "
+        f"max {lateness.max_ms:.3f} ms, {counted(lateness.late, 'message')} late "
         f"(> {LATE_THRESHOLD_NS / 1e6:g} ms)"
     )
     if math.isnan(lateness.p50_ms):

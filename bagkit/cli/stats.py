@@ -254,7 +254,7 @@ def _print_tables(result: "Summary") -> None:
         rate = format_rate(topic.rate_hz, digits=3)
         print_line([])
         heading: list[Cell] = [Styled(topic.topic, "bold"), topic.type]
-        heading += [f"{topic.count} msgs", rate]
+        heading += [counted(topic.count, "msg"), rate]
         print_wrapped(heading, sep="  ")
         if not topic.fields or topic.undecodable == topic.count:
             continue  # none decoded: the error line at the end says so, no table of zeros

@@ -203,7 +203,7 @@ def print_cuts(found: Episodes, reports: list[RewriteReport], output_format: Rep
                 report,
                 ReportFormat.TABLE,
                 f"{found.topic} from {format_ns(episode.start_ns)} to "
-                f"{format_ns(episode.end_ns)} ({episode.count} matches): ",
+                f"{format_ns(episode.end_ns)} ({counted(episode.count, 'match', 'matches')}): ",
             )
     for problem in found.problems:
         warn(problem)

@@ -18,6 +18,7 @@ from bagkit.errors import BagkitError
 from bagkit.selection.errors import UnknownFieldError
 from bagkit.selection.fields import name_matches, path_matches, split_pattern, unknown_field_message
 from bagkit.selection.topics import did_you_mean, require_topics
+from bagkit.words import counted
 
 EVENT_TYPE = "diagnostic_msgs/msg/DiagnosticArray"
 
@@ -182,7 +183,7 @@ def _check_ignored(options: CompareOptions, *sides: _Side) -> None:
             continue
         if len(topics) == 1:
             raise UnknownFieldError(unknown_field_message(topics[0], [field_glob], paths[2:]))
-        guess = did_you_mean(field_glob, paths).rstrip() or f"{len(topics)} topics match"
+        guess = did_you_mean(field_glob, paths).rstrip() or f"{counted(len(topics), 'topic')} match"
         raise UnknownFieldError(
             f"no topic matching {topic_glob} has the field {field_glob} ({guess})"
         )

@@ -17,6 +17,7 @@ from bagkit.decode.flatten import STRING_TYPES, leaf_fields
 from bagkit.decode.layout import CdrLayout
 from bagkit.decode.message_types import MessageTypes
 from bagkit.selection.conditions import Condition
+from bagkit.words import counted
 
 
 class PayloadMatcher:
@@ -79,8 +80,8 @@ class PayloadMatcher:
         if not self.undecodable:
             return None
         return (
-            f"{self.topic}: {self.undecodable} messages could not be decoded, not matched "
-            f"({self.first_failure})"
+            f"{self.topic}: {counted(self.undecodable, 'message')} could not be decoded, not "
+            f"matched ({self.first_failure})"
         )
 
     def matches(self, data: bytes | memoryview) -> bool:

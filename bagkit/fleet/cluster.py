@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from bagkit.fleet.errors import FleetError, SchedulerError
+from bagkit.words import counted
 
 if TYPE_CHECKING:
     from distributed import Client, LocalCluster
@@ -172,11 +173,11 @@ def fleet_client(
     try:
         if announce is not None:
             link = cluster.dashboard_link if dashboard_available() else ""
+            size = counted(len(cluster.workers), "worker")
             announce(
-                f"local Dask cluster of {len(cluster.workers)} workers, dashboard {link}"
+                f"local Dask cluster of {size}, dashboard {link}"
                 if link
-                else f"local Dask cluster of {len(cluster.workers)} workers (no dashboard: "
-                "bokeh is not installed)"
+                else f"local Dask cluster of {size} (no dashboard: bokeh is not installed)"
             )
         with Client(cluster) as client:
             yield client

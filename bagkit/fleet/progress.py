@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 
 from bagkit.storage.paths import remembered_size
 from bagkit.storage.urls import is_url, location
+from bagkit.words import counted
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -71,7 +72,7 @@ class BagProgress:
         self._task = self._bar.add_task(label, total=sum(self._sizes), bags=self._bags())
 
     def _bags(self) -> str:
-        return f"{self._count}/{len(self._sizes)} bags"
+        return f"{self._count}/{counted(len(self._sizes), 'bag')}"
 
     def __call__(self, index: int) -> None:
         self._count += 1

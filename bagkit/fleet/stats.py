@@ -25,7 +25,8 @@ from bagkit.selection.errors import UnknownTopicError
 from bagkit.selection.query import Query, resolve_names
 from bagkit.stats import StatsError, Summary
 from bagkit.stats.accumulate import TopicAccumulator
-from bagkit.stats.summary import SummaryRun, check_topics, finish_summary
+from bagkit.stats.run import SummaryRun
+from bagkit.stats.summary import check_topics, finish_summary
 from bagkit.storage.errors import StorageError
 from bagkit.storage.urls import location, shown_as
 

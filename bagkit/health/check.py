@@ -204,7 +204,7 @@ def check_bag(bag: str | Path, spec: HealthSpec, query: Query | None = None) -> 
         counts = _counts(reader, [*spec.forbidden, *(c.topic for c in spec.topics)], window)
         for topic in spec.forbidden:
             present = counts.get(topic, 0) > 0
-            reason = f"{counts.get(topic, 0)} messages" if present else ""
+            reason = counted(counts.get(topic, 0), "message") if present else ""
             found.append(Assertion(topic, "forbidden", not present, reason=reason))
         for contract in spec.topics:
             topic = contract.topic

@@ -18,6 +18,7 @@ import numpy as np
 
 from bagkit.decode.layout import PRIMITIVE_FORMATS
 from bagkit.decode.msgdef import Nodetype
+from bagkit.words import counted
 
 # numpy dtype of each primitive as the rosbags serializer packs it: CDR's formats, except that
 # bool is numpy's own and byte is signed there.
@@ -117,9 +118,9 @@ def check_length(count: int, kind: Any, size: int) -> None:
     """Raise ValueMismatchError when ``count`` elements do not fit an array (fixed ``size``) or a
     sequence (bound ``size``, 0: none)."""
     if kind == Nodetype.ARRAY and count != size:
-        raise ValueMismatchError(f"{count} elements do not fit an array of {size}")
+        raise ValueMismatchError(f"{counted(count, 'element')} for an array of {size}")
     if kind == Nodetype.SEQUENCE and size and count > size:
-        raise ValueMismatchError(f"{count} elements exceed the bound of {size}")
+        raise ValueMismatchError(f"{counted(count, 'element')}, over the bound of {size}")
 
 
 def default_value(desc: Any, make: Any) -> Any:

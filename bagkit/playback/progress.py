@@ -13,6 +13,7 @@ from typing import TextIO
 
 from bagkit.playback.report import PlayProgress
 from bagkit.selection.times import format_ns
+from bagkit.words import counted
 
 
 def progress_text(progress: PlayProgress) -> str:
@@ -22,7 +23,7 @@ def progress_text(progress: PlayProgress) -> str:
         f"bag {progress.bag_time_s:8.2f} s {stamp}",
         f"{100 * progress.fraction:5.1f}%",
         f"rate {progress.effective_rate:5.2f}x of {progress.rate:g}",
-        f"{progress.messages} msgs",
+        counted(progress.messages, "msg"),
         f"{progress.late} late",
     ]
     if progress.paused:

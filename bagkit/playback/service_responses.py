@@ -12,6 +12,8 @@ import math
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+from bagkit.words import counted
+
 MAX_LISTED_DIFFERENCES = 100
 
 
@@ -33,7 +35,7 @@ def differences(recorded: Any, live: Any, tolerance: Tolerance, path: str = "") 
         return found
     if isinstance(recorded, list) and isinstance(live, list):
         if len(recorded) != len(live):
-            return [f"{path}: {len(recorded)} elements -> {len(live)}"]
+            return [f"{path}: {counted(len(recorded), 'element')} -> {len(live)}"]
         found = []
         for i, (a, b) in enumerate(zip(recorded, live, strict=True)):
             found += differences(a, b, tolerance, f"{path}[{i}]")

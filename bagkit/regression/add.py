@@ -25,6 +25,7 @@ from bagkit.selection.windows import TimeRange, Window
 from bagkit.surgery.around import SPAN_SET_BY_EPISODES, Around, episode_window
 from bagkit.surgery.rewrite import filter_bag
 from bagkit.surgery.select import Selection
+from bagkit.words import counted
 
 
 @dataclass(frozen=True, slots=True)
@@ -197,7 +198,7 @@ def _block(lines: list[str], n: int) -> list[str]:
 def _template(
     options: AddOptions, window: Window, counts: dict[str, int], types: dict[str, str]
 ) -> str:
-    topics = "\n".join(f"#   {t}: {types[t]}, {n} messages" for t, n in counts.items())
+    topics = "\n".join(f"#   {t}: {types[t]}, {counted(n, 'message')}" for t, n in counts.items())
     return (
         _origin(options, window)
         + "# golden/ holds the window as recorded. Name the system under test, split the\n"

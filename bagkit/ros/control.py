@@ -23,6 +23,7 @@ from rclpy.parameter import Parameter
 from std_srvs.srv import Trigger
 
 from bagkit.ros.errors import ControlError
+from bagkit.words import counted
 
 TRIGGER_TYPE = "std_srvs/srv/Trigger"
 # The player's services (bagkit.ros.replay.services, seek_services) and the recorder's
@@ -206,7 +207,7 @@ class Controller:
         targets = self.targets(control, node)
         if len(targets) > 1:
             raise ControlError(
-                f"{len(targets)} nodes offer {control!r} ({', '.join(targets)}): "
+                f"{counted(len(targets), 'node')} offer {control!r} ({', '.join(targets)}): "
                 "name one with --node"
             )
         if control in PARAMETERS:

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 from bagkit.errors import OptionError
 from bagkit.selection.errors import SelectionError, UnknownTopicError
+from bagkit.words import counted
 
 SERVICE_EVENT_SUFFIX = "/_service_event"
 """What a service's name ends in as a topic: introspection's events (see ``services``)."""
@@ -191,7 +192,7 @@ def closest_names(name: str, known: Sequence[str], limit: int = 20) -> str:
     actions = [n.partition(ACTION_INFIX)[0] for n in known if ACTION_INFIX in n]
     guess = did_you_mean(name, [*known, *services, *actions])
     if len(known) > limit:
-        return f"{guess}it has {len(known)} topics, {', '.join(known[:limit])}, ..."
+        return f"{guess}it has {counted(len(known), 'topic')}, {', '.join(known[:limit])}, ..."
     return f"{guess}it has {', '.join(known)}"
 
 

@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING
 
 from bagkit.bag.definitions import DEFINITION_ENCODINGS, canonical_type_name
 from bagkit.bag.errors import ChunkError
-from bagkit.bag.mcapio import Block, FileIndex, Source, count_messages, extent, read_chunk
+from bagkit.bag.mcapio import Block, FileIndex, Source, extent, read_chunk, unreadable_chunk
 from bagkit.bag.mcapio.chunk_builder import ClosedChunk
 from bagkit.bag.mcapio.raw_chunk import check_raw_chunk, read_raw_chunk, stored_in_log_time_order
 from bagkit.bag.mcapio.records import ChunkIndex
@@ -227,6 +227,8 @@ def _may_copy(file: InputFile, block: Block, selection: Selection, out: OutputBa
         return False
     if not selection.covers(block.message_start_time, block.message_end_time):
         return False
+    if not out.takes_whole(block.message_start_time, block.message_end_time, block.chunk_length):
+        return False
     return _identity(file, block.message_index_offsets)
 
 
@@ -283,9 +285,4 @@ def _emit(pending: list[Run], before_time: int, before_rank: int, out: OutputBag
 
 
 def _lost(file: InputFile, block: Block, what: str) -> None:
-    offset, length = extent(block)
-    lost = count_messages(file.source, block)
-    file.problems.append(
-        f"{file.path.name}: chunk at byte {offset} ({length} bytes) unreadable: {what}; "
-        + (f"its {lost} messages are lost" if lost is not None else "its messages are lost")
-    )
+    file.problems.append(unreadable_chunk(file.path.name, file.source, block, what))

@@ -27,6 +27,7 @@ from bagkit.recording.loss_causes import large_message_cause
 from bagkit.recording.report import LOSS_CUSTOM_DATA_KEY
 from bagkit.surgery.file_check import FileCheck, FileFacts, MessageCheck
 from bagkit.surgery.storage_check import check_storage_file
+from bagkit.words import counted
 
 
 @dataclass(frozen=True)
@@ -249,7 +250,8 @@ class _Decoders:
                     found.append(f"{topic}: {exc}")
         for topic, (count, first, why) in sorted(self.failures.items()):
             found.append(
-                f"{topic}: {count} messages do not decode (first at log time {first}: {why})"
+                f"{topic}: {counted(count, 'message')} did not decode (first at log time "
+                f"{first}: {why})"
             )
         return found
 
@@ -327,7 +329,7 @@ def _metadata_problems(
     listed = [Path(p).name for p in metadata.relative_file_paths]
     for name in dict.fromkeys(listed):
         if listed.count(name) > 1:
-            problems.append(f"lists {name} {listed.count(name)} times")
+            problems.append(f"lists {name} {counted(listed.count(name), 'time')}")
         if name not in facts:
             problems.append(f"lists {name}, which is missing or unreadable")
     for name in facts:

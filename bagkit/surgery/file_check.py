@@ -39,6 +39,7 @@ from bagkit.bag.mcapio.summary import (
     read_header,
     read_summary,
 )
+from bagkit.words import counted
 
 # Called with (channel id, log time, payload) for every message when decoding is checked.
 MessageCheck = Callable[[int, int, memoryview], None]
@@ -102,7 +103,7 @@ class FileCheck:
         if self.out_of_order:
             # Valid MCAP (readers order by index), as recorders writing per-topic batches do.
             self.facts.notes.append(
-                f"{self.out_of_order} messages are stored out of log-time order"
+                f"{counted(self.out_of_order, 'message')} stored out of log-time order"
             )
         if summary is None and closed_without_summary(self.source):
             self.facts.notes.append(
@@ -258,8 +259,9 @@ class FileCheck:
         ):
             self._problem(
                 f"message index at byte {pos} (channel {channel_id}) disagrees with the "
-                f"chunk at byte {chunk.offset}: {len(stored)} entries, the chunk holds "
-                f"{0 if found is None else len(found)} messages of that channel"
+                f"chunk at byte {chunk.offset}: {counted(len(stored), 'entry', 'entries')}, the "
+                "chunk holds "
+                f"{counted(0 if found is None else len(found), 'message')} of that channel"
             )
 
     # -- comparisons ----------------------------------------------------------------------
@@ -273,7 +275,7 @@ class FileCheck:
             and ({c: n for c, n in summary.channel_message_counts.items() if n} != facts.counts)
         ):
             self._problem(
-                f"statistics count {summary.message_count} messages "
+                f"statistics count {counted(summary.message_count, 'message')} "
                 f"({_counts(summary.channel_message_counts)}), the chunks hold "
                 f"{facts.message_count} ({_counts(facts.counts)})"
             )

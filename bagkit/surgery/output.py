@@ -7,19 +7,14 @@ Nothing appears under the output name before :meth:`OutputBag.commit`: files are
 hidden sibling directory that is renamed into place, so an error never leaves a half-written
 bag, and an existing output is replaced only with ``force``.
 
-A chunk built here is compressed on a worker thread (zstd and LZ4 release the GIL) while the
-next one is built, and written by the calling thread once that one closes: in order, and at
-most :data:`COMPRESSING` chunks in flight, so memory stays flat. An output split by size or
-duration compresses each chunk before building the next (the split needs the file's size).
+A chunk built here is compressed on a worker thread while the next one is built, unless the
+output is split by size or duration (:mod:`~bagkit.surgery.chunk_compression`).
 """
 
 from __future__ import annotations
 
 import os
 import shutil
-from collections import deque
-from concurrent.futures import Future, ThreadPoolExecutor
-from functools import cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
@@ -36,12 +31,14 @@ from bagkit.bag.mcapio.records import (
     Header,
     Opcode,
     Schema,
+    message_record_dtype,
 )
 from bagkit.bag.messages import BagMessage, TopicInfo
 from bagkit.bag.metadata import BagMetadata, FileInformation, write_metadata
 from bagkit.bag.sizes import split_size_problem
 from bagkit.bag.writer import DEFAULT_CHUNK_SIZE, LIBRARY
 from bagkit.selection.times import seconds_to_ns
+from bagkit.surgery.chunk_compression import ChunkCompression
 from bagkit.surgery.errors import SurgeryError
 from bagkit.surgery.options import OutputOptions
 from bagkit.surgery.output_paths import check_replaceable, single_file
@@ -51,10 +48,6 @@ if TYPE_CHECKING:
 
 # The smallest chunk a split output gets: a split size holds four at least.
 _MIN_CHUNK_SIZE = 4096
-# Chunks closed and not yet written: one being compressed, one waiting its turn. A rewritten
-# input chunk often closes two output chunks in a row; with one in flight the calling thread
-# waits for the first one's compression before it goes on (benchmarks/README.md, sixth pass).
-COMPRESSING = 2
 
 
 class MessageOutput(Protocol):
@@ -120,7 +113,7 @@ class OutputBag:
             raise SurgeryError(f"{path.parent}: no such directory")
         self.path = path
         self._single_file = single_file
-        self.compression, self._compress = compressor(compression)
+        self.compression, compress = compressor(compression)
         too_small = split_size_problem(max_bag_size, 4 * _MIN_CHUNK_SIZE)
         if too_small is not None:
             raise SurgeryError(too_small)
@@ -145,10 +138,12 @@ class OutputBag:
         self._files: list[FileInformation] = []
         self._file: McapFileWriter | None = None
         self._chunk = ChunkBuilder()
-        # One worker: it owns the compressor (zstd's is not thread-safe) and keeps the order.
-        threaded = self.compression and not (max_bag_size or max_bag_duration_s)
-        self._compressor = ThreadPoolExecutor(1, "bagkit-compress") if threaded else None
-        self._closing: deque[Future[ClosedChunk]] = deque()  # in the order they are written
+        self._closed = ChunkCompression(
+            self.compression,
+            compress,
+            self._write_chunk,
+            threaded=not (max_bag_size or max_bag_duration_s),
+        )
 
     @classmethod
     def create(cls, path: Path, options: OutputOptions) -> OutputBag:
@@ -257,10 +252,10 @@ class OutputBag:
         lengths = np.fromiter((len(m.data) for m in messages), np.int64, count)
         times = np.fromiter((m.log_time for m in messages), np.uint64, count)
         channels = np.array(channel_ids, np.uint16)
-        headers = np.empty(count, _record_header())
+        headers = np.empty(count, message_record_dtype())
         headers["opcode"] = Opcode.MESSAGE
         headers["length"] = lengths + MESSAGE_PREFIX.size
-        headers["channel"] = channels
+        headers["channel_id"] = channels
         headers["sequence"] = np.fromiter((m.sequence for m in messages), np.uint64, count)
         headers["log_time"] = times
         headers["publish_time"] = np.fromiter((m.publish_time for m in messages), np.uint64, count)
@@ -274,10 +269,18 @@ class OutputBag:
         np.cumsum(record_lengths[:-1], out=offsets[1:])
         self.write_records(b"".join(pieces), offsets, record_lengths, channels, times)
 
+    def takes_whole(self, start_ns: int, end_ns: int, length: int) -> bool:
+        """Whether a chunk of these log times and record length fits one file of the split
+        (a chunk copied as stored cannot be split): spans less than the duration, holds at most
+        a quarter of the size, as the chunks built here do."""
+        if self._max_duration and end_ns - start_ns >= self._max_duration:
+            return False
+        return not self._max_size or length <= self._max_size // 4
+
     def copy_chunk(self, chunk: ClosedChunk) -> None:
         """Append a chunk as it is stored (its channel ids must be this bag's)."""
         self._close_chunk()
-        self._write_closed(0)
+        self._closed.flush()
         self._split_if_due(chunk.message_end_time, chunk.length)
         file = self._current_file()
         file.write_chunk(chunk, lost={})
@@ -288,8 +291,8 @@ class OutputBag:
     def commit(self) -> list[Path]:
         """Finish the last file and metadata.yaml, move the bag into place; return its files."""
         self._close_chunk()
-        self._write_closed(0)
-        self._stop_compressor()
+        self._closed.flush()
+        self._closed.stop()
         if self._file is None and not self._files:
             self._current_file()
         self._finish_file()
@@ -309,8 +312,7 @@ class OutputBag:
 
     def abort(self) -> None:
         """Remove what was written (the output name is left untouched)."""
-        self._closing.clear()
-        self._stop_compressor()
+        self._closed.stop(discard=True)
         if self._file is not None:
             self._file.close()
             self._file = None
@@ -366,22 +368,10 @@ class OutputBag:
         self._chunk = ChunkBuilder()
         for channel_id, count in chunk.message_counts().items():
             self.counts[channel_id] += count
-        if self._compressor is None:
-            self._current_file().write_chunk(chunk.close(self.compression, self._compress), lost={})
-            return
-        self._closing.append(self._compressor.submit(chunk.close, self.compression, self._compress))
-        self._write_closed(COMPRESSING)
+        self._closed.add(chunk)
 
-    def _write_closed(self, waiting: int) -> None:
-        """Write the chunks compressed on the worker, in order, until ``waiting`` are left."""
-        while len(self._closing) > waiting:
-            self._current_file().write_chunk(self._closing.popleft().result(), lost={})
-
-    def _stop_compressor(self) -> None:
-        """Let the worker finish the chunk it holds (the others are cancelled) and end."""
-        if self._compressor is not None:
-            self._compressor.shutdown(cancel_futures=True)
-            self._compressor = None
+    def _write_chunk(self, chunk: ClosedChunk) -> None:
+        self._current_file().write_chunk(chunk, lost={})
 
     def _finish_file(self, *, last: bool = True) -> None:
         """Close the open file; its rosbag2 record describes the bag when it is the last, else
@@ -408,20 +398,3 @@ class OutputBag:
         counts = self.counts if counts is None else counts
         topics = [(t, counts[self.channels[n].id]) for n, t in self.topics.items()]
         return bag_metadata(self._files if files is None else files, topics, self.custom_data)
-
-
-@cache
-def _record_header() -> np.dtype:
-    """A Message record up to its payload, as MESSAGE_RECORD_HEADER packs it."""
-    import numpy as np
-
-    return np.dtype(
-        [
-            ("opcode", "u1"),
-            ("length", "<u8"),
-            ("channel", "<u2"),
-            ("sequence", "<u4"),
-            ("log_time", "<u8"),
-            ("publish_time", "<u8"),
-        ]
-    )

@@ -12,6 +12,7 @@ from hostile_files import Layout, chunk_messages
 
 from bagkit.bag import BagReader, CorruptBagError
 from bagkit.stats import summarize
+from bagkit.words import counted
 
 CHUNK_FIELDS = 9  # a chunk record's content starts after its opcode and length
 UNCOMPRESSED_SIZE = CHUNK_FIELDS + 16
@@ -79,7 +80,7 @@ def test_a_chunk_declaring_a_huge_size_loses_that_chunk(layout: Layout, size: in
     assert problems == [
         f"hostile.mcap: chunk at byte {chunk.chunk_start_offset} ({chunk.chunk_length} bytes) "
         f"unreadable: declares {size} bytes uncompressed, over the maximum chunk size of "
-        f"{256 << 20}; its {lost} messages are lost"
+        f"{256 << 20}; {counted(lost, 'message')} lost"
     ]
     summary = summarize([path])
     assert sum(t.count for t in summary.topics) == _total(layout) - lost
@@ -94,7 +95,7 @@ def test_a_non_utf8_compression_name_loses_that_chunk(layout: Layout) -> None:
     assert count == _total(layout) - lost
     assert len(problems) == 1
     assert "a string is not UTF-8" in problems[0]
-    assert f"its {lost} messages are lost" in problems[0]
+    assert f"; {counted(lost, 'message')} lost" in problems[0]
 
 
 def test_a_non_utf8_name_in_a_chunk_index_falls_back_to_salvage(layout: Layout) -> None:
@@ -168,7 +169,7 @@ def test_a_flipped_byte_inside_a_chunk_fails_its_crc(
     assert count == _total(layout) - lost
     assert problems == [
         f"sample_0.mcap: chunk at byte {chunk.chunk_start_offset} ({chunk.chunk_length} bytes) "
-        f"unreadable: CRC mismatch (the chunk is damaged); its {lost} messages are lost"
+        f"unreadable: CRC mismatch (the chunk is damaged); {counted(lost, 'message')} lost"
     ]
     count, problems = _read_all(bag, check_crc=False)
     assert (count, problems) == (_total(layout), [])

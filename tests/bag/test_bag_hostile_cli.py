@@ -15,6 +15,8 @@ import pytest
 from bagkit_runs import bagkit_in_process
 from hostile_files import Layout, chunk_messages
 
+from bagkit.words import counted
+
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 
 
@@ -72,7 +74,7 @@ def test_stats_reports_a_damaged_chunk_and_no_crc_reads_it(
     assert counts[("damaged",)] == counts[("sample",)] - lost
     assert counts[("damaged", "--no-crc")] == counts[("sample",)]
     run = _run("stats", "summary", damaged)
-    assert f"CRC mismatch (the chunk is damaged); its {lost} messages are lost" in run.stderr
+    assert f"CRC mismatch (the chunk is damaged); {counted(lost, 'message')} lost" in run.stderr
 
 
 def test_compare_warns_of_a_damaged_chunk(flipped: tuple[Path, Path, int]) -> None:
@@ -134,7 +136,7 @@ def every_chunk_lost(write_sample_bag: Callable[..., Path]) -> tuple[Path, Path,
     (chunk,) = layout.chunks
     layout.data[chunk.chunk_start_offset + chunk.chunk_length - 3] ^= 0x01
     layout.save()
-    return bag, intact, f"its {chunk_messages(layout, chunk)} messages are lost"
+    return bag, intact, f"; {counted(chunk_messages(layout, chunk), 'message')} lost"
 
 
 _LOST_ALL = {

@@ -15,6 +15,7 @@ from rosbags.typesys import Stores, get_typestore
 from bagkit.bag import BagReader, CorruptBagError, NotABagError, sqlite3_file
 from bagkit.bag.distro_definitions import DistroDefinitionsWarning
 from bagkit.errors import BagkitError
+from bagkit.words import counted
 
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
@@ -82,7 +83,7 @@ def test_rows_of_the_wrong_types_are_skipped_and_reported(tmp_path: Path, script
     bag = _alter(write_db3(tmp_path / "bad.db3"), script)
     messages, problems = _read(bag)
     assert [t for _, t, _ in messages] == [START + i * 1_000_000 for i in range(20) if i != 3]
-    assert problems == ["bad.db3: 1 messages without an integer timestamp or blob data skipped"]
+    assert problems == ["bad.db3: 1 message without an integer timestamp or blob data skipped"]
 
 
 def test_nulls_where_not_null_was_dropped(tmp_path: Path) -> None:
@@ -99,7 +100,7 @@ def test_nulls_where_not_null_was_dropped(tmp_path: Path) -> None:
     messages, problems = _read(bag)
     assert len(messages) == 17
     assert "nulls.db3: 2 messages without an integer timestamp or blob data skipped" in problems
-    assert "nulls.db3: 1 messages of no known topic skipped" in problems
+    assert "nulls.db3: 1 message of no known topic skipped" in problems
 
 
 @pytest.mark.parametrize("halves", [1, 200_000], ids=["halves", "whole"])
@@ -131,7 +132,7 @@ def test_counts_at_open_by_either_query(
             max(t for _, t in valid),
         )
         assert sorted(reader.problems) == [
-            "orphans.db3: 1 messages without an integer timestamp or blob data skipped",
+            "orphans.db3: 1 message without an integer timestamp or blob data skipped",
             "orphans.db3: 2 messages of no known topic skipped",
         ]
 
@@ -166,10 +167,10 @@ def test_counts_at_open_of_one_topic(
     valid = [(i, t) for i, t, kind in rows if isinstance(t, int) and kind == "blob"]
     times = [t for i, t in valid if i == 1]
     expected = [
-        f"one.db3: {count} {what} skipped"
+        f"one.db3: {counted(count, 'message')} {what} skipped"
         for count, what in (
-            (len(valid) - len(times), "messages of no known topic"),
-            (len(rows) - len(valid), "messages without an integer timestamp or blob data"),
+            (len(valid) - len(times), "of no known topic"),
+            (len(rows) - len(valid), "without an integer timestamp or blob data"),
         )
         if count
     ]
@@ -289,7 +290,7 @@ def test_every_damaged_page_is_an_error_or_a_reported_problem(tmp_path: Path) ->
         outcomes["stopped" if stopped else "whole"] += 1
         if stopped:
             assert stopped == [
-                f"page{page}.db3: unreadable after {len(messages)} messages "
+                f"page{page}.db3: unreadable after {counted(len(messages), 'message')} "
                 f"(database disk image is malformed)"
             ]
     assert outcomes["open"] > 0 and outcomes["stopped"] > 0, outcomes

@@ -25,6 +25,7 @@ from bagkit.bag.sqlite3_file import Sqlite3File
 from bagkit.bag.zstd_frames import declared_sizes
 from bagkit.errors import BagkitError
 from bagkit.prefetch import prefetch
+from bagkit.words import counted
 
 STORE = get_typestore(Stores.ROS2_JAZZY)
 STRING = "std_msgs/msg/String"
@@ -262,7 +263,7 @@ def test_a_bad_zstd_frame_in_the_middle(tmp_path: Path) -> None:
     assert _per_topic(chunked) == expected
     with_bad = {topic_of[rowid] for rowid in damaged}
     assert len(problems) == len(with_bad)
-    assert all("do not decompress" in p and p.endswith(": lost") for p in problems)
+    assert all("did not decompress" in p and p.endswith(": lost") for p in problems)
     assert sum(int(p.split(": ", 1)[1].split()[0]) for p in problems) == 2
     with BagReader(clean) as bag:  # the same bag undamaged: as rosbags reads it
         assert _per_topic(_from_chunks(bag)) == _rosbags(clean)
@@ -356,7 +357,7 @@ def test_a_damaged_page_mid_read_through_the_read_ahead(tmp_path: Path) -> None:
         outcomes["stopped" if stopped else "whole"] += 1
         if stopped:
             assert stopped == [
-                f"page{page}.db3: unreadable after {len(found)} messages "
+                f"page{page}.db3: unreadable after {counted(len(found), 'message')} "
                 "(database disk image is malformed)"
             ]
     assert outcomes["open"] > 0 and outcomes["stopped"] > 0, outcomes

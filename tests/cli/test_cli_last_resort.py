@@ -23,6 +23,7 @@ from bagkit.cli.common import (
     run_app,
 )
 from bagkit.errors import BagkitError
+from bagkit.words import counted
 
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 FIXTURE = Path(__file__).resolve().parents[2] / "fixtures" / "nominal" / "golden"
@@ -77,7 +78,7 @@ def _interrupt() -> None:
         (_interrupt, EXIT_INTERRUPTED, "error: interrupted"),
         (_bag_error, 2, "error: the bag is odd"),
         (_markup_error, 2, "error: topic [/]x[bold] second line"),
-        (_huge_error, 2, f"error: {'x' * 1000}... (4000 characters cut)"),
+        (_huge_error, 2, f"error: {'x' * 1000}... (4,000 characters cut)"),
     ],
     ids=["recursion", "memory", "index", "ctrl-c", "bagkit-error", "markup-newline", "huge"],
 )
@@ -238,5 +239,5 @@ def test_warning_and_error_lines_say_the_same_plain_or_styled(
     err = re.sub(r"\x1b\[[0-9;]*m", "", capsys.readouterr().err)
     assert err.splitlines() == [
         "warning: topic [/]x[bold] second line",
-        f"error: {message[:1000]}... ({len(message) - 1000} characters cut)",
+        f"error: {message[:1000]}... ({counted(len(message) - 1000, 'character')} cut)",
     ]

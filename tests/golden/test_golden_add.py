@@ -18,6 +18,7 @@ from test_mutation import EXPONENT, failing, mutated_copy, run_golden
 
 from bagkit.bag import BagReader
 from bagkit.regression.spec import load_spec
+from bagkit.words import counted
 
 BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 
@@ -84,7 +85,7 @@ def test_without_like_the_window_is_kept_and_the_spec_is_a_template(tmp_path: Pa
     text = (copy / "fixtures" / "raw" / "spec.yaml").read_text()
     with BagReader(copy / "fixtures" / "raw" / "golden") as window:
         for topic, count in window.topic_counts.items():
-            assert f"#   {topic}: {window.topics[topic].type}, {count} messages" in text
+            assert f"#   {topic}: {window.topics[topic].type}, {counted(count, 'message')}" in text
     again = _bagkit(copy, "golden", "add", "fixtures/raw", "--from", "fixtures/faults/golden")
     assert again.returncode != 0 and again.stderr.startswith("error: fixtures/raw exists")
     assert again.stderr.count("\n") == 1

@@ -187,9 +187,9 @@ def test_full_disk_stops_with_one_line_and_keeps_what_was_written(
 def lost_in_error_line(stderr: bytes) -> int:
     """The lost count of the one ``error:`` line (``... (N messages lost)``)."""
     (line,) = [x for x in stderr.decode().splitlines() if x.startswith("error")]
-    match = re.search(r"\((\d+) messages lost\)$", line)
+    match = re.search(r"\(([\d,]+) messages? lost\)$", line)
     assert match, line
-    return int(match.group(1))
+    return int(match.group(1).replace(",", ""))
 
 
 @pytest.mark.parametrize(

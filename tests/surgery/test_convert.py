@@ -363,6 +363,30 @@ def test_split_by_duration_within_a_chunk(tmp_path: Path) -> None:
     assert rosbags_messages(out) == before
 
 
+@pytest.mark.parametrize("split", ["-d", "-b"])
+def test_a_chunk_larger_than_the_split_is_opened(tmp_path: Path, split: str) -> None:
+    """A chunk in OUT's compression that alone spans the duration (or outgrows the size) is
+    opened and split, not copied as stored into one file (found converting a rosbags bag of
+    one 20 s chunk with -d 7: one file of 20 s)."""
+    bag = tmp_path / "in"
+    write_mixed_bag(bag, 300, compression="none", chunk_size=1 << 20)
+    before = rosbags_messages(bag)
+    span = max(t for _, t, _ in before) - min(t for _, t, _ in before)
+    limit = str(span / 3e9) if split == "-d" else "20KiB"
+    out = tmp_path / "out"
+    result = run("convert", str(bag), "-o", str(out), "--compression", "none", split, limit)
+    assert result.returncode == 0, result.stderr
+    files = _mcap_files(out)
+    assert len(files) >= 3
+    for file in files:
+        times = [t for _, t, _ in mcap_messages([file])]
+        if split == "-d":
+            assert max(times) - min(times) < span / 3
+        else:
+            assert file.stat().st_size < (20 << 10) + (20 << 10)  # within a chunk, as ros2 bag
+    assert rosbags_messages(out) == before
+
+
 @pytest.mark.parametrize("source", ["mcap", "sqlite3"])
 def test_custom_data_is_kept_into_each_storage(tmp_path: Path, source: str) -> None:
     """metadata.yaml's custom_data of a bag rosbags wrote, in both outputs' metadata.yaml and

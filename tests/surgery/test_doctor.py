@@ -20,6 +20,7 @@ from mcap.stream_reader import StreamReader
 from surgery_samples import STRING, chunk_records, run, string_cdr, write_mixed_bag
 
 from bagkit.bag import BagWriter, TopicInfo
+from bagkit.words import counted
 
 FIXTURES = Path(__file__).resolve().parents[2] / "fixtures"
 
@@ -53,7 +54,7 @@ def test_golden_fixtures_are_healthy(name: str) -> None:
     # The recorder writes per-topic batches: a few messages are stored out of log-time order.
     notes = [n["note"] for n in report["notes"]]
     late = stored_out_of_order([bag / "golden_0.mcap"])
-    assert notes == ([f"{late} messages are stored out of log-time order"] if late else [])
+    assert notes == ([f"{counted(late, 'message')} stored out of log-time order"] if late else [])
 
 
 def _oracle_metadata_problems(bag: Path, files: list[Path]) -> set[str]:
@@ -180,7 +181,7 @@ def test_undecodable_message_only_with_deep(tmp_path: Path) -> None:
     result = run_here("doctor", str(bag), "--deep")
     assert result.returncode == 1
     (line,) = _lines(result)
-    assert line.startswith("bag: /text: 1 messages do not decode (first at log time 20:")
+    assert line.startswith("bag: /text: 1 message did not decode (first at log time 20:")
 
 
 def test_unreadable(tmp_path: Path) -> None:

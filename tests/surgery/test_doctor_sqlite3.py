@@ -38,7 +38,7 @@ def test_every_interop_db3_bag(interop_dir: Path) -> None:
         report = json.loads(result.stdout)
         # rosbag2's talker test bag stores cut definitions ('uint8 level' for a Log): real.
         undecodable = [p["problem"] for p in report["problems"] if p["where"] == "bag"]
-        assert all("do not decode" in p for p in undecodable), bag
+        assert all("did not decode" in p for p in undecodable), bag
         assert bool(undecodable) == (bag.name == "talker"), bag
         assert [p for p in report["problems"] if p["where"] not in ("bag", "metadata.yaml")] == []
         times = _times(files)

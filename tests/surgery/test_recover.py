@@ -3,6 +3,7 @@ rosbags and the ``mcap`` package open with every message bagkit's salvage reads.
 
 from __future__ import annotations
 
+import re
 import shutil
 from pathlib import Path
 
@@ -144,7 +145,7 @@ def test_killed_bag_directory(source: Path, tmp_path: Path) -> None:
     expected = salvaged(bag)
     result = run_here("recover", str(bag), "-o", str(out))
     assert result.returncode == 3, result.stderr
-    assert "unreadable" in result.stderr and "messages are lost" in result.stderr
+    assert "unreadable" in result.stderr and "messages lost" in result.stderr
     check_recovered(out, expected)
     first, last = int.from_bytes(middle[9:17], "little"), int.from_bytes(middle[17:25], "little")
     assert expected == [m for m in before if not first <= m[1] <= last]
@@ -240,7 +241,7 @@ def test_chunks_failing_their_check_are_lost_the_rest_copied_in_order(
     assert [line.split("chunk at byte ")[1].split(" ")[0] for line in lost] == [
         str(c.chunk_start_offset) for c in damaged
     ]
-    assert all("messages are lost" in line for line in lost)
+    assert all(re.search(r"; [\d,]+ messages? lost$", line) for line in lost)
     check_recovered(out, expected)
     stored = chunk_records(source)
     assert chunk_records(next(out.glob("*.mcap"))) == [

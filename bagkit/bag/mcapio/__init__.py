@@ -24,6 +24,7 @@ from bagkit.bag.mcapio.chunks import (
     extent,
     payload_spans,
     read_chunk,
+    unreadable_chunk,
 )
 from bagkit.bag.mcapio.records import MAGIC, message_index_dtype
 from bagkit.bag.mcapio.salvage import read_file_index
@@ -44,4 +45,5 @@ __all__ = [
     "payload_spans",
     "read_chunk",
     "read_file_index",
+    "unreadable_chunk",
 ]

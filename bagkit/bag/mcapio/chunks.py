@@ -44,6 +44,7 @@ from bagkit.bag.mcapio.records import (
     parse_schema,
 )
 from bagkit.bag.mcapio.source import Source
+from bagkit.words import counted
 
 if TYPE_CHECKING:
     import numpy as np
@@ -295,6 +296,16 @@ def count_messages(source: Source, block: Block) -> int | None:
     except CorruptBagError:
         return None
     return sum(len(e) for e in indexes.values()) // MESSAGE_INDEX_ENTRY_SIZE if indexes else None
+
+
+def unreadable_chunk(name: str, source: Source, block: Block, what: str) -> str:
+    """The problem line of a block of file ``name`` that cannot be read: where it is, ``what``
+    went wrong, and the messages lost with it (as its Message Index records count them)."""
+    offset, length = extent(block)
+    lost = count_messages(source, block)
+    return f"{name}: chunk at byte {offset} ({length} bytes) unreadable: {what}; " + (
+        f"{counted(lost, 'message')} lost" if lost is not None else "its messages are lost"
+    )
 
 
 def payload_spans(

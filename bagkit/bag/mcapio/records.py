@@ -205,6 +205,24 @@ def message_index_dtype() -> np.dtype[Any]:
     return np.dtype([("log_time", "<u8"), ("offset", "<u8")])
 
 
+def message_record_dtype() -> np.dtype[Any]:
+    """The numpy dtype of a Message record up to its payload, as :data:`MESSAGE_RECORD_HEADER`
+    packs it: ``opcode``, ``length``, then the Message's ``channel_id``, ``sequence``,
+    ``log_time``, ``publish_time``."""
+    import numpy as np
+
+    return np.dtype(
+        [
+            ("opcode", "u1"),
+            ("length", "<u8"),
+            ("channel_id", "<u2"),
+            ("sequence", "<u4"),
+            ("log_time", "<u8"),
+            ("publish_time", "<u8"),
+        ]
+    )
+
+
 def message_index_entries(content: bytes | memoryview) -> tuple[int, memoryview]:
     """A Message Index record's content as (channel id, its entries' bytes), checked whole."""
     cur = Cursor(content)

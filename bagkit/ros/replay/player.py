@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import itertools
 import logging
-import os
 import time
 from collections.abc import Callable
 from contextlib import ExitStack, nullcontext
@@ -29,16 +28,11 @@ from bagkit.playback.report import PlayProgress, PlayReport, SubscriberWait, Top
 from bagkit.playback.seeking import WindowSpan
 from bagkit.playback.source import PlaySource
 from bagkit.ros.errors import PlayerError
-from bagkit.ros.participants import all_discovered
 from bagkit.ros.replay.endpoints import open_endpoints, sends_requests
-from bagkit.ros.replay.publishers import (
-    TopicOutput,
-    other_publishers,
-    wait_until_acknowledged,
-    wait_until_matched,
-)
+from bagkit.ros.replay.publishers import TopicOutput, other_publishers
 from bagkit.ros.replay.seek_services import serve_seek
 from bagkit.ros.replay.services import serve_controls
+from bagkit.ros.replay.subscriber_waits import after_last_message, before_first_message
 from bagkit.ros.replay.topics import PublishableTopics
 from bagkit.selection.times import NS_PER_S, TimeLike, parse_time
 
@@ -376,17 +370,11 @@ class Player:
 
         A fast replay ends while messages are in flight. Waits at most ``ack_timeout`` s in all.
         """
-        return wait_until_acknowledged(
-            list(self._outputs.values()), self.waits.ack_timeout_ns / NS_PER_S
-        )
+        return after_last_message(list(self._outputs.values()), self.waits)
 
     def wait_until_matched(self) -> SubscriberWait:
-        """Block until the subscriptions the graph knows on replayed topics have matched.
-
-        The graph is watched for ``discovery_time`` seconds after the player's node was created
-        (Fast DDS announces participants every 3 s), or, with discovery on this host only,
-        until every participant on this host has been found (at most 1 s longer while one is
-        missing); topics in ``wait_for`` additionally need a subscription.
+        """Block until the subscriptions the graph knows on replayed topics have matched, as
+        ``options.waits`` asks (:func:`~bagkit.ros.replay.subscriber_waits.before_first_message`).
 
         Returns:
             How long it waited, and for what.
@@ -394,14 +382,7 @@ class Player:
         Raises:
             SubscriberTimeoutError: not matched within ``wait_timeout`` seconds.
         """
-        outputs = list(self._outputs.values())
-        if self._clock is not None:
-            outputs.append(self._clock)
-        return wait_until_matched(
-            self.node,
-            outputs,
-            wait_for=list(self.waits.topics),
-            settled_at=self._node_created + self.waits.discovery_ns / NS_PER_S,
-            timeout=self.waits.timeout_ns / NS_PER_S,
-            all_discovered=all_discovered(self.node, os.environ),
+        clock = [self._clock] if self._clock is not None else []
+        return before_first_message(
+            self.node, [*self._outputs.values(), *clock], self.waits, self._node_created
         )
