@@ -33,6 +33,7 @@ from pathlib import Path
 
 import pytest
 import typer
+from bagkit_runs import bagkit_in_process
 
 from bagkit.cli.main import app
 from bagkit.storage.paths import UrlPath
@@ -160,15 +161,9 @@ def recordings(tmp_path_factory: pytest.TempPathFactory) -> Path:
     template = tmp_path_factory.mktemp("docs_template")
     shutil.copytree(ROOT / "fixtures", template / "fixtures")
     for name, fixture in RECORDINGS.items():
+        # In this process: the recordings are the examples' inputs, not what they check.
         source = template / "fixtures" / fixture / "golden"
-        done = subprocess.run(
-            [BAGKIT, "merge", str(source), "-o", name],
-            cwd=template,
-            capture_output=True,
-            text=True,
-            timeout=120,
-            check=False,
-        )
+        done = bagkit_in_process(["merge", source, "-o", name], cwd=template)
         assert done.returncode == 0, done.stderr
     # "crashed": a recording killed before its summary was written (its file cut where the
     # summary starts, at the Data End record: its one chunk is whole, so recover exits 0).

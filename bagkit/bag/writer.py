@@ -8,25 +8,18 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from types import TracebackType
 
-from mcap.well_known import Profile
-
 from bagkit.bag.bag_files import (
-    bag_metadata,
     compressor,
-    file_information,
-    finish_storage_file,
 )
 from bagkit.bag.bag_topics import BagTopics
 from bagkit.bag.errors import BagError, BagExistsError, BagWriteError
 from bagkit.bag.file_rotation import FileRotation
 from bagkit.bag.mcapio.chunk_builder import ChunkBuilder
-from bagkit.bag.mcapio.file_writer import McapFileWriter
-from bagkit.bag.mcapio.records import Header, encode
+from bagkit.bag.mcapio.records import encode
 from bagkit.bag.messages import BagMessage, TopicInfo
-from bagkit.bag.metadata import BagMetadata, FileInformation, write_metadata
-from bagkit.version import __version__
+from bagkit.bag.metadata import write_metadata
+from bagkit.bag.written_files import WrittenFiles
 
-LIBRARY = f"bagkit {__version__}"
 DEFAULT_CHUNK_SIZE = 1 << 20
 
 
@@ -71,10 +64,6 @@ class BagWriter:
         self._file_preamble = file_preamble
         self._split_requested = False
         self._rotation = rotation or FileRotation()
-        # Messages per channel of each finished file, and of the open one.
-        self._file_counts: list[dict[int, int]] = []
-        self._open_file_counts: dict[int, int] = {}
-        self._files_opened = 0
         self.custom_data: dict[str, str] = {}
         self._compression, self._compress = compressor(compression)
         self._max_bag_size = max_bag_size
@@ -83,8 +72,7 @@ class BagWriter:
         self._chunk_interval_s = chunk_interval_s
         self._lock = threading.Lock()
         self._topics = BagTopics()
-        self._files: list[FileInformation] = []
-        self._file: McapFileWriter | None = None
+        self._files = WrittenFiles(self.path, self._topics)
         self._chunk = ChunkBuilder()
         self._opened = False
         self._closed = False
@@ -107,7 +95,7 @@ class BagWriter:
         except OSError as exc:
             raise BagWriteError(f"cannot create {self.path}: {exc.strerror or exc}") from exc
         self._opened = True
-        self._open_file()
+        self._files.open_next()
         return self
 
     def __enter__(self) -> BagWriter:
@@ -124,10 +112,7 @@ class BagWriter:
     @property
     def files(self) -> list[Path]:
         """The storage files written so far, the open one included."""
-        paths = [self.path / f.path for f in self._files]
-        if self._file is not None:
-            paths.append(self._file.path)
-        return paths
+        return self._files.paths()
 
     @property
     def topics(self) -> dict[str, TopicInfo]:
@@ -279,11 +264,11 @@ class BagWriter:
             except BagWriteError as exc:
                 error = exc
             try:
-                self._finish_file()
+                self._files.finish(self.custom_data)
             except BagWriteError as exc:
                 error = error or exc
             try:
-                write_metadata(self.path, self._bag_metadata())
+                write_metadata(self.path, self._files.metadata(self.custom_data))
             except OSError as exc:
                 error = error or BagWriteError(
                     f"cannot write {self.path / 'metadata.yaml'}: {exc.strerror or exc}"
@@ -295,22 +280,7 @@ class BagWriter:
 
     def _append(self, *parts: bytes | bytearray, lost: dict[str, int] | None = None) -> int:
         """Write ``parts`` at the end of the current file; return their offset."""
-        if self._file is None:
-            raise BagWriteError(
-                f"{self.path}: no file open after an earlier error", lost_by_topic=lost
-            )
-        return self._file.append(*parts, lost=lost)
-
-    def _open_file(self) -> None:
-        # Numbered on: a circular bag's deleted files leave gaps at the start.
-        path = self.path / f"{self.path.name}_{self._files_opened}.mcap"
-        self._files_opened += 1
-        self._file = McapFileWriter.create(
-            path,
-            Header(profile=Profile.ROS2, library=LIBRARY),
-            self._topics.schemas.values(),
-            self._topics.channels.values(),
-        )
+        return self._files.current(lost or {}).append(*parts, lost=lost)
 
     def _check_writable(self, topic: str) -> None:
         if self._closed:
@@ -326,11 +296,7 @@ class BagWriter:
         return channel.id
 
     def _check_open(self, topic: str, messages: int) -> None:
-        if self._file is None:
-            raise BagWriteError(
-                f"{self.path}: no file open after an earlier error",
-                lost_by_topic={topic: messages},
-            )
+        self._files.current({topic: messages})
 
     def _close_for(self, topic: str, unwritten: int, *, split_at: int | None = None) -> None:
         """Close the chunk (and with ``split_at``, the next message's log time, the file) in
@@ -350,7 +316,7 @@ class BagWriter:
             raise BagWriteError(exc.reason, lost_by_topic=lost) from exc
 
     def _split_due(self, log_time: int) -> bool:
-        storage = self._file
+        storage = self._files.open
         assert storage is not None
         chunk = self._chunk
         if storage.message_count + chunk.count == 0:
@@ -367,10 +333,10 @@ class BagWriter:
     def _split(self, log_time: int) -> None:
         self._split_requested = False
         self._close_chunk()
-        self._finish_file(last=False)
-        for _ in range(self._rotation.excess(len(self._files) + 1)):
-            self._delete_oldest_file()
-        self._open_file()
+        self._files.finish(self.custom_data, last=False)
+        for _ in range(self._rotation.excess(len(self._files.finished) + 1)):
+            self._files.delete_oldest()
+        self._files.open_next()
         if self._file_preamble is not None:
             # Logged with the new file's first message, so that the file replays alone.
             for message in self._file_preamble():
@@ -389,14 +355,9 @@ class BagWriter:
         self._chunk = ChunkBuilder()
         lost = self._topics.by_topic(chunk.message_counts())
         self._guard_free_space(lost)
-        if self._file is None:
-            raise BagWriteError(
-                f"{self.path}: no file open after an earlier error", lost_by_topic=lost
-            )
-        self._file.write_chunk(chunk.close(self._compression, self._compress), lost=lost)
-        for channel_id, count in chunk.message_counts().items():
-            self._topics.counts[channel_id] += count
-            self._open_file_counts[channel_id] = self._open_file_counts.get(channel_id, 0) + count
+        file = self._files.current(lost)
+        file.write_chunk(chunk.close(self._compression, self._compress), lost=lost)
+        self._files.count(chunk.message_counts())
 
     def _guard_free_space(self, lost: dict[str, int]) -> None:
         """Below the free-space floor: delete the oldest file of a circular bag, else stop."""
@@ -404,55 +365,9 @@ class BagWriter:
         if floor is None:
             return
         while floor.below(self.path):
-            if not (self._rotation.max_files and self._files):
+            if not (self._rotation.max_files and self._files.finished):
                 raise BagWriteError(
                     f"{self.path}: less than {floor.text} free: stopped before the disk fills",
                     lost_by_topic=lost,
                 )
-            self._delete_oldest_file()
-
-    def _delete_oldest_file(self) -> None:
-        """Circular recording: the oldest finished file goes, with its messages' counts."""
-        oldest = self._files.pop(0)
-        for channel_id, count in self._file_counts.pop(0).items():
-            self._topics.counts[channel_id] -= count
-        (self.path / oldest.path).unlink(missing_ok=True)
-
-    def _bag_metadata(self) -> BagMetadata:
-        files = list(self._files)
-        if self._file is not None:
-            files.append(file_information(self._file))
-        return bag_metadata(files, self._topics.with_counts(), self.custom_data)
-
-    def _finish_file(self, *, last: bool = True) -> None:
-        """Write the rosbag2 metadata record, the summary and the footer, and close the file.
-
-        The last file's record describes the bag, as ``metadata.yaml``; a file before a split
-        describes itself alone: a record listing every file before it would grow the bag by
-        the square of its file count.
-        """
-        storage = self._file
-        if storage is None:
-            return
-        metadata = (
-            self._bag_metadata()
-            if last
-            else bag_metadata(
-                [file_information(storage)],
-                self._topics.with_counts(self._open_file_counts),
-                self.custom_data,
-            )
-        )
-        try:
-            finish_storage_file(
-                storage,
-                metadata,
-                list(self._topics.schemas.values()),
-                list(self._topics.channels.values()),
-            )
-        finally:
-            self._files.append(file_information(storage))
-            self._file_counts.append(self._open_file_counts)
-            self._open_file_counts = {}
-            self._file = None
-            storage.close()
+            self._files.delete_oldest()

@@ -211,15 +211,26 @@ def intervals_of_each(
     conditions: Sequence[Condition],
     window: Window,
     state: bool = False,
-) -> tuple[list[np.ndarray], np.ndarray, list[str]]:
+) -> tuple[list[np.ndarray], list[np.ndarray], list[str]]:
     """:func:`temporal_intervals` of several conditions over one topic, its columns read once
-    (what ``bagkit check`` evaluates for each topic of a contract).
+    (what ``bagkit check`` evaluates for each topic of a contract): each condition's intervals
+    and the log times it was evaluated over. Those that read no field (``gap``, ``rate``) are
+    evaluated over every message: one that does not decode still arrived, and is no gap.
 
     Raises:
         UnknownTopicError, UnknownFieldError, UndecodableTopicError, SelectionError.
     """
-    found, stream = _evaluate(reader, topic, conditions, window, state)
-    return found, stream.log_times, [*reader.problems, *stream.problems]
+    timing = [i for i, c in enumerate(conditions) if not c.comparisons() and not c.paths()]
+    groups = [timing, [i for i in range(len(conditions)) if i not in timing]]
+    found: list[np.ndarray] = [intervals.NONE] * len(conditions)
+    times: list[np.ndarray] = [np.empty(0, np.int64)] * len(conditions)
+    problems = list(reader.problems)
+    for group in (g for g in groups if g):
+        each, stream = _evaluate(reader, topic, [conditions[i] for i in group], window, state)
+        for i, where in zip(group, each, strict=True):
+            found[i], times[i] = where, stream.log_times
+        problems.extend(p for p in stream.problems if p not in problems)
+    return found, times, problems
 
 
 def _evaluate(

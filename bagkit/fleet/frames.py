@@ -2,7 +2,8 @@
 
 One partition per bag, read on the workers by ``bagkit.read_dataframe`` (the same decoder as
 ``bagkit stats``) with one :class:`~bagkit.selection.query.Query`, parsed once on the driver.
-The columns and dtypes (Dask's ``meta``) are those of the first bag's frame.
+The columns and dtypes (Dask's ``meta``) are those of the first bag's frame that has the
+topic; a bag without it is an empty partition.
 """
 
 from __future__ import annotations
@@ -23,12 +24,33 @@ if TYPE_CHECKING:
     from bagkit.selection.times import TimeLike
 
 
-def read_partition(bag: str, query: Query) -> pd.DataFrame:
-    """One bag's frame of the query's one topic (what each task computes)."""
+def read_partition(bag: str, query: Query, empty: pd.DataFrame | None = None) -> pd.DataFrame:
+    """One bag's frame of the query's one topic (what each task computes); ``empty`` (the
+    frame's meta) for a bag without the topic, as every fleet command skips it."""
     from bagkit.data import read_dataframe
+    from bagkit.selection.errors import UnknownTopicError
 
     (topic,) = query.topics
-    return read_dataframe(bag, topic, query=query)
+    try:
+        return read_dataframe(bag, topic, query=query)
+    except UnknownTopicError:
+        if empty is None:
+            raise
+        return empty
+
+
+def _meta(paths: list[str], query: Query) -> pd.DataFrame:
+    """The columns and dtypes of the first bag that has the topic (its error if none has)."""
+    from bagkit.selection.errors import UnknownTopicError
+
+    first: UnknownTopicError | None = None
+    for path in paths:
+        try:
+            return read_partition(path, query).iloc[:0]
+        except UnknownTopicError as exc:
+            first = first or exc
+    assert first is not None  # expand_bags names a bag at least
+    raise first
 
 
 def dataframe(
@@ -56,6 +78,7 @@ def dataframe(
     Raises:
         NoBagsError: ``bags`` names no bag.
         SelectionError: a time or the query's condition does not parse.
+        UnknownTopicError: no bag has ``topic``.
         BagError and the errors of ``read_dataframe``: the first bag cannot be read.
         MissingExtraError: Dask (the fleet extra) is not installed.
     """
@@ -66,5 +89,7 @@ def dataframe(
 
     asked = topic_query(topic, fields, start, end, query)
     paths = [location(bag) for bag in expand_bags(bags)]
-    meta = read_partition(paths[0], asked).iloc[:0]
-    return dd.from_map(read_partition, paths, query=asked, meta=meta, label="bagkit-read-topic")
+    meta = _meta(paths, asked)
+    return dd.from_map(
+        read_partition, paths, query=asked, empty=meta, meta=meta, label="bagkit-read-topic"
+    )

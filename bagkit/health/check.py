@@ -30,7 +30,7 @@ from bagkit.health.links import filter_command, foxglove_link, play_command
 from bagkit.health.spec import HealthSpec, SpecError, TopicContract
 from bagkit.selection.errors import SelectionError
 from bagkit.selection.query import Query
-from bagkit.selection.topics import did_you_mean, require_topics
+from bagkit.selection.topics import absolute_topic_name, did_you_mean, require_topics
 from bagkit.selection.windows import Window, outside_warning
 from bagkit.storage.errors import StorageError
 from bagkit.storage.urls import location, shown_as
@@ -201,26 +201,31 @@ def check_bag(bag: str | Path, spec: HealthSpec, query: Query | None = None) -> 
                 label = shown_as(location(bag))  # a URL named without its secrets
                 outside = outside_warning(label, window, reader.start_ns, reader.end_ns)
                 problems += [outside] if outside else []
-        counts = _counts(reader, [*spec.forbidden, *(c.topic for c in spec.topics)], window)
+        # The spec's names are absolute; bags of other tools may store relative ones.
+        stored = {absolute_topic_name(name): name for name in reader.topics}
+        named = [*spec.forbidden, *(c.topic for c in spec.topics)]
+        counts = _counts(reader, [stored.get(t, t) for t in named], window)
         for topic in spec.forbidden:
-            present = counts.get(topic, 0) > 0
-            reason = counted(counts.get(topic, 0), "message") if present else ""
-            found.append(Assertion(topic, "forbidden", not present, reason=reason))
+            count = counts.get(stored.get(topic, topic), 0)
+            reason = counted(count, "message") if count else ""
+            found.append(Assertion(topic, "forbidden", not count, reason=reason))
         for contract in spec.topics:
-            topic = contract.topic
+            topic = stored.get(contract.topic, contract.topic)
             if not counts.get(topic, 0):
                 reason = "no message" if not window.bounded else "no message in the window"
                 if topic not in reader.topics:  # a misspelling reads as a broken contract
                     guess = did_you_mean(topic, reader.topics).rstrip()
                     reason = f"not in the bag{'; ' + guess if guess else ''}"
-                found.append(Assertion(topic, "present", False, reason=reason))
+                found.append(Assertion(contract.topic, "present", False, reason=reason))
                 continue
-            found.append(Assertion(topic, "present", True))
+            found.append(Assertion(contract.topic, "present", True))
             if contract.type is not None:
                 actual = canonical_type_name(reader.topics[topic].type)
                 same = actual == canonical_type_name(contract.type)
                 found.append(
-                    Assertion(topic, f"type {contract.type}", same, reason="" if same else actual)
+                    Assertion(
+                        contract.topic, f"type {contract.type}", same, reason="" if same else actual
+                    )
                 )
             if not contract.never:
                 continue
@@ -233,11 +238,11 @@ def check_bag(bag: str | Path, spec: HealthSpec, query: Query | None = None) -> 
                     is_state_topic(reader, topic),
                 )
             except SelectionError as exc:
-                raise _field_error(reader, spec, contract, exc) from None
+                raise _field_error(reader, topic, spec, contract, exc) from None
             problems.extend(p for p in read_problems if p not in problems)
-            for (text, _), where in zip(contract.never, broken, strict=True):
-                spans = interval_spans(where, times)
-                found.append(Assertion(topic, text, not len(spans), spans))
+            for (text, _), where, over in zip(contract.never, broken, times, strict=True):
+                spans = interval_spans(where, over)
+                found.append(Assertion(contract.topic, text, not len(spans), spans))
         return HealthReport(shown_as(location(bag)), reader.start_ns, found, problems)
 
 
@@ -276,13 +281,13 @@ def _counts(reader: BagReader, topics: list[str], window: Window) -> dict[str, i
 
 
 def _field_error(
-    reader: BagReader, spec: HealthSpec, contract: TopicContract, error: SelectionError
+    reader: BagReader, topic: str, spec: HealthSpec, contract: TopicContract, error: SelectionError
 ) -> SpecError:
-    """The error of a condition that does not fit the topic's type, naming its spec line
-    (each condition read alone to find which)."""
+    """The error of a condition that does not fit the type of ``topic`` (the contract's topic
+    as the bag stores it), naming its spec line (each condition read alone to find which)."""
     for index, (text, condition) in enumerate(contract.never):
         try:
-            intervals_of_each(reader, contract.topic, [condition], Window())
+            intervals_of_each(reader, topic, [condition], Window())
         except SelectionError as exc:
             lines = contract.lines
             line = lines[index] if index < len(lines) and lines[index] else None

@@ -36,7 +36,8 @@ from bagkit.bag.mcapio.records import (
 from bagkit.bag.messages import BagMessage, TopicInfo
 from bagkit.bag.metadata import BagMetadata, FileInformation, write_metadata
 from bagkit.bag.sizes import split_size_problem
-from bagkit.bag.writer import DEFAULT_CHUNK_SIZE, LIBRARY
+from bagkit.bag.writer import DEFAULT_CHUNK_SIZE
+from bagkit.bag.written_files import LIBRARY
 from bagkit.selection.times import seconds_to_ns
 from bagkit.surgery.chunk_compression import ChunkCompression
 from bagkit.surgery.errors import SurgeryError

@@ -57,3 +57,22 @@ def test_a_query_selects_fields_window_and_messages_in_every_partition(
     pd.testing.assert_frame_equal(got, expected)
     with pytest.raises(TypeError):
         dataframe(fleet_bags, "/imu/data", FIELDS, query=query)
+
+
+def test_a_bag_without_the_topic_is_an_empty_partition(
+    client: Client, fleet_bags: list[Path], tmp_path: Path
+) -> None:
+    """As every fleet command reads a topic that some bags lack (stats summary counts the
+    others): that bag's partition is empty, first or not; only a topic no bag has is an error."""
+    from bagkit.bag import BagWriter, TopicInfo
+    from bagkit.selection.errors import UnknownTopicError
+
+    other = tmp_path / "a_other"
+    with BagWriter(other) as bag:
+        bag.add_topic(TopicInfo("/temperature", "sensor_msgs/msg/Temperature"))
+    bags = [other, *fleet_bags, other]
+    got = dataframe(bags, "/imu/data", FIELDS).compute()
+    expected = pd.concat([read_dataframe(bag, "/imu/data", fields=FIELDS) for bag in fleet_bags])
+    pd.testing.assert_frame_equal(got, expected)
+    with pytest.raises(UnknownTopicError, match="/imu/dat not in"):
+        dataframe(bags, "/imu/dat", FIELDS)

@@ -8,7 +8,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from bagkit_runs import bagkit_in_process
+from bagkit_runs import BAGKIT, bagkit_in_process
 
 from bagkit.bag import BagReader
 from bagkit.health import HealthSpec, SpecError, check_bag
@@ -170,3 +170,83 @@ def test_a_bulk_condition_beside_one_that_reads_sequences(tmp_path: Path) -> Non
         times = [record.log_time for record in reader.messages(topics=["/alerts"])]
         end = reader.end_ns  # /alerts is latched: its last status holds to the end
     assert spans.tolist() == [[times[0], end, len(times)]]
+
+
+def _relative_topic_bag(path: Path) -> Path:
+    """A bag rosbags writes with the relative topic name ``temp`` (as rosbag2's test bags
+    store ``topic1``), 10 Hz for 3 s with no message from 1.0 to 2.0 s."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    kind = "sensor_msgs/msg/Temperature"
+    t = store.types
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        connection = writer.add_connection("temp", kind, typestore=store)
+        for i in [*range(11), *range(20, 31)]:
+            ns = 1_700_000_000_000_000_000 + i * 100_000_000
+            stamp = t["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9)
+            header = t["std_msgs/msg/Header"](stamp=stamp, frame_id="t")
+            message = t[kind](header=header, temperature=20.0 + i, variance=0.0)
+            writer.write(connection, ns, store.serialize_cdr(message, kind))
+    return path
+
+
+def test_a_relative_topic_name_of_the_bag_is_the_contract_s_absolute_one(tmp_path: Path) -> None:
+    """A bag holding ``temp`` keeps a contract on ``/temp`` (topic names are absolute in every
+    command), its gap found, and the contract --suggest wrote from it."""
+    bag = _relative_topic_bag(tmp_path / "relative")
+    spec = tmp_path / "health.yaml"
+    spec.write_text("topics:\n  /temp:\n    max_gap: 500ms\n    never: [temperature > 40]\n")
+    result = subprocess.run(
+        [BAGKIT, "check", str(bag), "--spec", str(spec), "--format", "json"],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert result.returncode == 1, result.stderr
+    verdicts = {
+        a["assertion"]: [(e["start_s"], e["end_s"]) for e in a["episodes"]]
+        for a in json.loads(result.stdout)[0]["assertions"]
+    }
+    assert verdicts == {
+        "present": [],
+        "gap > 500ms": [(1.0, 2.0)],
+        "temperature > 40": [(2.1, 3.0)],
+    }
+    suggested = bagkit("check", str(bag), "--suggest")
+    assert suggested.returncode == 0, suggested.stderr
+    spec.write_text(suggested.stdout)
+    assert bagkit("check", str(bag), "--spec", str(spec)).returncode == 0
+
+
+@pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
+def test_messages_that_do_not_decode_are_no_gap(tmp_path: Path, storage: str) -> None:
+    """A gap or rate is of the messages' times, decoded or not: a contract that also reads a
+    field (which decodes the topic) must not see a silence where messages did not decode
+    (rosbag2's talker.db3, read with Jazzy's Log: one gap over the whole bag)."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store, kind = get_typestore(Stores.ROS2_JAZZY), "sensor_msgs/msg/Temperature"
+    t = store.types
+    bag = tmp_path / "cut"
+    with Writer(bag, version=9, storage_plugin=StoragePlugin[storage.upper()]) as writer:
+        connection = writer.add_connection("/temp", kind, typestore=store)
+        for i in range(30):  # 10 Hz; from 1.0 to 2.0 s payloads cut short
+            ns = 1_700_000_000_000_000_000 + i * 100_000_000
+            stamp = t["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9)
+            header = t["std_msgs/msg/Header"](stamp=stamp, frame_id="t")
+            data = store.serialize_cdr(t[kind](header=header, temperature=20.0, variance=0.0), kind)
+            writer.write(connection, ns, data[:10] if 10 <= i < 20 else data)
+    spec = tmp_path / "health.yaml"
+    spec.write_text(
+        "topics:\n  /temp:\n    max_gap: 500ms\n    rate: {min: 5, over: 1s}\n"
+        "    never: [temperature > 100, gap > 150ms]\n"
+    )
+    result = subprocess.run(
+        [BAGKIT, "check", str(bag), "--spec", str(spec), "--format", "json"],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stdout
+    (report,) = json.loads(result.stdout)
+    assert all(a["passed"] for a in report["assertions"]), report
+    assert "/temp: 10 messages could not be decoded" in result.stderr

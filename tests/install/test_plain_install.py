@@ -40,12 +40,18 @@ class PlainInstall:
     python: Path
 
     def bagkit(self, *args: str | Path, cwd: Path) -> subprocess.CompletedProcess[str]:
-        return run([self.python.with_name("bagkit"), *args], cwd=cwd)
+        return run([self.python.with_name("bagkit"), *args], cwd=cwd, bytecode=True)
 
 
-def run(args: list[str | Path], cwd: Path = REPO) -> subprocess.CompletedProcess[str]:
-    # Nothing of this environment's Python setup or of a sourced ROS install leaks in.
-    env = {k: v for k, v in os.environ.items() if k not in LEAKS}
+def run(
+    args: list[str | Path], cwd: Path = REPO, *, bytecode: bool = False
+) -> subprocess.CompletedProcess[str]:
+    """``args`` without this environment's Python setup or a sourced ROS install; ``bytecode``:
+    Python may write its bytecode caches (PYTHONDONTWRITEBYTECODE unset), as in a user's venv
+    where pip compiled them at install (uv does not: under PYTHONDONTWRITEBYTECODE, as in CI,
+    each command of the plain venv would compile numpy, pandas and pyarrow again)."""
+    leaks = LEAKS | {"PYTHONDONTWRITEBYTECODE"} if bytecode else LEAKS
+    env = {k: v for k, v in os.environ.items() if k not in leaks}
     return subprocess.run(
         [str(a) for a in args],
         cwd=cwd,
@@ -102,7 +108,7 @@ def test_the_wheel_holds_bagkit_alone(plain: PlainInstall) -> None:
 
 
 def test_no_ros_dask_or_browser_plotting_is_installed(plain: PlainInstall) -> None:
-    listed = run([plain.python, "-m", "pip", "list", "--format", "json"])
+    listed = run([plain.python, "-m", "pip", "list", "--format", "json"], bytecode=True)
     names = {d["name"].lower().replace("_", "-") for d in json.loads(listed.stdout)}
     assert "bagkit" in names
     assert not {n for n in names if n.startswith("ros-")}

@@ -26,7 +26,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from rclpy.signals import SignalHandlerOptions
 
-from bagkit.bag import BagWriter
+from bagkit.recording.controls import RecordingControls
 from bagkit.recording.errors import TriggerError
 from bagkit.recording.handoff import HandoffQueue, StopSignal
 from bagkit.recording.health_watch import HealthWatch
@@ -34,7 +34,7 @@ from bagkit.recording.latched import LatchedRepeats
 from bagkit.recording.options import RecordOptions, default_output_name
 from bagkit.recording.output import create_output
 from bagkit.recording.pause import PauseGate
-from bagkit.recording.report import RecordProgress, RecordReport, SnapshotRecord
+from bagkit.recording.report import RecordProgress, RecordReport
 from bagkit.recording.run_until import POLL_S, StopWhen, wait_until_done
 from bagkit.recording.snapshot import SnapshotSink
 from bagkit.recording.write_loop import WriteLoop
@@ -50,7 +50,7 @@ from bagkit.selection.topics import absolute_topic_name, missing_on_graph
 from bagkit.words import counted
 
 
-class Recorder:
+class Recorder(RecordingControls):
     """Record topics into a bag, as :class:`~bagkit.recording.options.RecordOptions` say.
 
     Construction only checks the options; :meth:`run` (or ``start``, then ``stop``; or ``with``)
@@ -280,55 +280,6 @@ class Recorder:
         if path is None:
             return {}
         return {absolute_topic_name(k): v for k, v in load_qos_overrides(path).items()}
-
-    @property
-    def is_paused(self) -> bool:
-        """Whether the recording is paused (messages are taken, counted, not written)."""
-        return self._gate.paused
-
-    def pause(self) -> bool:
-        """Pause (``~/pause``, the space key); return whether it was recording."""
-        return self._gate.set_paused(True)
-
-    def resume(self) -> bool:
-        """Resume (``~/resume``); the last latched messages taken meanwhile are written.
-
-        Returns whether it was paused.
-        """
-        changed = self._gate.set_paused(False)
-        self._queue.put_control("wake")  # the writer writes the held latched messages now
-        return changed
-
-    def toggle_paused(self) -> None:
-        """Pause if recording, resume if paused (the space key)."""
-        if not self.pause():
-            self.resume()
-
-    def split(self) -> str:
-        """Start a new file before the next message (``~/split_bagfile``); return a description.
-
-        Raises:
-            RecorderOptionsError: in snapshot mode (each snapshot is a bag of its own).
-        """
-        bag = self._writer.bag if self._writer is not None else None
-        if not isinstance(bag, BagWriter):
-            raise RecorderOptionsError("split: no bag file to split (snapshot mode or not started)")
-        bag.request_split()
-        return f"{self.path}: a new file starts with the next message"
-
-    def snapshot(self, reason: str = "request") -> SnapshotRecord:
-        """Trigger a snapshot now, as the ``~/snapshot`` service does (snapshot mode only).
-
-        Returns:
-            The snapshot this opened, or the open one it extended (its window grows).
-
-        Raises:
-            RecorderOptionsError: not in snapshot mode, or not started.
-        """
-        sink = self._writer.bag if self._writer is not None else None
-        if not isinstance(sink, SnapshotSink):
-            raise RecorderOptionsError("snapshots need snapshot mode (options.snapshot), started")
-        return sink.request(reason)
 
     def _start_node(self, qos_overrides: dict[str, QoSProfile]) -> TakeLoop:
         context = self._context
