@@ -6,7 +6,7 @@ import os
 import subprocess
 import sys
 import types
-from collections.abc import Iterator
+from collections.abc import Generator, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -91,6 +91,22 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
             item.add_marker(pytest.mark.ros)
         if item.nodeid.startswith(SERIAL_DDS_TESTS):
             item.add_marker(pytest.mark.serial)
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_collection() -> Generator[None, object, object]:
+    """Collect with bytecode written, also where PYTHONDONTWRITEBYTECODE is set (as in CI).
+
+    Every pytest process (each xdist worker) imports every test module, whose assertions pytest
+    rewrites: the rewritten code it keeps (checked by the source's hash) is then read by the
+    processes after the first instead of made again. The tests themselves run as set.
+    """
+    writes = sys.dont_write_bytecode
+    sys.dont_write_bytecode = False
+    try:
+        return (yield)
+    finally:
+        sys.dont_write_bytecode = writes
 
 
 def _golden_run(nodeid: str) -> str | None:
