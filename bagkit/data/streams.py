@@ -70,6 +70,7 @@ class BagStream:
         self.problems: list[str] = []
         self.log_times, self._columns, self.undecodable = self._read(topic, sorted(set(wanted)))
         """Its messages that did not decode (not in the log times)."""
+        self.arrival_times = self._arrivals(topic) if self.undecodable else self.log_times
 
     def _leaf_paths(self, topic: str) -> list[str]:
         return [leaf.path for leaf in self._leaves(topic)]
@@ -103,6 +104,15 @@ class BagStream:
         self.problems.extend(scan_problems(columns))
         values = {leaf.path: a for leaf, a in zip(leaves, arrays[2:], strict=True)}
         return arrays[0], values, columns.undecodable
+
+    def _arrivals(self, topic: str) -> np.ndarray:
+        """Every message's log time in the window, decoded or not."""
+        start, end = self.window.start_ns, self.window.end_ns
+        times = self.reader.index_log_times(topic, start, end)
+        if times is not None:
+            return times
+        found = (m.log_time for m in self.reader.messages([topic], start, end))
+        return np.fromiter(found, np.int64)
 
     def mask(self, node: Expression) -> np.ndarray:
         """Which messages satisfy a stateless part of the condition."""

@@ -101,6 +101,10 @@ def test_a_missing_topic_breaks_the_contract(tmp_path: Path) -> None:
         ("topics:\n  /imu/data:\n    max_gapp: 1s\n", 3, "did you mean max_gap"),
         ("topics:\n  /imu/data:\n    max_gap: 5 Hz\n", 3, "not a duration"),
         ("topics:\n  /imu/data:\n    never: [frozen(x) for 1s]\n", 3, "unknown function"),
+        # A condition of a block list: the line of its item, not of never:.
+        ("topics:\n  /imu/data:\n    never:\n      - isnan(*)\n      - gap > 5 Hz\n", 5, "Hz"),
+        ("topics:\n  /imu/data:\n    rate: {over: 2s}\n", 3, "neither min nor max"),
+        ("topics:\n  /imu/data:\n    values:\n      linear_acceleration.z: {}\n", 4, "neither"),
         ("topics:\n  /imu/data:\n    rate: {min: fast}\n", 3, "not a number"),
         ("topics: [a\n", 2, "not YAML"),  # where the parser saw the list unclosed
         # Contracts nothing breaks or nothing keeps: a rate over no window, bounds crossed.
@@ -133,6 +137,15 @@ def test_a_field_the_type_lacks_is_a_bad_spec(tmp_path: Path) -> None:
     result = bagkit("check", FIXTURES / "nominal" / "golden", "--spec", spec)
     assert result.returncode == 2
     assert result.stderr.startswith("error:") and "linear_acceleration" in result.stderr
+
+
+def test_a_field_the_type_lacks_names_the_line_of_its_condition(tmp_path: Path) -> None:
+    spec = tmp_path / "health.yaml"
+    spec.write_text("topics:\n  /imu/data:\n    never:\n      - isnan(*)\n      - foo.bar > 3\n")
+    result = bagkit("check", FIXTURES / "nominal" / "golden", "--spec", spec)
+    assert result.returncode == 2
+    assert result.stderr.startswith("error: ")
+    assert "health.yaml:5: /imu/data: foo.bar" in result.stderr
 
 
 @pytest.mark.parametrize(
