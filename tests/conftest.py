@@ -6,7 +6,7 @@ import os
 import subprocess
 import sys
 import types
-from collections.abc import Iterator
+from collections.abc import Generator, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -62,7 +62,9 @@ def _starts_dds(module: types.ModuleType | None) -> bool:
 # that another test's load does not widen what they measure.
 SERIAL_DDS_TESTS = (
     "tests/ros/test_replay.py::test_every_message_in_order_with_the_recorded_pacing",
-    "tests/ros/test_replay_controls.py::",
+    "tests/ros/test_replay_controls.py::test_keys_in_a_terminal_pause_step_and_resume",
+    "tests/ros/test_replay_controls.py::test_services_pause_step_resume_and_set_the_rate",
+    "tests/ros/test_replay_controls.py::test_ctrl_z_then_fg_does_not_burst",
     "tests/regression/test_stranger_package.py::test_record_a_golden_pass_then_fail",
 )
 
@@ -89,6 +91,22 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
             item.add_marker(pytest.mark.ros)
         if item.nodeid.startswith(SERIAL_DDS_TESTS):
             item.add_marker(pytest.mark.serial)
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_collection() -> Generator[None, object, object]:
+    """Collect with bytecode written, also where PYTHONDONTWRITEBYTECODE is set (as in CI).
+
+    Every pytest process (each xdist worker) imports every test module, whose assertions pytest
+    rewrites: the rewritten code it keeps (checked by the source's hash) is then read by the
+    processes after the first instead of made again. The tests themselves run as set.
+    """
+    writes = sys.dont_write_bytecode
+    sys.dont_write_bytecode = False
+    try:
+        return (yield)
+    finally:
+        sys.dont_write_bytecode = writes
 
 
 def _golden_run(nodeid: str) -> str | None:

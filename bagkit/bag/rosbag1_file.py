@@ -23,7 +23,6 @@ import heapq
 import io
 import itertools
 import os
-import struct
 from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, BinaryIO
@@ -34,9 +33,7 @@ from rosbags.rosbag1.reader import (
     Header,
     IndexData,
     Reader,
-    ReaderError,
     RecordType,
-    read_bytes,
     read_uint32,
 )
 
@@ -44,29 +41,16 @@ from bagkit.bag.errors import CorruptBagError, NotABagError, UnsupportedStorageE
 from bagkit.bag.mcapio.message_index import Span, widen
 from bagkit.bag.messages import BagMessage, TopicInfo, make_message
 from bagkit.bag.ros1_types import LATCHED_QOS, Ros2Type, ros2_types
+from bagkit.bag.rosbag1_check import disagreements
 from bagkit.bag.rosbag1_records import (
+    RECORD_ERRORS,
+    ChunkDataError,
     ChunkRecord,
-    chunk_contents,
-    decompress,
+    chunk_data,
     mcap_records,
     message_at,
 )
 from bagkit.bag.storage import ROSBAG1_MAGIC, BagChunk
-from bagkit.words import counted
-
-# What rosbags' record readers raise on bytes that are not what they expect (some checks are
-# asserts).
-_RECORD_ERRORS = (
-    ReaderError,
-    AssertionError,
-    struct.error,
-    KeyError,
-    ValueError,
-    IndexError,
-    OverflowError,
-    UnicodeDecodeError,
-    OSError,  # a seek to an offset no file has
-)
 
 if TYPE_CHECKING:
     import numpy as np
@@ -135,7 +119,7 @@ class Rosbag1File:
             connections = [self._reader.read_connection() for _ in range(conn_count)]
             infos = [self._reader.read_chunk_info() for _ in range(chunk_count)]
             self._chunks = [self._chunk_record(info) for info in infos]
-        except _RECORD_ERRORS as exc:
+        except RECORD_ERRORS as exc:
             raise CorruptBagError(f"{self.path}: the ROS 1 bag's index is damaged ({exc})") from exc
         self._connection_ids = {c.id for c in connections}
         self._types, problems = ros2_types(connections)
@@ -229,30 +213,15 @@ class Rosbag1File:
             data = self._data(chunk)
             if data is None:
                 continue  # a problem already
-            try:
-                held, connections = chunk_contents(data)
-            except _RECORD_ERRORS as exc:
-                found.append(f"{where}: its records do not parse ({exc})")
-                continue
             index = self._chunk_index(chunk)
-            for conn in sorted(set(held) | set(index) | set(chunk.info.connection_counts)):
-                name = self._topic_of.get(conn, f"connection {conn}")
-                stored = sorted(held.get(conn, ()))
-                indexed = sorted((e.time, e.offset) for e in index.get(conn, ()))
-                info_count = chunk.info.connection_counts.get(conn, 0)
-                if stored != indexed or len(stored) != info_count:
-                    found.append(
-                        f"{where}: holds {counted(len(stored), 'message')} of {name}, its index "
-                        f"data lists {len(indexed)} ({len(set(indexed) - set(stored))} at no "
-                        f"message), its chunk info counts {info_count}"
-                    )
-                times = [t for t, _ in stored]
-                info = chunk.info  # its end time is one past the last message's (rosbags)
-                if times and (min(times) < info.start_time or max(times) >= info.end_time):
-                    found.append(f"{where}: {name} has messages outside the chunk info's times")
-            unknown = sorted((connections | set(held)) - self._connection_ids)
-            if unknown:
-                found.append(f"{where}: connections {unknown} are not in the bag's index")
+            found += disagreements(
+                where,
+                chunk.info,
+                data,
+                index=index,
+                topic_of=self._topic_of,
+                known=self._connection_ids,
+            )
         return found
 
     def _chunk_index(self, chunk: ChunkRecord) -> dict[int, list[IndexData]]:
@@ -264,7 +233,7 @@ class Rosbag1File:
                 self._bio.seek(chunk.index_pos)
                 for _ in chunk.info.connection_counts:
                     self._reader.read_index_data(chunk.info.pos, entries)
-            except _RECORD_ERRORS as exc:
+            except RECORD_ERRORS as exc:
                 self._problem(
                     f"the index of the chunk at byte {chunk.info.pos} is damaged ({exc}): "
                     "its messages are lost"
@@ -323,27 +292,11 @@ class Rosbag1File:
 
     def _data(self, chunk: ChunkRecord) -> bytes | None:
         """The decompressed data of ``chunk``, or None (a problem) when it cannot be had."""
-        lost = f"the chunk at byte {chunk.info.pos}"
-        if chunk.size > self.max_chunk_size:
-            self._problem(
-                f"{lost} declares {chunk.size} bytes, more than {self.max_chunk_size}: "
-                "its messages are lost"
-            )
-            return None
         try:
-            self._bio.seek(chunk.data_pos)
-            raw = read_bytes(self._bio, chunk.data_size)
-            data = decompress(chunk.compression, raw, chunk.size)
-        except (ReaderError, OSError, ValueError, RuntimeError, EOFError) as exc:
-            self._problem(f"{lost} is unreadable ({exc}): its messages are lost")
+            return chunk_data(self._bio, chunk, self.max_chunk_size)
+        except ChunkDataError as exc:
+            self._problem(f"the chunk at byte {chunk.info.pos} {exc}: its messages are lost")
             return None
-        if len(data) != chunk.size:
-            self._problem(
-                f"{lost} holds {len(data)} bytes, not the {chunk.size} it declares: "
-                "its messages are lost"
-            )
-            return None
-        return data
 
     def _payloads(
         self, chunk: ChunkRecord, entries: list[tuple[int, int, int]]
@@ -356,7 +309,7 @@ class Rosbag1File:
         for time, offset, conn_id in entries:
             try:
                 raw = message_at(stream, offset)
-            except _RECORD_ERRORS as exc:
+            except RECORD_ERRORS as exc:
                 self._problem(
                     f"the chunk at byte {chunk.info.pos} holds no message at its offset "
                     f"{offset} ({exc}): the message is lost"

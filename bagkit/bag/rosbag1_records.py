@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import bz2
 import io
+import struct
 from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, BinaryIO
 
 import lz4.frame
 from rosbags.rosbag1.reader import (
@@ -30,6 +31,19 @@ if TYPE_CHECKING:
     import numpy as np
 
 _MESSAGE = int(Opcode.MESSAGE)
+# What rosbags' record readers raise on bytes that are not what they expect (some checks are
+# asserts).
+RECORD_ERRORS = (
+    ReaderError,
+    AssertionError,
+    struct.error,
+    KeyError,
+    ValueError,
+    IndexError,
+    OverflowError,
+    UnicodeDecodeError,
+    OSError,  # a seek to an offset no file has
+)
 
 
 @dataclass(frozen=True, slots=True)
@@ -68,6 +82,29 @@ def decompress(compression: str, raw: bytes, size: int) -> bytes:
     if compression == "bz2":
         return bz2.BZ2Decompressor().decompress(raw, max_length=size + 1)
     raise ValueError(f"compression {compression!r} is not supported")
+
+
+def chunk_data(bio: BinaryIO, chunk: ChunkRecord, max_size: int) -> bytes:
+    """The decompressed data of ``chunk`` read from ``bio``.
+
+    Raises:
+        ChunkDataError: it declares more than ``max_size`` bytes, cannot be read or
+            decompressed, or holds other than it declares (the text says which).
+    """
+    if chunk.size > max_size:
+        raise ChunkDataError(f"declares {chunk.size} bytes, more than {max_size}")
+    try:
+        bio.seek(chunk.data_pos)
+        data = decompress(chunk.compression, read_bytes(bio, chunk.data_size), chunk.size)
+    except (ReaderError, OSError, ValueError, RuntimeError, EOFError) as exc:
+        raise ChunkDataError(f"is unreadable ({exc})") from None
+    if len(data) != chunk.size:
+        raise ChunkDataError(f"holds {len(data)} bytes, not the {chunk.size} it declares")
+    return data
+
+
+class ChunkDataError(Exception):
+    """A ROS 1 chunk whose data cannot be had (its messages are lost)."""
 
 
 def mcap_records(

@@ -70,6 +70,7 @@ class BagStream:
         self.problems: list[str] = []
         self.log_times, self._columns, self.undecodable = self._read(topic, sorted(set(wanted)))
         """Its messages that did not decode (not in the log times)."""
+        self.arrival_times = self._arrivals(topic) if self.undecodable else self.log_times
 
     def _leaf_paths(self, topic: str) -> list[str]:
         return [leaf.path for leaf in self._leaves(topic)]
@@ -103,6 +104,15 @@ class BagStream:
         self.problems.extend(scan_problems(columns))
         values = {leaf.path: a for leaf, a in zip(leaves, arrays[2:], strict=True)}
         return arrays[0], values, columns.undecodable
+
+    def _arrivals(self, topic: str) -> np.ndarray:
+        """Every message's log time in the window, decoded or not."""
+        start, end = self.window.start_ns, self.window.end_ns
+        times = self.reader.index_log_times(topic, start, end)
+        if times is not None:
+            return times
+        found = (m.log_time for m in self.reader.messages([topic], start, end))
+        return np.fromiter(found, np.int64)
 
     def mask(self, node: Expression) -> np.ndarray:
         """Which messages satisfy a stateless part of the condition."""
@@ -211,15 +221,26 @@ def intervals_of_each(
     conditions: Sequence[Condition],
     window: Window,
     state: bool = False,
-) -> tuple[list[np.ndarray], np.ndarray, list[str]]:
+) -> tuple[list[np.ndarray], list[np.ndarray], list[str]]:
     """:func:`temporal_intervals` of several conditions over one topic, its columns read once
-    (what ``bagkit check`` evaluates for each topic of a contract).
+    (what ``bagkit check`` evaluates for each topic of a contract): each condition's intervals
+    and the log times it was evaluated over. Those that read no field (``gap``, ``rate``) are
+    evaluated over every message: one that does not decode still arrived, and is no gap.
 
     Raises:
         UnknownTopicError, UnknownFieldError, UndecodableTopicError, SelectionError.
     """
-    found, stream = _evaluate(reader, topic, conditions, window, state)
-    return found, stream.log_times, [*reader.problems, *stream.problems]
+    timing = [i for i, c in enumerate(conditions) if not c.comparisons() and not c.paths()]
+    groups = [timing, [i for i in range(len(conditions)) if i not in timing]]
+    found: list[np.ndarray] = [intervals.NONE] * len(conditions)
+    times: list[np.ndarray] = [np.empty(0, np.int64)] * len(conditions)
+    problems = list(reader.problems)
+    for group in (g for g in groups if g):
+        each, stream = _evaluate(reader, topic, [conditions[i] for i in group], window, state)
+        for i, where in zip(group, each, strict=True):
+            found[i], times[i] = where, stream.log_times
+        problems.extend(p for p in stream.problems if p not in problems)
+    return found, times, problems
 
 
 def _evaluate(

@@ -240,8 +240,8 @@ def check_bag(bag: str | Path, spec: HealthSpec, query: Query | None = None) -> 
             except SelectionError as exc:
                 raise _field_error(reader, topic, spec, contract, exc) from None
             problems.extend(p for p in read_problems if p not in problems)
-            for (text, _), where in zip(contract.never, broken, strict=True):
-                spans = interval_spans(where, times)
+            for (text, _), where, over in zip(contract.never, broken, times, strict=True):
+                spans = interval_spans(where, over)
                 found.append(Assertion(contract.topic, text, not len(spans), spans))
         return HealthReport(shown_as(location(bag)), reader.start_ns, found, problems)
 

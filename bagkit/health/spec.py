@@ -157,6 +157,8 @@ class _Reader:
             rate = self.keys(f"{where}.rate", rate, _RATE_KEYS)
             over = str(rate.get("over", DEFAULT_WINDOW))
             self.duration(f"{where}.rate", over)
+            if "min" not in rate and "max" not in rate:  # a contract nothing could break
+                raise self.fail(f"{where}.rate", "rate has neither min nor max")
             for key, op in (("min", "<"), ("max", ">")):
                 if key in rate:
                     hz = self.number(f"{where}.rate", rate[key])
@@ -175,6 +177,8 @@ class _Reader:
                 for k in _BOUND_KEYS
                 if k in bounds
             }
+            if not found:  # a contract nothing could break
+                raise self.fail(f"{where}.values.{path}", f"{path}: neither min nor max")
             if len(found) == 2 and found["min"] > found["max"]:  # a contract nothing keeps
                 raise self.fail(
                     f"{where}.values.{path}",
@@ -185,12 +189,13 @@ class _Reader:
                 parts.append(f"{path} < {found['min']}")
             if "max" in found:
                 parts.append(f"{path} > {found['max']}")
-            if parts:
-                never.append(self.condition(f"{where}.values.{path}", " or ".join(parts)))
+            never.append(self.condition(f"{where}.values.{path}", " or ".join(parts)))
         conditions = body.get("never") or []
         if not isinstance(conditions, list):
             raise self.fail(f"{where}.never", "never must be a list of conditions")
-        never.extend(self.condition(f"{where}.never", str(text)) for text in conditions)
+        never.extend(
+            self.condition(f"{where}.never[{i}]", str(text)) for i, text in enumerate(conditions)
+        )
         kind = body.get("type")
         return TopicContract(
             absolute_topic_name(name),
@@ -219,7 +224,8 @@ class _Reader:
 
 
 def _key_lines(text: str) -> dict[str, int]:
-    """The line (1-based) of each key of the document, by dotted path (``topics./imu.rate``)."""
+    """The line (1-based) of each key and list item of the document, by dotted path
+    (``topics./imu.rate``, ``topics./imu.never[0]``)."""
     found: dict[str, int] = {}
 
     def walk(node: yaml.Node, prefix: str) -> None:
@@ -228,6 +234,10 @@ def _key_lines(text: str) -> dict[str, int]:
                 path = f"{prefix}.{key.value}" if prefix else str(key.value)
                 found[path] = key.start_mark.line + 1
                 walk(value, path)
+        elif isinstance(node, yaml.SequenceNode):  # a list's items: ``topics./imu.never[1]``
+            for index, item in enumerate(node.value):
+                found[f"{prefix}[{index}]"] = item.start_mark.line + 1
+                walk(item, f"{prefix}[{index}]")
 
     root = yaml.compose(text, Loader=yaml.CSafeLoader)
     if root is not None:

@@ -56,7 +56,11 @@ class StreamData(Protocol):
     """What the evaluator reads of one topic (a bag's, or a table of test cases)."""
 
     log_times: np.ndarray
-    """int64 ns, ascending."""
+    """int64 ns, ascending: the messages the columns hold."""
+
+    arrival_times: np.ndarray
+    """int64 ns, ascending: every message, also those that did not decode (what ``gap`` and
+    ``rate`` count: such a message still arrived)."""
 
     def mask(self, node: Expression) -> np.ndarray:
         """Which messages satisfy a stateless condition (:func:`is_stateless`)."""
@@ -93,9 +97,9 @@ def evaluate(node: Expression, data: StreamData, scope: Scope) -> np.ndarray:
     if isinstance(node, For):
         return intervals.lasting(evaluate(node.item, data, scope), node.ns)
     if isinstance(node, Gap):
-        return gap_intervals(times, node, scope.start_ns, scope.end_ns)
+        return gap_intervals(data.arrival_times, node, scope.start_ns, scope.end_ns)
     if isinstance(node, Rate):
-        return rate_intervals(times, node, scope.start_ns, scope.end_ns)
+        return rate_intervals(data.arrival_times, node, scope.start_ns, scope.end_ns)
     if isinstance(node, Unchanged):
         values = data.values(node.path)
         same = equal_rows(values[1:], values[:-1])

@@ -223,3 +223,29 @@ def test_export_where_over_many_bags_keeps_what_find_matches(
     bags = expand_bags([fleet_dir])
     rows = sum(len(pd.read_parquet(f)) for f in (tmp_path / "out").rglob("*.parquet"))
     assert rows == sum(e.count for e in find_fleet(bags, when=WHEN).episodes)
+
+
+def test_messages_that_do_not_decode_are_no_gap_beside_a_field_term(tmp_path: Path) -> None:
+    """``gap`` and ``rate`` count every message that arrived: a field term in the same
+    condition (which decodes the topic) must not turn messages that do not decode into a
+    silence."""
+    from bagkit.bag import BagWriter, TopicInfo
+
+    kind = "sensor_msgs/msg/Temperature"
+    t = STORE.types
+    with BagWriter(tmp_path / "cut") as bag:
+        bag.add_topic(TopicInfo("/temp", kind))
+        for i in range(30):  # 10 Hz; from 1.0 to 2.0 s payloads cut short
+            ns = 1_700_000_000_000_000_000 + i * 100_000_000
+            stamp = t["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9)
+            header = t["std_msgs/msg/Header"](stamp=stamp, frame_id="t")
+            message = t[kind](header=header, temperature=20.0, variance=0.0)
+            data = bytes(STORE.serialize_cdr(message, kind))
+            bag.write("/temp", data[:10] if 10 <= i < 20 else data, log_time=ns)
+    for when in ["gap > 150ms or temperature > 100", "rate < 5 Hz over 1s or temperature > 100"]:
+        result = bagkit_subprocess(
+            ["find", "cut", "--when", f"/temp: {when}", "--format", "json"], tmp_path
+        )
+        assert result.returncode == 0, result.stderr
+        assert json.loads(result.stdout) == [], when
+        assert "/temp: 10 messages could not be decoded" in result.stderr

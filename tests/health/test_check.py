@@ -101,6 +101,10 @@ def test_a_missing_topic_breaks_the_contract(tmp_path: Path) -> None:
         ("topics:\n  /imu/data:\n    max_gapp: 1s\n", 3, "did you mean max_gap"),
         ("topics:\n  /imu/data:\n    max_gap: 5 Hz\n", 3, "not a duration"),
         ("topics:\n  /imu/data:\n    never: [frozen(x) for 1s]\n", 3, "unknown function"),
+        # A condition of a block list: the line of its item, not of never:.
+        ("topics:\n  /imu/data:\n    never:\n      - isnan(*)\n      - gap > 5 Hz\n", 5, "Hz"),
+        ("topics:\n  /imu/data:\n    rate: {over: 2s}\n", 3, "neither min nor max"),
+        ("topics:\n  /imu/data:\n    values:\n      linear_acceleration.z: {}\n", 4, "neither"),
         ("topics:\n  /imu/data:\n    rate: {min: fast}\n", 3, "not a number"),
         ("topics: [a\n", 2, "not YAML"),  # where the parser saw the list unclosed
         # Contracts nothing breaks or nothing keeps: a rate over no window, bounds crossed.
@@ -133,6 +137,15 @@ def test_a_field_the_type_lacks_is_a_bad_spec(tmp_path: Path) -> None:
     result = bagkit("check", FIXTURES / "nominal" / "golden", "--spec", spec)
     assert result.returncode == 2
     assert result.stderr.startswith("error:") and "linear_acceleration" in result.stderr
+
+
+def test_a_field_the_type_lacks_names_the_line_of_its_condition(tmp_path: Path) -> None:
+    spec = tmp_path / "health.yaml"
+    spec.write_text("topics:\n  /imu/data:\n    never:\n      - isnan(*)\n      - foo.bar > 3\n")
+    result = bagkit("check", FIXTURES / "nominal" / "golden", "--spec", spec)
+    assert result.returncode == 2
+    assert result.stderr.startswith("error: ")
+    assert "health.yaml:5: /imu/data: foo.bar" in result.stderr
 
 
 @pytest.mark.parametrize(
@@ -216,3 +229,37 @@ def test_a_relative_topic_name_of_the_bag_is_the_contract_s_absolute_one(tmp_pat
     assert suggested.returncode == 0, suggested.stderr
     spec.write_text(suggested.stdout)
     assert bagkit("check", str(bag), "--spec", str(spec)).returncode == 0
+
+
+@pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
+def test_messages_that_do_not_decode_are_no_gap(tmp_path: Path, storage: str) -> None:
+    """A gap or rate is of the messages' times, decoded or not: a contract that also reads a
+    field (which decodes the topic) must not see a silence where messages did not decode
+    (rosbag2's talker.db3, read with Jazzy's Log: one gap over the whole bag)."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store, kind = get_typestore(Stores.ROS2_JAZZY), "sensor_msgs/msg/Temperature"
+    t = store.types
+    bag = tmp_path / "cut"
+    with Writer(bag, version=9, storage_plugin=StoragePlugin[storage.upper()]) as writer:
+        connection = writer.add_connection("/temp", kind, typestore=store)
+        for i in range(30):  # 10 Hz; from 1.0 to 2.0 s payloads cut short
+            ns = 1_700_000_000_000_000_000 + i * 100_000_000
+            stamp = t["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9)
+            header = t["std_msgs/msg/Header"](stamp=stamp, frame_id="t")
+            data = store.serialize_cdr(t[kind](header=header, temperature=20.0, variance=0.0), kind)
+            writer.write(connection, ns, data[:10] if 10 <= i < 20 else data)
+    spec = tmp_path / "health.yaml"
+    spec.write_text(
+        "topics:\n  /temp:\n    max_gap: 500ms\n    rate: {min: 5, over: 1s}\n"
+        "    never: [temperature > 100, gap > 150ms]\n"
+    )
+    result = subprocess.run(
+        [BAGKIT, "check", str(bag), "--spec", str(spec), "--format", "json"],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stdout
+    (report,) = json.loads(result.stdout)
+    assert all(a["passed"] for a in report["assertions"]), report
+    assert "/temp: 10 messages could not be decoded" in result.stderr

@@ -13,6 +13,7 @@ import re
 import shutil
 import subprocess
 import sys
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import pytest
@@ -36,8 +37,10 @@ def run(
     )
 
 
-def pytest_in(project: Path, *args: str) -> subprocess.CompletedProcess[str]:
-    return run([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", *args], project)
+def pytest_in(project: Path, *args: str, **env_vars: str) -> subprocess.CompletedProcess[str]:
+    return run(
+        [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", *args], project, **env_vars
+    )
 
 
 @pytest.fixture
@@ -71,20 +74,26 @@ def test_record_a_golden_pass_then_fail_on_a_changed_constant(stranger: Path) ->
     events = counts["/thermostat/status/_service_event"]
     assert events >= 2 and events % 2 == 0
 
-    passed = pytest_in(stranger, "-v")
+    # The package as recorded, and a copy with one changed constant: checked at once, each
+    # copy's live run on a domain of its own.
+    changed = stranger.with_name("changed")
+    shutil.copytree(stranger, changed)
+    core = changed / "thermostat" / "core.py"
+    assert core.read_text().count(KP) == 1
+    core.write_text(core.read_text().replace(KP, "KP = 0.37"))
+    with ThreadPoolExecutor(2) as pool:
+        passing = pool.submit(pytest_in, stranger, "-v")
+        failing = pool.submit(pytest_in, changed, ROS_DOMAIN_ID=domain)
+        passed, failed = passing.result(), failing.result()
     assert passed.returncode == 0, passed.stdout + passed.stderr
     assert "fixtures/office/spec.yaml::lockstep PASSED" in passed.stdout
     assert "fixtures/office/spec.yaml::live PASSED" in passed.stdout
 
-    core = stranger / "thermostat" / "core.py"
-    assert core.read_text().count(KP) == 1
-    core.write_text(core.read_text().replace(KP, "KP = 0.37"))
-    failed = pytest_in(stranger)
     assert failed.returncode == 1, failed.stdout + failed.stderr
     for mode in ("lockstep", "live"):
         assert f"office ({mode}): FAIL" in failed.stdout
         report = json.loads(
-            (stranger / "golden_failures" / f"office-{mode}" / "report.json").read_text()
+            (changed / "golden_failures" / f"office-{mode}" / "report.json").read_text()
         )
         failing = {t["topic"]: t for t in report["topics"] if not t["passed"]}
         # The heater's power, and the status answers, which state the gain.

@@ -37,7 +37,7 @@ class ArrayData:
         columns: dict[str, np.ndarray],
         sources: dict[str, tuple[np.ndarray, np.ndarray]] | None = None,
     ) -> None:
-        self.log_times = times
+        self.log_times = self.arrival_times = times
         self.columns = columns
         self.sources = sources or {}
         self._masks: dict[int, np.ndarray] = {}
