@@ -6,44 +6,47 @@ they are counted in ``problems`` and the rest of the file is read.
 
 from __future__ import annotations
 
-import heapq
-import operator
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, BinaryIO, TypeGuard
+from typing import TYPE_CHECKING, BinaryIO
 
 from mcap.well_known import Profile
 
 from bagkit.bag.definitions import DEFINITION_ENCODINGS, canonical_type_name
 from bagkit.bag.errors import ChunkError, CorruptBagError, NotABagError, UnsupportedStorageError
+from bagkit.bag.mcap_messages import (
+    MERGE_BUDGET_CHUNKS,
+    chunk_messages,
+    in_log_time_order,
+    message_at,
+)
 from bagkit.bag.mcapio import (
     DEFAULT_MAX_CHUNK_SIZE,
     Block,
     ChunkContents,
     Source,
     extent,
+    indexed,
+    may_hold,
     read_chunk,
     read_file_index,
     unreadable_chunk,
 )
 from bagkit.bag.mcapio.message_index import (
     Span,
+    channel_log_times,
     channel_spans,
     largest_messages,
-    ordered_offsets,
     read_message_indexes,
     widen,
 )
 from bagkit.bag.mcapio.records import (
-    MESSAGE_RECORD_HEADER,
     RECORD_HEADER,
     ROSBAG2_METADATA,
-    ChunkIndex,
-    Opcode,
     parse_metadata,
 )
 from bagkit.bag.mcapio.summary import read_header
-from bagkit.bag.messages import BagMessage, TopicInfo, make_message
+from bagkit.bag.messages import BagMessage, TopicInfo
 from bagkit.bag.storage import BagChunk
 from bagkit.storage.urls import is_url
 
@@ -51,34 +54,6 @@ if TYPE_CHECKING:
     import numpy as np
 
     from bagkit.bag.mcapio.latest import Latest
-
-_LOG_TIME = operator.attrgetter("log_time")
-_OFFSET = operator.itemgetter(0)
-# Overlapping chunks are merged in log-time order while they need at most this many times
-# max_chunk_size of memory (uncompressed); beyond, order is given up rather than memory.
-MERGE_BUDGET_CHUNKS = 4
-
-
-def _merged(blocks: list[tuple[int, Iterator[BagMessage]]]) -> Iterator[BagMessage]:
-    """Merge the log-time ordered messages of overlapping ``(file offset, messages)`` blocks.
-
-    Equal log times come in storage order: heapq.merge takes them from the earlier iterable.
-    """
-    if len(blocks) == 1:
-        return blocks[0][1]
-    return heapq.merge(*(messages for _, messages in sorted(blocks, key=_OFFSET)), key=_LOG_TIME)
-
-
-def _indexed(block: Block) -> TypeGuard[ChunkIndex]:
-    """True for a chunk with Message Index records (not a salvaged one, nor loose messages)."""
-    return isinstance(block, ChunkIndex) and bool(block.message_index_offsets)
-
-
-def _may_hold(block: Block, channel_ids: set[int]) -> bool:
-    """False when a chunk's message indexes show none of ``channel_ids`` (skip reading it)."""
-    if _indexed(block):
-        return not channel_ids.isdisjoint(block.message_index_offsets)
-    return True
 
 
 def _in_range(block: Block, start_ns: int | None, end_ns: int | None) -> bool:
@@ -244,26 +219,10 @@ class McapFile:
     def index_log_times(self, topic: str) -> np.ndarray | None:
         """The log times of ``topic``'s messages from the Message Index records (no chunk
         decompressed), in no order; None when a block has none or they are damaged."""
-        import numpy as np
-
         if self.index.message_runs:
             return None  # loose messages: only their records tell
-        wanted = self._channel_ids({topic})
         chunks = self.index.chunk_indexes
-        parts: list[np.ndarray] = []
-        for row in range(len(chunks)):
-            if chunks.start_times[row] > chunks.end_times[row]:
-                continue  # no messages
-            if not chunks.indexed(row):
-                return None  # salvaged: only its records tell
-            if wanted.isdisjoint(chunks.channels(row)):
-                continue
-            try:
-                indexes = read_message_indexes(self._source, chunks[row])
-            except CorruptBagError:
-                return None
-            parts.extend(indexes[c]["log_time"] for c in wanted if c in indexes)
-        return np.concatenate(parts).astype(np.int64) if parts else np.zeros(0, np.int64)
+        return channel_log_times(self._source, chunks, self._channel_ids({topic}))
 
     def _channel_ids(self, topics: set[str] | None) -> set[int]:
         return {c for c, t in self._channel_topics.items() if topics is None or t in topics}
@@ -292,33 +251,20 @@ class McapFile:
     def messages(
         self, topics: set[str] | None, start_ns: int | None, end_ns: int | None
     ) -> Iterator[BagMessage]:
-        """Yield the messages in log-time order (ties in storage order)."""
+        """The messages in log-time order (ties in storage order), read as they are taken."""
         wanted = self._channel_ids(topics)
         if not wanted:
-            return
-        lower = start_ns if start_ns is not None else 0
-        upper = end_ns if end_ns is not None else 1 << 64
-        # Blocks are sorted by start time. A block that starts before the ones already taken
-        # end overlaps them: such a group is merged (all its chunks in memory at once), up to
-        # MERGE_BUDGET_CHUNKS chunks' worth; groups simply follow one another.
-        budget = MERGE_BUDGET_CHUNKS * self.max_chunk_size
-        group: list[tuple[int, Iterator[BagMessage]]] = []
-        group_end = group_bytes = 0
-        for block in self._blocks(start_ns, end_ns):
-            if not _may_hold(block, wanted):
-                continue
-            size = block.uncompressed_size if isinstance(block, ChunkIndex) else block.length
-            size = min(size, self.max_chunk_size)  # larger ones are not read
-            overlaps = bool(group) and block.message_start_time < group_end
-            if group and (not overlaps or group_bytes + size > budget):
-                if overlaps:
-                    self._out_of_order()
-                yield from _merged(group)
-                group, group_bytes = [], 0
-            group_end = max(group_end, block.message_end_time) if group else block.message_end_time
-            group_bytes += size
-            group.append((extent(block)[0], self._block_messages(block, wanted, lower, upper)))
-        yield from _merged(group)
+            return iter(())
+        window = (
+            start_ns if start_ns is not None else 0,
+            end_ns if end_ns is not None else 1 << 64,
+        )
+        return in_log_time_order(
+            (b for b in self._blocks(start_ns, end_ns) if may_hold(b, wanted)),
+            lambda block: self._block_messages(block, wanted, window),
+            self.max_chunk_size,
+            self._out_of_order,
+        )
 
     def _out_of_order(self) -> None:
         message = (
@@ -329,49 +275,17 @@ class McapFile:
             self.problems.append(message)
 
     def _block_messages(
-        self, block: Block, wanted: set[int], lower: int, upper: int
+        self, block: Block, wanted: set[int], window: tuple[int, int]
     ) -> Iterator[BagMessage]:
-        """The messages of one block in log-time order, built one at a time as they are taken.
+        """The messages of one block in log-time order (:func:`chunk_messages`)."""
 
-        Only the message index is ordered up front (without numpy: ``bagkit info`` reads the
-        events of services this way): a replay that takes the next message when it is due is
-        not held up for the whole chunk's worth of objects.
-        """
-        chunk = self._read(block)
-        if chunk is None:
-            return
-        parts = [entries for channel, entries in chunk.entries.items() if channel in wanted]
-        if not parts:
-            return
-        offsets = ordered_offsets(parts, lower, upper)
-        records = chunk.records
-        size = len(records)
-        channel_topics = self._channel_topics
-        unpack = MESSAGE_RECORD_HEADER.unpack_from
-        lost = 0
-        last_header = size - MESSAGE_RECORD_HEADER.size
-        for offset in offsets:
-            if offset > last_header:
-                lost += 1
-                continue
-            opcode, length, channel_id, sequence, log_time, publish_time = unpack(records, offset)
-            end = offset + RECORD_HEADER.size + length
-            if opcode != Opcode.MESSAGE or end > size or channel_id not in channel_topics:
-                lost += 1
-                continue
-            yield make_message(
-                channel_topics[channel_id],
-                records[offset + MESSAGE_RECORD_HEADER.size : end],
-                log_time,
-                publish_time,
-                sequence,
-            )
-        if lost:
-            offset = extent(block)[0]
+        def lost(count: int) -> None:
             self.problems.append(
-                f"{self.path.name}: chunk at byte {offset}: {lost} message index entries point "
-                "at no message: those messages are lost"
+                f"{self.path.name}: chunk at byte {extent(block)[0]}: {count} message index "
+                "entries point at no message: those messages are lost"
             )
+
+        return chunk_messages(lambda: self._read(block), wanted, window, self._channel_topics, lost)
 
     def last_messages(self, topics: set[str], before_ns: int) -> dict[str, BagMessage]:
         """The last message with ``log_time < before_ns`` of each of ``topics`` that has one.
@@ -405,13 +319,13 @@ class McapFile:
         wanted = self._channel_ids(topics)
         last: dict[int, Block] = {}  # channel -> the block holding its latest messages
         for block in self.index.blocks():  # ties in end time: the first block
-            held = wanted.intersection(block.message_index_offsets) if _indexed(block) else wanted
+            held = wanted.intersection(block.message_index_offsets) if indexed(block) else wanted
             for channel in held:
                 if channel not in last or block.message_end_time > last[channel].message_end_time:
                     last[channel] = block
         found: dict[str, int] = {}
         for block in {id(b): b for b in last.values()}.values():
-            if not _indexed(block):
+            if not indexed(block):
                 return None
             channels = {c for c, b in last.items() if b is block}
             try:
@@ -425,7 +339,7 @@ class McapFile:
 
     def _block_index(self, block: Block, channels: set[int]) -> dict[int, np.ndarray] | None:
         """The message index of a block: its Message Index records, else the chunk read."""
-        if _indexed(block):
+        if indexed(block):
             if channels.isdisjoint(block.message_index_offsets):
                 return {}
             try:
@@ -440,30 +354,14 @@ class McapFile:
         a problem when no message is there)."""
         if chunk is None:
             return None
-        records, offset = chunk.records, where.offset
-        if offset + MESSAGE_RECORD_HEADER.size <= len(records):
-            opcode, length, channel_id, sequence, log_time, publish_time = (
-                MESSAGE_RECORD_HEADER.unpack_from(records, offset)
-            )
-            end = offset + RECORD_HEADER.size + length
-            topic = self._channel_topics.get(channel_id)
-            if opcode == Opcode.MESSAGE and end <= len(records) and topic is not None:
-                data = records[offset + MESSAGE_RECORD_HEADER.size : end]
-                return make_message(topic, data, log_time, publish_time, sequence)
+        message = message_at(chunk, where.offset, self._channel_topics)
+        if message is not None:
+            return message
         self.problems.append(
             f"{self.path.name}: chunk at byte {extent(where.block)[0]}: a message index entry "
             "points at no message: that message is lost"
         )
         return None
-
-    def _in_file_order(self) -> Iterator[Block]:
-        """The blocks with messages in file order, each chunk made a ``ChunkIndex`` when
-        reached (a bag's worth of them is not held while it is read)."""
-        chunks = self.index.chunk_indexes
-        starts, ends = chunks.start_times, chunks.end_times
-        rows = chunks.rows_by(chunks.chunk_offsets)
-        with_messages = (chunks[row] for row in rows if starts[row] <= ends[row])
-        return heapq.merge(with_messages, sorted(self.index.message_runs, key=extent), key=extent)
 
     def chunks(
         self, topics: set[str] | None, start_ns: int | None = None, end_ns: int | None = None
@@ -473,8 +371,8 @@ class McapFile:
         import numpy as np
 
         wanted = self._channel_ids(topics)
-        for block in self._in_file_order():
-            if not _may_hold(block, wanted) or not _in_range(block, start_ns, end_ns):
+        for block in self.index.blocks_in_file_order():
+            if not may_hold(block, wanted) or not _in_range(block, start_ns, end_ns):
                 continue
             data = self._read(block)
             if data is None:

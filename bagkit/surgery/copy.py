@@ -25,7 +25,15 @@ from typing import TYPE_CHECKING
 
 from bagkit.bag.definitions import DEFINITION_ENCODINGS, canonical_type_name
 from bagkit.bag.errors import ChunkError
-from bagkit.bag.mcapio import Block, FileIndex, Source, extent, read_chunk, unreadable_chunk
+from bagkit.bag.mcapio import (
+    Block,
+    FileIndex,
+    Source,
+    extent,
+    may_hold,
+    read_chunk,
+    unreadable_chunk,
+)
 from bagkit.bag.mcapio.chunk_builder import ClosedChunk
 from bagkit.bag.mcapio.raw_chunk import check_raw_chunk, read_raw_chunk, stored_in_log_time_order
 from bagkit.bag.mcapio.records import ChunkIndex
@@ -245,8 +253,7 @@ def _open(
     """Read a block and add its selected messages to the pending ones."""
     file = stream.file
     mapping = file.channel_map
-    indexed = isinstance(block, ChunkIndex) and block.message_index_offsets
-    if indexed and mapping.keys().isdisjoint(block.message_index_offsets):  # type: ignore[union-attr]
+    if not may_hold(block, mapping.keys()):
         return  # nothing selected in it: not even read
     if not selection.window.overlaps(block.message_start_time, block.message_end_time):
         return  # wholly outside the window: not read, nor lost if it cannot be

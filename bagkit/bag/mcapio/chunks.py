@@ -16,9 +16,10 @@ from __future__ import annotations
 import sys
 from array import array
 from collections.abc import Mapping
+from collections.abc import Set as AbstractSet
 from dataclasses import dataclass
 from itertools import chain
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeGuard
 
 import zstandard
 
@@ -96,6 +97,18 @@ def extent(block: Block) -> tuple[int, int]:
     if isinstance(block, MessageRun):
         return block.offset, block.length
     return block.chunk_start_offset, block.chunk_length
+
+
+def indexed(block: Block) -> TypeGuard[ChunkIndex]:
+    """True for a chunk with Message Index records (not a salvaged one, nor loose messages)."""
+    return isinstance(block, ChunkIndex) and bool(block.message_index_offsets)
+
+
+def may_hold(block: Block, channel_ids: AbstractSet[int]) -> bool:
+    """False when a chunk's message indexes show none of ``channel_ids`` (skip reading it)."""
+    if indexed(block):
+        return not channel_ids.isdisjoint(block.message_index_offsets)
+    return True
 
 
 def decompress(

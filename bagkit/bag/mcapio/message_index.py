@@ -173,6 +173,29 @@ def message_index_times(
     return spans
 
 
+def channel_log_times(
+    source: Source, chunks: ChunkIndexes, channels: set[int]
+) -> np.ndarray | None:
+    """The log times (int64, in no order) of ``channels``' messages from the chunks' Message
+    Index records, no chunk decompressed; None when a chunk has none or they are damaged."""
+    import numpy as np
+
+    parts: list[np.ndarray] = []
+    for row in range(len(chunks)):
+        if chunks.start_times[row] > chunks.end_times[row]:
+            continue  # no messages
+        if not chunks.indexed(row):
+            return None  # salvaged: only its records tell
+        if channels.isdisjoint(chunks.channels(row)):
+            continue
+        try:
+            indexes = read_message_indexes(source, chunks[row])
+        except CorruptBagError:
+            return None
+        parts.extend(indexes[c]["log_time"] for c in channels if c in indexes)
+    return np.concatenate(parts).astype(np.int64) if parts else np.zeros(0, np.int64)
+
+
 def channel_spans(source: Source, chunks: ChunkIndexes) -> dict[int, Span]:
     """(first, last) log time of each channel, from the Message Index records of the chunks.
 

@@ -99,6 +99,15 @@ class FileIndex:
         runs = sorted(self.message_runs, key=_start_and_offset)
         return heapq.merge(in_order, runs, key=_start_and_offset)
 
+    def blocks_in_file_order(self) -> Iterator[Block]:
+        """The blocks with messages in file order, each chunk made a ``ChunkIndex`` when
+        reached (a bag's worth of them is not held while it is read)."""
+        chunks = self.chunk_indexes
+        starts, ends = chunks.start_times, chunks.end_times
+        rows = chunks.rows_by(chunks.chunk_offsets)
+        with_messages = (chunks[row] for row in rows if starts[row] <= ends[row])
+        return heapq.merge(with_messages, sorted(self.message_runs, key=extent), key=extent)
+
 
 def _start_and_offset(block: Block) -> tuple[int, int]:
     return block.message_start_time, extent(block)[0]
