@@ -7,7 +7,8 @@ The rules are written out in docs/architecture.md."""
 from __future__ import annotations
 
 import ast
-from collections.abc import Iterator
+import functools
+from collections.abc import Iterator, Set
 from pathlib import Path
 
 import pytest
@@ -16,18 +17,26 @@ REPO = Path(__file__).resolve().parents[1]
 RCLPY_HOMES = (REPO / "bagkit" / "ros", REPO / "fusion" / "nodes")
 
 
-def imported_modules(source: str) -> set[str]:
+# Several tests read each module: parsed and walked once per test process.
+@functools.cache
+def parsed(source: str) -> ast.Module:
+    """``source``'s syntax tree (never changed by its readers)."""
+    return ast.parse(source)
+
+
+@functools.cache
+def imported_modules(source: str) -> frozenset[str]:
     """Every module an ``import`` or ``from ... import`` anywhere in ``source`` names."""
     names: set[str] = set()
-    for node in ast.walk(ast.parse(source)):
+    for node in ast.walk(parsed(source)):
         if isinstance(node, ast.Import):
             names |= {alias.name for alias in node.names}
         elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
             names.add(node.module)
-    return names
+    return frozenset(names)
 
 
-def top_level(modules: set[str]) -> set[str]:
+def top_level(modules: Set[str]) -> set[str]:
     return {m.split(".")[0] for m in modules}
 
 
@@ -61,7 +70,7 @@ def test_rclpy_only_behind_the_ros_shells(path: Path) -> None:
     )
 
 
-def private_imports(modules: set[str]) -> list[str]:
+def private_imports(modules: Set[str]) -> list[str]:
     """The modules of other packages among ``modules`` that are private (``typer._click``)."""
     return sorted(
         m
@@ -109,7 +118,7 @@ def bagkit_package(path: Path) -> str:
     return path.relative_to(REPO / "bagkit").parts[0].removesuffix(".py")
 
 
-def layering_violations(own: str, modules: set[str]) -> list[str]:
+def layering_violations(own: str, modules: Set[str]) -> list[str]:
     """What is wrong with package ``own`` importing ``modules``: the root, upwards, sideways."""
     found = []
     for module in sorted(modules):
@@ -167,7 +176,7 @@ def public_names(module: str) -> set[str]:
     """The names ``module`` offers: its ``__all__``, else every name without a leading ``_``."""
     path = module_path(module)
     assert path is not None, module
-    tree = ast.parse(path.read_text())
+    tree = parsed(path.read_text())
     for node in tree.body:
         if isinstance(node, ast.Assign) and any(
             isinstance(t, ast.Name) and t.id == "__all__" for t in node.targets
@@ -186,7 +195,7 @@ def public_names(module: str) -> set[str]:
 
 def bagkit_imports(source: str) -> Iterator[tuple[str, list[str]]]:
     """Each import of bagkit in ``source``: ``(module, names)``, names empty for ``import``."""
-    for node in ast.walk(ast.parse(source)):
+    for node in ast.walk(parsed(source)):
         if isinstance(node, ast.Import):
             for alias in node.names:
                 if alias.name.split(".")[0] == "bagkit":
@@ -250,7 +259,7 @@ def module_dependencies(path: Path) -> set[str]:
     except the importer's own enclosing packages (being imported already)."""
     name = module_name(path)
     found = set(imported_modules(path.read_text()))
-    for node in ast.walk(ast.parse(path.read_text())):
+    for node in ast.walk(parsed(path.read_text())):
         if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
             found.update(f"{node.module}.{alias.name}" for alias in node.names)
     with_packages = {".".join(m.split(".")[:i]) for m in found for i in range(2, m.count(".") + 2)}
