@@ -18,6 +18,7 @@ import functools
 import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 from rosbags.interfaces import Connection
 from rosbags.serde import SerdeError
@@ -68,18 +69,45 @@ class Ros2Type:
         return self.converter()
 
 
+class _Connection(NamedTuple):
+    """What of a ROS 1 connection its ROS 2 type depends on."""
+
+    id: int
+    topic: str
+    msgtype: str
+    definition: str
+    latched: bool
+
+
 def ros2_types(connections: Sequence[Connection]) -> tuple[dict[int, Ros2Type], list[str]]:
     """The ROS 2 type of each connection (by connection id), and what could not be mapped.
 
     A connection whose definition does not parse is left out with one problem line; the
     others are mapped.
     """
+    mapped, problems = _ros2_types(
+        tuple(
+            _Connection(
+                c.id, c.topic, c.msgtype, c.msgdef.data, bool(getattr(c.ext, "latching", None))
+            )
+            for c in connections
+        )
+    )
+    return dict(mapped), list(problems)
+
+
+# The bags of one fleet (one recorder) share their connections: their types are parsed and
+# their converters generated once, which costs more than reading a small bag's index.
+@functools.lru_cache(maxsize=32)
+def _ros2_types(
+    connections: tuple[_Connection, ...],
+) -> tuple[dict[int, Ros2Type], list[str]]:
     problems: list[str] = []
     typs: dict[str, object] = {}
-    parsed: list[Connection] = []
+    parsed: list[_Connection] = []
     for conn in connections:
         try:
-            typs.update(get_types_from_msg(conn.msgdef.data, conn.msgtype))
+            typs.update(get_types_from_msg(conn.definition, conn.msgtype))
         except _TYPE_ERRORS as exc:
             problems.append(f"definition of {conn.msgtype} on {conn.topic} unusable ({exc})")
             continue
@@ -102,7 +130,7 @@ def ros2_types(connections: Sequence[Connection]) -> tuple[dict[int, Ros2Type], 
     return mapped, problems
 
 
-def _map(src: Typestore, dst: Typestore, conn: Connection, cache: dict[str, object]) -> Ros2Type:
+def _map(src: Typestore, dst: Typestore, conn: _Connection, cache: dict[str, object]) -> Ros2Type:
     """One connection's ROS 2 type, as ``create_connections_converters`` of rosbags makes it."""
     name = RENAMES.get(conn.msgtype, conn.msgtype)
     if name not in dst.fielddefs:
@@ -124,6 +152,6 @@ def _map(src: Typestore, dst: Typestore, conn: Connection, cache: dict[str, obje
         name=name,
         definition=dst.generate_msgdef(name, ros_version=2)[0],
         type_hash=dst.hash_rihs01(name),
-        latched=bool(getattr(conn.ext, "latching", None)),
+        latched=conn.latched,
         converter=converter,
     )

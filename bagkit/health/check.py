@@ -106,6 +106,9 @@ class HealthReport:
     error: str | None = None
     bags_url: str | None = None
     """Where bags are served (:mod:`bagkit.health.links`): each failure gets a Foxglove link."""
+    files: list[tuple[int, str]] = field(default_factory=list)
+    """The bag's MCAP files (first log time, name) in time order: a link opens the one that
+    holds the break."""
 
     @property
     def passed(self) -> bool:
@@ -128,7 +131,7 @@ class HealthReport:
         """Foxglove at the first place ``assertion`` broke, where bags are served."""
         if self.bags_url is None or not len(assertion.spans):
             return None
-        return foxglove_link(self.bags_url, self.bag, int(assertion.spans[0][0]))
+        return foxglove_link(self.bags_url, self.bag, int(assertion.spans[0][0]), self.files)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready: per assertion its verdict, where it broke (bag seconds) and commands."""
@@ -243,7 +246,12 @@ def check_bag(bag: str | Path, spec: HealthSpec, query: Query | None = None) -> 
             for (text, _), where, over in zip(contract.never, broken, times, strict=True):
                 spans = interval_spans(where, over)
                 found.append(Assertion(contract.topic, text, not len(spans), spans))
-        return HealthReport(shown_as(location(bag)), reader.start_ns, found, problems)
+        files = sorted(
+            (f.start_ns, f.path.name)
+            for f in reader.storage_files
+            if f.storage_identifier == "mcap"
+        )
+        return HealthReport(shown_as(location(bag)), reader.start_ns, found, problems, files=files)
 
 
 def restrict(spec: HealthSpec, query: Query) -> HealthSpec:

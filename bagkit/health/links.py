@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import datetime as dt
 import os
+from collections.abc import Sequence
 from pathlib import Path
 from urllib.parse import quote, urlencode
 
@@ -44,12 +45,19 @@ def bags_url(given: str | None = None) -> str | None:
     return given or os.environ.get(BAGS_URL_ENV) or None
 
 
-def foxglove_link(base_url: str, bag: str, time_ns: int) -> str:
-    """Foxglove opening ``bag``'s first MCAP file (served under ``base_url``) at ``time_ns``."""
+def foxglove_link(
+    base_url: str, bag: str, time_ns: int, files: Sequence[tuple[int, str]] = ()
+) -> str:
+    """Foxglove opening ``bag``'s MCAP file (served under ``base_url``) that holds ``time_ns``:
+    of ``files`` (each file's first log time and name, in time order) the last starting at or
+    before it; without them, the bag's first."""
     path = Path(bag)
-    if path.is_dir():
-        files = sorted(path.glob("*.mcap"))
-        path = files[0] if files else path
+    if files and path.name not in (name for _, name in files):  # a bag directory
+        holding = [name for start, name in files if start <= time_ns]
+        path = path / (holding[-1] if holding else files[0][1])
+    elif path.is_dir():
+        found = sorted(path.glob("*.mcap"))
+        path = found[0] if found else path
     relative = path.as_posix().lstrip("/")
     url = f"{base_url.rstrip('/')}/{quote(relative)}"
     stamp = dt.datetime.fromtimestamp(time_ns // 1_000_000_000, tz=dt.timezone.utc)

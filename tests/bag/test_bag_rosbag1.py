@@ -202,3 +202,31 @@ def test_the_mapping_constants_are_rosbags_convert_s() -> None:
 
     assert RENAMES == STATIC_MSGTYPE_RENAMES
     assert yaml.safe_dump(dump_qos_v9(LATCH), sort_keys=False) == LATCHED_QOS
+
+
+def test_bags_with_the_same_connections_share_their_mapped_types(tmp_path: Path) -> None:
+    """Two bags of one recorder: types mapped once (each caller gets its own dict), and a
+    changed definition mapped anew."""
+    from bagkit.bag.ros1_types import ros2_types
+
+    bags = [write_ros1_bag(tmp_path / f"{name}.bag", 20) for name in ("a", "b")]
+    connections = []
+    for bag in bags:
+        with Reader(bag) as reader:
+            connections.append(list(reader.connections))
+    first, problems = ros2_types(connections[0])
+    second, _ = ros2_types(connections[1])
+    assert not problems and first == second
+    assert all(first[i] is second[i] for i in first)
+    first.clear()
+    assert ros2_types(connections[0])[0] == second
+    changed = [
+        c._replace(msgdef=c.msgdef._replace(data=c.msgdef.data + "\nint8 extra"))
+        if c.topic == "/status"
+        else c
+        for c in connections[0]
+    ]
+    remapped, _ = ros2_types(changed)
+    status = next(c.id for c in changed if c.topic == "/status")
+    assert "int8 extra" in remapped[status].definition
+    assert "int8 extra" not in second[status].definition

@@ -227,3 +227,36 @@ def test_the_table_fits_80_columns_but_for_commands_and_links(tmp_path: Path) ->
     whole = [ln for ln in lines if ln.strip().startswith(("bagkit ", "https://"))]
     assert len(whole) == 2 * 3  # play, filter and a Foxglove link per failure
     assert all(len(ln) <= 80 for ln in lines if ln not in whole), lines
+
+
+def test_the_foxglove_link_of_a_split_bag_opens_the_file_holding_the_break(tmp_path: Path) -> None:
+    """A bag split every 5 s: each failure's link names the file whose messages span its
+    first break, not the bag's first file (where Foxglove would find no such time)."""
+    from mcap.reader import make_reader
+
+    split = tmp_path / "split"
+    done = subprocess.run(
+        [BAGKIT, "filter", FIXTURES / "faults" / "golden", "-o", split, "-d", "5"],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    starts = {}
+    for file in split.glob("*.mcap"):
+        with open(file, "rb") as f:
+            statistics = make_reader(f).get_summary().statistics  # type: ignore[union-attr]
+        starts[file.name] = statistics.message_start_time
+    assert len(starts) > 3
+    spec = tmp_path / "health.yaml"
+    spec.write_text(SPEC)
+    result = subprocess.run(
+        [BAGKIT, "check", split, "--spec", spec, "--format", "json", "--bags-url", "https://b/"],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    (report,) = json.loads(result.stdout)
+    failed = [a for a in report["assertions"] if not a["passed"]]
+    assert failed
+    for assertion in failed:
+        start = assertion["episodes"][0]["start_ns"]
+        holding = max((t, name) for name, t in starts.items() if t <= start)[1]
+        (url,) = parse_qs(urlparse(assertion["foxglove"]).query)["ds.url"]
+        assert url == f"https://b/{(split / holding).as_posix().lstrip('/')}"
