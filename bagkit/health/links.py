@@ -14,6 +14,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from urllib.parse import quote, urlencode
 
+from bagkit.bag.storage_files import STORAGE_SUFFIXES
 from bagkit.storage.urls import is_url, path_part
 
 BAGS_URL_ENV = "BAGKIT_BAGS_URL"
@@ -35,7 +36,10 @@ def filter_command(bag: str, topic: str, condition: str) -> str:
     import shlex  # here: a healthy bag's check starts without it
 
     around = shlex.quote(f"{topic}: {condition}")
-    out = shlex.quote(f"{Path(bag).name}_cuts")
+    name = Path(path_part(bag)).name
+    if name.endswith((*STORAGE_SUFFIXES, ".bag")):  # a bag file: planted.mcap -> planted_cuts
+        name = Path(name).stem
+    out = shlex.quote(f"{name}_cuts")
     return (
         f"bagkit filter {shlex.quote(bag)} -o {out} --around {around} "
         f"--before {CONTEXT_S} --after {CONTEXT_S}"
