@@ -33,6 +33,7 @@ from bagkit.selection.errors import SelectionError, UnknownFieldError
 from bagkit.selection.temporal import Scope, evaluate
 from bagkit.selection.topics import require_topics
 from bagkit.selection.windows import Window
+from bagkit.words import counted
 
 
 class BagStream:
@@ -179,7 +180,9 @@ def scan_problems(columns: TopicColumns) -> list[str]:
     """What a scan of one topic could not read."""
     found = []
     if columns.failures:
-        found.append(f"{columns.topic}: {columns.failures} messages could not be decoded")
+        found.append(
+            f"{columns.topic}: {counted(columns.failures, 'message')} could not be decoded"
+        )
     if columns.unindexed:
         found.append(
             f"{columns.topic}: {columns.unindexed} index entries point outside their chunk"
