@@ -299,3 +299,20 @@ def test_gap_and_rate_need_no_definition_and_fields_need_cdr(
     )
     assert result.returncode == 2
     assert "serialization format 'wrong_format' is not CDR" in result.stderr
+
+
+def test_suggest_asks_no_nan_of_a_topic_none_of_whose_messages_decode(
+    interop_dir: Path, tmp_path: Path
+) -> None:
+    """rosbag2's talker.db3 read with Jazzy's Log: /rosout decodes not at all, so nothing was
+    seen of its values and ``isnan(*)`` would assert nothing; /topic's timing is still kept."""
+    bag = tmp_path / "talker"  # copied: its .db3 would gain -shm/-wal files
+    shutil.copytree(interop_dir / "rosbag2_py/test/resources/sqlite3/talker", bag)
+    result = subprocess.run(
+        [BAGKIT, "check", bag, "--suggest", "--format", "json"],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    topics = json.loads(result.stdout)["topics"]
+    assert "never" not in topics["/rosout"]
+    assert set(topics["/rosout"]) == {"type", "max_gap"}
