@@ -316,3 +316,32 @@ def test_suggest_asks_no_nan_of_a_topic_none_of_whose_messages_decode(
     topics = json.loads(result.stdout)["topics"]
     assert "never" not in topics["/rosout"]
     assert set(topics["/rosout"]) == {"type", "max_gap"}
+
+
+def test_a_latency_source_a_bag_lacks_breaks_that_bag_s_assertion(tmp_path: Path) -> None:
+    """A fleet where one bag has no /imu/data at all: its latency assertion is broken (the
+    source is not in the bag), the other bags are still checked; it was one spec error that
+    stopped the whole check."""
+    faults = FIXTURES / "faults" / "golden"
+    without = tmp_path / "without_imu"
+    done = subprocess.run(
+        [BAGKIT, "filter", faults, "-o", without, "--exclude-topics", "/imu/data"],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    spec = tmp_path / "health.yaml"
+    latency = "latency(/imu/data -> /fusion/odometry, header.stamp) > 1s"
+    spec.write_text(f"topics:\n  /fusion/odometry:\n    never: [isnan(*), '{latency}']\n")
+    result = subprocess.run(
+        [BAGKIT, "check", faults, without, "--spec", spec, "--format", "json", "--workers", "0"],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert result.returncode == 1, result.stderr
+    whole, cut = json.loads(result.stdout)
+    assert whole["passed"] and not cut["passed"]
+    verdicts = {a["assertion"]: (a["passed"], a["reason"]) for a in cut["assertions"]}
+    assert verdicts == {
+        "present": (True, ""),
+        "isnan(*)": (True, ""),
+        latency: (False, "/imu/data not in the bag"),
+    }
