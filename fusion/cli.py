@@ -38,7 +38,7 @@ _NODES_HELP = f"Nodes: {', '.join(NODE_NAMES)}."
 def _check_nodes(names: list[str]) -> None:
     unknown = [n for n in names if n not in NODE_NAMES]
     if unknown:
-        raise fail(f"unknown node(s) {', '.join(unknown)}. {_NODES_HELP}")
+        raise fail(f"{counted(len(unknown), 'unknown node')}: {', '.join(unknown)}. {_NODES_HELP}")
 
 
 @app.command(help=f"Start the nodes, each in its own process, until Ctrl-C. {_NODES_HELP}")

@@ -17,6 +17,7 @@ from types import FrameType
 from typing import IO
 
 from bagkit.processes import Command, StopPolicy, Supervisor
+from bagkit.words import counted
 from fusion.errors import NodeFailedError
 from fusion.params import load_parameter_file
 from fusion.processors import NODE_NAMES, create_processor
@@ -101,7 +102,9 @@ class Launcher:
             raise NodeFailedError(f"node {died.name} exited with code {died_code}")
         unclean = [node.name for node in self.nodes.started if node.returncode != 0]
         if unclean:
-            raise NodeFailedError(f"node(s) did not stop cleanly: {', '.join(unclean)}")
+            raise NodeFailedError(
+                f"{counted(len(unclean), 'node')} did not stop cleanly: {', '.join(unclean)}"
+            )
         return EXIT_INTERRUPTED
 
     def _on_signal(self, signum: int, frame: FrameType | None) -> None:

@@ -12,6 +12,7 @@ from typing import Any
 
 import yaml
 
+from bagkit.words import counted
 from fusion.errors import ConfigError
 
 PARAMS_FILE = Path(str(resources.files("fusion") / "config" / "params.yaml"))
@@ -81,7 +82,8 @@ class Params(Mapping[str, object]):
         self._values = default_parameters(node_name)
         unknown = sorted(set(overrides or {}) - set(self._values) - {"use_sim_time"})
         if unknown:
-            raise ConfigError(f"{node_name}: unknown parameter(s): {', '.join(unknown)}")
+            unknowns = counted(len(unknown), "unknown parameter")
+            raise ConfigError(f"{node_name}: {unknowns}: {', '.join(unknown)}")
         self._values.update(overrides or {})
 
     def __getitem__(self, key: str) -> object:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 import re
 import sys
 from typing import TYPE_CHECKING, Any
@@ -10,15 +9,12 @@ from typing import TYPE_CHECKING, Any
 import typer
 
 from bagkit.bag.latched import LatchedOptions
-from bagkit.cli import common
 from bagkit.cli.common import (
     CONTEXT_SETTINGS,
-    EXIT_INTERRUPTED,
     ReportFormat,
     fail,
     handle_errors,
     option_flags,
-    print_json,
     warn,
 )
 from bagkit.cli.option_parsing import MultiValueCommand, split_list
@@ -60,7 +56,7 @@ from bagkit.cli.replay_options import (
     WaitForSubscribers,
     WaitTimeout,
 )
-from bagkit.cli.tables import Column, Table, print_table
+from bagkit.cli.replay_report import finish, warn_live_publishers, warn_skipped
 from bagkit.errors import BagkitError
 from bagkit.extras import ROS, require
 from bagkit.playback.options import (
@@ -72,14 +68,12 @@ from bagkit.playback.options import (
 )
 from bagkit.playback.progress import ProgressLine
 from bagkit.playback.source import MessageOrder
-from bagkit.playback.timing import DEFAULT_CLOCK_HZ, DEFAULT_DISCOVERY_TIME_NS, LATE_THRESHOLD_NS
+from bagkit.playback.timing import DEFAULT_CLOCK_HZ, DEFAULT_DISCOVERY_TIME_NS
 from bagkit.selection.times import NS_PER_S, parse_duration, seconds_to_ns
-from bagkit.words import counted
 
 if TYPE_CHECKING:
     # The player imports rclpy: only `bagkit replay` itself pays for that import.
     from bagkit.playback.report import PlayReport
-    from bagkit.playback.service_responses import ServiceReplaySummary
     from bagkit.ros.replay.player import Player
 
 _NUMBER = re.compile(r"[0-9]*\.?[0-9]+([eE][-+]?[0-9]+)?")
@@ -229,7 +223,7 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
     player = Player(
         options,
         on_progress=progress.update if progress.interactive else None,
-        on_live_publishers=_warn_live_publishers,
+        on_live_publishers=warn_live_publishers,
         on_warning=progress.warn,
         # Plain: rich (note()) would be imported just before the first message.
         on_waited=lambda waited: print(waited.line(), file=sys.stderr, flush=True),
@@ -237,7 +231,7 @@ def replay(  # noqa: PLR0917 (typer maps parameters to options)
     with option_flags(PLAY_FLAGS):
         report = _run(player, keyboard=not disable_keyboard_controls)
     progress.finish()
-    _finish(report, " + ".join(map(str, all_bags)), output_format)
+    finish(report, " + ".join(map(str, all_bags)), output_format)
 
 
 def _check_ros2_options(
@@ -274,7 +268,7 @@ def _run(player: Player, *, keyboard: bool) -> PlayReport:
 
     step_ns = player.options.seek_step_ns
     with player:
-        _warn_skipped(player)
+        warn_skipped(player)
         with terminal_controls(
             player.controls,
             keyboard=keyboard,
@@ -293,115 +287,3 @@ PROGRESS_PERIOD_NS = NS_PER_S // 4
 app.command(
     "play", cls=ReplayCommand, no_args_is_help=True, help=HELP, context_settings=HELP_OPTIONS
 )(replay)
-
-
-def _warn_live_publishers(found: dict[str, list[str]]) -> None:
-    listed = "; ".join(f"{topic} (by {', '.join(nodes)})" for topic, nodes in found.items())
-    warn(
-        "replayed topics are also published by running nodes, whose subscribers will get "
-        f"both: {listed}"
-    )
-
-
-def _warn_skipped(player: Player) -> None:
-    topics = player.publishable
-    if topics.skipped_types:
-        listed = ", ".join(f"{t} ({ty})" for t, ty in sorted(topics.skipped_types.items()))
-        warn(f"not replaying topics whose message type is not installed: {listed}")
-    if topics.skipped_formats:
-        listed = ", ".join(f"{t} ({f})" for t, f in sorted(topics.skipped_formats.items()))
-        warn(f"not replaying topics whose serialization format is not cdr: {listed}")
-    for name, changes in sorted(topics.drifted.items()):
-        done = {
-            OnDrift.RAW: "published as recorded",
-            OnDrift.MIGRATE: "each message migrated to the installed definition",
-        }.get(
-            player.options.on_drift,
-            "not replayed (--on-drift raw: as recorded, migrate: migrated)",
-        )
-        warn(
-            f"{name}: its definition differs from the installed one ({'; '.join(changes)}): {done}"
-        )
-
-
-def _finish(report: PlayReport, bag: str, output_format: ReportFormat) -> None:
-    """The report; warnings, the error of a replay that found nothing readable, the exit status."""
-    if output_format is ReportFormat.JSON:
-        print_json(report.to_dict())
-    else:
-        _print_report(report)
-    damage = "; ".join(report.problems)
-    if report.problems and report.messages == 0 and not report.interrupted:
-        raise fail(f"nothing replayed: {bag} is damaged: {damage}", 2)
-    if report.messages == 0 and not report.interrupted:
-        warn("no message of the selected topics lies in the replayed window")
-    if report.problems:
-        unreadable = f", {report.unreadable} could not be read" if report.unreadable else ""
-        warn(
-            f"the bag is damaged: replayed the {counted(report.messages, 'message')} that could "
-            f"be read{unreadable}; {damage}"
-        )
-    if report.unacknowledged:
-        warn(
-            "subscribers had not acknowledged every message after 10 s on: "
-            + ", ".join(report.unacknowledged)
-        )
-    if report.interrupted:
-        raise typer.Exit(EXIT_INTERRUPTED)
-    if report.service_requests is not None and not report.service_requests.ok:
-        raise typer.Exit(1)
-
-
-def _print_report(report: PlayReport) -> None:
-    damaged = report.unreadable > 0
-    table = Table(
-        [Column("topic"), Column("published as"), Column("type"), Column("messages", numeric=True)]
-        + ([Column("unreadable", numeric=True)] if damaged else [])
-    )
-    for topic in report.topics:
-        table.add_row(
-            topic.topic,
-            "" if topic.published_as == topic.topic else topic.published_as,
-            topic.type,
-            str(topic.messages),
-            *([str(topic.unreadable)] if damaged else []),
-        )
-    print_table(table)
-    lateness = report.lateness
-    common.console.print(
-        f"{counted(report.messages, 'message')} in {report.played_s:.3f} s "
-        + (f"played, {report.paused_s:.3f} s paused " if report.paused_s else "")
-        + f"({report.bag_duration_s:.3f} s of bag time, rate {report.rate:g}"
-        + (f", {counted(report.loops, 'pass', 'passes')}" if report.loops > 1 else "")
-        + (f", {report.latched} of them latched state" if report.latched else "")
-        + ")",
-        highlight=False,
-        soft_wrap=True,
-    )
-    timing = (
-        f"p50 {lateness.p50_ms:.3f} ms, p99 {lateness.p99_ms:.3f} ms, "
-        f"max {lateness.max_ms:.3f} ms, {counted(lateness.late, 'message')} late "
-        f"(> {LATE_THRESHOLD_NS / 1e6:g} ms)"
-    )
-    if math.isnan(lateness.p50_ms):
-        timing = "no message was published on schedule"
-    common.console.print(f"timing error: {timing}", highlight=False, soft_wrap=True)
-    if report.service_requests is not None:
-        _print_service_requests(report.service_requests)
-
-
-def _print_service_requests(summary: ServiceReplaySummary) -> None:
-    """The requests sent and how the live responses compared, then each call that did not."""
-    totals = {k: summary.total(k) for k in ("sent", "matched", "differed", "unanswered")}
-    line = ", ".join(f"{n} {k}" for k, n in totals.items())
-    if summary.total("not_recorded"):
-        line += f", {summary.total('not_recorded')} without a recorded response"
-    common.console.print(f"service requests: {line}", highlight=False, soft_wrap=True)
-    for call in summary.calls:
-        what = "; ".join(call.differences) if call.differences else call.outcome
-        common.console.print(
-            f"  {call.service} #{call.sequence_number}: {what}",
-            highlight=False,
-            soft_wrap=True,
-            markup=False,
-        )

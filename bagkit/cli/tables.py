@@ -20,6 +20,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, NamedTuple
 
+from bagkit.words import counted
+
 if TYPE_CHECKING:
     from rich.console import Console
 
@@ -69,7 +71,9 @@ class Table:
 
     def _checked(self, cells: Sequence[Cell]) -> Sequence[Cell]:
         if len(cells) != len(self.columns):
-            raise ValueError(f"{len(cells)} cells for {len(self.columns)} columns")
+            raise ValueError(
+                f"{counted(len(cells), 'cell')} for {counted(len(self.columns), 'column')}"
+            )
         return cells
 
     def widths(self) -> list[int]:

@@ -229,8 +229,9 @@ def _compare_topic(
         c_bad.clear()
     if g_bad or c_bad:
         warnings.append(
-            f"{topic}: {len(g_bad)} golden and {len(c_bad)} candidate messages could not be "
-            f"decoded and are left out ({(g_bad or c_bad)[0]})"
+            f"{topic}: {counted(len(g_bad), 'golden message')} and "
+            f"{counted(len(c_bad), 'candidate message')} could not be decoded and are left out "
+            f"({(g_bad or c_bad)[0]})"
         )
     if options.skip_ns:
         # Warm-up skipped on both sides by message time (stamp, else receive time).

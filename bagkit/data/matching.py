@@ -58,8 +58,11 @@ def match_topic(
     (topic,) = require_topics([topic], reader.topics)
     window = window or Window()
     types = MessageTypes.for_bag(reader)
+    info = reader.topics[topic]
     try:
-        matcher = PayloadMatcher(types, topic, reader.topics[topic].type, condition)
+        if info.serialization_format != "cdr":  # as echo refuses it
+            raise DecodeError(f"serialization format {info.serialization_format!r} is not CDR")
+        matcher = PayloadMatcher(types, topic, info.type, condition)
     except DecodeError as exc:
         raise UndecodableTopicError(f"{topic} cannot be decoded: {exc}") from None
     times: list[np.ndarray] = []

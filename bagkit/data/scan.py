@@ -18,6 +18,7 @@ from bagkit.prefetch import prefetch
 from bagkit.selection.fields import select_fields
 from bagkit.selection.query import Query
 from bagkit.selection.windows import Window
+from bagkit.words import counted
 
 if TYPE_CHECKING:
     import pyarrow as pa  # only the batches' type: find and check read numpy columns
@@ -74,7 +75,7 @@ class Scan:
         for topic, columns in self.topics.items():
             if columns.undecodable:
                 found.append(
-                    f"{topic}: {columns.undecodable} messages could not be decoded "
+                    f"{topic}: {counted(columns.undecodable, 'message')} could not be decoded "
                     f"({columns.first_undecodable})"
                 )
             if columns.unindexed:

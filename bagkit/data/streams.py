@@ -33,6 +33,7 @@ from bagkit.selection.errors import SelectionError, UnknownFieldError
 from bagkit.selection.temporal import Scope, evaluate
 from bagkit.selection.topics import require_topics
 from bagkit.selection.windows import Window
+from bagkit.words import counted
 
 
 class BagStream:
@@ -57,7 +58,9 @@ class BagStream:
         # Each condition is evaluated on its own: the columns are those its own stateless parts
         # read in bulk (all of them together may need a sequence, and so none).
         parts = [part for c in conditions for part in _stateless_parts(c.tree)]
-        paths = self._leaf_paths(topic)
+        # Only times (gap, rate): nothing is decoded, so no definition is needed.
+        timing = all(not c.comparisons() and not c.paths() for c in conditions)
+        paths = [] if timing else self._leaf_paths(topic)
         condition.check_fields(topic, paths)
         wanted: list[str] = []
         for subtree in parts:
@@ -78,6 +81,8 @@ class BagStream:
     def _leaves(self, topic: str) -> list[LeafField]:
         info = self.reader.topics[topic]
         try:
+            if info.serialization_format != "cdr":  # as echo refuses it
+                raise DecodeError(f"serialization format {info.serialization_format!r} is not CDR")
             types = self.types.for_topic(topic)
             return leaf_fields(types.typestore, types.resolve(info.type))
         except DecodeError as exc:
@@ -92,10 +97,8 @@ class BagStream:
 
     def _read(self, topic: str, names: list[str]) -> tuple[np.ndarray, dict[str, np.ndarray], int]:
         """Log times and columns of the messages that decoded, and how many did not."""
-        if not names:  # only log times (gap, rate): from the indexes when they tell
-            times = self.reader.index_log_times(topic, self.window.start_ns, self.window.end_ns)
-            if times is not None:
-                return times, {}, 0
+        if not names:  # only log times (gap, rate): no message decoded
+            return self._arrivals(topic), {}, 0
         leaves = [leaf for leaf in self._leaves(topic) if leaf.path in names]
         info = self.reader.topics[topic]
         columns = TopicColumns(self.types.for_topic(topic), topic, info.type, leaves)
@@ -177,7 +180,9 @@ def scan_problems(columns: TopicColumns) -> list[str]:
     """What a scan of one topic could not read."""
     found = []
     if columns.failures:
-        found.append(f"{columns.topic}: {columns.failures} messages could not be decoded")
+        found.append(
+            f"{columns.topic}: {counted(columns.failures, 'message')} could not be decoded"
+        )
     if columns.unindexed:
         found.append(
             f"{columns.topic}: {columns.unindexed} index entries point outside their chunk"

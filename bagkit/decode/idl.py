@@ -19,6 +19,7 @@ from rosbags.typesys import get_types_from_idl
 from bagkit.bag.definitions import PRIMITIVES
 from bagkit.decode.errors import DefinitionError
 from bagkit.decode.msgdef import Nodetype, TypeDef, check_identifier, type_name
+from bagkit.words import counted
 
 # rosbags' parser takes time and stack in proportion to the text: a generated IDL file of a
 # large message is a few KiB, 256 KiB is far beyond any.
@@ -43,7 +44,9 @@ def parse_idl_section(text: str, header: str) -> dict[str, TypeDef]:
 @functools.lru_cache(maxsize=512)  # the same dependency sections recur across a bag's schemas
 def _parse(text: str, header: str) -> dict[str, TypeDef]:
     if len(text) > MAX_IDL_SECTION:
-        raise DefinitionError(f"IDL {header}: {len(text)} characters, over {MAX_IDL_SECTION}")
+        raise DefinitionError(
+            f"IDL {header}: {counted(len(text), 'character')}, over {MAX_IDL_SECTION}"
+        )
     source = _PREPROCESSOR.sub("", text)
     try:
         parsed = get_types_from_idl(source)

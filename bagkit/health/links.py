@@ -14,6 +14,9 @@ from collections.abc import Sequence
 from pathlib import Path
 from urllib.parse import quote, urlencode
 
+from bagkit.bag.storage_files import STORAGE_SUFFIXES
+from bagkit.storage.urls import is_url, path_part
+
 BAGS_URL_ENV = "BAGKIT_BAGS_URL"
 CONTEXT_S = 5
 """Seconds of context before and after a broken span in the commands."""
@@ -33,7 +36,10 @@ def filter_command(bag: str, topic: str, condition: str) -> str:
     import shlex  # here: a healthy bag's check starts without it
 
     around = shlex.quote(f"{topic}: {condition}")
-    out = shlex.quote(f"{Path(bag).name}_cuts")
+    name = Path(path_part(bag)).name
+    if name.endswith((*STORAGE_SUFFIXES, ".bag")):  # a bag file: planted.mcap -> planted_cuts
+        name = Path(name).stem
+    out = shlex.quote(f"{name}_cuts")
     return (
         f"bagkit filter {shlex.quote(bag)} -o {out} --around {around} "
         f"--before {CONTEXT_S} --after {CONTEXT_S}"
@@ -50,12 +56,14 @@ def foxglove_link(
 ) -> str:
     """Foxglove opening ``bag``'s MCAP file (served under ``base_url``) that holds ``time_ns``:
     of ``files`` (each file's first log time and name, in time order) the last starting at or
-    before it; without them, the bag's first."""
-    path = Path(bag)
+    before it; without them, the bag's first. A bag in storage (``s3://bucket/key``) is found
+    under ``base_url`` by its bucket (or host) and key."""
+    url_bag = is_url(bag)
+    path = Path(path_part(bag).partition("://")[2] if url_bag else bag)
     if files and path.name not in (name for _, name in files):  # a bag directory
         holding = [name for start, name in files if start <= time_ns]
         path = path / (holding[-1] if holding else files[0][1])
-    elif path.is_dir():
+    elif not url_bag and path.is_dir():
         found = sorted(path.glob("*.mcap"))
         path = found[0] if found else path
     relative = path.as_posix().lstrip("/")

@@ -229,7 +229,16 @@ class LiveHealth:
         """The checks over columns: decided for the batch at once, pushed where they change."""
         if entry.read_values is None:
             return
-        rows = [entry.read_values(data) for data in payloads]
+        rows, times = [], []
+        for data, time_ns in zip(payloads, log_times, strict=True):
+            try:
+                rows.append(entry.read_values(data))
+            except DecodeError:  # never matched, as check skips it; the recording goes on
+                continue
+            times.append(time_ns)
+        if not rows:
+            return
+        log_times = times
         columns = {name: np.array([row[i] for row in rows]) for i, name in enumerate(entry.columns)}
         last = len(log_times) - 1
         for check in entry.checks:
@@ -252,7 +261,13 @@ class LiveHealth:
             return
         decode = entry.decode
         for data, time_ns in zip(payloads, log_times, strict=True):
-            message = None if decode is None else decode(data)
+            try:
+                message = None if decode is None else decode(data)
+            except DecodeError:  # skipped where fields are read, as check skips it
+                for check in checks:
+                    if not _reads_fields(check.condition):  # times alone: it arrived
+                        self._stream(check, time_ns, entry.state).push(time_ns, _MISS)
+                continue
             for check, path in entry.sources:
                 stream = self._stream(check, time_ns, entry.state)
                 sec, nanosec = message_numbers(message, path)[:2]

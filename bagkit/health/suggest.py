@@ -138,7 +138,8 @@ def _ranges(topic: SuggestedTopic, stats: TopicStats) -> None:
                 _round_down(float(one.min) - RANGE_MARGIN * span),
                 _round_up(float(one.max) + RANGE_MARGIN * span),
             )
-    topic.no_nan = bool(stats.fields) and nan == 0
+    decoded = stats.count > stats.undecodable  # else nothing was seen of its values
+    topic.no_nan = bool(stats.fields) and decoded and nan == 0
 
 
 def _bounded(one: FieldStats) -> bool:

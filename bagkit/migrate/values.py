@@ -90,7 +90,9 @@ def fit_numbers(value: Any, base: str) -> np.ndarray:
     except (TypeError, ValueError) as exc:
         raise ValueMismatchError(f"not an array of numbers ({exc})") from None
     if array.ndim != 1 and array.size:
-        raise ValueMismatchError(f"an array of {array.ndim} dimensions is not a {base} array")
+        raise ValueMismatchError(
+            f"an array of {counted(array.ndim, 'dimension')} is not a {base} array"
+        )
     array = array.reshape(-1)
     dtype = NUMPY_TYPES[base]
     if array.dtype.kind not in "biuf" and array.size:

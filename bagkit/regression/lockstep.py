@@ -28,6 +28,7 @@ from bagkit.extras import ROS, require
 from bagkit.regression.errors import RegressionError
 from bagkit.regression.processor import Processor
 from bagkit.regression.services import LockstepServices
+from bagkit.words import counted
 
 
 @dataclass(frozen=True, slots=True)
@@ -232,7 +233,9 @@ def _decoders(golden: Path, reader: BagReader, topics: list[str]) -> dict[str, A
 
     missing = [t for t in topics if t not in reader.topics]
     if missing:
-        raise RegressionError(f"{golden}: no input topic(s) {', '.join(missing)}")
+        raise RegressionError(
+            f"{golden}: {counted(len(missing), 'input topic')} missing: {', '.join(missing)}"
+        )
     try:
         return {t: deserializer(reader.topics[t].type) for t in topics}
     except MessageClassNotFoundError as exc:

@@ -12,6 +12,7 @@ from rosgraph_msgs.msg import Clock
 from bagkit.bag.clock import CLOCK_TOPIC
 from bagkit.ros.errors import SubscriberTimeoutError
 from bagkit.ros.qos import CLOCK_QOS
+from bagkit.words import counted
 
 POLL_S = 0.1
 CLOCK_PERIOD_S = 0.02
@@ -74,7 +75,9 @@ def hold_clock(time_ns: int, *, subscriptions: int, seconds: float, timeout: flo
         deadline = time.monotonic() + timeout
         while publisher.get_subscription_count() < subscriptions:
             if time.monotonic() > deadline:
-                raise SubscriberTimeoutError(f"/clock matched no {subscriptions} subscriptions")
+                raise SubscriberTimeoutError(
+                    f"/clock did not match {counted(subscriptions, 'subscription')}"
+                )
             publisher.publish(msg)
             time.sleep(CLOCK_PERIOD_S)
         until = time.monotonic() + seconds

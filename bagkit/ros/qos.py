@@ -26,6 +26,7 @@ from rclpy.qos import (
 
 from bagkit.bag import TopicInfo, safe_yaml
 from bagkit.ros.errors import QosProfileError
+from bagkit.words import counted
 
 # rosbag2's default depth for a profile whose history is not known (Rosbag2QoS default).
 DEFAULT_DEPTH = 10
@@ -112,7 +113,8 @@ def profile_from_dict(
     """
     unknown = set(values) - _KEYS
     if unknown:
-        raise QosProfileError(f"unknown QoS setting(s): {', '.join(sorted(map(str, unknown)))}")
+        listed = ", ".join(sorted(map(str, unknown)))
+        raise QosProfileError(f"{counted(len(unknown), 'unknown QoS setting')}: {listed}")
     kwargs: dict[str, Any] = {}
     for key, value in values.items():
         if key in _POLICIES:

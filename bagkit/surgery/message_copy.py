@@ -170,7 +170,8 @@ def _passes(matcher: PayloadFilter | None, message: BagMessage) -> bool:
     if matcher is None:
         return True
     lengths = np.array([len(message.data)], np.int64)
-    return bool(matcher.mask_records(message.data, _ZERO, lengths)[0])
+    times = np.array([message.log_time], np.int64)  # a condition over time reads them
+    return bool(matcher.mask_records(message.data, _ZERO, lengths, times)[0])
 
 
 def _rewritten(rewrite: TopicRewrite | None, message: BagMessage) -> BagMessage:

@@ -116,8 +116,9 @@ def test_an_undecodable_message_costs_that_message_only(golden: Path, tmp_path: 
     assert notes.failed_messages == 2
     assert by_topic[ALERTS].passed and by_topic[ALERTS].candidate_undecodable == 0
     assert [w.split(" (")[0] for w in report.warnings] == [
-        f"{ALTITUDE}: 0 golden and 2 candidate messages could not be decoded and are left out",
-        f"{NOTES}: 0 golden and 1 candidate messages could not be decoded and are left out",
+        f"{ALTITUDE}: 0 golden messages and 2 candidate messages could not be decoded and are "
+        "left out",
+        f"{NOTES}: 0 golden messages and 1 candidate message could not be decoded and are left out",
     ]
     topic_json = next(t for t in report.to_dict()["topics"] if t["topic"] == ALTITUDE)
     assert (topic_json["golden_undecodable"], topic_json["candidate_undecodable"]) == (0, 2)

@@ -111,11 +111,11 @@ def test_launch_fails_when_a_node_dies(processes: Any, tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("args", "section", "message"),
     [
-        (["--only", "camera"], "", "error: unknown node(s) camera."),
+        (["--only", "camera"], "", "error: 1 unknown node: camera."),
         (
             [],
             "data_logger:\n  ros__parameters:\n    sumary_period: 1\n",
-            "error: data_logger: unknown parameter(s): sumary_period",
+            "error: data_logger: 1 unknown parameter: sumary_period",
         ),
         (
             [],

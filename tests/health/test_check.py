@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import shlex
+import shutil
 import subprocess
 from pathlib import Path
 
@@ -263,3 +264,84 @@ def test_messages_that_do_not_decode_are_no_gap(tmp_path: Path, storage: str) ->
     (report,) = json.loads(result.stdout)
     assert all(a["passed"] for a in report["assertions"]), report
     assert "/temp: 10 messages could not be decoded" in result.stderr
+
+
+def test_gap_and_rate_need_no_definition_and_fields_need_cdr(
+    interop_dir: Path, tmp_path: Path
+) -> None:
+    """rosbag2's test bags: a gap or rate of a topic whose type the bag does not define is
+    read from the messages' times alone; a field of a topic stored in another serialization
+    format than CDR is refused as echo refuses it (it was decoded as CDR all the same)."""
+    undefined = tmp_path / "convert_a"  # copied: its .db3 would gain -shm/-wal files
+    shutil.copytree(interop_dir / "rosbag2_py/test/resources/sqlite3/convert_a", undefined)
+    spec = tmp_path / "health.yaml"
+    spec.write_text(
+        "topics:\n  b_basictypes:\n    max_gap: 10ms\n    rate: {min: 1000, over: 0.05s}\n"
+    )
+    result = subprocess.run(
+        [BAGKIT, "check", undefined, "--spec", spec, "--format", "json"],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert result.returncode == 1, result.stderr
+    verdicts = {a["assertion"]: a["passed"] for a in json.loads(result.stdout)[0]["assertions"]}
+    # 50 messages over 0.1 s, in bursts: no silence over 10 ms, no 0.05 s of 50 messages.
+    assert verdicts == {"present": True, "gap > 10ms": True, "rate < 1000 Hz over 0.05s": False}
+    wrong = interop_dir / "rosbag2_tests/resources/mcap/wrong_rmw_test"
+    spec.write_text("topics:\n  /array_topic:\n    never: ['bool_values[*] == true']\n")
+    result = subprocess.run(
+        [BAGKIT, "check", wrong, "--spec", spec], capture_output=True, text=True, check=False
+    )
+    assert result.returncode == 2
+    assert "serialization format 'wrong_format' is not CDR" in result.stderr
+    when = "/array_topic: bool_values[*] == true"  # find's per-message matcher alike
+    result = subprocess.run(
+        [BAGKIT, "find", wrong, "--when", when], capture_output=True, text=True, check=False
+    )
+    assert result.returncode == 2
+    assert "serialization format 'wrong_format' is not CDR" in result.stderr
+
+
+def test_suggest_asks_no_nan_of_a_topic_none_of_whose_messages_decode(
+    interop_dir: Path, tmp_path: Path
+) -> None:
+    """rosbag2's talker.db3 read with Jazzy's Log: /rosout decodes not at all, so nothing was
+    seen of its values and ``isnan(*)`` would assert nothing; /topic's timing is still kept."""
+    bag = tmp_path / "talker"  # copied: its .db3 would gain -shm/-wal files
+    shutil.copytree(interop_dir / "rosbag2_py/test/resources/sqlite3/talker", bag)
+    result = subprocess.run(
+        [BAGKIT, "check", bag, "--suggest", "--format", "json"],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    topics = json.loads(result.stdout)["topics"]
+    assert "never" not in topics["/rosout"]
+    assert set(topics["/rosout"]) == {"type", "max_gap"}
+
+
+def test_a_latency_source_a_bag_lacks_breaks_that_bag_s_assertion(tmp_path: Path) -> None:
+    """A fleet where one bag has no /imu/data at all: its latency assertion is broken (the
+    source is not in the bag), the other bags are still checked; it was one spec error that
+    stopped the whole check."""
+    faults = FIXTURES / "faults" / "golden"
+    without = tmp_path / "without_imu"
+    done = subprocess.run(
+        [BAGKIT, "filter", faults, "-o", without, "--exclude-topics", "/imu/data"],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    spec = tmp_path / "health.yaml"
+    latency = "latency(/imu/data -> /fusion/odometry, header.stamp) > 1s"
+    spec.write_text(f"topics:\n  /fusion/odometry:\n    never: [isnan(*), '{latency}']\n")
+    result = subprocess.run(
+        [BAGKIT, "check", faults, without, "--spec", spec, "--format", "json", "--workers", "0"],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert result.returncode == 1, result.stderr
+    whole, cut = json.loads(result.stdout)
+    assert whole["passed"] and not cut["passed"]
+    verdicts = {a["assertion"]: (a["passed"], a["reason"]) for a in cut["assertions"]}
+    assert verdicts == {
+        "present": (True, ""),
+        "isnan(*)": (True, ""),
+        latency: (False, "/imu/data not in the bag"),
+    }

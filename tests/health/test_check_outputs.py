@@ -260,3 +260,40 @@ def test_the_foxglove_link_of_a_split_bag_opens_the_file_holding_the_break(tmp_p
         holding = max((t, name) for name, t in starts.items() if t <= start)[1]
         (url,) = parse_qs(urlparse(assertion["foxglove"]).query)["ds.url"]
         assert url == f"https://b/{(split / holding).as_posix().lstrip('/')}"
+
+
+def test_the_foxglove_link_of_a_bag_in_storage_names_its_bucket_and_key() -> None:
+    """``s3://fleet/day1/c2`` is found under the base URL as ``fleet/day1/c2/...``, not as
+    ``s3%3A/fleet/...``; the file is the one holding the time."""
+    from bagkit.health.links import foxglove_link
+
+    files = [(10, "c2_0.mcap"), (20, "c2_1.mcap")]
+    link = foxglove_link("https://bags.example.com/", "s3://fleet/day1/c2", 25, files)
+    (url,) = parse_qs(urlparse(link).query)["ds.url"]
+    assert url == "https://bags.example.com/fleet/day1/c2/c2_1.mcap"
+    one = foxglove_link("https://b", "gs://fleet/a.mcap", 25, [(10, "a.mcap")])
+    assert parse_qs(urlparse(one).query)["ds.url"] == ["https://b/fleet/a.mcap"]
+
+
+def test_the_cut_command_of_a_bag_file_names_its_output_without_the_suffix(
+    tmp_path: Path,
+) -> None:
+    """``bagkit check run.mcap``: the filter command printed writes ``run_cuts`` (not
+    ``run.mcap_cuts``), and runs as printed."""
+    (golden,) = (FIXTURES / "faults" / "golden").glob("*.mcap")
+    bag = tmp_path / "run.mcap"
+    bag.write_bytes(golden.read_bytes())
+    spec = tmp_path / "health.yaml"
+    spec.write_text(SPEC)
+    result = subprocess.run(
+        [BAGKIT, "check", "run.mcap", "--spec", spec, "--format", "json"],
+        capture_output=True, text=True, check=False, cwd=tmp_path,
+    )  # fmt: skip
+    (report,) = json.loads(result.stdout)
+    _, cut = next(a for a in report["assertions"] if not a["passed"])["commands"]
+    assert " -o run_cuts " in cut
+    done = subprocess.run(
+        [BAGKIT, *shlex.split(cut)[1:]], capture_output=True, text=True, check=False, cwd=tmp_path
+    )
+    assert done.returncode == 0, done.stderr
+    assert list((tmp_path / "run_cuts").iterdir())

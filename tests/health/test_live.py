@@ -158,3 +158,37 @@ def test_a_value_out_of_bounds_to_the_last_message_is_broken_at_the_end(tmp_path
     assert [(e.broken, e.at_ns) for e in told] == [(True, gps[0].log_time)]
     (count,) = [c for c in health.counts if c.assertion.startswith("header")]
     assert (count.breaks, count.clears, count.broken_since_ns) == (1, 0, gps[0].log_time)
+
+
+def test_messages_that_do_not_decode_go_on_as_check_reads_them(tmp_path: Path) -> None:
+    """A publisher's payloads that do not decode (cut short) do not stop the live check (it
+    raised, and the recorder stopped the recording): never matched, no silence, and the same
+    episodes as ``bagkit check`` finds in the bag."""
+    from rosbags.typesys import Stores, get_typestore
+
+    store, kind = get_typestore(Stores.ROS2_JAZZY), "sensor_msgs/msg/Temperature"
+    t = store.types
+    bag = tmp_path / "cut"
+    with BagWriter(bag) as writer:
+        writer.add_topic(TopicInfo("/temp", kind))
+        for i in range(40):  # 10 Hz; payloads cut short from 1.0 to 2.0 s, a spike at 3.0 s
+            ns = 1_700_000_000_000_000_000 + i * 100_000_000
+            stamp = t["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9)
+            header = t["std_msgs/msg/Header"](stamp=stamp, frame_id="t")
+            value = 500.0 if i == 30 else 20.0 + i
+            data = bytes(store.serialize_cdr(t[kind](header, value, 0.0), kind))
+            writer.write("/temp", data[:10] if 10 <= i < 20 else data, log_time=ns)
+    spec = HealthSpec.parse(
+        "topics:\n  /temp:\n    max_gap: 150ms\n"
+        "    never: [temperature > 100, unchanged(temperature) for 1s, delta(temperature) > 50]\n"
+    )
+    _, told = live_events(bag, spec)
+    bulk = check_bag(bag, spec)
+    for assertion in bulk.assertions[1:]:
+        breaks = [e.at_ns for e in told if e.broken and e.assertion == assertion.what]
+        assert breaks == [int(s) for s, _, _ in assertion.spans.tolist()], assertion.what
+    spike = 1_700_000_000_000_000_000 + 30 * 100_000_000
+    assert sorted((e.assertion, e.at_ns) for e in told if e.broken) == [
+        ("delta(temperature) > 50", spike),  # and the message after it: one episode
+        ("temperature > 100", spike),
+    ]

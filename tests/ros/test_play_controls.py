@@ -10,7 +10,7 @@ from typer.testing import CliRunner
 
 from bagkit.bag.latched import LatchedOptions
 from bagkit.cli.main import app
-from bagkit.cli.replay import _print_report
+from bagkit.cli.replay_report import print_report
 from bagkit.playback.controls import RATE_STEP, PlayControls
 from bagkit.playback.errors import PlayerError
 from bagkit.playback.keyboard import DOWN, RIGHT, SPACE, UP, key_actions, split_keys
@@ -158,7 +158,7 @@ def test_the_closing_report_says_time_played_apart_from_time_paused(
         paused_s=paused_s,
     )
     assert report.to_dict()["played_s"] == pytest.approx(4.957)
-    _print_report(report)
+    print_report(report)
     assert line in capsys.readouterr().out.splitlines()
 
 

@@ -412,3 +412,17 @@ def test_custom_data_is_kept_into_each_storage(tmp_path: Path, source: str) -> N
     assert yaml.safe_load(record.metadata["serialized_metadata"])["custom_data"] == {
         "site": "lab-3"
     }
+
+
+def test_a_where_over_time_into_sqlite3(tmp_path: Path) -> None:
+    """``--where 'TOPIC: gap > ...'`` (a condition over time) into a SQLite3 bag, written
+    message by message: the two messages around each silence (it was an internal error)."""
+    bag = tmp_path / "in"
+    write_mixed_bag(bag, 300, step_ns=10_000_000)
+    before = [m for m in rosbags_messages(bag) if m[0] == "/temperature"]  # one every 0.5 s
+    out = tmp_path / "out"
+    when = "/temperature: gap > 400ms"
+    result = run("convert", str(bag), "-o", str(out), "--storage", "sqlite3", "--where", when)
+    assert result.returncode == 0, result.stderr
+    got = [m for m in rosbags_messages(out) if m[0] == "/temperature"]
+    assert got == before

@@ -18,6 +18,7 @@ from bagkit.ros.errors import SubscriberTimeoutError
 from bagkit.ros.participants import all_discovered
 from bagkit.ros.replay.publishers import TopicOutput
 from bagkit.selection.times import NS_PER_S
+from bagkit.words import counted
 
 # The graph counts as settled when it has not changed for this long.
 GRAPH_SETTLE_S = 0.2
@@ -76,7 +77,7 @@ def wait_until_matched(
                 last_change = now
         settled = now >= last_change + GRAPH_SETTLE_S and (found_all or now >= watch_end)
         pending = [
-            f"{out.name} ({count} of {expected} subscriptions matched)"
+            f"{out.name} ({count} of {counted(expected, 'subscription')} matched)"
             for out, count in zip(outputs, matched, strict=True)
             for expected in [_compatible_subscriptions(node, out)]
             if count < expected
