@@ -10,15 +10,9 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from bagkit.health.check import (
-    Assertion,
-    CheckResult,
-    HealthReport,
-    check,
-    check_bag,
-    check_bags,
-)
+from bagkit.health.check import check, check_bag, check_bags
 from bagkit.health.spec import HealthSpec, SpecError, TopicContract
+from bagkit.health.verdicts import Assertion, CheckResult, HealthReport
 
 if TYPE_CHECKING:
     from bagkit.health.suggest import suggest_spec

@@ -12,7 +12,7 @@ import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from pathlib import Path
 
-from bagkit.health.check import HealthReport
+from bagkit.health.verdicts import HealthReport
 
 
 def junit_xml(reports: Sequence[HealthReport]) -> str:

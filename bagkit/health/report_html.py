@@ -19,7 +19,7 @@ from bagkit.bag import BagReader
 from bagkit.data.errors import DataError
 from bagkit.data.series import Series, axis_label, decimate, load_series
 from bagkit.extras import PLOT, require
-from bagkit.health.check import Assertion, CheckResult, HealthReport
+from bagkit.health.verdicts import Assertion, CheckResult, HealthReport
 from bagkit.selection.condition_terms import (
     Check,
     Comparison,

@@ -14,7 +14,7 @@ import pytest
 import yaml
 
 from bagkit.health import HealthSpec, check_bags
-from bagkit.health.check import HealthReport
+from bagkit.health.verdicts import HealthReport
 from bagkit.regression.live import record_golden
 from bagkit.regression.spec import load_spec
 from fusion.faults import Fault, FaultKind, FaultSchedule

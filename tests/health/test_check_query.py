@@ -11,7 +11,7 @@ import pytest
 
 from bagkit.bag import BagReader
 from bagkit.health import HealthSpec, check_bags
-from bagkit.health.check import HealthReport
+from bagkit.health.verdicts import HealthReport
 from bagkit.selection.errors import UnknownTopicError
 from bagkit.selection.query import Query
 from bagkit.selection.times import format_ns
