@@ -120,8 +120,8 @@ def test_top_level_help_lists_every_command_without_importing_them() -> None:
         ["bagkit", "--help"],
         "heavy = sorted(m for m in sys.modules if m.split('.')[0] in ('numpy', 'pandas', "
         "'rich', 'pydantic', 'rclpy') or m.startswith('bagkit.cli.') and m not in "
-        "('bagkit.cli.main', 'bagkit.cli.common', 'bagkit.cli.launch', "
-        "'bagkit.cli.plain_params', 'bagkit.cli.help_text'))\n"
+        "('bagkit.cli.main', 'bagkit.cli.common', 'bagkit.cli.interrupts', "
+        "'bagkit.cli.launch', 'bagkit.cli.plain_params', 'bagkit.cli.help_text'))\n"
         "print('HEAVY', heavy, file=sys.stderr)\n",
     )
     assert "HEAVY []" in result.stderr and "EXIT 0" in result.stderr, result.stderr
