@@ -120,11 +120,11 @@ def _golden_run(nodeid: str) -> str | None:
 
 def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
     """``--dist loadgroup`` that also groups by ``SHARED_FIXTURE_GROUPS``, and a golden
-    fixture's items by the run they share (the plugin's ``run_once``: one per worker).
+    fixture's items by the run they share (the plugin makes it once per session: on one
+    worker, no other waits for it).
 
     Named here by path, not by an ``xdist_group`` mark: xdist 3.8 sends a mark's group to the
-    scheduler in the node id, and pytest 9.2 no longer lets it change one (pytest-xdist#1386);
-    so the marks bagkit's plugin puts on its items do not group them either.
+    scheduler in the node id, and pytest 9.2 no longer lets it change one (pytest-xdist#1386).
     """
     if config.getvalue("dist") != "loadgroup":
         return None
