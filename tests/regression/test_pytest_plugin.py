@@ -4,7 +4,9 @@ holding only a stranger's fixture: no conftest, the plugin does everything."""
 from __future__ import annotations
 
 import json
+import os
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -262,3 +264,47 @@ def test_workers_that_cannot_share_runs_stop_the_session(
     result.stdout.fnmatch_lines(["*UsageError: golden fixtures under pytest-xdist share*"])
     assert "/nonexistent/elsewhere is not on this machine" in result.stdout.str()
     assert not counted.exists()  # no run made
+
+
+# A process of each live run beside the thermostat's node: a line in turns.log when the run
+# starts its system, one when it stops it (SIGINT).
+_TURN = """
+import pathlib, signal, sys
+
+def log(what):
+    with pathlib.Path("turns.log").open("a") as turns:
+        turns.write(f"{what} {pathlib.Path(sys.argv[1]).name}\\n")
+
+log("start")
+try:
+    signal.pause()
+except KeyboardInterrupt:
+    log("stop")
+"""
+
+
+@pytest.mark.ros
+def test_live_runs_of_workers_sharing_the_users_domain_take_turns(
+    pytester: pytest.Pytester, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Two fixtures' live runs on two workers, on one ROS_DOMAIN_ID the user set: run at once,
+    each fixture's node would see both replays (and its recorder both nodes' outputs); they run
+    one after the other, and both pass."""
+    example = Path(__file__).resolve().parents[2] / "examples" / "thermostat"
+    root = pytester.path
+    shutil.copytree(example, root, dirs_exist_ok=True, ignore=shutil.ignore_patterns("__pycache__"))
+    (root / "turn.py").write_text(_TURN)
+    office = root / "fixtures" / "office"
+    spec = yaml.safe_load((office / "spec.yaml").read_text())
+    spec["launch"] = [spec["launch"], "python turn.py {fixture}"]
+    (office / "spec.yaml").write_text(yaml.safe_dump(spec))
+    shutil.copytree(office, root / "fixtures" / "annex")
+    monkeypatch.setenv("ROS_DOMAIN_ID", os.environ["BAGKIT_TEST_SPARE_DOMAIN_ID"])
+    result = pytester.runpytest_subprocess(
+        "-n", "2", "-p", "xdist", "--golden-mode", "live", "--golden-failures", "failures"
+    )
+    result.assert_outcomes(passed=2)
+    turns = [line.split() for line in (root / "turns.log").read_text().splitlines()]
+    first, second = turns[0][1], turns[2][1]
+    assert turns == [["start", first], ["stop", first], ["start", second], ["stop", second]], turns
+    assert {first, second} == {"office", "annex"}
