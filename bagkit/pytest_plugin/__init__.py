@@ -170,6 +170,17 @@ def pytest_configure_node(node: Any) -> None:
         shared.hand_to_worker(node.config, node.workerinput)
 
 
+@pytest.hookimpl(optionalhook=True, trylast=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
+    """Under ``--dist loadgroup``, a golden fixture's run and its items on one worker; a
+    scheduler of the user's own (a conftest's) comes first."""
+    if config.getvalue("dist") != "loadgroup" or not config.stash.get(ROOTS, None):
+        return None
+    from bagkit.pytest_plugin.scheduling import GoldenRunScheduling
+
+    return GoldenRunScheduling(config, log)
+
+
 def pytest_collect_file(file_path: Path, parent: pytest.Collector) -> pytest.Collector | None:
     if file_path.name != SPEC_FILE:
         return None

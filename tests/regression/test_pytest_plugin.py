@@ -226,6 +226,20 @@ def test_under_xdist_a_run_is_made_once_for_its_items_on_every_worker(
         assert len(ran) == items and all(w == {"gw0", "gw1"} for w in ran.values()), ran
 
 
+def test_under_loadgroup_a_runs_items_are_one_group(
+    counted: Path, pytester: pytest.Pytester
+) -> None:
+    """``--dist loadgroup``: the run's items go to one worker (none waits on another's run),
+    and the golden's health items to one worker."""
+    result = pytester.runpytest_subprocess("-v", "-n", "2", "-p", "xdist", "--dist", "loadgroup")
+    result.assert_outcomes(passed=6 + 1 + 4)
+    assert counted.read_text().count("\n") == 1, counted.read_text()
+    ran = item_workers(result.stdout.str())
+    for group in ("golden-health[", "lockstep"):
+        workers = set().union(*(w for item, w in ran.items() if item.startswith(group)))
+        assert len(workers) == 1, ran
+
+
 def test_under_xdist_a_failed_run_fails_each_workers_item_once_made(
     counted: Path, pytester: pytest.Pytester
 ) -> None:
