@@ -109,33 +109,22 @@ def pytest_collection() -> Generator[None, object, object]:
         sys.dont_write_bytecode = writes
 
 
-def _golden_run(nodeid: str) -> str | None:
-    """The run a golden fixture's item uses (``fixtures/faults/spec.yaml::live``) for its own
-    (``::live``) and its health items (``::live-health[...]``); None for any other item."""
-    path, sep, name = nodeid.partition("/spec.yaml::")
-    if not sep:
-        return None
-    return f"{path}/spec.yaml::{name.split('-health[', 1)[0]}"
-
-
 def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
-    """``--dist loadgroup`` that also groups by ``SHARED_FIXTURE_GROUPS``, and a golden
-    fixture's items by the run they share (the plugin's ``run_once``: one per worker).
-
-    Named here by path, not by an ``xdist_group`` mark: xdist 3.8 sends a mark's group to the
-    scheduler in the node id, and pytest 9.2 no longer lets it change one (pytest-xdist#1386);
-    so the marks bagkit's plugin puts on its items do not group them either.
+    """``--dist loadgroup`` that also groups by ``SHARED_FIXTURE_GROUPS`` (named by path, not
+    by an ``xdist_group`` mark: xdist 3.8 sends a mark's group to the scheduler in the node id,
+    and pytest 9.2 no longer lets it change one, pytest-xdist#1386). This scheduler comes
+    before the bagkit plugin's, which it extends: a golden fixture's run stays one group.
     """
     if config.getvalue("dist") != "loadgroup":
         return None
-    from xdist.scheduler import LoadGroupScheduling
+    from bagkit.pytest_plugin.scheduling import GoldenRunScheduling
 
-    class SharedFixtureScheduling(LoadGroupScheduling):
+    class SharedFixtureScheduling(GoldenRunScheduling):
         def _split_scope(self, nodeid: str) -> str:
             for prefix, group in SHARED_FIXTURE_GROUPS.items():
                 if nodeid.startswith(prefix):
                     return group
-            return _golden_run(nodeid) or str(super()._split_scope(nodeid))
+            return super()._split_scope(nodeid)
 
     return SharedFixtureScheduling(config, log)
 

@@ -14,11 +14,12 @@ prefixes allowed) and, by rule:
   ``crashed`` is a fixture's copy cut short, as a killed recorder leaves it);
   paths elsewhere (``/data/fleet/``, ``bags.txt``) are not there and their commands are skipped.
 
-What follows a pipe (``| jq ...``) is left out: the bagkit command runs alone; ``> FILE``
-writes its output to FILE. Each document's
-commands run in their order in one scratch directory (a command may read what an earlier one
-wrote), never in the checkout. A command must exit 0, or N where its comment says ``exit N``,
-without an ``error:`` line.
+What follows a pipe (``| jq ...``) is left out: the bagkit command runs alone, in this process
+through the console script's entry (:func:`bagkit_runs.bagkit_in_process`: the same parsing,
+exit status and output; the process boundary is tests/cli's); ``> FILE`` writes its output to
+FILE. Each document's commands run in their order in one scratch directory (a command may read
+what an earlier one wrote), never in the checkout. A command must exit 0, or N where its
+comment says ``exit N``, without an ``error:`` line.
 """
 
 from __future__ import annotations
@@ -26,8 +27,6 @@ from __future__ import annotations
 import re
 import shlex
 import shutil
-import subprocess
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -40,7 +39,6 @@ from bagkit.storage.paths import UrlPath
 from bagkit.storage.urls import is_url
 
 ROOT = Path(__file__).resolve().parents[1]
-BAGKIT = str(Path(sys.executable).with_name("bagkit"))
 BAG_ARGUMENTS = frozenset({"bag", "bags", "inputs"})
 # Options that read a file an earlier command of the document may have written (under xdist
 # the two can run on different workers, each with its own scratch directory).
@@ -206,14 +204,7 @@ def test_example_runs_as_written(example: Example, workdirs: dict[Path, Path]) -
     if missing:
         pytest.skip(f"not among the fixtures: {', '.join(missing)}")
     expected = re.search(r"\bexits? (\d+)\b", example.comment)
-    done = subprocess.run(
-        [BAGKIT, *example.args],
-        cwd=workdir,
-        capture_output=True,
-        text=True,
-        timeout=600,
-        check=False,
-    )
+    done = bagkit_in_process(list(example.args), cwd=workdir)
     assert done.returncode == (int(expected.group(1)) if expected else 0), done.stderr
     assert "error:" not in done.stderr, done.stderr
     if example.stdout is not None:

@@ -15,7 +15,7 @@ A spec with a ``health:`` contract adds one item per assertion: on the golden
 fixture whose outputs are unchanged is not rewritten). A failure prints the verdict and the
 path of its report (``golden_failures/<fixture>-<mode>/report.html``). ``--golden-summary
 FILE`` writes a markdown verdict at the end (one table row per fixture and mode), for a CI job
-summary.
+summary. Under pytest-xdist each run is still made once, whatever ``--dist`` (``shared``).
 
 Nothing here imports rclpy or the harness until a golden item runs.
 """
@@ -24,11 +24,13 @@ from __future__ import annotations
 
 import os
 import tempfile
+from contextlib import nullcontext
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import pytest
 
+from bagkit.pytest_plugin import shared
 from bagkit.words import counted
 
 if TYPE_CHECKING:
@@ -38,10 +40,6 @@ if TYPE_CHECKING:
     from bagkit.regression.spec import FixtureSpec
 
 ROOTS = pytest.StashKey[list[Path]]()
-# Each fixture's run per mode (or why it failed), and its golden's health, for the health
-# items that follow the run's item.
-RUNS = pytest.StashKey[dict[tuple[Path, str], "GoldenCheck | BaseException"]]()
-GOLDEN_HEALTH = pytest.StashKey[dict[Path, "HealthReport"]]()
 GOLDEN = "golden"
 SPEC_FILE = "spec.yaml"  # regression.spec's, not imported: that imports numpy
 MODE_CHOICES = ("lockstep", "live", "all")
@@ -138,6 +136,7 @@ def pytest_configure(config: pytest.Config) -> None:
     # Live runs stay on this machine and off other sessions' domains unless told otherwise.
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     _choose_domain(config)
+    shared.check_worker(config)
     if config.args_source != pytest.Config.ArgsSource.ARGS:
         # `pytest` alone walks testpaths (or the current directory): add the roots it misses.
         walked = [Path(a).resolve() for a in config.args]
@@ -161,6 +160,25 @@ def _choose_domain(config: pytest.Config) -> None:
         index = int(str(worker["workerid"]).removeprefix("gw") or 0)
         offset = (int(chosen) - _FIRST_DOMAIN + 1 + index) % _DOMAINS
         os.environ["ROS_DOMAIN_ID"] = str(_FIRST_DOMAIN + offset)
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_configure_node(node: Any) -> None:
+    """pytest-xdist's controller starting a worker: hand it the directory where the workers
+    share each fixture's run."""
+    if node.config.stash.get(ROOTS, None):
+        shared.hand_to_worker(node.config, node.workerinput)
+
+
+@pytest.hookimpl(optionalhook=True, trylast=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
+    """Under ``--dist loadgroup``, a golden fixture's run and its items on one worker; a
+    scheduler of the user's own (a conftest's) comes first."""
+    if config.getvalue("dist") != "loadgroup" or not config.stash.get(ROOTS, None):
+        return None
+    from bagkit.pytest_plugin.scheduling import GoldenRunScheduling
+
+    return GoldenRunScheduling(config, log)
 
 
 def pytest_collect_file(file_path: Path, parent: pytest.Collector) -> pytest.Collector | None:
@@ -196,12 +214,8 @@ class GoldenFile(pytest.File):
                 for name in assertion_names(outputs_contract(spec.health, spec.outputs)):
                     items.append(HealthItem.from_parent(self, spec=spec, mode=mode, assertion=name))
         for item in items:
-            run = getattr(item, "mode", None)
             item.add_marker("golden")
-            # A mode's item and its health items share one run: one worker under xdist's
-            # --dist loadgroup.
-            item.add_marker(pytest.mark.xdist_group(f"golden-{spec.name}-{run}"))
-            if run == "live":
+            if getattr(item, "mode", None) == "live":
                 item.add_marker("ros")
         return items
 
@@ -235,8 +249,10 @@ class GoldenItem(pytest.Item):
         if self.config.getoption("update_golden"):
             if self.mode != "lockstep":
                 pytest.skip("expected outputs are rewritten from lockstep only")
-            update = update_golden(self.spec)
-            outcome = "rewritten" if update.rewritten else "unchanged"
+            # once: under xdist's --dist each every worker has this item
+            key = f"{self.spec.directory}::update"
+            rewritten = shared.once(self.config, key, lambda: update_golden(self.spec).rewritten)
+            outcome = "rewritten" if rewritten else "unchanged"
             self.user_properties.append((VERDICT_PROPERTY, f"outputs {outcome}"))
             print(f"{self.spec.name}: {outcome}")
             return
@@ -268,27 +284,23 @@ def _failures(config: pytest.Config) -> Path:
 
 
 def run_once(config: pytest.Config, spec: FixtureSpec, mode: str) -> GoldenCheck:
-    """``spec``'s run in ``mode``, once per session (its item and its health items share it);
-    a run whose outputs differ leaves its report under the failures folder."""
+    """``spec``'s run in ``mode``, once per session, pytest-xdist's workers included (its item
+    and its health items share it); a run whose outputs differ leaves its report under the
+    failures folder."""
     from bagkit.regression.artefacts import write_failure_artefacts
     from bagkit.regression.check import run_check
 
-    runs = config.stash.setdefault(RUNS, {})
-    key = (spec.directory, mode)
-    if key not in runs:
-        try:
-            with tempfile.TemporaryDirectory(prefix=f"golden-{spec.name}-") as tmp:
-                check = run_check(spec, mode, Path(tmp))
-                if not check.matched:
-                    write_failure_artefacts(check, _failures(config) / f"{spec.name}-{mode}")
-            runs[key] = check
-        except BaseException as exc:
-            runs[key] = exc
-            raise
-    found = runs[key]
-    if isinstance(found, BaseException):
-        raise found
-    return found
+    def run() -> GoldenCheck:
+        with (
+            shared.domain_turn(config) if mode == "live" else nullcontext(),
+            tempfile.TemporaryDirectory(prefix=f"golden-{spec.name}-") as tmp,
+        ):
+            check = run_check(spec, mode, Path(tmp))
+            if not check.matched:
+                write_failure_artefacts(check, _failures(config) / f"{spec.name}-{mode}")
+        return check
+
+    return shared.once(config, f"{spec.directory}::{mode}", run)
 
 
 class HealthItem(pytest.Item):
@@ -325,11 +337,10 @@ class HealthItem(pytest.Item):
     def _golden_health(self) -> HealthReport:
         from bagkit.health import check_bag
 
-        reports = self.config.stash.setdefault(GOLDEN_HEALTH, {})
-        if self.spec.directory not in reports:
-            assert self.spec.health is not None
-            reports[self.spec.directory] = check_bag(self.spec.bag, self.spec.health)
-        return reports[self.spec.directory]
+        assert self.spec.health is not None
+        contract = self.spec.health
+        key = f"{self.spec.directory}::{GOLDEN}"
+        return shared.once(self.config, key, lambda: check_bag(self.spec.bag, contract))
 
     def repr_failure(
         self,

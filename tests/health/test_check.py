@@ -9,7 +9,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from bagkit_runs import BAGKIT, bagkit_in_process
+from bagkit_runs import bagkit_in_process
 
 from bagkit.bag import BagReader
 from bagkit.health import HealthSpec, SpecError, check_bag
@@ -212,10 +212,7 @@ def test_a_relative_topic_name_of_the_bag_is_the_contract_s_absolute_one(tmp_pat
     bag = _relative_topic_bag(tmp_path / "relative")
     spec = tmp_path / "health.yaml"
     spec.write_text("topics:\n  /temp:\n    max_gap: 500ms\n    never: [temperature > 40]\n")
-    result = subprocess.run(
-        [BAGKIT, "check", str(bag), "--spec", str(spec), "--format", "json"],
-        capture_output=True, text=True, check=False,
-    )  # fmt: skip
+    result = bagkit("check", str(bag), "--spec", str(spec), "--format", "json")
     assert result.returncode == 1, result.stderr
     verdicts = {
         a["assertion"]: [(e["start_s"], e["end_s"]) for e in a["episodes"]]
@@ -256,10 +253,7 @@ def test_messages_that_do_not_decode_are_no_gap(tmp_path: Path, storage: str) ->
         "topics:\n  /temp:\n    max_gap: 500ms\n    rate: {min: 5, over: 1s}\n"
         "    never: [temperature > 100, gap > 150ms]\n"
     )
-    result = subprocess.run(
-        [BAGKIT, "check", str(bag), "--spec", str(spec), "--format", "json"],
-        capture_output=True, text=True, check=False,
-    )  # fmt: skip
+    result = bagkit("check", str(bag), "--spec", str(spec), "--format", "json")
     assert result.returncode == 0, result.stdout
     (report,) = json.loads(result.stdout)
     assert all(a["passed"] for a in report["assertions"]), report
@@ -278,25 +272,18 @@ def test_gap_and_rate_need_no_definition_and_fields_need_cdr(
     spec.write_text(
         "topics:\n  b_basictypes:\n    max_gap: 10ms\n    rate: {min: 1000, over: 0.05s}\n"
     )
-    result = subprocess.run(
-        [BAGKIT, "check", undefined, "--spec", spec, "--format", "json"],
-        capture_output=True, text=True, check=False,
-    )  # fmt: skip
+    result = bagkit("check", undefined, "--spec", spec, "--format", "json")
     assert result.returncode == 1, result.stderr
     verdicts = {a["assertion"]: a["passed"] for a in json.loads(result.stdout)[0]["assertions"]}
     # 50 messages over 0.1 s, in bursts: no silence over 10 ms, no 0.05 s of 50 messages.
     assert verdicts == {"present": True, "gap > 10ms": True, "rate < 1000 Hz over 0.05s": False}
     wrong = interop_dir / "rosbag2_tests/resources/mcap/wrong_rmw_test"
     spec.write_text("topics:\n  /array_topic:\n    never: ['bool_values[*] == true']\n")
-    result = subprocess.run(
-        [BAGKIT, "check", wrong, "--spec", spec], capture_output=True, text=True, check=False
-    )
+    result = bagkit("check", wrong, "--spec", spec)
     assert result.returncode == 2
     assert "serialization format 'wrong_format' is not CDR" in result.stderr
     when = "/array_topic: bool_values[*] == true"  # find's per-message matcher alike
-    result = subprocess.run(
-        [BAGKIT, "find", wrong, "--when", when], capture_output=True, text=True, check=False
-    )
+    result = bagkit("find", wrong, "--when", when)
     assert result.returncode == 2
     assert "serialization format 'wrong_format' is not CDR" in result.stderr
 
@@ -308,10 +295,7 @@ def test_suggest_asks_no_nan_of_a_topic_none_of_whose_messages_decode(
     seen of its values and ``isnan(*)`` would assert nothing; /topic's timing is still kept."""
     bag = tmp_path / "talker"  # copied: its .db3 would gain -shm/-wal files
     shutil.copytree(interop_dir / "rosbag2_py/test/resources/sqlite3/talker", bag)
-    result = subprocess.run(
-        [BAGKIT, "check", bag, "--suggest", "--format", "json"],
-        capture_output=True, text=True, check=False,
-    )  # fmt: skip
+    result = bagkit("check", bag, "--suggest", "--format", "json")
     assert result.returncode == 0, result.stderr
     topics = json.loads(result.stdout)["topics"]
     assert "never" not in topics["/rosout"]
@@ -324,18 +308,12 @@ def test_a_latency_source_a_bag_lacks_breaks_that_bag_s_assertion(tmp_path: Path
     stopped the whole check."""
     faults = FIXTURES / "faults" / "golden"
     without = tmp_path / "without_imu"
-    done = subprocess.run(
-        [BAGKIT, "filter", faults, "-o", without, "--exclude-topics", "/imu/data"],
-        capture_output=True, text=True, check=False,
-    )  # fmt: skip
+    done = bagkit("filter", faults, "-o", without, "--exclude-topics", "/imu/data")
     assert done.returncode == 0, done.stderr
     spec = tmp_path / "health.yaml"
     latency = "latency(/imu/data -> /fusion/odometry, header.stamp) > 1s"
     spec.write_text(f"topics:\n  /fusion/odometry:\n    never: [isnan(*), '{latency}']\n")
-    result = subprocess.run(
-        [BAGKIT, "check", faults, without, "--spec", spec, "--format", "json", "--workers", "0"],
-        capture_output=True, text=True, check=False,
-    )  # fmt: skip
+    result = bagkit("check", faults, without, "--spec", spec, "--format", "json", "--workers", "0")
     assert result.returncode == 1, result.stderr
     whole, cut = json.loads(result.stdout)
     assert whole["passed"] and not cut["passed"]

@@ -235,10 +235,7 @@ def test_the_foxglove_link_of_a_split_bag_opens_the_file_holding_the_break(tmp_p
     from mcap.reader import make_reader
 
     split = tmp_path / "split"
-    done = subprocess.run(
-        [BAGKIT, "filter", FIXTURES / "faults" / "golden", "-o", split, "-d", "5"],
-        capture_output=True, text=True, check=False,
-    )  # fmt: skip
+    done = bagkit_cli("filter", FIXTURES / "faults" / "golden", "-o", split, "-d", "5")
     assert done.returncode == 0, done.stderr
     starts = {}
     for file in split.glob("*.mcap"):
@@ -248,10 +245,9 @@ def test_the_foxglove_link_of_a_split_bag_opens_the_file_holding_the_break(tmp_p
     assert len(starts) > 3
     spec = tmp_path / "health.yaml"
     spec.write_text(SPEC)
-    result = subprocess.run(
-        [BAGKIT, "check", split, "--spec", spec, "--format", "json", "--bags-url", "https://b/"],
-        capture_output=True, text=True, check=False,
-    )  # fmt: skip
+    result = bagkit_cli(
+        "check", split, "--spec", spec, "--format", "json", "--bags-url", "https://b/"
+    )
     (report,) = json.loads(result.stdout)
     failed = [a for a in report["assertions"] if not a["passed"]]
     assert failed
@@ -285,10 +281,9 @@ def test_the_cut_command_of_a_bag_file_names_its_output_without_the_suffix(
     bag.write_bytes(golden.read_bytes())
     spec = tmp_path / "health.yaml"
     spec.write_text(SPEC)
-    result = subprocess.run(
-        [BAGKIT, "check", "run.mcap", "--spec", spec, "--format", "json"],
-        capture_output=True, text=True, check=False, cwd=tmp_path,
-    )  # fmt: skip
+    result = bagkit_in_process(
+        ["check", "run.mcap", "--spec", spec, "--format", "json"], cwd=tmp_path
+    )
     (report,) = json.loads(result.stdout)
     _, cut = next(a for a in report["assertions"] if not a["passed"])["commands"]
     assert " -o run_cuts " in cut

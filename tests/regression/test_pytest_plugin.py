@@ -4,11 +4,15 @@ holding only a stranger's fixture: no conftest, the plugin does everything."""
 from __future__ import annotations
 
 import json
+import os
+import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+import yaml
 from doubler_fixture import digest, write_core, write_fixture
 
 from bagkit.regression.golden import update_golden
@@ -166,3 +170,155 @@ def test_each_xdist_worker_gets_a_domain_of_its_own_unless_the_user_set_one(
         assert all(100 <= int(d) < 230 for d in seen.values()), seen
     else:
         assert set(seen.values()) == {users_domain}
+
+
+_COUNTED = '''
+
+def counted_processors():
+    """The doubler, and a line in runs.log for each run that makes it."""
+    import os
+
+    with open("runs.log", "a") as log:
+        log.write(f"{os.environ['PYTEST_XDIST_WORKER']}\\n")
+    if FACTOR < 0:
+        raise ValueError("a negative factor")
+    return make_processors()
+'''
+
+
+@pytest.fixture
+def counted(project: Path) -> Path:
+    """The project's fixture with a health contract (an item per assertion beside the run's
+    item, sharing its run) and a factory that logs each run to ``runs.log``."""
+    core = project / "doubler_core.py"
+    core.write_text(core.read_text() + _COUNTED)
+    spec_file = project / "fixtures" / "ramp" / "spec.yaml"
+    spec = yaml.safe_load(spec_file.read_text())
+    spec["processor"] = "doubler_core:counted_processors"
+    spec["health"] = {"topics": {t: {"max_gap": "2s"} for t in ("/value", "/doubled", "/sum")}}
+    spec_file.write_text(yaml.safe_dump(spec))
+    return project / "runs.log"
+
+
+def item_workers(output: str) -> dict[str, set[str]]:
+    """Item (``lockstep``, ``lockstep-health[...]``) -> the xdist workers that ran it (``-v``)."""
+    found: dict[str, set[str]] = {}
+    for worker, item in re.findall(
+        r"\[(gw\d+)\] \[ *\d+%\] \w+ \S+spec\.yaml::(.+?) *$", output, re.M
+    ):
+        found.setdefault(item, set()).add(worker)
+    return found
+
+
+@pytest.mark.parametrize("dist", ["load", "each"])
+def test_under_xdist_a_run_is_made_once_for_its_items_on_every_worker(
+    counted: Path, pytester: pytest.Pytester, dist: str
+) -> None:
+    """The lockstep item and its 4 health items share one run, whichever workers xdist gives
+    them to (``each``: all of them to both)."""
+    result = pytester.runpytest_subprocess("-v", "-n", "2", "-p", "xdist", "--dist", dist)
+    items = 6 + 1 + 4  # health on the golden (3 topics), the run, health on its 2 outputs
+    result.assert_outcomes(passed=items * (2 if dist == "each" else 1))
+    assert counted.read_text().count("\n") == 1, counted.read_text()
+    if dist == "each":
+        ran = item_workers(result.stdout.str())
+        assert ran["lockstep"] == {"gw0", "gw1"}
+        assert len(ran) == items and all(w == {"gw0", "gw1"} for w in ran.values()), ran
+
+
+def test_under_loadgroup_a_runs_items_are_one_group(
+    counted: Path, pytester: pytest.Pytester
+) -> None:
+    """``--dist loadgroup``: the run's items go to one worker (none waits on another's run),
+    and the golden's health items to one worker."""
+    result = pytester.runpytest_subprocess("-v", "-n", "2", "-p", "xdist", "--dist", "loadgroup")
+    result.assert_outcomes(passed=6 + 1 + 4)
+    assert counted.read_text().count("\n") == 1, counted.read_text()
+    ran = item_workers(result.stdout.str())
+    for group in ("golden-health[", "lockstep"):
+        workers = set().union(*(w for item, w in ran.items() if item.startswith(group)))
+        assert len(workers) == 1, ran
+
+
+def test_under_xdist_a_failed_run_fails_each_workers_item_once_made(
+    counted: Path, pytester: pytest.Pytester
+) -> None:
+    """The run's exception crosses to the other worker: its item fails with the same error,
+    its health items are skipped naming it, and the run was made once."""
+    write_core(counted.parent, factor=-1.0)
+    core = counted.parent / "doubler_core.py"
+    core.write_text(core.read_text() + _COUNTED)
+    result = pytester.runpytest_subprocess("-rA", "-n", "2", "-p", "xdist", "--dist", "each")
+    result.assert_outcomes(passed=2 * 6, failed=2, skipped=2 * 4)
+    assert counted.read_text().count("\n") == 1, counted.read_text()
+    out = result.stdout.str()
+    failure = "processor doubler_core:counted_processors failed: ValueError: a negative factor"
+    failed_on = re.findall(rf"^\[(gw\d)\] linux .*\n{re.escape(failure)}$", out, re.M)
+    assert sorted(failed_on) == ["gw0", "gw1"], out  # each worker's ::lockstep
+    assert "SKIPPED [8] " in out and f"the lockstep run failed: {failure}" in out, out
+
+
+# A worker that cannot reach the controller's directory, as one on another machine (--tx ssh).
+_ELSEWHERE = """
+import pytest
+
+@pytest.hookimpl(wrapper=True)
+def pytest_configure_node(node):
+    yield
+    node.workerinput["bagkit_golden_shared"] = "/nonexistent/elsewhere"
+"""
+
+
+def test_workers_that_cannot_share_runs_stop_the_session(
+    counted: Path, pytester: pytest.Pytester
+) -> None:
+    pytester.makeconftest(_ELSEWHERE)
+    result = pytester.runpytest_subprocess("-n", "2", "-p", "xdist")
+    assert result.ret != pytest.ExitCode.OK
+    result.stdout.fnmatch_lines(["*UsageError: golden fixtures under pytest-xdist share*"])
+    assert "/nonexistent/elsewhere is not on this machine" in result.stdout.str()
+    assert not counted.exists()  # no run made
+
+
+# A process of each live run beside the thermostat's node: a line in turns.log when the run
+# starts its system, one when it stops it (SIGINT).
+_TURN = """
+import pathlib, signal, sys
+
+def log(what):
+    with pathlib.Path("turns.log").open("a") as turns:
+        turns.write(f"{what} {pathlib.Path(sys.argv[1]).name}\\n")
+
+log("start")
+try:
+    signal.pause()
+except KeyboardInterrupt:
+    log("stop")
+"""
+
+
+@pytest.mark.ros
+def test_live_runs_of_workers_sharing_the_users_domain_take_turns(
+    pytester: pytest.Pytester, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Two fixtures' live runs on two workers, on one ROS_DOMAIN_ID the user set: run at once,
+    each fixture's node would see both replays (and its recorder both nodes' outputs); they run
+    one after the other, and both pass."""
+    example = Path(__file__).resolve().parents[2] / "examples" / "thermostat"
+    root = pytester.path
+    shutil.copytree(example, root, dirs_exist_ok=True, ignore=shutil.ignore_patterns("__pycache__"))
+    (root / "turn.py").write_text(_TURN)
+    office = root / "fixtures" / "office"
+    spec = yaml.safe_load((office / "spec.yaml").read_text())
+    spec["launch"] = [spec["launch"], "python turn.py {fixture}"]
+    (office / "spec.yaml").write_text(yaml.safe_dump(spec))
+    shutil.copytree(office, root / "fixtures" / "annex")
+    monkeypatch.setenv("ROS_DOMAIN_ID", os.environ["BAGKIT_TEST_SPARE_DOMAIN_ID"])
+    result = pytester.runpytest_subprocess(
+        "-n", "2", "-p", "xdist", "--golden-mode", "live", "--golden-failures", "failures"
+    )
+    result.assert_outcomes(passed=2)
+    turns = [line.split() for line in (root / "turns.log").read_text().splitlines()]
+    first, second = turns[0][1], turns[2][1]
+    assert turns == [["start", first], ["stop", first], ["start", second], ["stop", second]], turns
+    assert {first, second} == {"office", "annex"}
