@@ -6,13 +6,15 @@ player that must not lose a first message watches the graph for 3 s. Where disco
 to this host, the participants there can be counted instead: each one binds the metatraffic
 unicast port of its participant id (RTPS 9.6.1.1: 7400 + 250 * domain + 10 + 2 * id), and each
 ROS participant publishes ``ros_discovery_info``. Once every bound port's participant has been
-discovered, and each one's readers have arrived, no subscriber is still to come.
+discovered, its nodes named and their readers arrived (:func:`settled`), no subscriber is
+still to come.
 """
 
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping, Set
+from dataclasses import dataclass
 from pathlib import Path
 
 from rclpy.node import Node
@@ -33,17 +35,19 @@ _FAST_DDS_VENDOR = bytes([1, 15])
 _PID_LIMIT = 1 << 22  # Linux's largest pid_max
 # A gid is a GUID: the participant's prefix, then the entity id.
 _PREFIX = 12
+# The node name rmw gives an endpoint that no participant's entities message has named yet.
+_UNKNOWN_NODE = "_NODE_NAME_UNKNOWN_"
 
 
 class Census:
     """Whether ``node`` has discovered every participant on this host and their readers.
 
     A participant is in the graph once its ``ros_discovery_info`` writer has been discovered,
-    but its readers come in a separate discovery stream: when that stream's first packet was
-    lost, they came at its resend (1 s with Fast DDS), and a census of participants alone had
-    ended the wait before the one subscriber was found. So a participant other than this one
-    also needs a reader in the graph: the stream brings them together, and every ROS
-    participant has one (it reads ``ros_discovery_info``).
+    but its readers come in a separate discovery stream, and its nodes' names in a message on
+    that topic: each may come a resend later (1 s with Fast DDS) on a loaded machine. A census
+    of participants alone, and then one that took the participant's first reader for all of
+    them, had ended the wait before the one subscriber was found. So each other participant
+    must also be settled (:func:`settled`): its nodes named and each node's readers arriving.
     """
 
     def __init__(self, node: Node) -> None:
@@ -52,7 +56,7 @@ class Census:
         self._own: bytes | None = None
 
     def __call__(self) -> bool:
-        """True once every participant on this host, and a reader of each other one, is found."""
+        """True once every participant on this host is found and settled (:func:`settled`)."""
         on_host = host_participants(self._domain)
         if on_host is None:
             return False
@@ -62,14 +66,15 @@ class Census:
         own = self._own_prefix()
         if own is None:
             return False
-        with_readers = {gid[:_PREFIX] for gid in self._readers_in_graph()}
-        return participants - {own} <= with_readers
+        node = self._node
+        nodes = {(name, namespace) for name, namespace in node.get_node_names_and_namespaces()}
+        return settled(participants - {own}, self._endpoints(), nodes - {_name(node)})
 
     def _own_prefix(self) -> bytes | None:
         """The GUID prefix of ``node``'s participant, from one of its publishers in the graph."""
         if self._own is None:
             node = self._node
-            me = (node.get_name(), node.get_namespace())
+            me = _name(node)
             for topic, _ in node.get_publisher_names_and_types_by_node(*me):
                 for info in node.get_publishers_info_by_topic(topic):
                     if (info.node_name, info.node_namespace) == me:
@@ -77,13 +82,57 @@ class Census:
                         return self._own
         return self._own
 
-    def _readers_in_graph(self) -> set[bytes]:
+    def _endpoints(self) -> list[Endpoint]:
+        """Every reader and writer in the graph."""
         node = self._node
-        return {
-            bytes(info.endpoint_gid)
-            for name, _ in node.get_topic_names_and_types(no_demangle=True)
-            for info in node.get_subscriptions_info_by_topic(name, no_mangle=True)
-        }
+        endpoints = []
+        for topic, _ in node.get_topic_names_and_types(no_demangle=True):
+            for reader, infos in (
+                (True, node.get_subscriptions_info_by_topic(topic, no_mangle=True)),
+                (False, node.get_publishers_info_by_topic(topic, no_mangle=True)),
+            ):
+                for info in infos:
+                    named = info.node_name != _UNKNOWN_NODE
+                    owner = (info.node_name, info.node_namespace) if named else None
+                    endpoints.append(Endpoint(bytes(info.endpoint_gid), owner, reader=reader))
+        return endpoints
+
+
+@dataclass(frozen=True, slots=True)
+class Endpoint:
+    """A reader or writer in the graph: its gid, and its node (None while unnamed)."""
+
+    gid: bytes
+    node: tuple[str, str] | None
+    reader: bool
+
+
+def settled(others: Set[bytes], endpoints: Iterable[Endpoint], nodes: Set[tuple[str, str]]) -> bool:
+    """Whether the participants ``others`` (GUID prefixes) have shown what they subscribe to.
+
+    Each needs a reader in the graph and an endpoint named after one of its nodes (the message
+    that names its nodes and their endpoints has arrived), and every node in ``nodes`` (the
+    graph's, this participant's excepted) needs a reader of its own in the graph: a node
+    whose name arrived before its readers, or a participant whose discovery writer and first
+    reader arrived before the rest, is not settled. A node without any reader keeps the
+    census at False, and the watch then ends at the discovery time.
+    """
+    with_reader: set[bytes] = set()
+    named: set[bytes] = set()
+    reading: set[tuple[str, str]] = set()
+    for endpoint in endpoints:
+        prefix = endpoint.gid[:_PREFIX]
+        if endpoint.reader:
+            with_reader.add(prefix)
+        if endpoint.node is not None:
+            named.add(prefix)
+            if endpoint.reader:
+                reading.add(endpoint.node)
+    return others <= with_reader and others <= named and nodes <= reading
+
+
+def _name(node: Node) -> tuple[str, str]:
+    return (node.get_name(), node.get_namespace())
 
 
 def all_discovered(node: Node, environ: Mapping[str, str]) -> Census | None:
@@ -92,8 +141,8 @@ def all_discovered(node: Node, environ: Mapping[str, str]) -> Census | None:
     None when discovery reaches beyond this host (``ROS_AUTOMATIC_DISCOVERY_RANGE`` other than
     LOCALHOST, or static peers): participants elsewhere cannot be counted. The census says
     False while the count cannot be trusted (:func:`host_participants`), a participant on this
-    host is not in the graph yet (one that is no ROS participant never is), or its readers are
-    not (:class:`Census`).
+    host is not in the graph yet (one that is no ROS participant never is), or one is not
+    settled (:func:`settled`).
     """
     if not localhost_only(environ) or environ.get("ROS_STATIC_PEERS", "").strip():
         return None

@@ -1,4 +1,5 @@
-"""The participant census: a Fast DDS participant of an exited process; readers still to come."""
+"""The participant census: a Fast DDS participant of an exited process; readers and node names
+still to come."""
 
 from __future__ import annotations
 
@@ -10,7 +11,13 @@ from typing import Any
 
 import pytest
 
-from bagkit.ros.participants import _process_may_live, all_discovered, live_participant_gids
+from bagkit.ros.participants import (
+    Endpoint,
+    _process_may_live,
+    all_discovered,
+    live_participant_gids,
+    settled,
+)
 
 FAST_DDS_PREFIX = bytes([1, 15, 0x78, 0xFD])
 
@@ -41,6 +48,44 @@ def test_a_participant_of_an_exited_process_does_not() -> None:
 def test_another_vendor_always_counts() -> None:
     # RTI's vendor id: its prefix does not hold a process id that we know of.
     assert _process_may_live(_gid(pid=0xFFFE, vendor_prefix=bytes([1, 1, 0, 0])))
+
+
+OTHER = FAST_DDS_PREFIX + bytes(range(8))
+LISTENER = ("replay_listener", "/")
+
+
+def _endpoint(entity: int, node: tuple[str, str] | None, *, reader: bool) -> Endpoint:
+    return Endpoint(OTHER + entity.to_bytes(4, "big"), node, reader=reader)
+
+
+# What the player's graph showed when a census ended the wait before the listener's two
+# subscriptions arrived: its participant's discovery writer and reader, nothing of its node.
+DISCOVERY_ONLY = [_endpoint(0x0103, None, reader=False), _endpoint(0x0204, None, reader=True)]
+NODE_WRITERS = [
+    _endpoint(0x0303, LISTENER, reader=False),
+    _endpoint(0x0503, LISTENER, reader=False),
+]
+NODE_READERS = [_endpoint(0x1304, LISTENER, reader=True), _endpoint(0x1404, LISTENER, reader=True)]
+
+
+def test_a_participant_whose_node_is_not_named_yet_is_not_settled() -> None:
+    assert not settled({OTHER[:12]}, DISCOVERY_ONLY, set())
+
+
+def test_a_node_whose_readers_have_not_arrived_is_not_settled() -> None:
+    assert not settled({OTHER[:12]}, DISCOVERY_ONLY + NODE_WRITERS, {LISTENER})
+
+
+def test_a_named_node_with_its_readers_is_settled() -> None:
+    endpoints = DISCOVERY_ONLY + NODE_WRITERS + NODE_READERS
+    assert settled({OTHER[:12]}, endpoints, {LISTENER})
+
+
+def test_a_node_of_a_participant_not_yet_found_keeps_the_census() -> None:
+    # A node named in the graph with no reader there yet, wherever its participant is.
+    stranger = ("stranger", "/")
+    endpoints = DISCOVERY_ONLY + NODE_WRITERS + NODE_READERS
+    assert not settled({OTHER[:12]}, endpoints, {LISTENER, stranger})
 
 
 # A participant in another process with a node that subscribes.

@@ -20,7 +20,7 @@ from bagkit.ros.replay.publishers import TopicOutput
 from bagkit.selection.times import NS_PER_S
 from bagkit.words import counted
 
-# The graph counts as settled when it has not changed for this long.
+# Without a census, the graph counts as settled when it has not changed for this long.
 GRAPH_SETTLE_S = 0.2
 # A publisher sees a subscription match before the subscription sees the publisher; the first
 # message is only safe once both sides have matched, which we cannot observe from here.
@@ -44,10 +44,11 @@ def wait_until_matched(
 
     A subscription in another process shows up in the graph only when its participant's
     discovery announcement arrives, so the graph is watched until ``settled_at`` (monotonic;
-    ``CENSUS_OVERTIME_S`` later with a census), or until ``all_discovered`` says that every
-    participant has been found, and until it has been unchanged for ``GRAPH_SETTLE_S``; every
-    compatible subscription seen by then must match, then ``MATCH_GRACE_S`` more. Topics in
-    ``wait_for`` additionally need at least one subscription.
+    ``CENSUS_OVERTIME_S`` later with a census) and until it has been unchanged for
+    ``GRAPH_SETTLE_S``, or until ``all_discovered`` says that every participant has been found
+    with its nodes and their readers; every compatible subscription seen by then must match,
+    then ``MATCH_GRACE_S`` more. Topics in ``wait_for`` additionally need at least one
+    subscription.
 
     Returns:
         How long it waited, and for what.
@@ -73,9 +74,7 @@ def wait_until_matched(
             last_change = now
         if not found_all and now < watch_end and all_discovered is not None:
             found_all = all_discovered()
-            if found_all:  # the last participant's endpoints may still be arriving
-                last_change = now
-        settled = now >= last_change + GRAPH_SETTLE_S and (found_all or now >= watch_end)
+        settled = found_all or (now >= watch_end and now >= last_change + GRAPH_SETTLE_S)
         pending = [
             f"{out.name} ({count} of {counted(expected, 'subscription')} matched)"
             for out, count in zip(outputs, matched, strict=True)
