@@ -44,16 +44,18 @@ $(S3RVER):
 # uv (pinned in the lock) installs the lock: pip would take minutes longer. Unlike pip, uv
 # writes no bytecode unless asked; where PYTHONDONTWRITEBYTECODE is set (as in CI) every process
 # would then compile numpy, pandas and rclpy from source at each start (benchmarks/README.md).
+# .venv's uv installs the other Pythons' venvs too: they need no pip of their own to get one.
+UV := $(VENV)/bin/uv
 define install_locked
-	$(1)/bin/python -m pip install --quiet "$$(grep -m1 '^uv==' $(LOCK))"
-	$(1)/bin/uv pip install --quiet --compile-bytecode --python $(1)/bin/python -r $(LOCK)
-	$(1)/bin/uv pip install --quiet --python $(1)/bin/python --no-deps -e . -e ./fusion
+	$(UV) pip install --quiet --compile-bytecode --python $(1)/bin/python -r $(LOCK)
+	$(UV) pip install --quiet --python $(1)/bin/python --no-deps -e . -e ./fusion
 endef
 
 $(STAMP): $(SOURCES)
 	@test -n "$(PYTHON)" || { echo "error: no Python 3.10-3.13 found (tried $(PYTHONS)); \
 		give one: make PYTHON=/path/to/python3.12" >&2; exit 2; }
 	$(PYTHON) -m venv $(VENV)
+	$(VENV)/bin/python -m pip install --quiet "$$(grep -m1 '^uv==' $(LOCK))"
 	$(call install_locked,$(VENV))
 	touch $(STAMP)
 
@@ -99,13 +101,12 @@ RESOLUTION ?= locked
 XVENV := .venv-$(PYV)$(if $(filter locked,$(RESOLUTION)),,-$(RESOLUTION))
 XPYTHON ?= $(shell pyenv prefix $$(pyenv versions --bare | grep -m1 '^$(PYV)\.'))/bin/python$(PYV)
 
-$(XVENV)/.installed: $(SOURCES)
-	$(XPYTHON) -m venv --clear $(XVENV)
+$(XVENV)/.installed: $(SOURCES) | $(STAMP)
+	$(XPYTHON) -m venv --clear --without-pip $(XVENV)
 ifeq ($(RESOLUTION),locked)
 	$(call install_locked,$(XVENV))
 else
-	$(XVENV)/bin/python -m pip install --quiet "$$(grep -m1 '^uv==' $(LOCK))"
-	$(XVENV)/bin/uv pip install --quiet --compile-bytecode --python $(XVENV)/bin/python \
+	$(UV) pip install --quiet --compile-bytecode --python $(XVENV)/bin/python \
 		--resolution $(RESOLUTION) -e '.[all,dev]' -e ./fusion
 endif
 	touch $@
