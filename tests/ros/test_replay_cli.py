@@ -367,8 +367,8 @@ def test_cli_waits_for_the_subscribers_on_the_graph_and_says_so(
         # that has long been announced, so its census must find it.
         waited = _play_waiting_for_the_graph(test_bag, listener, expected)
     if not waited["all_discovered"]:
-        # The census waits for every participant on the domain: another test session that
-        # drew the same domain (conftest: pid % 130) and is not in this graph keeps the watch.
+        # The census waits for every participant on the domain: a process on this domain that
+        # took no lock for it (tests/domains.py) and is not in this graph keeps the watch.
         node = listener.node
         on_host = host_participants(node.context.get_domain_id())
         assert on_host is not None and on_host > discovered_participants(node), waited
