@@ -113,7 +113,7 @@ def test_a_missing_topic_breaks_the_contract(tmp_path: Path) -> None:
         ("topics:\n  /imu/data:\n    never: ['rate < 5 Hz over 0ms']\n", 3, "longer than 0"),
         # A window beyond int64 ns overflowed numpy's time columns (exit 70).
         ("topics:\n  /imu/data:\n    rate: {min: 5, over: 99999999999999999999s}\n", 3, "int64"),
-        ("topics:\n  /imu/data:\n    never: ['rate < 5 Hz over 9999999999s']\n", 3, "not a duration"),
+        ("topics:\n  /imu/data:\n    never: ['rate < 5 Hz over 9999999999s']\n", 3, "duration"),
         (
             "topics:\n  /imu/data:\n    values:\n      linear_acceleration.z: {min: 20, max: 1}\n",
             4,
