@@ -135,6 +135,14 @@ def test_a_bad_spec_is_one_error_naming_its_line(
     assert f"health.yaml:{line}" in lines[0] and words in lines[0]
 
 
+def test_a_spec_that_is_not_utf8_is_one_error(tmp_path: Path) -> None:
+    spec = tmp_path / "health.yaml"
+    spec.write_bytes(b"topics:\n  /x\xff: {}\n")  # was UnicodeDecodeError, exit 70
+    result = bagkit("check", FIXTURES / "nominal" / "golden", "--spec", spec)
+    assert result.returncode == 2
+    assert result.stderr.strip().splitlines() == [f"error: {spec}: not UTF-8 (byte 12)"]
+
+
 def test_a_field_the_type_lacks_is_a_bad_spec(tmp_path: Path) -> None:
     spec = tmp_path / "health.yaml"
     spec.write_text("topics:\n  /imu/data:\n    values:\n      linear_accel.z: {max: 5}\n")
