@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import datetime
-import json
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -11,7 +10,7 @@ from typing import TYPE_CHECKING
 import typer
 import yaml
 
-from bagkit.bag import BagInfo, bag_info, safe_yaml
+from bagkit.bag import BagInfo, bag_info, safe_json, safe_yaml
 from bagkit.bag.action_info import ActionSummary, action_summaries
 from bagkit.bag.compression_words import CompressionWords
 from bagkit.cli import common
@@ -115,7 +114,7 @@ def _custom_data_value(value: str, verbose: bool) -> str:
     if verbose or len(value) <= 60:
         return value
     try:
-        document = json.loads(value)
+        document = safe_json.loads(value)
     except ValueError:
         return value
     if isinstance(document, dict):

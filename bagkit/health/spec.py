@@ -79,9 +79,11 @@ class HealthSpec:
         """
         path = Path(path)
         try:
-            text = path.read_text()
+            text = path.read_bytes().decode("utf-8")
         except OSError as exc:
             raise SpecError(f"{path}: {exc.strerror or exc}") from None
+        except UnicodeDecodeError as exc:
+            raise SpecError(f"{path}: not UTF-8 (byte {exc.start})") from None
         return cls.parse(text, str(path))
 
     @classmethod

@@ -43,9 +43,7 @@ ROOTS = pytest.StashKey[list[Path]]()
 GOLDEN = "golden"
 SPEC_FILE = "spec.yaml"  # regression.spec's, not imported: that imports numpy
 MODE_CHOICES = ("lockstep", "live", "all")
-# Domains of automatic choice: 100-229, above the ones people set by hand. The variable marks a
-# domain the plugin chose, so that xdist workers know they may choose their own.
-_FIRST_DOMAIN, _DOMAINS = 100, 130
+# Marks a domain the plugin chose, so that xdist workers know they may choose their own.
 _CHOSEN_DOMAIN = "BAGKIT_PYTEST_CHOSEN_DOMAIN"
 # user_properties of a golden item's reports: they cross xdist's worker boundary (and land in
 # --junitxml as properties), so the summary is written from what the controller receives.
@@ -149,17 +147,20 @@ def _choose_domain(config: pytest.Config) -> None:
     Workers inherit the controller's environment: without a domain each, the live runs of two
     workers would see each other's nodes. A domain the user set is kept, workers included.
     """
-    worker = getattr(config, "workerinput", None)
-    if worker is None:
-        if "ROS_DOMAIN_ID" not in os.environ:
-            os.environ["ROS_DOMAIN_ID"] = str(_FIRST_DOMAIN + os.getpid() % _DOMAINS)
-            os.environ[_CHOSEN_DOMAIN] = os.environ["ROS_DOMAIN_ID"]
-        return
     chosen = os.environ.get(_CHOSEN_DOMAIN)
-    if chosen is not None and chosen == os.environ.get("ROS_DOMAIN_ID"):
-        index = int(str(worker["workerid"]).removeprefix("gw") or 0)
-        offset = (int(chosen) - _FIRST_DOMAIN + 1 + index) % _DOMAINS
-        os.environ["ROS_DOMAIN_ID"] = str(_FIRST_DOMAIN + offset)
+    if getattr(config, "workerinput", None) is None:
+        if "ROS_DOMAIN_ID" in os.environ:
+            return
+    elif chosen is None or chosen != os.environ.get("ROS_DOMAIN_ID"):
+        return
+    from bagkit.ros.domains import reserve
+    from bagkit.ros.errors import RosError
+
+    try:
+        domain = str(reserve(1, os.getpid()))
+    except RosError as exc:
+        raise pytest.UsageError(str(exc)) from None
+    os.environ["ROS_DOMAIN_ID"] = os.environ[_CHOSEN_DOMAIN] = domain
 
 
 @pytest.hookimpl(optionalhook=True)

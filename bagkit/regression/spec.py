@@ -17,6 +17,7 @@ from typing import Any
 
 import yaml
 
+from bagkit.bag import safe_yaml
 from bagkit.compare import CompareOptions, options_from_mapping
 from bagkit.compare.errors import CompareError
 from bagkit.health.spec import HealthSpec
@@ -174,7 +175,7 @@ def _read(file: Path) -> tuple[Mapping[str, Any], str]:
         if file.stat().st_size > MAX_SPEC_BYTES:
             raise SpecError(f"{file} is larger than {MAX_SPEC_BYTES} bytes")
         text = file.read_text()
-        data = yaml.safe_load(text)
+        data = safe_yaml.load(text)  # depth-limited: a fixture spec may come from anyone
     except OSError as exc:
         raise SpecError(f"cannot read fixture spec {file}: {exc.strerror}") from exc
     except (yaml.YAMLError, UnicodeDecodeError) as exc:

@@ -15,20 +15,17 @@ from __future__ import annotations
 import os
 from collections.abc import Iterable, Mapping, Set
 from dataclasses import dataclass
-from pathlib import Path
 
 from rclpy.node import Node
 
+from bagkit.ros.domains import DOMAIN_GAIN, PORT_BASE, udp_sockets
 from bagkit.ros.fastdds import localhost_only
 
-# RTPS well-known ports (spec 9.6.1.1, the defaults every DDS uses): PB, DG, PG, d1.
-_PORT_BASE = 7400
-_DOMAIN_GAIN = 250
+# RTPS well-known ports (spec 9.6.1.1): a participant's, PG and d1.
 _PARTICIPANT_GAIN = 2
 _METATRAFFIC_UNICAST = 10
 # rmw_dds_common's topic: one publisher per ROS participant (not a ROS name: not mangled).
 _PARTICIPANT_TOPIC = "ros_discovery_info"
-_SOCKET_TABLES = (Path("/proc/net/udp"), Path("/proc/net/udp6"))
 # A GUID prefix from Fast DDS: vendor 1.15, host id (2 bytes), process id (low 2 bytes, little
 # endian), then random and per-process bytes (Fast DDS 2.x GuidUtils).
 _FAST_DDS_VENDOR = bytes([1, 15])
@@ -155,24 +152,20 @@ def host_participants(domain_id: int) -> int | None:
     None when the count cannot be trusted: the socket tables are not readable, or this
     process's own participant is not among them (a transport without UDP).
     """
-    base = _PORT_BASE + _DOMAIN_GAIN * domain_id + _METATRAFFIC_UNICAST
+    base = PORT_BASE + DOMAIN_GAIN * domain_id + _METATRAFFIC_UNICAST
     ports: set[int] = set()
     own: set[int] = set()
     mine = _own_socket_inodes()
     try:
-        for table in _SOCKET_TABLES:
-            if not table.exists():
-                continue
-            for line in table.read_text().splitlines()[1:]:
-                fields = line.split()
-                port = int(fields[1].rsplit(":", 1)[1], 16)
-                offset = port - base
-                if 0 <= offset < _DOMAIN_GAIN - _METATRAFFIC_UNICAST and offset % 2 == 0:
-                    ports.add(port)
-                    if int(fields[9]) in mine:
-                        own.add(port)
+        sockets = udp_sockets()
     except (OSError, ValueError, IndexError):
         return None
+    for port, inode in sockets:
+        offset = port - base
+        if 0 <= offset < DOMAIN_GAIN - _METATRAFFIC_UNICAST and offset % _PARTICIPANT_GAIN == 0:
+            ports.add(port)
+            if inode in mine:
+                own.add(port)
     return len(ports) if own else None
 
 

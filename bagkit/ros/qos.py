@@ -309,9 +309,11 @@ def load_qos_overrides(path: str | Path) -> dict[str, QoSProfile]:
     """
     path = Path(path)
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        data = safe_yaml.load(path.read_text(encoding="utf-8"))
     except OSError as exc:
         raise QosProfileError(f"cannot read QoS overrides {path}: {exc.strerror}") from None
+    except UnicodeDecodeError as exc:
+        raise QosProfileError(f"QoS overrides {path}: not UTF-8 (byte {exc.start})") from None
     except yaml.YAMLError as exc:
         raise QosProfileError(f"QoS overrides {path} is not YAML: {exc}") from None
     if data is None:

@@ -29,6 +29,7 @@ fields. The tree is :mod:`~.condition_terms`, evaluation :mod:`bagkit.selection.
 from __future__ import annotations
 
 import difflib
+import math
 import re
 from collections.abc import Callable
 from typing import NoReturn
@@ -317,8 +318,10 @@ class _Parser:
                 return text[:-2], "Hz"
             return text, "duration"
         if kind == "number":
-            self.at += 1
             number = float(text)
+            if math.isinf(number):  # as a float column compares it: 1e999, 400 digits
+                self._fail("a number within float64 (at most about 1.8e308)")
+            self.at += 1
             value: Value = int(text) if re.fullmatch(r"[+-]?\d+", text) else number
             if self._kind() == "name" and self.tokens[self.at][1] in _UNITS:
                 unit = self._take()[1]

@@ -115,6 +115,8 @@ def parse_duration(value: str | float, option: str = "duration") -> int:
         raise SelectionError(f"bad {option} {value!r}: not a duration (90, 90s, 1m30s, 250ms)")
     if ns < 0:
         raise SelectionError(f"bad {option} {value!r}: a duration cannot be negative")
+    if ns >= MAX_SECONDS * NS_PER_S:  # numpy's int64 time columns could not hold it
+        raise SelectionError(f"bad {option} {value!r}: beyond int64 nanoseconds")
     return ns
 
 

@@ -10,11 +10,11 @@ times, topics), every schema decodable (:class:`bagkit.decode.MessageTypes`) and
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from bagkit.bag import safe_json
 from bagkit.bag.definitions import DEFINITION_ENCODINGS, canonical_type_name
 from bagkit.bag.distro_definitions import distro_definitions
 from bagkit.bag.errors import BagError, BagNotFoundError, NotABagError
@@ -116,7 +116,7 @@ def diagnose(path: Path, *, deep: bool = False) -> DoctorReport:
 def _loss_causes(metadata: BagMetadata) -> list[str]:
     """Why the recorder lost messages, from its counts in custom_data (bagkit record's)."""
     try:
-        loss = json.loads(metadata.custom_data.get(LOSS_CUSTOM_DATA_KEY, "{}"))
+        loss = safe_json.loads(metadata.custom_data.get(LOSS_CUSTOM_DATA_KEY, "{}"))
         causes = [
             large_message_cause(
                 topic, int(c.get("gaps", 0)), int(c.get("messages", 0)), int(c.get("bytes", 0))

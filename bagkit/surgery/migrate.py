@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from bagkit.bag import BagReader
+from bagkit.bag import BagReader, safe_json
 from bagkit.migrate import Rules, Target, TopicMigration, migrate_topic
 from bagkit.native import keep_freed_memory
 from bagkit.surgery.assumed import check_assumed_definitions
@@ -143,7 +143,7 @@ def _entries(previous: str) -> list[Any]:
     if not previous:
         return []
     try:
-        found = json.loads(previous)
-    except json.JSONDecodeError:
+        found = safe_json.loads(previous)
+    except ValueError:
         return [previous]
     return found if isinstance(found, list) else [found]

@@ -319,3 +319,21 @@ def test_a_file_cut_after_its_last_message_lost_nothing(
     assert "error:" not in run.stderr and "lost" not in run.stderr, run.stderr
     if args[0] == "export":
         assert pq.read_table(tmp_path / "all" / "imu" / "data.parquet").num_rows == 300
+
+
+def test_deeply_nested_json_in_custom_data_is_shown_not_a_crash(
+    write_sample_bag: Callable[..., Path],
+) -> None:
+    # Python's json decoder recurses per level: info and doctor ended in a RecursionError.
+    bag = write_sample_bag()
+    deep = "[" * 200_000 + "]" * 200_000
+    metadata = bag / "metadata.yaml"
+    text = metadata.read_text()
+    assert "\n  custom_data:\n" in text
+    custom = f"\n  custom_data:\n    bagkit.record.loss: '{deep}'\n    note: '{deep}'\n"
+    metadata.write_text(text.replace("\n  custom_data:\n", custom))
+    info = bagkit_in_process(["info", bag])
+    assert info.returncode == 0 and info.stderr == "", info.stderr
+    doctor = bagkit_in_process(["doctor", bag])
+    assert "internal error" not in doctor.stderr
+    assert "loss counts (custom_data bagkit.record.loss) are not readable" in doctor.stdout

@@ -111,6 +111,9 @@ def test_a_missing_topic_breaks_the_contract(tmp_path: Path) -> None:
         # Contracts nothing breaks or nothing keeps: a rate over no window, bounds crossed.
         ("topics:\n  /imu/data:\n    rate: {min: 90, over: 0s}\n", 3, "longer than 0"),
         ("topics:\n  /imu/data:\n    never: ['rate < 5 Hz over 0ms']\n", 3, "longer than 0"),
+        # A window beyond int64 ns overflowed numpy's time columns (exit 70).
+        ("topics:\n  /imu/data:\n    rate: {min: 5, over: 99999999999999999999s}\n", 3, "int64"),
+        ("topics:\n  /imu/data:\n    never: ['rate < 5 Hz over 9999999999s']\n", 3, "duration"),
         (
             "topics:\n  /imu/data:\n    values:\n      linear_acceleration.z: {min: 20, max: 1}\n",
             4,
@@ -130,6 +133,14 @@ def test_a_bad_spec_is_one_error_naming_its_line(
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error:"), lines
     assert f"health.yaml:{line}" in lines[0] and words in lines[0]
+
+
+def test_a_spec_that_is_not_utf8_is_one_error(tmp_path: Path) -> None:
+    spec = tmp_path / "health.yaml"
+    spec.write_bytes(b"topics:\n  /x\xff: {}\n")  # was UnicodeDecodeError, exit 70
+    result = bagkit("check", FIXTURES / "nominal" / "golden", "--spec", spec)
+    assert result.returncode == 2
+    assert result.stderr.strip().splitlines() == [f"error: {spec}: not UTF-8 (byte 12)"]
 
 
 def test_a_field_the_type_lacks_is_a_bad_spec(tmp_path: Path) -> None:

@@ -17,6 +17,7 @@ from doubler_fixture import digest, write_core, write_fixture
 
 from bagkit.regression.golden import update_golden
 from bagkit.regression.spec import load_spec
+from bagkit.ros.domains import FIRST, LAST
 
 pytest_plugins = ["pytester"]
 
@@ -155,7 +156,9 @@ def test_each_xdist_worker_gets_a_domain_of_its_own_unless_the_user_set_one(
     users_domain: str | None,
 ) -> None:
     """Workers inherit the controller's environment: two workers' live runs must not share a
-    domain the plugin chose; a domain the user set holds everywhere."""
+    domain the plugin chose, nor one another session holds (this one's); a domain the user set
+    holds everywhere."""
+    held = {os.environ["ROS_DOMAIN_ID"], os.environ["BAGKIT_TEST_SPARE_DOMAIN_ID"]}
     monkeypatch.delenv("ROS_DOMAIN_ID", raising=False)
     if users_domain is not None:
         monkeypatch.setenv("ROS_DOMAIN_ID", users_domain)
@@ -167,7 +170,8 @@ def test_each_xdist_worker_gets_a_domain_of_its_own_unless_the_user_set_one(
     assert set(seen) == {"gw0", "gw1"}, seen
     if users_domain is None:
         assert len(set(seen.values())) == 2, seen
-        assert all(100 <= int(d) < 230 for d in seen.values()), seen
+        assert not held & set(seen.values()), (held, seen)
+        assert all(FIRST <= int(d) <= LAST for d in seen.values()), seen
     else:
         assert set(seen.values()) == {users_domain}
 

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from bagkit_runs import bagkit_in_process
 
 from bagkit.regression.errors import SpecError
 from bagkit.regression.spec import load_spec
@@ -94,3 +95,14 @@ def test_unreadable_files_are_spec_errors(tmp_path: Path) -> None:
     (tmp_path / "spec.yaml").write_text("- a list\n")
     with pytest.raises(SpecError, match="expected a mapping"):
         load_spec(tmp_path)
+
+
+def test_a_deeply_nested_spec_is_one_error(tmp_path: Path) -> None:
+    # Loaded without limits, 30,000 '[' were a RecursionError (exit 70); libyaml's C composer
+    # can end the process instead.
+    (tmp_path / "spec.yaml").write_text("inputs: " + "[" * 30_000 + "]" * 30_000 + "\n")
+    for command in ("check", "migrate"):
+        result = bagkit_in_process(["golden", command, tmp_path])
+        assert result.returncode == 2, result.stderr
+        (line,) = result.stderr.strip().splitlines()
+        assert line.startswith("error:") and "nested deeper than 64 levels" in line

@@ -86,6 +86,11 @@ class Listener:
             received = sorted(self.received, key=lambda r: r.received_ns)
         return [r for r in received if topic is None or r.topic == topic]
 
+    def clear(self) -> None:
+        """Forget what arrived: the next replay's messages are counted alone."""
+        with self._lock:
+            self.received.clear()
+
     def wait_for_publisher(self, topic: str, timeout: float = 30.0) -> None:
         """Until a publisher of ``topic`` is matched: what it sends before is lost (volatile)."""
         subscription = next(s for t, _, s in self.subscriptions if t == topic)

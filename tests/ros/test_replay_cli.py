@@ -334,6 +334,24 @@ def test_replay_gives_itself_the_large_shared_memory_pool_unless_the_user_has_a_
     assert bool(large) is not user_profile, ports
 
 
+def _play_waiting_for_the_graph(
+    test_bag: Path, listener: Listener, expected: list[tuple[str, bytes, int]]
+) -> dict[str, Any]:
+    """``bagkit play`` with the default discovery wait: every message arrives, in order, and
+    the printed line says what was waited for; returns the report's ``waited``."""
+    listener.clear()
+    result = bagkit_cli("play", str(test_bag), "--rate", "100", "--format", "json")
+    assert result.returncode == 0, result.stderr
+    got = listener.wait_for_count(len(expected))
+    texts = [(t, deserialize_message(d, String).data) for t, d, _ in expected]
+    assert [(r.topic, r.text) for r in got] == texts  # the first messages among them
+    waited: dict[str, Any] = json.loads(result.stdout)["waited"]
+    assert waited["subscriptions"] == waited["topics"] == len(SCHEDULE)
+    line = f"waited {waited['seconds']:.1f} s for {len(SCHEDULE)} subscriptions on "
+    assert f"{line}{len(SCHEDULE)} topics" in result.stderr.splitlines()
+    return waited
+
+
 def test_cli_waits_for_the_subscribers_on_the_graph_and_says_so(
     test_bag: Path, listener_factory: type[Listener]
 ) -> None:
@@ -341,18 +359,16 @@ def test_cli_waits_for_the_subscribers_on_the_graph_and_says_so(
     # listener's, this process's) has been found, and the first message is not lost.
     expected = recorded(test_bag)
     listener = listener_factory(STRING_TOPICS)
-    result = bagkit_cli("play", str(test_bag), "--rate", "100", "--format", "json")
-    assert result.returncode == 0, result.stderr
-    got = listener.wait_for_count(len(expected))
-    texts = [(t, deserialize_message(d, String).data) for t, d, _ in expected]
-    assert [(r.topic, r.text) for r in got] == texts  # the first messages among them
-    waited = json.loads(result.stdout)["waited"]
-    assert waited["subscriptions"] == waited["topics"] == len(SCHEDULE)
-    line = f"waited {waited['seconds']:.1f} s for {len(SCHEDULE)} subscriptions on "
-    assert f"{line}{len(SCHEDULE)} topics" in result.stderr.splitlines()
+    waited = _play_waiting_for_the_graph(test_bag, listener, expected)
     if not waited["all_discovered"]:
-        # The census waits for every participant on the domain: another test session that
-        # drew the same domain (conftest: pid % 130) and is not in this graph keeps the watch.
+        # On a loaded machine the listener's node name or readers can reach the player only
+        # after the watch (Fast DDS resends a participant's data about 1 s later): the wait
+        # then ran to the discovery time, and lost nothing. A second replay meets a listener
+        # that has long been announced, so its census must find it.
+        waited = _play_waiting_for_the_graph(test_bag, listener, expected)
+    if not waited["all_discovered"]:
+        # The census waits for every participant on the domain: a process on this domain that
+        # took no lock for it (tests/domains.py) and is not in this graph keeps the watch.
         node = listener.node
         on_host = host_participants(node.context.get_domain_id())
         assert on_host is not None and on_host > discovered_participants(node), waited

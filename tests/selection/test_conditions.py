@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from bagkit_runs import bagkit_in_process
 
 from bagkit.selection.conditions import parse_condition, parse_topic_condition
 from bagkit.selection.errors import SelectionError, UnknownFieldError
@@ -116,6 +117,8 @@ def test_fields_are_checked_against_the_topics_leaves() -> None:
         ("accel.z = 1", "unexpected '=' at column 9"),
         ("accel.z > 1 junk", "expected 'and', 'or', 'for' or the end, found 'junk' at column 13"),
         ("", "it is empty"),
+        ("accel.z > 1e999", "a number within float64 (at most about 1.8e308), found '1e999'"),
+        ("accel.z > -" + "9" * 400, "a number within float64"),
     ],
 )
 def test_a_bad_condition_is_one_error_with_its_position(text: str, where: str) -> None:
@@ -165,3 +168,19 @@ def test_topic_condition_splits_at_the_first_colon() -> None:
         parse_topic_condition("level >= 2")
     with pytest.raises(SelectionError, match="'/alerts: level >=': bad condition"):
         parse_topic_condition("/alerts: level >=")
+
+
+@pytest.mark.parametrize("command", ["find", "filter"])
+def test_a_number_beyond_float64_is_one_error_line(command: str, tmp_path: Path) -> None:
+    # A 400-digit integer reached the float columns' comparison: OverflowError, exit 70.
+    golden = Path(__file__).parents[2] / "fixtures" / "fast" / "golden"
+    condition = "/imu/data: linear_acceleration.z > -" + "9" * 400
+    args: list[str | Path] = (
+        ["find", golden, "--when", condition]
+        if command == "find"
+        else ["filter", golden, "-o", tmp_path / "out", "--where", condition]
+    )
+    result = bagkit_in_process(args)
+    assert result.returncode == 2
+    (line,) = result.stderr.strip().splitlines()
+    assert line.startswith("error:") and "a number within float64" in line

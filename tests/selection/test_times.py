@@ -92,6 +92,13 @@ def test_bad_durations(text: str) -> None:
         parse_duration(text, "--post")
 
 
+@pytest.mark.parametrize("text", ["99999999999999999999s", "9223372037s", "2562048h", 1e19])
+def test_a_duration_beyond_int64_nanoseconds_is_one_error(text: str | float) -> None:
+    # An unbounded window reached numpy's int64 time columns: OverflowError, exit 70.
+    with pytest.raises(SelectionError, match=r"^bad --post .*int64"):
+        parse_duration(text, "--post")
+
+
 def test_iso_8601_keeps_nanoseconds_and_reads_what_python_3_10_does_not() -> None:
     base = parse_time("2025-11-22T22:20:00Z").ns
     assert parse_time("2025-11-22T22:20:00.123456789Z").ns == base + 123_456_789
