@@ -19,13 +19,20 @@ REPO = Path(__file__).resolve().parents[1]
 # Whole packages, and the modules of bagkit.ros that the recorder, the player and the CLI use
 # before any node exists.
 RCLPY_FREE_PACKAGES = ("bag", "recording", "playback", "selection")
-RCLPY_FREE_ROS_MODULES = ("bagkit.native", "bagkit.ros.fastdds", "bagkit.ros.tuning")
+# (and the pytest plugin at pytest's start: bagkit.ros.domains).
+RCLPY_FREE_ROS_MODULES = (
+    "bagkit.native",
+    "bagkit.ros.domains",
+    "bagkit.ros.fastdds",
+    "bagkit.ros.tuning",
+)
 
 # Every module of bagkit/ros/. Logic that needs no rclpy lives in bagkit/recording/ or
 # bagkit/playback/; what stays here without importing rclpy is an adapter, each for a reason.
 ROS_ADAPTERS = {
     "bagkit/ros/__init__.py": "package",
     "bagkit/ros/control.py": "rclpy",
+    "bagkit/ros/domains.py": "holds the middleware's domains (their ports) before a participant",
     "bagkit/ros/errors.py": "the errors of the adapters here",
     "bagkit/ros/fastdds.py": "configures the middleware (Fast DDS) before a participant exists",
     "bagkit/ros/graph.py": "rclpy",
