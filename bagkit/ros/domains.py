@@ -49,7 +49,10 @@ def _in_use(domain: int, bound: set[int]) -> bool:
 
 
 def _lock(domain: int) -> IO[bytes] | None:
-    lock = (_LOCKS / f"{domain}.lock").open("wb")
+    try:
+        lock = (_LOCKS / f"{domain}.lock").open("wb")
+    except OSError:  # another user's lock file: theirs
+        return None
     try:
         fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except BlockingIOError:
@@ -64,9 +67,13 @@ def reserve(count: int, seed: int) -> int:
     ``seed`` (a pid) picks where the search starts, so that sessions rarely contend.
 
     Raises:
-        RosError: every run of ``count`` domains in ``FIRST`` - ``LAST`` is held or bound.
+        RosError: every run of ``count`` domains in ``FIRST`` - ``LAST`` is held or bound, or
+            the lock directory cannot be made.
     """
-    _LOCKS.mkdir(exist_ok=True)
+    try:
+        _LOCKS.mkdir(exist_ok=True)
+    except OSError as exc:
+        raise RosError(f"cannot hold ROS domains in {_LOCKS}: {exc}: set ROS_DOMAIN_ID") from None
     starts = list(range(FIRST, LAST - count + 2, count))
     try:
         bound = {port for port, _ in udp_sockets()}

@@ -87,3 +87,23 @@ def test_no_free_domain_is_an_error_that_says_what_to_do(
     domains.reserve(2, 0)
     with pytest.raises(RosError, match="no 1 free ROS domains in 200 - 201: set ROS_DOMAIN_ID"):
         domains.reserve(1, 0)
+
+
+def test_a_lock_directory_that_cannot_be_made_is_an_error_that_says_what_to_do(
+    locks: Path, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    blocker = tmp_path / "a-file"
+    blocker.write_bytes(b"")
+    monkeypatch.setattr(domains, "_LOCKS", blocker / "locks")
+    with pytest.raises(RosError, match=r"cannot hold ROS domains in .*: set ROS_DOMAIN_ID$"):
+        domains.reserve(1, 0)
+
+
+def test_a_lock_file_this_process_cannot_open_is_another_users_domain(
+    locks: Path, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    monkeypatch.setattr(domains, "_LOCKS", tmp_path)
+    monkeypatch.setattr(domains, "FIRST", 200)
+    monkeypatch.setattr(domains, "LAST", 201)
+    (tmp_path / "200.lock").mkdir()  # opening it for writing fails, as another user's file
+    assert domains.reserve(1, 0) == 201
