@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import shutil
 import textwrap
 from pathlib import Path
 
@@ -46,6 +47,8 @@ def write_core(package_dir: Path, factor: float = 2.0) -> Path:
     package_dir.mkdir(parents=True, exist_ok=True)
     core = package_dir / "doubler_core.py"
     core.write_text(textwrap.dedent(CORE.format(factor=factor)))
+    # Rewritten within the second at the same size, the core's old bytecode would pass as fresh.
+    shutil.rmtree(package_dir / "__pycache__", ignore_errors=True)
     return core
 
 

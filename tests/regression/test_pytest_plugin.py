@@ -32,8 +32,6 @@ def project(pytester: pytest.Pytester, monkeypatch: pytest.MonkeyPatch) -> Path:
     write_core(root)
     fixture = write_fixture(root / "fixtures" / "ramp")
     monkeypatch.syspath_prepend(str(root))
-    # the core is rewritten within a second: no bytecode cache that could hide the change
-    monkeypatch.setenv("PYTHONDONTWRITEBYTECODE", "1")
     assert update_golden(load_spec(fixture)).rewritten  # the first outputs
     return root
 
