@@ -45,11 +45,9 @@ $(S3RVER):
 # writes no bytecode unless asked; where PYTHONDONTWRITEBYTECODE is set (as in CI) every process
 # would then compile numpy, pandas and rclpy from source at each start (benchmarks/README.md).
 # .venv's uv installs the other Pythons' venvs too: they need no pip of their own to get one.
-# Those venvs are for the tests alone, which write the bytecode of what they import (below):
-# a tenth of what --compile-bytecode compiles.
 UV := $(VENV)/bin/uv
 define install_locked
-	$(UV) pip install --quiet $(2) --python $(1)/bin/python -r $(LOCK)
+	$(UV) pip install --quiet --compile-bytecode --python $(1)/bin/python -r $(LOCK)
 	$(UV) pip install --quiet --python $(1)/bin/python --no-deps -e . -e ./fusion
 endef
 
@@ -58,7 +56,7 @@ $(STAMP): $(SOURCES)
 		give one: make PYTHON=/path/to/python3.12" >&2; exit 2; }
 	$(PYTHON) -m venv $(VENV)
 	$(VENV)/bin/python -m pip install --quiet "$$(grep -m1 '^uv==' $(LOCK))"
-	$(call install_locked,$(VENV),--compile-bytecode)
+	$(call install_locked,$(VENV))
 	touch $(STAMP)
 
 demo: $(STAMP)
@@ -108,15 +106,13 @@ $(XVENV)/.installed: $(SOURCES) | $(STAMP)
 ifeq ($(RESOLUTION),locked)
 	$(call install_locked,$(XVENV))
 else
-	$(UV) pip install --quiet --python $(XVENV)/bin/python \
+	$(UV) pip install --quiet --compile-bytecode --python $(XVENV)/bin/python \
 		--resolution $(RESOLUTION) -e '.[all,dev]' -e ./fusion
 endif
 	touch $@
 
-# PYTESTS: which tests (default: the whole offline suite). Its venv has no bytecode compiled
-# at install: the tests write it as they import, also where PYTHONDONTWRITEBYTECODE is set.
+# PYTESTS: which tests (default: the whole offline suite).
 PYTESTS ?= tests
-test-py: export PYTHONDONTWRITEBYTECODE :=
 test-py: $(XVENV)/.installed $(AZURITE)
 	$(XVENV)/bin/python -m compileall -q bagkit fusion
 	$(XVENV)/bin/python -m pytest -q -p no:cacheprovider -m "not ros" -n 2 $(PYTESTS)
