@@ -7,8 +7,6 @@ import json
 import os
 import re
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -116,26 +114,6 @@ def test_a_broken_spec_is_one_error_line(project: Path, pytester: pytest.Pyteste
     assert result.ret == pytest.ExitCode.INTERRUPTED
     result.stdout.fnmatch_lines(["*error: *processor must read module.path:function*"])
     assert "Traceback" not in result.stdout.str()
-
-
-# The fixture's live item replays over DDS (lockstep alone never imports the warning's module).
-@pytest.mark.ros
-def test_a_users_run_shows_no_warning_from_the_ros_wheels(tmp_path: Path) -> None:
-    """lark-parser (rosidl_parser's, imported with a message's type support) warns on import:
-    not the user's to fix, so not in the user's run."""
-    fixture = Path(__file__).resolve().parents[2] / "fixtures" / "faults"
-    result = subprocess.run(
-        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", str(fixture)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-        cwd=tmp_path,
-        check=False,
-    )
-    assert result.returncode == 0, result.stdout
-    assert "lockstep" in result.stdout or "passed" in result.stdout
-    assert "warnings summary" not in result.stdout, result.stdout
-    assert "DeprecationWarning" not in result.stdout
 
 
 _WRITE_DOMAIN = """
