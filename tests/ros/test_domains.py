@@ -25,6 +25,15 @@ def locks(monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
         lock.close()  # type: ignore[attr-defined]
 
 
+@pytest.fixture
+def two_domains(locks: Path, monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> Path:
+    """Domains 200 and 201 only, locked in ``tmp_path`` (returned), away from other tests'."""
+    monkeypatch.setattr(domains, "_LOCKS", tmp_path)
+    monkeypatch.setattr(domains, "FIRST", 200)
+    monkeypatch.setattr(domains, "LAST", 201)
+    return tmp_path
+
+
 def _seed_for(domain: int, count: int = 1) -> int:
     """The seed whose search starts at ``domain``."""
     return (domain - domains.FIRST) // count
@@ -78,12 +87,7 @@ def test_another_process_holding_a_domain_keeps_it(locks: Path) -> None:
     assert domains.reserve(1, _seed_for(held)) == held
 
 
-def test_no_free_domain_is_an_error_that_says_what_to_do(
-    locks: Path, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
-) -> None:
-    monkeypatch.setattr(domains, "_LOCKS", tmp_path)
-    monkeypatch.setattr(domains, "FIRST", 200)
-    monkeypatch.setattr(domains, "LAST", 201)
+def test_no_free_domain_is_an_error_that_says_what_to_do(two_domains: Path) -> None:
     domains.reserve(2, 0)
     with pytest.raises(RosError, match="no 1 free ROS domains in 200 - 201: set ROS_DOMAIN_ID"):
         domains.reserve(1, 0)
@@ -99,11 +103,6 @@ def test_a_lock_directory_that_cannot_be_made_is_an_error_that_says_what_to_do(
         domains.reserve(1, 0)
 
 
-def test_a_lock_file_this_process_cannot_open_is_another_users_domain(
-    locks: Path, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
-) -> None:
-    monkeypatch.setattr(domains, "_LOCKS", tmp_path)
-    monkeypatch.setattr(domains, "FIRST", 200)
-    monkeypatch.setattr(domains, "LAST", 201)
-    (tmp_path / "200.lock").mkdir()  # opening it for writing fails, as another user's file
+def test_a_lock_file_this_process_cannot_open_is_another_users_domain(two_domains: Path) -> None:
+    (two_domains / "200.lock").mkdir()  # opening it for writing fails, as another user's file
     assert domains.reserve(1, 0) == 201
