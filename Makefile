@@ -18,7 +18,7 @@ SOURCES := pyproject.toml fusion/pyproject.toml setup.py bagkit/ros/record/_take
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 export RMW_IMPLEMENTATION := rmw_fastrtps_cpp
 
-.PHONY: demo test test-fast test-py lint format bench golden lock dist clean
+.PHONY: demo test test-fast test-py venv-py lint format bench golden lock dist clean
 
 # Azurite, Azure Storage's emulator, for tests/storage: npm's package at this version, in
 # .azurite/ (3.35 is the last that runs on Node.js 20). Without npm the step says so and the
@@ -110,6 +110,9 @@ else
 		--resolution $(RESOLUTION) -e '.[all,dev]' -e ./fusion
 endif
 	touch $@
+
+# Only the venv (.ci/run builds the three while make test runs).
+venv-py: $(XVENV)/.installed
 
 # PYTESTS: which tests (default: the whole offline suite).
 PYTESTS ?= tests
