@@ -62,14 +62,15 @@ $(STAMP): $(SOURCES)
 demo: $(STAMP)
 	ROS_DOMAIN_ID=$${ROS_DOMAIN_ID:-77} bash scripts/demo.sh
 
-# The tests that start no DDS participant on two workers, then those that do, on three: they
-# mostly wait for processes and discovery, below two cores of CPU (benchmarks/README.md); each
-# worker holds ROS domains of its own (tests/domains.py); last the DDS tests that assert
-# timings (`serial`, tests/conftest.py), one at a time.
+# The tests that start DDS participants on three workers: they mostly wait for processes and
+# discovery, below two cores of CPU (benchmarks/README.md; .ci/run builds the other Pythons'
+# venvs meanwhile); each worker holds ROS domains of its own (tests/domains.py). Then the tests
+# that start none, on two workers; last the DDS tests that assert timings (`serial`,
+# tests/conftest.py), one at a time.
 test: $(STAMP) $(AZURITE)
 	$(PY) -m compileall -q bagkit fusion
-	$(PY) -m pytest -q -m "not ros" -n 2
 	$(PY) -m pytest -q -m "ros and not serial" -n 3 --dist loadgroup --durations=10
+	$(PY) -m pytest -q -m "not ros" -n 2
 	$(PY) -m pytest -q -m "ros and serial" --durations=5
 
 # The fast loop: every test that starts no DDS participant, on two worker processes.
