@@ -171,6 +171,8 @@ class RecordProgress:
     paused: int = 0
     """Messages taken while paused (not written, not lost)."""
     is_paused: bool = False
+    span_ns: int = 0
+    """Log time from the first message written to the last."""
 
 
 # Where the recorder stores loss_summary in metadata.yaml's custom_data (bagkit doctor reads it).

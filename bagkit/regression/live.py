@@ -41,6 +41,8 @@ OUTPUTS_TIMEOUT_S = 10.0
 POLL_S = 0.05
 # A live system has this long to publish its first message once launched.
 FIRST_MESSAGE_TIMEOUT_S = 60.0
+# How long a golden's recording waits past its duration for the bag to span it.
+LAST_MESSAGE_TIMEOUT_S = 5.0
 # /clock between the inputs: the rate the live fixtures were measured at (20 of 20 passes),
 # finer than a bare --clock's 40 Hz.
 CLOCK_HZ = 100
@@ -96,6 +98,19 @@ def _first_message(recorder: Recorder, procs: Supervisor) -> float:
                 "system (see the logs)"
             )
     return time.monotonic()
+
+
+def _record_for(recorder: Recorder, procs: Supervisor, span_s: float) -> None:
+    """Record until the bag spans ``span_s``, or LAST_MESSAGE_TIMEOUT_S past when it should.
+
+    The bag's span, not a deadline: a machine that stalls (a virtual machine off its host's
+    CPU) finds a deadline passed on waking, the seconds before it unrecorded.
+    """
+    give_up = _first_message(recorder, procs) + span_s + LAST_MESSAGE_TIMEOUT_S
+    while recorder.progress().span_ns < span_s * 1e9 and time.monotonic() < give_up:
+        _check_running(procs)
+        if recorder.stopped.wait(POLL_S):
+            return
 
 
 def _prepare_graph(
@@ -244,11 +259,9 @@ def record_golden(
     with _processes(workdir / "logs") as procs, _recording(RecordOptions(recording, topics)) as rec:
         _start_system(procs, workdir / "logs", spec.record_launch, "system")
         log(f"{spec.name}: recording {spec.duration_s:.0f} s of the live system ...")
-        # The duration counts from the system's first message, not from its launch: its
-        # processes take seconds to start, which a deadline from launch took off the golden.
-        deadline = _first_message(rec, procs) + spec.duration_s + 1.0
-        while time.monotonic() < deadline and not rec.stopped.wait(POLL_S):
-            _check_running(procs)
+        # The duration is the bag's span, not time since launch (the processes take seconds
+        # to start), plus a second, so that a topic at 1 Hz has its message at the end.
+        _record_for(rec, procs, spec.duration_s + 1.0)
     size = sum(f.stat().st_size for f in recording.iterdir())
     if size > MAX_FIXTURE_BYTES:
         raise LiveRunError(f"the recording is {size / 1e6:.1f} MB, more than 2 MB")

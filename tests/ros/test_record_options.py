@@ -44,11 +44,18 @@ def test_sim_time_writes_nothing_before_the_first_clock(node: Node, tmp_path: Pa
         for i in range(3):
             data.publish(String(data=f"late {i}"))
         wait_for(lambda: recorder.progress().messages == 3)
+        assert recorder.progress().span_ns == 0
+        sim.clock.sec, sim.clock.nanosec = 702, 500_000_000
+        clock.publish(sim)
+        time.sleep(0.2)
+        data.publish(String(data="later"))
+        wait_for(lambda: recorder.progress().messages == 4)
+        assert recorder.progress().span_ns == 2_500_000_000  # golden record stops on it
     assert recorder.report.topic("/sim/early").before_clock == 5
     assert recorder.report.to_dict()["topics"][0]["before_clock"] == 5
     with BagReader(bag) as reader:
         log_times = [m.log_time for m in reader.messages()]
-    assert log_times == [700 * 1_000_000_000] * 3
+    assert log_times == [700 * 1_000_000_000] * 3 + [702_500_000_000]
 
 
 def _publish_until(stop: threading.Event, publishers: list[object], period: float) -> None:

@@ -369,6 +369,7 @@ class Recorder(RecordingControls):
     def progress(self) -> RecordProgress:
         """Counts so far (messages written, bytes, lost), for a progress line."""
         records = [t.record for t in self._subscriptions.snapshot()] if self._subscriptions else []
+        written = [r for r in records if r.messages]
         return RecordProgress(
             elapsed_s=time.monotonic() - self._started if self._started else 0.0,
             topics=len(records),
@@ -378,4 +379,7 @@ class Recorder(RecordingControls):
             before_clock=sum(r.before_clock for r in records),
             paused=sum(r.paused for r in records),
             is_paused=self._gate.paused,
+            span_ns=(
+                max(r.last_ns for r in written) - min(r.first_ns for r in written) if written else 0
+            ),
         )
