@@ -32,6 +32,7 @@ from bagkit.regression.spec import BAG_DIR, SPEC_FILE, FixtureSpec
 from bagkit.selection.services import event_topic
 
 if TYPE_CHECKING:
+    from bagkit.recording.report import RecordProgress
     from bagkit.ros.record.recorder import Recorder
 
 MAX_FIXTURE_BYTES = 2_000_000
@@ -83,21 +84,20 @@ def _start_system(
             raise LiveRunError(str(exc)) from exc
 
 
-def _first_message(recorder: Recorder, procs: Supervisor) -> float:
-    """The monotonic time at which the recorder has its first message.
+def _wait_for(
+    recorder: Recorder, procs: Supervisor, done: Callable[[RecordProgress], bool], timeout: float
+) -> bool:
+    """Poll the recorder's progress until ``done``; False after ``timeout`` s or if it stopped.
 
     Raises:
-        LiveRunError: a process exited, or no message came within FIRST_MESSAGE_TIMEOUT_S.
+        LiveRunError: a process of the system exited.
     """
-    give_up = time.monotonic() + FIRST_MESSAGE_TIMEOUT_S
-    while not recorder.progress().messages:
+    give_up = time.monotonic() + timeout
+    while not done(recorder.progress()):
         _check_running(procs)
         if time.monotonic() > give_up or recorder.stopped.wait(POLL_S):
-            raise LiveRunError(
-                f"no message recorded within {FIRST_MESSAGE_TIMEOUT_S:.0f} s of starting the "
-                "system (see the logs)"
-            )
-    return time.monotonic()
+            return False
+    return True
 
 
 def _record_for(recorder: Recorder, procs: Supervisor, span_s: float) -> None:
@@ -105,12 +105,17 @@ def _record_for(recorder: Recorder, procs: Supervisor, span_s: float) -> None:
 
     The bag's span, not a deadline: a machine that stalls (a virtual machine off its host's
     CPU) finds a deadline passed on waking, the seconds before it unrecorded.
+
+    Raises:
+        LiveRunError: a process exited, or no message came within FIRST_MESSAGE_TIMEOUT_S.
     """
-    give_up = _first_message(recorder, procs) + span_s + LAST_MESSAGE_TIMEOUT_S
-    while recorder.progress().span_ns < span_s * 1e9 and time.monotonic() < give_up:
-        _check_running(procs)
-        if recorder.stopped.wait(POLL_S):
-            return
+    if not _wait_for(recorder, procs, lambda p: p.messages > 0, FIRST_MESSAGE_TIMEOUT_S):
+        raise LiveRunError(
+            f"no message recorded within {FIRST_MESSAGE_TIMEOUT_S:.0f} s of starting the "
+            "system (see the logs)"
+        )
+    span_ns = span_s * 1e9
+    _wait_for(recorder, procs, lambda p: p.span_ns >= span_ns, span_s + LAST_MESSAGE_TIMEOUT_S)
 
 
 def _prepare_graph(
@@ -181,19 +186,6 @@ def _replay_inputs(spec: FixtureSpec) -> None:
         raise LiveRunError(f"replaying the inputs failed: {exc}") from exc
 
 
-def _wait_for_outputs(recorder: Recorder, expected: int, procs: Supervisor) -> None:
-    """Wait until the recorder has the golden's number of outputs, or OUTPUTS_TIMEOUT_S.
-
-    The last outputs are still in flight when the replay ends; a system that gives fewer is
-    for the comparison to report, after the timeout.
-    """
-    deadline = time.monotonic() + OUTPUTS_TIMEOUT_S
-    while recorder.progress().messages < expected and time.monotonic() < deadline:
-        _check_running(procs)
-        if recorder.stopped.wait(POLL_S):
-            return
-
-
 def check_live(spec: FixtureSpec, workdir: Path, *, startup_timeout: float = 30.0) -> GoldenCheck:
     """Replay ``spec``'s golden inputs through the nodes on DDS and compare their outputs.
 
@@ -228,7 +220,9 @@ def check_live(spec: FixtureSpec, workdir: Path, *, startup_timeout: float = 30.
         counts["/clock"] = counts.get("/clock", 0) + 1  # the recorder's, matched again
         _prepare_graph(procs, counts, start_ns, startup_timeout)
         _replay_inputs(spec)
-        _wait_for_outputs(recorder, expected, procs)
+        # The last outputs are still in flight when the replay ends; fewer than the golden's
+        # are for the comparison to report.
+        _wait_for(recorder, procs, lambda p: p.messages >= expected, OUTPUTS_TIMEOUT_S)
         _check_running(procs)
     report = compare_bags(spec.bag, candidate, spec.compare_options("live"))
     return GoldenCheck(spec, "live", candidate, report)
