@@ -58,8 +58,10 @@ def test_sim_time_nodes_follow_the_clock(listener_factory: type[Listener], proce
     assert len(periodic) == 3, stamps
     for (wall_a, ns_a), (wall_b, ns_b) in itertools.pairwise(periodic):
         # Stamped with the node's clock when the timer ran: the last /clock value it had, which
-        # passes the timer's due time by up to a /clock tick (10 ms of wall, 20 ms of bag time).
-        assert (ns_b - ns_a) / 1e9 == pytest.approx(5.0, abs=0.05)
+        # passes the timer's due time by a /clock tick (10 ms of wall, 20 ms of bag time), or by
+        # rate x the stall when a loaded machine keeps the node off the CPU (4.9 s seen in CI).
+        # A timer on the wall clock would give 10 s.
+        assert (ns_b - ns_a) / 1e9 == pytest.approx(5.0, abs=0.25)
         assert (wall_b - wall_a) / 1e9 == pytest.approx(2.5, abs=0.25)
     # The logger saw the replayed IMU samples: 10 Hz of bag time.
     imu = next(s for s in summaries[-1][1].status if s.hardware_id == "/imu/data")
