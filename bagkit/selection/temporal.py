@@ -215,7 +215,8 @@ def window_counts(times: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarra
     """
     # Both halves are sorted: merged by position (as a stable sort of the two would order
     # them, arrivals before departures at equal times) rather than by sorting 2n events.
-    ends = times + window
+    # Departures saturate at int64's end (a bag's times are untrusted): past any bag's end.
+    ends = np.minimum(times, np.iinfo(np.int64).max - window) + window
     n = len(times)
     events = np.empty(2 * n, np.int64)
     steps = np.empty(2 * n, np.int64)

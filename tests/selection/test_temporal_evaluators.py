@@ -212,3 +212,32 @@ def test_both_evaluators_agree_on_random_streams(seed: int, text: str) -> None:
 
 def test_stamps_read_sec_and_nanosec() -> None:
     assert stamps(np.array([[1.0, 5.0]])).tolist() == [1_000_000_005]
+
+
+@pytest.mark.parametrize(
+    ("first", "text"),
+    [
+        # A bag's log times are untrusted: the last windows end past int64.
+        (2**63 - 36 * 10**8, "rate < 80 Hz over 2s"),
+        (2**63 - 36 * 10**8, "rate < 70 Hz over 500ms"),
+        # A window longer than the bag: none fits.
+        (10**18, "rate < 1000 Hz over 2000000h"),
+    ],
+)
+def test_rate_windows_near_the_end_of_int64(first: int, text: str) -> None:
+    """The same stream 10^18 ns earlier gives the same windows, shifted; so does streaming."""
+    steps = np.where(np.arange(250) % 50 < 40, 10, 30) * MS
+    found = []
+    for offset in (0, 10**18):
+        times = (first - offset + np.cumsum(steps)).astype(np.int64)
+        data = ArrayData(times, {"x": np.zeros(len(times))})
+        scope = Scope("/imu", int(times[0]), int(times[-1]), False)
+        shifted = evaluate(parse_expression(text), data, scope) + offset
+        found.append([(a, b) for a, b in shifted.tolist()])
+        stream = StreamingCondition(parse_expression(text), int(times[0]))
+        for index, time in enumerate(times.tolist()):
+            stream.push(time, Row(data, index))
+        streamed = [(a + offset, b + offset) for a, b in stream.finish(int(times[-1]))]
+        assert found[-1] == streamed
+    assert found[0] == found[1]
+    assert (found[0] == []) == ("2000000h" in text)
