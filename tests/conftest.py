@@ -57,14 +57,15 @@ def _starts_dds(module: types.ModuleType | None) -> bool:
     )
 
 
-# DDS tests that assert timings measured on this machine (replay pacing and its controls, the
-# span of a recorded golden): `make test` runs them after the parallel part, one at a time, so
-# that another test's load does not widen what they measure.
+# DDS tests that assert timings measured on this machine (replay pacing and its controls, a
+# sim-time node's timer, the span of a recorded golden): `make test` runs them after the
+# parallel part, one at a time, so that another test's load does not widen what they measure.
 SERIAL_DDS_TESTS = (
     "tests/ros/test_replay.py::test_every_message_in_order_with_the_recorded_pacing",
     "tests/ros/test_replay_controls.py::test_keys_in_a_terminal_pause_step_and_resume",
     "tests/ros/test_replay_controls.py::test_services_pause_step_resume_and_set_the_rate",
     "tests/ros/test_replay_controls.py::test_ctrl_z_then_fg_does_not_burst",
+    "tests/ros/test_replay_pipeline.py::test_sim_time_nodes_follow_the_clock",
     "tests/regression/test_stranger_package.py::test_record_a_golden_pass_then_fail",
 )
 
