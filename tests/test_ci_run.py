@@ -6,10 +6,9 @@ import os
 import shutil
 import signal
 import subprocess
-import time
 from pathlib import Path
 
-import pytest
+from waiting import running, wait_for
 
 REPO = Path(__file__).resolve().parents[1]
 LEGS = ["PYV=3.10 RESOLUTION=lowest-direct", "PYV=3.12", "PYV=3.13"]
@@ -82,18 +81,8 @@ def test_a_failed_make_test_stops_the_builds_and_keeps_its_code(tmp_path: Path) 
     assert done.returncode == 2
     assert not [c for c in calls if c.startswith("test-py")]
     builder = int((tmp_path / "slow.pid").read_text())
-    deadline = time.monotonic() + 10
-    while running(builder):
-        if time.monotonic() > deadline:
-            os.kill(builder, signal.SIGKILL)
-            pytest.fail("the venv build still runs after .ci/run exited")
-        time.sleep(0.05)
-
-
-def running(pid: int) -> bool:
-    """Whether pid runs: a zombie no one reaps yet (PID 1 in a container may not) has stopped."""
     try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except FileNotFoundError:
-        return False
-    return stat.rsplit(")", 1)[1].split()[0] != "Z"
+        wait_for(lambda: not running(builder), what="the venv build to stop with .ci/run")
+    finally:
+        if running(builder):
+            os.kill(builder, signal.SIGKILL)

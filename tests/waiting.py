@@ -6,6 +6,8 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+import psutil
+
 
 def wait_for(
     condition: Callable[[], bool], timeout: float = 10.0, *, what: str = "the condition"
@@ -15,6 +17,14 @@ def wait_for(
     while not condition():
         assert time.monotonic() < deadline, f"timed out after {timeout} s waiting for {what}"
         time.sleep(0.01)
+
+
+def running(pid: int) -> bool:
+    """Whether ``pid`` runs (a zombie not yet reaped has stopped)."""
+    try:
+        return psutil.Process(pid).status() != psutil.STATUS_ZOMBIE
+    except psutil.NoSuchProcess:
+        return False
 
 
 def wait_matched(*publishers: Any, count: int = 1, timeout: float = 10.0) -> None:

@@ -9,7 +9,8 @@ from pathlib import Path
 import psutil
 import pytest
 from distributed import Client, LocalCluster
-from fleet_bags import T0, running, worker_pids, write_bag
+from fleet_bags import T0, worker_pids, write_bag
+from waiting import running
 
 from bagkit.fleet import local_cluster
 

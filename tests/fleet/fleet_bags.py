@@ -6,7 +6,6 @@ import os
 from pathlib import Path
 
 import numpy as np
-import psutil
 from distributed import Client
 from rosbags.typesys import Stores, get_typestore
 
@@ -15,13 +14,6 @@ from bagkit.bag import BagWriter, TopicInfo
 STORE = get_typestore(Stores.ROS2_JAZZY)
 IMU, TEMPERATURE = "sensor_msgs/msg/Imu", "sensor_msgs/msg/Temperature"
 T0 = 1_700_000_000_000_000_000
-
-
-def running(pid: int) -> bool:
-    try:
-        return psutil.Process(pid).status() != psutil.STATUS_ZOMBIE
-    except psutil.NoSuchProcess:
-        return False
 
 
 def _imu(rng: np.random.Generator, t: int, offset: float) -> bytes:
