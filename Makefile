@@ -18,7 +18,7 @@ SOURCES := pyproject.toml fusion/pyproject.toml setup.py bagkit/ros/record/_take
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 export RMW_IMPLEMENTATION := rmw_fastrtps_cpp
 
-.PHONY: demo test test-fast test-py venv-py lint format bench golden lock dist clean
+.PHONY: demo test test-dds test-fast test-py venv-py lint format bench golden lock dist clean
 
 # Azurite, Azure Storage's emulator, for tests/storage: npm's package at this version, in
 # .azurite/ (3.35 is the last that runs on Node.js 20). Without npm the step says so and the
@@ -63,19 +63,23 @@ demo: $(STAMP)
 	ROS_DOMAIN_ID=$${ROS_DOMAIN_ID:-77} bash scripts/demo.sh
 
 # The tests that start DDS participants on three workers: they mostly wait for processes and
-# discovery, below two cores of CPU (benchmarks/README.md; .ci/run builds the other Pythons'
-# venvs meanwhile); each worker holds ROS domains of its own (tests/domains.py). Then the tests
-# that start none, on two workers; last the DDS tests that assert timings (`serial`,
-# tests/conftest.py), one at a time.
+# discovery, below two cores of CPU; each worker holds ROS domains of its own
+# (tests/domains.py). Beside them, at the lowest CPU priority, the tests that start none, on two
+# workers: they take the core the DDS tests leave idle (benchmarks/README.md). Each part's output
+# is printed when it ends (--output-sync). Last the DDS tests that assert timings (`serial`,
+# tests/conftest.py), one at a time, with nothing beside them.
 test: $(STAMP) $(AZURITE)
 	$(PY) -m compileall -q bagkit fusion
-	$(PY) -m pytest -q -m "ros and not serial" -n 3 --dist loadgroup --durations=10
-	$(PY) -m pytest -q -m "not ros" -n 2
+	$(MAKE) --no-print-directory -j2 --output-sync=target test-dds test-fast NICE="nice -n 19"
 	$(PY) -m pytest -q -m "ros and serial" --durations=5
 
+test-dds: $(STAMP)
+	$(PY) -m pytest -q -m "ros and not serial" -n 3 --dist loadgroup --durations=10
+
 # The fast loop: every test that starts no DDS participant, on two worker processes.
+NICE ?=
 test-fast: $(STAMP) $(AZURITE)
-	$(PY) -m pytest -q -m "not ros" -n 2
+	$(NICE) $(PY) -m pytest -q -m "not ros" -n 2
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .
