@@ -67,8 +67,9 @@ demo: $(STAMP)
 # (tests/domains.py). Beside them, at the lowest CPU priority, the tests that start none, on two
 # workers: they take the core the DDS tests leave idle (benchmarks/README.md). Each part's output
 # is printed when it ends (--output-sync). Last the DDS tests that assert timings (`serial`,
-# tests/conftest.py), one at a time, with nothing beside them.
-test: $(STAMP) $(AZURITE)
+# tests/conftest.py), one at a time, with nothing beside them. Azurite (for tests/storage, not
+# DDS) is installed as the offline part's prerequisite, while the DDS tests start.
+test: $(STAMP)
 	$(PY) -m compileall -q bagkit fusion
 	$(MAKE) --no-print-directory -j2 --output-sync=target test-dds test-fast NICE="nice -n 19"
 	$(PY) -m pytest -q -m "ros and serial" --durations=5
