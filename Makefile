@@ -77,7 +77,8 @@ test: $(STAMP)
 test-dds: $(STAMP)
 	$(PY) -m pytest -q -m "ros and not serial" -n 3 --dist loadgroup --durations=10
 
-# The fast loop: every test that starts no DDS participant, on two worker processes.
+# The fast loop: every test that starts no DDS participant, on two worker processes (NICE: a
+# prefix, `nice -n 19` beside the DDS tests).
 NICE ?=
 test-fast: $(STAMP) $(AZURITE)
 	$(NICE) $(PY) -m pytest -q -m "not ros" -n 2

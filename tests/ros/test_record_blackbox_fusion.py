@@ -44,14 +44,15 @@ def test_snapshot_of_the_alert_holds_the_window_and_replays_alone(
     snapshots = report["snapshots"]
     assert snapshots, report
     assert all(s["trigger"] == TRIGGER for s in snapshots)
-    # A trigger inside an open window extends it: a later snapshot's trigger comes after the
-    # window before it closed.
+    # A trigger inside an open window extends it: each later snapshot's trigger comes after the
+    # end of the one before.
     windows = [(s["trigger_ns"], s["end_ns"]) for s in snapshots]
     assert all(end < trigger for (_, end), (trigger, _) in itertools.pairwise(windows)), windows
     # The spike's snapshot, the first with the temperature at ERROR: on a loaded machine a sensor
     # silent for three of its periods is STALE (level 3) and may trigger one before it (seen in
-    # CI: the first snapshot 0.49 s after the recording began), or one after it while the
-    # temperature is still at ERROR (seen with the offline suite beside: two snapshots so).
+    # CI: the first snapshot 0.49 s after the recording began) or another after its window
+    # while the temperature is still at ERROR (seen with the offline suite beside: two
+    # snapshots with it at ERROR).
     spiked = [s for s in snapshots if _temperature_error_at_trigger(s)]
     assert spiked, snapshots
     snapshot = spiked[0]
