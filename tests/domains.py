@@ -7,9 +7,16 @@ for its tests, the second for a test that needs a domain of its own.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import socket
+from collections.abc import Iterator
 
-from bagkit.ros.domains import reserve
+from bagkit.ros.domains import DOMAIN_GAIN, PORT_BASE, reserve
+
+# RTPS 9.6.1.1: a participant's discovery (metatraffic unicast) port is this offset plus twice
+# its participant id past its domain's first port.
+METATRAFFIC_UNICAST = 10
 
 
 def assign() -> None:
@@ -26,3 +33,22 @@ def assign() -> None:
         first = reserve(2, os.getpid())
     os.environ["ROS_DOMAIN_ID"] = str(first)
     os.environ["BAGKIT_TEST_SPARE_DOMAIN_ID"] = str(first + 1)
+
+
+@contextlib.contextmanager
+def silent_participant(domain: int) -> Iterator[int]:
+    """A socket on the discovery port of a participant id nobody uses in ``domain``, yielded:
+    to bagkit's census (bagkit.ros.participants), a participant on this host that never
+    answers."""
+    first = PORT_BASE + DOMAIN_GAIN * domain + METATRAFFIC_UNICAST
+    for participant in range(119, 0, -1):  # the highest first: Fast DDS takes the lowest free
+        port = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        try:
+            port.bind(("127.0.0.1", first + 2 * participant))
+        except OSError:
+            port.close()
+            continue
+        with port:
+            yield participant
+        return
+    raise RuntimeError(f"every participant port of domain {domain} is bound")

@@ -56,12 +56,17 @@ class SubscriberWait:
     """Of those topics, the ones with a subscription."""
     all_discovered: bool
     """The wait ended on finding every participant on this host, not at the discovery time."""
+    participants_replaced: int = 0
+    """New participants that lost the answers of the others on this host before the one that
+    waited (``seconds`` counts from its creation)."""
 
     def line(self) -> str:
-        """``waited 0.4 s for 2 subscriptions on 1 topic``."""
+        """``waited 0.4 s for 2 subscriptions on 1 topic`` (``, discovery restarted 1 time``)."""
+        restarted = self.participants_replaced
         return (
             f"waited {self.seconds:.1f} s for {counted(self.subscriptions, 'subscription')} "
             f"on {counted(self.topics, 'topic')}"
+            + (f", discovery restarted {counted(restarted, 'time')}" if restarted else "")
         )
 
 

@@ -1,5 +1,5 @@
 """The participant census: a Fast DDS participant of an exited process; readers and node names
-still to come."""
+still to come; a participant on this host that never answers."""
 
 from __future__ import annotations
 
@@ -10,11 +10,13 @@ import time
 from typing import Any
 
 import pytest
+from domains import silent_participant
 
 from bagkit.ros.participants import (
     Endpoint,
     _process_may_live,
     all_discovered,
+    heard_the_answers,
     live_participant_gids,
     settled,
 )
@@ -136,3 +138,11 @@ def test_the_census_waits_for_a_participants_readers(node: Any) -> None:
     if said:
         assert subscribers == 1
     assert participants == 1  # the other process's
+
+
+@pytest.mark.ros
+def test_a_participant_on_this_host_that_never_answers_is_not_heard(node: Any) -> None:
+    with silent_participant(node.context.get_domain_id()):
+        assert not heard_the_answers(node, within_s=0.05)
+    # Without it, this process's participant is every participant there is to hear.
+    assert heard_the_answers(node, within_s=5.0)

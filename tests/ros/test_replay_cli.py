@@ -13,6 +13,7 @@ from typing import Any
 
 import fastdds_files
 import pytest
+from domains import silent_participant
 from rclpy.serialization import deserialize_message
 from replay_harness import (
     BAG_SPAN_NS,
@@ -31,6 +32,7 @@ from std_msgs.msg import String
 
 from bagkit.bag import BagReader, BagWriter, TopicInfo
 from bagkit.ros.participants import discovered_participants, host_participants
+from bagkit.ros.replay.endpoints import FRESH_PARTICIPANTS
 
 pytestmark = pytest.mark.ros
 
@@ -335,12 +337,12 @@ def test_replay_gives_itself_the_large_shared_memory_pool_unless_the_user_has_a_
 
 
 def _play_waiting_for_the_graph(
-    test_bag: Path, listener: Listener, expected: list[tuple[str, bytes, int]]
+    test_bag: Path, listener: Listener, expected: list[tuple[str, bytes, int]], *args: str
 ) -> dict[str, Any]:
-    """``bagkit play`` with the default discovery wait: every message arrives, in order, and
-    the printed line says what was waited for; returns the report's ``waited``."""
+    """``bagkit play ARGS`` with the default discovery wait: every message arrives, in order,
+    and the printed line says what was waited for; returns the report's ``waited``."""
     listener.clear()
-    result = bagkit_cli("play", str(test_bag), "--rate", "100", "--format", "json")
+    result = bagkit_cli("play", str(test_bag), "--rate", "100", "--format", "json", *args)
     assert result.returncode == 0, result.stderr
     got = listener.wait_for_count(len(expected))
     texts = [(t, deserialize_message(d, String).data) for t, d, _ in expected]
@@ -348,7 +350,11 @@ def _play_waiting_for_the_graph(
     waited: dict[str, Any] = json.loads(result.stdout)["waited"]
     assert waited["subscriptions"] == waited["topics"] == len(SCHEDULE)
     line = f"waited {waited['seconds']:.1f} s for {len(SCHEDULE)} subscriptions on "
-    assert f"{line}{len(SCHEDULE)} topics" in result.stderr.splitlines()
+    line += f"{len(SCHEDULE)} topics"
+    if waited["participants_replaced"]:
+        line += f", discovery restarted {waited['participants_replaced']} time"
+        line += "s" if waited["participants_replaced"] > 1 else ""
+    assert line in result.stderr.splitlines()
     return waited
 
 
@@ -373,3 +379,19 @@ def test_cli_waits_for_the_subscribers_on_the_graph_and_says_so(
         on_host = host_participants(node.context.get_domain_id())
         assert on_host is not None and on_host > discovered_participants(node), waited
         pytest.skip(f"a participant on domain {node.context.get_domain_id()} is not in the graph")
+
+
+def test_cli_replaces_a_participant_that_lost_the_answers_and_says_so(
+    test_bag: Path, listener_factory: type[Listener]
+) -> None:
+    # A participant on this host that never answers looks, to each new participant of the
+    # player, like an answer it lost: the player makes every fresh participant it may, says
+    # so, then waits to the discovery time (the census cannot complete) and loses nothing.
+    expected = recorded(test_bag)
+    listener = listener_factory(STRING_TOPICS)
+    with silent_participant(listener.node.context.get_domain_id()):
+        waited = _play_waiting_for_the_graph(
+            test_bag, listener, expected, "--discovery-time", "0.5"
+        )
+    assert waited["participants_replaced"] == FRESH_PARTICIPANTS
+    assert not waited["all_discovered"]

@@ -5,6 +5,7 @@ and the sender of recorded service requests."""
 from __future__ import annotations
 
 import math
+import os
 import time
 from collections.abc import Callable
 from contextlib import ExitStack
@@ -22,12 +23,17 @@ from bagkit.bag.storage_files import bag_path
 from bagkit.playback.options import PlayOptions
 from bagkit.playback.source import PlaySource
 from bagkit.ros.fastdds import segment_size_for
+from bagkit.ros.participants import countable, heard_the_answers
 from bagkit.ros.qos import load_qos_overrides, replay_publisher_qos
 from bagkit.ros.replay.publishers import TopicOutput, create_clock_output, create_output
 from bagkit.ros.replay.topics import PublishableTopics, publishable_topics
 from bagkit.ros.tuning import process_tuning
 from bagkit.selection.services import is_service_event_topic
 from bagkit.selection.times import NS_PER_S
+
+# A participant that lost the answers to its first announcement is replaced at most this many
+# times (each new one has the same chance again): beyond, the wait runs to the discovery time.
+FRESH_PARTICIPANTS = 4
 
 if TYPE_CHECKING:
     from bagkit.ros.replay.service_requests import ServiceRequests
@@ -41,6 +47,8 @@ class ReplayEndpoints:
     Attributes:
         node: the player's node.
         node_created: when it was created (``time.monotonic``): discovery settles from there.
+        participants_replaced: participants made before the node's, which lost discovery
+            answers (:func:`_create_node`).
         outputs: bag topic -> its output (a service-event topic's sends its requests).
         clock: the /clock output (``clock_hz``), or None.
         publishable: the bag's topics that are replayed, and the selected ones that cannot be.
@@ -50,6 +58,7 @@ class ReplayEndpoints:
 
     node: Node
     node_created: float
+    participants_replaced: int
     outputs: dict[str, TopicOutput]
     clock: TopicOutput | None
     publishable: PublishableTopics
@@ -79,7 +88,7 @@ def open_endpoints(
     # (issue 27, item 5).
     largest = reader.largest_message(name for name in reader.topics if selection.matches(name))
     with process_tuning(options.tune_process, segment_size=segment_size_for(largest)):
-        node = _create_node(options, stack, context)
+        node, replaced = _create_node(options, stack, context)
         node_created = time.monotonic()
     publishable = _publishable(options, selection, reader)
     selected = publishable.selected
@@ -105,7 +114,9 @@ def open_endpoints(
                 requests = _service_requests(options, node, reader, stack, on_warning)
             outputs[info.name] = requests.output(info, outputs[info.name])
     clock = create_clock_output(node) if options.clock_hz is not None else None
-    return ReplayEndpoints(node, node_created, outputs, clock, publishable, latched, requests)
+    return ReplayEndpoints(
+        node, node_created, replaced, outputs, clock, publishable, latched, requests
+    )
 
 
 def sends_requests(info: TopicInfo) -> bool:
@@ -114,15 +125,37 @@ def sends_requests(info: TopicInfo) -> bool:
     return is_service_event_topic(info.name, [info.type])
 
 
-def _create_node(options: PlayOptions, stack: ExitStack, context: Context | None) -> Node:
-    if context is None:
+def _create_node(
+    options: PlayOptions, stack: ExitStack, context: Context | None
+) -> tuple[Node, int]:
+    """The player's node, and how many new participants lost the others' answers before it.
+
+    In a context of its own, a player that waits for its subscribers replaces a participant
+    that did not hear every participant on this host answer (:func:`heard_the_answers`), at
+    most ``FRESH_PARTICIPANTS`` times: it would otherwise find them up to 3 s later.
+    """
+    if context is not None:
+        return _node(options, context, stack), 0
+    replace = options.waits.before_start and countable(os.environ)
+    replaced = 0
+    while True:
+        attempt = ExitStack()
         context = Context()
         # No signal handlers: Ctrl-C must reach play() as KeyboardInterrupt so that it can
         # stop between two messages and still report.
         # args=[]: not sys.argv, whose --remap is bagkit's (applied to the publishers'
         # names), not a ROS remap rule for rcl to parse and warn about.
         rclpy.init(args=[], context=context, signal_handler_options=SignalHandlerOptions.NO)
-        stack.callback(context.try_shutdown)
+        attempt.callback(context.try_shutdown)
+        node = _node(options, context, attempt)
+        if not replace or replaced == FRESH_PARTICIPANTS or heard_the_answers(node):
+            stack.enter_context(attempt)
+            return node, replaced
+        attempt.close()  # its port is free again: the census counts the next one's
+        replaced += 1
+
+
+def _node(options: PlayOptions, context: Context, stack: ExitStack) -> Node:
     node = Node(
         options.node_name,
         context=context,

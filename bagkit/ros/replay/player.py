@@ -9,6 +9,7 @@ about, then runs the passes (:mod:`~bagkit.playback.publish_loop`) and returns a
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import logging
 import time
@@ -103,6 +104,7 @@ class Player:
         self._clock: TopicOutput | None = None
         self._service_requests: ServiceRequests | None = None
         self._node_created = 0.0
+        self._participants_replaced = 0
         self._pass: PassPublisher | None = None  # the pass being published
         self.live_publishers: dict[str, list[str]] = {}
         """Published topic -> other nodes publishing it, found when the replay starts."""
@@ -154,6 +156,7 @@ class Player:
         )
         self._node = endpoints.node
         self._node_created = endpoints.node_created
+        self._participants_replaced = endpoints.participants_replaced
         self._outputs = endpoints.outputs
         self._clock = endpoints.clock
         self._latched = endpoints.latched
@@ -383,6 +386,7 @@ class Player:
             SubscriberTimeoutError: not matched within ``wait_timeout`` seconds.
         """
         clock = [self._clock] if self._clock is not None else []
-        return before_first_message(
+        waited = before_first_message(
             self.node, [*self._outputs.values(), *clock], self.waits, self._node_created
         )
+        return dataclasses.replace(waited, participants_replaced=self._participants_replaced)
