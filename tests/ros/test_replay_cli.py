@@ -337,12 +337,12 @@ def test_replay_gives_itself_the_large_shared_memory_pool_unless_the_user_has_a_
 
 
 def _play_waiting_for_the_graph(
-    test_bag: Path, listener: Listener, expected: list[tuple[str, bytes, int]], *args: str
+    test_bag: Path, listener: Listener, expected: list[tuple[str, bytes, int]]
 ) -> dict[str, Any]:
-    """``bagkit play ARGS`` with the default discovery wait: every message arrives, in order,
-    and the printed line says what was waited for; returns the report's ``waited``."""
+    """``bagkit play`` with the default discovery wait: every message arrives, in order, and
+    the printed line says what was waited for; returns the report's ``waited``."""
     listener.clear()
-    result = bagkit_cli("play", str(test_bag), "--rate", "100", "--format", "json", *args)
+    result = bagkit_cli("play", str(test_bag), "--rate", "100", "--format", "json")
     assert result.returncode == 0, result.stderr
     got = listener.wait_for_count(len(expected))
     texts = [(t, deserialize_message(d, String).data) for t, d, _ in expected]
@@ -386,12 +386,12 @@ def test_cli_replaces_a_participant_that_lost_the_answers_and_says_so(
 ) -> None:
     # A participant on this host that never answers looks, to each new participant of the
     # player, like an answer it lost: the player makes every fresh participant it may, says
-    # so, then waits to the discovery time (the census cannot complete) and loses nothing.
+    # so, then watches the graph to the discovery time (the census cannot complete; the
+    # default outlasts the listener's announcement period, for a last participant that lost
+    # its answer) and loses nothing.
     expected = recorded(test_bag)
     listener = listener_factory(STRING_TOPICS)
     with silent_participant(listener.node.context.get_domain_id()):
-        waited = _play_waiting_for_the_graph(
-            test_bag, listener, expected, "--discovery-time", "0.5"
-        )
+        waited = _play_waiting_for_the_graph(test_bag, listener, expected)
     assert waited["participants_replaced"] == FRESH_PARTICIPANTS
     assert not waited["all_discovered"]

@@ -139,7 +139,7 @@ def _create_node(
     replace = options.waits.before_start and countable(os.environ)
     replaced = 0
     while True:
-        attempt = ExitStack()
+        attempt = stack.enter_context(ExitStack())  # closed early when replaced
         context = Context()
         # No signal handlers: Ctrl-C must reach play() as KeyboardInterrupt so that it can
         # stop between two messages and still report.
@@ -149,7 +149,6 @@ def _create_node(
         attempt.callback(context.try_shutdown)
         node = _node(options, context, attempt)
         if not replace or replaced == FRESH_PARTICIPANTS or heard_the_answers(node):
-            stack.enter_context(attempt)
             return node, replaced
         attempt.close()  # its port is free again: the census counts the next one's
         replaced += 1
