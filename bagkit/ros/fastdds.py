@@ -124,6 +124,11 @@ def shared_memory_profile(
 """
 
 
+def fast_dds(environ: Mapping[str, str]) -> bool:
+    """Whether ROS runs on Fast DDS (rmw_fastrtps, Jazzy's default middleware)."""
+    return (environ.get("RMW_IMPLEMENTATION") or "rmw_fastrtps_cpp").startswith("rmw_fastrtps")
+
+
 def user_middleware_setting(
     environ: MutableMapping[str, str], working_directory: Path | None = None
 ) -> str | None:
@@ -131,9 +136,8 @@ def user_middleware_setting(
     for name in _USER_SETTINGS:
         if environ.get(name):
             return f"${name}"
-    rmw = environ.get("RMW_IMPLEMENTATION", "")
-    if rmw and not rmw.startswith("rmw_fastrtps"):
-        return f"RMW_IMPLEMENTATION={rmw}"
+    if not fast_dds(environ):
+        return f"RMW_IMPLEMENTATION={environ['RMW_IMPLEMENTATION']}"
     directory = working_directory or Path.cwd()
     for name in _USER_PROFILE_FILES:
         if (directory / name).is_file():

@@ -9,6 +9,7 @@ import pytest
 
 from bagkit.ros.fastdds import (
     PROFILES_FILE_VARIABLE,
+    fast_dds,
     large_receive_queue,
     localhost_only,
     shared_memory_profile,
@@ -75,9 +76,25 @@ def test_discovery_range_read_as_rcl_reads_it(environ: dict[str, str], expected:
     assert localhost_only(environ) is expected
 
 
+@pytest.mark.parametrize(
+    ("rmw", "expected"),
+    [
+        (None, True),  # Jazzy's default
+        ("", True),
+        ("rmw_fastrtps_cpp", True),
+        ("rmw_fastrtps_dynamic_cpp", True),
+        ("rmw_cyclonedds_cpp", False),
+        ("rmw_zenoh_cpp", False),
+    ],
+)
+def test_fast_dds_is_the_default_middleware(rmw: str | None, expected: bool) -> None:
+    assert fast_dds({} if rmw is None else {"RMW_IMPLEMENTATION": rmw}) is expected
+
+
 def test_user_settings_win(tmp_path: Path) -> None:
     assert user_middleware_setting({}, tmp_path) is None
     assert user_middleware_setting({"RMW_IMPLEMENTATION": "rmw_fastrtps_cpp"}, tmp_path) is None
+    assert user_middleware_setting({"RMW_IMPLEMENTATION": ""}, tmp_path) is None
     assert user_middleware_setting({"RMW_IMPLEMENTATION": "rmw_cyclonedds_cpp"}, tmp_path) == (
         "RMW_IMPLEMENTATION=rmw_cyclonedds_cpp"
     )

@@ -22,7 +22,7 @@ from bagkit.bag.latched import latched_topics
 from bagkit.bag.storage_files import bag_path
 from bagkit.playback.options import PlayOptions
 from bagkit.playback.source import PlaySource
-from bagkit.ros.fastdds import segment_size_for
+from bagkit.ros.fastdds import fast_dds, segment_size_for
 from bagkit.ros.participants import countable, heard_the_answers
 from bagkit.ros.qos import load_qos_overrides, replay_publisher_qos
 from bagkit.ros.replay.publishers import TopicOutput, create_clock_output, create_output
@@ -130,13 +130,14 @@ def _create_node(
 ) -> tuple[Node, int]:
     """The player's node, and how many new participants lost the others' answers before it.
 
-    In a context of its own, a player that waits for its subscribers replaces a participant
-    that did not hear every participant on this host answer (:func:`heard_the_answers`), at
-    most ``FRESH_PARTICIPANTS`` times: it would otherwise find them up to 3 s later.
+    In a context of its own, a player on Fast DDS that waits for its subscribers replaces a
+    participant that did not hear every participant on this host answer
+    (:func:`heard_the_answers`), at most ``FRESH_PARTICIPANTS`` times: it would otherwise find
+    them up to 3 s later.
     """
     if context is not None:
         return _node(options, context, stack), 0
-    replace = options.waits.before_start and countable(os.environ)
+    replace = options.waits.before_start and countable(os.environ) and fast_dds(os.environ)
     replaced = 0
     while True:
         attempt = stack.enter_context(ExitStack())  # closed early when replaced
