@@ -51,6 +51,19 @@ class Output(Protocol):
         """Publish one serialized message."""
 
 
+def _send(output: Output, data: bytes) -> None:
+    """Publish ``data`` on ``output`` and count it.
+
+    Counted also when Ctrl-C interrupts: Python raises a signal's KeyboardInterrupt as a call
+    into C returns (the message went out), and the interrupted replay's report counts what went
+    out.
+    """
+    try:
+        output.publish(data)
+    finally:
+        output.count += 1
+
+
 class PassPublisher:
     """Publishes one pass over the replayed window, and keeps its timing state.
 
@@ -141,11 +154,13 @@ class PassPublisher:
         """
         if self.clock is not None:
             self.clock.publish(clock_message(bag_ns))
-        for message in self.reader.latched_before(bag_ns):
-            output = self.outputs[message.topic]
-            output.publish(message.data)
-            output.count += 1
-            self.latched += 1
+        outputs = self.outputs
+        counted = sum(output.count for output in outputs.values())
+        try:
+            for message in self.reader.latched_before(bag_ns):
+                _send(outputs[message.topic], message.data)
+        finally:  # what _send counted, a message that went out as Ctrl-C came included
+            self.latched += sum(output.count for output in outputs.values()) - counted
         first = next(messages, None)
         self._wall_start = time.monotonic_ns()
         self.controls.start(bag_ns, self._wall_start)
@@ -178,9 +193,7 @@ class PassPublisher:
             now, deadline = waited
             if clock is not None:
                 clock.publish(clock_message(log_time))
-            output = outputs[message.topic]
-            output.publish(message.data)
-            output.count += 1
+            _send(outputs[message.topic], message.data)
             delays.append(now - deadline)
             self.last_log_time = log_time
         return True
