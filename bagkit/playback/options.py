@@ -131,6 +131,11 @@ class SubscriberWaits:
             if getattr(self, name) < 0:
                 raise PlayerError("must be >= 0", f"waits.{name}")
 
+    @property
+    def any_before_start(self) -> bool:
+        """Whether the player waits before its first message (for the graph, or for topics)."""
+        return self.before_start or bool(self.topics)
+
 
 class ServiceRequestSource(StrEnum):
     """Which recorded service events hold the requests a replay sends."""

@@ -137,7 +137,7 @@ def _create_node(
     """
     if context is not None:
         return _node(options, context, stack), 0
-    replace = options.waits.before_start and countable(os.environ) and fast_dds(os.environ)
+    replace = options.waits.any_before_start and countable(os.environ) and fast_dds(os.environ)
     replaced = 0
     while True:
         attempt = stack.enter_context(ExitStack())  # closed early when replaced

@@ -200,7 +200,7 @@ class Player:
         held_at_start = self.controls.held_ns(wall_start)
         waited = None
         try:
-            if self.waits.before_start or self.waits.topics:
+            if self.waits.any_before_start:
                 waited = self.wait_until_matched()
                 if self.on_waited is not None:
                     self.on_waited(waited)
