@@ -12,11 +12,7 @@ import os
 import socket
 from collections.abc import Iterator
 
-from bagkit.ros.domains import DOMAIN_GAIN, PORT_BASE, reserve
-
-# RTPS 9.6.1.1: a participant's discovery (metatraffic unicast) port is this offset plus twice
-# its participant id past its domain's first port.
-METATRAFFIC_UNICAST = 10
+from bagkit.ros.domains import reserve
 
 
 def assign() -> None:
@@ -40,11 +36,14 @@ def silent_participant(domain: int) -> Iterator[int]:
     """A socket on the discovery port of a participant id nobody uses in ``domain``, yielded:
     to bagkit's census (bagkit.ros.participants), a participant on this host that never
     answers."""
-    first = PORT_BASE + DOMAIN_GAIN * domain + METATRAFFIC_UNICAST
-    for participant in range(119, 0, -1):  # the highest first: Fast DDS takes the lowest free
+    # Not at the top: every test process imports this module, and the census imports rclpy.
+    from bagkit.ros.participants import PARTICIPANT_IDS, discovery_port
+
+    # The highest first: Fast DDS takes the lowest free.
+    for participant in range(PARTICIPANT_IDS - 1, 0, -1):
         port = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         try:
-            port.bind(("127.0.0.1", first + 2 * participant))
+            port.bind(("127.0.0.1", discovery_port(domain, participant)))
         except OSError:
             port.close()
             continue

@@ -25,6 +25,8 @@ from bagkit.ros.fastdds import localhost_only
 # RTPS well-known ports (spec 9.6.1.1): a participant's, PG and d1.
 _PARTICIPANT_GAIN = 2
 _METATRAFFIC_UNICAST = 10
+# Participant ids whose discovery port lies within their domain's ports.
+PARTICIPANT_IDS = (DOMAIN_GAIN - _METATRAFFIC_UNICAST) // _PARTICIPANT_GAIN
 # rmw_dds_common's topic: one publisher per ROS participant (not a ROS name: not mangled).
 _PARTICIPANT_TOPIC = "ros_discovery_info"
 # A GUID prefix from Fast DDS: vendor 1.15, host id (2 bytes), process id (low 2 bytes, little
@@ -183,7 +185,7 @@ def host_participants(domain_id: int) -> int | None:
     None when the count cannot be trusted: the socket tables are not readable, or this
     process's own participant is not among them (a transport without UDP).
     """
-    base = PORT_BASE + DOMAIN_GAIN * domain_id + _METATRAFFIC_UNICAST
+    base = discovery_port(domain_id, 0)
     ports: set[int] = set()
     own: set[int] = set()
     mine = _own_socket_inodes()
@@ -193,11 +195,21 @@ def host_participants(domain_id: int) -> int | None:
         return None
     for port, inode in sockets:
         offset = port - base
-        if 0 <= offset < DOMAIN_GAIN - _METATRAFFIC_UNICAST and offset % _PARTICIPANT_GAIN == 0:
+        if 0 <= offset < PARTICIPANT_IDS * _PARTICIPANT_GAIN and offset % _PARTICIPANT_GAIN == 0:
             ports.add(port)
             if inode in mine:
                 own.add(port)
     return len(ports) if own else None
+
+
+def discovery_port(domain_id: int, participant_id: int) -> int:
+    """The metatraffic unicast port that participant ``participant_id`` of ``domain_id`` binds."""
+    return (
+        PORT_BASE
+        + DOMAIN_GAIN * domain_id
+        + _METATRAFFIC_UNICAST
+        + _PARTICIPANT_GAIN * participant_id
+    )
 
 
 def discovered_participants(node: Node) -> int:
